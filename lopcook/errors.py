@@ -1,0 +1,50 @@
+"""The one exception lopcook raises, and the exit codes the CLI maps it to.
+
+Every error names the file, what is wrong and what to do, e.g.::
+
+    LopcookError("ingest", "car.glb", "accessor 3: 7 indices, not a multiple of 3",
+                 hint="re-export the file with triangulated primitives")
+
+Exit codes (see ``lopcook.cli``): 0 ok, 1 verification failed, 2 bad input or usage.
+"""
+
+from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_VERIFY_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+
+class LopcookError(Exception):
+    """A failure lopcook can explain in one line.
+
+    Parameters
+    ----------
+    stage : str
+        Pipeline stage that failed: ``"ingest"``, ``"analyse"``, ``"emit"``, ``"verify"``,
+        ``"report"``, ``"usage"``.
+    path : str | None
+        The file concerned (as the user gave it), or None when no file is involved.
+    message : str
+        What is wrong, with the offending value and what was expected.
+    hint : str | None
+        What the user can do about it.
+    exit_code : int
+        Process exit code the CLI uses: 2 (bad input/usage) by default, 1 for a failed verification.
+    """
+
+    def __init__(self, stage: str, path: str | None, message: str, *, hint: str | None = None,
+                 exit_code: int = EXIT_BAD_INPUT) -> None:
+        self.stage = stage
+        self.path = None if path is None else str(path)
+        self.message = message
+        self.hint = hint
+        self.exit_code = exit_code
+        super().__init__(self.__str__())
+
+    def __str__(self) -> str:
+        where = f"{self.path}: " if self.path else ""
+        text = f"{self.stage}: {where}{self.message}"
+        if self.hint:
+            text += f" ({self.hint})"
+        return text

@@ -1,0 +1,141 @@
+"""Polygon triangulation shared by the OBJ and USD loaders.
+
+Triangles pass through, quads are split vectorised along the diagonal that keeps both halves
+facing the polygon's normal (so concave quads come out right), and n-gons (5+ corners) are
+ear-clipped in the plane of their Newell normal. Only n-gons take a Python loop, one iteration
+per n-gon; triangle and quad meshes (the common case) never do.
+
+Winding is preserved: each output triangle turns the same way as the polygon it came from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _newell(pts: np.ndarray) -> np.ndarray:
+    """(k, 3) polygon -> (3,) Newell normal (length = 2 * projected area)."""
+    nxt = np.roll(pts, -1, axis=0)
+    return np.array([
+        np.sum((pts[:, 1] - nxt[:, 1]) * (pts[:, 2] + nxt[:, 2])),
+        np.sum((pts[:, 2] - nxt[:, 2]) * (pts[:, 0] + nxt[:, 0])),
+        np.sum((pts[:, 0] - nxt[:, 0]) * (pts[:, 1] + nxt[:, 1])),
+    ])
+
+
+def _point_in_triangle(p: np.ndarray, a, b, c) -> np.ndarray:
+    """p: (k, 2); a, b, c: (2,) counter-clockwise -> (k,) bool, boundary counts as inside."""
+    def cross(o, u, v):
+        return (u[..., 0] - o[..., 0]) * (v[..., 1] - o[..., 1]) - (u[..., 1] - o[..., 1]) * (v[..., 0] - o[..., 0])
+
+    return (cross(a, b, p) >= 0) & (cross(b, c, p) >= 0) & (cross(c, a, p) >= 0)
+
+
+def ear_clip(pts3: np.ndarray) -> np.ndarray:
+    """Triangulate one simple polygon (possibly concave).
+
+    Parameters
+    ----------
+    pts3 : (k, 3) float64, k >= 3, corners in order
+
+    Returns
+    -------
+    (k - 2, 3) int64 local corner indices, same turning direction as the input.
+    """
+    k = pts3.shape[0]
+    normal = _newell(pts3)
+    axis = int(np.argmax(np.abs(normal)))
+    keep = [i for i in range(3) if i != axis]
+    pts = pts3[:, keep].astype(np.float64)
+    if normal[axis] < 0:  # make the 2-D projection counter-clockwise
+        pts = pts[:, ::-1]
+    ring = list(range(k))
+    tris: list[tuple[int, int, int]] = []
+    guard = 0
+    while len(ring) > 3 and guard < 4 * k * k:
+        guard += 1
+        m = len(ring)
+        clipped = False
+        for j in range(m):
+            i0, i1, i2 = ring[j - 1], ring[j], ring[(j + 1) % m]
+            a, b, c = pts[i0], pts[i1], pts[i2]
+            turn = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+            if turn <= 0:
+                continue  # reflex or collinear corner: not an ear
+            others = [r for r in ring if r not in (i0, i1, i2)]
+            if others:
+                inside = _point_in_triangle(pts[others], a, b, c)
+                # a vertex that coincides with a corner of the ear does not block it
+                same = (np.all(pts[others] == a, axis=1) | np.all(pts[others] == b, axis=1)
+                        | np.all(pts[others] == c, axis=1))
+                if np.any(inside & ~same):
+                    continue
+            tris.append((i0, i1, i2))
+            ring.pop(j)
+            clipped = True
+            break
+        if not clipped:
+            # degenerate (collinear or self-intersecting) remainder: fan it, keeping the count k-2
+            for j in range(1, len(ring) - 1):
+                tris.append((ring[0], ring[j], ring[j + 1]))
+            ring = ring[:0]
+            break
+    if len(ring) == 3:
+        tris.append((ring[0], ring[1], ring[2]))
+    return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def triangulate(counts: np.ndarray, corner_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangulate polygons given per-corner positions.
+
+    Parameters
+    ----------
+    counts : (F,) int
+        Corners per polygon (OBJ ``f`` length, USD ``faceVertexCounts``). Polygons with fewer than
+        3 corners produce no triangles.
+    corner_positions : (C, 3) float64, C = counts.sum()
+        Position of every corner, polygon after polygon.
+
+    Returns
+    -------
+    tri_corners : (T, 3) int64
+        Indices into the corner array (so per-corner attributes map directly); T = sum(max(k-2, 0)).
+    tri_face : (T,) int64
+        Polygon each triangle came from. Output is ordered by polygon.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    start = np.zeros(counts.size, dtype=np.int64)
+    if counts.size:
+        np.cumsum(counts[:-1], out=start[1:])
+    pieces: list[tuple[np.ndarray, np.ndarray]] = []
+
+    tri_f = np.flatnonzero(counts == 3)
+    if tri_f.size:
+        s = start[tri_f]
+        pieces.append((np.stack([s, s + 1, s + 2], axis=1), tri_f))
+
+    quad_f = np.flatnonzero(counts == 4)
+    if quad_f.size:
+        s = start[quad_f]
+        a, b, c, d = (corner_positions[s + i] for i in range(4))
+        # Newell normal of the quad = cross of its diagonals
+        n = np.cross(c - a, d - b)
+        ok_ac = (np.einsum("ij,ij->i", np.cross(b - a, c - a), n) >= 0) & (
+            np.einsum("ij,ij->i", np.cross(c - a, d - a), n) >= 0)
+        t1 = np.where(ok_ac[:, None], np.stack([s, s + 1, s + 2], 1), np.stack([s, s + 1, s + 3], 1))
+        t2 = np.where(ok_ac[:, None], np.stack([s, s + 2, s + 3], 1), np.stack([s + 1, s + 2, s + 3], 1))
+        tris = np.stack([t1, t2], axis=1).reshape(-1, 3)
+        pieces.append((tris, np.repeat(quad_f, 2)))
+
+    big_f = np.flatnonzero(counts >= 5)
+    for f in big_f:  # n-gons are rare: one loop iteration each
+        s, k = int(start[f]), int(counts[f])
+        local = ear_clip(corner_positions[s:s + k])
+        pieces.append((local + s, np.full(local.shape[0], f, dtype=np.int64)))
+
+    if not pieces:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    tris = np.concatenate([p[0] for p in pieces])
+    face = np.concatenate([p[1] for p in pieces])
+    order = np.argsort(face, kind="stable")
+    return tris[order], face[order]

@@ -1,0 +1,75 @@
+"""Find co-located vertices: same position bits, possibly different attributes (UV/normal seams).
+
+Shared by every loader (normals are computed on the welded topology so seams shade smoothly) and
+by ``inspect`` (duplicated positions). Exact comparison: two vertices are co-located when their
+float64 coordinates are identical (``-0.0`` equals ``0.0``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def weld_exact(positions: np.ndarray) -> tuple[np.ndarray, int]:
+    """Group identical positions.
+
+    Parameters
+    ----------
+    positions : (n, 3) float64
+
+    Returns
+    -------
+    inverse : (n,) int64
+        Group id of each vertex; groups are numbered in order of first appearance.
+    n_groups : int
+    """
+    p = np.ascontiguousarray(positions, dtype=np.float64) + 0.0  # -0.0 -> 0.0
+    rows = p.view(np.dtype((np.void, p.dtype.itemsize * 3))).ravel()
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    # renumber groups by first appearance so the result does not depend on byte order of floats
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return rank[inverse.ravel()].astype(np.int64), int(first.size)
+
+
+def unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique rows of a 2-D array, numbered in order of first appearance.
+
+    Parameters
+    ----------
+    keys : (c, k) array of any fixed-size dtype (e.g. int64 ids and float bit patterns)
+
+    Returns
+    -------
+    first : (u,) int64  index of the first row of each unique row, increasing
+    inverse : (c,) int64  unique id of each row
+    """
+    k = np.ascontiguousarray(keys)
+    rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
+
+
+def duplicated_positions(positions: np.ndarray) -> int:
+    """Number of vertices whose position repeats an earlier vertex's (n - distinct positions)."""
+    _, n_groups = weld_exact(positions)
+    return int(positions.shape[0] - n_groups)
+
+
+def degenerate_triangles(positions: np.ndarray, indices: np.ndarray, rel_tol: float = 1e-12) -> int:
+    """Count zero-area triangles (repeated index, coincident or collinear corners).
+
+    A triangle is degenerate when twice its area is <= rel_tol * (longest edge)^2, or its longest
+    edge is 0. ``rel_tol`` is dimensionless (the squared sine of the smallest angle, roughly).
+    """
+    t = positions[indices.astype(np.int64)]
+    e0 = t[:, 1] - t[:, 0]
+    e1 = t[:, 2] - t[:, 0]
+    e2 = t[:, 2] - t[:, 1]
+    area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
+    longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
+    return int(np.count_nonzero((longest2 == 0) | (area2 <= rel_tol * longest2)))

@@ -1,0 +1,184 @@
+"""The scene model every importer produces and every later stage consumes.
+
+Conventions (all importers normalise to these):
+
+* positions: world space, **metres**, right-handed, **+Y up** (USD ``upAxis = Z`` is rotated
+  -90 degrees about X; ``metersPerUnit`` and glTF/OBJ units are applied as given: glTF is metres
+  by specification, OBJ has no units and is taken as metres).
+* triangles: counter-clockwise seen from the outside (front face), ``uint32`` indices.
+* uvs: glTF convention, origin at the **top-left** of the image (OBJ/USD ``v`` is flipped to ``1 - v``).
+* normals: unit length, float32; ``normals_computed`` says whether the source supplied them.
+* colors: linear RGBA float32 in [0, 1].
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import LopcookError
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    """An encoded image (PNG/JPEG bytes) used as the base-colour texture of some parts.
+
+    ``name`` is the file name or ``"<embedded N>"``; ``data`` is the encoded file content.
+    """
+
+    name: str
+    data: bytes
+
+    def image(self):
+        """Decode to a PIL image (RGB/RGBA, 8 bits per channel)."""
+        import io
+
+        from PIL import Image
+
+        return Image.open(io.BytesIO(self.data))
+
+    @property
+    def digest(self) -> str:
+        """sha256 of the encoded bytes (stable identity for reports and containers)."""
+        return hashlib.sha256(self.data).hexdigest()
+
+
+@dataclass(frozen=True, eq=False)
+class MeshPart:
+    """One drawable mesh: a glTF primitive under a node, an OBJ object/group, a placed USD Mesh.
+
+    Attributes
+    ----------
+    name : str
+        Human-readable, unique within the scene (importers de-duplicate with ``#k`` suffixes).
+    positions : (n, 3) float64
+        World-space positions in metres, +Y up.
+    indices : (m, 3) uint32
+        Counter-clockwise triangles, each index in [0, n).
+    normals : (n, 3) float32 or None
+        Unit normals (world space).
+    uvs : (n, 2) float32 or None
+        Texture coordinates, origin top-left (glTF convention).
+    colors : (n, 4) float32 or None
+        Linear RGBA in [0, 1].
+    source : str
+        Where it came from: glTF ``node/mesh/primitive``, OBJ ``o``/``g`` name, USD prim path
+        (with ``[instance k]`` for instancer placements).
+    normals_computed : bool
+        True when the source had no normals and lopcook computed them (area-weighted,
+        crease-aware; see ``lopcook.ingest.normals``).
+    texture : Texture or None
+        Base-colour texture, if the source names one for this part.
+    mesh_key : str
+        Identity of the source mesh data: parts that instance the same mesh share it.
+    """
+
+    name: str
+    positions: np.ndarray
+    indices: np.ndarray
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    source: str = ""
+    normals_computed: bool = False
+    texture: Texture | None = None
+    mesh_key: str = ""
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.indices.shape[0])
+
+    def validate(self, path: str | None = None) -> None:
+        """Raise LopcookError("ingest", path, ...) unless shapes, dtypes, ranges and values hold."""
+
+        def fail(msg: str, hint: str | None = None) -> None:
+            raise LopcookError("ingest", path, f"part {self.name!r}: {msg}", hint=hint)
+
+        p = self.positions
+        if not isinstance(p, np.ndarray) or p.dtype != np.float64 or p.ndim != 2 or p.shape[1] != 3:
+            fail(f"positions must be (n, 3) float64, got {getattr(p, 'dtype', type(p))} {getattr(p, 'shape', '')}")
+        if p.shape[0] == 0:
+            fail("has no vertices", "remove the empty mesh or export it with geometry")
+        if not np.isfinite(p).all():
+            bad = int((~np.isfinite(p)).any(axis=1).sum())
+            fail(f"{bad} vertex positions are NaN or Inf", "fix the mesh in the authoring tool")
+        t = self.indices
+        if not isinstance(t, np.ndarray) or t.dtype != np.uint32 or t.ndim != 2 or t.shape[1] != 3:
+            fail(f"indices must be (m, 3) uint32, got {getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")
+        if t.shape[0] == 0:
+            fail("has no triangles", "remove the empty mesh or export it with faces")
+        if int(t.max()) >= p.shape[0]:
+            fail(f"index {int(t.max())} out of range for {p.shape[0]} vertices")
+        n = p.shape[0]
+        for name, arr, width in (("normals", self.normals, 3), ("uvs", self.uvs, 2), ("colors", self.colors, 4)):
+            if arr is None:
+                continue
+            if not isinstance(arr, np.ndarray) or arr.dtype != np.float32 or arr.shape != (n, width):
+                fail(f"{name} must be ({n}, {width}) float32, got {getattr(arr, 'dtype', type(arr))} "
+                     f"{getattr(arr, 'shape', '')}")
+            if not np.isfinite(arr).all():
+                fail(f"{name} contain NaN or Inf")
+        if self.normals is not None:
+            length = np.linalg.norm(self.normals, axis=1)
+            if np.abs(length - 1.0).max() > 1e-3:
+                fail(f"normals are not unit length (max |len-1| = {np.abs(length - 1.0).max():.3g})")
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Everything an importer read from one source file.
+
+    Attributes
+    ----------
+    parts : tuple[MeshPart, ...]
+        Drawable parts in a deterministic order (source order).
+    source : str
+        The path as the user gave it (used in messages; never written with absolute prefixes).
+    format : str
+        ``"gltf"``, ``"glb"``, ``"obj"``, ``"usda"``, ``"usdc"`` or ``"usdz"`` (decided from content).
+    unit_scale : float
+        Metres per source unit that was applied to positions.
+    up_axis : str
+        The source's up axis before normalisation (``"Y"`` or ``"Z"``).
+    warnings : tuple[str, ...]
+        Things the importer tolerated (missing .mtl, skipped non-triangle primitives, ...).
+    """
+
+    parts: tuple[MeshPart, ...]
+    source: str
+    format: str
+    unit_scale: float = 1.0
+    up_axis: str = "Y"
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def n_vertices(self) -> int:
+        return sum(p.n_vertices for p in self.parts)
+
+    @property
+    def n_triangles(self) -> int:
+        return sum(p.n_triangles for p in self.parts)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: min and max corner of all positions, metres."""
+        lo = np.min([p.positions.min(axis=0) for p in self.parts], axis=0)
+        hi = np.max([p.positions.max(axis=0) for p in self.parts], axis=0)
+        return np.stack([lo, hi])
+
+    def validate(self) -> "Scene":
+        """Check every part (see MeshPart.validate) and that the scene is not empty; return self."""
+        if not self.parts:
+            raise LopcookError("ingest", self.source, "the scene has no triangle meshes",
+                               hint="export at least one mesh with triangles or polygons")
+        names = [p.name for p in self.parts]
+        if len(set(names)) != len(names):
+            raise LopcookError("ingest", self.source, "part names are not unique")
+        for part in self.parts:
+            part.validate(self.source)
+        return self
