@@ -96,7 +96,16 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
     """Load a glTF/GLB, OBJ or USD(A/C/Z) file into a validated Scene (metres, +Y up, CCW)."""
     path = os.fspath(path)
     fmt = sniff(path)
-    scene = LOADERS[fmt](path, fmt, settings)
+    try:
+        scene = LOADERS[fmt](path, fmt, settings)
+    except LopcookError:
+        raise
+    except MemoryError:
+        raise LopcookError("ingest", path, "out of memory while reading the file",
+                           hint="split the scene or use a machine with more memory") from None
+    except Exception as exc:  # a parser failure we did not anticipate: still one clear line
+        raise LopcookError("ingest", path, f"cannot read {fmt} file: {type(exc).__name__}: {exc}",
+                           hint="the file is malformed; re-export it (run with --debug for details)") from exc
     return scene.validate()
 
 

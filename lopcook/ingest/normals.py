@@ -96,6 +96,18 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(3 * m, 3 * m))
     _, group = connected_components(graph, directed=False)
 
+    # a group made only of zero-area triangles has no direction: merge its corners into another
+    # group of the same welded vertex that has one (so degenerate slivers do not split vertices)
+    corner_fn = np.repeat(fn, 3, axis=0)
+    gsum = np.zeros((group.max() + 1 if m else 0, 3))
+    np.add.at(gsum, group, corner_fn)
+    good = np.linalg.norm(gsum, axis=1)[group] > 1e-300
+    wv = wtri.ravel()
+    donor = np.full(int(wv.max()) + 1 if m else 0, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(donor, wv[good], group[good])
+    take = ~good & (donor[wv] != np.iinfo(np.int64).max)
+    group = np.where(take, donor[wv], group)
+
     # new vertex = (original vertex, corner group); number them by first corner appearance
     ov = tri.ravel()
     key = ov * np.int64(3 * m + 1) + group
@@ -108,7 +120,7 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
 
     # accumulate area-weighted normals per group, then per new vertex
     gsum = np.zeros((group.max() + 1 if m else 0, 3))
-    np.add.at(gsum, group, np.repeat(fn, 3, axis=0))
+    np.add.at(gsum, group, corner_fn)
     first_corner = first[order_new]
     normals = gsum[group[first_corner]]
 

@@ -1,0 +1,111 @@
+"""CLI behaviour: exit codes, one-line errors without traceback, --json schema, --quiet, --version."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from conftest import FIXTURES, REPO
+
+
+def run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "lopcook", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd)
+
+
+def assert_one_line_error(proc, name):
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert name in lines[0]
+    assert lines[0].startswith("lopcook: error: ")
+    assert proc.stdout == ""
+
+
+def test_version():
+    proc = run("--version")
+    assert proc.returncode == 0 and proc.stdout.startswith("lopcook ")
+
+
+def test_usage_error_exit_2():
+    proc = run("inspect")
+    assert proc.returncode == 2
+    proc = run("frobnicate")
+    assert proc.returncode == 2
+
+
+BAD_INPUTS = {
+    "unknown.xyz": b"v 0 0 0\n",
+    "missing.obj": None,
+    "empty.obj": b"",
+    "notglb.glb": b"hello world, not a binary glTF",
+    "truncated.glb": b"glTF\x02\x00\x00\x00\xff\x00\x00\x00JSON",
+    "broken.gltf": b'{"asset": {"version": "2.0"}, "meshes": [',
+    "nan.obj": b"v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n",
+    "range.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n",
+    "noface.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\n",
+    "garbage.usda": b"#usda 1.0\n(\n  this is not usd )\n def Mesh {",
+    "empty.usda": b'#usda 1.0\n(\n    upAxis = "Y"\n)\ndef Xform "root"\n{\n}\n',
+    "garbage.usdc": b"PXR-USDC\x00\x00\x00\x00garbage",
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_INPUTS))
+def test_bad_input_one_clear_line(tmp_path, name):
+    path = tmp_path / name
+    if BAD_INPUTS[name] is not None:
+        path.write_bytes(BAD_INPUTS[name])
+    proc = run("inspect", path)
+    assert_one_line_error(proc, name)
+
+
+def test_directory_is_rejected(tmp_path):
+    d = tmp_path / "scene.obj"
+    d.mkdir()
+    assert_one_line_error(run("inspect", d), "scene.obj")
+
+
+def test_debug_shows_traceback(tmp_path):
+    path = tmp_path / "range.obj"
+    path.write_bytes(BAD_INPUTS["range.obj"])
+    proc = run("--debug", "inspect", path)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_bad_flag_value():
+    proc = run("inspect", FIXTURES / "seamed_cube.obj", "--crease-angle", "200")
+    assert proc.returncode == 2 and "--crease-angle" in proc.stderr
+
+
+def test_inspect_json_matches_schema_and_counts():
+    schema = json.loads((REPO / "schema" / "inspect.source.schema.json").read_text())
+    proc = run("inspect", FIXTURES / "seamed_cube.glb", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    jsonschema.validate(data, schema)
+    assert data["totals"]["parts"] == 1
+    assert data["totals"]["vertices"] == 24 and data["totals"]["triangles"] == 12
+    assert data["totals"]["duplicated_positions"] == 16  # 8 corners x (3 copies - 1)
+    assert data["parts"][0]["normals"] == "source" and data["parts"][0]["uvs"] is True
+    assert data["extent_m"] == [1.0, 1.0, 1.0]
+
+
+def test_inspect_text_and_quiet():
+    proc = run("inspect", FIXTURES / "two_plates.obj")
+    assert proc.returncode == 0 and "2 parts" in proc.stdout and "plate_upper" in proc.stdout
+    proc = run("--quiet", "inspect", FIXTURES / "two_plates.obj")
+    assert proc.returncode == 0 and proc.stdout == "" and proc.stderr == ""
+
+
+def test_inspect_json_corpus_schema(corpus):
+    schema = json.loads((REPO / "schema" / "inspect.source.schema.json").read_text())
+    for name in ["CesiumMilkTruck.glb", "UtahTeapot.usd", "spot.obj"]:
+        proc = run("inspect", corpus / name, "--json")
+        assert proc.returncode == 0, proc.stderr
+        jsonschema.validate(json.loads(proc.stdout), schema)

@@ -1,0 +1,79 @@
+"""Triangulation (lopcook.ingest.polygons): analytic areas, winding, concave polygons."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lopcook.ingest.polygons import ear_clip, triangulate
+
+
+def signed_areas(pts2, tris):
+    a, b, c = pts2[tris[:, 0]], pts2[tris[:, 1]], pts2[tris[:, 2]]
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+L_SHAPE = np.array([[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]], float)
+
+
+def test_concave_l_hexagon_area_and_winding():
+    tris, face = triangulate(np.array([6]), L_SHAPE)
+    assert tris.shape == (4, 3)
+    assert np.all(face == 0)
+    areas = signed_areas(L_SHAPE[:, :2], tris)
+    assert np.all(areas > 0)  # same (CCW) turn as the polygon
+    assert areas.sum() == pytest.approx(3.0, abs=1e-15)
+
+
+def test_clockwise_polygon_stays_clockwise():
+    cw = L_SHAPE[::-1].copy()
+    tris, _ = triangulate(np.array([6]), cw)
+    areas = signed_areas(cw[:, :2], tris)
+    assert np.all(areas < 0) and areas.sum() == pytest.approx(-3.0)
+
+
+@pytest.mark.parametrize("reflex", range(4))
+def test_concave_quad_any_reflex_corner(reflex):
+    dart = np.array([[0.5, 0.5, 0], [1, 0, 0], [0.5, 2, 0], [0, 0, 0]], float)
+    # dart is CCW? make it CCW then rotate so the reflex corner is at position `reflex`
+    quad = np.roll(dart[[0, 3, 1, 2]] if signed_areas(dart[:, :2], np.array([[0, 1, 2]]))[0] < 0 else dart,
+                   reflex, axis=0)
+    total = 0.5 * np.sum(quad[:, 0] * np.roll(quad[:, 1], -1) - np.roll(quad[:, 0], -1) * quad[:, 1])
+    tris, _ = triangulate(np.array([4]), quad)
+    areas = signed_areas(quad[:, :2], tris)
+    assert np.all(np.sign(areas) == np.sign(total))
+    assert areas.sum() == pytest.approx(total)
+
+
+def test_mixed_counts_ordered_by_face_and_degenerate_faces_skipped():
+    counts = np.array([3, 2, 4, 5])
+    pts = np.vstack([
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+        [[0, 0, 0], [1, 1, 0]],
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+        [[0, 0, 0], [2, 0, 0], [2, 2, 0], [1, 3, 0], [0, 2, 0]],
+    ]).astype(float)
+    tris, face = triangulate(counts, pts)
+    assert face.tolist() == [0, 2, 2, 3, 3, 3]
+    assert tris.max() < pts.shape[0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(5, 24), st.integers(0, 2**31 - 1))
+def test_star_polygons_tile_exactly(k, seed):
+    """Random simple polygons (corners sorted by angle around the origin; concave, and clockwise when
+    an angular gap exceeds 180 degrees): k-2 triangles turning like the polygon, areas summing to its
+    shoelace area."""
+    rng = np.random.default_rng(seed)
+    ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+    if np.min(np.diff(np.r_[ang, ang[0] + 2 * np.pi])) < 1e-3:
+        return
+    r = rng.uniform(0.2, 1.0, k)
+    pts2 = np.stack([r * np.cos(ang), r * np.sin(ang)], 1)
+    pts = np.c_[pts2, np.zeros(k)]
+    tris = ear_clip(pts)
+    assert tris.shape == (k - 2, 3)
+    shoelace = 0.5 * np.sum(pts2[:, 0] * np.roll(pts2[:, 1], -1) - np.roll(pts2[:, 0], -1) * pts2[:, 1])
+    areas = signed_areas(pts2, tris)
+    assert np.all(areas * np.sign(shoelace) > -1e-12)
+    assert areas.sum() == pytest.approx(shoelace, rel=1e-9)
