@@ -1,0 +1,156 @@
+"""Analyse: a Scene -> per-vertex minimum bit levels (constrained adaptive precision, CAP).
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+sections 3-5. Steps: (1) one 24-bit grid for the scene, (2) E_v per shading attribute and the
+attribute level, (3) depth-critical levels, (4) m_v = max of both, (5) co-located vertices (same
+quantized position, any part) share the maximum of their levels.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..settings import DEFAULT_ANALYSE, AnalyseSettings
+from ..types import Scene
+from .attribute_error import triangle_gradient_norm, vertex_max
+from .bitlevel import attribute_level, texture_slope
+from .depth import depth_levels
+from .grid import BITS, Grid
+from .result import REASON_CODE, Analysis, PartAnalysis
+
+
+def _kf_for(part, settings: AnalyseSettings) -> dict:
+    """k_f per attribute present on ``part`` (colour per attribute unit); 0 means ignored."""
+    kf = {}
+    if part.normals is not None:
+        kf["normal"] = settings.normal_kf
+    if part.uvs is not None and settings.texture_kf != "off":
+        if settings.kf is not None:
+            kf["uv"] = float(settings.kf)
+        elif isinstance(settings.texture_kf, (int, float)):
+            kf["uv"] = float(settings.texture_kf)
+        elif part.texture is not None:
+            kf["uv"] = texture_slope(part.texture)
+        else:
+            kf["uv"] = float(settings.untextured_uv_kf)
+    if part.colors is not None:
+        kf["color"] = float(settings.kf) if settings.kf is not None else settings.color_kf
+    return kf
+
+
+def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None) -> Analysis:
+    """Minimum bit level m_v for every vertex of every part (see module doc and PartAnalysis)."""
+    timings: dict = {}
+    t0 = time.perf_counter()
+    grid = grid or Grid.fit([p.positions for p in scene.parts])
+    quantized = [grid.quantize(p.positions) for p in scene.parts]
+    timings["grid"] = time.perf_counter() - t0
+
+    # (2) attribute error and level
+    t0 = time.perf_counter()
+    attr_level, attr_reason, e_vs, kfs, degenerate, unsatisfied = [], [], [], [], [], []
+    for part in scene.parts:
+        n = part.n_vertices
+        kf = _kf_for(part, settings)
+        level = np.ones(n, dtype=np.int64)
+        reason = np.full(n, REASON_CODE["none"], dtype=np.uint8)
+        e_v = {}
+        deg = 0
+        for name, attr in (("normal", part.normals), ("uv", part.uvs), ("color", part.colors)):
+            if name not in kf:
+                continue
+            e_t, degen = triangle_gradient_norm(part.positions, part.indices, attr)
+            deg = int(np.count_nonzero(degen))
+            e_v[name] = vertex_max(part.indices, e_t, n)
+            if kf[name] <= 0:
+                continue
+            lv = attribute_level(e_v[name], kf[name], settings.eps, grid.extent)
+            raise_ = lv > level
+            reason[raise_] = REASON_CODE[name]
+            level = np.maximum(level, lv)
+        if not e_v:  # no attributes: still count degenerate triangles
+            _, degen = triangle_gradient_norm(part.positions, part.indices, np.zeros((n, 1)))
+            deg = int(np.count_nonzero(degen))
+        unsatisfied.append(int(np.count_nonzero(level > BITS)))
+        level = np.minimum(level, BITS)
+        reason[level == 1] = REASON_CODE["none"]
+        attr_level.append(level)
+        attr_reason.append(reason)
+        e_vs.append(e_v)
+        kfs.append(kf)
+        degenerate.append(deg)
+    timings["attribute_error"] = time.perf_counter() - t0
+
+    # (3) depth
+    t0 = time.perf_counter()
+    positions = [p.positions for p in scene.parts]
+    indices = [p.indices for p in scene.parts]
+    names = [p.name for p in scene.parts]
+    depth = settings.depth
+    touching: list = []
+    intersecting: list = []
+    if depth == "off":
+        depth_level = [np.ones(p.n_vertices, np.int64) for p in scene.parts]
+        depth_dist = [np.full(p.n_vertices, np.inf) for p in scene.parts]
+        capped = [np.zeros(p.n_vertices, bool) for p in scene.parts]
+    elif isinstance(depth, tuple) and depth[0] == "fixed":
+        res = depth_levels(positions, indices, grid.extent, threshold=settings.depth_threshold)
+        depth_level = [np.where(c > 0, int(depth[1]), 1).astype(np.int64) for c in res.level]
+        depth_dist, capped = res.distance, res.capped
+        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
+    else:
+        res = depth_levels(positions, indices, grid.extent, floors=attr_level, ceiling=settings.depth_ceiling)
+        depth_level, depth_dist, capped = res.level, res.distance, res.capped
+        touching = [(names[i], names[j]) for i, j in res.touching]
+        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
+    timings["depth"] = time.perf_counter() - t0
+
+    # (4) combine, (5) co-located vertices share the maximum
+    t0 = time.perf_counter()
+    combined, reasons = [], []
+    for k in range(len(scene.parts)):
+        lv = np.maximum(attr_level[k], depth_level[k])
+        reason = attr_reason[k].copy()
+        by_depth = depth_level[k] > attr_level[k]
+        reason[by_depth] = np.where(capped[k][by_depth], REASON_CODE["depth-capped"], REASON_CODE["depth"])
+        combined.append(lv)
+        reasons.append(reason)
+    allq = np.concatenate(quantized)
+    alll = np.concatenate(combined)
+    rows = np.ascontiguousarray(allq).view(np.dtype((np.void, 12))).ravel()
+    _, inverse = np.unique(rows, return_inverse=True)
+    inverse = inverse.ravel()
+    group_max = np.zeros(inverse.max() + 1, dtype=np.int64)
+    np.maximum.at(group_max, inverse, alll)
+    shared = group_max[inverse]
+    raised_total = int(np.count_nonzero(shared > alll))
+    timings["co_located"] = time.perf_counter() - t0
+
+    parts = []
+    start = 0
+    for k, part in enumerate(scene.parts):
+        n = part.n_vertices
+        final = shared[start:start + n]
+        reason = reasons[k]
+        reason[final > combined[k]] = REASON_CODE["co-located"]
+        parts.append(PartAnalysis(
+            min_level=final.astype(np.uint8),
+            reason=reason,
+            attribute_level=attr_level[k].astype(np.uint8),
+            depth_level=np.asarray(depth_level[k]).astype(np.uint8),
+            e_v=e_vs[k],
+            kf=kfs[k],
+            depth_distance=np.asarray(depth_dist[k], dtype=np.float64),
+            quantized=quantized[k],
+            degenerate_triangles=degenerate[k],
+            attribute_unsatisfied=unsatisfied[k],
+            depth_capped=int(np.count_nonzero(capped[k])),
+        ))
+        start += n
+    return Analysis(grid=grid, parts=parts, part_names=names, settings=settings, touching=touching,
+                    intersecting=intersecting, timings=timings, colocated_raised=raised_total)
+
+
+__all__ = ["analyse", "Analysis", "PartAnalysis", "Grid"]

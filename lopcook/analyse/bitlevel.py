@@ -1,0 +1,57 @@
+"""Per-vertex minimum bit level from the attribute error bound, and texture slopes for k_f.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+section 5.1: a vertex moved by dx changes the shaded colour by at most k_f * E_v * dx, so it
+needs the smallest level b with
+
+    k_f * E_v * dx(b) <= eps          (dx(b) = sqrt(3) * extent * 2^-(b+1), metres)
+
+k_f is the slope of the shader with respect to the attribute (colour per attribute unit): for
+Phong-shaded normals ``k_s * n`` (specular coefficient times exponent), for texture coordinates
+the texture's maximum slope (colour per UV unit), for vertex colours 1. ``eps`` is in colour
+units (1/255 = one 8-bit step). A vertex that even 24 bits cannot satisfy gets 24 and is counted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..types import Texture
+from .grid import BITS, dx, smallest_level
+
+
+def attribute_level(e_v: np.ndarray, kf: float, eps: float, extent: float) -> np.ndarray:
+    """(n,) int64: smallest b in [1, 24] with kf * e_v * dx(b) <= eps; 25 if none (caller clamps).
+
+    e_v in attribute units per metre, kf in colour per attribute unit, eps colour, extent metres."""
+    slope = float(kf) * np.asarray(e_v, dtype=np.float64)
+    return smallest_level(lambda b: slope[..., None] * dx(b, extent) <= eps, slope.shape)
+
+
+_SLOPE_CACHE: dict[str, float] = {}
+
+
+def texture_slope(texture: Texture) -> float:
+    """Maximum slope of a texture in colour per UV unit (colour in [0, 1] as stored, 8-bit / 255).
+
+    Forward differences between neighbouring texels along u and v (wrapping, as a repeating
+    texture does), scaled by the texture size to UV units, combined as the gradient norm
+    sqrt(d/du^2 + d/dv^2) per channel; the maximum over texels and channels (alpha included)."""
+    key = texture.digest
+    if key in _SLOPE_CACHE:
+        return _SLOPE_CACHE[key]
+    img = texture.image()
+    if img.mode not in ("RGB", "RGBA", "L", "LA"):
+        img = img.convert("RGBA")
+    a = np.asarray(img, dtype=np.float32) / 255.0
+    if a.ndim == 2:
+        a = a[:, :, None]
+    h, w = a.shape[:2]
+    du = (np.roll(a, -1, axis=1) - a) * w
+    dv = (np.roll(a, -1, axis=0) - a) * h
+    slope = float(np.sqrt(du * du + dv * dv).max())
+    _SLOPE_CACHE[key] = slope
+    return slope
+
+
+__all__ = ["attribute_level", "texture_slope", "BITS"]
