@@ -1,0 +1,706 @@
+"""USD loader: ``.usd`` / ``.usda`` / ``.usdc`` / ``.usdz`` -> ``Scene`` (not yet validated).
+
+What is drawn
+-------------
+Every ``UsdGeom.Mesh`` a renderer would draw becomes one ``MeshPart`` per placement:
+
+* the stage is composed with ``Usd.Stage.Open(path, Usd.Stage.LoadAll)`` (references, payloads,
+  variants, instanceable prims); composition errors and unreadable files raise ``LopcookError``
+  with USD's own diagnostic text;
+* traversal follows instance proxies and skips prims that are inactive, unloaded, undefined or
+  abstract, prims whose ``visibility`` is ``invisible`` (and everything beneath), and meshes whose
+  computed ``purpose`` is ``guide`` or ``proxy`` (``default`` and ``render`` are kept);
+* prims beneath a ``UsdGeom.PointInstancer`` are drawn only through the instancer: every visible
+  instance (``protoIndices``, ``positions``, ``orientations``, ``scales``, ``invisibleIds``,
+  ``inactiveIds``) places every drawable mesh of its prototype, so one prototype mesh gives one
+  part per instance. Such parts are named ``<instancer>[k]/<prototype>/<mesh path>``; their
+  ``source`` is ``<mesh prim path> [instance k]``. Nested instancers are followed.
+
+``mesh_key`` is the prim path of the source mesh data (the prototype prim for instance proxies,
+the prototype mesh for instancer placements): every placement of the same mesh shares it, and the
+loader reads, triangulates and splits each keyed mesh only once.
+
+Geometry
+--------
+``faceVertexCounts`` / ``faceVertexIndices`` polygons (faces listed in ``holeIndices`` dropped,
+faces with fewer than 3 corners skipped and counted in ``Scene.warnings``) are triangulated by
+``polygons.triangulate`` (concave quads and n-gons included). ``orientation = leftHanded`` flips
+the winding; so does a placement transform with a negative determinant (both together cancel).
+
+Primvars: normals (``primvars:normals``, else the ``normals`` attribute), one UV set (``st``, then
+``st0``, ``UVMap``, ``map1``, ``uv``, else the first ``texCoord2*`` primvar; ``v`` becomes
+``1 - v``) and ``displayColor`` / ``displayOpacity`` as RGBA. Interpolations ``constant``,
+``uniform`` (per face), ``vertex`` / ``varying`` (per point) and ``faceVarying`` (per corner) are
+supported, indexed or not (a *blocked* ``:indices`` attribute means "not indexed").
+
+A part's vertex is one distinct (point, normal, uv, color) combination over the corners of its
+kept faces, so vertices are split at UV seams and uniform/faceVarying normal discontinuities, and
+points no face uses are dropped. Hence part vertex counts differ from the USD ``points`` count.
+
+Transforms and units
+--------------------
+The world matrix comes from ``UsdGeom.XformCache`` (row-vector convention, ``p_world = p @ M``),
+then ``upAxis = Z`` is turned into +Y up by ``(x, y, z) -> (x, z, -y)`` (a -90 degree rotation about
+X, handedness kept) and ``metersPerUnit`` scales to metres (USD's fallback 0.01 applies when it is
+not authored; that case is reported in ``Scene.warnings``). Normals are transformed by the
+inverse-transpose of the linear part.
+
+Time
+----
+``IngestSettings.usd_time`` selects the time code every attribute is read at:
+
+* ``"default"``: ``Usd.TimeCode.Default()``. An attribute that has no default value but has time
+  samples (e.g. animated ``points``, or an animated xformOp anywhere above the mesh) is read at
+  ``Usd.TimeCode.EarliestTime()``, i.e. its first sample;
+* a number (e.g. ``"24"``): that time code, with USD's usual value resolution (time samples
+  interpolated, falling back to the default value).
+
+Textures
+--------
+For a mesh's bound material (``UsdShade.MaterialBindingAPI.ComputeBoundMaterial``) whose surface is
+a ``UsdPreviewSurface``, the ``UsdUVTexture`` feeding ``diffuseColor`` gives the part's texture
+(its ``inputs:file`` asset, read through the asset resolver, so files inside a ``.usdz`` work).
+An asset that does not resolve is reported in ``Scene.warnings`` and the part has no texture.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import sys
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LopcookError
+from ..settings import IngestSettings
+from ..types import MeshPart, Scene, Texture
+from .build import make_part, unique_names
+from .polygons import triangulate
+from .weld import unique_rows
+
+#: UV primvar names, in order of preference, before falling back to any texCoord2* primvar
+UV_NAMES = ("st", "st0", "UVMap", "map1", "uv")
+_UV_TYPES = {"texCoord2f", "texCoord2d", "texCoord2h", "float2", "double2", "half2"}
+_SKIPPED_PURPOSES = ("guide", "proxy")
+#: (x, y, z) -> (x, z, -y) as a row-vector matrix: +Z up becomes +Y up, handedness kept
+_Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_DIAG_RE = re.compile(r"^(?:[A-Za-z ]*Error|Warning|Status)?:? ?in \S+ at line \d+ of \S+ -- (.*)$")
+
+
+@dataclass(frozen=True, eq=False)
+class _LocalMesh:
+    """One Mesh prim read, triangulated and split into vertices, in its own object space.
+
+    points : (n, 3) float64 object-space position of each vertex (source units)
+    tris : (m, 3) int64 vertex indices, counter-clockwise for a placement with det > 0
+    normals : (n, 3) float32 object-space normals, or None
+    uvs : (n, 2) float32, origin top-left (USD ``v`` flipped), or None
+    colors : (n, 4) float32 linear RGBA, or None
+    """
+
+    key: str
+    points: np.ndarray
+    tris: np.ndarray
+    normals: np.ndarray | None
+    uvs: np.ndarray | None
+    colors: np.ndarray | None
+    texture: Texture | None
+
+
+@dataclass(frozen=True)
+class _Context:
+    """Where a subtree is drawn from.
+
+    root : None for the stage (world transforms from the XformCache); else the prototype root prim
+    matrix : (4, 4) float64 row-vector matrix applied after the transform relative to ``root``
+        (instance transform x instancer transform); None for the stage
+    label : name prefix replacing ``root``'s path in part names, e.g. ``/Set/Pawns[3]/Pawn``
+    instance : text appended to ``source``, e.g. `` [instance 3]``
+    """
+
+    root: object = None
+    matrix: np.ndarray | None = None
+    label: str = ""
+    instance: str = ""
+
+
+@contextlib.contextmanager
+def _captured_stderr():
+    """Redirect file descriptor 2 (where USD prints its diagnostics) into a list of lines."""
+    lines: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield lines
+        return
+    with tempfile.TemporaryFile() as buf:
+        os.dup2(buf.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            try:
+                sys.stderr.flush()
+            except (OSError, ValueError):
+                pass
+            os.dup2(saved, 2)
+            os.close(saved)
+            buf.seek(0)
+            text = buf.read().decode("utf-8", "replace")
+            lines.extend(ln.strip() for ln in text.splitlines() if ln.strip())
+
+
+def _diagnostic_text(line: str) -> str:
+    """USD's 'Warning: in F at line N of file.cpp -- message' -> 'message'."""
+    m = _DIAG_RE.match(line)
+    return m.group(1).strip() if m else line.strip()
+
+
+def _tf_text(exc) -> str:
+    """The messages of a Tf.ErrorException, joined; robust to undecodable bytes in them."""
+    texts = []
+    for arg in exc.args:
+        try:
+            text = getattr(arg, "commentary", None)
+            text = str(arg) if text is None else text
+        except UnicodeDecodeError:
+            text = "(a USD diagnostic with undecodable bytes)"
+        if str(text).strip():
+            texts.append(str(text).strip())
+    return "; ".join(texts) or type(exc).__name__
+
+
+def _one_line(text: str, path: str) -> str:
+    text = " ".join(str(text).split())
+    absolute = os.path.abspath(path)
+    if absolute != path:  # messages name files as the user gave them, not with absolute prefixes
+        text = text.replace(absolute, path)
+        folder, given = os.path.dirname(absolute), os.path.dirname(path)
+        text = text.replace(folder + os.sep, given + os.sep if given else "")
+    return text
+
+
+class _Loader:
+    def __init__(self, path: str, fmt: str, settings: IngestSettings) -> None:
+        from pxr import Usd
+
+        self.path = path
+        self.fmt = fmt
+        self.settings = settings
+        self.warnings: list[str] = []
+        self.meshes: dict[str, _LocalMesh | None] = {}
+        self.textures: dict[str, Texture | None] = {}
+        self.parts: list[tuple[str, str, _LocalMesh, np.ndarray]] = []  # name, source, mesh, (4,4)
+        text = str(settings.usd_time).strip()
+        if text.lower() == "default":
+            self.time = None
+        else:
+            try:
+                value = float(text)
+            except ValueError:
+                raise LopcookError("ingest", path, f"usd_time must be 'default' or a number, got {text!r}",
+                                   hint="pass e.g. usd_time='default' or usd_time='1'") from None
+            if not np.isfinite(value):
+                raise LopcookError("ingest", path, f"usd_time must be finite, got {text!r}")
+            self.time = Usd.TimeCode(value)
+
+    # ------------------------------------------------------------------ helpers
+    def fail(self, message: str, hint: str | None = None):
+        raise LopcookError("ingest", self.path, message, hint=hint)
+
+    def time_of(self, attr):
+        """Time code to read ``attr`` at (see the module doc: default, else earliest sample)."""
+        from pxr import Usd
+
+        if self.time is not None:
+            return self.time
+        if attr and attr.Get(Usd.TimeCode.Default()) is None and attr.GetNumTimeSamples() > 0:
+            return Usd.TimeCode.EarliestTime()
+        return Usd.TimeCode.Default()
+
+    def get(self, attr):
+        """Value of ``attr`` at the settings' time, or None (unauthored, blocked, invalid attr)."""
+        if not attr:
+            return None
+        return attr.Get(self.time_of(attr))
+
+    # ------------------------------------------------------------------ open
+    def open(self):
+        from pxr import Tf, Usd, UsdGeom
+
+        error = None
+        with _captured_stderr() as lines:
+            try:
+                stage = Usd.Stage.Open(self.path, Usd.Stage.LoadAll)
+            except Tf.ErrorException as exc:
+                error = _tf_text(exc)
+                stage = None
+            except Exception as exc:  # pxr raises a few plain exceptions (e.g. undecodable text)
+                error = f"{type(exc).__name__}: {exc}"
+                stage = None
+        if stage is None:
+            detail = error or "; ".join(_diagnostic_text(ln) for ln in lines) or "unknown error"
+            self.fail(f"USD cannot open the file: {_one_line(detail, self.path)}",
+                      hint="the file is corrupt or not a USD layer")
+        comp = list(stage.GetCompositionErrors())
+        if comp:
+            more = f" (and {len(comp) - 1} more)" if len(comp) > 1 else ""
+            self.fail(f"USD composition error: {_one_line(str(comp[0]), self.path)}{more}",
+                      hint="fix or ship the referenced layers/assets next to the file")
+        self.warnings.extend(f"USD: {_one_line(_diagnostic_text(ln), self.path)}" for ln in lines)
+        self.stage = stage
+        self.up_axis = str(UsdGeom.GetStageUpAxis(stage))
+        self.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
+        if not UsdGeom.StageHasAuthoredMetersPerUnit(stage):
+            self.warnings.append(f"metersPerUnit is not authored: using USD's fallback {self.meters_per_unit:g}")
+        if not (self.meters_per_unit > 0 and np.isfinite(self.meters_per_unit)):
+            self.fail(f"metersPerUnit is {self.meters_per_unit}, expected a positive number")
+        if self.up_axis not in ("Y", "Z"):
+            self.fail(f"upAxis is {self.up_axis!r}, expected 'Y' or 'Z'")
+        stage_m = np.eye(4)
+        if self.up_axis == "Z":
+            stage_m[:3, :3] = _Z_UP_TO_Y_UP
+        stage_m[:3, :3] *= self.meters_per_unit
+        stage_m[3, :3] = 0.0
+        self.stage_matrix = stage_m
+        self.xf_cache = {}
+        self.earliest_xf: dict[str, bool] = {}
+
+    # ------------------------------------------------------------------ transforms
+    def xform_cache(self, prim):
+        """The XformCache for ``prim``: at the settings' time, or at the earliest sample when an
+        xformOp of ``prim`` or an ancestor has time samples and no default (usd_time 'default')."""
+        from pxr import Usd, UsdGeom
+
+        if self.time is not None:
+            t = self.time
+        elif self._needs_earliest(prim):
+            t = Usd.TimeCode.EarliestTime()
+        else:
+            t = Usd.TimeCode.Default()
+        key = t.GetValue() if not t.IsDefault() else "default"
+        if key not in self.xf_cache:
+            self.xf_cache[key] = UsdGeom.XformCache(t)
+        return self.xf_cache[key]
+
+    def _needs_earliest(self, prim) -> bool:
+        from pxr import Usd, UsdGeom
+
+        path = str(prim.GetPath())
+        if path in self.earliest_xf:
+            return self.earliest_xf[path]
+        parent = prim.GetParent()
+        result = bool(parent) and not parent.IsPseudoRoot() and self._needs_earliest(parent)
+        if not result and prim.IsA(UsdGeom.Xformable):
+            for op in UsdGeom.Xformable(prim).GetOrderedXformOps():
+                attr = op.GetAttr()
+                if attr.GetNumTimeSamples() > 0 and attr.Get(Usd.TimeCode.Default()) is None:
+                    result = True
+                    break
+        self.earliest_xf[path] = result
+        return result
+
+    def matrix(self, prim, ctx: _Context) -> np.ndarray:
+        """(4, 4) float64 row-vector matrix: object space of ``prim`` -> world metres, +Y up."""
+        cache = self.xform_cache(prim)
+        if ctx.root is None:
+            m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
+        else:
+            if prim == ctx.root:
+                rel = np.eye(4)
+            else:
+                rel = np.array(cache.ComputeRelativeTransform(prim, ctx.root)[0], dtype=np.float64)
+            m = rel @ ctx.matrix
+        return m @ self.stage_matrix
+
+    # ------------------------------------------------------------------ traversal
+    def run(self) -> None:
+        from pxr import Usd
+
+        pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+        for child in self.stage.GetPseudoRoot().GetFilteredChildren(pred):
+            self.walk(child, pred, "default", _Context())
+
+    def walk(self, prim, pred, purpose: str, ctx: _Context) -> None:
+        from pxr import UsdGeom
+
+        if prim.IsA(UsdGeom.Imageable):
+            img = UsdGeom.Imageable(prim)
+            if self.get(img.GetVisibilityAttr()) == UsdGeom.Tokens.invisible:
+                return  # visibility is inherited: nothing beneath is drawn
+            attr = img.GetPurposeAttr()
+            if attr and attr.HasAuthoredValue():
+                purpose = str(self.get(attr) or purpose)
+            if prim.IsA(UsdGeom.PointInstancer):
+                if purpose not in _SKIPPED_PURPOSES:
+                    self.instancer(prim, purpose, ctx)
+                return  # prototypes are drawn only through the instancer
+            if prim.IsA(UsdGeom.Mesh) and purpose not in _SKIPPED_PURPOSES:
+                self.mesh(prim, ctx)
+        for child in prim.GetFilteredChildren(pred):
+            self.walk(child, pred, purpose, ctx)
+
+    def name_of(self, prim, ctx: _Context) -> str:
+        path = str(prim.GetPath())
+        if ctx.root is None:
+            return path
+        root = str(ctx.root.GetPath())
+        return ctx.label + path[len(root):]
+
+    def mesh(self, prim, ctx: _Context) -> None:
+        key = str(prim.GetPrimInPrototype().GetPath()) if prim.IsInstanceProxy() else str(prim.GetPath())
+        if key not in self.meshes:
+            self.meshes[key] = self.read_mesh(prim, key)
+        local = self.meshes[key]
+        if local is None:
+            return
+        source = str(prim.GetPath()) + ctx.instance
+        self.parts.append((self.name_of(prim, ctx), source, local, self.matrix(prim, ctx)))
+
+    def instancer(self, prim, purpose: str, ctx: _Context) -> None:
+        from pxr import Tf, Usd, UsdGeom
+
+        pi = UsdGeom.PointInstancer(prim)
+        where = str(prim.GetPath())
+        protos = [self.stage.GetPrimAtPath(p) for p in pi.GetPrototypesRel().GetForwardedTargets()]
+        attr = pi.GetPositionsAttr() if pi.GetPositionsAttr().HasAuthoredValue() else pi.GetProtoIndicesAttr()
+        t = self.time_of(attr)
+        proto_indices = self.get(pi.GetProtoIndicesAttr())
+        if proto_indices is None or len(proto_indices) == 0:
+            return
+        proto_indices = np.asarray(proto_indices, dtype=np.int64)
+        bad = (proto_indices < 0) | (proto_indices >= len(protos))
+        if bad.any():
+            self.fail(f"PointInstancer {where}: protoIndices value {int(proto_indices[bad][0])} out of range "
+                      f"for {len(protos)} prototypes", hint="fix the instancer's prototypes or protoIndices")
+        try:
+            xforms = pi.ComputeInstanceTransformsAtTime(t, t, UsdGeom.PointInstancer.IncludeProtoXform,
+                                                        UsdGeom.PointInstancer.IgnoreMask)
+        except Tf.ErrorException as exc:
+            self.fail(f"PointInstancer {where}: cannot compute instance transforms: "
+                      f"{_one_line(_tf_text(exc), self.path)}")
+        xforms = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4)
+        if xforms.shape[0] != proto_indices.size:
+            self.fail(f"PointInstancer {where}: {xforms.shape[0]} instance transforms for "
+                      f"{proto_indices.size} protoIndices (positions/orientations/scales lengths differ?)",
+                      hint="give every per-instance array one entry per protoIndices entry")
+        mask = list(pi.ComputeMaskAtTime(t))
+        if ctx.root is None:
+            base = np.array(self.xform_cache(prim).GetLocalToWorldTransform(prim), dtype=np.float64)
+        else:
+            cache = self.xform_cache(prim)
+            rel = np.eye(4) if prim == ctx.root else np.array(
+                cache.ComputeRelativeTransform(prim, ctx.root)[0], dtype=np.float64)
+            base = rel @ ctx.matrix
+        label = self.name_of(prim, ctx)
+        pred = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)
+        for k in range(proto_indices.size):
+            if mask and not mask[k]:
+                continue
+            proto = protos[int(proto_indices[k])]
+            if not proto:
+                continue
+            proto_path, inst_path = str(proto.GetPath()), where
+            if proto_path.startswith(inst_path + "/"):
+                proto_label = f"{label}[{k}]{proto_path[len(inst_path):]}"
+            else:
+                proto_label = f"{label}[{k}]/{proto.GetName()}"
+            sub = _Context(root=proto, matrix=xforms[k] @ base, label=proto_label,
+                           instance=f"{ctx.instance} [instance {k}]")
+            self.walk(proto, pred, purpose, sub)
+
+    # ------------------------------------------------------------------ mesh data
+    def read_mesh(self, prim, key: str) -> _LocalMesh | None:
+        from pxr import UsdGeom
+
+        mesh = UsdGeom.Mesh(prim)
+        where = str(prim.GetPath())
+        pts = self.get(mesh.GetPointsAttr())
+        counts = self.get(mesh.GetFaceVertexCountsAttr())
+        fvi = self.get(mesh.GetFaceVertexIndicesAttr())
+        if pts is None or len(pts) == 0 or counts is None or len(counts) == 0 or fvi is None:
+            self.warnings.append(f"{where}: mesh has no points or faces, skipped")
+            return None
+        points = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        counts = np.asarray(counts, dtype=np.int64).ravel()
+        fvi = np.asarray(fvi, dtype=np.int64).ravel()
+        n_points, n_faces = points.shape[0], counts.size
+        finite = np.isfinite(points).all(axis=1)
+        if not finite.all():
+            self.fail(f"{where}: {int((~finite).sum())} of {n_points} points are NaN or Inf "
+                      f"(first at point {int(np.flatnonzero(~finite)[0])})",
+                      hint="fix the mesh in the authoring tool")
+        if (counts < 0).any():
+            self.fail(f"{where}: faceVertexCounts has a negative count ({int(counts.min())})")
+        n_corners = int(counts.sum())
+        if n_corners != fvi.size:
+            self.fail(f"{where}: sum(faceVertexCounts) = {n_corners} but faceVertexIndices has {fvi.size} entries",
+                      hint="the topology arrays are inconsistent; re-export the mesh")
+        if fvi.size and (fvi.min() < 0 or fvi.max() >= n_points):
+            bad = int(fvi.max()) if fvi.max() >= n_points else int(fvi.min())
+            self.fail(f"{where}: faceVertexIndices has index {bad} out of range for {n_points} points "
+                      f"(max index {int(fvi.max())})",
+                      hint="the topology does not match the points; re-export the mesh")
+
+        keep_face = counts >= 3
+        small = int(n_faces - keep_face.sum())
+        if small:
+            self.warnings.append(f"{where}: {small} faces with fewer than 3 corners skipped")
+        holes = self.get(mesh.GetHoleIndicesAttr())
+        if holes is not None and len(holes):
+            holes = np.asarray(holes, dtype=np.int64).ravel()
+            valid = (holes >= 0) & (holes < n_faces)
+            if not valid.all():
+                self.warnings.append(f"{where}: {int((~valid).sum())} holeIndices out of range ignored")
+            keep_face[holes[valid]] = False
+        face_of_corner = np.repeat(np.arange(n_faces, dtype=np.int64), counts)
+        kept = np.flatnonzero(keep_face[face_of_corner])  # corner ids of kept faces
+        if kept.size == 0:
+            self.warnings.append(f"{where}: mesh has no faces with 3 or more corners, skipped")
+            return None
+        k_point = fvi[kept]
+        tri_local, _ = triangulate(counts[keep_face], points[k_point])  # (T, 3) into ``kept``
+
+        # ---- primvars -> per kept corner values; those that vary per corner go into the key
+        api = UsdGeom.PrimvarsAPI(prim)
+        geom = dict(where=where, n_faces=n_faces, n_points=n_points, n_corners=n_corners,
+                    face=face_of_corner[kept], point=k_point, kept=kept)
+        normals = uvs = colors = None
+        nvary = uvvary = cvary = False
+        pv = api.GetPrimvar("normals")
+        if pv and pv.HasAuthoredValue():
+            normals, nvary = self.corner_values(pv, "primvars:normals", 3, **geom)
+        else:
+            attr = mesh.GetNormalsAttr()
+            if attr.HasAuthoredValue():
+                value = self.get(attr)
+                if value is not None:
+                    normals, nvary = self.spread("normals", np.asarray(value), None,
+                                                 str(mesh.GetNormalsInterpolation()), 3, **geom)
+        uv_pv = self.uv_primvar(api)
+        if uv_pv is not None:
+            uvs, uvvary = self.corner_values(uv_pv, uv_pv.GetName(), 2, **geom)
+            if uvs is not None:
+                uvs[:, 1] = 1.0 - uvs[:, 1]
+        pv = api.GetPrimvar("displayColor")
+        if pv and pv.HasAuthoredValue():
+            rgb, cvary = self.corner_values(pv, "primvars:displayColor", 3, **geom)
+            if rgb is not None:
+                alpha = np.ones((rgb.shape[0], 1), np.float32)
+                opv = api.GetPrimvar("displayOpacity")
+                if opv and opv.HasAuthoredValue():
+                    a, avary = self.corner_values(opv, "primvars:displayOpacity", 1, **geom)
+                    if a is not None:
+                        alpha, cvary = a, cvary or avary
+                colors = np.clip(np.concatenate([rgb, alpha], axis=1), 0.0, 1.0).astype(np.float32)
+
+        # ---- split: one vertex per distinct (point, per-corner attributes) over the kept corners
+        cols = [k_point[:, None]]
+        for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary)):
+            if values is not None and vary:
+                cols.append(_bits64(values))
+        first, inverse = _unique_first(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
+        tris = inverse[tri_local]
+        if str(self.get(mesh.GetOrientationAttr()) or "rightHanded") == "leftHanded":
+            tris = tris[:, [0, 2, 1]]
+        return _LocalMesh(
+            key=key,
+            points=points[k_point[first]],
+            tris=np.ascontiguousarray(tris),
+            normals=None if normals is None else normals[first],
+            uvs=None if uvs is None else uvs[first],
+            colors=None if colors is None else colors[first],
+            texture=self.texture(prim),
+        )
+
+    def uv_primvar(self, api):
+        """The UV-set primvar (see UV_NAMES), or None."""
+        candidates = []
+        for pv in api.GetPrimvarsWithAuthoredValues():
+            tn = pv.GetTypeName()
+            if tn.isArray and str(tn.scalarType) in _UV_TYPES:
+                candidates.append(pv)
+        by_name = {str(pv.GetPrimvarName()): pv for pv in candidates}
+        for name in UV_NAMES:
+            if name in by_name:
+                return by_name[name]
+        for pv in candidates:
+            if pv.GetTypeName().role == "TextureCoordinate":
+                return pv
+        return None
+
+    def corner_values(self, pv, label: str, width: int, **geom):
+        """Primvar -> ((C, width) float32 per kept corner, varies-per-corner) or (None, False)."""
+        where = geom["where"]
+        if pv.GetElementSize() != 1:
+            self.fail(f"{where}: {label} has elementSize {pv.GetElementSize()}, only 1 is supported")
+        value = self.get(pv.GetAttr())
+        if value is None:
+            return None, False
+        indices = self.get(pv.GetIndicesAttr())  # None when not authored or blocked
+        return self.spread(label, np.asarray(value), None if indices is None else np.asarray(indices),
+                           str(pv.GetInterpolation()), width, **geom)
+
+    def spread(self, label, values, indices, interp, width, *, where, n_faces, n_points, n_corners,
+               face, point, kept):
+        """Expand primvar ``values`` (indexed by ``indices`` if given) to the kept corners."""
+        values = np.asarray(values, dtype=np.float64)
+        if values.ndim == 0 or (values.ndim == 1 and width > 1 and values.size == width):
+            values = values.reshape(1, width)  # a scalar (non-array) primvar, e.g. color3f displayColor
+        elif values.ndim == 1 and width == 1:
+            values = values[:, None]
+        if values.ndim != 2 or values.shape[1] != width:
+            self.fail(f"{where}: {label} has values of shape {values.shape}, expected (n, {width})")
+        if indices is not None:
+            indices = np.asarray(indices, dtype=np.int64).ravel()
+            if indices.size and (indices.min() < 0 or indices.max() >= values.shape[0]):
+                bad = int(indices.max()) if indices.max() >= values.shape[0] else int(indices.min())
+                self.fail(f"{where}: {label}:indices has index {bad} out of range for {values.shape[0]} values",
+                          hint="the primvar indices do not match its values; re-export the mesh")
+            values = values[indices]
+        required = {"constant": 1, "uniform": n_faces, "vertex": n_points, "varying": n_points,
+                    "faceVarying": n_corners}.get(interp)
+        if required is None:
+            self.warnings.append(f"{where}: {label} has unknown interpolation {interp!r}, ignored")
+            return None, False
+        n = values.shape[0]
+        if (interp == "constant" and n < 1) or (interp != "constant" and n != required):
+            self.fail(f"{where}: {label} has {n} values for {interp} interpolation, expected {required}",
+                      hint="the primvar length does not match the mesh topology; re-export the mesh")
+        values = values.astype(np.float32)
+        if interp == "constant":
+            return np.repeat(values[:1], kept.size, axis=0), False
+        if interp == "uniform":
+            return values[face], True
+        if interp in ("vertex", "varying"):
+            return values[point], False
+        return values[kept], True
+
+    # ------------------------------------------------------------------ textures
+    def texture(self, prim) -> Texture | None:
+        from pxr import Ar, UsdShade
+
+        try:
+            material = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+        except Exception:  # noqa: BLE001 - a broken binding only loses the texture
+            return None
+        if not material:
+            return None
+        mkey = str(material.GetPath())
+        if mkey in self.textures:
+            return self.textures[mkey]
+        tex = None
+        shader = material.ComputeSurfaceSource()[0]
+        if shader and shader.GetShaderId() == "UsdPreviewSurface" and shader.GetInput("diffuseColor"):
+            for attr in shader.GetInput("diffuseColor").GetValueProducingAttributes():
+                src = UsdShade.Shader(attr.GetPrim())
+                if not src or src.GetShaderId() != "UsdUVTexture" or not src.GetInput("file"):
+                    continue
+                asset = self.get(src.GetInput("file").GetAttr())
+                if asset is None or not asset.path:
+                    continue
+                resolved = asset.resolvedPath
+                data = None
+                if resolved:
+                    try:
+                        handle = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+                        data = bytes(handle.GetBuffer()) if handle else None
+                    except Exception:  # noqa: BLE001 - unreadable texture: warn below
+                        data = None
+                if data:
+                    tex = Texture(name=os.path.basename(asset.path), data=data)
+                else:
+                    self.warnings.append(f"{mkey}: texture @{asset.path}@ not found or unreadable, ignored")
+                break
+        self.textures[mkey] = tex
+        return tex
+
+    # ------------------------------------------------------------------ parts
+    def build(self) -> Scene:
+        names = unique_names([n for n, _, _, _ in self.parts])
+        parts: list[MeshPart] = []
+        for name, (_, source, local, m) in zip(names, self.parts):
+            parts.append(_place(name, source, local, m, self.settings))
+        return Scene(parts=tuple(parts), source=self.path, format=self.fmt, unit_scale=self.meters_per_unit,
+                     up_axis=self.up_axis, warnings=tuple(dict.fromkeys(self.warnings)))
+
+
+def _bits64(values: np.ndarray) -> np.ndarray:
+    """(C, k) float32 -> (C, ceil(k/2)) int64 holding the bit patterns (-0.0 folded into 0.0)."""
+    v = np.asarray(values, dtype=np.float32) + np.float32(0.0)
+    if v.shape[1] % 2:
+        v = np.concatenate([v, np.zeros((v.shape[0], 1), np.float32)], axis=1)
+    return np.ascontiguousarray(v).view(np.int64)
+
+
+def _unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """weld.unique_rows, with a fast path for a single int64 column."""
+    if keys.shape[1] != 1:
+        return unique_rows(keys)
+    col = keys[:, 0]
+    _, first, inverse = np.unique(col, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
+
+
+def _place(name: str, source: str, local: _LocalMesh, m: np.ndarray, settings: IngestSettings) -> MeshPart:
+    """One placement of a mesh: ``m`` (4, 4) row-vector matrix, object -> world metres +Y up."""
+    lin = m[:3, :3]
+    positions = local.points @ lin + m[3, :3]
+    det = float(np.linalg.det(lin))
+    tris = local.tris if det >= 0 else local.tris[:, [0, 2, 1]]
+    normals = None
+    if local.normals is not None and det != 0 and np.isfinite(det):
+        normals = local.normals.astype(np.float64) @ np.linalg.inv(lin).T
+    return make_part(name, positions, tris, settings=settings, normals=normals, uvs=local.uvs,
+                     colors=local.colors, source=source, texture=local.texture, mesh_key=local.key)
+
+
+def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
+    """Load a USD stage into an unvalidated Scene (``ingest.load`` validates it).
+
+    Parameters
+    ----------
+    path : str
+        The file as the user gave it (used in messages and ``Scene.source``).
+    fmt : str
+        ``"usda"``, ``"usdc"`` or ``"usdz"``, decided from the content by the caller (a ``.usd`` file
+        may hold text or crate; USD itself also decides from the content).
+    settings : IngestSettings
+        ``usd_time`` selects the time code (see the module doc); ``crease_angle_deg`` is used when a
+        mesh has no normals.
+
+    Returns
+    -------
+    Scene with one part per drawn mesh placement: positions (n, 3) float64 world metres +Y up,
+    indices (m, 3) uint32 counter-clockwise, optional normals (n, 3), uvs (n, 2, origin top-left)
+    and colors (n, 4). ``parts`` is empty when nothing is drawn (validation then raises).
+
+    Raises
+    ------
+    LopcookError for an unreadable file, composition errors, inconsistent topology, out-of-range
+    indices, NaN/Inf points and primvars whose length does not match their interpolation.
+    """
+    try:
+        from pxr import Tf, Usd  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - usd-core is a dependency
+        raise LopcookError("ingest", path, f"USD support needs usd-core: {exc}",
+                           hint="pip install usd-core") from None
+    loader = _Loader(path, fmt, settings)
+    loader.open()
+    try:
+        with _captured_stderr() as lines:
+            loader.run()
+    except Tf.ErrorException as exc:
+        raise LopcookError("ingest", path, f"USD error while reading the stage: {_one_line(_tf_text(exc), path)}",
+                           hint="the file is corrupt or uses data lopcook cannot read") from None
+    loader.warnings.extend(f"USD: {_one_line(_diagnostic_text(ln), path)}" for ln in lines)
+    return loader.build()
+
+
+__all__ = ["load", "UV_NAMES"]
