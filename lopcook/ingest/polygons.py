@@ -45,7 +45,7 @@ def ear_clip(pts3: np.ndarray) -> np.ndarray:
     k = pts3.shape[0]
     normal = _newell(pts3)
     axis = int(np.argmax(np.abs(normal)))
-    keep = [i for i in range(3) if i != axis]
+    keep = [(axis + 1) % 3, (axis + 2) % 3]  # cyclic, so (a, b) x-ed gives +axis (right-handed)
     pts = pts3[:, keep].astype(np.float64)
     if normal[axis] < 0:  # make the 2-D projection counter-clockwise
         pts = pts[:, ::-1]
