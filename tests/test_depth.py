@@ -86,7 +86,7 @@ def test_intersecting_closed_parts_are_reported():
     small = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
     small_v = np.asarray(small.vertices) + [0, 0.5, 0]  # half sunk into the big box's top face
     res = depth_levels([np.asarray(big.vertices), small_v], [big.faces, small.faces], 1.0)
-    assert (1, 0) in res.intersecting
+    assert res.intersecting == [(0, 1)]
 
 
 def test_level_from_distance_edges():

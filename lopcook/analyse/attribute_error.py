@@ -11,9 +11,11 @@ interpolated attribute with respect to position in the plane, so its spectral no
     E_t = ||A M^-1||_2         [attribute units per metre]
 
 is how fast the attribute changes across the triangle (independent of which corner is v0).
-Computed without forming M: with edges e1 = v1 - v0, e2 = v2 - v0 and the Gram matrix
-``G = [e1 e2]^T [e1 e2] = M^T M``, ``E_t^2`` is the largest eigenvalue of ``G^-1 (A^T A)``, a
-2 x 2 problem solved in closed form for all triangles at once.
+Computed as the paper writes it, vectorised over all triangles: M is upper triangular
+(``m11 = |e1|``, ``m12 = e1.e2 / |e1|``, ``m22 = |e1 x e2| / |e1|`` with e1 = v1 - v0,
+e2 = v2 - v0), so ``J = A M^-1`` is two column operations, and ``E_t^2`` is the largest eigenvalue
+of the symmetric 2 x 2 matrix ``J^T J``, in closed form. Taking m22 from the cross product keeps
+slivers accurate (no cancellation in a Gram determinant).
 
 Degenerate triangles (zero area: repeated or collinear corners) have no plane; they are excluded
 (E_t = 0, they add nothing to E_v) and counted.
@@ -50,25 +52,25 @@ def triangle_gradient_norm(positions: np.ndarray, indices: np.ndarray, attribute
     e2 = p[:, 2] - p[:, 0]
     a1 = a[:, 1] - a[:, 0]
     a2 = a[:, 2] - a[:, 0]
-    g11 = np.einsum("ij,ij->i", e1, e1)
-    g12 = np.einsum("ij,ij->i", e1, e2)
-    g22 = np.einsum("ij,ij->i", e2, e2)
-    det = g11 * g22 - g12 * g12
-    degenerate = ~(det > DEGENERATE_TOL * g11 * g22) | ~np.isfinite(det)
-    b11 = np.einsum("ij,ij->i", a1, a1)
-    b12 = np.einsum("ij,ij->i", a1, a2)
-    b22 = np.einsum("ij,ij->i", a2, a2)
-    safe = np.where(degenerate, 1.0, det)
-    # C = G^-1 B = adj(G) B / det(G)
-    c11 = (g22 * b11 - g12 * b12) / safe
-    c12 = (g22 * b12 - g12 * b22) / safe
-    c21 = (g11 * b12 - g12 * b11) / safe
-    c22 = (g11 * b22 - g12 * b12) / safe
-    # largest eigenvalue of the 2x2 matrix C: tr/2 + sqrt(tr^2/4 - det), with the discriminant
-    # written as ((c11 - c22)/2)^2 + c12*c21 so it does not cancel when both eigenvalues are equal
-    half_diff = 0.5 * (c11 - c22)
-    disc = np.maximum(half_diff * half_diff + c12 * c21, 0.0)
-    lam = np.maximum(0.5 * (c11 + c22) + np.sqrt(disc), 0.0)
+    # M = [[m11, m12], [0, m22]] (paper, section 5.1): m11 = |e1|, m12 = |e2| cos(phi) = e1.e2/|e1|,
+    # m22 = |e2| sin(phi) = |e1 x e2| / |e1| (from the cross product: accurate for slivers)
+    l1sq = np.einsum("ij,ij->i", e1, e1)
+    l2sq = np.einsum("ij,ij->i", e2, e2)
+    cross = np.cross(e1, e2)
+    cross_sq = np.einsum("ij,ij->i", cross, cross)
+    degenerate = ~(cross_sq > DEGENERATE_TOL * l1sq * l2sq) | ~np.isfinite(cross_sq)
+    m11 = np.sqrt(np.where(degenerate, 1.0, l1sq))
+    m12 = np.where(degenerate, 0.0, np.einsum("ij,ij->i", e1, e2)) / m11
+    m22 = np.sqrt(np.where(degenerate, 1.0, cross_sq)) / m11
+    # J = A M^-1: columns are the attribute's derivatives along the orthonormal (u, v) frame
+    j0 = a1 / m11[:, None]
+    j1 = (a2 - j0 * m12[:, None]) / m22[:, None]
+    # ||J||_2^2 = largest eigenvalue of the symmetric 2x2 matrix J^T J = [[p, q], [q, r]]
+    p_ = np.einsum("ij,ij->i", j0, j0)
+    q_ = np.einsum("ij,ij->i", j0, j1)
+    r_ = np.einsum("ij,ij->i", j1, j1)
+    half_diff = 0.5 * (p_ - r_)
+    lam = 0.5 * (p_ + r_) + np.sqrt(half_diff * half_diff + q_ * q_)
     e_t = np.where(degenerate, 0.0, np.sqrt(lam))
     return e_t, degenerate
 

@@ -12,8 +12,9 @@ each moves by less than d/2, so v needs the smallest level b with
 
 When ``d(v) <= 2 * dx(ceiling)`` the parts touch or intersect there and no affordable precision
 separates them: v gets ``ceiling`` (default 16) and is counted as *capped*, and the pair of parts
-is reported (never a silent 24-bit blow-up). Parts whose vertices lie inside another closed part
-(winding number > 1/2, e.g. chess pieces sunk into the board) are reported as intersecting.
+is reported (never a silent 24-bit blow-up). Parts with a vertex behind the face of another part
+it is nearest to (inside a closed part: e.g. chess pieces sunk into the board) are reported as
+intersecting.
 
 Implementation (``depth_levels``): one libigl AABB tree per part, built on demand; for each part
 pair, only vertices whose distance to the other part's bounding box is below both their current
@@ -41,7 +42,8 @@ class DepthResult:
     ``distance`` (n,) float64 metres to the nearest other part (``inf`` where it is farther than the
     binding radius and so was not needed), ``nearest`` (n,) int64 index of that part (-1 if none),
     ``capped`` (n,) bool. ``touching``: sorted list of (part i, part j) pairs with capped vertices;
-    ``intersecting``: pairs where a vertex of i lies inside closed part j."""
+    ``intersecting``: pairs (i < j) where a vertex of one lies behind the nearest face of the other
+    (inside it, when it is closed)."""
 
     level: list[np.ndarray]
     distance: list[np.ndarray]
@@ -109,6 +111,7 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     best = [np.full(p.shape[0], np.inf) for p in pos]
     nearest = [np.full(p.shape[0], -1, dtype=np.int64) for p in pos]
     trees: dict[int, object] = {}
+    unit_normals: dict[int, np.ndarray] = {}
     inside_pairs: set[tuple[int, int]] = set()
     queries = 0
     rmax = np.array([r.max() if r.size else 0.0 for r in radius])
@@ -131,14 +134,17 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
                 tree = igl.AABB()
                 tree.init(pos[j], tris[j])
                 trees[j] = tree
-            d2, _, _ = tree.squared_distance(pos[j], tris[j], pos[i][cand])
+            d2, face, closest = tree.squared_distance(pos[j], tris[j], pos[i][cand])
             queries += cand.size
             d = np.sqrt(d2)
             better = d < best[i][cand]
             best[i][cand[better]] = d[better]
             nearest[i][cand[better]] = j
-    if detect_intersections and n_parts > 1:
-        inside_pairs = _intersections(pos, tris, best, nearest, radius)
+            if detect_intersections and (min(i, int(j)), max(i, int(j))) not in inside_pairs:
+                if j not in unit_normals:
+                    unit_normals[j] = _unit_face_normals(pos[j], tris[j])
+                if _any_inside(pos[i][cand], face, closest, pos[j], tris[j], unit_normals[j]):
+                    inside_pairs.add((min(i, int(j)), max(i, int(j))))
 
     if threshold is not None:
         raw = [np.where(b < threshold, 2, 1).astype(np.int64) for b in best]
@@ -150,22 +156,45 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     return DepthResult(level, best, nearest, capped, touching, inter, queries)
 
 
-def _intersections(pos, tris, best, nearest, radius) -> set[tuple[int, int]]:
-    """Pairs (i, j) where some vertex of i that lies within its binding radius of part j is
-    inside j (generalised winding number > 1/2; meaningful for closed j)."""
-    import igl
+def _unit_face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(m, 3) unit face normals (zero for zero-area triangles)."""
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(n, axis=1)
+    return n / np.where(length > 0, length, 1.0)[:, None]
 
-    pairs: set[tuple[int, int]] = set()
-    for i in range(len(pos)):
-        near = np.isfinite(best[i])
-        for j in np.unique(nearest[i][near]):
-            sel = np.flatnonzero(near & (nearest[i] == j))
-            if sel.size == 0:
-                continue
-            w = igl.fast_winding_number(pos[j], tris[j], pos[i][sel])
-            if np.any(np.abs(w) > 0.5):
-                pairs.add((i, int(j)))
-    return pairs
+
+def _any_inside(points, face, closest, v, f, unit_n, margin=1e-9) -> bool:
+    """True if some point lies behind the face it is nearest to, with the nearest point strictly
+    inside that face (barycentric coordinates > 1e-6), by more than ``margin`` x the face size.
+
+    Restricting to face-interior nearest points avoids the sign ambiguity at edges and corners,
+    so this reports a vertex of one part sunk inside another closed part (no false positives on
+    sharp edges; it can miss an intersection whose every sunk vertex is nearest an edge)."""
+    if points.shape[0] == 0:
+        return False
+    tri = v[f[face]]
+    n = unit_n[face]
+    behind = np.einsum("ij,ij->i", points - closest, n) < -margin * np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)
+    if not behind.any():
+        return False
+    sel = np.flatnonzero(behind)
+    t = tri[sel]
+    c = closest[sel]
+    # barycentric coordinates of the closest point
+    e0, e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0], c - t[:, 0]
+    d00 = np.einsum("ij,ij->i", e0, e0)
+    d01 = np.einsum("ij,ij->i", e0, e1)
+    d11 = np.einsum("ij,ij->i", e1, e1)
+    d20 = np.einsum("ij,ij->i", e2, e0)
+    d21 = np.einsum("ij,ij->i", e2, e1)
+    den = d00 * d11 - d01 * d01
+    ok = den > 0
+    den = np.where(ok, den, 1.0)
+    bv = (d11 * d20 - d01 * d21) / den
+    bw = (d00 * d21 - d01 * d20) / den
+    bu = 1.0 - bv - bw
+    interior = ok & (bu > 1e-6) & (bv > 1e-6) & (bw > 1e-6)
+    return bool(interior.any())
 
 
 # --- the paper's O(n^2) reference ------------------------------------------------------------
