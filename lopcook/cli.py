@@ -31,10 +31,27 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    p = sub.add_parser("inspect", help="describe a source scene (parts, counts, attributes, bounds, defects)")
-    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD (.usd/.usda/.usdc/.usdz) file")
+    p = sub.add_parser("inspect", help="describe a source scene or a .lop container")
+    p.add_argument("source", metavar="FILE", help="glTF/GLB, OBJ or USD (.usd/.usda/.usdc/.usdz) file, or a .lop container")
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="dihedral angle in degrees above which computed normals split (default 60; 180 = smooth)")
+    _add_common(p)
+
+    p = sub.add_parser("cook", help="ingest, analyse and write a .lop container")
+    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.lop", help="container to write (atomically)")
+    p.add_argument("--depfile", metavar="OUT.d", help="write a Make-style depfile listing every file read")
+    add_analyse_options(p)
+    add_viewing_options(p)
+    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
+                   help="dihedral angle in degrees above which computed normals split (default 60)")
+    _add_common(p)
+
+    p = sub.add_parser("decode", help="decode a .lop container at a level into a standard glTF 2.0 file")
+    p.add_argument("container", metavar="OUT.lop")
+    p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
+    p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
     _add_common(p)
 
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
@@ -44,6 +61,36 @@ def build_parser() -> argparse.ArgumentParser:
                    help="dihedral angle in degrees above which computed normals split (default 60)")
     _add_common(p)
     return parser
+
+
+def add_viewing_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("viewing conditions (recorded in the container)")
+    g.add_argument("--viewport", default="1920x1080", metavar="WxH", help="viewport in pixels (default 1920x1080)")
+    g.add_argument("--fov", type=float, default=60.0, metavar="DEG", help="vertical field of view, degrees (default 60)")
+    g.add_argument("--nearest", default=None, metavar="METRES",
+                   help="closest camera distance to the scene, metres (e.g. 0.5 or 0.5m; default unknown)")
+    g.add_argument("--pixel-error", type=float, default=0.5, metavar="PX",
+                   help="allowed screen-space error in pixels (default 0.5, the paper's half pixel)")
+
+
+def _viewing(args):
+    from .viewing import Viewing
+
+    try:
+        w, h = (int(v) for v in args.viewport.lower().split("x"))
+    except ValueError:
+        raise LopcookError("usage", None, f"--viewport {args.viewport!r}: expected WIDTHxHEIGHT, e.g. 1920x1080") from None
+    nearest = None
+    if args.nearest is not None:
+        text = args.nearest.strip().lower()
+        try:
+            nearest = float(text[:-1] if text.endswith("m") else text)
+        except ValueError:
+            raise LopcookError("usage", None, f"--nearest {args.nearest!r}: expected metres, e.g. 0.5m") from None
+    try:
+        return Viewing(viewport=(w, h), fov_y_deg=args.fov, nearest_m=nearest, pixel_error=args.pixel_error)
+    except ValueError as exc:
+        raise LopcookError("usage", None, str(exc)) from None
 
 
 def add_analyse_options(p: argparse.ArgumentParser) -> None:
@@ -124,10 +171,121 @@ def cmd_analyse(args) -> int:
     return EXIT_OK
 
 
+def _progress(args, message: str) -> None:
+    """Stage lines on stderr, only on a terminal and without --quiet/--json (build logs stay clean)."""
+    if not args.quiet and not args.json and sys.stderr.isatty():
+        print(f"lopcook: {message}", file=sys.stderr, flush=True)
+
+
+def _is_container(path: str) -> bool:
+    if path.lower().endswith(".lop"):
+        return True
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(4) == b"LOPC"
+    except OSError:
+        return False
+
+
+def cmd_cook(args) -> int:
+    import os
+    import time
+
+    from .analyse import analyse
+    from .emit import build
+    from .emit.container import from_bytes, write_atomic
+    from .emit.summary import describe_container, format_container
+    from .ingest import load
+
+    settings = _analyse_settings(args)
+    viewing = _viewing(args)
+    ingest_settings = _ingest_settings(args)
+    if os.path.isdir(args.output):
+        raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
+    timings = {}
+    t0 = time.perf_counter()
+    _progress(args, f"ingest {args.source}")
+    scene = load(args.source, ingest_settings)
+    timings["ingest"] = time.perf_counter() - t0
+    _progress(args, f"analyse {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
+    t0 = time.perf_counter()
+    analysis = analyse(scene, settings)
+    timings.update({f"analyse.{k}": v for k, v in analysis.timings.items()})
+    timings["analyse"] = time.perf_counter() - t0
+    _progress(args, "emit bins and bit planes")
+    t0 = time.perf_counter()
+    from .analyse.summary import _settings_dict
+
+    options = {"analyse": _settings_dict(settings), "ingest": {"crease_angle_deg": ingest_settings.crease_angle_deg}}
+    data = build(scene, analysis, options=options, viewing=viewing)
+    timings["emit"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    write_atomic(args.output, data)
+    if args.depfile:
+        from .depfile import write_depfile
+
+        write_depfile(args.depfile, args.output, getattr(scene, "dependencies", ()) or (args.source,))
+    timings["write"] = time.perf_counter() - t0
+    desc = describe_container(from_bytes(data, args.output), file_bytes=len(data))
+    desc["timings_s"] = timings
+    desc["warnings"] = list(scene.warnings)
+    desc["touching"] = [list(p) for p in analysis.touching]
+    desc["intersecting"] = [list(p) for p in analysis.intersecting]
+    if args.json:
+        print(json.dumps(desc, indent=1, sort_keys=True))
+    elif not args.quiet:
+        print(format_container(desc, timings=timings))
+        if analysis.touching or analysis.intersecting:
+            print(f"  note: {len(analysis.touching)} touching and {len(analysis.intersecting)} intersecting part "
+                  f"pairs (depth levels capped at {settings.depth_ceiling}; see lopcook analyse)")
+    return EXIT_OK
+
+
+def cmd_decode(args) -> int:
+    from .emit.container import read
+    from .emit.gltf_writer import write_gltf
+    from .emit.reader import decode_positions, lod_attributes
+
+    c = read(args.container)
+    if not 1 <= args.level <= 24:
+        raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
+    meshes = []
+    for i, part in enumerate(c.manifest["parts"]):
+        if args.lod >= len(part["lods"]):
+            raise LopcookError("usage", args.container, f"part {part['name']!r} has no LOD {args.lod} "
+                               f"(it has {len(part['lods'])})")
+        _, _, pos = decode_positions(c, i, args.lod, args.level)
+        a = lod_attributes(c, i, args.lod)
+        meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"], "normals": a["normals"],
+                       "uvs": a["uvs"], "colors": a["colors"]})
+    written = write_gltf(args.output, meshes, generator=f"lopcook {__version__}",
+                         extras={"lopcook": {"level": args.level, "lod": args.lod,
+                                             "source": c.manifest["source"]["file"]}})
+    if args.json:
+        print(json.dumps({"written": [str(w) for w in written], "level": args.level, "lod": args.lod,
+                          "parts": len(meshes)}, sort_keys=True))
+    elif not args.quiet:
+        print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
+    return EXIT_OK
+
+
 def cmd_inspect(args) -> int:
     from .ingest import load
     from .inspect import describe_scene, format_scene
 
+    if _is_container(args.source):
+        import os
+
+        from .emit.container import read
+        from .emit.summary import describe_container, format_container
+
+        c = read(args.source)
+        desc = describe_container(c, file_bytes=os.path.getsize(args.source))
+        if args.json:
+            print(json.dumps(desc, indent=1, sort_keys=True))
+        elif not args.quiet:
+            print(format_container(desc))
+        return EXIT_OK
     scene = load(args.source, _ingest_settings(args))
     desc = describe_scene(scene)
     if args.json:
@@ -137,7 +295,7 @@ def cmd_inspect(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse}
+COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,146 @@
+"""Emit: a Scene and its Analysis -> the bytes of a .lop container.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+sections 5.3 and 6 (binned adaptive precision buffers). Steps: (1) one buffer per part and LOD,
+vertices binned by minimum level and indices remapped, (2) attribute sections (indices, normals,
+UVs, colours; ``attributes.py``), (3) position sections: every buffer's mandatory bits (its packed
+buffer at level 1), then refinement planes 2..max_level, (4) manifest + header (``container.py``).
+Layout and order: docs/format.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import __version__
+from ..viewing import Viewing
+from . import attributes as attr
+from .binning import LEVELS, make_bins, vertex_widths
+from .bitplane import pack, plane_bits, top_bits
+from .container import to_bytes
+from .manifest import FORMAT
+
+
+@dataclass
+class BufferInput:
+    """One GPU buffer to emit: a part's LOD. quantized (n, 3) uint32 grid integers, min_level (n,)
+    ints in [1, 24], indices (m, 3) into these vertices, optional normals/uvs/colors (float32),
+    geometric_error_m: the LOD's deviation from LOD 0 in metres (0 for LOD 0)."""
+
+    quantized: np.ndarray
+    min_level: np.ndarray
+    indices: np.ndarray
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    geometric_error_m: float = 0.0
+
+
+def _sha256_file(path: str) -> str | None:
+    try:
+        h = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+        return h.hexdigest()
+    except OSError:
+        return None
+
+
+def _pack_bits(bits: np.ndarray) -> bytes:
+    """uint8 0/1 stream -> bytes, least significant bit first."""
+    return np.packbits(bits, bitorder="little").tobytes()
+
+
+def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
+          lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS) -> bytes:
+    """Container bytes for ``scene`` analysed by ``analysis``.
+
+    ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
+    scene and the analysis. ``max_level``: highest refinement plane written (planes above it are
+    never needed by any view, see lopcook.viewing). ``options`` are recorded verbatim.
+    """
+    viewing = viewing or Viewing()
+    if lods is None:
+        lods = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices,
+                             normals=p.normals, uvs=p.uvs, colors=p.colors)]
+                for p, pa in zip(scene.parts, analysis.parts)]
+    sections: list[tuple[str, bytes]] = []
+    parts_manifest = []
+    binned = []  # (vertex_id, q in binned order, min levels) per buffer, manifest order
+    mandatory_words = []
+    word_offset = 0
+    hist = np.zeros(LEVELS + 1, dtype=np.int64)
+    for i, (part, part_lods) in enumerate(zip(scene.parts, lods)):
+        lod_entries = []
+        for k, buf in enumerate(part_lods):
+            # (1) bins and remapped indices
+            levels = np.minimum(np.asarray(buf.min_level, dtype=np.int64), max_level)
+            bins = make_bins(levels)
+            q = np.asarray(buf.quantized, dtype=np.uint32)[bins.order]
+            indices = bins.remap_indices(buf.indices)
+            n, m = q.shape[0], indices.shape[0]
+            hist += bins.counts()
+            prefix = f"part{i}/lod{k}"
+            entry = {"vertices": n, "triangles": m, "vertex_id": [int(v) for v in bins.vertex_id],
+                     "geometric_error_m": float(buf.geometric_error_m)}
+            # (2) attributes
+            data, width = attr.encode_indices(indices, n)
+            sections.append((f"{prefix}/indices", data.tobytes()))
+            entry.update(indices=f"{prefix}/indices", index_width=int(width))
+            entry["normals"] = entry["uvs"] = entry["colors"] = None
+            if buf.normals is not None:
+                sections.append((f"{prefix}/normals", attr.encode_normals(np.asarray(buf.normals)[bins.order]).tobytes()))
+                entry["normals"] = f"{prefix}/normals"
+            if buf.uvs is not None:
+                codes, lo, hi = attr.encode_uvs(np.asarray(buf.uvs)[bins.order])
+                sections.append((f"{prefix}/uvs", codes.tobytes()))
+                entry["uvs"] = f"{prefix}/uvs"
+                entry["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
+            if buf.colors is not None:
+                sections.append((f"{prefix}/colors", attr.encode_colors(np.asarray(buf.colors)[bins.order]).tobytes()))
+                entry["colors"] = f"{prefix}/colors"
+            # (3a) mandatory bits: the packed buffer at level 1 (bin k holds k bits)
+            words = pack(top_bits(q, vertex_widths(bins.vertex_id, 1)), bins.vertex_id, 1)
+            mandatory_words.append(words)
+            entry["mandatory_words"] = [word_offset, int(words.size)]
+            word_offset += int(words.size)
+            binned.append((bins.vertex_id, q))
+            lod_entries.append(entry)
+        parts_manifest.append({
+            "name": part.name, "source": part.source, "mesh_key": part.mesh_key,
+            "texture": None if part.texture is None else {"name": part.texture.name, "sha256": part.texture.digest},
+            "normals_computed": bool(part.normals_computed), "lods": lod_entries,
+        })
+    # (3b) positions: mandatory words of every buffer, then one section per refinement plane
+    sections.append(("positions/mandatory", np.concatenate(mandatory_words).astype("<u4").tobytes()))
+    planes = {}
+    for p in range(2, max_level + 1):
+        stream = np.concatenate([plane_bits(q, vid, p).ravel() for vid, q in binned])
+        name = f"positions/plane{p:02d}"
+        sections.append((name, _pack_bits(stream)))
+        planes[str(p)] = name
+    total_vertices = int(hist.sum())
+    manifest = {
+        "format": FORMAT,
+        "generator": f"lopcook {__version__}",
+        "source": {"file": os.path.basename(scene.source), "format": scene.format,
+                   "sha256": _sha256_file(scene.source), "unit_scale_m": float(scene.unit_scale),
+                   "up_axis": scene.up_axis},
+        "options": options or {},
+        "grid": {"origin": [float(v) for v in analysis.grid.origin], "extent": float(analysis.grid.extent),
+                 "bits": LEVELS},
+        "viewing": viewing.as_dict(),
+        "encodings": attr.attribute_specs(),
+        "parts": parts_manifest,
+        "positions": {"mandatory": "positions/mandatory", "planes": planes, "max_level": int(max_level),
+                      "plane_order": "buffers in manifest order (parts, then LODs), vertices in binned order, "
+                                     "bits x, y, z; least significant bit first"},
+        "stats": {"vertices": total_vertices, "triangles": int(sum(e["triangles"] for p in parts_manifest for e in p["lods"])),
+                  "histogram": [int(v) for v in hist], "float32_position_bytes": 12 * total_vertices},
+    }
+    return to_bytes(manifest, sections)

@@ -1,0 +1,208 @@
+"""The .lop container: bytes <-> (manifest, sections), with CRCs, versioning and the prefix property.
+
+Layout (all integers little-endian; see docs/format.md and schema/container.ksy):
+
+=========  ====  ===========================================================================
+offset     size  field
+=========  ====  ===========================================================================
+0          4     magic ``b"LOPC"``
+4          2     version major (readers refuse a major they do not know)
+6          2     version minor (additions only)
+8          4     header size in bytes (32)
+12         4     manifest size in bytes (UTF-8 JSON)
+16         4     CRC-32 of the manifest bytes
+20         8     total file size in bytes
+28         4     CRC-32 of header bytes 0..27
+32         M     manifest: JSON (sorted keys, no whitespace), validated by schema/container.schema.json
+32 + M     ...   sections, back to back, in manifest order; each section's length is a multiple of
+                 4 bytes (zero padding included in its CRC-32)
+=========  ====  ===========================================================================
+
+Section offsets in the manifest are relative to the end of the manifest (``32 + M``), so the
+manifest does not depend on its own size. Every byte of the file is covered by a CRC, by the
+header's size field or by the file size: flipping any byte is detected.
+
+Prefix property: the position sections come last, mandatory bits first and then refinement
+planes in ascending order, so a file truncated after plane B still has a complete header,
+manifest, attributes and planes up to B: ``read(..., allow_prefix=True)`` returns it with
+``available_level == B`` and decodes level B exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import tempfile
+import zlib
+from dataclasses import dataclass, field
+
+from ..errors import LopcookError
+
+MAGIC = b"LOPC"
+VERSION = (1, 0)
+HEADER_SIZE = 32
+_HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
+
+
+def _pad4(data: bytes) -> bytes:
+    return data + b"\0" * (-len(data) % 4)
+
+
+def manifest_bytes(manifest: dict) -> bytes:
+    """Canonical JSON: sorted keys, compact separators, ASCII only (deterministic bytes)."""
+    return json.dumps(manifest, sort_keys=True, separators=(",", ":"), ensure_ascii=True,
+                      allow_nan=False).encode("ascii")
+
+
+@dataclass
+class Container:
+    """A parsed container. ``manifest`` is the JSON object; ``sections`` maps name -> payload bytes
+    (padding included) for every section present; ``available_level`` is the highest per-buffer
+    level whose planes are all present (24, or the manifest's max level, for a complete file)."""
+
+    manifest: dict
+    sections: dict = field(default_factory=dict)
+    available_level: int = 0
+    path: str | None = None
+
+    def section(self, name: str) -> bytes:
+        try:
+            return self.sections[name]
+        except KeyError:
+            raise LopcookError("emit", self.path, f"section {name!r} is missing from the container "
+                               f"(the file holds levels up to {self.available_level})") from None
+
+
+def to_bytes(manifest: dict, sections: list[tuple[str, bytes]]) -> bytes:
+    """Serialise: fills ``manifest["sections"]`` (name, offset, length, crc32) and returns the file."""
+    table = []
+    offset = 0
+    payloads = []
+    for name, data in sections:
+        data = _pad4(bytes(data))
+        table.append({"name": name, "offset": offset, "length": len(data), "crc32": zlib.crc32(data)})
+        payloads.append(data)
+        offset += len(data)
+    manifest = dict(manifest)
+    manifest["sections"] = table
+    mbytes = manifest_bytes(manifest)
+    total = HEADER_SIZE + len(mbytes) + offset
+    head = _HEADER.pack(MAGIC, VERSION[0], VERSION[1], HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
+    head += struct.pack("<I", zlib.crc32(head))
+    return b"".join([head, mbytes, *payloads])
+
+
+def write_atomic(path: str, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same folder and os.replace: readers
+    never see a partial file and a failure leaves no file behind."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".lopcook-", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file normal permissions
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = False) -> Container:
+    """Parse and check a container. Any corruption raises LopcookError (exit code 2).
+
+    With ``allow_prefix`` a file truncated inside the position planes is accepted: sections that
+    are complete and pass their CRC are kept, and ``available_level`` tells which level they hold.
+    """
+
+    def fail(msg: str, hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
+        raise LopcookError("emit", path, msg, hint=hint)
+
+    data = bytes(data)
+    if len(data) < HEADER_SIZE:
+        fail(f"file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
+    magic, major, minor, hsize, msize, mcrc, total = _HEADER.unpack_from(data, 0)
+    if magic != MAGIC:
+        fail(f"bad magic {magic!r} (expected {MAGIC!r})", "this is not a .lop container")
+    (hcrc,) = struct.unpack_from("<I", data, 28)
+    if zlib.crc32(data[:28]) != hcrc:
+        fail("header checksum mismatch")
+    if major != VERSION[0]:
+        fail(f"container version {major}.{minor} is not supported (this lopcook reads {VERSION[0]}.x)",
+             "use a lopcook release that reads this version, or cook the source again")
+    if hsize != HEADER_SIZE:
+        fail(f"header size {hsize} (expected {HEADER_SIZE})")
+    if len(data) > total:
+        fail(f"{len(data) - total} bytes of trailing data after the declared end ({total} bytes)")
+    truncated = len(data) < total
+    if truncated and not allow_prefix:
+        fail(f"file is truncated: {len(data)} of {total} bytes", "the copy is incomplete; cook it again")
+    if HEADER_SIZE + msize > len(data):
+        fail("manifest is truncated")
+    mbytes = data[HEADER_SIZE:HEADER_SIZE + msize]
+    if zlib.crc32(mbytes) != mcrc:
+        fail("manifest checksum mismatch")
+    try:
+        manifest = json.loads(mbytes.decode("ascii"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        fail(f"manifest is not valid JSON ({exc})")
+    from .manifest import validate_manifest
+
+    validate_manifest(manifest, path)
+    base = HEADER_SIZE + msize
+    sections: dict = {}
+    expected_end = base
+    for entry in manifest["sections"]:
+        start = base + entry["offset"]
+        if start != expected_end:
+            fail(f"section {entry['name']!r} does not follow the previous one")
+        end = start + entry["length"]
+        expected_end = end
+        if end > len(data):
+            if truncated:
+                break
+            fail(f"section {entry['name']!r} runs past the end of the file")
+        payload = data[start:end]
+        if zlib.crc32(payload) != entry["crc32"]:
+            fail(f"section {entry['name']!r} checksum mismatch")
+        sections[entry["name"]] = payload
+    if not truncated and expected_end != total:
+        fail(f"sections end at byte {expected_end}, file size says {total}")
+    container = Container(manifest=manifest, sections=sections, path=path)
+    container.available_level = _available_level(manifest, sections)
+    if container.available_level < 1:
+        fail("the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
+    return container
+
+
+def _available_level(manifest: dict, sections: dict) -> int:
+    pos = manifest["positions"]
+    if pos["mandatory"] not in sections:
+        return 0
+    for name in manifest["sections"]:
+        if name["name"] not in sections and not name["name"].startswith("positions/"):
+            return 0  # an attribute section is missing: not a usable prefix
+    level = 1
+    for p in range(2, pos["max_level"] + 1):
+        if pos["planes"][str(p)] not in sections:
+            break
+        level = p
+    return level
+
+
+def read(path: str, *, allow_prefix: bool = False) -> Container:
+    """Read and check a .lop file (see from_bytes)."""
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except FileNotFoundError:
+        raise LopcookError("emit", path, "file not found", hint="check the path") from None
+    except IsADirectoryError:
+        raise LopcookError("emit", path, "is a directory, not a .lop file") from None
+    return from_bytes(data, path, allow_prefix=allow_prefix)

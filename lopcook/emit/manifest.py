@@ -1,0 +1,95 @@
+"""The container manifest: what it holds and the checks a reader relies on.
+
+The full contract is ``schema/container.schema.json`` (JSON Schema 2020-12, used by the tests);
+``validate_manifest`` re-checks at run time, without extra dependencies, every field the reader
+uses, so a manifest that passes its CRC but is inconsistent still gives one clear error.
+"""
+
+from __future__ import annotations
+
+from ..errors import LopcookError
+
+FORMAT = "lopcook.lop"
+LEVELS = 24
+
+
+def validate_manifest(m, path: str | None) -> None:
+    """Raise LopcookError("emit", path, ...) unless the manifest is structurally sound."""
+
+    def fail(msg: str) -> None:
+        raise LopcookError("emit", path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
+
+    def need(obj, key, kind, where):
+        if not isinstance(obj, dict) or key not in obj:
+            fail(f"{where}: missing {key!r}")
+        val = obj[key]
+        if kind is int and (isinstance(val, bool) or not isinstance(val, int)):
+            fail(f"{where}.{key} must be an integer")
+        if kind is not int and not isinstance(val, kind):
+            fail(f"{where}.{key} has the wrong type")
+        return val
+
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        fail(f"format is not {FORMAT!r}")
+    sections = need(m, "sections", list, "manifest")
+    names = set()
+    for i, s in enumerate(sections):
+        name = need(s, "name", str, f"sections[{i}]")
+        for key in ("offset", "length", "crc32"):
+            if need(s, key, int, f"sections[{i}]") < 0:
+                fail(f"sections[{i}].{key} is negative")
+        if s["length"] % 4:
+            fail(f"section {name!r} length is not a multiple of 4")
+        if name in names:
+            fail(f"section {name!r} appears twice")
+        names.add(name)
+    grid = need(m, "grid", dict, "manifest")
+    origin = need(grid, "origin", list, "grid")
+    if len(origin) != 3 or not all(isinstance(v, (int, float)) for v in origin):
+        fail("grid.origin must be 3 numbers")
+    extent = need(grid, "extent", (int, float), "grid")
+    if not extent > 0 or need(grid, "bits", int, "grid") != LEVELS:
+        fail("grid.extent must be > 0 and grid.bits 24")
+    pos = need(m, "positions", dict, "manifest")
+    max_level = need(pos, "max_level", int, "positions")
+    if not 1 <= max_level <= LEVELS:
+        fail("positions.max_level must be in [1, 24]")
+    if need(pos, "mandatory", str, "positions") not in names:
+        fail("positions.mandatory names no section")
+    planes = need(pos, "planes", dict, "positions")
+    for p in range(2, max_level + 1):
+        if planes.get(str(p)) not in names:
+            fail(f"positions.planes[{p}] names no section")
+    parts = need(m, "parts", list, "manifest")
+    if not parts:
+        fail("no parts")
+    for i, part in enumerate(parts):
+        need(part, "name", str, f"parts[{i}]")
+        lods = need(part, "lods", list, f"parts[{i}]")
+        if not lods:
+            fail(f"parts[{i}] has no LODs")
+        for k, lod in enumerate(lods):
+            where = f"parts[{i}].lods[{k}]"
+            n = need(lod, "vertices", int, where)
+            tri = need(lod, "triangles", int, where)
+            vid = need(lod, "vertex_id", list, where)
+            if len(vid) != LEVELS + 1 or vid[0] != 0 or vid[-1] != n or any(
+                    not isinstance(a, int) or a > b for a, b in zip(vid, vid[1:])):
+                fail(f"{where}.vertex_id is not 25 non-decreasing counts from 0 to {n}")
+            if n < 1 or tri < 1:
+                fail(f"{where} is empty")
+            if need(lod, "index_width", int, where) not in (2, 4):
+                fail(f"{where}.index_width must be 2 or 4")
+            if need(lod, "indices", str, where) not in names:
+                fail(f"{where}.indices names no section")
+            for key in ("normals", "uvs", "colors"):
+                val = lod.get(key)
+                if val is not None and val not in names:
+                    fail(f"{where}.{key} names no section")
+            mw = need(lod, "mandatory_words", list, where)
+            if len(mw) != 2 or not all(isinstance(v, int) and v >= 0 for v in mw):
+                fail(f"{where}.mandatory_words must be [offset, count]")
+            if lod.get("uvs") is not None:
+                rng = need(lod, "uv_range", list, where)
+                if len(rng) != 2 or not all(isinstance(r, list) and len(r) == 2 for r in rng):
+                    fail(f"{where}.uv_range must be [[lo_u, lo_v], [hi_u, hi_v]]")

@@ -1,0 +1,98 @@
+"""Summaries of a container for ``lopcook cook`` and ``lopcook inspect OUT.lop`` (text and JSON)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .binning import FLOAT32_BYTES_PER_VERTEX, LEVELS, buffer_bytes
+from .container import Container
+
+SUMMARY_LEVELS = range(6, 13)
+
+
+def memory_rows(c: Container, levels=range(1, LEVELS + 1)) -> list[dict]:
+    """Per per-buffer level B: GPU-resident position bytes of CAP (binned, all buffers of LOD 0),
+    of AP (every vertex at B bits), and float32 (12 bytes per vertex), with percentages."""
+    vids = [np.asarray(p["lods"][0]["vertex_id"], dtype=np.int64) for p in c.manifest["parts"]]
+    n = int(sum(int(v[LEVELS]) for v in vids))
+    f32 = FLOAT32_BYTES_PER_VERTEX * n
+    rows = []
+    for b in levels:
+        cap = sum(buffer_bytes(v, b) for v in vids)
+        ap = sum(4 * ((3 * b * int(v[LEVELS]) + 31) // 32) for v in vids)
+        rows.append({"level": int(b), "cap_bytes": int(cap), "ap_bytes": int(ap), "float32_bytes": int(f32),
+                     "cap_percent": 100.0 * cap / max(f32, 1), "ap_percent": 100.0 * ap / max(f32, 1)})
+    return rows
+
+
+def describe_container(c: Container, file_bytes: int | None = None) -> dict:
+    """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
+    m = c.manifest
+    sections = [{"name": s["name"], "bytes": s["length"]} for s in m["sections"]]
+    by_kind: dict = {}
+    for s in m["sections"]:
+        kind = s["name"].rsplit("/", 1)[-1]
+        kind = "planes" if kind.startswith("plane") else kind
+        by_kind[kind] = by_kind.get(kind, 0) + s["length"]
+    parts = []
+    for p in m["parts"]:
+        lods = [{"vertices": e["vertices"], "triangles": e["triangles"], "geometric_error_m": e["geometric_error_m"],
+                 "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
+                 "attributes": [k for k in ("normals", "uvs", "colors") if e.get(k)]} for e in p["lods"]]
+        parts.append({"name": p["name"], "source": p["source"], "lods": lods})
+    return {
+        "kind": "container",
+        "file": c.path,
+        "format": m["format"],
+        "generator": m["generator"],
+        "file_bytes": file_bytes,
+        "source": m["source"],
+        "grid": m["grid"],
+        "viewing": m["viewing"],
+        "options": m["options"],
+        "available_level": c.available_level,
+        "max_level": m["positions"]["max_level"],
+        "totals": {"parts": len(parts), "buffers": sum(len(p["lods"]) for p in parts),
+                   "vertices": m["stats"]["vertices"], "triangles": m["stats"]["triangles"],
+                   "histogram": m["stats"]["histogram"],
+                   "float32_position_bytes": m["stats"]["float32_position_bytes"]},
+        "section_bytes": by_kind,
+        "sections": sections,
+        "memory": memory_rows(c),
+        "parts": parts,
+    }
+
+
+def _hist(h) -> str:
+    nz = [b for b in range(1, LEVELS + 1) if h[b]]
+    return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
+
+
+def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 20) -> str:
+    t = d["totals"]
+    lines = [
+        f"{d['file']}: {d['format']} by {d['generator']}, {d['file_bytes'] or 0:,} bytes, levels 1..{d['available_level']}",
+        f"  source {d['source']['file']} ({d['source']['format']}); {t['parts']} parts, {t['buffers']} buffers, "
+        f"{t['vertices']:,} vertices, {t['triangles']:,} triangles; grid extent {d['grid']['extent']:.6g} m",
+        "  minimum levels (level:vertices): " + _hist(t["histogram"]),
+        "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
+        "",
+        f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions vs "
+        f"float32 {t['float32_position_bytes']:,} B)",
+    ]
+    for r in d["memory"]:
+        if r["level"] in SUMMARY_LEVELS:
+            lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
+                         f"{r['ap_percent']:>5.1f}%")
+    if timings:
+        lines.append("")
+        lines.append("  time: " + ", ".join(f"{k} {v:.3f} s" for k, v in timings.items()))
+    if len(d["parts"]) > 1:
+        lines.append("")
+        for p in d["parts"][:max_parts]:
+            e = p["lods"][0]
+            lines.append(f"  {p['name'][-48:]:<48} {e['vertices']:>9,} v {e['triangles']:>9,} t  "
+                         f"{' '.join(e['attributes'])}")
+        if len(d["parts"]) > max_parts:
+            lines.append(f"  … {len(d['parts']) - max_parts} more parts (use --json for all)")
+    return "\n".join(lines)
