@@ -45,8 +45,31 @@ def _buffer_order(c: Container):
             yield i, k, e
 
 
+def _plane_bits(c: Container, p: int) -> np.ndarray:
+    """Refinement plane p as a 0/1 uint8 stream (cached on the container)."""
+    cache = c.__dict__.setdefault("_plane_cache", {})
+    if p not in cache:
+        data = np.frombuffer(c.section(c.manifest["positions"]["planes"][str(p)]), np.uint8)
+        cache[p] = np.unpackbits(data, bitorder="little")
+    return cache[p]
+
+
+def _plane_offsets(c: Container, p: int) -> dict:
+    """(part, lod) -> bit offset of that buffer's slice of plane p (buffers in manifest order)."""
+    cache = c.__dict__.setdefault("_offset_cache", {})
+    if p not in cache:
+        offsets, start = {}, 0
+        for i, k, e in _buffer_order(c):
+            offsets[(i, k)] = start
+            start += 3 * int(e["vertex_id"][p - 1])
+        cache[p] = offsets
+    return cache[p]
+
+
 def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarray, np.ndarray]:
-    """(n, 3) uint32 top bits and (n,) widths of every vertex at per-buffer level B (binned order)."""
+    """(n, 3) uint32 top bits and (n,) widths of every vertex at per-buffer level B (binned order):
+    the mandatory bits (the buffer packed at level 1), then one bit per refinement plane 2..B for
+    the vertices whose minimum level is below that plane."""
     if not 1 <= level <= LEVELS:
         raise LopcookError("usage", c.path, f"level {level} is outside [1, 24]")
     if level > c.available_level:
@@ -62,19 +85,15 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     values, widths = decode(words, vid, table_bit_id(vid, 1), 1)
     values = values.astype(np.uint32)
     for p in range(2, level + 1):
-        stream = np.unpackbits(np.frombuffer(c.section(c.manifest["positions"]["planes"][str(p)]), np.uint8),
-                               bitorder="little")
-        start = 0
-        for i, k, other in _buffer_order(c):
-            count_p = 3 * int(other["vertex_id"][p - 1])
-            if (i, k) == (part, lod):
-                if start + count_p > stream.size:
-                    raise LopcookError("emit", c.path, f"plane {p} is shorter than its buffers")
-                bits = stream[start:start + count_p].reshape(-1, 3).astype(np.uint32)
-                g = bits.shape[0]
-                values[:g] = (values[:g] << np.uint32(1)) | bits
-                break
-            start += count_p
+        g = int(vid[p - 1])
+        if g == 0:
+            continue
+        stream = _plane_bits(c, p)
+        start = _plane_offsets(c, p)[(part, lod)]
+        if start + 3 * g > stream.size:
+            raise LopcookError("emit", c.path, f"plane {p} is shorter than its buffers")
+        bits = stream[start:start + 3 * g].reshape(g, 3).astype(np.uint32)
+        values[:g] = (values[:g] << np.uint32(1)) | bits
     return values, vertex_widths(vid, level)
 
 
