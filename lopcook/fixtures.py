@@ -40,8 +40,6 @@ point_instancer        USD PointInstancer, 4 instances x 2 meshes   .usda
 from __future__ import annotations
 
 import json
-import re
-import struct
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -49,14 +47,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .emit.gltf_writer import (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
+                               UNSIGNED_SHORT, BufferBuilder, gltf_json_text, pack_glb)
+
 GENERATOR = "lopcook fixtures"
 """``asset.generator`` of the glTF files and the signature in OBJ/USD headers."""
-
-# glTF 2.0 constants
-_FLOAT, _UNSIGNED_SHORT, _UNSIGNED_INT = 5126, 5123, 5125
-_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
-_TRIANGLES = 4
-_NUMBER_ARRAY = re.compile(r"\[\s+([-+0-9.eE,\s]+?)\s+\]")  # JSON arrays of numbers -> one line
 
 
 # ---------------------------------------------------------------------------------------------
@@ -543,37 +538,27 @@ def write_obj(parts: list[FixturePart], path, comment: str = "") -> Path:
 
 
 def _gltf_document(parts: list[FixturePart], nodes: list[dict] | None, index_dtype) -> tuple[dict, bytes]:
-    """Build the glTF JSON dict and the binary buffer (little-endian, 4-byte aligned views)."""
-    blob = bytearray()
-    accessors: list[dict] = []
-    views: list[dict] = []
+    """Build the glTF JSON dict and the binary buffer (little-endian, 4-byte aligned views).
 
-    def add(array: np.ndarray, kind: str, component: int, target: int, minmax: bool = False) -> int:
-        data = np.ascontiguousarray(array).tobytes()
-        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data), "target": target})
-        blob.extend(data)
-        blob.extend(b"\0" * (-len(blob) % 4))
-        acc = {"bufferView": len(views) - 1, "componentType": component,
-               "count": int(array.shape[0]), "type": kind}
-        if minmax:
-            acc["min"] = [float(x) for x in array.min(axis=0)]
-            acc["max"] = [float(x) for x in array.max(axis=0)]
-        accessors.append(acc)
-        return len(accessors) - 1
+    Uses the shared ``lopcook.emit.gltf_writer.BufferBuilder``; the JSON keys keep their insertion
+    order here (the committed fixtures predate the sorted-key lopcook writer).
+    """
+    buf = BufferBuilder()
+    add = buf.add
 
     meshes = []
     for part in parts:
-        attributes = {"POSITION": add(part.positions.astype("<f4"), "VEC3", _FLOAT, _ARRAY_BUFFER, True)}
+        attributes = {"POSITION": add(part.positions.astype("<f4"), "VEC3", FLOAT, ARRAY_BUFFER, True)}
         if part.normals is not None:
-            attributes["NORMAL"] = add(part.normals.astype("<f4"), "VEC3", _FLOAT, _ARRAY_BUFFER)
+            attributes["NORMAL"] = add(part.normals.astype("<f4"), "VEC3", FLOAT, ARRAY_BUFFER)
         if part.uvs is not None:
-            attributes["TEXCOORD_0"] = add(part.uvs.astype("<f4"), "VEC2", _FLOAT, _ARRAY_BUFFER)
+            attributes["TEXCOORD_0"] = add(part.uvs.astype("<f4"), "VEC2", FLOAT, ARRAY_BUFFER)
         dtype = index_dtype or ("<u2" if len(part.positions) <= 65535 else "<u4")
         dtype = np.dtype(dtype).newbyteorder("<")
-        component = {2: _UNSIGNED_SHORT, 4: _UNSIGNED_INT}[dtype.itemsize]
-        ind = add(part.indices.reshape(-1).astype(dtype), "SCALAR", component, _ELEMENT_ARRAY_BUFFER)
+        component = {2: UNSIGNED_SHORT, 4: UNSIGNED_INT}[dtype.itemsize]
+        ind = add(part.indices.reshape(-1).astype(dtype), "SCALAR", component, ELEMENT_ARRAY_BUFFER)
         meshes.append({"name": part.name,
-                       "primitives": [{"attributes": attributes, "indices": ind, "mode": _TRIANGLES}]})
+                       "primitives": [{"attributes": attributes, "indices": ind, "mode": TRIANGLES}]})
 
     if nodes is None:
         nodes = [{"name": part.name, "mesh": i} for i, part in enumerate(parts)]
@@ -585,11 +570,11 @@ def _gltf_document(parts: list[FixturePart], nodes: list[dict] | None, index_dty
         "scenes": [{"name": "fixture", "nodes": roots}],
         "nodes": [dict(node) for node in nodes],
         "meshes": meshes,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": len(blob)}],
+        "accessors": buf.accessors,
+        "bufferViews": buf.views,
+        "buffers": [{"byteLength": len(buf.blob)}],
     }
-    return doc, bytes(blob)
+    return doc, bytes(buf.blob)
 
 
 def write_gltf(parts: list[FixturePart], path, binary: bool = False, nodes: list[dict] | None = None,
@@ -610,15 +595,9 @@ def write_gltf(parts: list[FixturePart], path, binary: bool = False, nodes: list
     if not binary:
         bin_path = path.with_suffix(".bin")
         doc["buffers"][0]["uri"] = bin_path.name
-        text = _NUMBER_ARRAY.sub(lambda m: "[" + " ".join(m.group(1).split()) + "]",
-                                 json.dumps(doc, indent=1)) + "\n"
+        text = gltf_json_text(doc, sort_keys=False)
         return [_write_bytes(path, text.encode("ascii")), _write_bytes(bin_path, blob)]
-    js = json.dumps(doc, separators=(",", ":")).encode("ascii")
-    js += b" " * (-len(js) % 4)
-    blob += b"\0" * (-len(blob) % 4)
-    total = 12 + 8 + len(js) + 8 + len(blob)
-    data = (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(js), b"JSON") + js
-            + struct.pack("<I4s", len(blob), b"BIN\0") + blob)
+    data = pack_glb(json.dumps(doc, separators=(",", ":")).encode("ascii"), blob)
     return [_write_bytes(path, data)]
 
 

@@ -1,0 +1,1 @@
+"""Verification: checks of lopcook outputs against independent references (e.g. the Khronos glTF validator)."""
