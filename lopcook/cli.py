@@ -224,7 +224,9 @@ def cmd_cook(args) -> int:
     if args.depfile:
         from .depfile import write_depfile
 
-        write_depfile(args.depfile, args.output, getattr(scene, "dependencies", ()) or (args.source,))
+        # phony rules: a listed file that does not exist yet (a missing texture) reruns the cook
+        # instead of stopping make with "no rule to make target"
+        write_depfile(args.depfile, args.output, scene.dependencies or (args.source,), phony=True)
     timings["write"] = time.perf_counter() - t0
     desc = describe_container(from_bytes(data, args.output), file_bytes=len(data))
     desc["timings_s"] = timings

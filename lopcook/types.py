@@ -148,6 +148,20 @@ class Scene:
         The source's up axis before normalisation (``"Y"`` or ``"Z"``).
     warnings : tuple[str, ...]
         Things the importer tolerated (missing .mtl, skipped non-triangle primitives, ...).
+    dependencies : tuple[str, ...]
+        Every file the importer opened or resolved, for build systems (``lopcook.depfile``):
+        the source itself first, then its sidecars in first-use order, de-duplicated and
+        deterministic. glTF: external ``.bin`` buffers and image files that were read; OBJ: the
+        ``mtllib`` files and the ``map_Kd`` images of the materials the parts use; USD: every
+        layer the composed stage used (``Usd.Stage.GetUsedLayers``: sublayers, references,
+        payloads; anonymous layers skipped, a layer inside a ``.usdz`` package listed as the
+        ``.usdz`` file) and the texture files read through the asset resolver. A file that was
+        referenced but missing (tolerated with a warning, e.g. a missing texture or ``.mtl``) is
+        still listed, so that a build reruns when it appears. Data URIs, GLB chunks and remote
+        URLs are not files and are not listed. Paths are spelt as in a Makefile: relative to the
+        current directory (the source's directory joined with the reference, ``os.path.normpath``)
+        when ``source`` is relative, absolute when it is absolute; an absolute reference stays
+        absolute. Empty for a Scene not made by an importer.
     """
 
     parts: tuple[MeshPart, ...]
@@ -156,6 +170,7 @@ class Scene:
     unit_scale: float = 1.0
     up_axis: str = "Y"
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    dependencies: tuple[str, ...] = field(default_factory=tuple)
 
     @property
     def n_vertices(self) -> int:

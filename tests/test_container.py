@@ -228,3 +228,15 @@ def test_decode_output_passes_khronos_validator(corpus, tmp_path, name, level):
     assert proc.returncode == 0, proc.stderr
     report = V.validate(glb)
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, V.problems(report)
+
+
+def test_cli_cook_depfile(corpus, tmp_path):
+    out, dep = tmp_path / "helmet.lop", tmp_path / "helmet.d"
+    proc = run("cook", corpus / "DamagedHelmet" / "DamagedHelmet.gltf", "-o", out, "--depfile", dep)
+    assert proc.returncode == 0, proc.stderr
+    text = dep.read_text()
+    first = text.split("\n", 1)[0]
+    assert first.startswith(str(out).replace(" ", "\\ ") + ":")
+    for name in ("DamagedHelmet.gltf", "DamagedHelmet.bin", "Default_albedo.jpg"):
+        assert name in text
+    assert "Default_normal.jpg" not in text  # never read

@@ -38,6 +38,11 @@ What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.
   default 0; glTF UVs already have the top-left origin) and COLOR_0 (VEC3/VEC4, linear).
 * 3.9 Materials: ``pbrMetallicRoughness.baseColorTexture`` -> ``textures[i].source`` ->
   ``images[j]`` (uri, data URI, or bufferView + mimeType), as encoded bytes.
+* ``Scene.dependencies``: the source, then every external file a ``uri`` named that was read or
+  looked for (buffers, the base-colour images actually used; a missing image is listed too), in
+  the order they were first needed. Data URIs and GLB chunks are not files; remote URLs are
+  refused, not listed. Images no part uses (e.g. normal or occlusion maps) are never opened and
+  not listed.
 * 3.12 Extensions: any ``extensionsRequired`` entry that is not supported (e.g.
   KHR_draco_mesh_compression, EXT_meshopt_compression) is rejected. ``KHR_materials_*``
   extensions are accepted: they change shading only, not geometry or the base-colour texture.
@@ -64,6 +69,7 @@ import urllib.parse
 
 import numpy as np
 
+from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
@@ -170,6 +176,7 @@ class _GltfReader:
         self.base_dir = os.path.dirname(os.path.abspath(path))
         self.where = ""  # what is being read, for messages about malformed data
         self.warnings: list[str] = []
+        self.deps = DependencyList(path)  # files opened or looked for, in first-use order
         self.gltf: dict = {}
         self.bin_chunk: bytes | None = None
         self._buffers: dict[int, bytes] = {}
@@ -210,7 +217,7 @@ class _GltfReader:
         names = unique_names([p.name for p in parts])
         parts = [p if p.name == n else _rename(p, n) for p, n in zip(parts, names)]
         return Scene(parts=tuple(parts), source=self.path, format=self.fmt, unit_scale=1.0,
-                     up_axis="Y", warnings=tuple(self.warnings))
+                     up_axis="Y", warnings=tuple(self.warnings), dependencies=self.deps.paths())
 
     def _split_glb(self, data: bytes) -> bytes:
         """GLB (spec 4.4): return the JSON chunk, keep the BIN chunk in ``self.bin_chunk``."""
@@ -343,6 +350,7 @@ class _GltfReader:
                              "download the resource and refer to it by a relative path")
         rel = urllib.parse.unquote(uri)
         full = os.path.join(self.base_dir, rel)
+        self.deps.add(rel)  # listed even when missing: a build must rerun when it appears
         if not os.path.isfile(full):
             return None, rel
         with open(full, "rb") as fh:

@@ -12,7 +12,9 @@ What is read
 * ``usemtl`` (the first material each part's faces use is kept in ``MeshPart.source``; a part
   that uses several gets a warning), ``mtllib`` (the .mtl files are parsed for ``newmtl`` /
   ``map_Kd``; the part's material's ``map_Kd`` becomes ``MeshPart.texture``). A missing .mtl or
-  texture file is a Scene warning, not an error.
+  texture file is a Scene warning, not an error. ``Scene.dependencies`` lists the .obj, each
+  .mtl looked for (found or not), then the ``map_Kd`` file of each material a part uses: the
+  path the .mtl gives and, when that is missing, the fallback looked for next to the .obj.
 * ``\\`` line continuations, ``#`` comments (whole-line and trailing), ``\\r\\n``/``\\r`` line ends,
   a UTF-8 BOM. ``s`` is ignored; ``l``/``p`` (polylines, points) and free-form statements are
   skipped with a counted warning. Text is UTF-8; other bytes fall back to Latin-1 with a warning.
@@ -73,6 +75,7 @@ from collections import Counter
 
 import numpy as np
 
+from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
@@ -100,6 +103,7 @@ class _Ctx:
     def __init__(self, path: str):
         self.path = path
         self.warnings: list[str] = []
+        self.deps = DependencyList(path)  # Scene.dependencies: files opened or looked for
         self.starts: np.ndarray = np.zeros(0, np.int64)   # byte offset of each logical line
         self.cont_pos: np.ndarray | None = None          # byte offsets of "\\\n" continuations
 
@@ -285,7 +289,7 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
     if f_lines.size == 0:
         ctx.warnings.append(f"no faces (f statements): {nv} v records, nothing to mesh")
         return Scene(parts=(), source=path, format="obj", unit_scale=1.0, up_axis="Y",
-                     warnings=tuple(ctx.warnings))
+                     warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
 
     # faces ------------------------------------------------------------------------------------
     fblob = work[btype == _F]
@@ -368,7 +372,7 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         out.append(_build_part(ctx, name, key, mat, tc, cv, cvt, cvn, V, UV, N, colors, has_color,
                                texture, settings))
     return Scene(parts=tuple(out), source=path, format="obj", unit_scale=1.0, up_axis="Y",
-                 warnings=tuple(ctx.warnings))
+                 warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
 
 
 # numbers --------------------------------------------------------------------------------------
@@ -698,6 +702,7 @@ def _read_mtllibs(ctx: _Ctx, mtllibs: list[str], encoding: str) -> dict[str, str
         cands = [spec] if os.path.isfile(os.path.join(base, spec.replace("\\", "/"))) else spec.split()
         for name in cands:
             mpath = os.path.join(base, name.replace("\\", "/"))
+            ctx.deps.add_path(mpath)  # listed even when missing: a build must rerun when it appears
             if not os.path.isfile(mpath):
                 ctx.warnings.append(f"material library {name!r} not found; parts have no texture")
                 continue
@@ -764,8 +769,10 @@ def _texture_for(ctx, mat, materials, cache, have_lib) -> Texture | None:
         return cache[fpath]
     tex = None
     target = fpath
+    ctx.deps.add_path(fpath)  # listed even when missing (as is the fallback looked for below)
     if not os.path.isfile(target):
         alt = os.path.join(os.path.dirname(ctx.path), os.path.basename(fpath))
+        ctx.deps.add_path(alt)
         target = alt if os.path.isfile(alt) else None
     if target is None:
         ctx.warnings.append(f"texture {os.path.basename(fpath)!r} of material {mat!r} not found; no texture")

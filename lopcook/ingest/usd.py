@@ -61,6 +61,15 @@ For a mesh's bound material (``UsdShade.MaterialBindingAPI.ComputeBoundMaterial`
 a ``UsdPreviewSurface``, the ``UsdUVTexture`` feeding ``diffuseColor`` gives the part's texture
 (its ``inputs:file`` asset, read through the asset resolver, so files inside a ``.usdz`` work).
 An asset that does not resolve is reported in ``Scene.warnings`` and the part has no texture.
+
+Dependencies
+------------
+``Scene.dependencies``: the source, then every non-anonymous layer of
+``Usd.Stage.GetUsedLayers()`` (sublayers, references, payloads, in a deterministic first-use
+order: root layer stack, then prim traversal order, then the rest sorted), then each texture
+file as the meshes use it (its resolved path, or when it does not resolve the path anchored to
+the layer that authored it). A layer or texture inside a ``.usdz`` package counts as the
+``.usdz`` file. A reference authored as an absolute path is listed absolute.
 """
 
 from __future__ import annotations
@@ -74,6 +83,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
@@ -194,6 +204,8 @@ class _Loader:
         self.meshes: dict[str, _LocalMesh | None] = {}
         self.textures: dict[str, Texture | None] = {}
         self.parts: list[tuple[str, str, _LocalMesh, np.ndarray]] = []  # name, source, mesh, (4,4)
+        self.deps = DependencyList(path)  # Scene.dependencies: layers, then textures as used
+        self.absolute_refs: set[str] = set()  # asset paths authored absolute (kept absolute)
         text = str(settings.usd_time).strip()
         if text.lower() == "default":
             self.time = None
@@ -252,6 +264,7 @@ class _Loader:
                       hint="fix or ship the referenced layers/assets next to the file")
         self.warnings.extend(f"USD: {_one_line(_diagnostic_text(ln), self.path)}" for ln in lines)
         self.stage = stage
+        self.add_layer_dependencies()
         self.up_axis = str(UsdGeom.GetStageUpAxis(stage))
         self.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
         if not UsdGeom.StageHasAuthoredMetersPerUnit(stage):
@@ -268,6 +281,94 @@ class _Loader:
         self.stage_matrix = stage_m
         self.xf_cache = {}
         self.earliest_xf: dict[str, bool] = {}
+
+    # ------------------------------------------------------------------ dependencies
+    def add_dependency(self, file: str) -> None:
+        """Add an absolute file path (a layer's or asset's file) to ``self.deps``."""
+        self.deps.add_resolved(file, keep_absolute=os.path.normpath(file) in self.absolute_refs)
+
+    def add_layer_dependencies(self) -> None:
+        """Every file layer the composed stage used, in a deterministic first-use order.
+
+        ``GetUsedLayers`` is unordered, so the files are ordered: the root layer stack (strength
+        order), then the order in which a prim traversal (instance proxies and all prims included)
+        first meets an opinion from them, then any left (layers that hold no prim opinion, e.g.
+        only metadata) sorted by path. Layers inside a .usdz package count as the .usdz file.
+        """
+        from pxr import Usd
+
+        stage = self.stage
+        root = stage.GetRootLayer()
+        files: list[str] = []
+        for layer in stage.GetUsedLayers():
+            if layer.anonymous:
+                continue
+            for ref in getattr(layer, "GetCompositionAssetDependencies", lambda: ())():
+                if os.path.isabs(ref):
+                    self.absolute_refs.add(os.path.normpath(ref))
+            if layer == root:
+                continue
+            file = _layer_file(layer)
+            if file:
+                files.append(file)
+        root_file = _layer_file(root)
+        pending = set(files) - {root_file}
+        ordered: list[str] = []
+
+        def meet(layer) -> None:
+            file = _layer_file(layer)
+            if file in pending:
+                pending.discard(file)
+                ordered.append(file)
+
+        for layer in stage.GetLayerStack(includeSessionLayers=False):
+            meet(layer)
+        if len(pending) > 1:
+            pred = Usd.TraverseInstanceProxies(Usd.PrimAllPrimsPredicate)
+            for prim in Usd.PrimRange.Stage(stage, pred):
+                for spec in prim.GetPrimStack():
+                    meet(spec.layer)
+                if len(pending) <= 1:
+                    break
+        ordered.extend(sorted(pending))
+        for file in ordered:
+            self.add_dependency(file)
+
+    def add_asset_dependency(self, attr, authored: str, resolved: str) -> None:
+        """A texture file: its resolved file, or (missing) the path anchored to the layer that
+        authored it, so that a build reruns when it appears. UDIM patterns are not files."""
+        from pxr import Ar
+
+        if os.path.isabs(authored):
+            self.absolute_refs.add(os.path.normpath(authored))
+        if resolved:
+            file = _package_outer(resolved)
+        elif "<UDIM>" in authored:
+            return
+        else:
+            layer = None
+            try:
+                for spec in attr.GetPropertyStack(self.time_of(attr)):
+                    if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+                        layer = spec.layer
+                        break
+            except Exception:  # noqa: BLE001 - no anchor: list nothing rather than fail the load
+                layer = None
+            if layer is None or layer.anonymous:
+                return
+            home = _layer_file(layer)
+            if Ar.IsPackageRelativePath(layer.realPath) or layer.GetFileFormat().IsPackage():
+                file = home  # a file missing inside a .usdz: the package is the dependency
+            else:
+                anchored = layer.ComputeAbsolutePath(authored)
+                if Ar.IsPackageRelativePath(anchored):
+                    file = _package_outer(anchored)
+                elif os.path.isabs(anchored):
+                    file = anchored
+                else:  # a search-path form ("tex.png") that did not resolve: next to the layer
+                    file = os.path.join(os.path.dirname(home), anchored)
+        if file:
+            self.add_dependency(file)
 
     # ------------------------------------------------------------------ transforms
     def xform_cache(self, prim):
@@ -603,6 +704,7 @@ class _Loader:
                 if asset is None or not asset.path:
                     continue
                 resolved = asset.resolvedPath
+                self.add_asset_dependency(src.GetInput("file").GetAttr(), asset.path, resolved)
                 data = None
                 if resolved:
                     try:
@@ -625,7 +727,22 @@ class _Loader:
         for name, (_, source, local, m) in zip(names, self.parts):
             parts.append(_place(name, source, local, m, self.settings))
         return Scene(parts=tuple(parts), source=self.path, format=self.fmt, unit_scale=self.meters_per_unit,
-                     up_axis=self.up_axis, warnings=tuple(dict.fromkeys(self.warnings)))
+                     up_axis=self.up_axis, warnings=tuple(dict.fromkeys(self.warnings)),
+                     dependencies=self.deps.paths())
+
+
+def _package_outer(path: str) -> str:
+    """``/a/b.usdz[c/d.usdc]`` -> ``/a/b.usdz`` (the outermost package file); other paths as given."""
+    from pxr import Ar
+
+    if Ar.IsPackageRelativePath(path):
+        return Ar.SplitPackageRelativePathOuter(path)[0]
+    return path
+
+
+def _layer_file(layer) -> str:
+    """The file a (non-anonymous) layer was read from; the .usdz file for a layer in a package."""
+    return _package_outer(layer.realPath) if layer.realPath else ""
 
 
 def _bits64(values: np.ndarray) -> np.ndarray:
