@@ -1,0 +1,536 @@
+meta:
+  id: lopcook_lop
+  title: lopcook level-of-precision container (.lop), version 1.0
+  application: lopcook (offline asset cooker, Meyer et al. 2011 adaptive level-of-precision)
+  file-extension: lop
+  license: MIT
+  ks-version: 0.9
+  endian: le
+  encoding: ASCII
+
+doc: |
+  A .lop file holds the vertex data of a scene as binned adaptive precision buffers
+  (Meyer, Sussner, Greiner, Stamminger, "Adaptive Level-of-Precision for GPU-Rendering",
+  VMV 2011, sections 4-6): positions quantized on one 24-bit grid, split into the mandatory
+  bits of every vertex and 23 refinement bit planes, plus compact attributes (indices,
+  octahedral normals, unorm16 UVs, unorm8 colours).
+
+  Layout: a 32-byte header, a JSON manifest, then sections back to back. Every integer is
+  little-endian. The JSON manifest (schema/container.schema.json) says what each section
+  is and where it lies, so the sections cannot be split by Kaitai Struct alone: a reader
+  parses the header and the manifest, then cuts `sections` with the manifest's table
+  (`section_list` below, or by hand) and interprets each piece with the types below.
+
+  Prefix property: the position sections come last (mandatory bits, then planes 2, 3, ...),
+  so a file cut after plane B still holds the header, the manifest, every attribute and
+  the planes up to B, and decodes level B exactly (docs/format.md, "The prefix property").
+
+  docs/format.md is the normative prose; docs/worked_example.py decodes a real file by hand.
+
+doc-ref: docs/format.md
+
+seq:
+  - id: header
+    type: header
+    doc: The fixed 32-byte header (offset 0).
+  - id: manifest
+    type: str
+    size: header.len_manifest
+    encoding: ASCII
+    doc: |
+      The manifest: header.len_manifest bytes of JSON at file offset 32, validated by
+      schema/container.schema.json. Canonical form: keys sorted, no whitespace, ASCII only
+      (other characters escaped as \uXXXX, so UTF-8 and ASCII decoding agree), no NaN or
+      Infinity. CRC-32 of exactly these bytes = header.crc32_manifest. Not NUL-terminated,
+      not padded.
+  - id: sections
+    size-eos: true
+    doc: |
+      The section area: every byte after the manifest, from file offset
+      header.ofs_sections = 32 + header.len_manifest to header.len_file (in a complete file
+      its size is header.len_file - 32 - header.len_manifest; a truncated prefix file is
+      shorter).
+
+      It is a repeated raw area whose boundaries come from the manifest, not from the bytes:
+      manifest.sections[i] = {name, offset, length, crc32} is bytes
+      [offset, offset + length) of this area (offsets are relative to the start of the area,
+      so the manifest does not depend on its own size). The sections are back to back, in
+      the table's order, with no gaps: sections[0].offset = 0, sections[i+1].offset =
+      sections[i].offset + sections[i].length, and the last ends at the end of the area.
+      Every length is a multiple of 4 (0 to 3 zero bytes of padding end each payload and are
+      included in its length and its CRC-32). An empty section (length 0, crc32 0) is
+      allowed: a refinement plane no vertex of any buffer needs.
+
+      Order and names: for each part i (manifest order), for each LOD k:
+      "part{i}/lod{k}/indices", then "part{i}/lod{k}/normals", "part{i}/lod{k}/uvs",
+      "part{i}/lod{k}/colors" when present; then "positions/mandatory"; then
+      "positions/plane02" .. "positions/planeNN" (two-digit plane number, NN =
+      manifest.positions.max_level).
+
+      Interpret a section with: indices_section, normals_section, uvs_section,
+      colors_section (attributes of one buffer), mandatory_section (positions/mandatory),
+      refinement_plane (positions/planePP); a buffer's packed positions at a level are
+      described by packed_position_buffer. To cut the area into its sections, parse it as
+      section_list(lengths) with the lengths taken from the manifest.
+
+types:
+  header:
+    doc: |
+      32 bytes at offset 0. Check, in this order: magic; crc32_header over bytes 0..27;
+      version_major (refuse a major you do not know); len_header == 32;
+      file size <= len_file (longer: trailing data, an error; shorter: a truncated file,
+      an error unless you accept prefixes); crc32_manifest.
+    seq:
+      - id: magic
+        contents: LOPC
+        doc: 'Offset 0, 4 bytes: the ASCII bytes "LOPC" (4c 4f 50 43).'
+      - id: version_major
+        type: u2
+        valid: 1
+        doc: |
+          Offset 4, uint16: format major version, 1 for this description. A reader refuses a
+          major version it does not know (an incompatible change of layout or meaning).
+      - id: version_minor
+        type: u2
+        doc: |
+          Offset 6, uint16: format minor version, 0 for this description. Minor versions only
+          add (new manifest properties, new optional sections); a 1.x reader reads any 1.y
+          file, ignoring what it does not know.
+      - id: len_header
+        type: u4
+        valid: 32
+        doc: |
+          Offset 8, uint32, bytes: size of this header, always 32 in version 1.
+      - id: len_manifest
+        type: u4
+        doc: Offset 12, uint32, bytes M of the JSON manifest that follows the header.
+      - id: crc32_manifest
+        type: u4
+        doc: |
+          Offset 16, uint32: CRC-32 of the M manifest bytes (ISO-HDLC / IEEE 802.3 CRC-32 as
+          in zlib.crc32 and PNG: reflected polynomial 0xEDB88320, initial value and final XOR
+          0xFFFFFFFF).
+      - id: len_file
+        type: u8
+        doc: |
+          Offset 20, uint64, bytes: total size of the file = 32 + M + the sum of all section
+          lengths. A file longer than this has trailing data (an error); a shorter one is
+          truncated (an error, or a prefix file if the reader accepts those).
+      - id: crc32_header
+        type: u4
+        doc: Offset 28, uint32, CRC-32 (as above) of header bytes 0..27.
+    instances:
+      ofs_manifest:
+        value: len_header
+        doc: File offset of the manifest (32).
+      ofs_sections:
+        value: len_header + len_manifest
+        doc: File offset of the section area; every manifest section offset is relative to it.
+
+  section_list:
+    doc: |
+      The section area cut into its sections. Kaitai Struct cannot read the JSON manifest, so
+      the caller passes manifest.sections[*].length in table order; section i is then
+      sections[i] (the table's offsets are the running sums of these lengths). Check each
+      piece's CRC-32 against manifest.sections[i].crc32.
+    params:
+      - id: lengths
+        type: u8[]
+        doc: manifest.sections[i].length for i = 0 .. N-1, bytes, each a multiple of 4.
+    seq:
+      - id: sections
+        size: lengths[_index]
+        repeat: expr
+        repeat-expr: lengths.size
+        doc: Raw payload of section i, padding included.
+
+  indices_section:
+    doc: |
+      Section "part{i}/lod{k}/indices": the buffer's triangles, i0 i1 i2 per triangle
+      (counter-clockwise front faces), indices into the buffer's vertices in binned order.
+      index_width = manifest lod.index_width: 2 (uint16) when lod.vertices <= 65536, else 4
+      (uint32). Exact. Section length = 3 * triangles * index_width rounded up to a multiple
+      of 4 (2 zero bytes follow an odd number of uint16 indices).
+    params:
+      - id: index_width
+        type: u1
+        doc: manifest lod.index_width, bytes per index (2 or 4).
+      - id: num_triangles
+        type: u4
+        doc: manifest lod.triangles.
+    seq:
+      - id: indices_u2
+        type: u2
+        repeat: expr
+        repeat-expr: 3 * num_triangles
+        if: index_width == 2
+        doc: uint16 little-endian indices, each < lod.vertices.
+      - id: indices_u4
+        type: u4
+        repeat: expr
+        repeat-expr: 3 * num_triangles
+        if: index_width == 4
+        doc: uint32 little-endian indices, each < lod.vertices.
+      - id: padding
+        size-eos: true
+        doc: 0 or 2 zero bytes up to a multiple of 4.
+
+  normals_section:
+    doc: |
+      Section "part{i}/lod{k}/normals": one octahedral unit normal per vertex (binned order),
+      2 x uint16 (oct32P, Cigolle et al. 2014, JCGT 3(2)). Worst-case angular error 0.0038
+      degrees (measured maximum 0.00248 degrees); the six axis directions are exact.
+      Length 4 * vertices (already a multiple of 4).
+    params:
+      - id: num_vertices
+        type: u4
+        doc: manifest lod.vertices.
+    seq:
+      - id: normals
+        type: oct_normal
+        repeat: expr
+        repeat-expr: num_vertices
+        doc: Normal of vertex j = normals[j].
+
+  oct_normal:
+    doc: |
+      Decode (float64, then round the unit vector to float32):
+        s = code - 32768 (the snorm16 value; code 0 reads as -1 after the clamp)
+        p = clamp(s / 32767, -1, 1) per component
+        n = (p.x, p.y, 1 - |p.x| - |p.y|)
+        if n.z < 0: (n.x, n.y) = ((1 - |p.y|) * sgn(p.x), (1 - |p.x|) * sgn(p.y)),
+          sgn(t) = +1 for t >= 0, else -1
+        n = n / |n|
+      Kaitai expressions have no square root: oct_x, oct_y, oct_z below are n before the
+      normalisation.
+    seq:
+      - id: code_u
+        type: u2
+        doc: First octahedral coordinate, code = snorm16 value + 32768 (1..65535 when written by lopcook).
+      - id: code_v
+        type: u2
+        doc: Second octahedral coordinate, same encoding.
+    instances:
+      p_x:
+        value: '(code_u - 32768) / 32767.0 < -1.0 ? -1.0 : (code_u - 32768) / 32767.0'
+        doc: p.x = clamp((code_u - 32768) / 32767, -1, 1).
+      p_y:
+        value: '(code_v - 32768) / 32767.0 < -1.0 ? -1.0 : (code_v - 32768) / 32767.0'
+        doc: p.y = clamp((code_v - 32768) / 32767, -1, 1).
+      abs_p_x:
+        value: 'p_x < 0 ? -p_x : p_x'
+        doc: '|p.x|.'
+      abs_p_y:
+        value: 'p_y < 0 ? -p_y : p_y'
+        doc: '|p.y|.'
+      oct_z:
+        value: 1.0 - abs_p_x - abs_p_y
+        doc: Unnormalised z (negative on the folded lower half).
+      oct_x:
+        value: 'oct_z < 0 ? (1.0 - abs_p_y) * (p_x >= 0 ? 1.0 : -1.0) : p_x'
+        doc: Unnormalised x.
+      oct_y:
+        value: 'oct_z < 0 ? (1.0 - abs_p_x) * (p_y >= 0 ? 1.0 : -1.0) : p_y'
+        doc: Unnormalised y. The normal is (oct_x, oct_y, oct_z) / |(oct_x, oct_y, oct_z)|.
+
+  uvs_section:
+    doc: |
+      Section "part{i}/lod{k}/uvs": one (u, v) per vertex (binned order), 2 x unorm16 over the
+      buffer's range manifest lod.uv_range = [[lo_u, lo_v], [hi_u, hi_v]] (float32 values
+      written as JSON numbers; the range is in the manifest, not in this section). UVs use
+      the glTF convention (origin top-left). Error per component <= (hi - lo) / 131070 plus
+      half a float32 ulp of the result. Length 4 * vertices.
+    params:
+      - id: lo_u
+        type: f8
+        doc: uv_range[0][0] (a float32 value).
+      - id: lo_v
+        type: f8
+        doc: uv_range[0][1].
+      - id: hi_u
+        type: f8
+        doc: uv_range[1][0], >= lo_u.
+      - id: hi_v
+        type: f8
+        doc: uv_range[1][1], >= lo_v.
+      - id: num_vertices
+        type: u4
+        doc: manifest lod.vertices.
+    seq:
+      - id: uvs
+        type: unorm16_uv
+        repeat: expr
+        repeat-expr: num_vertices
+        doc: UV of vertex j = uvs[j].
+
+  unorm16_uv:
+    doc: |
+      u = lo_u * (1 - q_u / 65535) + hi_u * (q_u / 65535) in float64, then rounded to float32
+      (q = 0 gives lo exactly, q = 65535 gives hi exactly); likewise v.
+    seq:
+      - id: q_u
+        type: u2
+        doc: Code of u, 0..65535.
+      - id: q_v
+        type: u2
+        doc: Code of v, 0..65535.
+    instances:
+      u:
+        value: _parent.lo_u * (1.0 - q_u / 65535.0) + _parent.hi_u * (q_u / 65535.0)
+        doc: Decoded u (float64; round to float32).
+      v:
+        value: _parent.lo_v * (1.0 - q_v / 65535.0) + _parent.hi_v * (q_v / 65535.0)
+        doc: Decoded v (float64; round to float32).
+
+  colors_section:
+    doc: |
+      Section "part{i}/lod{k}/colors": linear RGBA (no sRGB transfer) per vertex (binned
+      order), 4 x unorm8. c = q / 255; error <= 1/510 per channel for inputs in [0, 1]
+      (inputs outside [0, 1] were clamped). Length 4 * vertices.
+    params:
+      - id: num_vertices
+        type: u4
+        doc: manifest lod.vertices.
+    seq:
+      - id: colors
+        type: unorm8_rgba
+        repeat: expr
+        repeat-expr: num_vertices
+        doc: Colour of vertex j = colors[j].
+
+  unorm8_rgba:
+    doc: One linear RGBA colour, 4 bytes.
+    seq:
+      - id: r
+        type: u1
+        doc: Red code; value r / 255.
+      - id: g
+        type: u1
+        doc: Green code; value g / 255.
+      - id: b
+        type: u1
+        doc: Blue code; value b / 255.
+      - id: a
+        type: u1
+        doc: Alpha code; value a / 255.
+    instances:
+      r_f:
+        value: r / 255.0
+        doc: Red in [0, 1].
+      g_f:
+        value: g / 255.0
+        doc: Green in [0, 1].
+      b_f:
+        value: b / 255.0
+        doc: Blue in [0, 1].
+      a_f:
+        value: a / 255.0
+        doc: Alpha in [0, 1].
+
+  mandatory_section:
+    doc: |
+      Section "positions/mandatory": uint32 little-endian words. For each buffer (manifest
+      order: parts, then LODs) manifest lod.mandatory_words = [offset, count] locates, in
+      words, the buffer's packed buffer P at level 1 (packed_position_buffer with level = 1):
+      every vertex of bin k with its k mandatory bits per component. The buffers follow each
+      other without gaps (offset of buffer t+1 = offset + count of buffer t); count =
+      ceil(BitId_1[24] / 32); the unused high bits of a buffer's last word are zero.
+    seq:
+      - id: words
+        type: u4
+        repeat: eos
+        doc: All buffers' words; buffer t is words[offset_t .. offset_t + count_t).
+
+  refinement_plane:
+    doc: |
+      Section "positions/planePP" (PP = 02 .. 24): refinement plane p = PP. It adds one bit,
+      bit 24 - p of the 24-bit grid integer, to each component of every vertex whose minimum
+      level is below p, i.e. to vertices j < VertexId[p-1] of each buffer (the vertices whose
+      mandatory bits and planes 2..p-1 hold only p-1 bits).
+
+      Bit stream, least significant bit of each byte first (bit i of the stream is bit
+      (i & 7) of byte (i >> 3)): the buffers in manifest order (parts, then LODs), and inside
+      a buffer its vertices j = 0 .. VertexId[p-1]-1 in binned order, three bits each, x then
+      y then z. So in buffer t, vertex j, component c (0 = x, 1 = y, 2 = z) is stream bit
+      start_t + 3 * j + c, with start_t = sum over earlier buffers r of 3 * VertexId_r[p-1].
+      No alignment between buffers; zero bits fill the last byte and zero bytes pad the
+      section to a multiple of 4. A plane no vertex needs has length 0.
+
+      Merging plane p into a buffer at level p-1 (top bits v, p-1 bits per component for
+      j < VertexId[p-1]): v = (v << 1) | bit. The result is the buffer at level p.
+    meta:
+      bit-endian: le
+    seq:
+      - id: bits
+        type: b1
+        repeat: eos
+        doc: The plane's bits in stream order (padding bits at the end are 0).
+
+  plane_bit:
+    doc: |
+      One bit of a refinement plane section read by its stream index, without reading the
+      stream bit by bit: bit (index & 7) of byte (index >> 3).
+    params:
+      - id: index
+        type: u8
+        doc: Stream bit index, start_t + 3 * j + c (see refinement_plane).
+    instances:
+      containing_byte:
+        pos: index >> 3
+        type: u1
+        doc: The byte holding the bit.
+      value:
+        value: (containing_byte >> (index & 7)) & 1
+        doc: The bit, 0 or 1.
+
+  packed_position_buffer:
+    doc: |
+      A binned adaptive precision buffer P at per-buffer level B (1..24): what a renderer
+      keeps in GPU memory and what positions/mandatory holds for B = 1. P is not stored for
+      B > 1; it is rebuilt from the mandatory words and planes 2..B (docs/format.md,
+      "Rebuilding P at level B").
+
+      Vertices follow each other in binned order (sorted by minimum level). Bin k = the
+      vertices j with VertexId[k-1] <= j < VertexId[k] (minimum level k). At level B each
+      vertex of bin k stores b = max(k, B) bits per component, the top b bits
+      v = q >> (24 - b) of its 24-bit grid integers q, x then y then z, each field least
+      significant bit first:
+        BitId[0] = 0, BitId[k] = BitId[k-1] + 3 * max(k, B) * (VertexId[k] - VertexId[k-1])
+        o_j = 3 * b * (j - VertexId[k-1]) + BitId[k-1]     (bit offset of vertex j)
+        x at o_j, y at o_j + b, z at o_j + 2b
+      Bit offset o is bit (o & 31) (0 = least significant) of word o >> 5; a field never
+      spans more than two words (b <= 24): value = (P[w] >> s | P[w+1] << (32 - s)) & (2^b - 1)
+      with w = o >> 5, s = o & 31. P has ceil(BitId[24] / 32) words; unused high bits of the
+      last word are zero. Since words are little-endian, the bit stream is also "bit (o & 7)
+      of byte (o >> 3)".
+
+      Position (shader order, every operation rounded to float32, no fused multiply-add):
+        c = (2 v + 1) << (24 - b)          (integer, < 2^25: the block centre in half cells)
+        p = float32(origin) + float32(c) * float32(extent / 2^25)
+      Kaitai expressions compute in float64; position_x/y/z below are the float64 block
+      centre, within dx(b) = sqrt(3) * extent * 2^-(b+1) metres of the source vertex.
+    params:
+      - id: level
+        type: u1
+        doc: Per-buffer level B, 1..24.
+      - id: vertex_id
+        type: u4[]
+        doc: manifest lod.vertex_id (25 entries).
+      - id: bit_id
+        type: u8[]
+        doc: BitId table for level B (25 entries), computed by the reader from vertex_id and B (formula above).
+      - id: origin_x
+        type: f8
+        doc: manifest grid.origin[0], metres.
+      - id: origin_y
+        type: f8
+        doc: manifest grid.origin[1], metres.
+      - id: origin_z
+        type: f8
+        doc: manifest grid.origin[2], metres.
+      - id: extent
+        type: f8
+        doc: manifest grid.extent, metres.
+    seq:
+      - id: words
+        type: u4
+        repeat: eos
+        doc: The ceil(bit_id[24] / 32) uint32 words of P.
+    instances:
+      vertices:
+        pos: 0
+        type: packed_vertex(_index)
+        repeat: expr
+        repeat-expr: vertex_id[24]
+        doc: Vertex j = vertices[j] (each reads its own bits; nothing is consumed).
+
+  packed_vertex:
+    doc: Vertex j of a packed_position_buffer (the paper's random access, section 5.3).
+    params:
+      - id: j
+        type: u4
+        doc: Vertex index in binned order.
+    instances:
+      bin:
+        value: >-
+          1 + (j >= _parent.vertex_id[1] ? 1 : 0) + (j >= _parent.vertex_id[2] ? 1 : 0)
+          + (j >= _parent.vertex_id[3] ? 1 : 0) + (j >= _parent.vertex_id[4] ? 1 : 0)
+          + (j >= _parent.vertex_id[5] ? 1 : 0) + (j >= _parent.vertex_id[6] ? 1 : 0)
+          + (j >= _parent.vertex_id[7] ? 1 : 0) + (j >= _parent.vertex_id[8] ? 1 : 0)
+          + (j >= _parent.vertex_id[9] ? 1 : 0) + (j >= _parent.vertex_id[10] ? 1 : 0)
+          + (j >= _parent.vertex_id[11] ? 1 : 0) + (j >= _parent.vertex_id[12] ? 1 : 0)
+          + (j >= _parent.vertex_id[13] ? 1 : 0) + (j >= _parent.vertex_id[14] ? 1 : 0)
+          + (j >= _parent.vertex_id[15] ? 1 : 0) + (j >= _parent.vertex_id[16] ? 1 : 0)
+          + (j >= _parent.vertex_id[17] ? 1 : 0) + (j >= _parent.vertex_id[18] ? 1 : 0)
+          + (j >= _parent.vertex_id[19] ? 1 : 0) + (j >= _parent.vertex_id[20] ? 1 : 0)
+          + (j >= _parent.vertex_id[21] ? 1 : 0) + (j >= _parent.vertex_id[22] ? 1 : 0)
+          + (j >= _parent.vertex_id[23] ? 1 : 0)
+        doc: |
+          Bin k (= minimum level) of vertex j: the k with VertexId[k-1] <= j < VertexId[k],
+          i.e. 1 + the number of k' in 1..23 with VertexId[k'] <= j (VertexId is
+          non-decreasing). A shader does the same with a branch-free binary search.
+      bits:
+        value: 'bin > _parent.level ? bin : _parent.level'
+        doc: b = max(bin, B), bits per component of this vertex at level B.
+      ofs_bit:
+        value: 3 * bits * (j - _parent.vertex_id[bin - 1]) + _parent.bit_id[bin - 1]
+        doc: o_j, bit offset of the vertex's x field in P.
+      x:
+        pos: 0
+        type: bit_field(ofs_bit, bits)
+        doc: Top b bits of the x grid integer.
+      y:
+        pos: 0
+        type: bit_field(ofs_bit + bits, bits)
+        doc: Top b bits of the y grid integer.
+      z:
+        pos: 0
+        type: bit_field(ofs_bit + 2 * bits, bits)
+        doc: Top b bits of the z grid integer.
+      grid_x:
+        value: x.value << (24 - bits)
+        doc: 24-bit grid integer of x with the 24 - b dropped bits zero.
+      grid_y:
+        value: y.value << (24 - bits)
+        doc: 24-bit grid integer of y with the dropped bits zero.
+      grid_z:
+        value: z.value << (24 - bits)
+        doc: 24-bit grid integer of z with the dropped bits zero.
+      position_x:
+        value: _parent.origin_x + ((2 * x.value + 1) << (24 - bits)) * (_parent.extent / 33554432.0)
+        doc: x in metres, float64 block centre (33554432 = 2^25; see the float32 order above).
+      position_y:
+        value: _parent.origin_y + ((2 * y.value + 1) << (24 - bits)) * (_parent.extent / 33554432.0)
+        doc: y in metres, float64 block centre.
+      position_z:
+        value: _parent.origin_z + ((2 * z.value + 1) << (24 - bits)) * (_parent.extent / 33554432.0)
+        doc: z in metres, float64 block centre.
+
+  bit_field:
+    doc: |
+      A field of `width` (1..24) bits at bit offset `ofs_bit` of a uint32 word array, least
+      significant bit first: (P[w] >> s | P[w+1] << (32 - s)) & (2^width - 1), w = ofs_bit >> 5,
+      s = ofs_bit & 31. The second word is read only when the field crosses into it.
+    params:
+      - id: ofs_bit
+        type: u8
+        doc: Bit offset of the field's least significant bit.
+      - id: width
+        type: u1
+        doc: Field width in bits, 1..24.
+    instances:
+      word_lo:
+        pos: 4 * (ofs_bit >> 5)
+        type: u4
+        doc: P[w], the word holding the field's first bit.
+      word_hi:
+        pos: 4 * ((ofs_bit >> 5) + 1)
+        type: u4
+        if: (ofs_bit & 31) + width > 32
+        doc: P[w+1], read only when the field crosses the word boundary.
+      value:
+        value: >-
+          ((word_lo >> (ofs_bit & 31))
+          | ((ofs_bit & 31) + width > 32 ? word_hi << (32 - (ofs_bit & 31)) : 0))
+          & ((1 << width) - 1)
+        doc: The field's value, 0 .. 2^width - 1.
