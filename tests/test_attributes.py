@@ -344,7 +344,7 @@ def test_colors_edge_cases_and_determinism():
 
 # --------------------------------------------------------------------------------- indices
 
-@pytest.mark.parametrize("n_vertices,width", [(1, 2), (3, 2), (65535, 2), (65536, 2), (65537, 4), (10**7, 4)])
+@pytest.mark.parametrize("n_vertices,width", [(1, 2), (3, 2), (65535, 2), (65536, 4), (65537, 4), (10**7, 4)])
 def test_indices_round_trip_exact(n_vertices, width):
     rng = np.random.default_rng(n_vertices)
     t = rng.integers(0, n_vertices, (5000, 3)).astype(np.uint32)
@@ -359,16 +359,17 @@ def test_indices_round_trip_exact(n_vertices, width):
 
 
 def test_indices_layout_edge_cases_and_errors():
-    t = np.array([[0, 1, 2], [2, 1, 65535]], np.uint32)
-    data, w = encode_indices(t, 65536)
-    assert w == 2 and data.tobytes() == bytes([0, 0, 1, 0, 2, 0, 2, 0, 1, 0, 0xFF, 0xFF])
+    t = np.array([[0, 1, 2], [2, 1, 65534]], np.uint32)
+    data, w = encode_indices(t, 65535)
+    assert w == 2 and data.tobytes() == bytes([0, 0, 1, 0, 2, 0, 2, 0, 1, 0, 0xFE, 0xFF])
+    assert encode_indices(t, 65536)[1] == 4  # 65535 would be the primitive-restart value
     data4, w4 = encode_indices(t, 70000)
     assert w4 == 4 and data4.tobytes()[:8] == bytes([0, 0, 0, 0, 1, 0, 0, 0])
     empty, we = encode_indices(np.zeros((0, 3), np.uint32), 0)
     assert empty.size == 0 and decode_indices(empty, we, 0).shape == (0, 3)
-    assert encode_indices(t, 65536)[0].tobytes() == data.tobytes()  # deterministic
+    assert encode_indices(t, 65535)[0].tobytes() == data.tobytes()  # deterministic
     with pytest.raises(LopcookError):
-        encode_indices(t, 65535)  # index 65535 out of range
+        encode_indices(t, 65534)  # index 65534 out of range
     with pytest.raises(LopcookError):
         decode_indices(data, 2, 3)  # wrong triangle count
     with pytest.raises(LopcookError):

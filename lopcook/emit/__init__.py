@@ -62,7 +62,8 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
 
     ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
     scene and the analysis. ``max_level``: highest refinement plane written (planes above it are
-    never needed by any view, see lopcook.viewing). ``options`` are recorded verbatim.
+    never needed by any view, see lopcook.viewing); vertices whose minimum level is higher are
+    stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options`` are recorded verbatim.
     """
     viewing = viewing or Viewing()
     if lods is None:
@@ -75,11 +76,14 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
     mandatory_words = []
     word_offset = 0
     hist = np.zeros(LEVELS + 1, dtype=np.int64)
+    clamped = 0  # vertices whose minimum level exceeds max_level (their guarantee is lost: reported)
     for i, (part, part_lods) in enumerate(zip(scene.parts, lods)):
         lod_entries = []
         for k, buf in enumerate(part_lods):
             # (1) bins and remapped indices
-            levels = np.minimum(np.asarray(buf.min_level, dtype=np.int64), max_level)
+            raw_levels = np.asarray(buf.min_level, dtype=np.int64)
+            clamped += int(np.count_nonzero(raw_levels > max_level))
+            levels = np.minimum(raw_levels, max_level)
             bins = make_bins(levels)
             q = np.asarray(buf.quantized, dtype=np.uint32)[bins.order]
             indices = bins.remap_indices(buf.indices)
@@ -141,6 +145,7 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
                       "plane_order": "buffers in manifest order (parts, then LODs), vertices in binned order, "
                                      "bits x, y, z; least significant bit first"},
         "stats": {"vertices": total_vertices, "triangles": int(sum(e["triangles"] for p in parts_manifest for e in p["lods"])),
-                  "histogram": [int(v) for v in hist], "float32_position_bytes": 12 * total_vertices},
+                  "histogram": [int(v) for v in hist], "float32_position_bytes": 12 * total_vertices,
+                  "vertices_clamped_to_max_level": clamped},
     }
     return to_bytes(manifest, sections)

@@ -76,7 +76,8 @@ for inputs in [0, 1]: ``|c' - c| <= 1/510`` (+ half a float32 ulp, < 3e-8).
 Indices -- uint16 or uint32 (``"<u2"`` / ``"<u4"``), 6 or 12 bytes per triangle
 -------------------------------------------------------------------------------------
 Layout: the triangles' corners in order, ``i0 i1 i2 i0 i1 i2 ...``. The width is 2 bytes when
-``n_vertices <= 65536`` (every index <= 65535) and 4 bytes otherwise. Exact.
+``n_vertices <= 65535`` (every index <= 65534: the uint16 primitive-restart value 65535, always on
+in WebGL 2 and Metal, never appears) and 4 bytes otherwise. Exact.
 
 Non-finite input (and zero-length normals) raises ``LopcookError("emit", ...)``.
 """
@@ -140,8 +141,9 @@ _SPECS = {
         "unit": "degrees",
     },
     "uvs": {
-        "encoding": "unorm16 over the buffer range: u = lo + (hi - lo) * q / 65535; "
-                    "lo, hi stored as 2 x <f4 each",
+        "encoding": "unorm16 over the buffer range: u = float32(lo * (1 - q / 65535) + hi * (q / 65535)) "
+                    "computed in float64; lo, hi are float32 values kept beside the codes (in a .lop "
+                    "file: the manifest's uv_range)",
         "dtype": "<u2", "components": 2, "bits": 16, "bytes_per": 4, "per": "vertex",
         "range_bytes": UV_RANGE_BYTES,
         "max_error": UV_MAX_ERROR_FRACTION,
@@ -154,7 +156,7 @@ _SPECS = {
         "unit": "linear [0, 1] per channel, plus float32 rounding",
     },
     "indices": {
-        "encoding": "uint16 when n_vertices <= 65536, else uint32; i0 i1 i2 per triangle",
+        "encoding": "uint16 when n_vertices <= 65535 (so 65535, the primitive-restart value, never appears), else uint32; i0 i1 i2 per triangle",
         "dtype": "<u2 or <u4", "components": 3, "bits": 16, "bits_large": 32,
         "bytes_per": 6, "bytes_per_large": 12, "per": "triangle",
         "max_error": 0, "unit": "exact",
@@ -174,10 +176,11 @@ def attribute_specs() -> dict:
 
 
 def index_width(n_vertices: int) -> int:
-    """Bytes per index: 2 when ``n_vertices <= 65536`` (all indices fit uint16), else 4."""
+    """Bytes per index: 2 when ``n_vertices <= 65535`` (indices <= 65534, never the uint16
+    primitive-restart value 65535), else 4."""
     if n_vertices < 0:
         raise LopcookError("emit", None, f"n_vertices must be >= 0, got {n_vertices}")
-    return 2 if n_vertices <= 65536 else 4
+    return 2 if n_vertices <= 65535 else 4
 
 
 def encoded_nbytes(n_vertices: int, n_triangles: int, *, normals: bool = True, uvs: bool = True,

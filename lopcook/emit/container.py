@@ -114,6 +114,19 @@ def write_atomic(path: str, data: bytes) -> None:
         raise
 
 
+def _no_duplicates(pairs):
+    obj = {}
+    for key, value in pairs:
+        if key in obj:
+            raise ValueError(f"duplicate key {key!r}")
+        obj[key] = value
+    return obj
+
+
+def _no_constants(name):
+    raise ValueError(f"{name} is not a JSON number")
+
+
 def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = False) -> Container:
     """Parse and check a container. Any corruption raises LopcookError (exit code 2).
 
@@ -149,8 +162,9 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     if zlib.crc32(mbytes) != mcrc:
         fail("manifest checksum mismatch")
     try:
-        manifest = json.loads(mbytes.decode("ascii"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
+                              parse_constant=_no_constants)
+    except (UnicodeDecodeError, ValueError) as exc:
         fail(f"manifest is not valid JSON ({exc})")
     from .manifest import validate_manifest
 

@@ -60,9 +60,17 @@ def validate_manifest(m, path: str | None) -> None:
     for p in range(2, max_level + 1):
         if planes.get(str(p)) not in names:
             fail(f"positions.planes[{p}] names no section")
+    # position sections come last, mandatory first, then planes in ascending order (prefix property)
+    order = [s["name"] for s in sections]
+    tail = [pos["mandatory"]] + [planes[str(p)] for p in range(2, max_level + 1)]
+    if order[len(order) - len(tail):] != tail:
+        fail("position sections are not last and in level order")
+    length = {s["name"]: s["length"] for s in sections}
     parts = need(m, "parts", list, "manifest")
     if not parts:
         fail("no parts")
+    words_next = 0
+    plane_bits = {p: 0 for p in range(2, max_level + 1)}
     for i, part in enumerate(parts):
         need(part, "name", str, f"parts[{i}]")
         lods = need(part, "lods", list, f"parts[{i}]")
@@ -89,7 +97,27 @@ def validate_manifest(m, path: str | None) -> None:
             mw = need(lod, "mandatory_words", list, where)
             if len(mw) != 2 or not all(isinstance(v, int) and v >= 0 for v in mw):
                 fail(f"{where}.mandatory_words must be [offset, count]")
+            # the buffer at level 1 holds sum_k 3 * k * |bin k| bits, buffers back to back
+            bits = sum(3 * k * (vid[k] - vid[k - 1]) for k in range(1, LEVELS + 1))
+            if mw[0] != words_next or mw[1] != (bits + 31) // 32:
+                fail(f"{where}.mandatory_words do not match its bins")
+            words_next += mw[1]
+            for p in plane_bits:
+                plane_bits[p] += 3 * vid[p - 1]
+            width = lod["index_width"]
+            if (n <= 65535) != (width == 2):
+                fail(f"{where}.index_width {width} does not match {n} vertices")
+            if length[lod["indices"]] < 3 * tri * width:
+                fail(f"{where}: index section is shorter than {tri} triangles")
+            for key, nbytes in (("normals", 4), ("uvs", 4), ("colors", 4)):
+                if lod.get(key) is not None and length[lod[key]] < nbytes * n:
+                    fail(f"{where}: {key} section is shorter than {n} vertices")
             if lod.get("uvs") is not None:
                 rng = need(lod, "uv_range", list, where)
                 if len(rng) != 2 or not all(isinstance(r, list) and len(r) == 2 for r in rng):
                     fail(f"{where}.uv_range must be [[lo_u, lo_v], [hi_u, hi_v]]")
+    if length[pos["mandatory"]] < 4 * words_next:
+        fail("positions.mandatory is shorter than the buffers it holds")
+    for p, bits in plane_bits.items():
+        if length[planes[str(p)]] < (bits + 7) // 8:
+            fail(f"refinement plane {p} is shorter than its {bits} bits")
