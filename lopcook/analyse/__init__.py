@@ -3,7 +3,7 @@
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 3-5. Steps: (1) one 24-bit grid for the scene, (2) E_v per shading attribute and the
 attribute level, (3) depth-critical levels, (4) m_v = max of both, (5) co-located vertices (same
-quantized position, any part) share the maximum of their levels.
+quantized position, any part) share the maximum of their levels (``_colocated_max``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from ..settings import DEFAULT_ANALYSE, AnalyseSettings
 from ..types import Scene
-from .attribute_error import triangle_gradient_norm, vertex_max
+from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
 from .bitlevel import attribute_level, texture_slope
 from .depth import depth_levels
 from .grid import BITS, Grid
@@ -40,6 +40,41 @@ def _kf_for(part, settings: AnalyseSettings) -> dict:
     return kf
 
 
+def _colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(N,) int64: the maximum of ``values`` (N,) over each group of equal rows of ``q`` (N, 3) uint32
+    grid integers (co-located vertices), for every row.
+
+    Sorts one int64 key holding x, y (24 bits each) and the top 16 bits of z, then, inside each run
+    of equal keys, the low 8 bits of z: two integer sorts instead of a sort of 12-byte rows."""
+    n = q.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    values = np.asarray(values, dtype=np.int64)
+    if int(q.min()) < 0 or int(q.max()) >= 1 << BITS:  # not 24-bit grid integers: sort the rows
+        rows = np.ascontiguousarray(q).view(np.dtype((np.void, q.dtype.itemsize * 3))).ravel()
+        _, inverse = np.unique(rows, return_inverse=True)
+        inverse = inverse.ravel()
+        group_max = np.zeros(inverse.max() + 1, dtype=np.int64)
+        np.maximum.at(group_max, inverse, values)
+        return group_max[inverse]
+    q = q.astype(np.int64)
+    key = (q[:, 0] << 40) | (q[:, 1] << 16) | (q[:, 2] >> 8)
+    order = np.argsort(key)
+    sorted_key = key[order]
+    run = np.zeros(n, dtype=np.int64)
+    np.cumsum(sorted_key[1:] != sorted_key[:-1], out=run[1:])
+    low = (q[:, 2] & 0xFF)[order]
+    within = np.argsort((run << 8) | low, kind="stable")  # nearly sorted already
+    order, run, low = order[within], run[within], low[within]
+    start = np.ones(n, dtype=bool)
+    start[1:] = (run[1:] != run[:-1]) | (low[1:] != low[:-1])
+    group = np.cumsum(start) - 1
+    group_max = np.maximum.reduceat(values[order], np.flatnonzero(start))
+    out = np.empty(n, dtype=np.int64)
+    out[order] = group_max[group]
+    return out
+
+
 def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None) -> Analysis:
     """Minimum bit level m_v for every vertex of every part (see module doc and PartAnalysis)."""
     timings: dict = {}
@@ -57,22 +92,19 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         level = np.ones(n, dtype=np.int64)
         reason = np.full(n, REASON_CODE["none"], dtype=np.uint8)
         e_v = {}
-        deg = 0
-        for name, attr in (("normal", part.normals), ("uv", part.uvs), ("color", part.colors)):
-            if name not in kf:
-                continue
-            e_t, degen = triangle_gradient_norm(part.positions, part.indices, attr)
-            deg = int(np.count_nonzero(degen))
-            e_v[name] = vertex_max(part.indices, e_t, n)
+        named = [(name, attr) for name, attr in (("normal", part.normals), ("uv", part.uvs),
+                                                  ("color", part.colors)) if name in kf]
+        frames = triangle_frames(part.positions, part.indices)  # shared by all attributes
+        e_ts, degen = triangle_gradient_norms(part.positions, part.indices, [a for _, a in named], frames)
+        deg = int(np.count_nonzero(degen))
+        for (name, _), e_t in zip(named, e_ts):
+            e_v[name] = vertex_max(frames.tri, e_t, n)
             if kf[name] <= 0:
                 continue
             lv = attribute_level(e_v[name], kf[name], settings.eps, grid.extent)
             raise_ = lv > level
             reason[raise_] = REASON_CODE[name]
             level = np.maximum(level, lv)
-        if not e_v:  # no attributes: still count degenerate triangles
-            _, degen = triangle_gradient_norm(part.positions, part.indices, np.zeros((n, 1)))
-            deg = int(np.count_nonzero(degen))
         unsatisfied.append(int(np.count_nonzero(level > BITS)))
         level = np.minimum(level, BITS)
         reason[level == 1] = REASON_CODE["none"]
@@ -119,12 +151,7 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         reasons.append(reason)
     allq = np.concatenate(quantized)
     alll = np.concatenate(combined)
-    rows = np.ascontiguousarray(allq).view(np.dtype((np.void, 12))).ravel()
-    _, inverse = np.unique(rows, return_inverse=True)
-    inverse = inverse.ravel()
-    group_max = np.zeros(inverse.max() + 1, dtype=np.int64)
-    np.maximum.at(group_max, inverse, alll)
-    shared = group_max[inverse]
+    shared = _colocated_max(allq, alll)
     raised_total = int(np.count_nonzero(shared > alll))
     timings["co_located"] = time.perf_counter() - t0
 

@@ -16,13 +16,36 @@ is reported (never a silent 24-bit blow-up). Parts with a vertex behind the face
 it is nearest to (inside a closed part: e.g. chess pieces sunk into the board) are reported as
 intersecting.
 
-Implementation (``depth_levels``): one libigl AABB tree per part, built on demand; for each part
-pair, only vertices whose distance to the other part's bounding box is below both their current
-best distance and their *binding radius* are queried. The binding radius is ``2 * dx(floor)``:
-beyond it the depth level would not exceed the level the vertex already has (``floor``, e.g. from
-its attribute error), so the exact distance there cannot change m_v. Cost O(n log n) for scenes
-whose parts are spatially separated; ``depth_levels_reference`` is the paper's O(n*m) scan and
-gives identical levels (tests compare them).
+Implementation (``depth_levels``). The binding radius of a vertex is ``2 * dx(floor)``: beyond it
+the depth level would not exceed the level the vertex already has (``floor``, e.g. from its
+attribute error), so the exact distance there cannot change m_v. For a vertex v of part i, let S(v)
+be the other parts whose bounding box lies within the binding radius of v (box distance ``bd``).
+The distance reported for v is the exact minimum over S(v) of its distance to their surfaces (inf
+if S(v) is empty); the nearest part is the one reaching it (on equal distances, the first in i's
+visiting order: other parts by box-to-box distance, nearest first, then by index). Exact distances
+come from one libigl AABB tree per part, built on demand. For each part i:
+
+1. the (vertex, part) pairs of S: for each other part j, the vertices whose ``bd`` to j's box is
+   within their binding radius. This must not cost a pass over all vertices of i per j (a board
+   under 48 chess pieces would make that O(n * parts)): the vertices of each part are sorted by
+   binding radius (largest first), then along a Morton curve, and cut into blocks of ``_BLOCK``
+   with a bounding box and a largest radius each; only the blocks within their largest radius of
+   j's box are opened.
+2. every vertex queries first the part of S(v) whose box is nearest to it, usually the nearest
+   surface, so the running best is tight from the start;
+3. then every other part of S(v) whose ``bd`` is not above the running best.
+
+Any part j of S(v) with d(v, j) equal to the minimum has ``bd <= d(v, j) <= best`` at any time,
+so it is queried: the result is the minimum whatever the visiting order, and equal to what
+visiting every part of S(v) would give. A part is queried only when no part was already found
+closer than its box, so the queries are a subset of those of visiting the parts in i's fixed order
+(``DepthResult.queries`` counts them). The intersection test (above) runs on every query; these
+always include every vertex inside the other part's box (``bd = 0``), hence every vertex sunk into
+a closed part. A vertex outside the box of a part that is *not* closed can also lie behind that
+part's nearest face; it is tested only if that part was queried for it, i.e. if no other part was
+found nearer than the box. Cost O(n log n) for scenes whose parts are spatially separated;
+``depth_levels_reference`` is the paper's O(n*m) scan and gives identical levels (tests compare
+them).
 """
 
 from __future__ import annotations
@@ -31,7 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import BITS, dx, smallest_level
+from .grid import BITS, dx
 
 DEFAULT_CEILING = 16
 
@@ -40,10 +63,12 @@ DEFAULT_CEILING = 16
 class DepthResult:
     """Per part, per vertex: ``level`` (n,) int64 in [1, ceiling] (1 = no depth constraint),
     ``distance`` (n,) float64 metres to the nearest other part (``inf`` where it is farther than the
-    binding radius and so was not needed), ``nearest`` (n,) int64 index of that part (-1 if none),
-    ``capped`` (n,) bool. ``touching``: sorted list of (part i, part j) pairs with capped vertices;
-    ``intersecting``: pairs (i < j) where a vertex of one lies behind the nearest face of the other
-    (inside it, when it is closed)."""
+    binding radius and so was not needed; exact wherever finite: the minimum over the parts whose
+    bounding box is within the binding radius, see module doc), ``nearest`` (n,) int64 index of
+    that part (-1 if none), ``capped`` (n,) bool. ``touching``: sorted list of (part i, part j) pairs
+    with capped vertices; ``intersecting``: pairs (i < j) where a vertex of one lies behind the
+    nearest face of the other (inside it, when it is closed). ``queries``: number of exact
+    point-to-part distance queries made (a cost measure)."""
 
     level: list[np.ndarray]
     distance: list[np.ndarray]
@@ -55,15 +80,91 @@ class DepthResult:
 
 
 def level_from_distance(distance: np.ndarray, extent: float) -> np.ndarray:
-    """Smallest b in [1, 24] with 2*dx(b) < distance; 25 where even 24 bits are not enough."""
+    """Smallest b in [1, 24] with 2*dx(b) < distance; 25 where even 24 bits are not enough.
+
+    Exact: compares with the thresholds ``2 * dx(b)`` themselves (binary search over the 24 of
+    them) rather than taking a logarithm; NaN gives 25 (no level is known to be safe)."""
     d = np.asarray(distance, dtype=np.float64)
-    return smallest_level(lambda b: 2.0 * dx(b, extent) < d[..., None], d.shape)
+    thresholds = 2.0 * dx(np.arange(BITS, 0, -1, dtype=np.float64), extent)  # ascending: b = 24 .. 1
+    # the number of b with 2*dx(b) < d is the number of thresholds below d; they are b = 25-k .. 24
+    level = (BITS + 1) - np.searchsorted(thresholds, d, side="left").astype(np.int64)
+    return np.where(np.isnan(d), BITS + 1, level)
 
 
 def _bbox_distance(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(n,) Euclidean distance from each point to the axis-aligned box [lo, hi] (0 inside)."""
     gap = np.maximum(np.maximum(lo - points, points - hi), 0.0)
     return np.sqrt(np.einsum("ij,ij->i", gap, gap))
+
+
+#: vertices per block of the candidate search (see module doc)
+_BLOCK = 128
+
+
+def _bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(3,) min and max corner of (n, 3) points (n > 0); per column, much faster than axis=0."""
+    return (np.array([points[:, k].min() for k in range(3)]),
+            np.array([points[:, k].max() for k in range(3)]))
+
+
+def _spread_bits_table() -> np.ndarray:
+    """(1024,) uint64: the 10 bits of the index moved to every third bit (Morton interleave)."""
+    x = np.arange(1024, dtype=np.uint64)
+    out = np.zeros(1024, dtype=np.uint64)
+    for bit in range(10):
+        out |= ((x >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit)
+    return out
+
+
+_SPREAD = _spread_bits_table()
+
+
+def _morton_code(columns: np.ndarray) -> np.ndarray:
+    """(n,) uint64 Morton (Z-order) code of points given as (3, n) coordinate rows, on a 1024^3
+    lattice over their bounds."""
+    if not np.isfinite(columns).all():
+        columns = np.nan_to_num(columns, nan=0.0, posinf=0.0, neginf=0.0)  # only an ordering
+    lo = columns.min(axis=1, keepdims=True)
+    span = columns.max(axis=1, keepdims=True) - lo
+    scale = np.where(span > 0, 1023.0 / np.where(span > 0, span, 1.0), 0.0)
+    q = np.clip((columns - lo) * scale, 0, 1023).astype(np.intp)
+    return _SPREAD[q[0]] | (_SPREAD[q[1]] << np.uint64(1)) | (_SPREAD[q[2]] << np.uint64(2))
+
+
+class _Blocks:
+    """The vertices of one part in blocks of ``_BLOCK``, sorted by binding radius (largest first, by
+    its binary exponent), then in Morton order, each with its bounding box and its largest radius
+    (see module doc). The order only affects speed, never which vertices are found."""
+
+    def __init__(self, points: np.ndarray, radius: np.ndarray):
+        n = points.shape[0]
+        self.n = n
+        nb = -(-n // _BLOCK)
+        columns = np.ascontiguousarray(points.T)  # (3, n): contiguous rows reduce fast
+        exponent = np.frexp(radius)[1].astype(np.int64)  # larger radius, larger exponent
+        if n:
+            key = ((exponent.max() - exponent) << 30) | _morton_code(columns).astype(np.int64)
+        else:
+            key = exponent
+        self.perm = np.argsort(key)
+        # pad to whole blocks by repeating the last vertex (does not change a block's box or radius)
+        padded = np.concatenate([self.perm, np.full(nb * _BLOCK - n, self.perm[-1] if n else 0)])
+        p = columns.take(padded, axis=1).reshape(3, nb, _BLOCK)  # C-contiguous (fancy indexing is not)
+        self.lo = np.ascontiguousarray(np.fmin.reduce(p, axis=2).T)  # fmin/fmax: NaN coordinates
+        self.hi = np.ascontiguousarray(np.fmax.reduce(p, axis=2).T)  # do not hide a block
+        # squared, with a relative margin: a block may be opened needlessly, never skipped wrongly
+        self.r2 = np.fmax.reduce(radius[padded].reshape(nb, _BLOCK), axis=1) ** 2 * (1.0 + 1e-6)
+
+    def near(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Vertex indices (unsorted) of the blocks within their largest radius of the box [lo, hi]."""
+        gap = np.maximum(np.maximum(lo - self.hi, self.lo - hi), 0.0)
+        rel = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= self.r2)
+        if rel.size == 0:
+            return rel
+        starts = rel * _BLOCK
+        lens = np.minimum(_BLOCK, self.n - starts)
+        offsets = np.cumsum(lens) - lens
+        return self.perm[np.arange(int(lens.sum())) + np.repeat(starts - offsets, lens)]
 
 
 def _finish(levels_raw, distance, nearest, ceiling, n_parts, inside_pairs):
@@ -100,8 +201,9 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     n_parts = len(positions)
     pos = [np.ascontiguousarray(p, dtype=np.float64) for p in positions]
     tris = [np.ascontiguousarray(t, dtype=np.int64) for t in indices]
-    lo = np.array([p.min(axis=0) for p in pos])
-    hi = np.array([p.max(axis=0) for p in pos])
+    bounds = [_bounds(p) for p in pos]
+    lo = np.array([b[0] for b in bounds]).reshape(n_parts, 3)
+    hi = np.array([b[1] for b in bounds]).reshape(n_parts, 3)
     if threshold is not None:
         radius = [np.full(p.shape[0], float(threshold)) for p in pos]
     else:
@@ -111,40 +213,73 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     best = [np.full(p.shape[0], np.inf) for p in pos]
     nearest = [np.full(p.shape[0], -1, dtype=np.int64) for p in pos]
     trees: dict[int, object] = {}
-    unit_normals: dict[int, np.ndarray] = {}
     inside_pairs: set[tuple[int, int]] = set()
     queries = 0
     rmax = np.array([r.max() if r.size else 0.0 for r in radius])
-    for i in range(n_parts):
-        if n_parts < 2:
-            break
-        # other parts ordered by box-to-box distance, nearest first (best shrinks fast)
+
+    def query(i: int, j: int, cand: np.ndarray, rank: np.ndarray) -> None:
+        """Exact distances from vertices ``cand`` of part i to part j; keep the smaller."""
+        nonlocal queries
+        tree = trees.get(j)
+        if tree is None:
+            tree = igl.AABB()
+            tree.init(pos[j], tris[j])
+            trees[j] = tree
+        points = pos[i][cand]
+        d2, face, closest = tree.squared_distance(pos[j], tris[j], points)
+        queries += cand.size
+        d = np.sqrt(d2)
+        cur = best[i][cand]
+        better = d < cur
+        # equal distances: the part earliest in i's visiting order wins (as if visited in that order)
+        tie = (d == cur) & (nearest[i][cand] >= 0)
+        if tie.any():
+            better |= tie & (rank[j] < rank[nearest[i][cand]])
+        best[i][cand[better]] = d[better]
+        nearest[i][cand[better]] = j
+        if detect_intersections and (min(i, j), max(i, j)) not in inside_pairs:
+            if _any_inside(points, face, closest, pos[j], tris[j]):
+                inside_pairs.add((min(i, j), max(i, j)))
+
+    for i in range(n_parts if n_parts >= 2 else 0):
+        # other parts ordered by box-to-box distance, nearest first (the tie-break for `nearest`)
         gap = np.maximum(np.maximum(lo - hi[i], lo[i] - hi), 0.0)
         box_d = np.sqrt((gap * gap).sum(axis=1))
         box_d[i] = np.inf
-        for j in np.argsort(box_d, kind="stable"):
-            if not box_d[j] <= rmax[i]:
-                break
-            limit = np.minimum(best[i], radius[i])
-            cand = np.flatnonzero(_bbox_distance(pos[i], lo[j], hi[j]) <= limit)
-            if cand.size == 0:
+        order = np.argsort(box_d, kind="stable")
+        order = order[box_d[order] <= rmax[i]]
+        if order.size == 0:
+            continue
+        rank = np.empty(n_parts, dtype=np.int64)
+        rank[order] = np.arange(order.size)
+        # (a) the (vertex, part) pairs whose box distance is within the vertex's binding radius
+        blocks = _Blocks(pos[i], radius[i])
+        pairs = []
+        for j in order:
+            verts = blocks.near(lo[j], hi[j])
+            if verts.size == 0:
                 continue
-            tree = trees.get(j)
-            if tree is None:
-                tree = igl.AABB()
-                tree.init(pos[j], tris[j])
-                trees[j] = tree
-            d2, face, closest = tree.squared_distance(pos[j], tris[j], pos[i][cand])
-            queries += cand.size
-            d = np.sqrt(d2)
-            better = d < best[i][cand]
-            best[i][cand[better]] = d[better]
-            nearest[i][cand[better]] = j
-            if detect_intersections and (min(i, int(j)), max(i, int(j))) not in inside_pairs:
-                if j not in unit_normals:
-                    unit_normals[j] = _unit_face_normals(pos[j], tris[j])
-                if _any_inside(pos[i][cand], face, closest, pos[j], tris[j], unit_normals[j]):
-                    inside_pairs.add((min(i, int(j)), max(i, int(j))))
+            bd = _bbox_distance(pos[i][verts], lo[j], hi[j])
+            keep = bd <= radius[i][verts]
+            if keep.any():
+                pairs.append((int(j), verts[keep], bd[keep]))
+        # (b) every vertex first queries the part whose box is nearest to it (usually the nearest
+        # surface, so best is tight from the start) ...
+        first = np.full(pos[i].shape[0], -1, dtype=np.int64)
+        first_bd = np.full(pos[i].shape[0], np.inf)
+        for j, verts, bd in pairs:
+            closer = bd < first_bd[verts]
+            first_bd[verts[closer]] = bd[closer]
+            first[verts[closer]] = j
+        for j, verts, bd in pairs:
+            cand = verts[first[verts] == j]
+            if cand.size:
+                query(i, j, cand, rank)
+        # (c) ... then every other part whose box is not farther than the best distance so far
+        for j, verts, bd in pairs:
+            cand = verts[(bd <= best[i][verts]) & (first[verts] != j)]
+            if cand.size:
+                query(i, j, cand, rank)
 
     if threshold is not None:
         raw = [np.where(b < threshold, 2, 1).astype(np.int64) for b in best]
@@ -163,9 +298,12 @@ def _unit_face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     return n / np.where(length > 0, length, 1.0)[:, None]
 
 
-def _any_inside(points, face, closest, v, f, unit_n, margin=1e-9) -> bool:
+def _any_inside(points, face, closest, v, f, unit_n=None, margin=1e-9) -> bool:
     """True if some point lies behind the face it is nearest to, with the nearest point strictly
     inside that face (barycentric coordinates > 1e-6), by more than ``margin`` x the face size.
+
+    ``unit_n``: (m, 3) unit normals of all faces of ``f``, or None to compute them for the faces in
+    ``face`` only (same values).
 
     Restricting to face-interior nearest points avoids the sign ambiguity at edges and corners,
     so this reports a vertex of one part sunk inside another closed part (no false positives on
@@ -173,7 +311,7 @@ def _any_inside(points, face, closest, v, f, unit_n, margin=1e-9) -> bool:
     if points.shape[0] == 0:
         return False
     tri = v[f[face]]
-    n = unit_n[face]
+    n = unit_n[face] if unit_n is not None else _unit_face_normals(v, f[face])
     behind = np.einsum("ij,ij->i", points - closest, n) < -margin * np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)
     if not behind.any():
         return False
