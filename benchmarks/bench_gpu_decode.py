@@ -35,6 +35,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from lopcook.emit.binning import LEVELS  # noqa: E402
+from lopcook.emit.bitplane import decode, reconstruct_float32  # noqa: E402
 from lopcook.emit.reader import gpu_buffer  # noqa: E402
 from lopcook.verify import gpu  # noqa: E402
 from lopcook.verify.decoders import plane_source  # noqa: E402
@@ -109,8 +110,6 @@ def bench_decode(c, levels, repeat: int) -> list[dict]:
     floats = []
     for i, k in buffers:
         b = gpu_buffer(c, i, k, LEVELS)
-        from lopcook.emit.bitplane import decode, reconstruct_float32
-
         v, w = decode(b.words, b.vertex_id, b.bit_id, LEVELS)
         floats.append(gpu.Passthrough(reconstruct_float32(v, w, g["origin"], cell)))
 
@@ -161,7 +160,7 @@ def bench_decode(c, levels, repeat: int) -> list[dict]:
 def synthetic(c, n: int, seed: int = 20111011):
     """A buffer of ``n`` vertices whose minimum levels follow the container's histogram, random grid
     integers: (vertex_id, words_at(level), plane(p))."""
-    from lopcook.emit.binning import make_bins, table_bit_id, vertex_widths  # noqa: F401
+    from lopcook.emit.binning import make_bins, vertex_widths
     from lopcook.emit.bitplane import pack, plane_bits, top_bits
 
     rng = np.random.default_rng(seed)

@@ -60,6 +60,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="dihedral angle in degrees above which computed normals split (default 60)")
     _add_common(p)
+
+    p = sub.add_parser("verify", help="check a .lop container (--decoders: the GPU shaders against the CPU reference)")
+    p.add_argument("container", metavar="OUT.lop")
+    g = p.add_argument_group("checks (give at least one)")
+    g.add_argument("--decoders", action="store_true",
+                   help="decode every part/LOD with the GLSL and HLSL shaders of shaders/ (moderngl through EGL; "
+                        "HLSL via glslang + spirv-cross) and walk the adaption kernels through the levels; every "
+                        "integer, float bit and packed word must equal the CPU reference")
+    p.add_argument("--levels", default=None, metavar="LEVELS",
+                   help="per-buffer levels to check: a range or list in [1, 24], e.g. 1-24 or 6,8,12 "
+                        "(default: every level the file holds, 1-24 for a complete file)")
+    p.add_argument("--languages", default="glsl,hlsl", metavar="glsl,hlsl",
+                   help="shader languages to run (default: glsl,hlsl)")
+    p.add_argument("--no-adapt", action="store_true",
+                   help="with --decoders: skip the compute-shader adaption check (decode only)")
+    _add_common(p)
     return parser
 
 
@@ -297,7 +313,33 @@ def cmd_inspect(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode}
+def cmd_verify(args) -> int:
+    from .errors import EXIT_VERIFY_FAILED
+
+    if not args.decoders:
+        raise LopcookError("usage", args.container, "nothing to verify: give --decoders",
+                           hint="lopcook verify OUT.lop --decoders checks the GLSL/HLSL decoders bit for bit")
+    from .emit.container import read
+    from .verify.decoders import format_report, parse_levels, verify_decoders
+
+    levels = parse_levels(args.levels, args.container) if args.levels is not None else None
+    languages = tuple(v.strip().lower() for v in args.languages.split(",") if v.strip())
+    if not languages or any(v not in ("glsl", "hlsl") for v in languages):
+        raise LopcookError("usage", None, f"--languages {args.languages!r}: expected glsl, hlsl or glsl,hlsl")
+    c = read(args.container, allow_prefix=True)
+    if levels is None:
+        levels = list(range(1, c.available_level + 1))
+    report = {"container": args.container, "decoders": verify_decoders(c, levels, languages, adapt=not args.no_adapt)}
+    report["ok"] = report["decoders"]["ok"]
+    if args.json:
+        print(json.dumps(report, indent=1, sort_keys=True))
+    elif not args.quiet or not report["ok"]:
+        print(format_report(report["decoders"]))
+    return EXIT_OK if report["ok"] else EXIT_VERIFY_FAILED
+
+
+COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
+            "verify": cmd_verify}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,404 @@
+"""``lopcook verify --decoders``: the GLSL and HLSL decoders of ``shaders/`` against the CPU reference.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+sections 4 (crack-free per-vertex levels), 5.3 (binned buffers) and 6 (GPU decoding and adaption).
+
+For every part and LOD of a container and every chosen per-buffer level B, the packed buffer P is
+rebuilt on the CPU (``lopcook.emit.reader.gpu_buffer``), decoded by the vertex shader of each
+language through transform feedback (``lopcook.verify.gpu``) and compared with the CPU reference
+(``lopcook.emit.bitplane.decode`` + ``to_grid`` + ``reconstruct_float32``): grid integers, float32
+bits and the bits per component used must all be equal (tolerance: 0 ulp). At the last chosen level
+the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror from three cameras
+(inside, near and far from the buffer's box). With ``adapt=True`` the
+compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
+BitId must equal the CPU's packing of each level from scratch, byte for byte.
+
+It also holds the CPU mirror of the shaders' crack-free per-vertex level (``view_tables``,
+``buffer_level``, ``vertex_levels``): the rule of ``lopcook.viewing.per_vertex_level``,
+``max(min(own, B), bin level)``, with ``own`` computed in float32 from a distance bound that every
+buffer holding the vertex computes identically (see ``vertex_levels``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..analyse.grid import dx
+from ..emit.binning import LEVELS, table_bit_id
+from ..emit.bitplane import decode, reconstruct_float32, to_grid
+from ..errors import LopcookError
+from ..viewing import Viewing, nearest_box_distance
+
+MAX_EXAMPLES = 10
+LENIENCE = np.float32(1.0 + 2.0**-18)  # the shaders' 1.0 + 1.0 / 262144.0
+RADIUS_REL = 2.0**-10  # block radius margin, relative
+RADIUS_ABS = 2.0**-21  # block radius margin, times |origin|max + extent (covers float32 rounding of p)
+DIST_REL = 2.0**-8  # level distance margin, relative
+
+
+# ---- levels ---------------------------------------------------------------------------------------
+
+def parse_levels(text: str | None, path: str | None = None) -> list[int]:
+    """``"1-24"``, ``"6,8,12"`` or ``"1-4,8,20-24"`` -> sorted unique levels in [1, 24] (None: 1..24)."""
+    if text is None:
+        return list(range(1, LEVELS + 1))
+    levels: set[int] = set()
+    for item in str(text).split(","):
+        item = item.strip()
+        try:
+            if "-" in item:
+                a, b = (int(v) for v in item.split("-", 1))
+                if a > b:
+                    raise ValueError
+                levels.update(range(a, b + 1))
+            else:
+                levels.add(int(item))
+        except ValueError:
+            raise LopcookError("usage", path, f"--levels {text!r}: expected levels or ranges in [1, 24], "
+                               f"e.g. 1-24 or 6,8,12") from None
+    if not levels or min(levels) < 1 or max(levels) > LEVELS:
+        raise LopcookError("usage", path, f"--levels {text!r}: levels must be in [1, {LEVELS}]")
+    return sorted(levels)
+
+
+# ---- crack-free per-vertex levels: CPU mirror of the shaders ---------------------------------------
+
+def view_tables(extent: float, viewing: Viewing = Viewing(), origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """(level_dist, block_radius), each (25,) float32 (index = level, 0 unused): the LopView tables.
+
+    ``level_dist[b]``: camera distance (metres) from which b bits are enough,
+    ``dx(b) / k * (1 + 2 k) * (1 + 2^-8)`` with ``k = pixel_error * 2 tan(fov_y / 2) / height``
+    (the half-pixel criterion of ``lopcook.viewing.required_level``; the factor ``1 + 2 k`` pays for
+    measuring the distance from a block centre plus its radius, the last factor for float32).
+    ``block_radius[L]``: ``dx(L) (1 + 2^-10) + 2^-21 (max|origin| + extent)``, the distance from a
+    level-L block centre to any point of the block, with a margin larger than float32 rounding.
+
+    Guarantee (``vertex_levels``): a vertex's level L satisfies ``dx(L) <= k (d + 2^-21 S)``, with d
+    its true distance to the camera and ``S = max|origin| + extent`` (metres).
+    """
+    k = viewing.pixel_error * 2.0 * math.tan(math.radians(viewing.fov_y_deg) / 2.0) / float(viewing.viewport[1])
+    s = float(np.max(np.abs(np.asarray(origin, dtype=np.float64)))) + float(extent)
+    levels = np.arange(LEVELS + 1, dtype=np.float64)
+    d = dx(levels, extent)
+    level_dist = (d / k * (1.0 + 2.0 * k) * (1.0 + DIST_REL)).astype(np.float32)
+    radius = (d * (1.0 + RADIUS_REL) + RADIUS_ABS * s).astype(np.float32)
+    level_dist[0] = radius[0] = 0.0
+    return level_dist, radius
+
+
+def buffer_level(camera, lo, hi, level_dist) -> int:
+    """Per-buffer level for a camera (paper section 4: the box point closest to the camera decides):
+    the smallest b with ``distance(camera, box) >= level_dist[b]``, 24 when none. ``lo, hi`` (3,)
+    metres: any box holding the buffer's vertices (source positions or level-24 decoded ones).
+
+    At least this level in every buffer sharing a vertex makes ``vertex_levels`` equal in all of them
+    (the shader never needs more bits than any such buffer holds)."""
+    d = nearest_box_distance(np.asarray(camera, dtype=np.float64), np.asarray(lo), np.asarray(hi))
+    table = np.asarray(level_dist, dtype=np.float64)[1:LEVELS]
+    return int(1 + np.count_nonzero(d < table))
+
+
+def _own_level(p: np.ndarray, L: np.ndarray, camera32, level_dist, block_radius) -> np.ndarray:
+    """float32 mirror of the shaders' lop_own_level for points p (m, 3) at levels L (m,)."""
+    d = p - camera32
+    d2 = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2]
+    lhs = d2 * LENIENCE
+    r = np.asarray(block_radius, dtype=np.float32)[L]
+    t = np.asarray(level_dist, dtype=np.float32)[None, 1:LEVELS] - r[:, None]
+    t2 = t * t
+    return 1 + np.count_nonzero((t > np.float32(0)) & (lhs[:, None] < t2), axis=1)
+
+
+def vertex_levels(values, widths, bin_levels, level: int, origin, cell: float, camera,
+                  level_dist, block_radius) -> np.ndarray:
+    """Crack-free per-vertex levels, bit for bit what ``lop_vertex_level`` computes.
+
+    Parameters
+    ----------
+    values : (n, 3) uint32 top bits at ``widths`` (``lopcook.emit.bitplane.decode``)
+    widths : (n,) bits per component, max(bin level, B)
+    bin_levels : (n,) each vertex's bin (minimum) level
+    level : per-buffer level B
+    origin, cell : the grid (metres), as for ``reconstruct_float32``
+    camera : (3,) metres; level_dist, block_radius : ``view_tables``
+
+    Returns (n,) int64 levels in [bin level, width]: the fixed point of L -> min(own(L), B) from
+    L = 1, where own(L) is the level the view needs at |p_L - camera| + block_radius[L] (p_L the
+    level-L block centre, an upper bound of the vertex's distance), then max(L, bin level). It reads
+    only the top L bits, so co-located vertices get the same level in every buffer whose level is
+    at least ``buffer_level`` for its box, whatever those levels are.
+    """
+    values = np.asarray(values, dtype=np.uint32)
+    widths = np.asarray(widths, dtype=np.int64)
+    n = values.shape[0]
+    cam = np.asarray(camera, dtype=np.float32)
+    L = np.ones(n, dtype=np.int64)
+    active = np.ones(n, dtype=bool)
+    for _ in range(LEVELS):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        Li = L[idx]
+        v = values[idx] >> (widths[idx] - Li).astype(np.uint32)[:, None]
+        p = reconstruct_float32(v, Li, origin, cell)
+        want = np.minimum(_own_level(p, Li, cam, level_dist, block_radius), int(level))
+        grow = want > Li
+        L[idx[grow]] = want[grow]
+        active[idx[~grow]] = False
+    return np.maximum(L, np.asarray(bin_levels, dtype=np.int64))
+
+
+def decode_crack_free(values, widths, bin_levels, level: int, origin, cell: float, camera, level_dist,
+                      block_radius):
+    """CPU mirror of ``lop_decode_crack_free``: (grid (n, 3) uint32, positions (n, 3) float32, levels)."""
+    lv = vertex_levels(values, widths, bin_levels, level, origin, cell, camera, level_dist, block_radius)
+    v = np.asarray(values, dtype=np.uint32) >> (np.asarray(widths, dtype=np.int64) - lv).astype(np.uint32)[:, None]
+    return to_grid(v, lv), reconstruct_float32(v, lv, origin, cell), lv
+
+
+# ---- the verification --------------------------------------------------------------------------------
+
+def _ulp_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Elementwise distance in float32 units in the last place (ordered integer representation)."""
+    def ordered(x):
+        i = np.ascontiguousarray(x, dtype=np.float32).view(np.int32).astype(np.int64)
+        return np.where(i < 0, -(i & 0x7FFFFFFF), i)
+
+    return np.abs(ordered(a) - ordered(b))
+
+
+def plane_source(c, part: int, lod: int):
+    """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
+    offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it."""
+    def plane(p: int):
+        start = 0
+        for i, pp in enumerate(c.manifest["parts"]):
+            for k, e in enumerate(pp["lods"]):
+                if (i, k) == (part, lod):
+                    data = c.section(c.manifest["positions"]["planes"][str(p)])
+                    return np.frombuffer(data, dtype="<u4"), start
+                start += 3 * int(e["vertex_id"][p - 1])
+        raise LopcookError("usage", c.path, f"part {part} has no LOD {lod}")
+
+    return plane
+
+
+def _buffers(c):
+    for i, p in enumerate(c.manifest["parts"]):
+        for k, _ in enumerate(p["lods"]):
+            yield i, k
+
+
+def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool = True,
+                    max_examples: int = MAX_EXAMPLES) -> dict:
+    """Decode every part/LOD of container ``c`` at ``levels`` with each language and compare.
+
+    Returns a report dict (JSON-ready, sorted keys when dumped): ``ok``, per-language counts under
+    ``languages`` (vertices decoded, grid / float / level mismatches, max float distance in ulp,
+    adaption steps and mismatches), the first ``max_examples`` mismatches under ``examples``, the
+    context (``device``) and tool versions. Raises LopcookError when GL or the HLSL tools are missing
+    or a level is not in the file.
+    """
+    from . import gpu
+
+    levels = parse_levels(None, c.path) if levels is None else sorted(set(int(v) for v in levels))
+    if levels and (levels[0] < 1 or levels[-1] > LEVELS):
+        raise LopcookError("usage", c.path, f"levels must be in [1, {LEVELS}], got {levels}")
+    if levels and levels[-1] > c.available_level:
+        raise LopcookError("usage", c.path, f"level {levels[-1]} is not in this file (it holds levels up to "
+                           f"{c.available_level})", hint=f"use --levels 1-{c.available_level}")
+    for lang in languages:
+        if lang not in gpu.LANGUAGES:
+            raise LopcookError("usage", c.path, f"unknown shader language {lang!r} (expected glsl or hlsl)")
+    if "hlsl" in languages:
+        gpu.require_hlsl_tools()
+    gpu.context()
+
+    from ..emit.reader import gpu_buffer
+
+    grid = c.manifest["grid"]
+    origin, cell = grid["origin"], float(grid["extent"]) / float(1 << LEVELS)
+    half = np.float32(cell / 2.0)
+    stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
+                    "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
+                    "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0} for lang in languages}
+    examples: list[dict] = []
+    buffers = list(_buffers(c))
+    vertices = 0
+    for part, lod in buffers:
+        for level in levels:
+            buf = gpu_buffer(c, part, lod, level)
+            values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+            ref_grid = to_grid(values, widths)
+            ref_pos = reconstruct_float32(values, widths, origin, cell)
+            if level == levels[0]:
+                vertices += int(buf.vertex_id[LEVELS])
+            for lang in languages:
+                s = stats[lang]
+                t0 = time.perf_counter()
+                got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+                s["decode_seconds"] += time.perf_counter() - t0
+                bad_grid = np.any(got.grid != ref_grid, axis=1)
+                bad_float = np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1)
+                bad_level = got.level.astype(np.int64) != widths
+                s["decoded_vertices"] += int(widths.size)
+                s["grid_mismatches"] += int(bad_grid.sum())
+                s["float_mismatches"] += int(bad_float.sum())
+                s["level_mismatches"] += int(bad_level.sum())
+                if widths.size:
+                    s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
+                for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
+                    examples.append({"language": lang, "kind": "decode", "part": part, "lod": lod, "level": level,
+                                     "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
+                                     "got_grid": got.grid[j].tolist(),
+                                     "expected_position": [float(v) for v in ref_pos[j]],
+                                     "got_position": [float(v) for v in got.position[j]],
+                                     "expected_bits": int(widths[j]), "got_bits": int(got.level[j])})
+            if level == levels[-1] and widths.size:
+                _verify_crack_free(c, part, lod, buf, values, widths, ref_pos, languages, stats, examples,
+                                   max_examples)
+        if adapt and levels:
+            _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+    ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
+             and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 for s in stats.values())
+    for s in stats.values():
+        s["decode_seconds"] = round(s["decode_seconds"], 4)
+        s["adapt_seconds"] = round(s["adapt_seconds"], 4)
+    return {
+        "container": None if c.path is None else str(c.path),
+        "levels": levels,
+        "buffers": len(buffers),
+        "vertices": vertices,
+        "float_ulp_tolerance": 0,
+        "languages": stats,
+        "examples": examples,
+        "ok": bool(ok),
+        "device": gpu.context_info(),
+        "tools": gpu.tool_versions() if "hlsl" in languages else {},
+    }
+
+
+CAMERA_DISTANCES = (0.25, 4.0, 64.0)  # in grid extents from the buffer's box centre: inside, near, far
+
+
+def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, stats, examples,
+                       max_examples) -> None:
+    """``lop_decode_crack_free`` against ``decode_crack_free`` at the buffer's level, from three
+    cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest."""
+    from . import gpu
+
+    g = c.manifest["grid"]
+    origin, extent = g["origin"], float(g["extent"])
+    cell = extent / float(1 << LEVELS)
+    viewing = _manifest_viewing(c)
+    level_dist, radius = view_tables(extent, viewing, origin)
+    counts = np.diff(np.asarray(buf.vertex_id, dtype=np.int64), prepend=0)
+    counts[0] = 0
+    bin_levels = np.repeat(np.arange(LEVELS + 1), counts)
+    centre = (positions.min(axis=0).astype(np.float64) + positions.max(axis=0)) / 2.0
+    for f in CAMERA_DISTANCES:
+        camera = centre + np.array([0.0, 0.0, f * extent])
+        ref_grid, ref_pos, ref_level = decode_crack_free(values, widths, bin_levels, buf.level, origin, cell, camera,
+                                                         level_dist, radius)
+        for lang in languages:
+            got = gpu.vertex_decoder(lang, crack_free=True).decode(
+                buf.words, buf.vertex_id, buf.bit_id, buf.level, origin, np.float32(cell / 2.0),
+                view=(camera, level_dist, radius))
+            bad = (np.any(got.grid != ref_grid, axis=1) | np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32),
+                                                                   axis=1) | (got.level.astype(np.int64) != ref_level))
+            stats[lang]["crack_free_vertices"] += int(bad.size)
+            stats[lang]["crack_free_mismatches"] += int(bad.sum())
+            for j in np.flatnonzero(bad)[: max(0, max_examples - len(examples))]:
+                examples.append({"language": lang, "kind": "crack_free", "part": part, "lod": lod,
+                                 "level": int(buf.level), "camera": [float(v) for v in camera], "vertex": int(j),
+                                 "expected_level": int(ref_level[j]), "got_level": int(got.level[j]),
+                                 "expected_position": [float(v) for v in ref_pos[j]],
+                                 "got_position": [float(v) for v in got.position[j]]})
+
+
+def _manifest_viewing(c) -> Viewing:
+    """The viewing conditions recorded in the container (defaults where absent or invalid)."""
+    v = c.manifest.get("viewing") or {}
+    try:
+        return Viewing(viewport=tuple(v.get("viewport", (1920, 1080))), fov_y_deg=float(v.get("fov_y_deg", 60.0)),
+                       pixel_error=float(v.get("pixel_error", 0.5)))
+    except (TypeError, ValueError):
+        return Viewing()
+
+
+def adapt_walk(levels: list[int]) -> list[int]:
+    """Levels visited by the adaption check: the chosen levels in order, then back to the first."""
+    return list(levels[1:]) + ([levels[0]] if len(levels) > 1 else [])
+
+
+def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples) -> None:
+    from ..emit.reader import gpu_buffer
+    from . import gpu
+
+    first = gpu_buffer(c, part, lod, levels[0])
+    if int(first.vertex_id[LEVELS]) == 0:
+        return
+    plane = plane_source(c, part, lod)
+    for lang in languages:
+        ad = gpu.adapter(lang)
+        s = stats[lang]
+        t0 = time.perf_counter()
+        buf = ad.upload(first.words, first.vertex_id, levels[0])
+        try:
+            for target in adapt_walk(levels):
+                s["adapt_steps"] += abs(target - buf.level)
+                ad.adapt(buf, target, plane)
+                ref = gpu_buffer(c, part, lod, target)
+                vid, bid = buf.read_tables()
+                words = buf.read_words()
+                same = (np.array_equal(words, ref.words) and np.array_equal(vid[: LEVELS + 1], ref.vertex_id)
+                        and np.array_equal(bid[: LEVELS + 1], table_bit_id(ref.vertex_id, target)))
+                if not same:
+                    s["adapt_mismatches"] += 1
+                    if len(examples) < max_examples:
+                        examples.append({"language": lang, "kind": "adapt", "part": part, "lod": lod,
+                                         "level": target, "words_expected": int(ref.words.size),
+                                         "words_got": int(words.size),
+                                         "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
+                                         if words.size == ref.words.size else None})
+        finally:
+            buf.release()
+        s["adapt_seconds"] += time.perf_counter() - t0
+
+
+def format_report(report: dict) -> str:
+    """Human-readable summary: one line per language, then the first mismatches."""
+    lines = [f"{report['container']}: {report['buffers']} buffers, {report['vertices']:,} vertices, levels "
+             f"{_levels_text(report['levels'])} on {report['device']['renderer']}"]
+    for lang, s in report["languages"].items():
+        bad = s["grid_mismatches"] + s["float_mismatches"] + s["level_mismatches"]
+        lines.append(f"  {lang}: {s['decoded_vertices']:,} vertex decodes, {bad} mismatches "
+                     f"(grid {s['grid_mismatches']}, float {s['float_mismatches']}, bits {s['level_mismatches']}; "
+                     f"max {s['max_float_ulp']} ulp) in {s['decode_seconds']:.2f} s; crack-free: "
+                     f"{s['crack_free_vertices']:,} decodes, {s['crack_free_mismatches']} mismatches; adaption: {s['adapt_steps']} "
+                     f"plane steps, {s['adapt_mismatches']} mismatches in {s['adapt_seconds']:.2f} s")
+    for e in report["examples"]:
+        lines.append(f"  mismatch: {e}")
+    lines.append("  ok: decoders are bit-exact" if report["ok"] else "  FAILED: decoders differ from the CPU reference")
+    return "\n".join(lines)
+
+
+def _levels_text(levels: list[int]) -> str:
+    if not levels:
+        return "none"
+    runs, start, prev = [], levels[0], levels[0]
+    for v in levels[1:] + [None]:
+        if v is not None and v == prev + 1:
+            prev = v
+            continue
+        runs.append(f"{start}-{prev}" if prev > start else f"{start}")
+        if v is not None:
+            start = prev = v
+    return ",".join(runs)
+
+
+__all__ = ["parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
+           "verify_decoders", "adapt_walk", "format_report"]

@@ -1,0 +1,556 @@
+"""Run the reference shaders of ``shaders/`` headlessly: moderngl through EGL, GLSL and HLSL.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+section 6 (vertex-shader decoding, data-parallel precision adaption). The harness follows
+moderngl's own tests: one standalone context per process (``tests/conftest.py`` there, EGL
+backend), transform feedback to read what a vertex shader computed (``tests/test_transform.py``),
+shader storage buffers to read what a compute shader wrote.
+
+* GLSL runs as written (``#version 450`` and the defines below are prepended).
+* HLSL is compiled by glslang's HLSL front end to SPIR-V (``glslangValidator -D -V``) and
+  cross-compiled by spirv-cross to GLSL 4.50, which then runs on the same context. The HLSL
+  registers map to the same binding numbers as the GLSL files, so one set of buffers serves both.
+
+Context: Mesa llvmpipe on machines without a GPU, the vendor's EGL driver where there is one
+(``context_info()`` names it). System packages: ``libegl1 libegl-mesa0 libgl1-mesa-dri`` (EGL and
+Mesa), ``glslang-tools`` and ``spirv-cross`` (HLSL only). Missing ones raise LopcookError naming them.
+
+Buffers are numpy arrays in and out: packed words ``(w,) uint32``, tables ``(25,) int`` (VertexId,
+BitId), grid integers ``(n, 3) uint32``, positions ``(n, 3) float32`` metres.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..emit.binning import LEVELS, buffer_bytes, table_bit_id
+from ..errors import EXIT_BAD_INPUT, EXIT_VERIFY_FAILED, LopcookError
+
+LANGUAGES = ("glsl", "hlsl")
+SYSTEM_PACKAGES_EGL = ("libegl1", "libegl-mesa0", "libgl1-mesa-dri")
+SYSTEM_PACKAGES_HLSL = {"glslangValidator": "glslang-tools", "spirv-cross": "spirv-cross"}
+GL_VERSION_REQUIRED = 430  # SSBOs and compute shaders
+LOCAL_SIZE = 64  # threads per work group of the compute kernels
+MAX_GROUPS = 65535  # per dispatch (GL_MAX_COMPUTE_WORK_GROUP_COUNT minimum)
+KERNELS = ("unpack", "add_plane", "remove_plane", "tables", "pack")
+
+# Transform feedback record of the verification vertex shader: 28 bytes per vertex.
+FEEDBACK = np.dtype([("grid", "<u4", 3), ("position", "<f4", 3), ("level", "<u4")])
+VARYINGS = ("lop_out_grid", "lop_out_position", "lop_out_level")
+
+
+def shader_dir() -> Path:
+    """The ``shaders/`` folder: ``$LOPCOOK_SHADERS``, the repository's ``shaders/`` (editable
+    install / checkout), or ``<prefix>/share/lopcook/shaders`` (where a wheel installs them)."""
+    import sys
+
+    env = os.environ.get("LOPCOOK_SHADERS")
+    candidates = [Path(env)] if env else [Path(__file__).resolve().parents[2] / "shaders",
+                                          Path(sys.prefix) / "share" / "lopcook" / "shaders"]
+    path = next((c for c in candidates if (c / "decode_bitplanes.glsl").is_file()), candidates[0])
+    if not (path / "decode_bitplanes.glsl").is_file():
+        raise LopcookError("verify", str(path), "the reference shaders are missing (decode_bitplanes.glsl)",
+                           hint="run from a lopcook checkout or set LOPCOOK_SHADERS to its shaders/ folder")
+    return path
+
+
+def shader_source(name: str) -> str:
+    return (shader_dir() / name).read_text()
+
+
+# ---- the context ------------------------------------------------------------------------------
+
+_CONTEXT = None
+_FRAMEBUFFER = None
+
+
+def context():
+    """The process's headless moderngl context (OpenGL 4.3+ core through EGL), created once."""
+    global _CONTEXT, _FRAMEBUFFER
+    if _CONTEXT is not None:
+        return _CONTEXT
+    try:
+        import moderngl
+    except ImportError as exc:  # pragma: no cover - moderngl is a dependency
+        raise LopcookError("verify", None, f"moderngl is not importable ({exc})",
+                           hint="pip install moderngl") from None
+    try:
+        ctx = moderngl.create_standalone_context(backend="egl", require=GL_VERSION_REQUIRED)
+    except Exception as exc:
+        pkgs = " ".join(SYSTEM_PACKAGES_EGL)
+        raise LopcookError(
+            "verify", None, f"cannot create a headless OpenGL {GL_VERSION_REQUIRED // 100}.{GL_VERSION_REQUIRED % 100 // 10}"
+            f"+ context through EGL ({type(exc).__name__}: {exc})",
+            hint=f"install the system packages {pkgs} (Debian/Ubuntu: sudo apt-get install {pkgs}); "
+                 "with a GPU, its vendor's EGL driver works as well", exit_code=EXIT_BAD_INPUT) from None
+    # EGL without a surface has no default framebuffer: draws (even with the rasterizer off, as
+    # transform feedback runs) need a complete one bound.
+    _FRAMEBUFFER = ctx.simple_framebuffer((1, 1))
+    _FRAMEBUFFER.use()
+    _CONTEXT = ctx
+    return ctx
+
+
+def context_info() -> dict:
+    """Renderer, vendor and version strings of the context (llvmpipe or the GPU's driver)."""
+    info = context().info
+    return {"renderer": info["GL_RENDERER"], "vendor": info["GL_VENDOR"], "version": info["GL_VERSION"]}
+
+
+def gl_available() -> str | None:
+    """None when a context can be created, else the reason (for pytest skips)."""
+    try:
+        context()
+    except LopcookError as exc:
+        return str(exc)
+    return None
+
+
+# ---- HLSL -> SPIR-V -> GLSL 4.50 --------------------------------------------------------------
+
+def _tool(name: str) -> str:
+    path = shutil.which(name)
+    if path is None:
+        pkg = SYSTEM_PACKAGES_HLSL[name]
+        raise LopcookError("verify", None, f"{name} is not installed: it is needed to run the HLSL shaders",
+                           hint=f"install the Debian package {pkg}: sudo apt-get install glslang-tools spirv-cross",
+                           exit_code=EXIT_BAD_INPUT)
+    return path
+
+
+def require_hlsl_tools() -> None:
+    """Raise LopcookError (exit 2, naming the Debian packages) unless both HLSL tools are on PATH."""
+    for name in SYSTEM_PACKAGES_HLSL:
+        _tool(name)
+
+
+def hlsl_tools_available() -> str | None:
+    """None when glslangValidator and spirv-cross are on PATH, else the reason."""
+    try:
+        require_hlsl_tools()
+    except LopcookError as exc:
+        return str(exc)
+    return None
+
+
+def tool_versions() -> dict:
+    """First line of each HLSL tool's version output (None when missing)."""
+    out = {}
+    for name, args in (("glslangValidator", ["--version"]), ("spirv-cross", ["--revision"])):
+        path = shutil.which(name)
+        if path is None:
+            out[name] = None
+            continue
+        try:
+            res = subprocess.run([path, *args], capture_output=True, text=True, timeout=30)
+            text = (res.stdout or res.stderr).strip().splitlines()
+            out[name] = text[0] if text else ""
+        except (OSError, subprocess.SubprocessError):
+            out[name] = ""
+    return out
+
+
+_HLSL_CACHE: dict = {}
+
+
+def hlsl_to_glsl(source: str, stage: str, entry: str, *, defines: tuple = (),
+                 rename_outputs: tuple = (), name: str = "shader.hlsl") -> str:
+    """Compile HLSL ``source`` (stage ``vert`` or ``comp``, entry point ``entry``) with glslang's HLSL
+    front end to SPIR-V, then with spirv-cross to GLSL 4.50 (entry renamed ``main``; output
+    ``rename_outputs[i]`` gets location i). Results are cached per process."""
+    key = hashlib.sha256(repr((source, stage, entry, defines, rename_outputs)).encode()).hexdigest()
+    if key in _HLSL_CACHE:
+        return _HLSL_CACHE[key]
+    glslang, cross = _tool("glslangValidator"), _tool("spirv-cross")
+    with tempfile.TemporaryDirectory(prefix="lopcook-hlsl-") as tmp:
+        src = Path(tmp) / name
+        spv = Path(tmp) / "out.spv"
+        src.write_text(source)
+        cmd = [glslang, "-D", "-V", "-S", stage, "-e", entry, *[f"-D{d}" for d in defines], "-o", str(spv), str(src)]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise LopcookError("verify", name, f"glslang could not compile entry {entry}: "
+                               f"{(res.stdout + res.stderr).strip()}", exit_code=EXIT_VERIFY_FAILED)
+        cmd = [cross, str(spv), "--version", "450", "--no-es", "--rename-entry-point", entry, "main", stage]
+        for loc, out in enumerate(rename_outputs):
+            cmd += ["--rename-interface-variable", "out", str(loc), out]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise LopcookError("verify", name, f"spirv-cross could not translate entry {entry}: "
+                               f"{res.stderr.strip()}", exit_code=EXIT_VERIFY_FAILED)
+    _HLSL_CACHE[key] = res.stdout
+    return res.stdout
+
+
+# ---- vertex-shader decoding (transform feedback) ----------------------------------------------
+
+_GLSL_VS_MAIN = """
+out uvec3 lop_out_grid;
+out vec3 lop_out_position;
+out uint lop_out_level;
+
+void main()
+{
+    uvec3 grid;
+    vec3 position;
+    uint level;
+#ifdef LOP_CRACK_FREE
+    lop_decode_crack_free(uint(gl_VertexID), grid, position, level);
+#else
+    lop_decode(uint(gl_VertexID), grid, position, level);
+#endif
+    lop_out_grid = grid;
+    lop_out_position = position;
+    lop_out_level = level;
+}
+"""
+
+_HLSL_VS_MAIN = """
+struct LopVerifyOut
+{
+    nointerpolation uint3 grid : LOP_GRID;
+    float3 position : LOP_POSITION;
+    nointerpolation uint level : LOP_LEVEL;
+};
+
+LopVerifyOut lop_verify_vs(uint j : SV_VertexID)
+{
+    LopVerifyOut o;
+#ifdef LOP_CRACK_FREE
+    lop_decode_crack_free(j, o.grid, o.position, o.level);
+#else
+    lop_decode(j, o.grid, o.position, o.level);
+#endif
+    return o;
+}
+"""
+
+_PASSTHROUGH_VS = """#version 450
+in vec3 in_position;
+out vec3 lop_out_position;
+void main() { lop_out_position = in_position; }
+"""
+
+
+def vertex_shader_source(language: str, crack_free: bool = False) -> str:
+    """GLSL 4.50 source of the verification vertex shader: the library of ``shaders/`` plus a main
+    that writes grid integers, float position and level to transform feedback."""
+    if language == "glsl":
+        head = "#version 450\n" + ("#define LOP_CRACK_FREE\n" if crack_free else "#define LOP_NO_VIEW\n")
+        return head + "#line 1\n" + shader_source("decode_bitplanes.glsl") + _GLSL_VS_MAIN
+    if language == "hlsl":
+        defines = ("LOP_CRACK_FREE",) if crack_free else ("LOP_NO_VIEW",)
+        return hlsl_to_glsl(shader_source("decode_bitplanes.hlsl") + _HLSL_VS_MAIN, "vert", "lop_verify_vs",
+                            defines=defines, rename_outputs=VARYINGS, name="decode_bitplanes.hlsl")
+    raise ValueError(f"language must be one of {LANGUAGES}, got {language!r}")
+
+
+def _table32(table) -> np.ndarray:
+    """(25,) table -> (32,) uint32 padded with 0xFFFFFFFF (the shaders' binary search needs it)."""
+    t = np.asarray(table, dtype=np.int64)
+    if t.shape != (LEVELS + 1,):
+        raise ValueError(f"tables have {LEVELS + 1} entries, got shape {t.shape}")
+    if t.min() < 0 or t.max() >= 2**32:
+        raise ValueError("table entries must fit in uint32 (at most 59 652 323 vertices per buffer)")
+    out = np.full(32, 0xFFFFFFFF, dtype="<u4")
+    out[: LEVELS + 1] = t
+    return out
+
+
+def decode_block(vertex_id, bit_id, level: int, origin, half_cell, words: int) -> bytes:
+    """The 288 bytes of the LopDecode uniform block / cbuffer (std140 layout, see the shader header)."""
+    origin = np.asarray(origin, dtype=np.float32)
+    return b"".join([
+        _table32(vertex_id).tobytes(), _table32(bit_id).tobytes(),
+        np.array([origin[0], origin[1], origin[2], np.float32(half_cell)], dtype="<f4").tobytes(),
+        np.array([int(level), max(int(words), 1), 0, 0], dtype="<u4").tobytes(),
+    ])
+
+
+def view_block(camera, level_dist, block_radius) -> bytes:
+    """The 272 bytes of the LopView uniform block / cbuffer: camera, then the two (25,) float32 tables
+    (``lopcook.verify.decoders.view_tables``), each padded to 32 entries with zeros."""
+    cam = np.zeros(4, dtype="<f4")
+    cam[:3] = np.asarray(camera, dtype=np.float32)
+    out = [cam.tobytes()]
+    for t in (level_dist, block_radius):
+        pad = np.zeros(32, dtype="<f4")
+        pad[: LEVELS + 1] = np.asarray(t, dtype=np.float32)
+        out.append(pad.tobytes())
+    return b"".join(out)
+
+
+@dataclass
+class Decoded:
+    """GPU decode of a buffer: grid (n, 3) uint32, position (n, 3) float32 metres, level (n,) uint32
+    (bits per component used: max(bin, B), or the per-vertex level on the crack-free path)."""
+
+    grid: np.ndarray
+    position: np.ndarray
+    level: np.ndarray
+
+
+class VertexDecoder:
+    """The vertex-shader decoder of one language, run through transform feedback (rasterizer off).
+
+    ``decode(words, vertex_id, bit_id, level, origin, half_cell)`` decodes every vertex
+    ``j = gl_VertexID`` in ``[0, VertexId[24])``; with ``crack_free=True`` pass ``view=(camera,
+    level_dist, block_radius)`` too.
+    """
+
+    def __init__(self, language: str, crack_free: bool = False, source: str | None = None):
+        self.ctx = context()
+        self.language = language
+        self.crack_free = crack_free
+        self.source = vertex_shader_source(language, crack_free) if source is None else source
+        self.program = self.ctx.program(vertex_shader=self.source, varyings=VARYINGS)
+        self.vao = self.ctx.vertex_array(self.program, [])
+
+    def decode(self, words, vertex_id, bit_id, level: int, origin, half_cell, view=None) -> Decoded:
+        ctx = self.ctx
+        n = int(vertex_id[LEVELS])
+        if n == 0:
+            return Decoded(np.zeros((0, 3), np.uint32), np.zeros((0, 3), np.float32), np.zeros(0, np.uint32))
+        words = np.ascontiguousarray(words, dtype="<u4")
+        resources = [ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0"),
+                     ctx.buffer(decode_block(vertex_id, bit_id, level, origin, half_cell, words.size))]
+        resources[0].bind_to_storage_buffer(0)
+        resources[1].bind_to_uniform_block(0)
+        if self.crack_free:
+            if view is None:
+                raise ValueError("the crack-free decoder needs view=(camera, level_dist, block_radius)")
+            resources.append(ctx.buffer(view_block(*view)))
+            resources[2].bind_to_uniform_block(1)
+        out = ctx.buffer(reserve=n * FEEDBACK.itemsize)
+        try:
+            import moderngl
+
+            self.vao.transform(out, mode=moderngl.POINTS, vertices=n)
+            rec = np.frombuffer(out.read(), dtype=FEEDBACK)
+        finally:
+            out.release()
+            for r in resources:
+                r.release()
+        return Decoded(grid=rec["grid"].copy(), position=rec["position"].copy(), level=rec["level"].copy())
+
+    def release(self) -> None:
+        self.vao.release()
+        self.program.release()
+
+
+_DECODERS: dict = {}
+
+
+def vertex_decoder(language: str, crack_free: bool = False) -> VertexDecoder:
+    """Cached VertexDecoder per (language, crack_free, shader source) for this process's context."""
+    source = vertex_shader_source(language, crack_free)
+    key = (language, bool(crack_free), source)
+    if key not in _DECODERS:
+        _DECODERS[key] = VertexDecoder(language, crack_free, source)
+    return _DECODERS[key]
+
+
+class Passthrough:
+    """Float passthrough for the benchmark: a vertex shader that copies a float32 vec3 attribute
+    (a standard vertex buffer, the paper's "UC" column) to transform feedback."""
+
+    def __init__(self, positions):
+        import moderngl
+
+        self.ctx = context()
+        self.program = self.ctx.program(vertex_shader=_PASSTHROUGH_VS, varyings=("lop_out_position",))
+        self.vbo = self.ctx.buffer(np.ascontiguousarray(positions, dtype="<f4").tobytes())
+        self.vao = self.ctx.vertex_array(self.program, [(self.vbo, "3f", "in_position")])
+        self.n = len(positions)
+        self.out = self.ctx.buffer(reserve=max(self.n, 1) * 12)
+        self._mode = moderngl.POINTS
+
+    def run(self) -> None:
+        self.vao.transform(self.out, mode=self._mode, vertices=self.n)
+
+    def read(self) -> np.ndarray:
+        return np.frombuffer(self.out.read(), dtype="<f4").reshape(-1, 3)
+
+
+# ---- compute shaders: precision adaption --------------------------------------------------------
+
+_GLSL_KERNEL_DEFINE = {"unpack": "LOP_KERNEL_UNPACK", "add_plane": "LOP_KERNEL_ADD_PLANE",
+                       "remove_plane": "LOP_KERNEL_REMOVE_PLANE", "tables": "LOP_KERNEL_TABLES",
+                       "pack": "LOP_KERNEL_PACK"}
+_HLSL_KERNEL_ENTRY = {"unpack": "lop_unpack_cs", "add_plane": "lop_add_plane_cs",
+                      "remove_plane": "lop_remove_plane_cs", "tables": "lop_tables_cs", "pack": "lop_pack_cs"}
+
+
+def compute_shader_source(language: str, kernel: str) -> str:
+    """GLSL 4.50 source of one adaption kernel (``KERNELS``)."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    if language == "glsl":
+        return (f"#version 450\n#define {_GLSL_KERNEL_DEFINE[kernel]}\n#line 1\n"
+                + shader_source("adapt_bitplanes.comp.glsl"))
+    if language == "hlsl":
+        return hlsl_to_glsl(shader_source("adapt_bitplanes.comp.hlsl"), "comp", _HLSL_KERNEL_ENTRY[kernel],
+                            name="adapt_bitplanes.comp.hlsl")
+    raise ValueError(f"language must be one of {LANGUAGES}, got {language!r}")
+
+
+class AdaptBuffer:
+    """One binned buffer resident on the GPU for adaption: P (``packed``), the tables SSBO, U.
+
+    ``level`` is the level of ``packed`` (and of the tables); ``u_level`` the level U currently
+    holds (None when U is stale). Use ``Adapter`` to change it."""
+
+    def __init__(self, ctx, words, vertex_id, level: int):
+        self.ctx = ctx
+        self.vertex_id = np.asarray(vertex_id, dtype=np.int64)
+        self.n = int(self.vertex_id[LEVELS])
+        self.level = int(level)
+        self.u_level = None
+        words = np.ascontiguousarray(words, dtype="<u4")
+        self.packed = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
+        self.words = int(words.size)
+        self.tables = ctx.buffer(_table32(self.vertex_id).tobytes()
+                                 + _table32(table_bit_id(self.vertex_id, level)).tobytes())
+        self.unpacked = ctx.buffer(reserve=max(12 * self.n, 4))
+
+    def read_words(self) -> np.ndarray:
+        """(w,) uint32 packed words at ``level``."""
+        return np.frombuffer(self.packed.read(), dtype="<u4")[: self.words].copy()
+
+    def read_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """(32,) uint32 VertexId and BitId as the GPU holds them (entries 25..31: padding)."""
+        t = np.frombuffer(self.tables.read(), dtype="<u4")
+        return t[:32].copy(), t[32:64].copy()
+
+    def read_unpacked(self) -> np.ndarray:
+        return np.frombuffer(self.unpacked.read(), dtype="<u4")[: 3 * self.n].reshape(-1, 3).copy()
+
+    def release(self) -> None:
+        for b in (self.packed, self.tables, self.unpacked):
+            b.release()
+
+
+class Adapter:
+    """The five adaption kernels of one language (section 6.1 of the paper), as compute shaders.
+
+    Protocol (one plane at a time, as the shaders' header describes): ``unpack`` P -> U at the
+    buffer's level; ``add_plane`` / ``remove_plane`` change U's level by one; ``repack`` rewrites
+    BitId on the GPU (``tables`` kernel) and packs U into a new P. ``adapt(buf, target, plane)``
+    does a whole change, plane by plane, each plane a full unpack / merge / tables / pack cycle.
+    """
+
+    def __init__(self, language: str, sources: dict | None = None):
+        self.ctx = context()
+        self.language = language
+        self.sources = sources or {k: compute_shader_source(language, k) for k in KERNELS}
+        self.kernels = {k: self.ctx.compute_shader(self.sources[k]) for k in KERNELS}
+
+    def upload(self, words, vertex_id, level: int) -> AdaptBuffer:
+        return AdaptBuffer(self.ctx, words, vertex_id, level)
+
+    def _run(self, kernel: str, buf: AdaptBuffer, params, threads: int, extra=()) -> None:
+        ctx = self.ctx
+        buf.packed.bind_to_storage_buffer(0)
+        buf.unpacked.bind_to_storage_buffer(1)
+        buf.tables.bind_to_storage_buffer(3)
+        for binding, b in extra:
+            b.bind_to_storage_buffer(binding)
+        shader = self.kernels[kernel]
+        first = 0
+        while True:
+            groups = min(max((threads - first + LOCAL_SIZE - 1) // LOCAL_SIZE, 1), MAX_GROUPS)
+            ubo = ctx.buffer(np.array([*params, first, 0, 0, 0], dtype="<u4").tobytes())
+            ubo.bind_to_uniform_block(0)
+            shader.run(groups)
+            ctx.memory_barrier()
+            ubo.release()
+            first += groups * LOCAL_SIZE
+            if first >= threads:
+                break
+
+    def unpack(self, buf: AdaptBuffer) -> None:
+        """U <- P at ``buf.level`` (one thread per vertex)."""
+        self._run("unpack", buf, (buf.level, buf.n, 0, max(buf.words, 1)), buf.n)
+        buf.u_level = buf.level
+
+    def add_plane(self, buf: AdaptBuffer, plane_words, bit_offset: int = 0) -> None:
+        """U's level L -> L + 1: merge plane L + 1 (uint32 words; bit ``bit_offset + 3 j + c`` is the
+        new bit of component c of vertex j < VertexId[L])."""
+        p = buf.u_level + 1
+        if not 2 <= p <= LEVELS:
+            raise ValueError(f"cannot add plane {p}")
+        count = int(buf.vertex_id[p - 1])
+        data = np.ascontiguousarray(plane_words, dtype="<u4").tobytes() or b"\0\0\0\0"
+        plane = self.ctx.buffer(data)
+        try:
+            if count:
+                self._run("add_plane", buf, (p, count, int(bit_offset), 0), count, extra=[(2, plane)])
+        finally:
+            plane.release()
+        buf.u_level = p
+
+    def remove_plane(self, buf: AdaptBuffer) -> None:
+        """U's level L -> L - 1: zero bit 24 - L of the vertices of bins below L."""
+        b = buf.u_level
+        if not 2 <= b <= LEVELS:
+            raise ValueError(f"cannot remove a plane below level {b}")
+        count = int(buf.vertex_id[b - 1])
+        if count:
+            self._run("remove_plane", buf, (b, count, 0, 0), count)
+        buf.u_level = b - 1
+
+    def repack(self, buf: AdaptBuffer) -> None:
+        """P <- U at U's level: BitId rewritten on the GPU, then one thread per word of the new P
+        (sized on the CPU from VertexId: ``buffer_bytes``)."""
+        level = buf.u_level
+        self._run("tables", buf, (level, 1, 0, 0), 1)
+        nwords = buffer_bytes(buf.vertex_id, level) // 4
+        out = self.ctx.buffer(reserve=max(nwords, 1) * 4)
+        self._run("pack", buf, (level, nwords, 0, 0), nwords, extra=[(4, out)])
+        buf.packed.release()
+        buf.packed = out
+        buf.words = nwords
+        buf.level = level
+
+    def adapt(self, buf: AdaptBuffer, target: int, plane) -> None:
+        """Change ``buf`` to level ``target`` one plane at a time (unpack, add or remove one plane,
+        tables, pack for each). ``plane(p)`` returns (words, bit_offset) of refinement plane p."""
+        if not 1 <= target <= LEVELS:
+            raise ValueError(f"target level {target} is outside [1, {LEVELS}]")
+        while buf.level != target:
+            self.unpack(buf)
+            if buf.level < target:
+                self.add_plane(buf, *plane(buf.level + 1))
+            else:
+                self.remove_plane(buf)
+            self.repack(buf)
+
+    def release(self) -> None:
+        for k in self.kernels.values():
+            k.release()
+
+
+_ADAPTERS: dict = {}
+
+
+def adapter(language: str) -> Adapter:
+    """Cached Adapter per (language, shader sources) for this process's context."""
+    sources = {k: compute_shader_source(language, k) for k in KERNELS}
+    key = (language, tuple(sources[k] for k in KERNELS))
+    if key not in _ADAPTERS:
+        _ADAPTERS[key] = Adapter(language, sources)
+    return _ADAPTERS[key]
+
+
+__all__ = ["LANGUAGES", "KERNELS", "context", "context_info", "gl_available", "hlsl_tools_available",
+           "require_hlsl_tools", "tool_versions", "hlsl_to_glsl", "vertex_shader_source", "compute_shader_source", "decode_block",
+           "view_block", "Decoded", "VertexDecoder", "vertex_decoder", "Passthrough", "AdaptBuffer", "Adapter",
+           "adapter"]

@@ -1,0 +1,180 @@
+// decode_bitplanes.hlsl: vertex-shader decoder for binned adaptive precision buffers (HLSL, SM 5.0+).
+//
+// This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+// sections 4 (per-vertex levels against cracks), 5.3 (binned buffers, VertexId / BitId) and 6.2
+// (decoding in the vertex shader with the tables as uniforms).
+//
+// Line-for-line the same algorithm as decode_bitplanes.glsl. Mirrors (bit for bit; checked by
+// `lopcook verify OUT.lop --decoders`, which compiles this file with glslang's HLSL front end to
+// SPIR-V and spirv-cross to GLSL 4.50, and by tests/test_gpu_decoders.py):
+//   lop_bin_start      numpy.searchsorted(VertexId, j, side="right") - 1   (lopcook.emit.bitplane.decode)
+//   lop_decode_bits    lopcook.emit.bitplane.decode        (top bits v and width b of vertex j)
+//   lop_to_grid        lopcook.emit.bitplane.to_grid       (24-bit grid integers, dropped bits zero)
+//   lop_reconstruct    lopcook.emit.bitplane.reconstruct_float32  (float32 metres, identical bits)
+//   lop_vertex_level   lopcook.verify.decoders.vertex_levels       (crack-free per-vertex level; the
+//                      rule of lopcook.viewing.per_vertex_level: max(min(own, B), bin level))
+//
+// Bindings (override the registers with #define before this file):
+//   ByteAddressBuffer lop_words : register(LOP_POSITIONS_REGISTER = t0)   packed buffer P (uint32
+//         words, little-endian; or #define LOP_WORD(i) yourself, e.g. a Buffer<uint> read, and no
+//         ByteAddressBuffer is declared)
+//   cbuffer LopDecode : register(LOP_DECODE_REGISTER = b0), 288 bytes, one per buffer (part LOD):
+//           offset   0  uint4  lop_vertex_id[8]  VertexId[0..24]; entries 25..31 = 0xFFFFFFFF
+//           offset 128  uint4  lop_bit_id[8]     BitId[0..24] at level B (bit offsets, uint32)
+//           offset 256  float4 lop_origin_half   xyz: float32(grid origin), w: float32(extent / 2^25)
+//           offset 272  uint4  lop_params        x: per-buffer level B (1..24), y: words in P (>= 1)
+//   cbuffer LopView : register(LOP_VIEW_REGISTER = b1), 272 bytes, only for lop_vertex_level:
+//           offset   0  float4 lop_camera          xyz: camera position, metres, grid space
+//           offset  16  float4 lop_level_dist[8]   [b]: distance from which level b is enough
+//           offset 144  float4 lop_block_radius[8] [L]: radius of a level-L block, margin included
+//   (entry k of an array is lop_x[k >> 2][k & 3]; the byte layout equals the GLSL std140 blocks)
+//
+// Limits: a buffer holds at most 2^32 / 72 (59 652 323) vertices (BitId is a uint32 bit offset).
+// Float reconstruction: exact except three IEEE float32 operations (a + b, a * b) that D3D10+
+// requires to round to nearest even; `precise` forbids fusing them into an mad/fma. Integer to
+// float conversions only see values below 2^24 (exact). See shaders/README.md.
+
+#ifndef LOP_POSITIONS_REGISTER
+#define LOP_POSITIONS_REGISTER t0
+#endif
+#ifndef LOP_DECODE_REGISTER
+#define LOP_DECODE_REGISTER b0
+#endif
+#ifndef LOP_VIEW_REGISTER
+#define LOP_VIEW_REGISTER b1
+#endif
+
+#ifndef LOP_WORD
+ByteAddressBuffer lop_words : register(LOP_POSITIONS_REGISTER);
+#define LOP_WORD(i) lop_words.Load((i) << 2)
+#endif
+
+cbuffer LopDecode : register(LOP_DECODE_REGISTER)
+{
+    uint4 lop_vertex_id[8];
+    uint4 lop_bit_id[8];
+    float4 lop_origin_half;
+    uint4 lop_params;
+};
+
+#define LOP_VERTEX_ID(i) lop_vertex_id[(i) >> 2u][(i) & 3u]
+#define LOP_BIT_ID(i) lop_bit_id[(i) >> 2u][(i) & 3u]
+
+// Largest i in [0, 24] with VertexId[i] <= j, i.e. vertex j lies in bin k = i + 1 (j < VertexId[24]).
+// Branch-free: five steps of a binary search over the 32-entry padded table.
+uint lop_bin_start(uint j)
+{
+    uint i = 0u;
+    i += (LOP_VERTEX_ID(i + 16u) <= j) ? 16u : 0u;
+    i += (LOP_VERTEX_ID(i + 8u) <= j) ? 8u : 0u;
+    i += (LOP_VERTEX_ID(i + 4u) <= j) ? 4u : 0u;
+    i += (LOP_VERTEX_ID(i + 2u) <= j) ? 2u : 0u;
+    i += (LOP_VERTEX_ID(i + 1u) <= j) ? 1u : 0u;
+    return i;
+}
+
+// The b-bit field (1 <= b <= 24) at bit offset o of P, least significant bit first; the second word
+// read is clamped to the last word (masked away when the field ends inside the first word).
+uint lop_read_field(uint o, uint b)
+{
+    uint w = o >> 5u;
+    uint s = o & 31u;
+    uint lo = LOP_WORD(w) >> s;
+    uint hi = (LOP_WORD(min(w + 1u, lop_params.y - 1u)) << 1u) << (31u - s);  // word << (32 - s), 0 if s == 0
+    return (lo | hi) & ((1u << b) - 1u);
+}
+
+// Vertex j (binned order): top bits v (b bits per component), width b = max(bin level, B).
+void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
+{
+    uint i = lop_bin_start(j);
+    bin_level = i + 1u;
+    b = max(bin_level, lop_params.x);
+    uint o = 3u * b * (j - LOP_VERTEX_ID(i)) + LOP_BIT_ID(i);
+    v = uint3(lop_read_field(o, b), lop_read_field(o + b, b), lop_read_field(o + 2u * b, b));
+}
+
+// 24-bit grid integers with the dropped bits zero (v << (24 - b)).
+uint3 lop_to_grid(uint3 v, uint b)
+{
+    return v << (24u - b);
+}
+
+// Float32 block centre (metres): origin + float(c) * half_cell, c = (2 v + 1) << (24 - b) < 2^25,
+// float(c) formed as float(c >> 1) * 2 + float(c & 1) (exact conversions, one rounded addition).
+float3 lop_reconstruct(uint3 v, uint b)
+{
+    uint3 c = ((v << 1u) | 1u) << (24u - b);
+    precise float3 cf = float3(c >> 1u) * 2.0f + float3(c & 1u);
+    precise float3 p = lop_origin_half.xyz + cf * lop_origin_half.w;
+    return p;
+}
+
+// Decode vertex j at the per-buffer level B: grid integers, float32 position, bits used.
+void lop_decode(uint j, out uint3 grid, out float3 position, out uint level)
+{
+    uint3 v;
+    uint bin_level;
+    lop_decode_bits(j, v, level, bin_level);
+    grid = lop_to_grid(v, level);
+    position = lop_reconstruct(v, level);
+}
+
+// ---- optional: crack-free per-vertex levels (paper section 4) ---------------------------------
+#ifndef LOP_NO_VIEW
+
+cbuffer LopView : register(LOP_VIEW_REGISTER)
+{
+    float4 lop_camera;
+    float4 lop_level_dist[8];
+    float4 lop_block_radius[8];
+};
+
+#define LOP_LEVEL_DIST(i) lop_level_dist[(i) >> 2u][(i) & 3u]
+#define LOP_BLOCK_RADIUS(i) lop_block_radius[(i) >> 2u][(i) & 3u]
+
+// Smallest level b in [1, 24] the view needs for a point at most |p - camera| + radius(L) away
+// (squared comparison, lenient by 2^-18 > float32 rounding; see decode_bitplanes.glsl).
+uint lop_own_level(float3 p, uint L)
+{
+    precise float3 d = p - lop_camera.xyz;
+    precise float d2 = (d.x * d.x + d.y * d.y) + d.z * d.z;
+    precise float lhs = d2 * (1.0f + 1.0f / 262144.0f);
+    float r = LOP_BLOCK_RADIUS(L);
+    uint own = 1u;
+    [loop] for (uint b = 1u; b < 24u; ++b) {
+        precise float t = LOP_LEVEL_DIST(b) - r;
+        precise float t2 = t * t;
+        own += (t > 0.0f && lhs < t2) ? 1u : 0u;
+    }
+    return own;
+}
+
+// Crack-free per-vertex level: fixed point of L -> own level of the level-L block centre, from
+// L = 1; max(min(L, B), bin level). Reads only the vertex's top L bits (see the GLSL file).
+uint lop_vertex_level(uint3 v, uint b, uint bin_level)
+{
+    uint B = lop_params.x;
+    uint L = 1u;
+    [loop] for (uint it = 0u; it < 24u; ++it) {
+        uint want = min(lop_own_level(lop_reconstruct(v >> (b - L), L), L), B);
+        if (want <= L)
+            break;
+        L = want;
+    }
+    return max(L, bin_level);
+}
+
+// Decode vertex j at its crack-free per-vertex level: the bits below it are zeroed (paper Fig. 4).
+void lop_decode_crack_free(uint j, out uint3 grid, out float3 position, out uint level)
+{
+    uint3 v;
+    uint b, bin_level;
+    lop_decode_bits(j, v, b, bin_level);
+    level = lop_vertex_level(v, b, bin_level);
+    uint3 vl = v >> (b - level);
+    grid = lop_to_grid(vl, level);
+    position = lop_reconstruct(vl, level);
+}
+
+#endif  // LOP_NO_VIEW
