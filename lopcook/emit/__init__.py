@@ -29,7 +29,9 @@ from .manifest import FORMAT
 class BufferInput:
     """One GPU buffer to emit: a part's LOD. quantized (n, 3) uint32 grid integers, min_level (n,)
     ints in [1, 24], indices (m, 3) into these vertices, optional normals/uvs/colors (float32),
-    geometric_error_m: the LOD's deviation from LOD 0 in metres (0 for LOD 0)."""
+    geometric_error_m: the LOD's deviation from LOD 0 in metres (0 for LOD 0); min_distance_m: the
+    smallest camera distance (metres) at which a runtime selects this LOD (``lopcook.select``; 0.0
+    for LOD 0), written to the manifest only when given (None: the field is left out)."""
 
     quantized: np.ndarray
     min_level: np.ndarray
@@ -38,6 +40,7 @@ class BufferInput:
     uvs: np.ndarray | None = None
     colors: np.ndarray | None = None
     geometric_error_m: float = 0.0
+    min_distance_m: float | None = None
 
 
 def _sha256_file(path: str) -> str | None:
@@ -57,13 +60,15 @@ def _pack_bits(bits: np.ndarray) -> bytes:
 
 
 def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
-          lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS) -> bytes:
+          lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS,
+          savings: dict | None = None) -> bytes:
     """Container bytes for ``scene`` analysed by ``analysis``.
 
     ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
     scene and the analysis. ``max_level``: highest refinement plane written (planes above it are
     never needed by any view, see lopcook.viewing); vertices whose minimum level is higher are
-    stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options`` are recorded verbatim.
+    stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options`` are recorded verbatim. ``savings``: recorded
+    as the optional manifest field ``savings`` when given (``lopcook.pipeline.cook_bytes``).
     """
     viewing = viewing or Viewing()
     if lods is None:
@@ -92,6 +97,8 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
             prefix = f"part{i}/lod{k}"
             entry = {"vertices": n, "triangles": m, "vertex_id": [int(v) for v in bins.vertex_id],
                      "geometric_error_m": float(buf.geometric_error_m)}
+            if buf.min_distance_m is not None:
+                entry["min_distance_m"] = float(buf.min_distance_m)
             # (2) attributes
             data, width = attr.encode_indices(indices, n)
             sections.append((f"{prefix}/indices", data.tobytes()))
@@ -148,4 +155,6 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
                   "histogram": [int(v) for v in hist], "float32_position_bytes": 12 * total_vertices,
                   "vertices_clamped_to_max_level": clamped},
     }
+    if savings is not None:
+        manifest["savings"] = savings
     return to_bytes(manifest, sections)
