@@ -59,6 +59,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "section_bytes": by_kind,
         "sections": sections,
         "memory": memory_rows(c),
+        "savings": m.get("savings"),
         "parts": parts,
     }
 
@@ -84,6 +85,10 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         if r["level"] in SUMMARY_LEVELS:
             lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
                          f"{r['ap_percent']:>5.1f}%")
+    if d.get("savings"):
+        sv = d["savings"]
+        lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: planes {sv['planes_dropped'] or 'none'} "
+                     f"not written, {sv['lods_dropped']} LODs dropped")
     if timings:
         lines.append("")
         lines.append("  time: " + ", ".join(f"{k} {v:.3f} s" for k, v in timings.items()))
