@@ -45,6 +45,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_viewing_options(p)
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="dihedral angle in degrees above which computed normals split (default 60)")
+    add_calibration_options(p, cook=True)
+    _add_common(p)
+
+    p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
+    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
+    add_analyse_options(p)
+    add_viewing_options(p)
+    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
+                   help="dihedral angle in degrees above which computed normals split (default 60)")
+    add_calibration_options(p, cook=False)
     _add_common(p)
 
     p = sub.add_parser("decode", help="decode a .lop container at a level into a standard glTF 2.0 file")
@@ -61,16 +71,33 @@ def build_parser() -> argparse.ArgumentParser:
                    help="dihedral angle in degrees above which computed normals split (default 60)")
     _add_common(p)
 
-    p = sub.add_parser("verify", help="check a .lop container (--decoders: the GPU shaders against the CPU reference)")
+    p = sub.add_parser("verify", help="check a .lop container (--decoders: the GPU shaders against the CPU reference; "
+                                      "--source: renders against the float source)")
     p.add_argument("container", metavar="OUT.lop")
     g = p.add_argument_group("checks (give at least one)")
     g.add_argument("--decoders", action="store_true",
                    help="decode every part/LOD with the GLSL and HLSL shaders of shaders/ (moderngl through EGL; "
                         "HLSL via glslang + spirv-cross) and walk the adaption kernels through the levels; every "
                         "integer, float bit and packed word must equal the CPU reference")
+    g.add_argument("--source", metavar="SOURCE", default=None,
+                   help="render the float SOURCE, AP and CAP (positions decoded by the shipped GLSL decoder) from "
+                        "icosahedron views at the distance where each level is selected; print a Table-1-like "
+                        "table and fail (exit 1) when CAP's PSNR is below --min-psnr")
     p.add_argument("--levels", default=None, metavar="LEVELS",
                    help="per-buffer levels to check: a range or list in [1, 24], e.g. 1-24 or 6,8,12 "
-                        "(default: every level the file holds, 1-24 for a complete file)")
+                        "(default: every level the file holds for --decoders, 6-12 for --source)")
+    r = p.add_argument_group("render check (--source)")
+    r.add_argument("--min-psnr", type=float, default=40.0, metavar="DB",
+                   help="CAP PSNR (dB) every level must reach (default 40); see --psnr-stat")
+    r.add_argument("--psnr-stat", choices=("min", "mean"), default="min",
+                   help="PSNR over views compared with --min-psnr: min (every view, default) or mean (PSNR of "
+                        "the view-averaged MSE)")
+    r.add_argument("--max-depth-errors", type=int, default=None, metavar="PIXELS",
+                   help="fail when CAP shows more depth-order error pixels than this at a level (default: not checked)")
+    r.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
+    r.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    r.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
+                   help="ingest setting for SOURCE (default: the one recorded in the container, else 60)")
     p.add_argument("--languages", default="glsl,hlsl", metavar="glsl,hlsl",
                    help="shader languages to run (default: glsl,hlsl)")
     p.add_argument("--no-adapt", action="store_true",
@@ -87,6 +114,68 @@ def add_viewing_options(p: argparse.ArgumentParser) -> None:
                    help="closest camera distance to the scene, metres (e.g. 0.5 or 0.5m; default unknown)")
     g.add_argument("--pixel-error", type=float, default=0.5, metavar="PX",
                    help="allowed screen-space error in pixels (default 0.5, the paper's half pixel)")
+
+
+def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
+    from .verify.calibrate import CAL_RESOLUTION, CAL_VIEWS
+
+    g = p.add_argument_group("k_f calibration (renders CAP against the source; see lopcook.verify.calibrate)")
+    if cook:
+        g.add_argument("--target-psnr", type=float, default=None, metavar="DB",
+                       help="first search the k_f scale with the least memory whose CAP renders reach DB dB at "
+                            "every level (see --psnr-stat), then cook with it; the curve is recorded in the "
+                            "container options")
+    else:
+        g.add_argument("--target-psnr", type=float, required=True, metavar="DB",
+                       help="CAP PSNR (dB) to reach at every level (see --psnr-stat)")
+    prefix = "calibration-" if cook else ""
+    g.add_argument(f"--{prefix}views", dest="calibration_views", type=int, default=CAL_VIEWS, metavar="N",
+                   help=f"icosahedron views per probe, 1..20 (default {CAL_VIEWS})")
+    g.add_argument(f"--{prefix}resolution", dest="calibration_resolution",
+                   default=f"{CAL_RESOLUTION[0]}x{CAL_RESOLUTION[1]}", metavar="WxH",
+                   help=f"render size per probe (default {CAL_RESOLUTION[0]}x{CAL_RESOLUTION[1]})")
+    g.add_argument(f"--{prefix}levels", dest="calibration_levels", default="6-12", metavar="LEVELS",
+                   help="per-buffer levels every probe must pass (default 6-12)")
+    g.add_argument("--psnr-stat", choices=("min", "mean"), default="min",
+                   help="PSNR over views that must reach the target: min (every view, default) or mean "
+                        "(PSNR of the view-averaged MSE, as Purnomo et al. average errors)")
+
+
+def _resolution(text: str, flag: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise LopcookError("usage", None, f"{flag} {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise LopcookError("usage", None, f"{flag} {text!r}: width and height must be in [1, 16384] pixels")
+    return w, h
+
+
+def _views(n: int, flag: str) -> int:
+    if not 1 <= int(n) <= 20:
+        raise LopcookError("usage", None, f"{flag} {n}: expected 1..20 icosahedron views")
+    return int(n)
+
+
+def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
+    from .verify.calibrate import calibrate
+    from .verify.decoders import parse_levels
+
+    prefix = "--calibration-" if args.command == "cook" else "--"
+    levels = parse_levels(args.calibration_levels)
+    views = _views(args.calibration_views, f"{prefix}views")
+    resolution = _resolution(args.calibration_resolution, f"{prefix}resolution")
+    if not args.target_psnr > 0:
+        raise LopcookError("usage", None, f"--target-psnr {args.target_psnr}: expected a positive number of dB")
+
+    def progress(p):
+        ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
+        _progress(args, f"calibrate: k_f scale 2^{p['log2_sigma']:.3g}: CAP {ps}, "
+                        f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
+
+    return calibrate(scene, settings, target_psnr=args.target_psnr, levels=levels, views=views, resolution=resolution,
+                     viewing=viewing, ingest_options={"crease_angle_deg": ingest_settings.crease_angle_deg},
+                     progress=progress, statistic=args.psnr_stat)
 
 
 def _viewing(args):
@@ -223,6 +312,17 @@ def cmd_cook(args) -> int:
     _progress(args, f"ingest {args.source}")
     scene = load(args.source, ingest_settings)
     timings["ingest"] = time.perf_counter() - t0
+    calibration = None
+    if args.target_psnr is not None:
+        from dataclasses import replace
+
+        from .verify.calibrate import require_reached
+
+        t0 = time.perf_counter()
+        calibration = _run_calibration(args, scene, settings, viewing, ingest_settings)
+        timings["calibrate"] = time.perf_counter() - t0
+        require_reached(calibration, args.source)
+        settings = replace(settings, eps=calibration["eps"])
     _progress(args, f"analyse {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
     t0 = time.perf_counter()
     analysis = analyse(scene, settings)
@@ -233,6 +333,8 @@ def cmd_cook(args) -> int:
     from .analyse.summary import _settings_dict
 
     options = {"analyse": _settings_dict(settings), "ingest": {"crease_angle_deg": ingest_settings.crease_angle_deg}}
+    if calibration is not None:
+        options["calibration"] = _calibration_record(calibration)
     data = build(scene, analysis, options=options, viewing=viewing)
     timings["emit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -249,14 +351,48 @@ def cmd_cook(args) -> int:
     desc["warnings"] = list(scene.warnings)
     desc["touching"] = [list(p) for p in analysis.touching]
     desc["intersecting"] = [list(p) for p in analysis.intersecting]
+    if calibration is not None:
+        desc["calibration"] = calibration
     if args.json:
         print(json.dumps(desc, indent=1, sort_keys=True))
     elif not args.quiet:
+        if calibration is not None:
+            from .verify.calibrate import format_calibration
+
+            print(format_calibration(calibration))
         print(format_container(desc, timings=timings))
         if analysis.touching or analysis.intersecting:
             print(f"  note: {len(analysis.touching)} touching and {len(analysis.intersecting)} intersecting part "
                   f"pairs (depth levels capped at {settings.depth_ceiling}; see lopcook analyse)")
     return EXIT_OK
+
+
+def _calibration_record(cal: dict) -> dict:
+    """What the container records of a calibration (manifest options are free-form JSON): target,
+    the chosen k_f (scale sigma, eps, per-attribute k_f) and the curve (memory vs PSNR over k_f)."""
+    keep = ("sigma", "log2_sigma", "eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
+            "psnr_mean_per_level", "cap_percent")
+    return {"target_psnr": cal["target_psnr"], "statistic": cal["statistic"], "reached": cal["reached"],
+            "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
+            "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
+            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]]}
+
+
+def cmd_calibrate(args) -> int:
+    from .errors import EXIT_VERIFY_FAILED
+    from .ingest import load
+    from .verify.calibrate import format_calibration
+
+    settings = _analyse_settings(args)
+    viewing = _viewing(args)
+    ingest_settings = _ingest_settings(args)
+    scene = load(args.source, ingest_settings)
+    cal = _run_calibration(args, scene, settings, viewing, ingest_settings)
+    if args.json:
+        print(json.dumps(cal, indent=1, sort_keys=True))
+    elif not args.quiet or not cal["reached"]:
+        print(format_calibration(cal))
+    return EXIT_OK if cal["reached"] else EXIT_VERIFY_FAILED
 
 
 def cmd_decode(args) -> int:
@@ -313,12 +449,50 @@ def cmd_inspect(args) -> int:
     return EXIT_OK
 
 
+def _render_check(args, c, levels) -> dict:
+    """``verify --source``: evaluate() + the thresholds; JSON-ready (images dropped)."""
+    from .ingest import load
+    from .settings import IngestSettings
+    from .verify.render import evaluate
+
+    if args.min_psnr is None or not args.min_psnr == args.min_psnr:
+        raise LopcookError("usage", None, "--min-psnr must be a number of dB")
+    if args.max_depth_errors is not None and args.max_depth_errors < 0:
+        raise LopcookError("usage", None, f"--max-depth-errors {args.max_depth_errors}: expected >= 0 pixels")
+    views = _views(args.views, "--views")
+    resolution = _resolution(args.resolution, "--resolution")
+    crease = args.crease_angle
+    if crease is None:
+        crease = ((c.manifest.get("options") or {}).get("ingest") or {}).get("crease_angle_deg")
+    if crease is not None and not 0.0 <= float(crease) <= 180.0:
+        raise LopcookError("usage", None, f"--crease-angle {crease} is outside [0, 180] degrees")
+    ingest = IngestSettings(crease_angle_deg=float(crease)) if crease is not None else IngestSettings()
+    scene = load(args.source, ingest)
+    result = evaluate(c, scene, levels=levels, views=views, resolution=resolution)
+    failures = []
+    for row in result["levels"]:
+        cap = row["cap"]
+        value = cap[f"psnr_{args.psnr_stat}"]
+        if value is not None and value < args.min_psnr:
+            failures.append(f"level {row['level']}: CAP PSNR ({args.psnr_stat} over views) {value:.1f} dB < "
+                            f"{args.min_psnr:g} dB")
+        if args.max_depth_errors is not None and cap["depth_order_errors"] > args.max_depth_errors:
+            failures.append(f"level {row['level']}: {cap['depth_order_errors']} CAP depth-order error pixels > "
+                            f"{args.max_depth_errors}")
+    result["thresholds"] = {"min_psnr": args.min_psnr, "psnr_stat": args.psnr_stat,
+                            "max_depth_errors": args.max_depth_errors}
+    result["failures"] = failures
+    result["ok"] = not failures
+    return result
+
+
 def cmd_verify(args) -> int:
     from .errors import EXIT_VERIFY_FAILED
 
-    if not args.decoders:
-        raise LopcookError("usage", args.container, "nothing to verify: give --decoders",
-                           hint="lopcook verify OUT.lop --decoders checks the GLSL/HLSL decoders bit for bit")
+    if not args.decoders and args.source is None:
+        raise LopcookError("usage", args.container, "nothing to verify: give --decoders and/or --source SOURCE",
+                           hint="lopcook verify OUT.lop --decoders checks the GLSL/HLSL decoders bit for bit; "
+                                "--source SOURCE renders AP and CAP against the float source")
     from .emit.container import read
     from .verify.decoders import format_report, parse_levels, verify_decoders
 
@@ -326,20 +500,42 @@ def cmd_verify(args) -> int:
     languages = tuple(v.strip().lower() for v in args.languages.split(",") if v.strip())
     if not languages or any(v not in ("glsl", "hlsl") for v in languages):
         raise LopcookError("usage", None, f"--languages {args.languages!r}: expected glsl, hlsl or glsl,hlsl")
+    if args.source is not None:  # usage errors before any work
+        _views(args.views, "--views")
+        _resolution(args.resolution, "--resolution")
     c = read(args.container, allow_prefix=True)
-    if levels is None:
-        levels = list(range(1, c.available_level + 1))
-    report = {"container": args.container, "decoders": verify_decoders(c, levels, languages, adapt=not args.no_adapt)}
-    report["ok"] = report["decoders"]["ok"]
+    report = {"container": args.container}
+    ok = True
+    if args.decoders:
+        dec_levels = levels if levels is not None else list(range(1, c.available_level + 1))
+        report["decoders"] = verify_decoders(c, dec_levels, languages, adapt=not args.no_adapt)
+        ok = ok and report["decoders"]["ok"]
+    if args.source is not None:
+        from .verify.render import DEFAULT_LEVELS
+
+        render = _render_check(args, c, levels if levels is not None else list(DEFAULT_LEVELS))
+        report["render"] = render
+        ok = ok and render["ok"]
+    report["ok"] = bool(ok)
     if args.json:
         print(json.dumps(report, indent=1, sort_keys=True))
     elif not args.quiet or not report["ok"]:
-        print(format_report(report["decoders"]))
+        if "decoders" in report:
+            print(format_report(report["decoders"]))
+        if "render" in report:
+            from .verify.render import format_table
+
+            r = report["render"]
+            print(format_table(r))
+            verdict = "ok" if r["ok"] else "FAILED: " + "; ".join(r["failures"])
+            print(f"  thresholds: CAP PSNR ({args.psnr_stat} over views) >= {args.min_psnr:g} dB"
+                  + ("" if args.max_depth_errors is None else f", depth-order errors <= {args.max_depth_errors}")
+                  + f": {verdict}")
     return EXIT_OK if report["ok"] else EXIT_VERIFY_FAILED
 
 
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
-            "verify": cmd_verify}
+            "verify": cmd_verify, "calibrate": cmd_calibrate}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -34,6 +34,8 @@ concave_ngon           L-shaped hexagon, area 3 m^2, one polygon    .obj .gltf+.
 nested_transforms      glTF node chain (TRS + matrix) + instance    .gltf+.bin
 zup_cm                 USD upAxis Z, metersPerUnit 0.01             .usda
 point_instancer        USD PointInstancer, 4 instances x 2 meshes   .usda
+glossy_crease          1 m cube, sharp edges, normals bent across   .glb
+                       1/16 m bands, turned (render harness)
 =====================  ===========================================  =================================
 """
 
@@ -281,6 +283,84 @@ def unit_sphere(subdivisions: int = 3) -> list[FixturePart]:
                       np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)], axis=1).reshape(-1, 3)
         v = np.vstack([v, mid])
     return [_part("sphere", v, f, None, v.astype(np.float32))]
+
+
+def _rot_deg(axis: int, degrees: float) -> np.ndarray:
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m = np.eye(3)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+GLOSSY_CREASE_ROTATION = _rot_deg(1, 45.0) @ _rot_deg(0, 34.0)
+"""Ry(45 deg) Rx(34 deg): the rotation of ``glossy_crease``, equal to
+``lopcook.verify.render.VIEW_ROTATION`` (the turn of the render harness's 20 icosahedron views)."""
+
+
+def glossy_crease(band: float = 2.0**-4, cells: int = 8, steps: int = 4) -> list[FixturePart]:
+    """A 1 m cube with geometrically sharp edges whose vertex normals bend smoothly across every edge
+    and corner: a sharp crease under a glossy highlight (render-harness test, Meyer et al. 2011,
+    section 5.1 and Fig. 13). One part "crease", no UVs.
+
+    Construction, in the cube's own frame (half side h = 0.5 m, a = h - ``band``): each face is a
+    grid of (cells + 1 + 2 steps)^2 points ``s`` on the cube surface, with ``cells`` equal cells over
+    [-a, a] and ``steps`` finer cells on each side in the band [a, h] at a + band * tan(pi/4 * k /
+    steps) (k = 1..steps). Positions are the points themselves (flat faces, sharp edges); the normal
+    at s is that of a cube rounded with radius ``band``, ``normalize(s - clamp(s, -a, a))``: the face
+    normal inside [-a, a]^2 and, across the band, turning in equal 45/steps-degree steps to the
+    bisector at the edge (corners: the sphere octant). Points shared by faces are welded (np.unique
+    of s, lexicographic order): V = 6 (cells + 2 steps)^2 + 2, F = 12 (cells + 2 steps)^2 CCW
+    outward triangles (defaults: 1538 vertices, 3072 triangles), area 6 m^2, volume 1 m^3.
+
+    The cube is then turned by ``GLOSSY_CREASE_ROTATION``: in the harness's view set, 12 of the 20
+    views then look along the normal arc of an edge (a Phong headlight highlight runs along that
+    whole edge) and 8 straight at a corner. Positions and normals are rounded to float32 (like the
+    sphere, they are not exact: the rotation is irrational); normals are renormalised in float64
+    first.
+
+    What it shows: the band normals vary fast (E_v about 16 per metre), so CAP pins the band
+    vertices at high levels (about 15 bits with the default analysis), while flat-face vertices stay
+    at level 1; AP at level 6 moves the band's vertices by up to half a pixel and visibly shifts and
+    reshapes the highlight on the crease.
+
+    Returns
+    -------
+    [FixturePart] with positions (V, 3), indices (F, 3), normals (V, 3), uvs None.
+    """
+    h = 0.5
+    a = h - float(band)
+    inner = np.linspace(-a, a, cells + 1)
+    outer = a + float(band) * np.tan(np.pi / 4.0 * np.arange(1, steps + 1) / steps)
+    outer[-1] = h
+    t = np.concatenate([-outer[::-1], inner, outer])
+    k = len(t)
+    # (normal axis, r axis, u axis, sign) with e_r x e_u = outward normal
+    faces = [(0, 1, 2, 1.0), (0, 2, 1, -1.0), (1, 2, 0, 1.0), (1, 0, 2, -1.0), (2, 0, 1, 1.0), (2, 1, 0, -1.0)]
+    tu, tr = np.meshgrid(t, t, indexing="ij")
+    i, j = np.meshgrid(np.arange(k - 1), np.arange(k - 1), indexing="ij")
+    v00 = (i * k + j).ravel()
+    v01, v10 = v00 + 1, v00 + k
+    v11 = v10 + 1
+    quad_tris = np.concatenate([np.stack([v00, v01, v11], 1), np.stack([v00, v11, v10], 1)])
+    points, tris = [], []
+    for f, (ax, ra, ua, sign) in enumerate(faces):
+        s = np.zeros((k * k, 3))
+        s[:, ax] = sign * h
+        s[:, ra] = tr.ravel()
+        s[:, ua] = tu.ravel()
+        points.append(s)
+        tris.append(quad_tris + f * k * k)
+    s = np.concatenate(points)
+    unique, inverse = np.unique(s, axis=0, return_inverse=True)
+    indices = inverse.reshape(-1)[np.concatenate(tris)]
+    d = unique - np.clip(unique, -a, a)
+    normals = d / np.linalg.norm(d, axis=1, keepdims=True)
+    rot = GLOSSY_CREASE_ROTATION
+    pos = (unique @ rot.T).astype(np.float32).astype(np.float64)
+    nrm = normals @ rot.T
+    nrm = (nrm / np.linalg.norm(nrm, axis=1, keepdims=True)).astype(np.float32)
+    return [_part("crease", pos, indices, None, nrm)]
 
 
 def concave_ngon() -> list[FixturePart]:
@@ -762,6 +842,7 @@ def write_all(outdir="fixtures") -> list[Path]:
     written.extend(write_gltf(parts, out / "nested_transforms.gltf", nodes=nodes))
     written.append(write_usd_zup_cm(out / "zup_cm.usda"))
     written.append(write_usd_point_instancer(out / "point_instancer.usda"))
+    each("glossy_crease", glossy_crease(), ("glb",))
     return written
 
 
