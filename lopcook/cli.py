@@ -41,6 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     p.add_argument("-o", "--output", required=True, metavar="OUT.lop", help="container to write (atomically)")
     p.add_argument("--depfile", metavar="OUT.d", help="write a Make-style depfile listing every file read")
+    p.add_argument("--lods", default=None, metavar="R1,R2,...",
+                   help="also write LODs at these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
+    p.add_argument("--lod-backend", default="pymeshlab", choices=["pymeshlab", "fast"],
+                   help="simplifier: pymeshlab quadric collapse (seam-aware, default) or fast-simplification")
     add_analyse_options(p)
     add_viewing_options(p)
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
@@ -292,18 +296,33 @@ def _is_container(path: str) -> bool:
         return False
 
 
+def _lod_ratios(text):
+    """``"1/2,1/4"`` -> [0.5, 0.25]; None stays None. Ratios must be in (0, 1) and decreasing."""
+    if text is None:
+        return None
+    from fractions import Fraction
+
+    try:
+        ratios = [float(Fraction(t.strip())) for t in text.split(",") if t.strip()]
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--lods {text!r}: expected fractions such as 1/2,1/4,1/8") from None
+    ratios = [r for r in ratios if r != 1.0]
+    if not ratios or any(not 0 < r < 1 for r in ratios) or any(a <= b for a, b in zip(ratios, ratios[1:])):
+        raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing")
+    return ratios
+
+
 def cmd_cook(args) -> int:
     import os
     import time
 
-    from .analyse import analyse
-    from .emit import build
     from .emit.container import from_bytes, write_atomic
     from .emit.summary import describe_container, format_container
     from .ingest import load
 
     settings = _analyse_settings(args)
     viewing = _viewing(args)
+    lod_ratios = _lod_ratios(args.lods)
     ingest_settings = _ingest_settings(args)
     if os.path.isdir(args.output):
         raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
@@ -323,20 +342,20 @@ def cmd_cook(args) -> int:
         timings["calibrate"] = time.perf_counter() - t0
         require_reached(calibration, args.source)
         settings = replace(settings, eps=calibration["eps"])
-    _progress(args, f"analyse {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
-    t0 = time.perf_counter()
-    analysis = analyse(scene, settings)
-    timings.update({f"analyse.{k}": v for k, v in analysis.timings.items()})
-    timings["analyse"] = time.perf_counter() - t0
-    _progress(args, "emit bins and bit planes")
-    t0 = time.perf_counter()
+    _progress(args, f"analyse and emit {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
     from .analyse.summary import _settings_dict
+    from .pipeline import cook_bytes
 
     options = {"analyse": _settings_dict(settings), "ingest": {"crease_angle_deg": ingest_settings.crease_angle_deg}}
+    if lod_ratios is not None:
+        options["lods"] = {"ratios": args.lods, "backend": args.lod_backend}
     if calibration is not None:
         options["calibration"] = _calibration_record(calibration)
-    data = build(scene, analysis, options=options, viewing=viewing)
-    timings["emit"] = time.perf_counter() - t0
+    data, info = cook_bytes(scene, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
+                            options=options)
+    analysis = info["analysis"]
+    timings.update({f"analyse.{k}": v for k, v in analysis.timings.items()})
+    timings.update({k: v for k, v in info["timings_s"].items() if k != "total"})
     t0 = time.perf_counter()
     write_atomic(args.output, data)
     if args.depfile:

@@ -142,6 +142,7 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
                                             normals=p.normals, uvs=p.uvs, colors=p.colors)]
                                for p, pa in zip(scene.parts, analysis.parts)]
         info["timings_s"]["total"] = sum(timings.values())
+        info["analysis"] = analysis
         return data, info
 
     # (1) LOD chains
@@ -164,6 +165,7 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
     timings["analyse"] = time.perf_counter() - t0
     info["colocated_raised_across_lods"] = raised
     info["grid_extent_m"] = float(grid.extent)
+    info["analysis"] = analyses[0]  # LOD 0 of every part (its stage timings, touching pairs)
 
     # (4) selection ranges; LODs never selected are dropped
     quantized = [[None] * len(c) for c in parts_chain]

@@ -240,3 +240,21 @@ def test_cli_cook_depfile(corpus, tmp_path):
     for name in ("DamagedHelmet.gltf", "DamagedHelmet.bin", "Default_albedo.jpg"):
         assert name in text
     assert "Default_normal.jpg" not in text  # never read
+
+
+def test_cli_cook_lods_and_nearest(corpus, tmp_path):
+    out = tmp_path / "bunny.lop"
+    proc = run("cook", corpus / "stanford-bunny.obj", "-o", out, "--lods", "1/2,1/4", "--lod-backend", "fast",
+               "--nearest", "1m", "--json")
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    assert d["totals"]["buffers"] == 3
+    tris = [lod["triangles"] for lod in d["parts"][0]["lods"]]
+    assert tris[0] == 69451 and tris[0] > tris[1] > tris[2]
+    assert d["max_level"] < 24 and d["savings"]["bytes_saved"] > 0
+    back = tmp_path / "lod2.glb"
+    assert run("decode", out, "--level", d["max_level"], "--lod", 2, "-o", back).returncode == 0
+    assert load(back).n_triangles == tris[2]
+    for bad in ("1/2,3/4", "2", "x"):
+        proc = run("cook", corpus / "stanford-bunny.obj", "-o", tmp_path / "x.lop", "--lods", bad)
+        assert proc.returncode == 2 and "--lods" in proc.stderr
