@@ -11,7 +11,7 @@ import json
 import sys
 
 from . import __version__
-from .errors import EXIT_BAD_INPUT, EXIT_OK, LopcookError
+from .errors import EXIT_OK, LopcookError
 
 EXIT_INTERNAL = 3
 
@@ -207,7 +207,7 @@ def add_analyse_options(p: argparse.ArgumentParser) -> None:
 
     g = p.add_argument_group("analysis (Meyer et al. 2011, section 5)")
     g.add_argument("--eps", type=float, default=d.eps, metavar="COLOUR",
-                   help=f"largest shading error a vertex may cause, colour units in [0,1] (default 1/255)")
+                   help="largest shading error a vertex may cause, colour units in [0,1] (default 1/255)")
     g.add_argument("--ks", type=float, default=d.ks, help=f"Phong specular coefficient (default {d.ks})")
     g.add_argument("--shininess", type=float, default=d.shininess, help=f"Phong exponent n (default {d.shininess:g}); "
                    "normals use k_f = ks * n")

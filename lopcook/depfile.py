@@ -30,7 +30,6 @@ are written as is (fine for make).
 from __future__ import annotations
 
 import os
-import secrets
 from collections.abc import Iterable
 
 __all__ = ["write_depfile", "format_depfile", "escape", "DependencyList"]
@@ -129,20 +128,7 @@ def write_depfile(path: str | os.PathLike, target: str | os.PathLike, dependenci
     flushed to disk, then renamed over ``path`` with ``os.replace``: readers see the old file or
     the complete new one, never a partial one. Same arguments, same bytes (UTF-8, ``\\n`` line ends).
     """
-    path = os.fspath(path)
+    from .atomic import write_atomic
+
     data = format_depfile(os.fspath(target), dependencies, phony=phony).encode("utf-8", "surrogateescape")
-    folder = os.path.dirname(path) or os.curdir
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomic(path, data)

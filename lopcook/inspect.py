@@ -6,7 +6,6 @@ The JSON form (``describe_scene``) is a stable interface, validated by
 
 from __future__ import annotations
 
-import numpy as np
 
 from . import __version__
 from .ingest.weld import degenerate_triangles, duplicated_positions

@@ -195,7 +195,7 @@ def test_cli_failed_cook_leaves_no_file(tmp_path):
     out.write_bytes(b"previous")
     assert run("cook", bad, "-o", out).returncode == 2
     assert out.read_bytes() == b"previous"  # an earlier output is not touched
-    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".lopcook-")] == []
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []  # no temporary left
 
 
 def test_cli_decode_errors(tmp_path):

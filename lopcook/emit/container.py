@@ -31,12 +31,11 @@ manifest, attributes and planes up to B: ``read(..., allow_prefix=True)`` return
 from __future__ import annotations
 
 import json
-import os
 import struct
-import tempfile
 import zlib
 from dataclasses import dataclass, field
 
+from ..atomic import write_atomic  # noqa: F401  (re-exported: the writer of .lop files)
 from ..errors import LopcookError
 
 MAGIC = b"LOPC"
@@ -91,27 +90,6 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]]) -> bytes:
     head = _HEADER.pack(MAGIC, VERSION[0], VERSION[1], HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
     head += struct.pack("<I", zlib.crc32(head))
     return b"".join([head, mbytes, *payloads])
-
-
-def write_atomic(path: str, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and os.replace: readers
-    never see a partial file and a failure leaves no file behind."""
-    path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".lopcook-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file normal permissions
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def _no_duplicates(pairs):

@@ -46,7 +46,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import secrets
 import struct
 from collections.abc import Mapping
 from pathlib import Path
@@ -128,28 +127,10 @@ def pack_glb(json_bytes: bytes, blob: bytes) -> bytes:
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to a temporary file beside ``path``, then ``os.replace`` it into place.
+    """Write ``data`` atomically (``lopcook.atomic.write_atomic``); returns ``Path(path)``."""
+    from ..atomic import write_atomic
 
-    The temporary file is created with mode 0o666 minus the umask (like ``open(path, "wb")``)
-    and removed again if anything fails, so ``path`` either keeps its old content or gets the
-    complete new one. The parent directory must exist. Returns ``Path(path)``.
-    """
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
+    return write_atomic(path, data)
 
 
 # ---------------------------------------------------------------------------------------------
