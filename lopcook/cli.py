@@ -107,6 +107,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-adapt", action="store_true",
                    help="with --decoders: skip the compute-shader adaption check (decode only)")
     _add_common(p)
+
+    p = sub.add_parser("report", help="one self-contained HTML report (and report.json) of a container rendered "
+                                      "against its float source")
+    p.add_argument("container", metavar="OUT.lop")
+    p.add_argument("--source", metavar="SOURCE", required=True, help="the glTF/GLB, OBJ or USD file it was cooked from")
+    p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
+                   help="HTML file to write; the JSON goes beside it with the suffix .json")
+    p.add_argument("--levels", default=None, metavar="LEVELS", help="per-buffer levels, e.g. 6-12 (default 6-12)")
+    p.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
+    p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
+                   help="ingest setting for SOURCE (default: the one recorded in the container, else 60)")
+    p.add_argument("--no-analyse", action="store_true",
+                   help="do not re-run the analysis for warnings (touching/intersecting parts, degenerate triangles)")
+    _add_common(p)
     return parser
 
 
@@ -553,8 +568,60 @@ def cmd_verify(args) -> int:
     return EXIT_OK if report["ok"] else EXIT_VERIFY_FAILED
 
 
+def cmd_report(args) -> int:
+    import os
+
+    from .emit.container import read
+    from .emit.summary import describe_container
+    from .ingest import load
+    from .report import analysis_warnings, build_report, write_html
+    from .settings import IngestSettings
+    from .verify.decoders import parse_levels
+    from .verify.render import DEFAULT_LEVELS, evaluate
+
+    out = args.output
+    if os.path.isdir(out):
+        raise LopcookError("usage", out, "-o is a directory", hint="give a file name, e.g. report.html")
+    if not out.lower().endswith((".html", ".htm")):
+        raise LopcookError("usage", out, "-o must name an .html file (the JSON is written beside it)")
+    parent = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(parent):
+        raise LopcookError("usage", out, f"directory {os.path.dirname(out)!r} does not exist")
+    views = _views(args.views, "--views")
+    resolution = _resolution(args.resolution, "--resolution")
+    levels = parse_levels(args.levels, args.container) if args.levels is not None else list(DEFAULT_LEVELS)
+    if not os.path.isfile(args.source):
+        raise LopcookError("usage", args.source, "source file not found")
+    c = read(args.container, allow_prefix=True)
+    crease = args.crease_angle
+    if crease is None:
+        crease = ((c.manifest.get("options") or {}).get("ingest") or {}).get("crease_angle_deg")
+    if crease is not None and not 0.0 <= float(crease) <= 180.0:
+        raise LopcookError("usage", None, f"--crease-angle {crease} is outside [0, 180] degrees")
+    ingest = IngestSettings(crease_angle_deg=float(crease)) if crease is not None else IngestSettings()
+    _progress(args, f"ingest {args.source}")
+    scene = load(args.source, ingest)
+    _progress(args, f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]}")
+    ev = evaluate(c, scene, levels=levels, views=views, resolution=resolution, keep_images=True)
+    warnings = None
+    if not args.no_analyse:
+        _progress(args, "analyse (warnings)")
+        warnings = analysis_warnings(scene, c.manifest)
+    desc = describe_container(c, file_bytes=os.path.getsize(args.container))
+    rep = build_report(c, scene, ev, desc, warnings=warnings)
+    html_path, json_path = write_html(rep, ev.get("images"), out)
+    if args.json:
+        print(json.dumps(rep, indent=1, sort_keys=True))
+    elif not args.quiet:
+        from .verify.render import format_table
+
+        print(format_table(ev))
+        print(f"  wrote {html_path} and {json_path}")
+    return EXIT_OK
+
+
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
-            "verify": cmd_verify, "calibrate": cmd_calibrate}
+            "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report}
 
 
 def main(argv: list[str] | None = None) -> int:
