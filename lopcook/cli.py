@@ -122,6 +122,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-analyse", action="store_true",
                    help="do not re-run the analysis for warnings (touching/intersecting parts, degenerate triangles)")
     _add_common(p)
+    # the global flags also work after the command (lopcook cook x.glb -o x.lop -q)
+    for command in sub.choices.values():
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                             help="show Python tracebacks on errors")
+        command.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                             help="print nothing but errors (and --json output)")
     return parser
 
 

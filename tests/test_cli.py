@@ -109,3 +109,10 @@ def test_inspect_json_corpus_schema(corpus):
         proc = run("inspect", corpus / name, "--json")
         assert proc.returncode == 0, proc.stderr
         jsonschema.validate(json.loads(proc.stdout), schema)
+
+
+def test_global_flags_after_the_command():
+    proc = run("inspect", FIXTURES / "two_plates.obj", "-q")
+    assert proc.returncode == 0 and proc.stdout == ""
+    proc = run("inspect", "missing.obj", "--debug")
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
