@@ -16,6 +16,11 @@ from .errors import EXIT_OK, LopcookError
 EXIT_INTERNAL = 3
 
 
+def _add_crease_angle(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
+                   help="dihedral angle in degrees above which computed normals split (default 60; 180 = smooth)")
+
+
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout instead of text")
 
@@ -33,8 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("inspect", help="describe a source scene or a .lop container")
     p.add_argument("source", metavar="FILE", help="glTF/GLB, OBJ or USD (.usd/.usda/.usdc/.usdz) file, or a .lop container")
-    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="dihedral angle in degrees above which computed normals split (default 60; 180 = smooth)")
+    _add_crease_angle(p)
     _add_common(p)
 
     p = sub.add_parser("cook", help="ingest, analyse and write a .lop container")
@@ -47,8 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simplifier: pymeshlab quadric collapse (seam-aware, default) or fast-simplification")
     add_analyse_options(p)
     add_viewing_options(p)
-    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="dihedral angle in degrees above which computed normals split (default 60)")
+    _add_crease_angle(p)
     add_calibration_options(p, cook=True)
     _add_common(p)
 
@@ -56,8 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     add_analyse_options(p)
     add_viewing_options(p)
-    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="dihedral angle in degrees above which computed normals split (default 60)")
+    _add_crease_angle(p)
     add_calibration_options(p, cook=False)
     _add_common(p)
 
@@ -71,8 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     add_analyse_options(p)
-    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="dihedral angle in degrees above which computed normals split (default 60)")
+    _add_crease_angle(p)
     _add_common(p)
 
     p = sub.add_parser("verify", help="check a .lop container (--decoders: the GPU shaders against the CPU reference; "
@@ -117,8 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--levels", default=None, metavar="LEVELS", help="per-buffer levels, e.g. 6-12 (default 6-12)")
     p.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
     p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
-    p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="ingest setting for SOURCE (default: the one recorded in the container, else 60)")
+    _add_crease_angle(p)
     p.add_argument("--no-analyse", action="store_true",
                    help="do not re-run the analysis for warnings (touching/intersecting parts, degenerate triangles)")
     _add_common(p)
