@@ -15,6 +15,15 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
+IN_CI = os.environ.get("CI", "").lower() == "true"
+
+
+def require(reason: str | None) -> None:
+    """A missing system tool (EGL, glslang, chromium, node...): skip locally, fail under CI=true."""
+    if reason is not None:
+        if IN_CI:
+            pytest.fail(f"CI=true but {reason}")
+        pytest.skip(reason)
 
 
 def corpus_path() -> Path | None:
@@ -31,11 +40,7 @@ def corpus_path() -> Path | None:
 def corpus() -> Path:
     """Directory of the shared third-party corpus (fails under CI=true when missing)."""
     path = corpus_path()
-    if path is None:
-        msg = "corpus not found: set LOPCOOK_CORPUS or place it at ../shared/corpus"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(msg)
-        pytest.skip(msg)
+    require(None if path is not None else "corpus not found: set LOPCOOK_CORPUS or place it at ../shared/corpus")
     return path
 
 
@@ -49,3 +54,24 @@ def corpus_meta(corpus: Path) -> dict:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20111011)
+
+
+@pytest.fixture(scope="session")
+def gl():
+    """The headless moderngl context (EGL): skipped locally when missing, a failure under CI=true."""
+    from lopcook.verify import gpu
+
+    require(gpu.gl_available())
+    return gpu.context()
+
+
+@pytest.fixture(scope="session")
+def gltf_validator():
+    """lopcook.verify.gltf_validator, if node + gltf-validator are installed (required under CI=true)."""
+    from lopcook.verify import gltf_validator as V
+
+    try:
+        V.locate()
+    except V.GltfValidatorUnavailable as exc:
+        require(str(exc))
+    return V

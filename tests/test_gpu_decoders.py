@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 
 import numpy as np
 import pytest
 
-from conftest import FIXTURES
+from conftest import FIXTURES, require
 from lopcook.analyse import analyse
 from lopcook.emit import build
 from lopcook.emit.binning import LEVELS, make_bins, table_bit_id, vertex_widths
@@ -29,7 +28,6 @@ from lopcook.verify.decoders import (buffer_level, decode_crack_free, plane_sour
                                      view_tables)
 from lopcook.viewing import Viewing, required_level
 
-IN_CI = os.environ.get("CI", "").lower() == "true"
 CORPUS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/DamagedHelmet.gltf",
           "CesiumMilkTruck.glb", "Duck.glb", "UtahTeapot.usd", "chess_set_flat.usdc"]
 FIXTURE_FILES = ["seamed_cube.glb", "two_plates.glb", "unit_sphere.glb", "concave_ngon.gltf",
@@ -37,30 +35,16 @@ FIXTURE_FILES = ["seamed_cube.glb", "two_plates.glb", "unit_sphere.glb", "concav
 SEQUENCE = (6, 12, 8, 24, 1, 10)
 
 
-def _require(reason: str | None) -> None:
-    if reason is not None:
-        if IN_CI:
-            pytest.fail(reason)
-        pytest.skip(reason)
-
-
-@pytest.fixture(scope="session")
-def gl():
-    """The headless context (EGL): skipped locally when missing, a failure under CI=true."""
-    _require(gpu.gl_available())
-    return gpu.context()
-
-
 @pytest.fixture(params=gpu.LANGUAGES)
 def language(request, gl):
     if request.param == "hlsl":
-        _require(gpu.hlsl_tools_available())
+        require(gpu.hlsl_tools_available())
     return request.param
 
 
 @pytest.fixture(scope="session")
 def both_languages(gl):
-    _require(gpu.hlsl_tools_available())
+    require(gpu.hlsl_tools_available())
     return gpu.LANGUAGES
 
 

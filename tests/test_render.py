@@ -8,7 +8,6 @@ under CI=true, where they fail. Camera and view geometry tests need no GL.
 from __future__ import annotations
 
 import io
-import os
 
 import numpy as np
 import pytest
@@ -28,24 +27,13 @@ from lopcook.settings import AnalyseSettings
 from lopcook.types import MeshPart, Scene, Texture
 from lopcook.verify import gpu
 from lopcook.verify import render as R
-from lopcook.viewing import Viewing, nearest_box_distance, required_level
+from lopcook.viewing import nearest_box_distance, required_level
 
-IN_CI = os.environ.get("CI", "").lower() == "true"
 SMALL = (320, 180)
 
 # Measured on llvmpipe (LLVM 15, Mesa 22.3.6), glossy_crease at level 6, views 0/5/10/15, 320x180:
 # AP PSNR min 29.6 dB, CAP 69.1 dB (margin 39.5 dB); 36 interior pixels of AP off by > 2/255, 0 of CAP.
 CREASE_MARGIN_DB = 20.0
-
-
-@pytest.fixture(scope="session")
-def gl():
-    reason = gpu.gl_available()
-    if reason is not None:
-        if IN_CI:
-            pytest.fail(reason)
-        pytest.skip(reason)
-    return gpu.context()
 
 
 def _cook(scene, settings=AnalyseSettings(), viewing=None):

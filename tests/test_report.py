@@ -8,31 +8,18 @@ import base64
 import html
 import io
 import json
-import os
 import re
 import shutil
 import subprocess
 
 import pytest
 
-from conftest import FIXTURES, REPO
+from conftest import FIXTURES, REPO, require
 from lopcook.cli import main
 from lopcook.report import fmt_pct, fmt_psnr, table_rows
-from lopcook.verify import gpu
 
-IN_CI = os.environ.get("CI", "").lower() == "true"
 ARGS = ["--levels", "6-7", "--views", "2", "--resolution", "160x90"]
 NAMES = ("two_plates", "glossy_crease")
-
-
-@pytest.fixture(scope="session")
-def gl():
-    reason = gpu.gl_available()
-    if reason is not None:
-        if IN_CI:
-            pytest.fail(reason)
-        pytest.skip(reason)
-    return gpu.context()
 
 
 @pytest.fixture(scope="module")
@@ -121,10 +108,7 @@ def test_bad_input(tmp_path, capsys):
 
 def test_chromium_decodes(reports, tmp_path):
     exe = shutil.which("chromium")
-    if exe is None:
-        if IN_CI:
-            pytest.fail("chromium is not on PATH (Debian package chromium)")
-        pytest.skip("chromium is not on PATH")
+    require(None if exe else "chromium is not on PATH (Debian package chromium)")
     _, _, html_path, _ = reports["glossy_crease"]
     cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
