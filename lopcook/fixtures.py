@@ -51,6 +51,7 @@ import numpy as np
 
 from .emit.gltf_writer import (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
                                UNSIGNED_SHORT, BufferBuilder, gltf_json_text, pack_glb)
+from .viewing import VIEW_ROTATION as GLOSSY_CREASE_ROTATION
 
 GENERATOR = "lopcook fixtures"
 """``asset.generator`` of the glTF files and the signature in OBJ/USD headers."""
@@ -285,17 +286,8 @@ def unit_sphere(subdivisions: int = 3) -> list[FixturePart]:
     return [_part("sphere", v, f, None, v.astype(np.float32))]
 
 
-def _rot_deg(axis: int, degrees: float) -> np.ndarray:
-    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m = np.eye(3)
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return m
-
-
-GLOSSY_CREASE_ROTATION = _rot_deg(1, 45.0) @ _rot_deg(0, 34.0)
-"""Ry(45 deg) Rx(34 deg): the rotation of ``glossy_crease``, equal to
-``lopcook.verify.render.VIEW_ROTATION`` (the turn of the render harness's 20 icosahedron views)."""
+# GLOSSY_CREASE_ROTATION: Ry(45 deg) Rx(34 deg), the turn of the render harness's 20 icosahedron
+# views (lopcook.viewing.VIEW_ROTATION), so the crease is seen the same way from every view set.
 
 
 def glossy_crease(band: float = 2.0**-4, cells: int = 8, steps: int = 4) -> list[FixturePart]:

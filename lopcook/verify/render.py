@@ -86,7 +86,7 @@ from ..emit.bitplane import pack
 from ..emit.reader import GpuBuffer, gpu_buffer, lod_attributes, lod_entry, top_values
 from ..emit.summary import memory_rows
 from ..errors import LopcookError
-from ..viewing import Viewing, distance_for_level, nearest_box_distance, required_level
+from ..viewing import VIEW_ROTATION, Viewing, distance_for_level, nearest_box_distance, required_level
 from . import metrics as M
 
 RESOLUTION = (1280, 720)
@@ -108,17 +108,6 @@ _ICO_FACES = np.array([
 
 # ---- views and cameras ------------------------------------------------------------------------------
 
-def _rotation(axis: int, degrees: float) -> np.ndarray:
-    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m = np.eye(3)
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return m
-
-
-# Ry(45 deg) Rx(34 deg): no view direction lies within 8.9 degrees of a coordinate plane (the
-# best of a 1-degree search), so axis-aligned flat parts are never seen exactly edge-on.
-VIEW_ROTATION = _rotation(1, 45.0) @ _rotation(0, 34.0)
 
 
 def icosahedron_directions() -> np.ndarray:
