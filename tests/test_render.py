@@ -279,3 +279,62 @@ def test_format_table(gl, crease):
     text = R.format_table(r)
     assert "AP mem" in text and "CAP PSNR" in text
     assert len([ln for ln in text.splitlines() if ln.strip().startswith(("6 ", "7 "))]) == 2
+
+
+# ---- LOD k and float test scenes (GL) -------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def sphere_lods():
+    from lopcook.pipeline import cook_bytes
+
+    s = load(str(FIXTURES / "unit_sphere.glb"))
+    data, info = cook_bytes(s, AnalyseSettings(), lod_ratios=[0.5, 0.25], lod_backend="fast", keep_buffers=True)
+    return s, from_bytes(data, "sphere_lods.lop"), info
+
+
+def test_evaluate_scene_of_the_source_itself_is_identical(gl, crease):
+    s, c = crease
+    r = R.evaluate_scene(s, s, levels=[6, 9], views=4, resolution=SMALL, extent=c.manifest["grid"]["extent"])
+    ref = R.evaluate(c, s, levels=[6, 9], views=4, resolution=SMALL, variants=("cap",))
+    n = s.parts[0].n_vertices
+    for row, rrow in zip(r["levels"], ref["levels"]):
+        assert row["camera_distance_m"] == rrow["camera_distance_m"]  # the same cameras
+        assert all(p is None for p in row["scene"]["psnr_views"])
+        assert row["scene"]["bytes"] == 12 * n and row["scene"]["depth_order_errors"] == 0
+    assert r["variants"] == ["scene"] and r["test_vertices"] == n
+
+
+def test_lod_k_renders_its_own_buffers(gl, sphere_lods):
+    """LOD 1 of a chain container, decoded at 24 bits with its own indices and decoded normals,
+    renders like the float LOD 1 mesh (within 0.5 dB against the source), and worse than LOD 0."""
+    from lopcook.types import MeshPart, Scene
+
+    s, c, info = sphere_lods
+    assert len(c.manifest["parts"][0]["lods"]) == 3
+    r = R.evaluate(c, s, levels=[24, 10], camera_levels=9, views=4, resolution=SMALL, lod=1)
+    assert r["lod"] == 1 and r["lods"] == [1]
+    n1 = c.manifest["parts"][0]["lods"][1]["vertices"]
+    assert r["lod_vertices"] == n1
+    assert r["levels"][1]["ap"]["bytes"] == 4 * ((3 * 10 * n1 + 31) // 32)
+    assert r["float32_bytes"] == 12 * s.parts[0].n_vertices  # relative to the source (LOD 0)
+    b = info["buffers"][0][1]
+    grid = info["analysis"].grid
+    lod1 = Scene((MeshPart("sphere", grid.reconstruct(b.quantized, 24), b.indices, b.normals),), "lod1", "glb")
+    f = R.evaluate_scene(lod1, s, levels=[9], views=4, resolution=SMALL, extent=c.manifest["grid"]["extent"])
+    assert f["levels"][0]["camera_distance_m"] == r["levels"][0]["camera_distance_m"]
+    lod_psnr, float_psnr = r["levels"][0]["cap"]["psnr_mean"], f["levels"][0]["scene"]["psnr_mean"]
+    assert lod_psnr is not None and abs(lod_psnr - float_psnr) < 0.5, (lod_psnr, float_psnr)
+    r0 = R.evaluate(c, s, levels=[24], camera_levels=9, views=4, resolution=SMALL, variants=("cap",))
+    assert r0["lods"] == [0] and (r0["levels"][0]["cap"]["psnr_mean"] is None
+                                  or r0["levels"][0]["cap"]["psnr_mean"] > lod_psnr + 10.0)
+    with pytest.raises(LopcookError, match="no part has a LOD 3"):
+        R.evaluate(c, s, levels=[24], views=1, resolution=(64, 36), lod=3)
+
+
+def test_fixed_camera_distance(gl, crease):
+    s, c = crease
+    r = R.evaluate(c, s, levels=[8, 12], views=2, resolution=(64, 36), distance_m=5.0, variants=("cap",))
+    assert [row["camera_distance_m"] for row in r["levels"]] == [5.0, 5.0]
+    assert r["levels"][0]["camera_level"] == r["levels"][0]["selected_level"]
+    with pytest.raises(LopcookError, match="distance"):
+        R.evaluate(c, s, levels=[8], views=1, resolution=(64, 36), distance_m=-1.0)

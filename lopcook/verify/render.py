@@ -21,7 +21,11 @@ AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of ``shaders/d
 in the vertex shader (``gl_VertexID`` = index value, SSBO 0 = packed words, UBO 0 = tables and grid,
 filled by ``lopcook.verify.gpu.decode_block``), never by the CPU. All three renders use the
 **source** normals, UVs, colours and textures (permuted to the container's binned order for AP and
-CAP), so only positions differ. Only LOD 0 of each part is rendered.
+CAP), so only positions differ. That is LOD 0; ``evaluate(..., lod=k)`` renders the container's LOD k
+(AP and CAP decoded the same way) against the same float LOD-0 source, with the LOD's own index
+buffer and its normals, UVs and colours as decoded from the container (``lod_attributes``).
+``evaluate_scene`` renders any float-position scene (e.g. a simplified mesh: "simplify only")
+against the source with the same cameras and metrics.
 
 Camera (units: metres, degrees, pixels):
 
@@ -81,10 +85,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..emit.binning import LEVELS, table_bit_id
+from ..emit.binning import LEVELS, buffer_bytes, table_bit_id
 from ..emit.bitplane import pack
 from ..emit.reader import GpuBuffer, gpu_buffer, lod_attributes, lod_entry, top_values
-from ..emit.summary import memory_rows
 from ..errors import LopcookError
 from ..viewing import VIEW_ROTATION, Viewing, distance_for_level, nearest_box_distance, required_level
 from . import metrics as M
@@ -531,12 +534,11 @@ class _Textures:
         self.cache = {}
 
 
-def _attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
-    """VBO specs (buffer, format, name) of a part's source normals / uvs / colours (permuted by
-    ``order`` for binned buffers) and the list of buffers to release."""
+def _attribute_vbos(ctx, normals, uvs, colors, order=None) -> tuple[list, list]:
+    """VBO specs (buffer, format, name) of normals (n, 3) / uvs (n, 2) / colours (n, 4) float32 (each
+    optional; permuted by ``order`` when given) and the list of buffers to release."""
     specs, bufs = [], []
-    for name, arr, fmt in (("in_normal", part.normals, "3f"), ("in_uv", part.uvs, "2f"),
-                           ("in_color", part.colors, "4f")):
+    for name, arr, fmt in (("in_normal", normals, "3f"), ("in_uv", uvs, "2f"), ("in_color", colors, "4f")):
         if arr is None:
             continue
         a = np.asarray(arr, np.float32)
@@ -548,11 +550,32 @@ def _attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
     return specs, bufs
 
 
+def _attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
+    """VBO specs (buffer, format, name) of a part's source normals / uvs / colours (permuted by
+    ``order`` for binned buffers) and the list of buffers to release."""
+    return _attribute_vbos(ctx, part.normals, part.uvs, part.colors, order)
+
+
+def _float_items(ctx, program, scene, textures) -> tuple[list, list]:
+    """Draw items (float32 positions) of every part of ``scene`` and the GL objects to release."""
+    items, owned = [], []
+    for i, p in enumerate(scene.parts):
+        pos = ctx.buffer(np.ascontiguousarray(p.positions, dtype="<f4").tobytes())
+        ibo = ctx.buffer(np.ascontiguousarray(p.indices, dtype="<u4").tobytes())
+        specs, bufs = _attribute_buffers(ctx, p)
+        vao = ctx.vertex_array(program, [(pos, "3f", "in_position"), *specs], index_buffer=ibo,
+                               index_element_size=4)
+        owned += [pos, ibo, *bufs, vao]
+        items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
+                      "has_color": p.colors is not None, "texture": textures.get(p.texture)})
+    return items, owned
+
+
 class Harness:
     """GPU state for one source scene at one resolution: the renderer, float-position draws of the
     source parts, textures, and an optional cache of float renders (``cache_float=True``: keyed by
     the camera matrix, eye and shading, reused across containers of the same scene, e.g. by the k_f
-    calibration; about 8 bytes per pixel per cached view)."""
+    calibration or the byte-budget fit; about 8 bytes per pixel per cached view)."""
 
     def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False):
         from . import gpu
@@ -563,19 +586,9 @@ class Harness:
         self.textures = _Textures(self.ctx)
         self.cache_float = cache_float
         self.float_cache: dict = {}
-        self._buffers = []
-        self.float_items = []
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
-        for i, p in enumerate(scene.parts):
-            pos = self.ctx.buffer(np.ascontiguousarray(p.positions, dtype="<f4").tobytes())
-            ibo = self.ctx.buffer(np.ascontiguousarray(p.indices, dtype="<u4").tobytes())
-            specs, bufs = _attribute_buffers(self.ctx, p)
-            vao = self.ctx.vertex_array(self.renderer.float_program, [(pos, "3f", "in_position"), *specs],
-                                        index_buffer=ibo, index_element_size=4)
-            self._buffers += [pos, ibo, *bufs, vao]
-            self.float_items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
-                                     "has_color": p.colors is not None, "texture": self.textures.get(p.texture)})
+        self.float_items, self._buffers = _float_items(self.ctx, self.renderer.float_program, scene, self.textures)
 
     def release(self) -> None:
         for b in self._buffers:
@@ -601,35 +614,104 @@ class Harness:
 
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
-                 keep_images: bool = False, image_view: int | None = None) -> dict:
+                 keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
+                 distance_m: float | None = None) -> dict:
         """See the module function ``evaluate``."""
         return _evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
                          variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
-                         image_view=image_view)
+                         image_view=image_view, lod=lod, distance_m=distance_m)
+
+    def evaluate_scene(self, test_scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
+                       distance_m: float | None = None, extent: float | None = None,
+                       viewing: Viewing | None = None, shading: Shading | None = None,
+                       keep_images: bool = False, image_view: int | None = None) -> dict:
+        """Render ``test_scene`` (a ``lopcook.types.Scene`` with **float** positions, e.g. a simplified
+        LOD chain level: "simplify only") against this harness's source scene, with the cameras
+        ``evaluate`` uses, and measure it like a decoded variant.
+
+        Parameters
+        ----------
+        test_scene : Scene whose part i stands for source part i (same order: part-ID depth-order
+            errors compare part indices); positions float64 metres (rendered as float32), its own
+            indices, normals, UVs, colours; textures: each test part's own ``texture``.
+        levels : per-buffer levels B (ints in [1, 24]) whose camera distances to use: one row per
+            level, the camera where the half-pixel criterion selects B (``camera_distance``); nothing
+            is decoded. ``camera_levels`` overrides the camera level per row as in ``evaluate``.
+        views : int N in [1, 20] or a list of icosahedron view indices (as ``evaluate``).
+        distance_m : when given, every row's camera sits this many metres from the nearest point
+            of the source's bounding box instead (its ``camera_level`` is then the level selected there).
+        extent : grid extent in metres for the distances (default: ``Grid.fit`` over the source
+            positions, the extent a container cooked without LODs has; pass a container's
+            ``manifest["grid"]["extent"]`` to use exactly its cameras).
+        viewing : field of view and pixel error (default ``Viewing()``: 60 degrees, half a pixel);
+            the viewport is always the render resolution (``render_viewing``).
+        shading : Phong parameters (default ``Shading()``: ks 0.5, shininess 32).
+        keep_images, image_view : as ``evaluate`` (image keys ``float``, ``scene``, ``float_ids``,
+            ``scene_ids``, ``scene_heatmap``).
+
+        Returns the dict ``evaluate`` returns (same top-level keys; ``container`` None, ``lod`` None,
+        ``variants`` ["scene"]) whose level rows hold one variant, ``"scene"``, with the same metrics
+        as ``"ap"``/``"cap"`` (``psnr_mean`` etc.); its ``bytes`` are the test scene's float32
+        positions (12 per vertex) and ``percent_of_float32`` is relative to the source's float32
+        positions (``float32_bytes``). Also ``test_source``, ``test_vertices``, ``test_triangles``.
+        """
+        return _evaluate_scene(self, test_scene, levels=levels, views=views, camera_levels=camera_levels,
+                               distance_m=distance_m, extent=extent, viewing=viewing, shading=shading,
+                               keep_images=keep_images, image_view=image_view)
 
 
-def _decoded_items(ctx, program, c, scene, orders, textures, buffers_of, level: int, origin, half_cell,
+def lod_indices(c, lod: int) -> list[int]:
+    """Per part of container ``c``: the LOD index rendered for LOD ``lod`` -- ``lod`` itself, or the
+    part's last (coarsest) LOD when its chain is shorter (a part that stopped simplifying)."""
+    if int(lod) < 0:
+        raise LopcookError("usage", c.path, f"LOD must be >= 0, got {lod}")
+    out = [min(int(lod), len(p["lods"]) - 1) for p in c.manifest["parts"]]
+    if int(lod) > 0 and max(out, default=0) < int(lod):
+        raise LopcookError("usage", c.path, f"no part has a LOD {lod} (the deepest has "
+                           f"{max(out, default=0) + 1} LODs)")
+    return out
+
+
+def lod0_is_source(c) -> bool:
+    """Whether LOD 0 of container ``c`` holds the source's own vertices (True unless the container
+    was written by the byte-budget fit with a simplified LOD as its only LOD:
+    ``options.budget.chosen.lod`` > 0, see ``lopcook.budget``)."""
+    chosen = (((c.manifest.get("options") or {}).get("budget") or {}).get("chosen") or {})
+    return int(chosen.get("lod", 0) or 0) == 0
+
+
+def _decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
-    gives the GpuBuffer (AP or CAP). Attribute VBOs and index buffers come from ``attr_cache``."""
+    gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
+    source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
+    source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
+    file). Attribute VBOs and index buffers come from ``attr_cache``."""
     from .gpu import decode_block
 
     items, owned = [], []
     for i, p in enumerate(scene.parts):
+        k = lods[i]
         if i not in attr_cache:
-            idx = lod_attributes(c, i, LOD)["indices"]
-            ibo = ctx.buffer(np.ascontiguousarray(idx, dtype="<u4").tobytes())
-            specs, bufs = _attribute_buffers(ctx, p, orders[i])
-            attr_cache[i] = (ibo, specs, [ibo, *bufs])
-        ibo, specs, _ = attr_cache[i]
-        buf = buffers_of(c, i, LOD, level)
+            a = lod_attributes(c, i, k)
+            ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
+            if orders[i] is not None:
+                specs, bufs = _attribute_buffers(ctx, p, orders[i])
+                flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
+            else:
+                specs, bufs = _attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
+                flags = (a["normals"] is not None, a["colors"] is not None,
+                         textures.get(p.texture) if a["uvs"] is not None else None)
+            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags)
+        ibo, specs, _, (has_normal, has_color, texture) = attr_cache[i]
+        buf = buffers_of(c, i, k, level)
         words = np.ascontiguousarray(buf.words, dtype="<u4")
         ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
         ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, level, origin, half_cell, words.size))
         vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
-        items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": p.normals is not None,
-                      "has_color": p.colors is not None, "texture": textures.get(p.texture)})
+        items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
+                      "has_color": has_color, "texture": texture})
     return items, owned
 
 
@@ -681,10 +763,113 @@ def _summary(per_view: list[dict], depth: list[dict], nbytes: int, f32: int) -> 
     }
 
 
-def _evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-              image_view) -> dict:
+def _position_bytes(c, lods: list[int], level: int) -> dict:
+    """GPU-resident position bytes at per-buffer level B over all parts (part i's LOD ``lods[i]``):
+    ``cap`` (binned buffers, ``buffer_bytes``) and ``ap`` (every vertex B bits, whole words per
+    buffer), as ``lopcook.emit.summary.memory_rows`` counts them for LOD 0."""
+    cap = ap = 0
+    for i, k in enumerate(lods):
+        vid = np.asarray(lod_entry(c, i, k)["vertex_id"], dtype=np.int64)
+        cap += buffer_bytes(vid, level)
+        ap += 4 * ((3 * int(level) * int(vid[LEVELS]) + 31) // 32)
+    return {"cap": int(cap), "ap": int(ap)}
+
+
+def _camera_rows(lv, cl, distance_m, extent, viewing) -> list[tuple[int, int, float]]:
+    """(decode level, camera level, camera distance m) per row; a fixed ``distance_m`` replaces the
+    level distances and its camera level is the level selected there."""
+    if distance_m is None:
+        return [(b, cb, camera_distance(cb, extent, viewing)) for b, cb in zip(lv, cl)]
+    d = float(distance_m)
+    if not d > 0.0 or not math.isfinite(d):
+        raise LopcookError("usage", None, f"camera distance must be a positive number of metres, got {distance_m}")
+    sel = int(np.asarray(required_level(d, extent, viewing)))
+    return [(b, sel, d) for b in lv]
+
+
+def _render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, variants, keep_images,
+                 image_view, seconds) -> tuple[list, dict | None]:
+    """The per-level render loop shared by ``evaluate`` and ``evaluate_scene``.
+
+    plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned GL
+    objects released after the level). Returns (rows without the variants' bytes: per variant
+    ``(per_view metrics, depth metrics)`` under ``"_raw"``, images or None)."""
+    rows = []
+    images = None
+    coarsest = min(b for b, _, _ in plan)
+    best_score = -1.0
+    for level, cam_level, distance in plan:
+        t0 = time.perf_counter()
+        drawn, owned_all = draws(level)
+        seconds["upload"] += time.perf_counter() - t0
+        per_view = {v: [] for v in variants}
+        depth = {v: [] for v in variants}
+        cams, float_pixels = [], []
+        try:
+            for view in view_ids:
+                cam = make_camera(view, h.lo, h.hi, distance, viewing)
+                cams.append(cam)
+                t0 = time.perf_counter()
+                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+                ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
+                outs = {v: h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1]) for v in variants}
+                seconds["render"] += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
+                for v in variants:
+                    per_view[v].append(M.image_metrics(ref_rgba, outs[v][0]))
+                    depth[v].append(M.depth_order_errors(ref_ids, outs[v][1]))
+                seconds["metrics"] += time.perf_counter() - t0
+                if keep_images and level == coarsest:
+                    score = per_view[variants[0]][-1]["sum_sq"]
+                    chosen = view == image_view if image_view is not None else score > best_score
+                    if chosen:
+                        best_score = score
+                        images = {"level": level, "view": int(view), "float": ref_rgba, "float_ids": ref_ids}
+                        for v in variants:
+                            images[v] = outs[v][0]
+                            images[f"{v}_ids"] = outs[v][1]
+                            images[f"{v}_heatmap"] = M.difference_heatmap(ref_rgba, outs[v][0])
+        finally:
+            for r in owned_all:
+                r.release()
+        rows.append({
+            "level": int(level),
+            "camera_level": int(cam_level),
+            "camera_distance_m": float(distance),
+            "selected_level": int(required_level(distance, extent, viewing)),
+            "eye_distance_m": [float(np.linalg.norm(cm.eye - cm.centre)) for cm in cams],
+            "near_far_m": [[cm.near, cm.far] for cm in cams],
+            "float_object_pixels": float_pixels,
+            "_raw": {v: (per_view[v], depth[v]) for v in variants},
+        })
+    return rows, images
+
+
+def _header(h: Harness, view_ids, viewing, extent, shading, variants, f32, seconds) -> dict:
     from . import gpu
 
+    return {
+        "source": str(h.scene.source),
+        "resolution": [int(h.renderer.size[0]), int(h.renderer.size[1])],
+        "samples": int(h.renderer.samples),
+        "views": view_ids,
+        "view_directions": [[float(x) for x in icosahedron_directions()[v]] for v in view_ids],
+        "viewing": viewing.as_dict(),
+        "grid_extent_m": extent,
+        "box_m": [[float(x) for x in h.lo], [float(x) for x in h.hi]],
+        "shading": shading.as_dict(),
+        "variants": list(variants),
+        "parts": len(h.scene.parts),
+        "vertices": int(f32 // 12),
+        "float32_bytes": int(f32),
+        "seconds": {k: round(v, 4) for k, v in seconds.items()},
+        "device": gpu.context_info(),
+    }
+
+
+def _evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
+              image_view, lod=LOD, distance_m=None) -> dict:
     t_start = time.perf_counter()
     scene = h.scene
     variants = tuple(variants)
@@ -695,105 +880,102 @@ def _evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shin
     view_ids = select_views(views)
     if image_view is not None and int(image_view) not in view_ids:
         raise LopcookError("usage", c.path, f"image view {image_view} is not among the rendered views {view_ids}")
-    orders = source_order(c, scene)
+    lods = lod_indices(c, lod)
+    if len(c.manifest["parts"]) != len(scene.parts):
+        raise LopcookError("verify", c.path, f"the container has {len(c.manifest['parts'])} parts, the source "
+                           f"{scene.source!r} has {len(scene.parts)}",
+                           hint="give the source the container was cooked from")
+    # source attributes where the container's buffer is the source mesh (LOD 0), its own elsewhere
+    use_source = lod0_is_source(c) and any(k == 0 for k in lods)
+    src_orders = source_order(c, scene) if use_source else [None] * len(lods)
+    orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
     shading = Shading.from_manifest(c.manifest, ks, shininess)
     viewing = render_viewing(c.manifest, h.renderer.size)
     g = c.manifest["grid"]
     extent = float(g["extent"])
     origin = g["origin"]
     half_cell = np.float32(extent / float(1 << LEVELS) / 2.0)
-    mem = {r["level"]: r for r in memory_rows(c, levels=sorted(set(lv)))}
-    f32 = 12 * sum(int(lod_entry(c, i, LOD)["vertices"]) for i in range(len(c.manifest["parts"])))
+    f32 = 12 * sum(int(lod_entry(c, i, 0)["vertices"]) for i in range(len(c.manifest["parts"])))
     builders = {"ap": ap_buffer, "cap": gpu_buffer}
     ctx = h.ctx
     attr_cache: dict = {}
     seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
-    rows = []
-    images = None
-    coarsest = min(lv)
-    best_score = -1.0
+    plan = _camera_rows(lv, cl, distance_m, extent, viewing)
+
+    def draws(level):
+        drawn, owned_all = {}, []
+        for v in variants:
+            items, owned = _decoded_items(ctx, h.renderer.decode_program, c, scene, lods, orders, h.textures,
+                                          builders[v], level, origin, half_cell, attr_cache)
+            drawn[v] = (items, True)
+            owned_all += owned
+        return drawn, owned_all
+
     try:
-        for level, cam_level in zip(lv, cl):
-            t0 = time.perf_counter()
-            drawn = {}
-            owned_all = []
-            for v in variants:
-                items, owned = _decoded_items(ctx, h.renderer.decode_program, c, scene, orders, h.textures,
-                                              builders[v], level, origin, half_cell, attr_cache)
-                drawn[v] = items
-                owned_all += owned
-            seconds["upload"] += time.perf_counter() - t0
-            distance = camera_distance(cam_level, extent, viewing)
-            per_view = {v: [] for v in variants}
-            depth = {v: [] for v in variants}
-            cams, float_pixels = [], []
-            try:
-                for view in view_ids:
-                    cam = make_camera(view, h.lo, h.hi, distance, viewing)
-                    cams.append(cam)
-                    t0 = time.perf_counter()
-                    key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
-                    ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
-                    outs = {v: h.renderer.draw(drawn[v], cam, shading, decoded=True) for v in variants}
-                    seconds["render"] += time.perf_counter() - t0
-                    t0 = time.perf_counter()
-                    float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
-                    for v in variants:
-                        per_view[v].append(M.image_metrics(ref_rgba, outs[v][0]))
-                        depth[v].append(M.depth_order_errors(ref_ids, outs[v][1]))
-                    seconds["metrics"] += time.perf_counter() - t0
-                    if keep_images and level == coarsest:
-                        score = per_view[variants[0]][-1]["sum_sq"]
-                        chosen = view == image_view if image_view is not None else score > best_score
-                        if chosen:
-                            best_score = score
-                            images = {"level": level, "view": int(view), "float": ref_rgba, "float_ids": ref_ids}
-                            for v in variants:
-                                images[v] = outs[v][0]
-                                images[f"{v}_ids"] = outs[v][1]
-                                images[f"{v}_heatmap"] = M.difference_heatmap(ref_rgba, outs[v][0])
-            finally:
-                for r in owned_all:
-                    r.release()
-            row = {
-                "level": int(level),
-                "camera_level": int(cam_level),
-                "camera_distance_m": float(distance),
-                "selected_level": int(required_level(distance, extent, viewing)),
-                "eye_distance_m": [float(np.linalg.norm(cm.eye - cm.centre)) for cm in cams],
-                "near_far_m": [[cm.near, cm.far] for cm in cams],
-                "float_object_pixels": float_pixels,
-                "float32_bytes": int(f32),
-            }
-            for v in variants:
-                nbytes = mem[level]["ap_bytes"] if v == "ap" else mem[level]["cap_bytes"]
-                row[v] = _summary(per_view[v], depth[v], nbytes, f32)
-            rows.append(row)
+        rows, images = _render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
+                                    shading=shading, draws=draws, variants=variants, keep_images=keep_images,
+                                    image_view=image_view, seconds=seconds)
     finally:
-        for _, _, bufs in attr_cache.values():
-            for b in bufs:
+        for entry in attr_cache.values():
+            for b in entry[2]:
                 b.release()
+    for row in rows:
+        raw = row.pop("_raw")
+        row["float32_bytes"] = int(f32)
+        mem = _position_bytes(c, lods, row["level"])
+        for v in variants:
+            row[v] = _summary(raw[v][0], raw[v][1], mem[v], f32)
     seconds["total"] = time.perf_counter() - t_start
-    out = {
-        "container": None if c.path is None else str(c.path),
-        "source": str(scene.source),
-        "lod": LOD,
-        "resolution": [int(h.renderer.size[0]), int(h.renderer.size[1])],
-        "samples": int(h.renderer.samples),
-        "views": view_ids,
-        "view_directions": [[float(x) for x in icosahedron_directions()[v]] for v in view_ids],
-        "viewing": viewing.as_dict(),
-        "grid_extent_m": extent,
-        "box_m": [[float(x) for x in h.lo], [float(x) for x in h.hi]],
-        "shading": shading.as_dict(),
-        "variants": list(variants),
-        "parts": len(scene.parts),
-        "vertices": int(f32 // 12),
-        "float32_bytes": int(f32),
-        "levels": rows,
-        "seconds": {k: round(v, 4) for k, v in seconds.items()},
-        "device": gpu.context_info(),
-    }
+    out = _header(h, view_ids, viewing, extent, shading, variants, f32, seconds)
+    out.update({"container": None if c.path is None else str(c.path), "lod": int(lod), "lods": lods,
+                "lod_vertices": int(sum(int(lod_entry(c, i, k)["vertices"]) for i, k in enumerate(lods))),
+                "levels": rows})
+    if keep_images:
+        out["images"] = images
+    return out
+
+
+def _evaluate_scene(h: Harness, test, *, levels, views, camera_levels, distance_m, extent, viewing, shading,
+                    keep_images, image_view) -> dict:
+    from ..analyse import Grid
+
+    t_start = time.perf_counter()
+    lv, cl = _parse_levels(levels, camera_levels, LEVELS, None)
+    view_ids = select_views(views)
+    if image_view is not None and int(image_view) not in view_ids:
+        raise LopcookError("usage", None, f"image view {image_view} is not among the rendered views {view_ids}")
+    if not test.parts:
+        raise LopcookError("usage", test.source, "the test scene has no parts")
+    base = viewing or Viewing()
+    viewing = Viewing(viewport=h.renderer.size, fov_y_deg=base.fov_y_deg, pixel_error=base.pixel_error)
+    shading = shading or Shading()
+    if extent is None:
+        extent = float(Grid.fit([p.positions for p in h.scene.parts]).extent)
+    extent = float(extent)
+    f32 = 12 * sum(p.n_vertices for p in h.scene.parts)
+    test_bytes = 12 * sum(p.n_vertices for p in test.parts)
+    seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
+    plan = _camera_rows(lv, cl, distance_m, extent, viewing)
+    t0 = time.perf_counter()
+    items, owned = _float_items(h.ctx, h.renderer.float_program, test, h.textures)
+    seconds["upload"] += time.perf_counter() - t0
+    try:
+        rows, images = _render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
+                                    shading=shading, draws=lambda level: ({"scene": (items, False)}, []),
+                                    variants=("scene",), keep_images=keep_images, image_view=image_view,
+                                    seconds=seconds)
+    finally:
+        for r in owned:
+            r.release()
+    for row in rows:
+        raw = row.pop("_raw")
+        row["float32_bytes"] = int(f32)
+        row["scene"] = _summary(raw["scene"][0], raw["scene"][1], test_bytes, f32)
+    seconds["total"] = time.perf_counter() - t_start
+    out = _header(h, view_ids, viewing, extent, shading, ("scene",), f32, seconds)
+    out.update({"container": None, "lod": None, "test_source": str(test.source),
+                "test_vertices": int(sum(p.n_vertices for p in test.parts)),
+                "test_triangles": int(sum(p.n_triangles for p in test.parts)), "levels": rows})
     if keep_images:
         out["images"] = images
     return out
@@ -801,7 +983,8 @@ def _evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shin
 
 def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
              keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
-             ks: float | None = None, shininess: float | None = None, image_view: int | None = None) -> dict:
+             ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
+             lod: int = LOD, distance_m: float | None = None) -> dict:
     """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
     (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
 
@@ -816,11 +999,21 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     samples : MSAA samples (default 4). ks, shininess : override the manifest's Phong parameters.
     image_view : the view kept with ``keep_images`` (default: the view with the largest AP error,
         or CAP when AP is not rendered).
+    lod : the container's LOD to render (default 0), always against the float **source** (LOD 0).
+        A part with fewer LODs renders its last one (``lod_indices``). LOD 0 of a container cooked
+        from this source is drawn with the source's normals, UVs and colours (permuted to the binned
+        order, ``source_order``: only positions differ); any other LOD with the container's own
+        decoded attributes and index buffer (``lopcook.emit.reader.lod_attributes``), and the
+        source part's texture. Part IDs are part indices, so depth-order errors work at every LOD.
+    distance_m : None (camera at each level's distance, see the module doc), or one camera
+        distance in metres (eye to the nearest point of the source's bounding box) for every row;
+        each row's ``camera_level`` is then the level the half-pixel criterion selects there.
 
     Returns a JSON-ready dict (``images`` excepted):
 
-    * ``container``, ``source`` (paths), ``lod`` (0), ``resolution`` [w, h], ``samples``,
-      ``views`` [indices], ``view_directions`` [[x, y, z]] (unit, scene centre to eye),
+    * ``container``, ``source`` (paths), ``lod`` (the LOD asked for), ``lods`` [per part, the LOD
+      index rendered], ``lod_vertices`` (vertices of those buffers), ``resolution`` [w, h],
+      ``samples``, ``views`` [indices], ``view_directions`` [[x, y, z]] (unit, scene centre to eye),
       ``viewing`` (the Viewing the distances use: render resolution, container fov and pixel error),
       ``grid_extent_m``, ``box_m`` [[lo], [hi]] (the scene's bounding box, metres),
       ``shading`` (Phong parameters), ``variants``, ``parts``, ``vertices``, ``float32_bytes``
@@ -832,8 +1025,8 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
       ``eye_distance_m`` [per view] (eye to box centre), ``near_far_m`` [[near, far] per view],
       ``float_object_pixels`` [per view], ``float32_bytes``, and for each variant ``"ap"`` / ``"cap"``:
 
-      - ``bytes``: GPU-resident position bytes at B over all parts (``lopcook.emit.summary.memory_rows``),
-        ``percent_of_float32``;
+      - ``bytes``: GPU-resident position bytes at B over all parts of the rendered LOD
+        (as ``lopcook.emit.summary.memory_rows`` counts LOD 0), ``percent_of_float32`` (of LOD 0's);
       - ``psnr_views`` [dB or None per view], ``psnr_min`` (min over views; None when every view is
         identical), ``psnr_mean`` (PSNR of the view-averaged MSE), ``psnr_pooled`` (PSNR of the
         squared errors pooled over all object pixels of all views); ``psnr_interior_min``,
@@ -851,12 +1044,22 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
       ``ap_heatmap``, ``cap_heatmap`` ((h, w, 3) uint8, ``metrics.difference_heatmap``, full scale
       0.25). Keys of variants not rendered are absent.
 
-    Raises LopcookError: no EGL context (exit 2), levels not in the file or bad views (usage, exit 2),
-    a source that does not match the container (exit 2).
+    Raises LopcookError: no EGL context (exit 2), levels not in the file, bad views or a LOD no
+    part has (usage, exit 2), a source that does not match the container (exit 2).
     """
     with Harness(scene, resolution, samples) as h:
         return h.evaluate(container, levels=levels, views=views, camera_levels=camera_levels, variants=variants,
-                          ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view)
+                          ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view, lod=lod,
+                          distance_m=distance_m)
+
+
+def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
+                   samples: int = SAMPLES, **kw) -> dict:
+    """``Harness(scene, resolution, samples).evaluate_scene(test_scene, levels=..., views=..., **kw)``:
+    a float-position ``test_scene`` rendered against the float source ``scene`` with ``evaluate``'s
+    cameras; see ``Harness.evaluate_scene``."""
+    with Harness(scene, resolution, samples) as h:
+        return h.evaluate_scene(test_scene, levels=levels, views=views, **kw)
 
 
 def _fmt_psnr(v) -> str:
@@ -891,4 +1094,4 @@ def format_table(result: dict) -> str:
 __all__ = ["RESOLUTION", "VIEW_COUNT", "DEFAULT_LEVELS", "SAMPLES", "VARIANTS", "VIEW_ROTATION",
            "icosahedron_directions", "select_views", "render_viewing", "camera_distance", "place_camera", "look_at",
            "perspective", "Camera", "make_camera", "ap_buffer", "source_order", "vertex_shader_source", "Shading",
-           "Renderer", "Harness", "evaluate", "format_table"]
+           "Renderer", "Harness", "evaluate", "evaluate_scene", "lod_indices", "lod0_is_source", "format_table"]

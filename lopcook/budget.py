@@ -1,0 +1,423 @@
+"""Byte-budget fit: the LOD and per-buffer level with the least image error within N bytes.
+
+This work is based on: Purnomo, Bilodeau, Cohen, Kumar, "Hardware-Compatible Vertex Compression
+Using Quantization and Simplification", Graphics Hardware 2005, section 5 (combining quantization
+and simplification under a total size; Fig. 8: trade vertices against bits per vertex and keep the
+least image error; Fig. 11: error against bits per vertex for one size; Fig. 12: 1/6 of the
+original size) and section 4.1 (image-space error over 20 views); with the positions of Meyer et
+al. 2011 (binned adaptive precision buffers, ``lopcook.emit``).
+
+Steps of ``fit``:
+
+1. Cook the LOD chain (``lopcook.pipeline.cook_bytes``; default ratios 1/2, 1/4, 1/8, ... as
+   ``lod_chain`` makes them, ``default_ratios``), all on one grid, every plane the viewing allows.
+2. For every LOD k and level B in 1..(highest level in the file): the **candidate (k, B)** is the
+   container holding only LOD k with every vertex at B bits per component: planes above B are not
+   written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``;
+   their count is ``clamped_vertices``: the budget trades their shading guarantee for bytes, and
+   the image error measures what that costs). Its GPU buffer at level B is exactly AP at B of the
+   chain's LOD k (``lopcook.verify.render.ap_buffer``), which is what is rendered.
+3. Bytes of a candidate (``candidate_bytes``), by ``scope``:
+
+   * ``"positions"`` (default): the GPU-resident position buffer at level B -- 3 B bits per vertex,
+     whole 32-bit words per buffer (``lopcook.emit.summary.memory_rows``'s ``ap_bytes``, which is
+     the ``cap_bytes`` of the written container). Float size: 12 bytes per LOD-0 vertex
+     (``memory_rows``'s ``float32_bytes``).
+   * ``"vertices"``: plus the normals, UVs and colours as stored in the container (4 bytes per
+     vertex each: octahedral 2x16, unorm 2x16, RGBA8; the section lengths). Float size: plus float32
+     normals (12), UVs (8) and colours (16) per LOD-0 vertex where the part has them. This is
+     Purnomo's "number of vertices times bits per vertex".
+   * ``"all"``: plus the index buffer as stored (16-bit indices for buffers of at most 65,535
+     vertices, else 32-bit). Float size: plus 32-bit indices of LOD 0 (12 bytes per triangle).
+
+   A multi-part scene sums over parts; "LOD k" of a part with a shorter chain is its last LOD.
+   Bits per vertex (the chart's x axis) = 8 * bytes / vertices of the candidate.
+4. Image error: the candidate rendered against the float source (LOD 0) from ``views`` of the 20
+   icosahedron views at ``resolution`` (default 640x360), all at **one camera distance** (Purnomo
+   measures every candidate at one viewing setup; ``camera_distance``): the ``--nearest`` distance
+   when the viewing conditions give it (the closest any camera gets: where errors show most), else
+   the *frame distance* ``r / sin(a/2)`` from the nearest point of the scene's bounding box, with
+   ``r`` its half diagonal and ``a`` the smaller of the vertical and horizontal fields of view --
+   the whole object in view and as large as that allows in every direction, as Purnomo's renders
+   show it. The score is ``psnr_mean``: the PSNR of the mean over views of the MSE over object pixels
+   (``lopcook.verify.metrics``; None = identical = infinitely good).
+5. Which candidates are rendered: per LOD, the largest level that fits (``level_fit``) and the
+   ``levels_per_lod - 1`` levels below it (fewer bits at the same LOD only add error; they are
+   rendered for the chart and as a check); a LOD that fits at the file's highest level is rendered
+   at that level only, and every coarser LOD is then *dominated* (fewer triangles, no more bits to
+   gain) and not rendered. Every LOD's row says which of these applied.
+6. The choice: the rendered candidate with the highest ``psnr_mean`` (ties: fewer bytes, then the
+   finer LOD). It is written with ``lopcook.emit.build`` from the same buffers (same grid, same
+   bits as rendered): one LOD per part (``min_distance_m`` 0: it is shown at every distance),
+   planes 2..B. The record (``budget_record``) goes to the manifest's ``options.budget``.
+7. Baselines, for the record and the report: **quantize only** = LOD 0 at its largest fitting
+   level (a rendered candidate); **simplify only** = the finest LOD whose *float* buffer fits
+   (float32 positions, and float32 attributes / 32-bit indices in the wider scopes), rendered as a
+   float scene (``Harness.evaluate_scene``; its positions are the chain's 24-bit grid positions,
+   within extent * 2^-25 of the simplifier's output, below float32 rounding at that extent).
+
+Nothing fits -- not even the smallest candidate, the coarsest LOD at level 1 -- is a
+``LopcookError`` (exit 2) naming the smallest candidate's bytes.
+
+Cost: one cook of the chain plus ``views`` renders per rendered candidate (the float reference is
+rendered once per view and cached). Measured on llvmpipe (2 shared cores), the bunny at 1/6 of
+its float size, 20 views at 640x360: see docs/budget.md.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from .analyse.lod import MIN_SIMPLIFY_TRIANGLES
+from .emit.binning import LEVELS
+from .errors import LopcookError
+from .settings import DEFAULT_ANALYSE, AnalyseSettings
+from .types import Scene
+from .viewing import Viewing
+
+SCOPES = ("positions", "vertices", "all")
+DEFAULT_SCOPE = "positions"
+DEFAULT_RESOLUTION = (640, 360)
+DEFAULT_VIEWS = 20
+DEFAULT_LEVELS_PER_LOD = 2
+#: float32 bytes per vertex of each attribute (what "float size" counts)
+FLOAT_ATTRIBUTE_BYTES = {"normals": 12, "uvs": 8, "colors": 16}
+#: PSNR values recorded in the manifest are rounded to this many decimals (dB)
+PSNR_DECIMALS = 4
+
+
+# ---- sizes ---------------------------------------------------------------------------------------
+
+def default_ratios(scene: Scene, max_levels: int = 24) -> list[float]:
+    """1/2, 1/4, 1/8, ... while the largest part's target keeps at least ``MIN_SIMPLIFY_TRIANGLES``
+    triangles (at most ``max_levels`` ratios): ``lod_chain``'s default chain; smaller parts stop
+    earlier on their own."""
+    n0 = max((p.n_triangles for p in scene.parts), default=0)
+    out, r = [], 0.5
+    while len(out) < max_levels and round(r * n0) >= MIN_SIMPLIFY_TRIANGLES:
+        out.append(r)
+        r /= 2.0
+    return out
+
+
+def float_bytes(scene: Scene, scope: str = DEFAULT_SCOPE) -> int:
+    """The scene's float size in bytes under ``scope`` (see module doc, step 3): float32 positions,
+    plus float32 normals / UVs / colours ("vertices"), plus 32-bit indices ("all")."""
+    _check_scope(scope)
+    total = 0
+    for p in scene.parts:
+        total += 12 * p.n_vertices
+        if scope != "positions":
+            total += sum(FLOAT_ATTRIBUTE_BYTES[k] * p.n_vertices for k in FLOAT_ATTRIBUTE_BYTES
+                         if getattr(p, k) is not None)
+        if scope == "all":
+            total += 12 * p.n_triangles
+    return int(total)
+
+
+def _check_scope(scope: str) -> None:
+    if scope not in SCOPES:
+        raise LopcookError("usage", None, f"budget scope {scope!r}: expected one of {', '.join(SCOPES)}")
+
+
+def candidate_bytes(c, lods: list[int], level: int, scope: str = DEFAULT_SCOPE) -> dict:
+    """Bytes of candidate (LOD, level B) of container ``c`` (part i at LOD ``lods[i]``).
+
+    Returns ``position_bytes`` (3 B bits per vertex, whole uint32 words per buffer),
+    ``attribute_bytes`` (normals / UVs / colours sections as stored), ``index_bytes`` (index
+    section as stored), ``bytes`` (the sum of what ``scope`` counts), ``vertices``, ``triangles``
+    and ``clamped_vertices`` (vertices whose minimum level is above B)."""
+    _check_scope(scope)
+    sizes = {s["name"]: int(s["length"]) for s in c.manifest["sections"]}
+    pos = attrs = idx = n = m = clamped = 0
+    for i, k in enumerate(lods):
+        e = c.manifest["parts"][i]["lods"][k]
+        nv = int(e["vertices"])
+        pos += 4 * ((3 * int(level) * nv + 31) // 32)
+        attrs += sum(sizes.get(e.get(key) or "", 0) for key in ("normals", "uvs", "colors"))
+        idx += sizes.get(e["indices"], 0)
+        n += nv
+        m += int(e["triangles"])
+        clamped += nv - int(e["vertex_id"][int(level)])
+    total = pos + (attrs if scope != "positions" else 0) + (idx if scope == "all" else 0)
+    return {"position_bytes": int(pos), "attribute_bytes": int(attrs), "index_bytes": int(idx), "bytes": int(total),
+            "vertices": int(n), "triangles": int(m), "clamped_vertices": int(clamped)}
+
+
+def lod_float_bytes(c, lods: list[int], scope: str = DEFAULT_SCOPE) -> int:
+    """Float size of the LOD itself ("simplify only"): float32 positions, plus float32 attributes the
+    LOD has ("vertices"), plus 32-bit indices ("all")."""
+    total = 0
+    for i, k in enumerate(lods):
+        e = c.manifest["parts"][i]["lods"][k]
+        nv = int(e["vertices"])
+        total += 12 * nv
+        if scope != "positions":
+            total += sum(FLOAT_ATTRIBUTE_BYTES[key] * nv for key in FLOAT_ATTRIBUTE_BYTES if e.get(key))
+        if scope == "all":
+            total += 12 * int(e["triangles"])
+    return int(total)
+
+
+def level_fit(c, lods: list[int], target: int, scope: str = DEFAULT_SCOPE) -> int | None:
+    """The largest level B in [1, highest level in the file] whose candidate fits in ``target``
+    bytes (bytes grow with B), or None when even level 1 does not."""
+    best = None
+    for b in range(1, int(c.available_level) + 1):
+        if candidate_bytes(c, lods, b, scope)["bytes"] <= target:
+            best = b
+        else:
+            break
+    return best
+
+
+# ---- camera ----------------------------------------------------------------------------------------
+
+def frame_distance(lo, hi, fov_y_deg: float, resolution) -> float:
+    """Metres from the eye to the nearest point of the box [lo, hi] at which the box's bounding
+    sphere (radius r = half diagonal) fits in the smaller field of view ``a``: ``r / sin(a / 2)``
+    (the eye is then at least that far from the centre, so nothing is cut off)."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    r = 0.5 * float(np.linalg.norm(hi - lo))
+    w, h = int(resolution[0]), int(resolution[1])
+    t = math.tan(math.radians(fov_y_deg) / 2.0)
+    half = math.atan(t * min(1.0, w / h))
+    return max(r, 1e-9) / math.sin(half)
+
+
+def camera_distance(scene: Scene, viewing: Viewing, resolution) -> tuple[float, str]:
+    """The one camera distance every candidate is judged at (metres, eye to the nearest box point)
+    and its rule: ``"nearest"`` (``viewing.nearest_m``) or ``"frame"`` (``frame_distance``)."""
+    if viewing.nearest_m is not None:
+        return float(viewing.nearest_m), "nearest"
+    lo, hi = scene.bounds()
+    return frame_distance(lo, hi, viewing.fov_y_deg, resolution), "frame"
+
+
+# ---- the fit -----------------------------------------------------------------------------------------
+
+def _psnr_key(p):
+    return math.inf if p is None else float(p)
+
+
+def _round(p):
+    return None if p is None else round(float(p), PSNR_DECIMALS)
+
+
+def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
+    """The float scene of LOD ``lods[i]`` per part: 24-bit grid positions, float attributes."""
+    from .types import MeshPart
+
+    parts = []
+    for i, (p, k) in enumerate(zip(scene.parts, lods)):
+        b = buffers[i][k]
+        pos = grid.reconstruct(b.quantized, LEVELS)
+        parts.append(MeshPart(p.name, pos, np.asarray(b.indices, np.uint32), b.normals, b.uvs, b.colors,
+                              source=p.source, normals_computed=p.normals_computed,
+                              texture=p.texture if b.uvs is not None else None, mesh_key=p.mesh_key))
+    return replace(scene, parts=tuple(parts))
+
+
+def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANALYSE, viewing: Viewing | None = None,
+        *, lod_ratios=None, lod_backend: str = "pymeshlab", scope: str = DEFAULT_SCOPE, views=DEFAULT_VIEWS,
+        resolution=DEFAULT_RESOLUTION, levels_per_lod: int = DEFAULT_LEVELS_PER_LOD, samples: int = 4,
+        options: dict | None = None, progress=None) -> tuple[bytes, dict]:
+    """Container bytes of the best (LOD, level) within ``target_bytes`` and an info dict.
+
+    Parameters
+    ----------
+    scene : the source (LOD 0; the float reference of every render).
+    target_bytes : N, the budget in bytes under ``scope`` (int > 0).
+    settings, viewing : analysis settings and viewing conditions (recorded; ``viewing.nearest_m``
+        also fixes the camera distance and which planes exist).
+    lod_ratios : LOD chain ratios (default ``default_ratios``); lod_backend: ``"pymeshlab"``/``"fast"``.
+    scope : ``"positions"``, ``"vertices"`` or ``"all"`` (module doc, step 3).
+    views : N icosahedron views or a list of indices; resolution : (w, h) pixels of the renders.
+    levels_per_lod : levels rendered per LOD, the largest fitting one and those below it (>= 1).
+    options : manifest options of the written container (``budget`` is added).
+    progress : optional callable(str) for stage lines.
+
+    Returns ``(data, info)``: ``info["budget"]`` is the record written to ``options.budget``
+    (``budget_record``), ``info["cook"]`` the chain's ``cook_bytes`` info (no arrays),
+    ``info["timings_s"]`` (``cook``, ``render``, ``emit``).
+    """
+    from .emit import build
+    from .emit.container import from_bytes
+    from .pipeline import cook_bytes
+    from .verify.render import Harness, Shading, lod_indices
+
+    _check_scope(scope)
+    target = int(target_bytes)
+    if target <= 0:
+        raise LopcookError("usage", None, f"target bytes must be a positive integer, got {target_bytes}")
+    if int(levels_per_lod) < 1:
+        raise LopcookError("usage", None, f"levels per LOD must be >= 1, got {levels_per_lod}")
+    viewing = viewing or Viewing()
+    say = progress or (lambda _msg: None)
+    timings: dict = {}
+
+    # (1) the chain, every LOD on one grid
+    t0 = time.perf_counter()
+    ratios = default_ratios(scene) if lod_ratios is None else [float(r) for r in lod_ratios]
+    say(f"budget: LOD chain ({lod_backend}, {len(ratios)} ratios)")
+    full, cinfo = cook_bytes(scene, settings, viewing, lod_ratios=ratios, lod_backend=lod_backend,
+                             options=options, keep_buffers=True)
+    c = from_bytes(full)
+    timings["cook"] = time.perf_counter() - t0
+    depth = max(len(p["lods"]) for p in c.manifest["parts"])
+    available = int(c.available_level)
+    fsize = float_bytes(scene, scope)
+
+    # (2)+(3) bytes of every candidate; the largest fitting level per LOD
+    lod_rows, plan = [], []
+    dominated = False
+    for k in range(depth):
+        lods = lod_indices(c, k)
+        b_fit = level_fit(c, lods, target, scope)
+        smallest = candidate_bytes(c, lods, 1, scope)
+        row = {"lod": k, "lods": lods, "vertices": smallest["vertices"], "triangles": smallest["triangles"],
+               "geometric_error_m": max(float(c.manifest["parts"][i]["lods"][j]["geometric_error_m"])
+                                        for i, j in enumerate(lods)),
+               "level_fit": b_fit, "bytes_at_level_1": smallest["bytes"],
+               "float_bytes": lod_float_bytes(c, lods, scope)}
+        if b_fit is None:
+            row["status"] = "does not fit"
+        elif dominated:
+            row["status"] = "dominated"
+        else:
+            row["status"] = "rendered"
+            levels = [b_fit] if b_fit == available else [b for b in range(b_fit, b_fit - int(levels_per_lod), -1)
+                                                         if b >= 1]
+            plan.append((k, lods, levels))
+            if b_fit == available:
+                dominated = True  # every coarser LOD has fewer triangles and no more bits to gain
+        lod_rows.append(row)
+    if not plan:
+        smallest = min(lod_rows, key=lambda r: (r["bytes_at_level_1"], r["lod"]))
+        raise LopcookError("budget", scene.source,
+                           f"nothing fits in {target:,} bytes ({scope} scope): the smallest candidate, LOD "
+                           f"{smallest['lod']} ({smallest['vertices']:,} vertices) at level 1, takes "
+                           f"{smallest['bytes_at_level_1']:,} bytes",
+                           hint=f"give --target-bytes {smallest['bytes_at_level_1']} or more, coarser --lods, "
+                                f"or a narrower --budget-scope")
+
+    # (4)+(5) render the candidates (and the simplify-only baseline) at one camera distance
+    t0 = time.perf_counter()
+    distance, rule = camera_distance(scene, viewing, resolution)
+    extent = float(c.manifest["grid"]["extent"])
+    candidates = []
+    simplify = None
+    with Harness(scene, resolution, samples, cache_float=True) as h:
+        for k, lods, levels in plan:
+            say(f"budget: render LOD {k} at levels {levels}")
+            r = h.evaluate(c, levels=levels, views=views, variants=("ap",), lod=k, distance_m=distance)
+            for row in r["levels"]:
+                b = row["level"]
+                cb = candidate_bytes(c, lods, b, scope)
+                ap = row["ap"]
+                candidates.append({"lod": k, "level": b, **cb,
+                                   "bits_per_vertex": 8.0 * cb["bytes"] / max(cb["vertices"], 1),
+                                   "psnr_mean": _round(ap["psnr_mean"]), "psnr_min": _round(ap["psnr_min"]),
+                                   "depth_order_errors": int(ap["depth_order_errors"])})
+        view_ids = r["views"]
+        camera_level = r["levels"][0]["camera_level"]
+        fits = [row for row in lod_rows if row["float_bytes"] <= target]
+        if fits:
+            row = fits[0]
+            say(f"budget: render simplify-only LOD {row['lod']} (float)")
+            test = _simplified_scene(scene, cinfo["analysis"].grid, cinfo["buffers"], row["lods"])
+            rs = h.evaluate_scene(test, levels=[available], views=views, distance_m=distance, extent=extent,
+                                  viewing=viewing, shading=Shading.from_manifest(c.manifest))
+            s = rs["levels"][0]["scene"]
+            simplify = {"lod": row["lod"], "vertices": row["vertices"], "triangles": row["triangles"],
+                        "bytes": row["float_bytes"], "bits_per_vertex": 8.0 * row["float_bytes"] / max(row["vertices"], 1),
+                        "psnr_mean": _round(s["psnr_mean"]), "psnr_min": _round(s["psnr_min"])}
+    timings["render"] = time.perf_counter() - t0
+
+    # (6) the choice, written from the same buffers
+    best = min(candidates, key=lambda x: (-_psnr_key(x["psnr_mean"]), x["bytes"], x["lod"], -x["level"]))
+    quantize = next((x for x in candidates if x["lod"] == 0 and x["level"] == lod_rows[0]["level_fit"]), None)
+    record = budget_record(target=target, scope=scope, float_size=fsize, distance=distance, rule=rule,
+                           camera_level=camera_level, views=view_ids, resolution=resolution, samples=samples,
+                           ratios=ratios, backend=lod_backend, lod_rows=lod_rows, candidates=candidates,
+                           chosen=best, quantize=quantize, simplify=simplify, levels_per_lod=levels_per_lod)
+    t0 = time.perf_counter()
+    chosen_lods = lod_indices(c, best["lod"])
+    buffers = [[replace(cinfo["buffers"][i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
+    opts = dict(options or {})
+    opts["budget"] = record
+    data = build(scene, cinfo["analysis"], options=opts, viewing=viewing, lods=buffers, max_level=best["level"])
+    timings["emit"] = time.perf_counter() - t0
+    say(f"budget: chose LOD {best['lod']} at level {best['level']}: {best['bytes']:,} of {target:,} bytes")
+    cook_info = {k: v for k, v in cinfo.items() if k not in ("analysis", "buffers")}
+    return data, {"budget": record, "cook": cook_info, "analysis": cinfo["analysis"], "timings_s": timings}
+
+
+def budget_record(*, target, scope, float_size, distance, rule, camera_level, views, resolution, samples, ratios,
+                  backend, lod_rows, candidates, chosen, quantize, simplify, levels_per_lod) -> dict:
+    """The JSON record of a fit (manifest ``options.budget``; ``lopcook cook --json`` ``budget``).
+
+    Keys: ``target_bytes``, ``scope``, ``float_bytes`` (the scene's float size under the scope),
+    ``fraction_of_float`` (target / float size), ``camera`` {``distance_m``, ``rule``
+    ("nearest"/"frame"), ``level`` (what the half-pixel criterion selects there at the render
+    resolution), ``views``, ``resolution``, ``samples``}, ``metric``, ``lod_chain`` {``ratios``,
+    ``backend``}, ``levels_per_lod``, ``lods`` (per LOD: ``lod``, ``vertices``, ``triangles``,
+    ``geometric_error_m``, ``level_fit``, ``bytes_at_level_1``, ``float_bytes``, ``status``:
+    rendered / does not fit / dominated), ``candidates`` (rendered: ``lod``, ``level``, ``bytes``,
+    ``position_bytes``, ``attribute_bytes``, ``index_bytes``, ``vertices``, ``triangles``,
+    ``clamped_vertices``, ``bits_per_vertex``, ``psnr_mean``, ``psnr_min``, ``depth_order_errors``),
+    ``chosen`` (one of the candidates), ``baselines`` {``quantize_only``: LOD 0 at its largest
+    fitting level or None, ``simplify_only``: the finest LOD whose float buffer fits, rendered in
+    float, or None}. PSNR in dB, rounded to 4 decimals; None = identical to the source."""
+    return {
+        "target_bytes": int(target),
+        "scope": scope,
+        "float_bytes": int(float_size),
+        "fraction_of_float": float(target) / max(float_size, 1),
+        "camera": {"distance_m": float(distance), "rule": rule, "level": int(camera_level), "views": list(views),
+                   "resolution": [int(resolution[0]), int(resolution[1])], "samples": int(samples)},
+        "metric": "psnr_mean: PSNR of the mean over views of the MSE over object pixels (dB, higher is better)",
+        "lod_chain": {"ratios": [float(r) for r in ratios], "backend": backend},
+        "levels_per_lod": int(levels_per_lod),
+        "lods": [{k: v for k, v in row.items() if k != "lods"} for row in lod_rows],
+        "candidates": candidates,
+        "chosen": dict(chosen),
+        "baselines": {"quantize_only": None if quantize is None else dict(quantize), "simplify_only": simplify},
+    }
+
+
+def format_budget(record: dict) -> str:
+    """Text summary of a budget record (``lopcook cook --target-bytes`` without ``--json``)."""
+    cam = record["camera"]
+    ch = record["chosen"]
+
+    def ps(v):
+        return "inf" if v is None else f"{v:.2f}"
+
+    lines = [f"budget: {record['target_bytes']:,} bytes ({record['scope']}; {100 * record['fraction_of_float']:.1f}% "
+             f"of the float size {record['float_bytes']:,} B); {len(cam['views'])} views at "
+             f"{cam['resolution'][0]}x{cam['resolution'][1]}, camera {cam['distance_m']:.4g} m ({cam['rule']}, "
+             f"level {cam['level']})",
+             "    LOD  level   vertices      bytes  bits/vertex  PSNR mean dB"]
+    for x in record["candidates"]:
+        mark = "  <- chosen" if (x["lod"], x["level"]) == (ch["lod"], ch["level"]) else ""
+        lines.append(f"  {x['lod']:>5}  {x['level']:>5}  {x['vertices']:>9,}  {x['bytes']:>9,}  "
+                     f"{x['bits_per_vertex']:>11.1f}  {ps(x['psnr_mean']):>12}{mark}")
+    q, s = record["baselines"]["quantize_only"], record["baselines"]["simplify_only"]
+    lines.append("  quantize only: " + ("none fits" if q is None else
+                                        f"LOD 0 at level {q['level']}, {ps(q['psnr_mean'])} dB"))
+    lines.append("  simplify only: " + ("none fits" if s is None else
+                                        f"LOD {s['lod']} in float32 ({s['bytes']:,} B), {ps(s['psnr_mean'])} dB"))
+    lines.append(f"  chosen: LOD {ch['lod']} at level {ch['level']}, {ch['bytes']:,} bytes, {ps(ch['psnr_mean'])} dB"
+                 + (f" ({ch['clamped_vertices']:,} vertices stored below their minimum level)"
+                    if ch["clamped_vertices"] else ""))
+    return "\n".join(lines)
+
+
+__all__ = ["fit", "float_bytes", "candidate_bytes", "lod_float_bytes", "level_fit", "default_ratios",
+           "frame_distance", "camera_distance", "budget_record", "format_budget", "SCOPES", "DEFAULT_SCOPE",
+           "DEFAULT_RESOLUTION", "DEFAULT_VIEWS", "DEFAULT_LEVELS_PER_LOD"]
