@@ -13,6 +13,13 @@ vertex = 66.7 % of float32): it is **not rendered**. Its largest position error 
 analytically, sqrt(3) * extent * 2^-17 metres (half a cell of a 2^16 grid over the container's grid
 extent, on each axis), which is exactly CAP's bound at level 16; the chart draws it as a memory-only
 marker.
+
+Images: all images of the shown view are cropped to one box around the union of their object
+pixels plus a margin and, when small, enlarged by an integer factor with nearest-neighbour sampling
+(``crop_box``, ``apply_crop``; at level 6 an object is ~37 pixels tall in a 1280x720 frame). The box
+and factor are in ``images.crop`` and in the caption. LODs: ``lods`` holds the container's LOD table
+(``lod_table``: triangles, vertices, Hausdorff error, selection distance range and bytes per part
+and LOD), shown as the "Levels of detail" table.
 """
 
 from __future__ import annotations
@@ -90,6 +97,103 @@ def analysis_warnings(scene, manifest: dict) -> dict:
             "attribute_unsatisfied": int(t["attribute_unsatisfied"])}
 
 
+def lod_table(manifest: dict) -> list[dict]:
+    """Per part of a container manifest, its LODs as written: ``{"part", "lods": [...], "notes"}``.
+
+    Each LOD: ``lod`` (index), ``triangles``, ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
+    distance to LOD 0, metres, as recorded), ``min_distance_m`` / ``max_distance_m`` (the camera
+    distances, metres, over which ``lopcook.select.select`` picks it under the manifest's viewing:
+    from its own ``min_distance_m`` to the next larger one of the part; ``max_distance_m`` None =
+    no upper bound; a container cooked without LODs records no distance, and its single LOD covers
+    [0, inf)), and bytes in the file: ``index_bytes``, ``attribute_bytes`` (normals, UVs, colours),
+    ``mandatory_position_bytes`` (its share of the mandatory section),
+    ``plane_position_bytes`` (its bits in the refinement planes 2..max_level: 3 bits per vertex
+    whose minimum level is below the plane, rounded up to bytes per plane) and ``bytes``, the sum.
+    ``notes``: the LOD report notes of that part when the container records them
+    (``options.lods.reports[i].notes``), else empty."""
+    sizes = {s["name"]: int(s["length"]) for s in manifest["sections"]}
+    max_level = int(manifest["positions"].get("max_level", 24))
+    reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
+    out = []
+    for i, part in enumerate(manifest["parts"]):
+        starts = [e.get("min_distance_m") for e in part["lods"]]
+        rows = []
+        for k, e in enumerate(part["lods"]):
+            lo = starts[k] if starts[k] is not None else 0.0
+            later = [s for s in starts if s is not None and s > lo]
+            vid = e["vertex_id"]
+            index_bytes = sizes.get(e["indices"], 0)
+            attribute_bytes = sum(sizes.get(e.get(key) or "", 0) for key in ("normals", "uvs", "colors"))
+            mandatory = 4 * int(e["mandatory_words"][1])
+            planes = sum((3 * int(vid[p - 1]) + 7) // 8 for p in range(2, max_level + 1))
+            rows.append({"lod": k, "triangles": int(e["triangles"]), "vertices": int(e["vertices"]),
+                         "geometric_error_m": float(e.get("geometric_error_m", 0.0)),
+                         "min_distance_m": float(lo), "max_distance_m": min(later) if later else None,
+                         "index_bytes": index_bytes, "attribute_bytes": attribute_bytes,
+                         "mandatory_position_bytes": mandatory, "plane_position_bytes": planes,
+                         "bytes": index_bytes + attribute_bytes + mandatory + planes})
+        rec = reports[i] if i < len(reports) and isinstance(reports[i], dict) else {}
+        out.append({"part": part["name"], "lods": rows, "notes": [str(n) for n in rec.get("notes") or []]})
+    return out
+
+
+#: report images are cropped to the object's box plus this margin (pixels, at least) ...
+CROP_MARGIN_PX = 8
+#: ... or this fraction of the box's larger side, whichever is larger
+CROP_MARGIN_FRACTION = 0.1
+#: small crops are upscaled (nearest neighbour, integer factor) until the larger side reaches this ...
+CROP_TARGET_PX = 480
+#: ... by at most this factor, and never beyond the frame's size
+CROP_MAX_SCALE = 8
+
+
+def crop_box(images: dict | None) -> dict | None:
+    """The one crop shared by every image of a view: the box around the union of object pixels
+    (alpha > 0 in any RGBA image, part ID > 0 in any ID image) plus a margin (``CROP_MARGIN_PX`` or
+    ``CROP_MARGIN_FRACTION`` of the box's larger side), clipped to the frame, and the integer
+    nearest-neighbour upscale factor: the largest that keeps the larger side at most ``CROP_TARGET_PX``
+    and the image within the frame, at most ``CROP_MAX_SCALE``, at least 1.
+
+    Returns ``{"frame": [w, h], "box": [x0, y0, x1, y1]`` (pixels, top row 0, end exclusive),
+    ``"scale": s, "size": [(x1 - x0) * s, (y1 - y0) * s]}``, or None without images. No object
+    pixel anywhere: the whole frame at scale 1."""
+    if not images:
+        return None
+    frames = [np.asarray(a) for k, a in images.items() if isinstance(a, np.ndarray) and a.ndim in (2, 3)]
+    if not frames:
+        return None
+    h, w = frames[0].shape[:2]
+    mask = np.zeros((h, w), dtype=bool)
+    for a in frames:
+        if a.shape[:2] != (h, w):
+            continue
+        if a.ndim == 3 and a.shape[2] == 4:
+            mask |= a[..., 3] > 0
+        elif a.ndim == 2:
+            mask |= a > 0
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return {"frame": [int(w), int(h)], "box": [0, 0, int(w), int(h)], "scale": 1, "size": [int(w), int(h)]}
+    y0, y1, x0, x1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    m = max(CROP_MARGIN_PX, int(math.ceil(CROP_MARGIN_FRACTION * max(x1 - x0, y1 - y0))))
+    x0, y0, x1, y1 = max(0, x0 - m), max(0, y0 - m), min(w, x1 + m), min(h, y1 + m)
+    cw, ch = x1 - x0, y1 - y0
+    s = max(1, min(CROP_MAX_SCALE, CROP_TARGET_PX // max(cw, ch), w // cw, h // ch))
+    return {"frame": [int(w), int(h)], "box": [x0, y0, x1, y1], "scale": int(s), "size": [cw * s, ch * s]}
+
+
+def apply_crop(a: np.ndarray, crop: dict | None) -> np.ndarray:
+    """``a`` ((h, w) or (h, w, c), the frame's size) cut to ``crop["box"]`` and repeated
+    ``crop["scale"]`` times along both axes (nearest neighbour)."""
+    a = np.asarray(a)
+    if not crop:
+        return a
+    x0, y0, x1, y1 = crop["box"]
+    s = int(crop["scale"])
+    a = a[y0:y1, x0:x1]
+    return np.repeat(np.repeat(a, s, axis=0), s, axis=1) if s > 1 else a
+
+
 def build_report(container, scene, evaluation: dict, container_desc: dict, *, warnings: dict | None = None) -> dict:
     """Every number of the report, JSON-ready (see module docstring)."""
     ev = evaluation
@@ -139,13 +243,19 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
         "histogram": [int(x) for x in t["histogram"]],
         "memory": container_desc["memory"],
         "images": None if not imgs else {"level": imgs["level"], "view": imgs["view"],
-                                         "kinds": [k for k in IMAGE_KEYS if k in imgs]},
+                                         "kinds": [k for k in IMAGE_KEYS if k in imgs], "crop": crop_box(imgs)},
         "cook_timings_s": options.get("timings_s"),
         "warnings": warnings,
         "depth_order_errors_total": depth_total,
         "calibration": options.get("calibration"),
         "seconds": ev.get("seconds"),
     }
+    rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
+                   "ratios": (options.get("lods") or {}).get("ratios"),
+                   "savings": m.get("savings"), "parts": lod_table(m)}
+    budget = budget_section(m)
+    if budget is not None:  # optional key: containers written by cook --target-bytes
+        rep["budget"] = budget
     return _plain(rep)
 
 
@@ -310,6 +420,102 @@ def calibration_svg(cal: dict) -> str | None:
     return p.svg("k_f calibration: memory vs PSNR", [("CAP over k_f scale", "#9467bd")])
 
 
+# ---- byte budget (cook --target-bytes; Purnomo et al. 2005, Fig. 11) ---------------------------------
+
+_LOD_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+
+
+def budget_section(manifest: dict) -> dict | None:
+    """The byte-budget record of a container written by ``cook --target-bytes`` (manifest
+    ``options.budget``, ``lopcook.budget.budget_record``), or None for any other container."""
+    b = (manifest.get("options") or {}).get("budget")
+    return b if isinstance(b, dict) and b.get("candidates") else None
+
+
+def budget_svg(b: dict) -> str:
+    """Image error (PSNR mean over views, dB) against bits per vertex of the budget candidates: one
+    series per LOD (its rendered levels), the budget curve (each LOD's largest level that fits:
+    Purnomo's Fig. 11 curve for one size), the chosen candidate ringed, and the quantize-only /
+    simplify-only baselines as open markers. Identical-to-source (inf) points go to the top band."""
+    cands = b["candidates"]
+    base = b.get("baselines") or {}
+    simp = base.get("simplify_only")
+    pts = [(c["bits_per_vertex"], c["psnr_mean"]) for c in cands]
+    if simp:
+        pts.append((simp["bits_per_vertex"], simp["psnr_mean"]))
+    finite = [y for _, y in pts if y is not None]
+    ylo = math.floor((min(finite) if finite else 20.0) / 5) * 5 - 5
+    yhi = math.ceil((max(finite) if finite else 60.0) / 5) * 5 + 5
+    xs = [x for x, _ in pts]
+    xlo, xhi = 0.0, max(xs) * 1.08 + 1.0
+    p = _Plot(xlo, xhi, ylo, yhi)
+    p.axes("bits per vertex (8 x bytes / vertices)", "PSNR mean over views, dB", _ticks(xlo, xhi, 6),
+           _ticks(ylo, yhi) + [None])
+    lods = sorted({c["lod"] for c in cands})
+    legend = []
+    for i, k in enumerate(lods):
+        colour = _LOD_COLOURS[i % len(_LOD_COLOURS)]
+        series = sorted((c for c in cands if c["lod"] == k), key=lambda c: c["level"])
+        p.series([(c["bits_per_vertex"], c["psnr_mean"]) for c in series], colour, f"LOD {k}",
+                 [str(c["level"]) for c in series])
+        legend.append((f"LOD {k}", colour))
+    fit = {}
+    for c in cands:
+        if c["lod"] not in fit or c["level"] > fit[c["lod"]]["level"]:
+            fit[c["lod"]] = c
+    curve = sorted(fit.values(), key=lambda c: c["bits_per_vertex"])
+    if len(curve) > 1:
+        d = " ".join(f"{p.x(c['bits_per_vertex']):.1f},{p.y(c['psnr_mean']):.1f}" for c in curve)
+        p.parts.append(f'<polyline class="budget-line" points="{d}" fill="none" stroke="#555" stroke-width="1" '
+                       f'stroke-dasharray="5 3"><title>at the budget: each LOD at its largest level within '
+                       f'{b["target_bytes"]:,} bytes</title></polyline>')
+    ch = b["chosen"]
+    p.parts.append(f'<circle class="chosen" cx="{p.x(ch["bits_per_vertex"]):.1f}" cy="{p.y(ch["psnr_mean"]):.1f}" '
+                   f'r="8" fill="none" stroke="#000" stroke-width="2"><title>chosen: LOD {ch["lod"]} at level '
+                   f'{ch["level"]}, {ch["bytes"]:,} bytes, {fmt_psnr(ch["psnr_mean"])} dB</title></circle>')
+    for key, name, shape in (("quantize_only", "quantize only", "square"), ("simplify_only", "simplify only", "diamond")):
+        v = base.get(key)
+        if not v:
+            continue
+        x, y = p.x(v["bits_per_vertex"]), p.y(v["psnr_mean"])
+        pts_s = (f"{x - 6:.1f},{y - 6:.1f} {x + 6:.1f},{y - 6:.1f} {x + 6:.1f},{y + 6:.1f} {x - 6:.1f},{y + 6:.1f}"
+                 if shape == "square" else f"{x:.1f},{y - 7:.1f} {x + 7:.1f},{y:.1f} {x:.1f},{y + 7:.1f} {x - 7:.1f},{y:.1f}")
+        p.parts.append(f'<polygon class="baseline" data-baseline="{key}" points="{pts_s}" fill="none" stroke="#000">'
+                       f'<title>{name}: {fmt_psnr(v["psnr_mean"])} dB</title></polygon>'
+                       f'<text x="{x + 8:.1f}" y="{y + 12:.1f}" font-size="10">{name}</text>')
+    legend += [("budget curve (dashed)", "#555"), ("chosen (ring)", "#000")]
+    return p.svg(f"PSNR against bits per vertex within {b['target_bytes']:,} bytes", legend)
+
+
+def budget_html(b: dict) -> str:
+    """The "Byte budget" section: the definition, the chart (``budget_svg``) and the candidate table."""
+    e = _e
+    cam, ch = b["camera"], b["chosen"]
+    base = b.get("baselines") or {}
+    q, s = base.get("quantize_only"), base.get("simplify_only")
+    out = [f'<h2>Byte budget</h2><p id="budget-summary">Budget <b>{b["target_bytes"]:,} bytes</b> ({e(b["scope"])}: '
+           f'{100 * b.get("fraction_of_float", 0):.1f} % of the float size {b["float_bytes"]:,} B). Chosen: <b>LOD '
+           f'{ch["lod"]} at level {ch["level"]}</b>, {ch["bytes"]:,} bytes, {fmt_psnr(ch["psnr_mean"])} dB. Quantize '
+           f'only: ' + ("nothing fits" if not q else f'LOD 0 at level {q["level"]}, {fmt_psnr(q["psnr_mean"])} dB')
+           + '; simplify only: ' + ("nothing fits" if not s else
+                                   f'LOD {s["lod"]} in float32, {fmt_psnr(s["psnr_mean"])} dB') + ".</p>",
+           f'<p class="note">Every candidate rendered against the float source from {len(cam["views"])} views at '
+           f'{cam["resolution"][0]}x{cam["resolution"][1]}, camera {cam["distance_m"]:.4g} m from the bounding box '
+           f'({e(cam["rule"])} distance; level {cam["level"]} there). PSNR of the view-averaged MSE over object '
+           f'pixels (Purnomo et al. 2005, Fig. 11).</p>', budget_svg(b),
+           '<table id="budget"><thead><tr><th>LOD</th><th>level</th><th>vertices</th><th>bytes</th>'
+           "<th>bits/vertex</th><th>PSNR mean dB</th><th>PSNR min dB</th></tr></thead><tbody>"]
+    for c in b["candidates"]:
+        chosen = (c["lod"], c["level"]) == (ch["lod"], ch["level"])
+        cls = ' class="chosen"' if chosen else ""
+        out.append(f'<tr data-lod="{c["lod"]}" data-level="{c["level"]}"{cls}>'
+                   f'<td>{c["lod"]}{" (chosen)" if chosen else ""}</td><td>{c["level"]}</td><td>{c["vertices"]:,}</td>'
+                   f'<td>{c["bytes"]:,}</td><td>{c["bits_per_vertex"]:.1f}</td><td>{fmt_psnr(c["psnr_mean"])}</td>'
+                   f'<td>{fmt_psnr(c.get("psnr_min"))}</td></tr>')
+    out.append("</tbody></table>")
+    return "".join(out)
+
+
 _CSS = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f4f4f4}figure{display:inline-block;margin:0 1em 1em 0;vertical-align:top}
@@ -337,6 +543,39 @@ def table_rows(rep: dict) -> list[list[str]]:
     return rows
 
 
+def _dist(x) -> str:
+    return "inf" if x is None else f"{x:.4g}"
+
+
+def lod_table_html(lods: dict) -> str:
+    """The "Levels of detail" section: one table row per part and LOD (``lod_table``), then the
+    savings record and any LOD notes."""
+    e = _e
+    how = (f"simplified with {e(lods['backend'])} at ratios {e(lods['ratios'])}" if lods.get("backend")
+           else "no LOD options recorded")
+    out = [f"<h2>Levels of detail</h2><p class=\"note\">{how}. Error: symmetric Hausdorff distance to LOD 0 as "
+           "recorded in the container. Distances: the camera range over which lopcook.select picks the LOD under "
+           "the container's viewing. Bytes: index + attribute sections, the LOD's mandatory bits and its bits in "
+           "the refinement planes.</p>",
+           '<table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th><th>vertices</th>'
+           "<th>Hausdorff error m</th><th>selected from m</th><th>to m</th><th>bytes</th></tr></thead><tbody>"]
+    for part in lods["parts"]:
+        for r in part["lods"]:
+            out.append(f'<tr data-part="{e(part["part"])}" data-lod="{r["lod"]}"><td>{e(part["part"])}</td>'
+                       f"<td>{r['lod']}</td><td>{r['triangles']:,}</td><td>{r['vertices']:,}</td>"
+                       f"<td>{r['geometric_error_m']:.4g}</td><td>{_dist(r['min_distance_m'])}</td>"
+                       f"<td>{_dist(r['max_distance_m'])}</td><td>{r['bytes']:,}</td></tr>")
+    out.append("</tbody></table>")
+    sv = lods.get("savings")
+    if sv:
+        out.append(f'<p class="note">Not written (no view needs them): {sv["lods_dropped"]} LODs, planes '
+                   f'{e(sv["planes_dropped"] or "none")}; {sv["bytes_saved"]:,} bytes saved.</p>')
+    notes = [f"{p['part']}: {n}" for p in lods["parts"] for n in p.get("notes") or []]
+    if notes:
+        out.append('<ul id="lod-notes">' + "".join(f'<li class="note">{e(n)}</li>' for n in notes) + "</ul>")
+    return "".join(out)
+
+
 def render_html(rep: dict, images: dict | None) -> str:
     e = _e
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -362,16 +601,31 @@ def render_html(rep: dict, images: dict | None) -> str:
     out.append("<h2>Minimum-level histogram</h2>" + histogram_svg(rep["histogram"]))
     if images and rep.get("images"):
         im = rep["images"]
-        out.append(f"<h2>Images at level {im['level']} (view {im['view']})</h2><div>")
+        crop = im.get("crop")
+        out.append(f"<h2>Images at level {im['level']} (view {im['view']})</h2>")
+        if crop:
+            (fw, fh), (x0, y0, x1, y1), sc = crop["frame"], crop["box"], crop["scale"]
+            whole = [x0, y0, x1, y1] == [0, 0, fw, fh]
+            out.append('<p class="note" id="crop">' + (
+                f"Whole {fw}x{fh} frame, shown at 1x." if whole else
+                f"Every image is cropped to the same box, columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1} of the "
+                f"{fw}x{fh} frame (the object pixels of all renders plus a margin; the rest is background), "
+                f"and shown {sc}x enlarged with nearest-neighbour sampling ({crop['size'][0]}x{crop['size'][1]} "
+                f"pixels): one rendered pixel is a {sc}x{sc} block.") + "</p>")
+        out.append("<div>")
         captions = {"float": "float32", "ap": "AP", "cap": "CAP", "ap_heatmap": "AP error heat map",
                     "cap_heatmap": "CAP error heat map"}
         for k in IMAGE_KEYS:
             if k in images and images[k] is not None:
-                a = np.asarray(images[k])
-                out.append(f'<figure><img id="img-{k}" alt="{e(captions[k])}" width="{a.shape[1]}" '
-                           f'height="{a.shape[0]}" src="{png_data_uri(a)}"><figcaption>{e(captions[k])}'
+                a = apply_crop(images[k], crop)
+                cap_text = captions.get(k, k) + (f" (crop, {crop['scale']}x)" if crop and crop["scale"] > 1 else "")
+                out.append(f'<figure><img id="img-{k}" alt="{e(captions.get(k, k))}" width="{a.shape[1]}" '
+                           f'height="{a.shape[0]}" src="{png_data_uri(a)}"><figcaption>{e(cap_text)}'
                            f"</figcaption></figure>")
         out.append("</div>")
+    lods = rep.get("lods")
+    if lods and lods.get("parts"):
+        out.append(lod_table_html(lods))
     out.append("<h2>Cook</h2>")
     tim = rep.get("cook_timings_s")
     if tim:
@@ -399,6 +653,8 @@ def render_html(rep: dict, images: dict | None) -> str:
         out.append(f"<h2>k_f calibration</h2><p>target {e(cal.get('target_psnr'))} dB "
                    f"({e(cal.get('statistic'))}), reached: {e(cal.get('reached'))}, k_f {e(cal.get('kf'))}</p>"
                    + (svg or ""))
+    if rep.get("budget"):
+        out.append(budget_html(rep["budget"]))
     out.append(_SCRIPT + "</body></html>")
     return "\n".join(out)
 
@@ -418,4 +674,5 @@ def write_html(report_dict: dict, images: dict | None, path) -> tuple[Path, Path
     return path, jpath
 
 
-__all__ = ["build_report", "write_html", "render_html", "analysis_warnings", "table_rows", "png_data_uri"]
+__all__ = ["budget_section", "budget_svg", "budget_html", "build_report", "write_html", "render_html", "analysis_warnings", "table_rows", "png_data_uri", "lod_table",
+           "crop_box", "apply_crop"]

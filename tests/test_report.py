@@ -12,6 +12,7 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 
 from conftest import FIXTURES, REPO, require
@@ -50,11 +51,12 @@ def test_html_self_contained(reports, name):
     assert not re.search(r"<(script|link|iframe|img)[^>]*\s(src|href)=\"(?!data:)", text)
     srcs = re.findall(r"<img[^>]*\ssrc=\"([^\"]*)\"", text)
     assert len(srcs) == 5  # float, AP, CAP, AP and CAP heat maps
+    crop = json.loads(html_path.with_suffix(".json").read_text())["images"]["crop"]
     for s in srcs:
         assert s.startswith("data:image/png;base64,")
         im = Image.open(io.BytesIO(base64.b64decode(s.split(",", 1)[1])))
         im.load()
-        assert im.size == (160, 90)
+        assert im.size == tuple(crop["size"])  # all images of the view share one crop
     assert text.count("<svg") >= 2  # memory-vs-PSNR chart, histogram
 
 
@@ -135,3 +137,135 @@ def test_calibration_and_timings_sections(reports):
     text = render_html(rep, None)
     assert "k_f calibration" in text and text.count("<svg") == 3
     assert '<table id="timings">' in text and "0.250" in text
+
+
+def _pngs(text: str) -> dict:
+    """id -> (h, w, c) uint8 array of every inline image."""
+    from PIL import Image
+
+    out = {}
+    for k, s in re.findall(r'<img id="img-([^"]+)"[^>]*\ssrc="data:image/png;base64,([^"]*)"', text):
+        out[k] = np.asarray(Image.open(io.BytesIO(base64.b64decode(s))))
+    return out
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_images_cropped_to_the_object(reports, name):
+    """At level 6 the object is some 37 pixels tall: every image is the same crop of the 160x90
+    frame, enlarged by an integer nearest-neighbour factor, with the whole object inside it and a
+    background margin around it (unless the frame edge cuts it)."""
+    _, _, html_path, json_path = reports[name]
+    rep = json.loads(json_path.read_text())
+    crop = rep["images"]["crop"]
+    (fw, fh), (x0, y0, x1, y1), s = crop["frame"], crop["box"], crop["scale"]
+    assert (fw, fh) == (160, 90)
+    assert 0 <= x0 < x1 <= fw and 0 <= y0 < y1 <= fh
+    assert (x1 - x0) < fw and (y1 - y0) < fh  # the object is small: the crop is smaller than the frame
+    assert s >= 1 and crop["size"] == [(x1 - x0) * s, (y1 - y0) * s]
+    assert crop["size"][0] <= fw and crop["size"][1] <= fh
+    imgs = _pngs(html_path.read_text())
+    assert sorted(imgs) == sorted(rep["images"]["kinds"])
+    for k, a in imgs.items():
+        assert a.shape[:2] == (crop["size"][1], crop["size"][0]), k
+        small = a[::s, ::s]
+        # nearest neighbour: every s x s block is one rendered pixel
+        assert np.array_equal(np.repeat(np.repeat(small, s, 0), s, 1), a), k
+    alpha = np.zeros((y1 - y0, x1 - x0), dtype=bool)
+    for k in ("float", "ap", "cap"):
+        alpha |= imgs[k][::s, ::s, 3] > 0
+    assert alpha.any()
+    # the margin is background on every side the frame does not cut
+    edges = {"top": (y0 > 0, alpha[0]), "bottom": (y1 < fh, alpha[-1]), "left": (x0 > 0, alpha[:, 0]),
+             "right": (x1 < fw, alpha[:, -1])}
+    for side, (inside, line) in edges.items():
+        if inside:
+            assert not line.any(), side
+    assert f"columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1}" in html_path.read_text()
+
+
+def test_crop_box_rules():
+    from lopcook.report import CROP_MARGIN_PX, apply_crop, crop_box
+
+    frame = np.zeros((720, 1280, 4), np.uint8)
+    frame[300:337, 600:630] = (10, 20, 30, 255)  # a 30 x 37 pixel object
+    ids = np.zeros((720, 1280), np.uint32)
+    ids[340, 640] = 1  # one more object pixel seen only by the ID image
+    heat = np.full((720, 1280, 3), 7, np.uint8)  # heat maps have no alpha: they do not widen the box
+    c = crop_box({"float": frame, "float_ids": ids, "ap_heatmap": heat, "level": 6, "view": 3})
+    m = CROP_MARGIN_PX
+    assert c["frame"] == [1280, 720]
+    assert c["box"] == [600 - m, 300 - m, 641 + m, 341 + m]
+    w, h = 41 + 2 * m, 41 + 2 * m
+    assert c["scale"] == min(8, 480 // max(w, h)) and c["size"] == [w * c["scale"], h * c["scale"]]
+    a = apply_crop(frame, c)
+    assert a.shape == (c["size"][1], c["size"][0], 4)
+    assert np.array_equal(a[::c["scale"], ::c["scale"]], frame[300 - m:341 + m, 600 - m:641 + m])
+    assert apply_crop(heat, c).shape[:2] == a.shape[:2]
+    # clipped at the frame edge; a large object is not enlarged beyond the frame
+    big = np.zeros((90, 160, 4), np.uint8)
+    big[0:80, 5:150, 3] = 255
+    c = crop_box({"float": big})
+    assert c["box"] == [0, 0, 160, 90] and c["scale"] == 1 and c["size"] == [160, 90]
+    # nothing rendered: the whole frame at 1x
+    assert crop_box({"float": np.zeros((90, 160, 4), np.uint8)})["box"] == [0, 0, 160, 90]
+    assert crop_box(None) is None
+
+
+@pytest.fixture(scope="module")
+def lod_report(gl, tmp_path_factory):
+    d = tmp_path_factory.mktemp("lodreport")
+    src = str(FIXTURES / "unit_sphere.glb")
+    lop = str(d / "sphere.lop")
+    assert main(["-q", "cook", src, "-o", lop, "--lods", "auto", "--lod-backend", "fast"]) == 0
+    html_path = d / "sphere.html"
+    assert main(["-q", "report", lop, "--source", src, "-o", str(html_path), *ARGS]) == 0
+    return lop, html_path, json.loads(html_path.with_suffix(".json").read_text())
+
+
+def test_lod_table(lod_report):
+    import jsonschema
+
+    from lopcook.emit.container import read
+
+    lop, html_path, rep = lod_report
+    jsonschema.validate(rep, _schema(), cls=jsonschema.Draft202012Validator)
+    c = read(lop)
+    m = c.manifest
+    lods = rep["lods"]
+    assert lods["backend"] == "fast" and lods["ratios"] == "auto"
+    assert len(lods["parts"]) == len(m["parts"]) == 1
+    rows = lods["parts"][0]["lods"]
+    entries = m["parts"][0]["lods"]
+    assert len(rows) == len(entries) >= 4
+    for r, e in zip(rows, entries):
+        assert (r["triangles"], r["vertices"]) == (e["triangles"], e["vertices"])
+        assert r["geometric_error_m"] == e["geometric_error_m"] and r["min_distance_m"] == e["min_distance_m"]
+    # selection ranges tile [0, inf): each LOD ends where the next one starts
+    assert rows[0]["min_distance_m"] == 0.0 and rows[-1]["max_distance_m"] is None
+    for a, b in zip(rows, rows[1:]):
+        assert a["max_distance_m"] == b["min_distance_m"] > a["min_distance_m"]
+        assert b["triangles"] < a["triangles"] and b["geometric_error_m"] >= a["geometric_error_m"]
+    # bytes: index and attribute sections exactly; mandatory words share the mandatory section
+    sizes = {s["name"]: s["length"] for s in m["sections"]}
+    lod_sections = sum(v for k, v in sizes.items() if k.rsplit("/", 1)[-1] in ("indices", "normals", "uvs", "colors"))
+    assert sum(r["index_bytes"] + r["attribute_bytes"] for r in rows) == lod_sections
+    assert sum(r["mandatory_position_bytes"] for r in rows) == sizes[m["positions"]["mandatory"]]
+    assert all(r["bytes"] == r["index_bytes"] + r["attribute_bytes"] + r["mandatory_position_bytes"]
+               + r["plane_position_bytes"] for r in rows)
+    text = html_path.read_text()
+    assert '<table id="lods">' in text
+    for r in rows:
+        m_ = re.search(rf'<tr data-part="[^"]*" data-lod="{r["lod"]}">(.*?)</tr>', text)
+        cells = [html.unescape(x) for x in re.findall(r"<td>(.*?)</td>", m_.group(1))]
+        assert cells[2] == f"{r['triangles']:,}" and cells[7] == f"{r['bytes']:,}"
+        assert cells[4] == f"{r['geometric_error_m']:.4g}"
+
+
+def test_lod_notes_shown_when_recorded(lod_report):
+    from lopcook.report import render_html
+
+    _, _, rep = lod_report
+    rep = json.loads(json.dumps(rep))
+    rep["lods"]["parts"][0]["notes"] = ["LOD 0.0625: fast failed: test; falling back to pymeshlab"]
+    text = render_html(rep, None)
+    assert '<ul id="lod-notes">' in text and "falling back to pymeshlab" in text
