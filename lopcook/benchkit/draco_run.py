@@ -1,0 +1,52 @@
+"""Child process of ``lopcook bench``: encode every part with Draco (DracoPy) and write the buffers.
+
+Usage: ``python -m lopcook.benchkit.draco_run PARTS.npz OUT.npz BITS``
+
+PARTS.npz holds, per part k, ``positions_k`` (n, 3) float32 metres, ``indices_k`` (m, 3) uint32 and,
+when present, ``normals_k`` (n, 3) float32 and ``uvs_k`` (n, 2) float32. Each part is one Draco
+mesh (as KHR_draco_mesh_compression stores one per primitive): positions at BITS bits over the
+part's own bounding cube (Draco's default range), normals at 10 and UVs at 12 bits (the defaults
+of glTF-Transform's ``draco`` command), compression level 7 (Draco's default speed 3). OUT.npz
+holds ``buffer_k`` (uint8 bytes of each Draco buffer). Only encoding happens here, so the
+parent's wall time and peak RSS of this process are the encoder's (plus Python start-up).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+NORMAL_BITS = 10
+UV_BITS = 12
+COMPRESSION_LEVEL = 7
+
+
+def encode_parts(parts: dict, bits: int) -> dict:
+    import DracoPy
+
+    out = {}
+    k = 0
+    while f"positions_{k}" in parts:
+        kw = {}  # DracoPy 2.2 asserts float64 normals / UVs
+        if f"normals_{k}" in parts:
+            kw.update(normals=parts[f"normals_{k}"].astype(np.float64), normal_quantization_bits=NORMAL_BITS)
+        if f"uvs_{k}" in parts:
+            kw.update(tex_coord=parts[f"uvs_{k}"].astype(np.float64), tex_coord_quantization_bits=UV_BITS)
+        data = DracoPy.encode(parts[f"positions_{k}"], faces=parts[f"indices_{k}"], quantization_bits=int(bits),
+                              compression_level=COMPRESSION_LEVEL, **kw)
+        out[f"buffer_{k}"] = np.frombuffer(data, np.uint8)
+        k += 1
+    return out
+
+
+def main(argv) -> int:
+    src, dst, bits = argv[0], argv[1], int(argv[2])
+    with np.load(src) as z:
+        parts = {name: z[name] for name in z.files}
+    np.savez(dst, **encode_parts(parts, bits))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
