@@ -55,6 +55,9 @@ def view_level(extent: float, viewing: Viewing) -> int | None:
 
 
 def _chains(scene: Scene, lod_ratios, backend: str, max_error_m):
+    """LOD chain and report of every part, in part order. Serial on purpose: pymeshlab releases
+    the GIL but is not thread-safe (two parts simplified in a thread pool crash the process,
+    CesiumMilkTruck --lods 1/2,1/4: SIGSEGV), and fast-simplification and libigl hold the GIL."""
     chains, reports = [], []
     for part in scene.parts:
         lods, report = lod_chain(part, ratios=list(lod_ratios), backend=backend, max_error_m=max_error_m)

@@ -434,3 +434,27 @@ def test_deterministic(spot, backend):
         return [dict(lod, seconds=0.0) for lod in report.as_dict()["lods"]]
 
     assert timeless(ra) == timeless(rb)
+
+
+# ------------------------------------------------------------------- measurement shortcuts are exact
+
+
+def _brute_ref_to_lod(ref, part):
+    return float(np.sqrt(L._point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
+
+
+def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(bunny):
+    ref = L._Reference(bunny)
+    for ratio in (1 / 2, 1 / 8):
+        lod = L.simplify(bunny, ratio, backend="fast")
+        assert L._measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
+
+
+def test_ref_to_lod_finds_a_maximum_at_a_centroid():
+    # the same four vertices, the non-planar quad split along the other diagonal: every vertex lies
+    # on the LOD (distance 0), the deviation is at the face centroids only
+    v = [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]
+    ref = L._Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
+    lod = _part(v, [[0, 1, 3], [1, 2, 3]])
+    d = L._measure_ref_to_lod(ref, lod)
+    assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)

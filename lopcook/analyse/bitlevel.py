@@ -23,9 +23,20 @@ from .grid import BITS, dx, smallest_level
 def attribute_level(e_v: np.ndarray, kf: float, eps: float, extent: float) -> np.ndarray:
     """(n,) int64: smallest b in [1, 24] with kf * e_v * dx(b) <= eps; 25 if none (caller clamps).
 
-    e_v in attribute units per metre, kf in colour per attribute unit, eps colour, extent metres."""
+    e_v in attribute units per metre, kf in colour per attribute unit, eps colour, extent metres.
+    Evaluated in chunks of ``_CHUNK`` vertices (the predicate is (chunk, 24): bounded temporaries)."""
     slope = float(kf) * np.asarray(e_v, dtype=np.float64)
-    return smallest_level(lambda b: slope[..., None] * dx(b, extent) <= eps, slope.shape)
+    if slope.ndim != 1 or slope.size <= _CHUNK:
+        return smallest_level(lambda b: slope[..., None] * dx(b, extent) <= eps, slope.shape)
+    out = np.empty(slope.shape, dtype=np.int64)
+    for s0 in range(0, slope.size, _CHUNK):
+        part = slope[s0:s0 + _CHUNK]
+        out[s0:s0 + _CHUNK] = smallest_level(lambda b: part[..., None] * dx(b, extent) <= eps, part.shape)
+    return out
+
+
+#: vertices per chunk of ``attribute_level``
+_CHUNK = 1 << 16
 
 
 _SLOPE_CACHE: dict[str, float] = {}

@@ -72,7 +72,10 @@ Error
 each mesh to the other mesh, max over both directions. Sampled at vertices and centroids it is a
 lower bound of the continuous Hausdorff distance (the distance to the other surface may peak
 anywhere inside a face; centroids catch faces that bridge a concavity or cut a corner, which
-vertices alone miss). ``Lod.error_m`` is the monotone envelope along the chain,
+vertices alone miss). The LOD 0 -> LOD direction needs only the maximum, so it queries LOD 0's
+vertices first and then only the centroids whose Lipschitz bound (vertex distance + distance to
+that vertex) could reach it: the same value, about a third of the queries on a dense mesh
+(``_measure_ref_to_lod``). ``Lod.error_m`` is the monotone envelope along the chain,
 ``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
 construction (the LOD is kept and a note says when the measured value dropped). Chains simplify
 each LOD from the previous one (``chain="previous"``, default) or from LOD 0 (``chain="source"``);
@@ -103,7 +106,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..ingest.weld import unique_rows, weld_exact
+from ..ingest.weld import sorted_unique, unique_rows, used_ids, weld_exact
 from ..types import MeshPart
 
 BACKENDS = ("pymeshlab", "fast")
@@ -122,6 +125,8 @@ MAX_FLIPPED_FRACTION = 0.02
 _FLIP_COS = -0.5
 #: corners look for their side of a seam this fraction of the way towards the face centroid
 _NUDGE = 0.25
+#: corners per step of the transfer's side test (bounds its (k, 3, 3) temporaries)
+_TRANSFER_CHUNK = 1 << 17
 
 
 # --------------------------------------------------------------------------------------------
@@ -229,8 +234,8 @@ class LodReport:
 
 
 def _face_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    t = positions[faces]
-    return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    p0 = positions[faces[:, 0]]  # three (m, 3) gathers: no (m, 3, 3) temporary
+    return np.cross(positions[faces[:, 1]] - p0, positions[faces[:, 2]] - p0)
 
 
 def _degenerate(positions: np.ndarray, faces: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
@@ -238,8 +243,9 @@ def _degenerate(positions: np.ndarray, faces: np.ndarray, rel_tol: float = 1e-12
     if faces.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    t = positions[faces]
-    e0, e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0], t[:, 2] - t[:, 1]
+    p0, p1, p2 = positions[faces[:, 0]], positions[faces[:, 1]], positions[faces[:, 2]]
+    e0, e1, e2 = p1 - p0, p2 - p0, p2 - p1
+    del p0, p1
     area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
     longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
     return rep | (longest2 == 0) | (area2 <= rel_tol * longest2)
@@ -271,9 +277,10 @@ def _components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     first face)."""
     if n_faces == 0:
         return np.zeros(0, dtype=np.int64)
-    f = np.repeat(np.arange(n_faces, dtype=np.int64), 3)
-    v = faces.ravel().astype(np.int64) + n_faces
     size = n_faces + n_vertices
+    cid = np.int32 if size < (1 << 31) - 1 else np.int64  # node ids of the face-vertex graph
+    f = np.repeat(np.arange(n_faces, dtype=cid), 3)
+    v = faces.ravel().astype(cid) + cid(n_faces)
     g = coo_matrix((np.ones(f.size, dtype=np.int8), (f, v)), shape=(size, size))
     _, lab = connected_components(g, directed=False)
     lab = lab[:n_faces]
@@ -284,35 +291,43 @@ def _components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return rank[inv.ravel()]
 
 
-def mesh_defects(positions: np.ndarray, indices: np.ndarray) -> dict:
+def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndarray | None = None) -> dict:
     """Counts on the position-welded mesh: ``degenerate_faces``, ``boundary_edges``,
     ``nonmanifold_edges`` (more than two faces), ``nonmanifold_vertices`` (bow-ties: faces around
     the vertex form more than one edge-connected fan) and ``closed`` (every edge has two faces)."""
-    faces = np.asarray(indices, dtype=np.int64)
+    faces = np.asarray(indices)
     w, n = weld_exact(positions)
-    wf = w[faces]
-    degenerate = _degenerate(positions, faces)
-    good = wf[~degenerate]
+    if degenerate is None:
+        degenerate = _degenerate(positions, faces.astype(np.int64))
+    # int32 ids where they fit: this runs on every LOD input (memory: ~60 bytes per triangle)
+    cid = np.int32 if max(3 * faces.shape[0], n) < (1 << 31) - 1 else np.int64
+    good = w.astype(cid)[faces[~degenerate]]
+    del w
     m = good.shape[0]
     if m == 0:
         return {"degenerate_faces": int(degenerate.sum()), "boundary_edges": 0, "nonmanifold_edges": 0,
                 "nonmanifold_vertices": 0, "closed": False}
-    a, b = good.ravel(), good[:, [1, 2, 0]].ravel()
-    corner = np.arange(3 * m, dtype=np.int64).reshape(m, 3)
-    ca, cb = corner.ravel(), corner[:, [1, 2, 0]].ravel()
-    order, starts, sizes = _edge_groups(a, b, n)
+    a = good.ravel()  # half-edge h = 3f + k runs from corner h to corner cb(h) of face f
+    order, starts, sizes = _edge_groups(a, good[:, [1, 2, 0]].ravel(), n)
     # link consecutive half-edges of one edge: corners at the same vertex
     same = np.ones(order.size, dtype=bool)
     same[starts] = False
-    h2 = order[same]
-    h1 = order[np.flatnonzero(same) - 1]
-    at_a = np.where(a[h1] == a[h2], ca[h2], cb[h2])
-    at_b = np.where(a[h1] == a[h2], cb[h2], ca[h2])
-    u = np.r_[ca[h1], cb[h1]]
-    v = np.r_[at_a, at_b]
+    del starts
+    h2 = order[same].astype(cid)
+    h1 = order[np.flatnonzero(same) - 1].astype(cid)
+    del order, same
+    cb1 = h1 - h1 % 3 + (h1 % 3 + 1) % 3
+    cb2 = h2 - h2 % 3 + (h2 % 3 + 1) % 3
+    same_dir = a[h1] == a[h2]
+    u = np.concatenate([h1, cb1])
+    v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
+    del h1, h2, cb1, cb2, same_dir
     g = coo_matrix((np.ones(u.size, dtype=np.int8), (u, v)), shape=(3 * m, 3 * m))
+    del u, v
     _, lab = connected_components(g, directed=False)
-    fans = np.unique(good.ravel() * np.int64(3 * m) + lab)
+    del g
+    fans = sorted_unique(a.astype(np.int64) * np.int64(3 * m) + lab)
+    del lab
     per_vertex = np.bincount(fans // np.int64(3 * m), minlength=n)
     return {
         "degenerate_faces": int(degenerate.sum()),
@@ -346,7 +361,7 @@ def seam_stats(part: MeshPart) -> SeamStats | None:
     ek_all, faces_per_edge = np.unique(ekey, return_counts=True)  # both sorted by key
     manifold = faces_per_edge[np.searchsorted(ek_all, ek)] == 2
     seam_key = ek[(cnt > 1) & manifold]
-    seam_vertices = np.unique(np.r_[seam_key // max(n, 1), seam_key % max(n, 1)]) if seam_key.size else seam_key
+    seam_vertices = sorted_unique(np.r_[seam_key // max(n, 1), seam_key % max(n, 1)]) if seam_key.size else seam_key
     keys = np.concatenate([wf.reshape(-1, 1), cu.reshape(-1, 2).view(np.int32).astype(np.int64)], axis=1)
     _, inv = unique_rows(keys)
     islands = _components(m, inv.reshape(m, 3), int(inv.max()) + 1 if inv.size else 0)
@@ -366,7 +381,7 @@ def _point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):
 
 def _samples(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Referenced vertices and face centroids."""
-    used = np.unique(faces.ravel())
+    used = used_ids(faces, positions.shape[0])
     return np.concatenate([positions[used], positions[faces].mean(axis=1)])
 
 
@@ -418,12 +433,13 @@ class _Reference:
         self.faces_all = faces
         self.degenerate = _degenerate(part.positions, faces)
         # zero-area faces carry no surface and no trustworthy normal; keep them only if nothing else
-        self.faces = faces[~self.degenerate] if (~self.degenerate).any() else faces
+        self.faces = faces[~self.degenerate] if (~self.degenerate).any() and self.degenerate.any() else faces
         fn = _face_normals(part.positions, self.faces)
         ln = np.linalg.norm(fn, axis=1)
         self.face_unit = fn / np.where(ln > 0, ln, 1.0)[:, None]
         self.region = _components(self.faces.shape[0], self.faces, part.n_vertices)
         self._samples = None
+        self._sample_vertices = None
         self._tree = None
         self._defects = None
         self._seams = None
@@ -443,14 +459,22 @@ class _Reference:
 
     @property
     def samples(self) -> np.ndarray:
+        """(len(sample_vertices) + len(faces), 3): the referenced vertices, then the face centroids."""
         if self._samples is None:
             self._samples = _samples(self.positions, self.faces)
         return self._samples
 
     @property
+    def sample_vertices(self) -> np.ndarray:
+        """(k,) int64 sorted ids of the vertices in ``samples`` (the first k rows)."""
+        if self._sample_vertices is None:
+            self._sample_vertices = used_ids(self.faces, self.positions.shape[0])
+        return self._sample_vertices
+
+    @property
     def defects(self) -> dict:
         if self._defects is None:
-            self._defects = mesh_defects(self.positions, self.faces_all)
+            self._defects = mesh_defects(self.positions, self.faces_all, self.degenerate)
         return self._defects
 
     @property
@@ -502,7 +526,7 @@ def _simplify_fast(positions, faces, target, *, lock_border=False) -> _BackendRe
             rep = nxt
     used = np.zeros(n, dtype=bool)
     used[np.asarray(faces, dtype=np.int64).ravel()] = True
-    survivors = np.unique(rep[used])
+    survivors = sorted_unique(rep[used])
     source = survivors if survivors.size == p_out.shape[0] else None
     return _BackendResult(np.asarray(p_out, dtype=np.float64), np.asarray(f_out, dtype=np.int64).reshape(-1, 3),
                           vertex_source=source)
@@ -566,11 +590,11 @@ class _Work:
     region: np.ndarray | None = None  # lock: UV island of every work vertex
 
 
-def _prepare(part: MeshPart, mode: str) -> tuple[_Work, int]:
+def _prepare(part: MeshPart, mode: str, degenerate: np.ndarray | None = None) -> tuple[_Work, int]:
     """Clean (drop zero-area faces) and weld/split the input for a backend; returns the work mesh
-    and the number of faces dropped."""
+    and the number of faces dropped. ``degenerate``: ``_degenerate`` of the part if known."""
     faces = part.indices.astype(np.int64)
-    bad = _degenerate(part.positions, faces)
+    bad = _degenerate(part.positions, faces) if degenerate is None else degenerate
     faces = faces[~bad]
     if mode == "simplify":  # pymeshlab welds by position itself and keeps per-wedge UVs
         p, f, keep = _compact(part.positions, faces)
@@ -729,52 +753,74 @@ def _transfer(res: _BackendResult, ref: _Reference, input_part: MeshPart, work: 
         # attribute field, extrapolated linearly to the vertex, matches the vertex's own value on a
         # smooth field and differs across a seam or crease.
         g = fc[face_of_corner]
-        pv = P[vid]
-        own_c = {n: at_v[n][vid] for n in names}
-        ext = _attributes_at(ref, names, g, _barycentric(pv, ref.positions[ref.faces[g]], clamp=False),
-                             ref.face_unit[g])
-        split = _differs(own_c, ext)
-        at_c = {n: v.copy() for n, v in own_c.items()}
-        if split.any():
+        split = np.empty(vid.size, dtype=bool)
+        for s0 in range(0, vid.size, _TRANSFER_CHUNK):  # row-wise: (chunk, 3, 3) temporaries only
+            sl = slice(s0, s0 + _TRANSFER_CHUNK)
+            gs, vs = g[sl], vid[sl]
+            ext = _attributes_at(ref, names, gs, _barycentric(P[vs], ref.positions[ref.faces[gs]], clamp=False),
+                                 ref.face_unit[gs])
+            split[sl] = _differs({n: at_v[n][vs] for n in names}, ext)
+            del ext
+        cs = np.flatnonzero(split)
+        at2 = {}
+        if cs.size:
             # phase 2: only for corners that look split, find their side near the corner itself
-            cs = np.flatnonzero(split)
-            q = tri.reshape(-1, 3)[cs]
+            q = P[vid[cs]]
             q = q + _NUDGE * (centroid[face_of_corner[cs]] - q)
             g2 = ref.query(q)[1]
             g[cs] = g2
+            pv_cs = P[vid[cs]]
             tri2 = ref.positions[ref.faces[g2]]
-            ext2 = _attributes_at(ref, names, g2, _barycentric(pv[cs], tri2, clamp=False), ref.face_unit[g2])
-            split[cs] = _differs({n: v[cs] for n, v in own_c.items()}, ext2)
+            ext2 = _attributes_at(ref, names, g2, _barycentric(pv_cs, tri2, clamp=False), ref.face_unit[g2])
+            split[cs] = _differs({n: at_v[n][vid[cs]] for n in names}, ext2)
             # the value of a split corner: its side's field at the vertex, kept inside that face
-            at2 = _attributes_at(ref, names, g2, _barycentric(pv[cs], tri2, clamp=True), ref.face_unit[g2])
-            for n in names:
-                at_c[n][cs] = at2[n]
+            at2 = _attributes_at(ref, names, g2, _barycentric(pv_cs, tri2, clamp=True), ref.face_unit[g2])
         # corners that agree with their vertex share its value; the others group by LOD 0 region
         region = np.where(split, ref.region[g], -1)
         first, group = unique_rows(np.stack([vid, region], axis=1))
         own = ~split[first]
+        not_own = np.flatnonzero(~own)
+        at_split = np.searchsorted(cs, first[not_own])  # a corner still split after phase 2 is in cs
         for n in names:
-            val = np.where(own[:, None], at_v[n][vid[first]], at_c[n][first])
+            val = at_v[n][vid[first]]
+            if not_own.size:
+                val[not_own] = at2[n][at_split]
             if n == "normals":
                 val = val / np.linalg.norm(val, axis=1, keepdims=True)
-            corner_attr[n] = val.astype(np.float32)[group]
+            corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
+    per_group = bool(names)  # every attribute so far is a function of the corner's group
     if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
+        if per_group:
+            corner_attr = {n: v[group] for n, v in corner_attr.items()}
+            per_group = False
         if res.wedge_uvs is not None:
             corner_attr["uvs"] = res.wedge_uvs.reshape(-1, 2).astype(np.float32)
         else:
             corner_attr["uvs"] = _lock_uvs(res, input_part, work)[vid]
-    keys = [vid.reshape(-1, 1).astype(np.int64)]
-    for name in ("uvs", "normals", "colors"):
-        if name in corner_attr:
-            keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32).astype(np.int64))
-    vfirst, vinv = unique_rows(np.concatenate(keys, axis=1))
+
+    def unique_vertices(row_vid: np.ndarray):
+        keys = [row_vid.reshape(-1, 1).astype(np.int64)]
+        for name in ("uvs", "normals", "colors"):
+            if name in corner_attr:
+                keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32)
+                            .astype(np.int64))
+        return unique_rows(np.concatenate(keys, axis=1))
+
+    if per_group:
+        # corners of one group share their row, and groups are numbered by first appearance, so
+        # the unique rows of the groups, numbered by first appearance, are those of the corners
+        gfirst, ginv = unique_vertices(vid[first])
+        vfirst, vinv, pick = first[gfirst], ginv[group], gfirst
+    else:
+        vfirst, vinv = unique_vertices(vid)
+        pick = vfirst
     out = MeshPart(
         name=input_part.name,
         positions=np.ascontiguousarray(P[vid[vfirst]], dtype=np.float64),
         indices=vinv.reshape(m, 3).astype(np.uint32),
-        normals=corner_attr["normals"][vfirst] if "normals" in corner_attr else None,
-        uvs=corner_attr["uvs"][vfirst] if "uvs" in corner_attr else None,
-        colors=corner_attr["colors"][vfirst] if "colors" in corner_attr else None,
+        normals=corner_attr["normals"][pick] if "normals" in corner_attr else None,
+        uvs=corner_attr["uvs"][pick] if "uvs" in corner_attr else None,
+        colors=corner_attr["colors"][pick] if "colors" in corner_attr else None,
         source=input_part.source,
         normals_computed=input_part.normals_computed,
         texture=input_part.texture,
@@ -801,8 +847,41 @@ def _lock_uvs(res: _BackendResult, input_part: MeshPart, work: _Work) -> np.ndar
 
 
 def _measure_ref_to_lod(ref: _Reference, lod: MeshPart) -> float:
-    d2 = _point_mesh(ref.samples, lod.positions, lod.indices.astype(np.int64))[0]
-    return float(np.sqrt(d2.max()))
+    """max over LOD 0's samples (``ref.samples``: vertices, then face centroids) of the distance to
+    ``lod``, metres: the same value as querying every sample, with fewer queries.
+
+    The distance to a surface is 1-Lipschitz, so a centroid c of face (v0, v1, v2) is at most
+    ``min_i d(v_i) + |c - v_i|`` from the LOD. The vertices are queried first; a centroid is
+    queried only when that bound (plus a 1e-9 relative slack for rounding) reaches the largest
+    vertex distance, so the maximum is unchanged (1.1M-triangle bunny, fast to 1/2: 648 of
+    1,111,216 centroids are queried). Queries go to one libigl AABB tree over the LOD.
+    (Bounding vertices the same way, through edges to a queried quarter of them, still had to
+    query 46% of the others there -- edges are about as long as the error -- and was slower.)"""
+    import igl
+
+    pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
+    fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
+    tree = igl.AABB()
+    tree.init(pos, fac)
+    samples, used = ref.samples, ref.sample_vertices
+    nv = used.size
+    d2v = np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(samples[:nv]))[0])
+    best = float(d2v.max()) if nv else 0.0
+    centroids = samples[nv:]
+    if centroids.shape[0] == 0:
+        return float(np.sqrt(best))
+    dv = np.zeros(ref.positions.shape[0])
+    dv[used] = np.sqrt(d2v)
+    bound = np.full(centroids.shape[0], np.inf)
+    for k in range(3):  # per corner: (m,) temporaries only
+        v = ref.faces[:, k]
+        gap = centroids - ref.positions[v]
+        np.minimum(bound, dv[v] + np.sqrt(np.einsum("ij,ij->i", gap, gap)), out=bound)
+    need = np.flatnonzero(bound * (1.0 + 1e-9) >= np.sqrt(best) * (1.0 - 1e-9))
+    if need.size:
+        d2c = np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(centroids[need]))[0])
+        best = max(best, float(d2c.max()))
+    return float(np.sqrt(best))
 
 
 def _xatlas_part(part: MeshPart) -> MeshPart:
@@ -862,7 +941,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             mode = "ignore"
         work_mode = "ignore" if mode in ("-", "xatlas") else mode
         try:
-            work, dropped = _prepare(part, work_mode)
+            work, dropped = _prepare(part, work_mode, ref.degenerate if part is ref.part else None)
             msg = f"{dropped} zero-area faces dropped before simplification"
             if dropped and msg not in notes:
                 notes.append(msg)

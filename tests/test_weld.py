@@ -1,0 +1,40 @@
+"""Welding and unique-row helpers (lopcook.ingest.weld): the fast paths equal numpy's definitions."""
+
+import numpy as np
+
+from lopcook.ingest.weld import sorted_unique, unique_rows, used_ids, weld_exact
+
+
+def _reference_unique_rows(keys):
+    """unique_rows by its definition: first occurrences (increasing), ids by first appearance."""
+    rows = [tuple(r) for r in keys.tolist()]
+    ids, first, inverse = {}, [], []
+    for i, r in enumerate(rows):
+        if r not in ids:
+            ids[r] = len(first)
+            first.append(i)
+        inverse.append(ids[r])
+    return np.array(first), np.array(inverse)
+
+
+def test_sorted_unique_and_used_ids_equal_np_unique(rng):
+    x = rng.integers(-50, 50, size=2000)
+    assert np.array_equal(sorted_unique(x), np.unique(x))
+    assert sorted_unique(np.zeros(0, np.int64)).size == 0
+    faces = rng.integers(0, 300, size=(500, 3))
+    assert np.array_equal(used_ids(faces, 400), np.unique(faces))
+
+
+def test_unique_rows_packed_and_void_paths_match_the_definition(rng):
+    small = rng.integers(0, 4, size=(3000, 3))  # ranges fit one int64 key: packed path
+    wide = np.c_[rng.integers(0, 4, size=3000), rng.integers(0, 3, size=(3000, 2)) * (1 << 40)]  # void path
+    for keys in (small, wide, small.astype(np.uint32), -small):
+        first, inverse = unique_rows(keys)
+        ref_first, ref_inverse = _reference_unique_rows(keys)
+        assert np.array_equal(first, ref_first) and np.array_equal(inverse, ref_inverse)
+
+
+def test_weld_exact_numbers_groups_by_first_appearance():
+    p = np.array([[1.0, 0, 0], [0, 0, 0], [1.0, 0, 0], [-0.0, 0, 0]])
+    inverse, n = weld_exact(p)
+    assert n == 2 and inverse.tolist() == [0, 1, 0, 1]
