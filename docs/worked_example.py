@@ -4,7 +4,7 @@ Run from the repository root::
 
     .venv/bin/python docs/worked_example.py
 
-It cooks ``fixtures/two_plates.glb`` exactly as ``lopcook cook fixtures/two_plates.glb -o OUT.lop``
+It cooks ``fixtures/two_plates.glb`` exactly as ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges``
 does (default options), then walks through the bytes with nothing but ``struct``, ``json``,
 ``zlib`` and plain integer arithmetic -- the way an engine's reader would -- and prints every
 number that docs/format.md ("Worked example") shows. Float32 arithmetic uses numpy float32
@@ -50,12 +50,12 @@ def out(key: str, value) -> None:
 
 
 def cook() -> bytes:
-    """The bytes ``lopcook cook fixtures/two_plates.glb -o OUT.lop`` writes."""
+    """The bytes ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges`` writes."""
     from lopcook.cli import main
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "two_plates.lop")
-        rc = main(["-q", "cook", str(FIXTURE), "-o", path])
+        rc = main(["-q", "cook", str(FIXTURE), "-o", path, "--no-edges"])
         if rc != 0:
             raise SystemExit(f"lopcook cook failed with exit code {rc}")
         return Path(path).read_bytes()
@@ -128,7 +128,7 @@ def main() -> int:
     data = cook()
 
     # ---- header -----------------------------------------------------------------------------
-    out("file", "fixtures/two_plates.glb cooked with default options")
+    out("file", "fixtures/two_plates.glb cooked with --no-edges (depth levels only)")
     out("header.bytes[0:12]", data[0:12].hex(" "))
     out("header.bytes[12:32]", data[12:32].hex(" "))
     magic, major, minor, hsize, msize, mcrc, total = struct.unpack_from("<4sHHIIIQ", data, 0)

@@ -50,6 +50,17 @@ class AnalyseSettings:
     depth_threshold : float, metres, for the paper's fixed mode.
     depth_ceiling : int in [1, 24], the highest level a depth constraint may impose; vertices of
         touching/intersecting parts that would need more are capped there and reported. Default 16.
+    edges : bool, the discontinuity constraint (``lopcook.analyse.discontinuity``): vertices on
+        hard edges, folds sharper than a pixel, open boundaries and colour seams get
+        ``m >= B_v + ceil(log2(0.5 * J / edge_eps))``. Default True (without it, flat-shaded CAD
+        and hard-surface assets cannot reach 40 dB at any k_f; see docs/analyse.md).
+    edge_eps : float, colour units in (0, 1]: the largest change of a pixel an edge of colour jump
+        J may cause at per-buffer levels up to ``edge_level``. Default 1/8 (a jump of 1 costs
+        B_v + 2 bits). ``lopcook calibrate`` can search it.
+    edge_level : int in [1, 24], the highest per-buffer level the edge bound is kept at (the
+        render harness's default levels are 6..12). Default 12.
+    edge_angle_deg : float, degrees in (0, 180]: a one-pixel cell whose vertex normals spread by
+        more than this holds a fold (a crease or a sub-pixel bevel). Default 45.
     """
 
     eps: float = 1.0 / 255.0
@@ -62,6 +73,10 @@ class AnalyseSettings:
     depth: object = "auto"
     depth_threshold: float = 0.0
     depth_ceiling: int = 16
+    edges: bool = True
+    edge_eps: float = 0.125
+    edge_level: int = 12
+    edge_angle_deg: float = 45.0
 
     def __post_init__(self) -> None:
         if not self.eps > 0:
@@ -73,6 +88,12 @@ class AnalyseSettings:
             raise ValueError(f"kf must be >= 0, got {self.kf}")
         if not 1 <= int(self.depth_ceiling) <= 24:
             raise ValueError(f"depth_ceiling must be in [1, 24], got {self.depth_ceiling}")
+        if not 0.0 < self.edge_eps <= 1.0:
+            raise ValueError(f"edge_eps must be in (0, 1] (colour units), got {self.edge_eps}")
+        if not 1 <= int(self.edge_level) <= 24:
+            raise ValueError(f"edge_level must be in [1, 24], got {self.edge_level}")
+        if not 0.0 < self.edge_angle_deg <= 180.0:
+            raise ValueError(f"edge_angle_deg must be in (0, 180] degrees, got {self.edge_angle_deg}")
 
     @property
     def normal_kf(self) -> float:

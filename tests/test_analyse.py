@@ -41,7 +41,7 @@ def test_sphere_level_closed_form(radius, ks, shininess, eps):
 
 def test_flat_plane_gets_level_one():
     plate = fx.two_plates()[0].as_mesh_part()
-    an = analyse(scene_of([plate]))
+    an = analyse(scene_of([plate]), AnalyseSettings(edges=False))  # its rim is an edge: test_discontinuity
     assert np.all(an.parts[0].min_level == 1)
     assert np.all(an.parts[0].reason == REASON_CODE["none"])
     assert an.histogram()[1] == plate.n_vertices
@@ -49,16 +49,16 @@ def test_flat_plane_gets_level_one():
 
 def test_two_plates_depth_level_and_reason():
     parts = [p.as_mesh_part() for p in fx.two_plates(gap=2.0**-10)]
-    an = analyse(scene_of(parts))
+    an = analyse(scene_of(parts), AnalyseSettings(edges=False))  # depth alone (the rims are edges)
     # extent 1 m: smallest b with sqrt(3) * 2^-b < 2^-10 -> b = 11
     for p in an.parts:
         assert np.all(p.min_level == 11)
         assert np.all(p.reason == REASON_CODE["depth"])
-    off = analyse(scene_of(parts), AnalyseSettings(depth="off"))
+    off = analyse(scene_of(parts), AnalyseSettings(depth="off", edges=False))
     assert all(np.all(p.min_level == 1) for p in off.parts)
-    fixed = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=0.01))
+    fixed = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=0.01, edges=False))
     assert all(np.all(p.min_level == 9) for p in fixed.parts)
-    far = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=1e-4))
+    far = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=1e-4, edges=False))
     assert all(np.all(p.min_level == 1) for p in far.parts)
 
 
@@ -66,7 +66,7 @@ def test_seamed_cube_colocated_vertices_share_level(rng):
     cube = fx.seamed_cube()[0]
     colors = rng.uniform(0, 1, size=(cube.positions.shape[0], 4)).astype(np.float32)
     part = MeshPart("cube", cube.positions, cube.indices, normals=cube.normals, uvs=cube.uvs, colors=colors)
-    an = analyse(scene_of([part]))
+    an = analyse(scene_of([part]), AnalyseSettings(edges=False))  # else every corner is a 14-bit hard edge
     p = an.parts[0]
     q = p.quantized
     _, inv = np.unique(q, axis=0, return_inverse=True)
@@ -96,7 +96,7 @@ def test_degenerate_triangles_counted_and_finite():
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], float)
     f = np.array([[0, 1, 2], [1, 3, 4]], np.uint32)
     n = np.array([[0, 0, 1], [0, 0.6, 0.8], [0, 0, 1], [0, 1, 0], [1, 0, 0]], np.float32)
-    an = analyse(scene_of([MeshPart("p", v, f, normals=n)]))
+    an = analyse(scene_of([MeshPart("p", v, f, normals=n)]), AnalyseSettings(edges=False))  # open: all rim
     p = an.parts[0]
     assert p.degenerate_triangles == 1
     assert np.isfinite(p.e_v["normal"]).all()
@@ -126,3 +126,22 @@ def test_invariant_3_on_fixture_sphere_with_uv_texture_kf():
     tight = (p.min_level > 1) & (p.reason != REASON_CODE["co-located"])
     worst = np.maximum(p.kf["normal"] * p.e_v["normal"], 3.0 * p.e_v["uv"])
     assert np.all(worst[tight] * lower[tight] > st.eps)
+
+
+def test_edge_reason_in_counts_and_schema():
+    import json
+    from pathlib import Path
+
+    import jsonschema
+
+    from lopcook.analyse.result import REASON_CLASS
+    from lopcook.analyse.summary import describe_analysis
+
+    cube = fx.seamed_cube()[0].as_mesh_part()  # 24 corners, split normals: all on hard edges
+    an = analyse(scene_of([cube]), AnalyseSettings(depth="off"))
+    assert an.reason_counts()["edge"] == 24 and REASON_CLASS["edge"] == "attribute"
+    assert np.all(an.parts[0].min_level == 14) and np.all(an.parts[0].attribute_level == 14)
+    d = describe_analysis(an, "cube")
+    schema = json.loads((Path(__file__).resolve().parents[1] / "schema" / "analysis.schema.json").read_text())
+    jsonschema.validate(json.loads(json.dumps(d)), schema)
+    assert d["settings"]["edges"] is True and d["settings"]["edge_level"] == 12

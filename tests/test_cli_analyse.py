@@ -19,7 +19,7 @@ def run(*args):
 
 
 def test_two_plates_json():
-    proc = run("analyse", FIXTURES / "two_plates.glb", "--json")
+    proc = run("analyse", FIXTURES / "two_plates.glb", "--json", "--no-edges")  # depth alone (rims are edges)
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     jsonschema.validate(d, SCHEMA)
@@ -30,9 +30,9 @@ def test_two_plates_json():
 
 def test_paper_fixed_depth_mode_and_off():
     d = json.loads(run("analyse", FIXTURES / "two_plates.glb", "--json", "--depth", "fixed:7",
-                       "--depth-threshold", "0.01").stdout)
+                       "--depth-threshold", "0.01", "--no-edges").stdout)
     assert d["totals"]["histogram"][7] == 162 and d["settings"]["depth"] == "fixed:7"
-    d = json.loads(run("analyse", FIXTURES / "two_plates.glb", "--json", "--depth", "off").stdout)
+    d = json.loads(run("analyse", FIXTURES / "two_plates.glb", "--json", "--depth", "off", "--no-edges").stdout)
     assert d["totals"]["histogram"][1] == 162
 
 
@@ -45,7 +45,7 @@ def test_sphere_levels_follow_kf():
 
 
 def test_text_output():
-    proc = run("analyse", FIXTURES / "two_plates.obj")
+    proc = run("analyse", FIXTURES / "two_plates.obj", "--no-edges")
     assert proc.returncode == 0
     assert "11:162" in proc.stdout and "depth 162" in proc.stdout
 

@@ -2,8 +2,10 @@
 
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 3-5. Steps: (1) one 24-bit grid for the scene, (2) E_v per shading attribute and the
-attribute level, (3) depth-critical levels, (4) m_v = max of both, (5) co-located vertices (same
-quantized position, any part) share the maximum of their levels (``_colocated_max``).
+attribute level, (2b) raised on the discontinuities E_v cannot see (``discontinuity``: hard edges,
+folds, open boundaries, colour seams), (3) depth-critical levels, (4) m_v = max of both, (5)
+co-located vertices (same quantized position, any part) share the maximum of their levels
+(``_colocated_max``).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from ..types import Scene
 from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
 from .bitlevel import attribute_level, texture_slope
 from .depth import depth_levels
+from .discontinuity import discontinuity_levels
 from .grid import BITS, Grid
 from .result import REASON_CODE, Analysis, PartAnalysis
 
@@ -114,6 +117,16 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         kfs.append(kf)
         degenerate.append(deg)
     timings["attribute_error"] = time.perf_counter() - t0
+
+    # (2b) discontinuities E_v cannot see: hard edges, folds, boundaries, seams (reason "edge")
+    if settings.edges:
+        t0 = time.perf_counter()
+        disc = discontinuity_levels(scene.parts, quantized, edge_eps=settings.edge_eps,
+                                    edge_level=settings.edge_level, edge_angle_deg=settings.edge_angle_deg)
+        for k, edge in enumerate(disc.level):
+            attr_reason[k][edge > attr_level[k]] = REASON_CODE["edge"]
+            attr_level[k] = np.maximum(attr_level[k], edge)
+        timings["discontinuity"] = time.perf_counter() - t0
 
     # (3) depth
     t0 = time.perf_counter()

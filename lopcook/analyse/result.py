@@ -9,11 +9,12 @@ import numpy as np
 from .grid import BITS, Grid
 
 #: why a vertex has its minimum level (uint8 codes in PartAnalysis.reason)
-REASONS = ("none", "normal", "uv", "color", "depth", "depth-capped", "co-located")
+REASONS = ("none", "normal", "uv", "color", "depth", "depth-capped", "co-located", "edge")
 REASON_CODE = {name: i for i, name in enumerate(REASONS)}
 #: the issue's three coarse classes
 REASON_CLASS = {"none": "none", "normal": "attribute", "uv": "attribute", "color": "attribute",
-                "depth": "depth", "depth-capped": "depth", "co-located": "co-located"}
+                "depth": "depth", "depth-capped": "depth", "co-located": "co-located",
+                "edge": "attribute"}  # edge: lopcook.analyse.discontinuity (an attribute jump)
 
 
 @dataclass
@@ -22,7 +23,7 @@ class PartAnalysis:
 
     min_level : (n,) uint8 in [1, 24]  m_v, the fewest bits per component the vertex may use
     reason : (n,) uint8  index into REASONS: the constraint that set m_v
-    attribute_level : (n,) uint8  level from the attribute error alone (1..24)
+    attribute_level : (n,) uint8  level from the attribute error and the discontinuity constraint (1..24)
     depth_level : (n,) uint8  level from the depth constraint alone (1..24; 1 = none)
     e_v : dict attribute name -> (n,) float64  E_v in attribute units per metre
     kf : dict attribute name -> float  k_f used (colour per attribute unit)

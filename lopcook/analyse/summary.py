@@ -14,7 +14,9 @@ def _settings_dict(s) -> dict:
     return {"eps": s.eps, "ks": s.ks, "shininess": s.shininess, "kf": s.kf,
             "texture_kf": s.texture_kf if isinstance(s.texture_kf, str) else float(s.texture_kf),
             "untextured_uv_kf": s.untextured_uv_kf, "color_kf": s.color_kf, "depth": depth,
-            "depth_threshold_m": s.depth_threshold, "depth_ceiling": s.depth_ceiling}
+            "depth_threshold_m": s.depth_threshold, "depth_ceiling": s.depth_ceiling,
+            "edges": bool(s.edges), "edge_eps": float(s.edge_eps), "edge_level": int(s.edge_level),
+            "edge_angle_deg": float(s.edge_angle_deg)}
 
 
 def describe_analysis(an: Analysis, source: str) -> dict:

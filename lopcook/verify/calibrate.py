@@ -28,6 +28,22 @@ identical to the float render counts as infinite), ``"mean"`` the PSNR of the vi
 chosen sigma passed when probed; if the PSNR is not monotonic in sigma somewhere inside the bracket,
 a smaller passing sigma may exist (the curve shows it).
 
+The second knob: ``edge_eps`` of the discontinuity constraint (``lopcook.analyse.discontinuity``;
+hard edges, sub-pixel folds, open boundaries and seams need m >= B_v + ceil(log2(0.5 J / edge_eps)),
+which k_f cannot set: on flat-shaded assets the coverage error along edges does not depend on k_f).
+It is searched as a strictness ``x_e`` (``edge_eps = settings.edge_eps / 2^x_e``, at most 1, in whole
+steps: with J = 1 one step is one bit on every edge vertex). ``search="kf+edge"`` (the default when
+the settings have ``edges`` on) is a coordinate search: (1) the k_f bisection above at x_e = 0; (2a)
+if it reached the target, the loosest x_e in [-log2(1 / edge_eps), 0] that still passes at the chosen
+sigma (less memory on edge vertices); (2b) if it did not, the least x_e in (0, EDGE_RANGE] passing at
+the largest sigma, then the k_f bisection again at that x_e; (2c) after (2a), if the edges could
+not be loosened all the way, the k_f bisection (above the sigma of (1)) with the loosest edges.
+Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
+chosen: on textured assets with few hard edges (DamagedHelmet) more k_f and loose edges cost less
+than the least k_f and strict edges, on CAD assets (fandisk) only strict edges pass. Every choice
+passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
+probe). ``search="kf"`` keeps edge_eps as given.
+
 Cost and the reduced harness. Each probe = analyse + build + CAP renders at every level and view
 (AP is not rendered; float renders are computed once and reused, they do not depend on sigma).
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
@@ -36,11 +52,14 @@ viewport crops close-ups instead of shrinking the object; fewer views sample the
 directions more coarsely. Check the chosen k_f with ``lopcook verify OUT.lop --source SOURCE`` at
 the full 20 views and 1280 x 720.
 
-Measured (``benchmarks/bench_verify_corpus.py``, target 40 dB, levels 6-11, llvmpipe on 2 cores):
-8 probes take 8-25 s for the bunny, DamagedHelmet and CesiumMilkTruck and about 3 minutes for the
-chess set (774k vertices). Where the target is unreachable (fandisk, and the chess set on the min
-over views), the residual CAP error at low levels is silhouette coverage of vertices whose
-attributes are constant (E_v = 0), which the half-pixel criterion allows and k_f cannot change.
+Measured (``benchmarks/bench_verify_corpus.py --statistic min --cal-views 20 --cal-resolution
+1280x720``, target 40 dB, levels 6-11, llvmpipe on 2 shared cores): 9-18 probes, 110-160 s for the
+bunny, fandisk, DamagedHelmet and CesiumMilkTruck. Calibrate with the views and resolution the gate
+uses: at 640 x 360 the choice passed there but missed by 1-2 dB at level 6 at 1280 x 720 (an object
+of ~37 pixels is sensitive to its sub-pixel placement, which the resolution changes). With the
+paper's CAP alone (``edges`` off), fandisk and the chess set cannot reach 40 dB at any k_f: their
+residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
+(docs/analyse.md, section 2b).
 """
 
 from __future__ import annotations
@@ -59,6 +78,8 @@ CAL_RESOLUTION = (640, 360)
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
 STATISTICS = ("min", "mean")
+SEARCHES = ("kf", "kf+edge")
+EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (edge_eps / 2^8 at most)
 
 
 def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
@@ -72,13 +93,20 @@ def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
     return out
 
 
-def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
-          viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None) -> dict:
-    """Cook ``scene`` with every k_f scaled by ``sigma`` and render its CAP buffers.
+def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
+    """edge_eps at strictness ``edge_scale`` (x_e): settings.edge_eps / 2^x_e, at most 1."""
+    return min(1.0, float(settings.edge_eps) / 2.0**float(edge_scale))
 
-    Returns ``{"sigma", "log2_sigma", "eps", "kf", "kf_normal", "psnr_min" (min over levels of the
-    min over views, dB; None = identical), "psnr_mean" (min over levels of the PSNR of the
-    view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
+
+def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
+          viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
+          edge_scale: float = 0.0) -> dict:
+    """Cook ``scene`` with every k_f scaled by ``sigma`` (and edge_eps divided by 2^``edge_scale``)
+    and render its CAP buffers.
+
+    Returns ``{"sigma", "log2_sigma", "eps", "edge_scale", "edge_eps", "edges", "kf", "kf_normal",
+    "psnr_min" (min over levels of the min over views, dB; None = identical), "psnr_mean" (min over
+    levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
     "cap_bytes" [per level], "depth_order_errors" (summed), "seconds"}``."""
     from ..analyse import analyse
     from ..analyse.summary import _settings_dict
@@ -86,7 +114,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     from ..emit.container import from_bytes
 
     t0 = time.perf_counter()
-    s = replace(settings, eps=settings.eps / float(sigma))
+    s = replace(settings, eps=settings.eps / float(sigma), edge_eps=_edge_eps(settings, edge_scale))
     analysis = analyse(scene, s)
     opts = dict(options or {})
     opts["analyse"] = _settings_dict(s)
@@ -103,6 +131,9 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
         "sigma": float(sigma),
         "log2_sigma": math.log2(sigma),
         "eps": float(s.eps),
+        "edge_scale": float(edge_scale),
+        "edge_eps": float(s.edge_eps),
+        "edges": bool(s.edges),
         "kf": kf,
         "kf_normal": kf.get("normal"),
         "psnr_min": min(finite) if finite else None,
@@ -124,7 +155,8 @@ def _passes(p: dict, target: float, statistic: str = "min") -> bool:
 def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr: float,
               levels=DEFAULT_LEVELS, views=CAL_VIEWS, resolution=CAL_RESOLUTION, viewing: Viewing | None = None,
               log2_range=LOG2_RANGE, tolerance: float = TOLERANCE, options: dict | None = None,
-              ingest_options: dict | None = None, progress=None, statistic: str = "min") -> dict:
+              ingest_options: dict | None = None, progress=None, statistic: str = "min",
+              search: str | None = None) -> dict:
     """Search the smallest k_f scale sigma whose CAP renders reach ``target_psnr`` dB (module doc).
 
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
@@ -132,14 +164,19 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     ``resolution`` (w, h), ``viewing`` (recorded in each probe container: its field of view and pixel
     error set the camera distances), ``log2_range`` (lo, hi) of log2 sigma, ``tolerance`` (bracket
     width in log2 sigma), ``options``/``ingest_options`` (recorded in the probe containers),
-    ``progress(probe_dict)`` called after each probe, ``statistic`` ("min" or "mean" over views).
+    ``progress(probe_dict)`` called after each probe, ``statistic`` ("min" or "mean" over views),
+    ``search`` ("kf" or "kf+edge", module doc; default "kf+edge" when ``settings.edges``, else "kf").
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
-    ``eps`` / ``kf`` / ``kf_normal`` of the choice (the passing probe with the least sigma; the
-    largest probed sigma when unreachable), ``chosen`` (that probe), ``curve`` (every probe, sorted by
-    sigma: sigma, eps, kf, psnr_min, psnr_min_per_level, cap_percent per level, ...), ``levels``,
-    ``views``, ``resolution``, ``base_eps``, ``seconds``.
+    ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
+    passing probe with the least sigma, then the loosest edge_eps; the largest probed sigma when
+    unreachable), ``search``, ``chosen`` (that probe), ``curve`` (every probe, sorted by sigma,
+    then edge strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per
+    level, ...), ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``.
     """
+    search = search or ("kf+edge" if settings.edges else "kf")
+    if search not in SEARCHES:
+        raise LopcookError("usage", None, f"calibration search must be one of {SEARCHES}, got {search!r}")
     if statistic not in STATISTICS:
         raise LopcookError("usage", None, f"PSNR statistic must be one of {STATISTICS}, got {statistic!r}")
     if not math.isfinite(float(target_psnr)) or target_psnr <= 0:
@@ -152,29 +189,59 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     t0 = time.perf_counter()
     probes: dict = {}
     with Harness(scene, resolution, cache_float=True) as h:
-        def run(x: float) -> dict:
-            if x not in probes:
+        def run(x: float, e: float = 0.0) -> dict:
+            if (x, e) not in probes:
                 p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
-                          ingest_options=ingest_options)
-                probes[x] = p
+                          ingest_options=ingest_options, edge_scale=e)
+                probes[(x, e)] = p
                 if progress is not None:
                     progress(p)
-            return probes[x]
+            return probes[(x, e)]
 
-        if _passes(run(lo), target_psnr, statistic):
-            chosen, reached = run(lo), True
-        elif not _passes(run(hi), target_psnr, statistic):
-            chosen, reached = run(hi), False
-        else:
-            a, b = lo, hi  # a fails, b passes
-            while b - a > tolerance:
-                m = 0.5 * (a + b)
-                if _passes(run(m), target_psnr, statistic):
+        def ok(x: float, e: float = 0.0) -> bool:
+            return _passes(run(x, e), target_psnr, statistic)
+
+        def least_passing(f, a: float, b: float, tol: float):
+            """Smallest t in [a, b] with f(t) (f non-decreasing in t), to ``tol``; None when f(b) fails."""
+            if f(a):
+                return a
+            if not f(b):
+                return None
+            while b - a > tol:  # f(a) fails, f(b) passes
+                m = 0.5 * (a + b) if tol < 1 else float(math.floor(0.5 * (a + b)))
+                if m <= a:
+                    break
+                if f(m):
                     b = m
                 else:
                     a = m
-            chosen, reached = run(b), True
-    curve = [probes[x] for x in sorted(probes)]
+            return b
+
+        # (1) k_f at the given edge_eps
+        e = 0.0
+        x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+        candidates = [] if x is None else [(x, e)]
+        if search == "kf+edge" and settings.edges:
+            loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
+            if x is not None and loosest < 0:
+                # (2a) loosen the edges while the target holds at the chosen k_f
+                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0, 1.0)
+                candidates.append((x, e1))
+                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f
+                    x1 = least_passing(lambda t: ok(t, loosest), x, hi, tolerance)
+                    if x1 is not None:
+                        candidates.append((x1, loosest))
+            elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
+                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE), 1.0)
+                if e_found is not None:
+                    e = e_found
+                    x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+                    candidates = [(x, e)]
+        reached = bool(candidates)
+        if reached:  # the least position memory, averaged over the levels (ties: less k_f)
+            x, e = min(candidates, key=lambda c: (sum(run(*c)["cap_percent"]) / len(levels), c[0]))
+        chosen = run(x, e) if reached else run(hi, e)
+    curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
     return {
         "target_psnr": float(target_psnr),
         "statistic": statistic,
@@ -182,6 +249,10 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         "sigma": chosen["sigma"],
         "log2_sigma": chosen["log2_sigma"],
         "eps": chosen["eps"],
+        "edge_eps": chosen["edge_eps"],
+        "edge_scale": chosen["edge_scale"],
+        "edges": chosen["edges"],
+        "search": search,
         "kf": chosen["kf"],
         "kf_normal": chosen["kf_normal"],
         "chosen": chosen,
@@ -197,8 +268,9 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
 
 
 def calibrated_settings(settings: AnalyseSettings, result: dict) -> AnalyseSettings:
-    """The analysis settings of the calibration's choice (eps divided by the chosen sigma)."""
-    return replace(settings, eps=float(result["eps"]))
+    """The analysis settings of the calibration's choice (eps divided by the chosen sigma, and the
+    chosen edge_eps)."""
+    return replace(settings, eps=float(result["eps"]), edge_eps=float(result.get("edge_eps", settings.edge_eps)))
 
 
 def require_reached(result: dict, path: str | None = None) -> None:
@@ -208,8 +280,10 @@ def require_reached(result: dict, path: str | None = None) -> None:
         best = max((p for p in result["curve"] if p[key] is not None), key=lambda p: p[key], default=None)
         got = "" if best is None else (f": the best CAP PSNR ({result.get('statistic', 'min')} over views, worst "
                                        f"level) was {best[key]:.1f} dB, at k_f scale 2^{best['log2_sigma']:g}")
-        raise LopcookError("verify", path, f"no k_f reaches {result['target_psnr']:g} dB{got}",
-                           hint="lower --target-psnr; the coverage error of flat regions does not depend on k_f",
+        what = "k_f and edge_eps" if result.get("search") == "kf+edge" and result.get("edges") else "k_f"
+        raise LopcookError("verify", path, f"no {what} reaches {result['target_psnr']:g} dB{got}",
+                           hint="lower --target-psnr; coverage error along edges does not depend on k_f (turn on "
+                                "--edges and let the calibration search edge_eps with --search kf+edge)",
                            exit_code=EXIT_VERIFY_FAILED)
 
 
@@ -218,20 +292,24 @@ def format_calibration(result: dict) -> str:
     lines = [f"k_f calibration: target {result['target_psnr']:g} dB ({result['statistic']} over {result['views']} "
              f"views, every level {result['levels'][0]}-{result['levels'][-1]}, "
              f"{result['resolution'][0]}x{result['resolution'][1]})",
-             "  log2 sigma   k_f normal   eps          CAP mem % per level            PSNR min / mean (worst level)"]
+             "  log2 sigma   k_f normal   eps          edge eps   CAP mem % per level            "
+             "PSNR min / mean (worst level)"]
     for p in result["curve"]:
         kfn = "-" if p["kf_normal"] is None else f"{p['kf_normal']:.4g}"
         mem = " ".join(f"{v:4.1f}" for v in p["cap_percent"])
         ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f}"
         pm = "inf" if p["psnr_mean"] is None else f"{p['psnr_mean']:.1f}"
-        mark = " <-" if p["sigma"] == result["sigma"] else ""
-        lines.append(f"  {p['log2_sigma']:>10.3f}   {kfn:>10}   {p['eps']:.4e}   {mem:<30} {ps:>6} / {pm:<6}{mark}")
+        mark = " <-" if p["sigma"] == result["sigma"] and p.get("edge_eps") == result.get("edge_eps") else ""
+        ee = f"{p['edge_eps']:.4g}" if p.get("edges", False) else "off"
+        lines.append(f"  {p['log2_sigma']:>10.3f}   {kfn:>10}   {p['eps']:.4e}   {ee:>8}   {mem:<30} {ps:>6} / "
+                     f"{pm:<6}{mark}")
     verdict = "reached" if result["reached"] else "NOT reached"
     kfn = "-" if result["kf_normal"] is None else f"{result['kf_normal']:.4g}"
+    edge = f", edge eps {result['edge_eps']:.4g}" if result.get("edges", False) else ""
     lines.append(f"  {verdict}: sigma {result['sigma']:.4g} (k_f normal {kfn}), eps "
-                 f"{result['eps']:.4e}; {len(result['curve'])} probes, {result['seconds']:.1f} s")
+                 f"{result['eps']:.4e}{edge}; {len(result['curve'])} probes, {result['seconds']:.1f} s")
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "LOG2_RANGE", "TOLERANCE", "probe", "calibrate", "calibrated_settings",
-           "require_reached", "format_calibration"]
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE", "probe", "calibrate",
+           "calibrated_settings", "require_reached", "format_calibration"]

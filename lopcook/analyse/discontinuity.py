@@ -1,0 +1,279 @@
+"""Discontinuity constraint: vertices where the picture has an edge that E_v cannot see.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+sections 4 (per-buffer level B by the half-pixel criterion) and 5.1 (E_v, the attribute error), and
+extends 5.1 to jumps. E_v = ||A M^-1|| is the gradient of an attribute *inside* a triangle. Where
+the attribute jumps *between* triangles -- a hard edge (co-located vertices with split normals), a
+UV or colour seam, a fold sharper than a pixel, an open boundary -- no triangle holds the jump, and
+on flat faces E_v = 0 puts the vertices at level 1. Yet moving such an edge changes the colour of
+every pixel it sweeps by the whole jump: coverage error, which k_f cannot reach (measured on the
+corpus: 80-99% of the CAP squared error at levels 6-11 lies within 2 pixels of silhouettes and hard
+edges; ``docs/analyse.md``).
+
+The model. At per-buffer level B the camera is where a B-bit grid cell projects to ``pixel_error``
+pixels (``lopcook.viewing``: dx(B) = pixel_error * s_B, s_B metres per pixel). A vertex decoded at
+m > B bits moves by at most dx(m) = dx(B) 2^(B-m), i.e. ``pixel_error * 2^(B-m)`` pixels. An edge
+across which the colour jumps by J (colour units) moved by d pixels changes a pixel it crosses by at
+most J * d. Requiring that to stay within ``edge_eps`` for every per-buffer level up to ``B_v``:
+
+    m_v >= B_v + ceil(log2(pixel_error * J_v / edge_eps)),   clamped to [1, 24]
+
+(no constraint when the logarithm is <= 0: the per-buffer level alone is enough). ``edge_eps`` is
+the aggregate knob (colour units; a PSNR target tolerates a larger per-pixel error on the few edge
+pixels than ``eps`` allows everywhere; ``lopcook calibrate`` measures it). B_v and J_v:
+
+* **folds** (geometry): cut space into cubes of one pixel at level B (side s_B, power-of-two cells
+  of the 24-bit grid, and a second lattice shifted by half a cell). A cell whose vertex normals
+  spread by more than ``edge_angle_deg`` (some normal deviates from the cell's mean normal by more
+  than half of it), or that holds an open-boundary vertex, contains an edge at level B: the surface
+  turns away (or ends) within a pixel, so the vertices in it can form a silhouette or a crease there.
+  B_v is the highest level in [max(1, edge_level - 8), edge_level] whose cell of v is such a cell,
+  and J_v = 1 (surface against background or another surface: the whole colour range). Split
+  normals (co-located vertices) and open boundaries qualify at every level, so B_v = edge_level.
+* **seams** (attributes at the same position): co-located vertices (same 24-bit grid point, any
+  part) whose base colours differ -- base = base-colour texture at the vertex's UV (nearest texel,
+  repeat) times the vertex colour, as the render harness shades -- get B_v = edge_level and J_v =
+  the largest channel difference to another vertex of the group. A UV seam whose two sides sample
+  the same colours costs nothing.
+
+Open boundary: an edge of the position-welded mesh (all parts, all co-located vertices merged) used
+by exactly one triangle. Levels are computed per analysed scene (each LOD is analysed as a scene of
+its own); co-located vertices then share the maximum (``analyse``). Units: metres, colour in [0, 1],
+levels in bits. ``PIXEL_ERROR`` is the default half-pixel criterion (``lopcook.viewing.Viewing``);
+the analysis does not know the viewing conditions, ``edge_eps`` absorbs other choices.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .grid import BITS
+
+#: the half-pixel criterion's pixel error (``lopcook.viewing.Viewing``), pixels per dx(B)
+PIXEL_ERROR = 0.5
+#: levels below edge_level examined for folds (cells of 1 pixel at levels edge_level - 8 .. edge_level)
+FOLD_LEVEL_SPAN = 8
+#: grey the renderer uses for a part with neither texture nor vertex colours (lopcook.verify.render)
+BASE_GREY = 0.8
+
+
+class Discontinuity(NamedTuple):
+    """Per part: ``level`` (n,) int64 in [1, 24] (1 = no constraint), ``jump`` (n,) float64 colour J_v
+    (0 where none), ``fold_level`` (n,) int64 B_v of folds (0 = none), ``boundary`` (n,) bool,
+    ``seam`` (n,) bool."""
+
+    level: list
+    jump: list
+    fold_level: list
+    boundary: list
+    seam: list
+
+
+def colocated_groups(q: np.ndarray) -> np.ndarray:
+    """(N,) int64 group id per row of ``q`` (N, 3) grid integers: equal rows, equal ids (0..G-1, in
+    lexicographic order of the rows)."""
+    q = np.asarray(q, dtype=np.int64)
+    n = q.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    s = q[order]
+    start = np.ones(n, dtype=bool)
+    start[1:] = np.any(s[1:] != s[:-1], axis=1)
+    out = np.empty(n, dtype=np.int64)
+    out[order] = np.cumsum(start) - 1
+    return out
+
+
+def boundary_vertices(groups: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(N,) bool: vertices on an open boundary of the welded mesh. ``groups`` (N,) from
+    ``colocated_groups``; ``triangles`` (M, 3) indices into the N vertices (all parts)."""
+    n = groups.shape[0]
+    if n == 0 or triangles.size == 0:
+        return np.zeros(n, dtype=bool)
+    g = groups[np.asarray(triangles, dtype=np.int64)]
+    a = np.concatenate([g[:, 0], g[:, 1], g[:, 2]])
+    b = np.concatenate([g[:, 1], g[:, 2], g[:, 0]])
+    keep = a != b  # edges collapsed by welding are no edges
+    lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
+    key = lo * (int(groups.max()) + 1) + hi
+    uniq, count = np.unique(key, return_counts=True)
+    single = uniq[count == 1]
+    ng = int(groups.max()) + 1
+    on = np.zeros(ng, dtype=bool)
+    on[single // ng] = True
+    on[single % ng] = True
+    return on[groups]
+
+
+def _texels(texture, cache: dict) -> np.ndarray:
+    key = texture.digest
+    if key not in cache:
+        img = texture.image().convert("RGB")
+        cache[key] = np.asarray(img, dtype=np.float32) / np.float32(255.0)
+    return cache[key]
+
+
+def base_colours(parts, cache: dict | None = None) -> np.ndarray:
+    """(N, 3) float64 base colour per vertex of all parts, in [0, 1]: the base-colour texture at the
+    vertex's UV (nearest texel, repeat wrap, glTF origin top-left) times the vertex colour (RGB);
+    either is 1 when absent, grey ``BASE_GREY`` when both are."""
+    cache = {} if cache is None else cache
+    out = []
+    for p in parts:
+        n = p.n_vertices
+        has_tex = p.texture is not None and p.uvs is not None
+        c = np.ones((n, 3)) if (has_tex or p.colors is not None) else np.full((n, 3), BASE_GREY)
+        if has_tex:
+            img = _texels(p.texture, cache)
+            h, w = img.shape[:2]
+            uv = np.nan_to_num(np.asarray(p.uvs, dtype=np.float64))
+            x = np.floor(uv[:, 0] * w).astype(np.int64) % w
+            y = np.floor(uv[:, 1] * h).astype(np.int64) % h
+            c = c * img[y, x]
+        if p.colors is not None:
+            c = c * np.asarray(p.colors, dtype=np.float64)[:, :3]
+        out.append(c)
+    return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def seam_jumps(groups: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """(N,) float64: per vertex the largest channel difference of its base colour to another vertex
+    of its co-located group (0 when alone). Pairs are compared by offset in group order, so the loop
+    runs over the largest group size (a few), never over vertices."""
+    n = groups.shape[0]
+    out = np.zeros(n)
+    order = np.argsort(groups, kind="stable")
+    gs = groups[order]
+    k = 1
+    while k < n:
+        same = gs[k:] == gs[:-k]
+        if not same.any():
+            break
+        i, j = order[:-k][same], order[k:][same]
+        d = np.abs(colours[i] - colours[j]).max(axis=1)
+        np.maximum.at(out, i, d)
+        np.maximum.at(out, j, d)
+        k += 1
+    return out
+
+
+def _cell_shift(level: int) -> int:
+    """log2 of the side, in 24-bit grid units, of a cube one pixel wide at per-buffer level ``level``
+    (s_B = dx(B) / pixel_error = sqrt(3) extent 2^-(B+1) / pixel_error), rounded to a power of two."""
+    k = round(math.log2(math.sqrt(3.0) / PIXEL_ERROR)) + BITS - 1 - int(level)
+    return int(min(max(k, 0), BITS))
+
+
+def _edge_cells(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boundary: np.ndarray, shift: int,
+                offset: int, cos_half: float) -> np.ndarray:
+    """(N,) bool: the vertex's cell (side 2^shift grid units, lattice moved by ``offset``) holds an
+    open-boundary vertex or normals deviating from the cell's mean normal by more than the angle
+    whose cosine is ``cos_half``."""
+    c = (q + offset) >> shift
+    bits = BITS + 1 - shift
+    if 3 * bits <= 62:  # one int64 key per cell
+        _, inverse = np.unique((c[:, 0] << (2 * bits)) | (c[:, 1] << bits) | c[:, 2], return_inverse=True)
+        inverse = inverse.ravel()
+    else:
+        inverse = colocated_groups(c)
+    ncell = int(inverse.max()) + 1
+    w = has_normal.astype(np.float64)
+    mean = np.stack([np.bincount(inverse, weights=normals[:, a] * w, minlength=ncell) for a in range(3)], axis=1)
+    length = np.linalg.norm(mean, axis=1)
+    mean = mean / np.where(length > 0, length, 1.0)[:, None]
+    dots = np.where(has_normal, np.einsum("ij,ij->i", normals, mean[inverse]), 1.0)
+    low = np.ones(ncell)
+    np.minimum.at(low, inverse, dots)
+    edge = low < cos_half
+    edge |= np.bincount(inverse, weights=boundary.astype(np.float64), minlength=ncell) > 0
+    return edge[inverse]
+
+
+def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boundary: np.ndarray, top: int,
+                angle_deg: float) -> np.ndarray:
+    """(N,) int64 B_v of folds (module doc): the highest level in [max(1, top - FOLD_LEVEL_SPAN), top]
+    at which the vertex's one-pixel cell (either lattice) holds an edge; 0 when none does.
+
+    q (N, 3) grid integers, normals (N, 3) unit, has_normal (N,) bool, boundary (N,) bool."""
+    n = q.shape[0]
+    out = np.zeros(n, dtype=np.int64)
+    if n == 0:
+        return out
+    q = np.asarray(q, dtype=np.int64)
+    normals = np.asarray(normals, dtype=np.float64)
+    cos_half = math.cos(math.radians(float(angle_deg)) / 2.0)
+    pending = np.ones(n, dtype=bool)
+    for level in range(int(top), max(1, int(top) - FOLD_LEVEL_SPAN) - 1, -1):
+        shift = _cell_shift(level)
+        hit = _edge_cells(q, normals, has_normal, boundary, shift, 0, cos_half)
+        if shift > 0:
+            hit |= _edge_cells(q, normals, has_normal, boundary, shift, 1 << (shift - 1), cos_half)
+        new = hit & pending
+        out[new] = level
+        pending &= ~hit
+        if not pending.any():
+            break
+    return out
+
+
+def required_level(fold_or_top: np.ndarray, jump: np.ndarray, edge_eps: float) -> np.ndarray:
+    """(N,) int64: ``B_v + ceil(log2(PIXEL_ERROR * J_v / edge_eps))`` clamped to [1, 24]; 1 where
+    B_v == 0, J_v == 0 or the logarithm is <= 0 (no constraint)."""
+    b = np.asarray(fold_or_top, dtype=np.int64)
+    j = np.asarray(jump, dtype=np.float64)
+    ratio = PIXEL_ERROR * j / float(edge_eps)
+    with np.errstate(divide="ignore"):
+        extra = np.ceil(np.log2(np.where(ratio > 0, ratio, 1.0)) - 1e-9).astype(np.int64)
+    level = np.where((b > 0) & (extra > 0), b + extra, 1)
+    return np.clip(level, 1, BITS)
+
+
+def discontinuity_levels(parts, quantized, *, edge_eps: float, edge_level: int, edge_angle_deg: float,
+                         texture_cache: dict | None = None) -> Discontinuity:
+    """The discontinuity constraint of every vertex of every part (module doc).
+
+    Parameters
+    ----------
+    parts : list of MeshPart (positions, indices, normals, uvs, colors, texture)
+    quantized : list of (n_k, 3) uint32 24-bit grid integers, parallel to ``parts``
+    edge_eps : colour units (0, 1]: the largest change of a pixel an edge may cause at ``edge_level``
+    edge_level : int in [1, 24], the highest per-buffer level the bound is kept at (B_v <= it)
+    edge_angle_deg : degrees (0, 180]: normal spread in a one-pixel cell that makes a fold
+    """
+    sizes = [p.n_vertices for p in parts]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    if offsets[-1] == 0:
+        empty = [np.zeros(s, dtype=np.int64) for s in sizes]
+        return Discontinuity(empty, [np.zeros(s) for s in sizes], empty, [np.zeros(s, bool) for s in sizes],
+                             [np.zeros(s, bool) for s in sizes])
+    # (1) co-located groups and the welded mesh's open boundary
+    q = np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1, 3) for x in quantized])
+    groups = colocated_groups(q)
+    tris = np.concatenate([np.asarray(p.indices, dtype=np.int64).reshape(-1, 3) + offsets[k]
+                           for k, p in enumerate(parts)])
+    boundary = boundary_vertices(groups, tris)
+    # (2) folds: one-pixel cells holding a normal spread or a boundary
+    normals = np.concatenate([np.zeros((p.n_vertices, 3)) if p.normals is None
+                              else np.asarray(p.normals, dtype=np.float64) for p in parts])
+    has_normal = np.concatenate([np.full(p.n_vertices, p.normals is not None) for p in parts])
+    fold = fold_levels(q, normals, has_normal, boundary, edge_level, edge_angle_deg)
+    fold_level = required_level(fold, np.ones(q.shape[0]), edge_eps)
+    # (3) seams: co-located vertices with different base colours
+    jump = seam_jumps(groups, base_colours(parts, texture_cache))
+    seam = jump > 0
+    seam_level = required_level(np.where(seam, int(edge_level), 0), jump, edge_eps)
+    level = np.maximum(fold_level, seam_level)
+    jump_all = np.where(fold > 0, 1.0, jump)
+
+    def split(a):
+        return [a[offsets[k]:offsets[k + 1]] for k in range(len(parts))]
+
+    return Discontinuity(split(level), split(jump_all), split(fold), split(boundary), split(seam))
+
+
+__all__ = ["PIXEL_ERROR", "FOLD_LEVEL_SPAN", "Discontinuity", "colocated_groups", "boundary_vertices",
+           "base_colours", "seam_jumps", "fold_levels", "required_level", "discontinuity_levels"]
