@@ -45,14 +45,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     p.add_argument("-o", "--output", required=True, metavar="OUT.lop", help="container to write (atomically)")
     p.add_argument("--depfile", metavar="OUT.d", help="write a Make-style depfile listing every file read")
-    p.add_argument("--lods", default=None, metavar="R1,R2,...",
-                   help="also write LODs at these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
+    p.add_argument("--lods", default=None, metavar="auto|R1,R2,...",
+                   help="also write LODs: auto (the default chain 1/2, 1/4, 1/8, ... until a LOD's error exceeds "
+                        "what the farthest view can show, given --nearest, or its target falls under 4 triangles) "
+                        "or these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
     p.add_argument("--lod-backend", default="pymeshlab", choices=["pymeshlab", "fast"],
                    help="simplifier: pymeshlab quadric collapse (seam-aware, default) or fast-simplification")
     add_analyse_options(p)
     add_viewing_options(p)
     _add_crease_angle(p)
     add_calibration_options(p, cook=True)
+    add_budget_options(p)
     _add_common(p)
 
     p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
@@ -122,6 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-analyse", action="store_true",
                    help="do not re-run the analysis for warnings (touching/intersecting parts, degenerate triangles)")
     _add_common(p)
+    _add_bench_parser(sub)
     # the global flags also work after the command (lopcook cook x.glb -o x.lop -q)
     for command in sub.choices.values():
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -164,6 +168,66 @@ def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
     g.add_argument("--psnr-stat", choices=("min", "mean"), default="min",
                    help="PSNR over views that must reach the target: min (every view, default) or mean "
                         "(PSNR of the view-averaged MSE, as Purnomo et al. average errors)")
+    g.add_argument("--search", choices=("kf", "kf+edge"), default=None,
+                   help="knobs to search: the k_f scale only (kf), or also the edge constraint's --edge-eps "
+                        "(kf+edge, the default when --edges is on)")
+
+
+def add_budget_options(p: argparse.ArgumentParser) -> None:
+    from .budget import DEFAULT_LEVELS_PER_LOD, DEFAULT_RESOLUTION, DEFAULT_SCOPE, DEFAULT_VIEWS, SCOPES
+
+    g = p.add_argument_group("byte budget (Purnomo et al. 2005, section 5; see docs/budget.md)")
+    g.add_argument("--target-bytes", default=None, metavar="N|P/Q",
+                   help="cook the LOD chain (--lods, default 1/2, 1/4, ...), render every (LOD, level) that fits "
+                        "in N bytes and write only the one with the least image error; P/Q = that fraction of the "
+                        "float size (e.g. 1/6). Fails (exit 2) when nothing fits")
+    g.add_argument("--budget-scope", choices=SCOPES, default=DEFAULT_SCOPE,
+                   help="what the bytes count: positions (GPU position buffer; float size 12 B/vertex, default), "
+                        "vertices (+ stored normals/UVs/colours), all (+ index buffer)")
+    g.add_argument("--budget-views", type=int, default=DEFAULT_VIEWS, metavar="N",
+                   help=f"icosahedron views per candidate, 1..20 (default {DEFAULT_VIEWS})")
+    g.add_argument("--budget-resolution", default=f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}", metavar="WxH",
+                   help=f"render size per candidate (default {DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]})")
+    g.add_argument("--budget-levels", type=int, default=DEFAULT_LEVELS_PER_LOD, metavar="N",
+                   help=f"levels rendered per LOD: the largest that fits and N-1 below (default {DEFAULT_LEVELS_PER_LOD})")
+
+
+def _budget_target(text: str, float_size: int | None = None) -> int | None:
+    """``--target-bytes``: an integer number of bytes, or P/Q of ``float_size`` (rounded down).
+    With ``float_size`` None only the syntax is checked (returns None for a fraction)."""
+    from fractions import Fraction
+
+    t = str(text).strip().replace("_", "").replace(",", "")
+    try:
+        value = Fraction(t)
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a number of bytes (e.g. 150000) "
+                           "or a fraction of the float size (e.g. 1/6)") from None
+    if "/" not in t:
+        if value.denominator != 1 or value <= 0:
+            raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a positive whole number of bytes")
+        return int(value)
+    if not value > 0:
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: the fraction must be positive")
+    return None if float_size is None else int(value * float_size)
+
+
+def _run_budget(args, scene, settings, viewing, lod_ratios, options):
+    """``cook --target-bytes``: ``lopcook.budget.fit`` -> (data, info as ``cook_bytes`` gives it, record)."""
+    from .budget import fit, float_bytes
+
+    target = _budget_target(args.target_bytes, float_bytes(scene, args.budget_scope))
+    if target < 1:
+        raise LopcookError("usage", args.source, f"--target-bytes {args.target_bytes}: less than one byte of the "
+                           f"float size {float_bytes(scene, args.budget_scope):,} B")
+    data, binfo = fit(scene, target, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
+                      scope=args.budget_scope, views=args.budget_views,
+                      resolution=_resolution(args.budget_resolution, "--budget-resolution"),
+                      levels_per_lod=args.budget_levels, options=options, progress=lambda m: _progress(args, m))
+    info = dict(binfo["cook"], analysis=binfo["analysis"])
+    info["timings_s"] = {k: v for k, v in binfo["cook"]["timings_s"].items() if k != "total"}
+    info["timings_s"].update({f"budget.{k}": v for k, v in binfo["timings_s"].items() if k != "cook"})
+    return data, info, binfo["budget"]
 
 
 def _resolution(text: str, flag: str) -> tuple[int, int]:
@@ -195,12 +259,12 @@ def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
 
     def progress(p):
         ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
-        _progress(args, f"calibrate: k_f scale 2^{p['log2_sigma']:.3g}: CAP {ps}, "
+        _progress(args, f"calibrate: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
                         f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
 
     return calibrate(scene, settings, target_psnr=args.target_psnr, levels=levels, views=views, resolution=resolution,
                      viewing=viewing, ingest_options={"crease_angle_deg": ingest_settings.crease_angle_deg},
-                     progress=progress, statistic=args.psnr_stat)
+                     progress=progress, statistic=args.psnr_stat, search=args.search)
 
 
 def _viewing(args):
@@ -243,6 +307,16 @@ def add_analyse_options(p: argparse.ArgumentParser) -> None:
                    help="distance under which a vertex is depth-critical in fixed:N mode")
     g.add_argument("--depth-ceiling", type=int, default=d.depth_ceiling, metavar="N",
                    help=f"highest level a depth constraint may impose; touching parts are capped there (default {d.depth_ceiling})")
+    g.add_argument("--edges", action=argparse.BooleanOptionalAction, default=d.edges,
+                   help="discontinuity constraint: raise vertices on hard edges, sub-pixel folds, open boundaries "
+                        "and colour seams, which E_v cannot see (default on; docs/analyse.md)")
+    g.add_argument("--edge-eps", type=float, default=d.edge_eps, metavar="COLOUR",
+                   help=f"colour change an edge may cause in a pixel, colour units in (0,1] (default {d.edge_eps:g}: "
+                        "a full-range jump costs 2 bits above the level)")
+    g.add_argument("--edge-level", type=int, default=d.edge_level, metavar="N",
+                   help=f"highest per-buffer level the edge bound is kept at, in [1,24] (default {d.edge_level})")
+    g.add_argument("--edge-angle", type=float, default=d.edge_angle_deg, metavar="DEGREES",
+                   help=f"normal spread within one pixel that makes a fold, in (0,180] (default {d.edge_angle_deg:g})")
 
 
 def _ingest_settings(args):
@@ -281,7 +355,8 @@ def _analyse_settings(args):
     try:
         return AnalyseSettings(eps=args.eps, ks=args.ks, shininess=args.shininess, kf=args.kf, texture_kf=tk,
                                depth=depth, depth_threshold=args.depth_threshold,
-                               depth_ceiling=args.depth_ceiling)
+                               depth_ceiling=args.depth_ceiling, edges=args.edges, edge_eps=args.edge_eps,
+                               edge_level=args.edge_level, edge_angle_deg=args.edge_angle)
     except ValueError as exc:
         raise LopcookError("usage", None, str(exc)) from None
 
@@ -317,16 +392,32 @@ def _is_container(path: str) -> bool:
         return False
 
 
+def _default_lod_ratios() -> list[float]:
+    """The default chain of ``lod_chain(ratios=None)`` as an explicit list: 1/2, 1/4, ... (its
+    ``max_levels`` of them). ``lod_chain`` stops it at the first target under ``min_triangles`` and at
+    the first LOD whose error exceeds ``max_error_m`` (``pipeline.far_error_m`` when --nearest is
+    given), so the LODs are those of ``ratios=None``; ``cook_bytes`` reserves None for "no LODs"."""
+    import inspect
+
+    from .analyse.lod import lod_chain
+
+    n = int(inspect.signature(lod_chain).parameters["max_levels"].default)
+    return [0.5 ** k for k in range(1, n + 1)]
+
+
 def _lod_ratios(text):
-    """``"1/2,1/4"`` -> [0.5, 0.25]; None stays None. Ratios must be in (0, 1) and decreasing."""
+    """``"1/2,1/4"`` -> [0.5, 0.25]; ``"auto"`` -> the default chain (``_default_lod_ratios``); None
+    stays None. Ratios must be in (0, 1) and decreasing."""
     if text is None:
         return None
+    if text.strip().lower() == "auto":
+        return _default_lod_ratios()
     from fractions import Fraction
 
     try:
         ratios = [float(Fraction(t.strip())) for t in text.split(",") if t.strip()]
     except (ValueError, ZeroDivisionError):
-        raise LopcookError("usage", None, f"--lods {text!r}: expected fractions such as 1/2,1/4,1/8") from None
+        raise LopcookError("usage", None, f"--lods {text!r}: expected auto or fractions such as 1/2,1/4,1/8") from None
     ratios = [r for r in ratios if r != 1.0]
     if not ratios or any(not 0 < r < 1 for r in ratios) or any(a <= b for a, b in zip(ratios, ratios[1:])):
         raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing")
@@ -347,6 +438,12 @@ def cmd_cook(args) -> int:
     ingest_settings = _ingest_settings(args)
     if os.path.isdir(args.output):
         raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
+    if args.target_bytes is not None:  # usage errors before any work
+        _budget_target(args.target_bytes)
+        _views(args.budget_views, "--budget-views")
+        _resolution(args.budget_resolution, "--budget-resolution")
+        if args.budget_levels < 1:
+            raise LopcookError("usage", None, f"--budget-levels {args.budget_levels}: expected 1 or more")
     timings = {}
     t0 = time.perf_counter()
     _progress(args, f"ingest {args.source}")
@@ -362,7 +459,7 @@ def cmd_cook(args) -> int:
         calibration = _run_calibration(args, scene, settings, viewing, ingest_settings)
         timings["calibrate"] = time.perf_counter() - t0
         require_reached(calibration, args.source)
-        settings = replace(settings, eps=calibration["eps"])
+        settings = replace(settings, eps=calibration["eps"], edge_eps=calibration["edge_eps"])
     _progress(args, f"analyse and emit {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
     from .analyse.summary import _settings_dict
     from .pipeline import cook_bytes
@@ -372,8 +469,12 @@ def cmd_cook(args) -> int:
         options["lods"] = {"ratios": args.lods, "backend": args.lod_backend}
     if calibration is not None:
         options["calibration"] = _calibration_record(calibration)
-    data, info = cook_bytes(scene, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
-                            options=options)
+    budget = None
+    if args.target_bytes is not None:
+        data, info, budget = _run_budget(args, scene, settings, viewing, lod_ratios, options)
+    else:
+        data, info = cook_bytes(scene, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
+                                options=options)
     analysis = info["analysis"]
     timings.update({f"analyse.{k}": v for k, v in analysis.timings.items()})
     timings.update({k: v for k, v in info["timings_s"].items() if k != "total"})
@@ -393,6 +494,8 @@ def cmd_cook(args) -> int:
     desc["intersecting"] = [list(p) for p in analysis.intersecting]
     if calibration is not None:
         desc["calibration"] = calibration
+    if budget is not None:
+        desc["budget"] = budget
     if args.json:
         print(json.dumps(desc, indent=1, sort_keys=True))
     elif not args.quiet:
@@ -400,6 +503,10 @@ def cmd_cook(args) -> int:
             from .verify.calibrate import format_calibration
 
             print(format_calibration(calibration))
+        if budget is not None:
+            from .budget import format_budget
+
+            print(format_budget(budget))
         print(format_container(desc, timings=timings))
         if analysis.touching or analysis.intersecting:
             print(f"  note: {len(analysis.touching)} touching and {len(analysis.intersecting)} intersecting part "
@@ -410,10 +517,11 @@ def cmd_cook(args) -> int:
 def _calibration_record(cal: dict) -> dict:
     """What the container records of a calibration (manifest options are free-form JSON): target,
     the chosen k_f (scale sigma, eps, per-attribute k_f) and the curve (memory vs PSNR over k_f)."""
-    keep = ("sigma", "log2_sigma", "eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
+    keep = ("sigma", "log2_sigma", "eps", "edge_eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
             "psnr_mean_per_level", "cap_percent")
     return {"target_psnr": cal["target_psnr"], "statistic": cal["statistic"], "reached": cal["reached"],
             "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
+            "edge_eps": cal["edge_eps"],
             "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
             "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]]}
 
@@ -626,8 +734,64 @@ def cmd_report(args) -> int:
     return EXIT_OK
 
 
+def _add_bench_parser(sub) -> None:
+    """``lopcook bench``: lopcook against gltfpack, glTF-Transform and Draco (lopcook/bench.py, docs/bench.md)."""
+    p = sub.add_parser("bench", help="speed and accuracy against gltfpack, glTF-Transform and Draco, and how the "
+                                     "cook's cost grows (needs pip install 'lopcook[bench]'; see docs/bench.md)")
+    p.add_argument("assets", nargs="*", metavar="ASSET",
+                   help="source files (default: bunny, fandisk, DamagedHelmet and the chess set from "
+                        "$LOPCOOK_CORPUS or ../shared/corpus)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for CSVs, charts and summary")
+    p.add_argument("--levels", default="6-11", metavar="LEVELS", help="camera levels, e.g. 6-11 (default 6-11)")
+    p.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
+    p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    p.add_argument("--bits", default="10,12,14,16", metavar="N,...",
+                   help="position bits of the peers' runs (default 10,12,14,16)")
+    p.add_argument("--peers", default="gltfpack,gltf-transform,draco", metavar="LIST",
+                   help="peers to run, a subset of gltfpack,gltf-transform,draco (default all; 'none' for none)")
+    p.add_argument("--skip-render", action="store_true", help="no PSNR (no renders): bytes, errors, cracks, times")
+    p.add_argument("--no-accuracy", action="store_true", help="skip the per-asset accuracy runs (scaling only)")
+    p.add_argument("--scaling", action="store_true",
+                   help="also time cooks (--lods 1/2,1/4) and gltfpack -si 0.5 -vp 14 on the bunny subdivided 0-3 "
+                        "times and the chess set (GLB) for the log-log chart")
+    p.add_argument("--scaling-max-triangles", type=int, default=5_000_000, metavar="N",
+                   help="largest scaling input in triangles (default 5000000: all; 1200000 skips the 4.4M bunny)")
+    p.add_argument("--repeat", type=int, default=1, metavar="N", help="scaling runs per input, best wall time (default 1)")
+    p.add_argument("--calibrated", action="store_true",
+                   help="also cook with --target-psnr 40 (slow on the chess set)")
+    _add_common(p)
+
+
+def cmd_bench(args) -> int:
+    from .bench import DEFAULT_LEVELS, run
+    from .benchkit.peers import PEERS
+    from .verify.decoders import parse_levels
+
+    args.levels = parse_levels(args.levels) if args.levels else list(DEFAULT_LEVELS)
+    args.views = _views(args.views, "--views")
+    args.resolution = _resolution(args.resolution, "--resolution")
+    try:
+        args.bits = [int(b) for b in args.bits.split(",") if b.strip()]
+    except ValueError:
+        raise LopcookError("usage", None, f"--bits {args.bits!r}: expected integers such as 10,12,14,16") from None
+    if not args.bits or any(not 1 <= b <= 16 for b in args.bits):
+        raise LopcookError("usage", None, f"--bits {args.bits}: each must be in [1, 16]")
+    peers = [v.strip().lower() for v in args.peers.split(",") if v.strip() and v.strip().lower() != "none"]
+    if any(v not in PEERS for v in peers):
+        raise LopcookError("usage", None, f"--peers {args.peers!r}: expected a subset of {','.join(PEERS)}")
+    args.peers = peers
+    if args.repeat < 1 or args.scaling_max_triangles < 1:
+        raise LopcookError("usage", None, "--repeat and --scaling-max-triangles must be positive")
+    args.argv = sys.argv[sys.argv.index("bench") + 1:] if "bench" in sys.argv else []
+    summary = run(args)
+    if args.json:
+        print(json.dumps(summary, indent=1, sort_keys=True, default=str))
+    return EXIT_OK
+
+
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
-            "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report}
+            "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report,
+            "bench": cmd_bench}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -115,3 +115,38 @@ def test_global_flags_after_the_command():
     assert proc.returncode == 0 and proc.stdout == ""
     proc = run("inspect", "missing.obj", "--debug")
     assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_cook_lods_auto_is_the_default_chain(tmp_path):
+    """``--lods auto`` writes lod_chain's default chain (1/2, 1/4, ... down to 4 triangles), less the
+    LODs no distance selects; ``--lods R1,R2`` keeps working and bad values are one-line usage errors."""
+    from lopcook.analyse.lod import lod_chain
+    from lopcook.cli import main
+    from lopcook.emit.container import read
+    from lopcook.ingest import load
+    from lopcook.select import selection_ranges
+    from lopcook.viewing import Viewing
+
+    src = FIXTURES / "unit_sphere.glb"
+    out = tmp_path / "auto.lop"
+    assert main(["-q", "cook", str(src), "-o", str(out), "--lods", "auto", "--lod-backend", "fast"]) == 0
+    m = read(str(out)).manifest
+    assert m["options"]["lods"] == {"ratios": "auto", "backend": "fast"}
+    part = load(str(src)).parts[0]
+    lods, report = lod_chain(part, ratios=None, backend="fast")
+    ranges = selection_ranges([lod.error_m for lod in lods], [lod.triangles for lod in lods], Viewing())
+    expected = [(lod.triangles, lod.error_m) for k, lod in enumerate(lods) if k == 0 or ranges[k] is not None]
+    got = [(e["triangles"], e["geometric_error_m"]) for e in m["parts"][0]["lods"]]
+    assert got == expected
+    # halving down to the last target of at least 4 triangles (1280 -> 640 -> ... -> 5)
+    assert [lod.target_ratio for lod in lods] == [0.5 ** k for k in range(len(lods))]
+    assert lods[-1].target_triangles >= 4 > round(lods[-1].target_ratio / 2 * part.n_triangles)
+    assert len(got) >= 5
+    assert all(b[0] < a[0] and b[1] >= a[1] for a, b in zip(got, got[1:]))
+    explicit = tmp_path / "explicit.lop"
+    assert main(["-q", "cook", str(src), "-o", str(explicit), "--lods", "1/2,1/4", "--lod-backend", "fast"]) == 0
+    assert [e["triangles"] for e in read(str(explicit)).manifest["parts"][0]["lods"]] == [t for t, _ in got[:3]]
+    for bad in ("auto,1/2", "automatic", "1/4,1/2"):
+        proc = run("cook", src, "-o", tmp_path / "bad.lop", "--lods", bad)
+        assert_one_line_error(proc, "--lods")
+    assert not (tmp_path / "bad.lop").exists()
