@@ -111,7 +111,7 @@ def child(args) -> dict:
     import lopcook.analyse as an
     import lopcook.emit as em
     import lopcook.pipeline as pl
-    from lopcook.cli import _lod_ratios
+    from lopcook.pipeline import parse_lod_ratios as _lod_ratios
     from lopcook.emit.container import write_atomic
     from lopcook.ingest import load
     from lopcook.settings import DEFAULT_ANALYSE

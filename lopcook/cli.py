@@ -123,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
     _add_crease_angle(p)
     p.add_argument("--no-analyse", action="store_true",
-                   help="do not re-run the analysis for warnings (touching/intersecting parts, degenerate triangles)")
+                   help="do not re-cook the source (no stage timings, no determinism check, no warnings from the "
+                        "analysis: touching/intersecting parts, degenerate triangles)")
     _add_common(p)
     _add_bench_parser(sub)
     # the global flags also work after the command (lopcook cook x.glb -o x.lop -q)
@@ -392,36 +393,11 @@ def _is_container(path: str) -> bool:
         return False
 
 
-def _default_lod_ratios() -> list[float]:
-    """The default chain of ``lod_chain(ratios=None)`` as an explicit list: 1/2, 1/4, ... (its
-    ``max_levels`` of them). ``lod_chain`` stops it at the first target under ``min_triangles`` and at
-    the first LOD whose error exceeds ``max_error_m`` (``pipeline.far_error_m`` when --nearest is
-    given), so the LODs are those of ``ratios=None``; ``cook_bytes`` reserves None for "no LODs"."""
-    import inspect
-
-    from .analyse.lod import lod_chain
-
-    n = int(inspect.signature(lod_chain).parameters["max_levels"].default)
-    return [0.5 ** k for k in range(1, n + 1)]
-
-
 def _lod_ratios(text):
-    """``"1/2,1/4"`` -> [0.5, 0.25]; ``"auto"`` -> the default chain (``_default_lod_ratios``); None
-    stays None. Ratios must be in (0, 1) and decreasing."""
-    if text is None:
-        return None
-    if text.strip().lower() == "auto":
-        return _default_lod_ratios()
-    from fractions import Fraction
+    """``--lods``: see ``lopcook.pipeline.parse_lod_ratios``."""
+    from .pipeline import parse_lod_ratios
 
-    try:
-        ratios = [float(Fraction(t.strip())) for t in text.split(",") if t.strip()]
-    except (ValueError, ZeroDivisionError):
-        raise LopcookError("usage", None, f"--lods {text!r}: expected auto or fractions such as 1/2,1/4,1/8") from None
-    ratios = [r for r in ratios if r != 1.0]
-    if not ratios or any(not 0 < r < 1 for r in ratios) or any(a <= b for a, b in zip(ratios, ratios[1:])):
-        raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing")
-    return ratios
+    return parse_lod_ratios(text)
 
 
 def cmd_cook(args) -> int:
@@ -551,21 +527,30 @@ def cmd_decode(args) -> int:
     c = read(args.container)
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
-    meshes = []
-    for i, part in enumerate(c.manifest["parts"]):
-        if args.lod >= len(part["lods"]):
-            raise LopcookError("usage", args.container, f"part {part['name']!r} has no LOD {args.lod} "
-                               f"(it has {len(part['lods'])})")
-        _, _, pos = decode_positions(c, i, args.lod, args.level)
-        a = lod_attributes(c, i, args.lod)
+    parts = c.manifest["parts"]
+    deepest = max(len(p["lods"]) for p in parts)
+    if not 0 <= args.lod < deepest:
+        raise LopcookError("usage", args.container, f"--lod {args.lod}: the container has LODs 0..{deepest - 1}")
+    meshes, coarsest = [], []
+    for i, part in enumerate(parts):
+        # a part whose chain stopped early (too few triangles, or a LOD no distance selects) is
+        # drawn with its coarsest LOD at every farther distance: decode that, as a renderer would
+        lod = min(args.lod, len(part["lods"]) - 1)
+        if lod != args.lod:
+            coarsest.append(part["name"])
+        _, _, pos = decode_positions(c, i, lod, args.level)
+        a = lod_attributes(c, i, lod)
         meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"], "normals": a["normals"],
                        "uvs": a["uvs"], "colors": a["colors"]})
+    if coarsest and not args.quiet and not args.json:
+        print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "
+              f"used ({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
     written = write_gltf(args.output, meshes, generator=f"lopcook {__version__}",
                          extras={"lopcook": {"level": args.level, "lod": args.lod,
                                              "source": c.manifest["source"]["file"]}})
     if args.json:
         print(json.dumps({"written": [str(w) for w in written], "level": args.level, "lod": args.lod,
-                          "parts": len(meshes)}, sort_keys=True))
+                          "parts": len(meshes), "parts_at_coarsest_lod": coarsest}, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
     return EXIT_OK
@@ -688,10 +673,12 @@ def cmd_report(args) -> int:
     from .emit.container import read
     from .emit.summary import describe_container
     from .ingest import load
-    from .report import analysis_warnings, build_report, write_html
+    import time
+
+    from .report import analysis_warnings, build_report, render_for_report, write_html
     from .settings import IngestSettings
     from .verify.decoders import parse_levels
-    from .verify.render import DEFAULT_LEVELS, evaluate
+    from .verify.render import DEFAULT_LEVELS
 
     out = args.output
     if os.path.isdir(out):
@@ -714,15 +701,21 @@ def cmd_report(args) -> int:
         raise LopcookError("usage", None, f"--crease-angle {crease} is outside [0, 180] degrees")
     ingest = IngestSettings(crease_angle_deg=float(crease)) if crease is not None else IngestSettings()
     _progress(args, f"ingest {args.source}")
+    t0 = time.perf_counter()
     scene = load(args.source, ingest)
-    _progress(args, f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]}")
-    ev = evaluate(c, scene, levels=levels, views=views, resolution=resolution, keep_images=True)
-    warnings = None
+    ingest_s = time.perf_counter() - t0
+    _progress(args, f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]} (float, AP, CAP, "
+                    "uniform 16-bit, minimum levels)")
+    ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution)
+    warnings = cook = None
     if not args.no_analyse:
-        _progress(args, "analyse (warnings)")
-        warnings = analysis_warnings(scene, c.manifest)
+        from .verify.reproduce import recook
+
+        _progress(args, "re-cook the source (stage timings, warnings, determinism)")
+        cook = recook(c, scene, ingest_s=ingest_s)
+        warnings = analysis_warnings(scene, c.manifest, cook["analysis"])
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
-    rep = build_report(c, scene, ev, desc, warnings=warnings)
+    rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
     html_path, json_path = write_html(rep, ev.get("images"), out)
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))

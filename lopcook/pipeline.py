@@ -24,14 +24,17 @@ of ``build(scene, analyse(scene, settings), viewing=viewing)``.
 
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import replace
+from fractions import Fraction
 
 import numpy as np
 
 from .analyse import Grid, _colocated_max, analyse
 from .analyse.grid import BITS
 from .analyse.lod import lod_chain
+from .errors import LopcookError
 from .analyse.result import REASON_CODE
 from .settings import DEFAULT_ANALYSE, AnalyseSettings
 from .types import Scene
@@ -52,6 +55,33 @@ def view_level(extent: float, viewing: Viewing) -> int | None:
     if viewing.nearest_m is None:
         return None
     return int(np.asarray(required_level(float(viewing.nearest_m), extent, viewing)))
+
+
+def default_lod_ratios() -> list[float]:
+    """The default chain of ``lod_chain(ratios=None)`` as an explicit list: 1/2, 1/4, ... (its
+    ``max_levels`` of them). ``lod_chain`` stops it at the first target under ``min_triangles`` and at
+    the first LOD whose error exceeds ``max_error_m`` (``pipeline.far_error_m`` when --nearest is
+    given), so the LODs are those of ``ratios=None``; ``cook_bytes`` reserves None for "no LODs"."""
+    n = int(inspect.signature(lod_chain).parameters["max_levels"].default)
+    return [0.5 ** k for k in range(1, n + 1)]
+
+
+def parse_lod_ratios(text):
+    """``--lods`` text (as ``cook`` takes it and the manifest records it in ``options.lods.ratios``):
+    ``"1/2,1/4"`` -> [0.5, 0.25]; ``"auto"`` -> the default chain (``default_lod_ratios``); None
+    stays None. Ratios must be in (0, 1) and decreasing."""
+    if text is None:
+        return None
+    if text.strip().lower() == "auto":
+        return default_lod_ratios()
+    try:
+        ratios = [float(Fraction(t.strip())) for t in text.split(",") if t.strip()]
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--lods {text!r}: expected auto or fractions such as 1/2,1/4,1/8") from None
+    ratios = [r for r in ratios if r != 1.0]
+    if not ratios or any(not 0 < r < 1 for r in ratios) or any(a <= b for a, b in zip(ratios, ratios[1:])):
+        raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing")
+    return ratios
 
 
 def _chains(scene: Scene, lod_ratios, backend: str, max_error_m):
@@ -244,4 +274,4 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
     return data, info
 
 
-__all__ = ["cook_bytes", "analyse_lods", "far_error_m", "view_level"]
+__all__ = ["cook_bytes", "analyse_lods", "far_error_m", "view_level", "default_lod_ratios", "parse_lod_ratios"]

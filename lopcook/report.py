@@ -8,11 +8,20 @@ with inline CSS, images as PNG ``data:`` URIs and charts as inline SVG (no JavaS
 network; a five-line inline script only counts decoded images into ``body[data-images-ok]`` for
 headless checks).
 
-Uniform 16-bit quantization baseline (KHR_mesh_quantization, VEC3 SHORT padded to 8 bytes per
-vertex = 66.7 % of float32): it is **not rendered**. Its largest position error is given
-analytically, sqrt(3) * extent * 2^-17 metres (half a cell of a 2^16 grid over the container's grid
-extent, on each axis), which is exactly CAP's bound at level 16; the chart draws it as a memory-only
-marker.
+Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT over each part's
+bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
+**rendered** with the same cameras as AP and CAP, one PSNR row per level, drawn in the memory vs
+PSNR chart and given as the last column of the table.
+
+Minimum levels (paper Fig. 7): the source coloured by each vertex's minimum level, rendered from
+the view and distance of the other images (image kind ``levels``); the histogram bars use the same
+colours, so the histogram is its legend.
+
+Cook timings: a container holds none (deterministic bytes), so ``lopcook report`` re-cooks the
+source with the recorded options (``lopcook.verify.reproduce.recook``), times every stage and
+compares the bytes with the file (``cook.status``: identical / prefix / differs / not re-cooked).
+The re-cooked analysis gives the warnings and the LOD chain's notes (fallbacks, missed targets).
+``cook_timings_s`` and ``seconds`` are the only values that vary between identical runs.
 
 Images: all images of the shown view are cropped to one box around the union of their object
 pixels plus a margin and, when small, enlarged by an integer factor with nearest-neighbour sampling
@@ -36,13 +45,13 @@ import numpy as np
 
 from . import __version__
 from .atomic import write_atomic
+from .verify.baselines import UNIFORM16_BYTES_PER_VERTEX
 
-UNIFORM16_BYTES_PER_VERTEX = 8
 FLOAT32_BYTES_PER_VERTEX = 12
 VARIANT_KEYS = ("bytes", "percent_of_float32", "psnr_min", "psnr_mean", "psnr_pooled", "psnr_interior_min",
                 "psnr_interior_mean", "max_error", "share_off", "pixels_off", "object_pixels",
                 "depth_order_errors", "depth_order_errors_views", "part_mismatch", "psnr_views")
-IMAGE_KEYS = ("float", "ap", "cap", "ap_heatmap", "cap_heatmap")
+IMAGE_KEYS = ("float", "ap", "cap", "ap_heatmap", "cap_heatmap", "levels")
 
 
 def _plain(x):
@@ -67,28 +76,14 @@ def _name(p) -> str | None:
     return None if p is None else os.path.basename(str(p))
 
 
-def analysis_warnings(scene, manifest: dict) -> dict:
-    """Re-run ``lopcook.analyse.analyse`` on ``scene`` with the container's recorded settings (defaults
-    where they cannot be read back) and collect its warnings."""
-    from dataclasses import fields
-
+def analysis_warnings(scene, manifest: dict, analysis=None) -> dict:
+    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``; default: ``lopcook.analyse.analyse``
+    re-run with the container's recorded settings, ``reproduce.recorded_settings``)."""
     from .analyse import analyse
     from .analyse.summary import describe_analysis
-    from .settings import AnalyseSettings
+    from .verify.reproduce import recorded_settings
 
-    rec = ((manifest.get("options") or {}).get("analyse") or {})
-    kw = {}
-    names = {f.name for f in fields(AnalyseSettings)}
-    for k, v in rec.items():
-        k2 = "depth_threshold" if k == "depth_threshold_m" else k
-        if k2 in names and v is not None and not isinstance(v, (dict, list)):
-            kw[k2] = v
-    try:
-        settings = AnalyseSettings(**kw)
-        an = analyse(scene, settings)
-    except Exception:  # recorded settings not reproducible: fall back to defaults
-        settings = AnalyseSettings()
-        an = analyse(scene, settings)
+    an = analysis if analysis is not None else analyse(scene, recorded_settings(manifest))
     d = describe_analysis(an, str(scene.source))
     t = d["totals"]
     return {"available": True, "scene": [str(w) for w in scene.warnings],
@@ -97,7 +92,7 @@ def analysis_warnings(scene, manifest: dict) -> dict:
             "attribute_unsatisfied": int(t["attribute_unsatisfied"])}
 
 
-def lod_table(manifest: dict) -> list[dict]:
+def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     """Per part of a container manifest, its LODs as written: ``{"part", "lods": [...], "notes"}``.
 
     Each LOD: ``lod`` (index), ``triangles``, ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
@@ -109,11 +104,13 @@ def lod_table(manifest: dict) -> list[dict]:
     ``mandatory_position_bytes`` (its share of the mandatory section),
     ``plane_position_bytes`` (its bits in the refinement planes 2..max_level: 3 bits per vertex
     whose minimum level is below the plane, rounded up to bytes per plane) and ``bytes``, the sum.
-    ``notes``: the LOD report notes of that part when the container records them
+    ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
+    the re-cooked chain, ``reproduce.recook``), else those the container records
     (``options.lods.reports[i].notes``), else empty."""
     sizes = {s["name"]: int(s["length"]) for s in manifest["sections"]}
     max_level = int(manifest["positions"].get("max_level", 24))
-    reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
+    if not reports:
+        reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
     out = []
     for i, part in enumerate(manifest["parts"]):
         starts = [e.get("min_distance_m") for e in part["lods"]]
@@ -133,7 +130,10 @@ def lod_table(manifest: dict) -> list[dict]:
                          "mandatory_position_bytes": mandatory, "plane_position_bytes": planes,
                          "bytes": index_bytes + attribute_bytes + mandatory + planes})
         rec = reports[i] if i < len(reports) and isinstance(reports[i], dict) else {}
-        out.append({"part": part["name"], "lods": rows, "notes": [str(n) for n in rec.get("notes") or []]})
+        notes = [str(n) for n in rec.get("notes") or []]
+        if rec.get("stop_reason") and rec.get("stop_reason") != "all ratios done":
+            notes.append(f"chain stopped: {rec['stop_reason']}")
+        out.append({"part": part["name"], "lods": rows, "notes": notes})
     return out
 
 
@@ -194,8 +194,31 @@ def apply_crop(a: np.ndarray, crop: dict | None) -> np.ndarray:
     return np.repeat(np.repeat(a, s, axis=0), s, axis=1) if s > 1 else a
 
 
-def build_report(container, scene, evaluation: dict, container_desc: dict, *, warnings: dict | None = None) -> dict:
-    """Every number of the report, JSON-ready (see module docstring)."""
+def uniform16_section(evaluation_16: dict | None, scene, n_vertices: int) -> dict:
+    """The uniform 16-bit baseline's record: memory, its largest position error (over parts:
+    sqrt(3) * half cube side / 32767 / 2, metres) and, when rendered, one row per level
+    (``level``, ``psnr_min``, ``psnr_mean``, ``max_error``, ``share_off``, ``depth_order_errors``)."""
+    half = max(0.5 * float((p.positions.max(axis=0) - p.positions.min(axis=0)).max()) for p in scene.parts)
+    rows = []
+    for r in (evaluation_16 or {}).get("levels", []):
+        v = r["scene"]
+        rows.append({"level": int(r["level"]), "psnr_min": v["psnr_min"], "psnr_mean": v["psnr_mean"],
+                     "max_error": v["max_error"], "share_off": v["share_off"],
+                     "depth_order_errors": int(v["depth_order_errors"])})
+    return {"bytes_per_vertex": UNIFORM16_BYTES_PER_VERTEX, "bytes": UNIFORM16_BYTES_PER_VERTEX * int(n_vertices),
+            "percent_of_float32": 100.0 * UNIFORM16_BYTES_PER_VERTEX / FLOAT32_BYTES_PER_VERTEX,
+            "max_position_error_m": math.sqrt(3.0) * half / 32767.0 / 2.0, "rendered": bool(rows), "levels": rows,
+            "note": "KHR_mesh_quantization normalized SHORT over each part's bounding cube (glTF-Transform "
+                    "quantize's default volume), VEC3 padded to 8 bytes per vertex; rendered with the same cameras"
+            if rows else "not rendered"}
+
+
+def build_report(container, scene, evaluation: dict, container_desc: dict, *, warnings: dict | None = None,
+                 uniform16: dict | None = None, cook: dict | None = None, level_range=None) -> dict:
+    """Every number of the report, JSON-ready (see module docstring). ``uniform16``: the
+    ``evaluate_scene`` result of ``baselines.uniform_quantized_scene`` (None: not rendered);
+    ``cook``: ``reproduce.recook``'s result (None: not re-cooked); ``level_range``: (lo, hi) of
+    the level-colour ramp of the ``levels`` image."""
     ev = evaluation
     m = container.manifest
     extent = float(m["grid"]["extent"])
@@ -211,18 +234,19 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
         levels.append(row)
     t = container_desc["totals"]
     n = int(ev["vertices"])
-    u16 = {"bytes_per_vertex": UNIFORM16_BYTES_PER_VERTEX, "bytes": UNIFORM16_BYTES_PER_VERTEX * n,
-           "percent_of_float32": 100.0 * UNIFORM16_BYTES_PER_VERTEX / FLOAT32_BYTES_PER_VERTEX,
-           "max_position_error_m": math.sqrt(3.0) * extent * 2.0 ** -17, "equivalent_cap_level": 16,
-           "psnr": None, "rendered": False,
-           "note": "not rendered: KHR_mesh_quantization VEC3 SHORT padded to 8 bytes/vertex; its position error "
-                   "bound equals CAP's at level 16"}
+    u16 = uniform16_section(uniform16, scene, n)
     imgs = ev.get("images")
     if warnings is None:
         warnings = {"available": False, "scene": [str(w) for w in getattr(scene, "warnings", ())],
                     "touching": [], "intersecting": [], "degenerate_triangles": None, "depth_capped": None,
                     "attribute_unsatisfied": None}
     depth_total = {v: sum(r[v]["depth_order_errors"] for r in levels if v in r) for v in ("ap", "cap")}
+    images = None
+    if imgs:
+        images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
+                  "crop": crop_box({k: v for k, v in imgs.items() if k != "levels"})}
+        if "levels" in imgs and level_range is not None:
+            images["level_range"] = [int(level_range[0]), int(level_range[1])]
     rep = {
         "kind": "report",
         "generator": f"lopcook {__version__}",
@@ -242,9 +266,10 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                       "uniform16": u16},
         "histogram": [int(x) for x in t["histogram"]],
         "memory": container_desc["memory"],
-        "images": None if not imgs else {"level": imgs["level"], "view": imgs["view"],
-                                         "kinds": [k for k in IMAGE_KEYS if k in imgs], "crop": crop_box(imgs)},
-        "cook_timings_s": options.get("timings_s"),
+        "images": images,
+        "cook": None if cook is None else {"status": cook["status"], "detail": cook["detail"],
+                                           "bytes": cook.get("bytes")},
+        "cook_timings_s": None if cook is None else dict(cook["timings_s"]),
         "warnings": warnings,
         "depth_order_errors_total": depth_total,
         "calibration": options.get("calibration"),
@@ -252,11 +277,46 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
     }
     rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
                    "ratios": (options.get("lods") or {}).get("ratios"),
-                   "savings": m.get("savings"), "parts": lod_table(m)}
+                   "savings": m.get("savings"),
+                   "parts": lod_table(m, None if cook is None else cook.get("lod_reports"))}
     budget = budget_section(m)
     if budget is not None:  # optional key: containers written by cook --target-bytes
         rep["budget"] = budget
     return _plain(rep)
+
+
+def render_for_report(container, scene, *, levels, views, resolution) -> tuple[dict, dict, tuple[int, int] | None]:
+    """All renders of a report in one GL harness: ``evaluate`` of the container with images of one
+    view at the coarsest level, the uniform 16-bit scene at the same cameras
+    (``baselines.uniform_quantized_scene``), and the level-coloured source (``baselines.level_scene``)
+    from the images' view at the frame distance (the object fills the frame: legible at any level;
+    ``lopcook.budget.frame_distance``), added to the images as ``levels`` (not cropped). Returns (evaluation, uniform16
+    evaluation, (lo, hi) of the level ramp or None)."""
+    from .budget import frame_distance
+    from .verify.baselines import level_scene, uniform_quantized_scene
+    from .verify.render import Harness, Shading, render_viewing
+
+    m = container.manifest
+    with Harness(scene, resolution) as h:
+        ev = h.evaluate(container, levels=levels, views=views, keep_images=True)
+        viewing = render_viewing(m, resolution)
+        shading = Shading.from_manifest(m)
+        extent = float(m["grid"]["extent"])
+        u16 = h.evaluate_scene(uniform_quantized_scene(scene), levels=levels, views=views, extent=extent,
+                               viewing=viewing, shading=shading)
+        level_range = None
+        imgs = ev.get("images")
+        if imgs:
+            hist = [b for b, c in enumerate(m["stats"]["histogram"]) if c and b > 0]
+            coloured, lo, hi = level_scene(container, scene, hist[0], hist[-1])
+            box = scene.bounds()
+            lv = h.evaluate_scene(coloured, levels=[imgs["level"]], views=[imgs["view"]], extent=extent,
+                                  viewing=viewing, shading=Shading(ks=0.0), keep_images=True,
+                                  image_view=imgs["view"],
+                                  distance_m=frame_distance(box[0], box[1], viewing.fov_y_deg, resolution))
+            imgs["levels"] = lv["images"]["scene"]
+            level_range = (lo, hi)
+    return ev, u16, level_range
 
 
 # ---- HTML ---------------------------------------------------------------------------------------------
@@ -357,27 +417,44 @@ def _ticks(lo, hi, n=6):
 
 
 def memory_psnr_svg(rep: dict) -> str:
+    """Accuracy against memory: one point per level for AP, CAP and the uniform 16-bit baseline
+    (when rendered), float32 at 100 % in the top (inf) band."""
     pts = {v: [(r[v]["percent_of_float32"], r[v]["psnr_min"]) for r in rep["levels"] if v in r] for v in ("ap", "cap")}
     labels = {v: [str(r["level"]) for r in rep["levels"] if v in r] for v in ("ap", "cap")}
+    u = rep["baselines"]["uniform16"]
+    pts["u16"] = [(u["percent_of_float32"], r["psnr_min"]) for r in u.get("levels") or []]
+    labels["u16"] = [str(r["level"]) for r in u.get("levels") or []]
     finite = [b for v in pts.values() for _, b in v if b is not None]
     ylo = math.floor((min(finite) if finite else 20.0) / 5) * 5 - 5
     yhi = math.ceil((max(finite) if finite else 60.0) / 5) * 5 + 5
     p = _Plot(0, 105, ylo, yhi)
     p.axes("position memory, % of float32", "PSNR min over views, dB", _ticks(0, 100, 5), _ticks(ylo, yhi) + [None])
-    u = rep["baselines"]["uniform16"]
-    X = p.x(u["percent_of_float32"])
-    p.parts.append(f'<line x1="{X:.1f}" y1="{p.t - 16}" x2="{X:.1f}" y2="{p.h - p.b}" stroke="#888" '
-                   f'stroke-dasharray="4 3"><title>uniform 16-bit: {u["percent_of_float32"]:.1f} %, not rendered'
-                   f'</title></line><text x="{X + 4:.1f}" y="{p.h - p.b - 6}" fill="#666" font-size="10">16-bit '
-                   f'(memory only)</text>')
     p.series(pts["ap"], "#d62728", "AP", labels["ap"])
     p.series(pts["cap"], "#1f77b4", "CAP", labels["cap"])
+    legend = [("AP", "#d62728"), ("CAP", "#1f77b4"), ("float32", "#2ca02c")]
+    if pts["u16"]:
+        p.series(pts["u16"], "#7f7f7f", "uniform 16-bit", labels["u16"], dash="2 2")
+        legend.append(("uniform 16-bit", "#7f7f7f"))
+    else:
+        X = p.x(u["percent_of_float32"])
+        p.parts.append(f'<line x1="{X:.1f}" y1="{p.t - 16}" x2="{X:.1f}" y2="{p.h - p.b}" stroke="#888" '
+                       f'stroke-dasharray="4 3"><title>uniform 16-bit: {u["percent_of_float32"]:.1f} %, not rendered'
+                       f'</title></line>')
+        legend.append(("16-bit, memory only (dashed)", "#888"))
     p.series([(100.0, None)], "#2ca02c", "float32")
-    return p.svg("memory vs PSNR per level", [("AP", "#d62728"), ("CAP", "#1f77b4"), ("float32", "#2ca02c"),
-                                              ("16-bit (dashed)", "#888")])
+    return p.svg("memory vs PSNR per level", legend)
+
+
+def _level_fill(level: int, lo: int, hi: int) -> str:
+    """CSS colour of ``level`` on the ramp of the level image (``baselines.level_colours``)."""
+    from .verify.baselines import level_colours
+
+    r, g, b, _ = (np.asarray(level_colours(np.array([level]), lo, hi))[0] * 255.0 + 0.5).astype(int)
+    return f"#{r:02x}{g:02x}{b:02x}"
 
 
 def histogram_svg(hist: list[int]) -> str:
+    """Bars per minimum level, coloured as the level image (``levels``): its legend."""
     nz = [b for b in range(1, len(hist)) if hist[b]]
     lo, hi = (nz[0], nz[-1]) if nz else (1, 24)
     top = max(hist) or 1
@@ -388,7 +465,7 @@ def histogram_svg(hist: list[int]) -> str:
         bh = (h - b - t) * hist[lv] / top
         x = l + i * bw
         parts.append(f'<rect class="bar" data-level="{lv}" data-count="{hist[lv]}" x="{x + 1:.1f}" '
-                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" fill="#1f77b4">'
+                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" fill="{_level_fill(lv, lo, hi)}">'
                      f'<title>level {lv}: {hist[lv]} vertices</title></rect>'
                      f'<text x="{x + bw / 2:.1f}" y="{h - b + 14}" text-anchor="middle">{lv}</text>')
     parts.append(f'<text x="{l - 6}" y="{t + 4}" text-anchor="end">{top}</text>'
@@ -530,7 +607,9 @@ document.body.dataset.imagesOk=String(n);document.body.dataset.imagesTotal=Strin
 
 
 def table_rows(rep: dict) -> list[list[str]]:
-    """The Table-1-like rows as displayed (also used by tests)."""
+    """The Table-1-like rows as displayed (also used by tests): level, AP memory %, AP PSNR min /
+    mean, CAP memory %, CAP PSNR min / mean, depth-order errors AP / CAP, uniform 16-bit PSNR."""
+    u16 = {r["level"]: r for r in rep["baselines"]["uniform16"].get("levels") or []}
     rows = []
     for r in rep["levels"]:
         ap, cap = r.get("ap"), r.get("cap")
@@ -539,7 +618,9 @@ def table_rows(rep: dict) -> list[list[str]]:
                      f"{fmt_psnr(ap['psnr_min'])} / {fmt_psnr(ap['psnr_mean'])}" if ap else "-",
                      fmt_pct(cap["percent_of_float32"]) if cap else "-",
                      f"{fmt_psnr(cap['psnr_min'])} / {fmt_psnr(cap['psnr_mean'])}" if cap else "-",
-                     f"{ap['depth_order_errors'] if ap else '-'} / {cap['depth_order_errors'] if cap else '-'}"])
+                     f"{ap['depth_order_errors'] if ap else '-'} / {cap['depth_order_errors'] if cap else '-'}",
+                     f"{fmt_psnr(u16[r['level']]['psnr_min'])} / {fmt_psnr(u16[r['level']]['psnr_mean'])}"
+                     if r["level"] in u16 else "-"])
     return rows
 
 
@@ -587,7 +668,8 @@ def render_html(rep: dict, images: dict | None) -> str:
            f"{len(rep['render']['views'])} views on {e(rep['render']['device'])}.</p>",
            "<h2>Accuracy per level (Table 1)</h2>",
            '<table id="levels"><thead><tr><th>level</th><th>AP memory %</th><th>AP PSNR dB min / mean</th>'
-           "<th>CAP memory %</th><th>CAP PSNR dB min / mean</th><th>depth-order error px AP / CAP</th></tr>"
+           "<th>CAP memory %</th><th>CAP PSNR dB min / mean</th><th>depth-order error px AP / CAP</th>"
+           f"<th>16-bit ({rep['baselines']['uniform16']['percent_of_float32']:.1f} %) PSNR dB min / mean</th></tr>"
            "</thead><tbody>"]
     for row in table_rows(rep):
         out.append(f'<tr data-level="{e(row[0])}">' + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
@@ -614,11 +696,15 @@ def render_html(rep: dict, images: dict | None) -> str:
                 f"pixels): one rendered pixel is a {sc}x{sc} block.") + "</p>")
         out.append("<div>")
         captions = {"float": "float32", "ap": "AP", "cap": "CAP", "ap_heatmap": "AP error heat map",
-                    "cap_heatmap": "CAP error heat map"}
+                    "cap_heatmap": "CAP error heat map", "levels": "minimum level per vertex (Fig. 7; camera at the frame distance)"}
+        if im.get("level_range"):
+            lo, hi = im["level_range"]
+            captions["levels"] += f", levels {lo} (blue) to {hi} (red), colours as in the histogram"
         for k in IMAGE_KEYS:
             if k in images and images[k] is not None:
-                a = apply_crop(images[k], crop)
-                cap_text = captions.get(k, k) + (f" (crop, {crop['scale']}x)" if crop and crop["scale"] > 1 else "")
+                a = apply_crop(images[k], crop if k != "levels" else crop_box({k: images[k]}))
+                cropped = crop and crop["scale"] > 1 and k != "levels"
+                cap_text = captions.get(k, k) + (f" (crop, {crop['scale']}x)" if cropped else "")
                 out.append(f'<figure><img id="img-{k}" alt="{e(captions.get(k, k))}" width="{a.shape[1]}" '
                            f'height="{a.shape[0]}" src="{png_data_uri(a)}"><figcaption>{e(cap_text)}'
                            f"</figcaption></figure>")
@@ -627,12 +713,19 @@ def render_html(rep: dict, images: dict | None) -> str:
     if lods and lods.get("parts"):
         out.append(lod_table_html(lods))
     out.append("<h2>Cook</h2>")
-    tim = rep.get("cook_timings_s")
+    cook, tim = rep.get("cook"), rep.get("cook_timings_s")
+    if cook:
+        out.append(f'<p class="note" id="recook" data-status="{e(cook["status"])}">Re-cooked from the source with the '
+                   f'recorded options to time the stages: <b>{e(cook["status"])}</b>; {e(cook["detail"])}.</p>')
     if tim:
+        total = sum(v for k, v in tim.items() if "." not in k)
         out.append('<table id="timings"><tr><th>stage</th><th>seconds</th></tr>' + "".join(
-            f"<tr><td>{e(k)}</td><td>{v:.3f}</td></tr>" for k, v in tim.items()) + "</table>")
+            f"<tr><td>{e(k)}</td><td>{v:.3f}</td></tr>" for k, v in tim.items())
+            + f"<tr><td><b>total</b> (stages without a dot)</td><td>{total:.3f}</td></tr></table>")
+        out.append('<p class="note">What the time bought: the accuracy table and chart above (CAP memory and PSNR '
+                   'per level).</p>')
     else:
-        out.append('<p class="note">cook stage timings: not recorded in the container.</p>')
+        out.append('<p class="note">cook stage timings: not measured (the source was not re-cooked).</p>')
     w = rep["warnings"]
     items = [f"scene: {x}" for x in w["scene"]]
     if w["touching"]:
@@ -674,5 +767,5 @@ def write_html(report_dict: dict, images: dict | None, path) -> tuple[Path, Path
     return path, jpath
 
 
-__all__ = ["budget_section", "budget_svg", "budget_html", "build_report", "write_html", "render_html", "analysis_warnings", "table_rows", "png_data_uri", "lod_table",
-           "crop_box", "apply_crop"]
+__all__ = ["budget_section", "budget_svg", "budget_html", "build_report", "write_html", "render_html", "analysis_warnings",
+           "table_rows", "png_data_uri", "lod_table", "crop_box", "apply_crop", "render_for_report", "uniform16_section"]

@@ -150,3 +150,33 @@ def test_cook_lods_auto_is_the_default_chain(tmp_path):
         proc = run("cook", src, "-o", tmp_path / "bad.lop", "--lods", bad)
         assert_one_line_error(proc, "--lods")
     assert not (tmp_path / "bad.lop").exists()
+
+
+def test_decode_lod_uses_the_coarsest_lod_of_shorter_chains(tmp_path, capsys):
+    """A part whose chain stopped early (here: 2 triangles, never simplified) is decoded at its
+    coarsest LOD, as a renderer selecting by distance would draw it; a LOD no part has is an error."""
+    import json
+
+    import numpy as np
+
+    from lopcook import fixtures as F
+    from lopcook.cli import main
+    from lopcook.ingest import load
+
+    sphere = F.unit_sphere()[0]
+    quad = F._part("quad", [[3, 0, 0], [4, 0, 0], [4, 1, 0], [3, 1, 0]], [[0, 1, 2], [0, 2, 3]],
+                   normals=[[0, 0, 1]] * 4)
+    src = tmp_path / "two.glb"
+    F.write_gltf([F._part("sphere", sphere.positions, sphere.indices, normals=sphere.normals), quad], src, binary=True)
+    lop = tmp_path / "two.lop"
+    assert main(["-q", "cook", str(src), "-o", str(lop), "--lods", "1/2,1/4", "--lod-backend", "fast"]) == 0
+    out = tmp_path / "lod2.glb"
+    capsys.readouterr()
+    assert main(["decode", str(lop), "--level", "12", "--lod", "2", "-o", str(out), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["parts_at_coarsest_lod"] == ["quad/quad"]  # node/mesh part names
+    got = load(str(out))
+    assert [p.n_triangles for p in got.parts] == [sphere.indices.shape[0] // 4, 2]
+    assert np.abs(got.parts[1].positions - np.asarray(quad.positions)).max() < 1e-2
+    assert main(["decode", str(lop), "--level", "12", "--lod", "3", "-o", str(tmp_path / "no.glb")]) == 2
+    assert "LODs 0..2" in capsys.readouterr().err and not (tmp_path / "no.glb").exists()

@@ -43,20 +43,18 @@ def _schema():
 
 @pytest.mark.parametrize("name", NAMES)
 def test_html_self_contained(reports, name):
-    from PIL import Image
-
     _, _, html_path, _ = reports[name]
     text = html_path.read_text()
     assert "http://" not in text and "https://" not in text
     assert not re.search(r"<(script|link|iframe|img)[^>]*\s(src|href)=\"(?!data:)", text)
     srcs = re.findall(r"<img[^>]*\ssrc=\"([^\"]*)\"", text)
-    assert len(srcs) == 5  # float, AP, CAP, AP and CAP heat maps
+    assert len(srcs) == 6  # float, AP, CAP, AP and CAP heat maps, minimum levels (Fig. 7)
     crop = json.loads(html_path.with_suffix(".json").read_text())["images"]["crop"]
     for s in srcs:
         assert s.startswith("data:image/png;base64,")
-        im = Image.open(io.BytesIO(base64.b64decode(s.split(",", 1)[1])))
-        im.load()
-        assert im.size == tuple(crop["size"])  # all images of the view share one crop
+    for k, a in _pngs(text).items():  # every image decodes
+        if k != "levels":  # the level image is framed on its own
+            assert (a.shape[1], a.shape[0]) == tuple(crop["size"]), k  # the view's images share one crop
     assert text.count("<svg") >= 2  # memory-vs-PSNR chart, histogram
 
 
@@ -92,7 +90,8 @@ def test_deterministic(reports, tmp_path):
     assert main(["-q", "report", lop, "--source", src, "-o", str(again), *ARGS]) == 0
     a = json.loads(json_path.read_text())
     b = json.loads(again.with_suffix(".json").read_text())
-    a.pop("seconds"), b.pop("seconds")
+    for k in ("seconds", "cook_timings_s"):  # the only values that vary between runs
+        a.pop(k), b.pop(k)
     a["container"] = b["container"]  # same file, same name
     assert a == b
 
@@ -117,8 +116,8 @@ def test_chromium_decodes(reports, tmp_path):
            f"--user-data-dir={tmp_path / 'profile'}", "--dump-dom", html_path.resolve().as_uri()]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
     dom = r.stdout
-    assert 'data-images-total="5"' in dom, r.stderr[-2000:]
-    assert 'data-images-ok="5"' in dom
+    assert 'data-images-total="6"' in dom, r.stderr[-2000:]
+    assert 'data-images-ok="6"' in dom
     assert '<table id="levels">' in dom and 'data-level="6"' in dom and 'data-level="7"' in dom
 
 
@@ -165,6 +164,8 @@ def test_images_cropped_to_the_object(reports, name):
     assert crop["size"][0] <= fw and crop["size"][1] <= fh
     imgs = _pngs(html_path.read_text())
     assert sorted(imgs) == sorted(rep["images"]["kinds"])
+    levels_image = imgs.pop("levels")  # framed on its own (frame distance, own crop)
+    assert levels_image.shape[2] == 4 and (levels_image[..., 3] > 0).any()
     for k, a in imgs.items():
         assert a.shape[:2] == (crop["size"][1], crop["size"][0]), k
         small = a[::s, ::s]
@@ -269,3 +270,44 @@ def test_lod_notes_shown_when_recorded(lod_report):
     rep["lods"]["parts"][0]["notes"] = ["LOD 0.0625: fast failed: test; falling back to pymeshlab"]
     text = render_html(rep, None)
     assert '<ul id="lod-notes">' in text and "falling back to pymeshlab" in text
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_uniform16_rendered_at_the_same_cameras(reports, name):
+    """The 16-bit baseline is rendered (not only drawn as memory): one row per level, in the table's
+    last column and in the chart; on the glossy crease its error is far below AP's at level 6."""
+    _, _, html_path, json_path = reports[name]
+    rep = json.loads(json_path.read_text())
+    u = rep["baselines"]["uniform16"]
+    assert u["rendered"] and [r["level"] for r in u["levels"]] == [r["level"] for r in rep["levels"]]
+    assert u["percent_of_float32"] == pytest.approx(200 / 3) and u["bytes"] == 8 * rep["vertices"]
+    text = html_path.read_text()
+    for row, r in zip(table_rows(rep), u["levels"]):
+        assert row[-1] == f"{fmt_psnr(r['psnr_min'])} / {fmt_psnr(r['psnr_mean'])}"
+        m = re.search(rf'<tr data-level="{r["level"]}">(.*?)</tr>', text)
+        assert html.unescape(re.findall(r"<td>(.*?)</td>", m.group(1))[-1]) == row[-1]
+    assert "uniform 16-bit" in text
+    if name == "glossy_crease":
+        ap6 = rep["levels"][0]["ap"]["psnr_min"]
+        assert u["levels"][0]["psnr_min"] is None or u["levels"][0]["psnr_min"] > ap6 + 10
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_cook_timings_from_an_identical_recook(reports, name):
+    _, _, html_path, json_path = reports[name]
+    rep = json.loads(json_path.read_text())
+    assert rep["cook"]["status"] == "identical" and rep["cook"]["bytes"] > 0
+    t = rep["cook_timings_s"]
+    assert {"ingest", "analyse", "emit"} <= set(t) and all(v >= 0 for v in t.values())
+    text = html_path.read_text()
+    assert 'data-status="identical"' in text and '<table id="timings">' in text
+    assert rep["images"]["level_range"][0] >= 1 and "levels" in rep["images"]["kinds"]
+
+
+def test_no_analyse_skips_the_recook(reports, tmp_path):
+    src, lop, _, _ = reports["two_plates"]
+    out = tmp_path / "quick.html"
+    assert main(["-q", "report", lop, "--source", src, "-o", str(out), *ARGS, "--no-analyse"]) == 0
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["cook"] is None and rep["cook_timings_s"] is None and rep["warnings"]["available"] is False
+    assert "not measured" in out.read_text()

@@ -1,0 +1,125 @@
+"""Re-cook a container from its source with the options it records: the cook's stage timings for
+``lopcook report`` and a byte-for-byte determinism check.
+
+A container holds no timings (the same input and options must give the same bytes, and a clock
+would break that), so ``lopcook report`` measures them again: it runs the cook's pipeline
+(``lopcook.pipeline.cook_bytes``) on the already ingested source with the recorded analysis
+settings (``options.analyse``), LOD options (``options.lods``: ratios as ``--lods`` spells them,
+backend) and viewing conditions (``viewing``), and records the options verbatim, exactly as
+``lopcook cook`` did. The bytes it produces are then compared with the file's:
+
+* ``"identical"``: same bytes (deterministic output, and the report describes what this lopcook
+  version writes for that source);
+* ``"prefix"``: the file is a prefix of the re-cooked bytes (a truncated download: the prefix
+  property lets it decode lower levels);
+* ``"differs"``: the container was written by another lopcook or library version, from another
+  source, or with options this version cannot read back -- reported as a warning, never an error;
+* ``"not re-cooked"``: a ``cook --target-bytes`` container is one candidate of a fit that renders
+  dozens of candidates; only its analysis is re-run (for the warnings) and timed.
+
+``cook --target-psnr`` containers record the calibrated eps and edge_eps in ``options.analyse``, so
+they re-cook exactly; the calibration itself is not re-run (its cost is not in the timings).
+
+Timings (seconds, wall clock of this process): ``ingest`` (as measured by the caller), ``lod``
+(LOD chains, when the container has LODs), ``analyse`` (every LOD; with ``analyse.<stage>`` the
+LOD 0 breakdown: grid, attribute_error, discontinuity, depth, co-located), ``emit`` (bins, planes,
+container bytes).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import fields
+from pathlib import Path
+
+from ..settings import AnalyseSettings
+from ..viewing import Viewing
+
+
+def recorded_settings(manifest: dict) -> AnalyseSettings:
+    """The ``AnalyseSettings`` recorded in ``options.analyse`` (defaults for fields not recorded or
+    not readable: ``depth`` is stored as ``"auto"``, ``"off"`` or ``"fixed:N"``)."""
+    rec = (manifest.get("options") or {}).get("analyse") or {}
+    names = {f.name for f in fields(AnalyseSettings)}
+    kw = {}
+    for k, v in rec.items():
+        k2 = "depth_threshold" if k == "depth_threshold_m" else k
+        if k2 not in names or v is None or isinstance(v, (dict, list)):
+            continue
+        if k2 == "depth" and isinstance(v, str) and v.startswith("fixed:"):
+            v = ("fixed", int(v.split(":", 1)[1]))
+        kw[k2] = v
+    try:
+        return AnalyseSettings(**kw)
+    except (TypeError, ValueError):
+        return AnalyseSettings()
+
+
+def recorded_viewing(manifest: dict) -> Viewing:
+    """The manifest's ``viewing`` record as a ``Viewing`` (defaults where absent)."""
+    v = manifest.get("viewing") or {}
+    d = Viewing()
+    try:
+        return Viewing(viewport=tuple(int(x) for x in v.get("viewport", d.viewport)),
+                       fov_y_deg=float(v.get("fov_y_deg", d.fov_y_deg)), nearest_m=v.get("nearest_m"),
+                       pixel_error=float(v.get("pixel_error", d.pixel_error)))
+    except (TypeError, ValueError):
+        return d
+
+
+def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes | None = None) -> dict:
+    """Re-cook ``container`` (``lopcook.emit.container.Container``) from ``scene`` (its ingested
+    source) and compare (see module doc).
+
+    Returns ``{"status": "identical" | "prefix" | "differs" | "not re-cooked", "detail": str,
+    "timings_s": {stage: seconds}, "bytes": int or None (re-cooked size), "analysis": Analysis
+    (LOD 0 of every part: warnings), "lod_reports": [per part LodReport dict] (empty without
+    LODs)}``. ``file_bytes``: the container file's bytes (default: read from ``container.path``).
+    """
+    from ..analyse import analyse
+    from ..pipeline import cook_bytes, parse_lod_ratios
+
+    m = container.manifest
+    options = m.get("options") or {}
+    settings = recorded_settings(m)
+    timings = {} if ingest_s is None else {"ingest": float(ingest_s)}
+    if options.get("budget") is not None:
+        t0 = time.perf_counter()
+        an = analyse(scene, settings)
+        timings["analyse"] = time.perf_counter() - t0
+        timings.update({f"analyse.{k}": float(v) for k, v in an.timings.items()})
+        return {"status": "not re-cooked", "detail": "cooked with --target-bytes: the byte-budget fit renders "
+                "every candidate and is not re-run; only the analysis is timed", "timings_s": timings,
+                "bytes": None, "analysis": an, "lod_reports": []}
+    lods = options.get("lods") or {}
+    try:
+        ratios = parse_lod_ratios(lods.get("ratios")) if lods.get("ratios") is not None else None
+    except Exception:  # noqa: BLE001 - an unreadable record: cook without LODs, the bytes will differ
+        ratios = None
+    data, info = cook_bytes(scene, settings, recorded_viewing(m), lod_ratios=ratios,
+                            lod_backend=str(lods.get("backend") or "pymeshlab"), options=options or None)
+    an = info["analysis"]
+    for k, v in info["timings_s"].items():
+        if k != "total":
+            timings[k] = float(v)
+    timings.update({f"analyse.{k}": float(v) for k, v in an.timings.items()})
+    if file_bytes is None and container.path is not None and Path(container.path).is_file():
+        file_bytes = Path(container.path).read_bytes()
+    if file_bytes is None:
+        status, detail = "differs", "the container's bytes are not available to compare"
+    elif file_bytes == data:
+        status, detail = "identical", f"re-cooking the source gives the same {len(data):,} bytes"
+    elif len(file_bytes) < len(data) and data.startswith(file_bytes):
+        status, detail = "prefix", (f"the file ({len(file_bytes):,} bytes) is a prefix of the re-cooked "
+                                    f"{len(data):,} bytes")
+    else:
+        status, detail = "differs", (f"re-cooking gives {len(data):,} bytes that differ from the file's "
+                                     f"{len(file_bytes):,} (another lopcook or library version, another source, "
+                                     "or options this version does not read back)")
+    if options.get("calibration") is not None:
+        detail += "; the k_f calibration (cook --target-psnr) is not re-run or timed"
+    return {"status": status, "detail": detail, "timings_s": timings, "bytes": len(data), "analysis": an,
+            "lod_reports": info.get("lod_reports") or []}
+
+
+__all__ = ["recorded_settings", "recorded_viewing", "recook"]
