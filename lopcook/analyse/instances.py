@@ -1,0 +1,146 @@
+"""Parts that are one mesh placed several times: found by content, so that a LOD chain is
+simplified once per distinct mesh and placed on every copy.
+
+Scenes place one mesh many times (USD instances and references, glTF nodes sharing a mesh, the
+chess set's 16 pawns: 49 parts, 8 distinct meshes). lopcook's scene model is in world space, so
+the copies differ in positions only. Two parts are **copies** when they have the same vertex count,
+the same triangles (index arrays equal), the same UVs and colours (bit for bit), and one affine map
+``x -> A x + t`` takes every position of the first to the second's within ``rtol`` of the part's
+extent (least squares over all vertices, then the largest residual is checked), with ``A``
+invertible, and the normals agree with ``A^-T n`` normalised (within ``NORMAL_TOL``).
+
+A copy's LOD is the representative's LOD mapped by the same ``(A, t)`` (normals by ``A^-T``,
+renormalised; triangles, UVs and colours unchanged). Its error: when ``A`` is a similarity
+(``A^T A = s^2 I``, rotation or reflection times a uniform scale s) distances scale by ``s``
+exactly, so error_m = s * the representative's; otherwise the error is measured again
+(``lod.hausdorff``). Mirrored placements whose importer reversed the winding have different index
+arrays and are simplified on their own; so is anything the checks reject.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..types import MeshPart
+
+#: largest position residual of the affine fit, relative to the part's bounding-box diagonal
+RTOL = 1e-9
+#: largest normal difference (unit vectors) between a copy and the mapped representative
+NORMAL_TOL = 1e-4
+
+
+def _digest(a: np.ndarray | None) -> str:
+    return "-" if a is None else hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest()
+
+
+def signature(part: MeshPart) -> tuple:
+    """What copies must share exactly: vertex count, triangles, UVs, colours (digests)."""
+    return (part.n_vertices, part.n_triangles, _digest(part.indices), _digest(part.uvs), _digest(part.colors),
+            part.normals is None)
+
+
+def affine_map(rep: MeshPart, other: MeshPart, rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(A (3, 3), t (3,))`` with ``other.positions ~ rep.positions @ A.T + t`` (module doc), or None
+    when ``other`` is not a copy of ``rep``."""
+    if signature(rep) != signature(other) or rep.n_vertices < 4:
+        return None
+    p, q = np.asarray(rep.positions, np.float64), np.asarray(other.positions, np.float64)
+    c = p.mean(axis=0)
+    h = np.concatenate([p - c, np.ones((p.shape[0], 1))], axis=1)  # centred: a well-conditioned fit
+    x, _, rank, sv = np.linalg.lstsq(h, q, rcond=None)
+    if rank < 4 or sv[-1] <= 1e-9 * sv[0]:
+        return None  # flat or degenerate: the map is not determined by the vertices
+    a = x[:3].T
+    t = x[3] - a @ c
+    diag = float(np.linalg.norm(q.max(axis=0) - q.min(axis=0)))
+    if not np.isfinite(a).all() or abs(np.linalg.det(a)) <= 1e-300:
+        return None
+    if float(np.abs(p @ a.T + t - q).max()) > rtol * max(diag, 1e-300):
+        return None
+    if rep.normals is not None:
+        if float(np.abs(map_normals(rep.normals, a) - other.normals).max()) > NORMAL_TOL:
+            return None
+    return a, t
+
+
+def map_normals(normals: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """(n, 3) float32 unit normals mapped by the inverse transpose of ``a``."""
+    m = np.asarray(normals, np.float64) @ np.linalg.inv(a)  # n @ A^-1 == (A^-T n^T)^T
+    ln = np.linalg.norm(m, axis=1, keepdims=True)
+    return (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+
+
+def similarity_scale(a: np.ndarray, rtol: float = 1e-9) -> float | None:
+    """``s`` when ``a`` is s times an orthogonal matrix (distances scale by s), else None."""
+    s2 = float(abs(np.linalg.det(a))) ** (2.0 / 3.0)
+    if s2 <= 0 or float(np.abs(a.T @ a - s2 * np.eye(3)).max()) > rtol * s2:
+        return None
+    return float(np.sqrt(s2))
+
+
+def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshPart:
+    """``part`` (a LOD of the representative) mapped by ``(a, t)``, named and sourced as ``like``
+    (the copy it is placed on)."""
+    return MeshPart(name=like.name, positions=np.ascontiguousarray(part.positions @ a.T + t, dtype=np.float64),
+                    indices=part.indices, normals=None if part.normals is None else map_normals(part.normals, a),
+                    uvs=part.uvs, colors=part.colors, source=like.source, normals_computed=like.normals_computed,
+                    texture=like.texture, mesh_key=like.mesh_key)
+
+
+def groups(parts) -> list[list[int]]:
+    """Indices of ``parts`` grouped into copies, each group led by its first part (in part order);
+    a part that copies no earlier part leads a group of its own."""
+    by_sig: dict = {}
+    out: list[list[int]] = []
+    for i, p in enumerate(parts):
+        cands = by_sig.setdefault(signature(p), [])
+        for g in cands:
+            if affine_map(parts[g[0]], p) is not None:
+                g.append(i)
+                break
+        else:
+            g = [i]
+            cands.append(g)
+            out.append(g)
+    return out
+
+
+def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarray,
+                 max_error_m: float | None = None) -> tuple[list, object]:
+    """The representative's chain ``(lods, report)`` (``lod.lod_chain``) placed on ``copy``:
+    LOD 0 is ``copy`` itself, every other LOD ``place``d, errors scaled by the similarity scale or
+    measured (module doc), the chain cut where an error exceeds ``max_error_m``. Returns
+    ``(lods, report)`` for the copy."""
+    from .lod import hausdorff
+
+    t0 = time.perf_counter()
+    s = similarity_scale(a)
+    out = [replace(lods[0], part=copy, notes=list(lods[0].notes))]
+    note = (f"copy of part {report.part!r}: its LODs placed by the affine map (scale {s:.6g}: errors scaled)"
+            if s is not None else f"copy of part {report.part!r}: its LODs placed by the affine map (not a "
+                                  "similarity: errors measured)")
+    stop = ""
+    for lod in lods[1:]:
+        part = place(lod.part, a, t, copy)
+        if s is not None:
+            h, one = lod.hausdorff_m * s, (lod.one_sided_m[0] * s, lod.one_sided_m[1] * s)
+        else:
+            h, ab, ba = hausdorff(part, copy)
+            one = (ab, ba)
+        err = max(h, out[-1].error_m)
+        if max_error_m is not None and err > max_error_m:
+            stop = f"LOD {lod.target_ratio:g} error {err:.3g} m exceeds max_error_m {max_error_m:.3g} m; dropped"
+            break
+        out.append(replace(lod, part=part, hausdorff_m=h, error_m=err, one_sided_m=one, seconds=0.0,
+                           notes=list(lod.notes)))
+    rep = replace(report, part=copy.name, max_error_m=max_error_m, notes=[note] + list(report.notes),
+                  stop_reason=stop or report.stop_reason, lods=[lod.summary() for lod in out],
+                  seconds=time.perf_counter() - t0)
+    return out, rep
+
+
+__all__ = ["RTOL", "NORMAL_TOL", "signature", "affine_map", "map_normals", "similarity_scale", "place", "groups", "placed_chain"]
