@@ -530,7 +530,8 @@ def cmd_decode(args) -> int:
     parts = c.manifest["parts"]
     deepest = max(len(p["lods"]) for p in parts)
     if not 0 <= args.lod < deepest:
-        raise LopcookError("usage", args.container, f"--lod {args.lod}: the container has LODs 0..{deepest - 1}")
+        raise LopcookError("usage", args.container, f"--lod {args.lod}: no part has LOD {args.lod} (the container has "
+                           f"LODs 0..{deepest - 1})")
     meshes, coarsest = [], []
     for i, part in enumerate(parts):
         # a part whose chain stopped early (too few triangles, or a LOD no distance selects) is
