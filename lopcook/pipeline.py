@@ -35,6 +35,7 @@ from .analyse import Grid, _colocated_max, analyse
 from .analyse.grid import BITS
 from .analyse.lod import lod_chain
 from .errors import LopcookError
+from .memory import release_free_memory
 from .analyse.result import REASON_CODE
 from .settings import DEFAULT_ANALYSE, AnalyseSettings
 from .types import Scene
@@ -196,6 +197,7 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
         chains_lod, reports = [[None] for _ in scene.parts], []
     parts_chain = [[p] if c[0] is None else [lod.part for lod in c] for p, c in zip(scene.parts, chains_lod)]
     errors = [[0.0] if c[0] is None else [float(lod.error_m) for lod in c] for c in chains_lod]
+    release_free_memory()  # the chains' temporaries: back to the system before the analysis
     timings["lod"] = time.perf_counter() - t0
     info["lod_reports"] = [r.as_dict() for r in reports]
     info["lod_max_error_m"] = cap
@@ -203,6 +205,7 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
     # (2)+(3) one grid, every LOD analysed, co-located sharing across LODs
     t0 = time.perf_counter()
     grid, analyses, levels, raised = analyse_lods(scene, parts_chain, analyse_settings)
+    release_free_memory()
     timings["analyse"] = time.perf_counter() - t0
     info["colocated_raised_across_lods"] = raised
     info["grid_extent_m"] = float(grid.extent)

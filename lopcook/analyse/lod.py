@@ -94,7 +94,14 @@ Failures (never raised for mesh-quality reasons; each is a note)
   ``max_flipped_fraction`` of faces facing more than 120 degrees away from LOD 0's nearest face
   at the centroid and at two of three points half-way to the corners, or a closed mesh whose
   signed volume changes sign) or a count more than 2x off its target: the other backend is tried;
-  if it fails too the LOD is not produced (``Lod.failed``) and the chain keeps the previous LODs.
+  if it fails too the LOD is not produced (``Lod.failed``) and the chain keeps the previous LODs;
+* a backend that crashes the process: inputs of ``isolate.MIN_FACES`` faces or more are simplified
+  in a forked child (``lopcook.analyse.isolate``), so a segmentation fault is a failure like the
+  others and the backend's memory (pymeshlab peaks ~500 MB at 1.1M triangles; fast-simplification
+  keeps ~320 MB until the process ends) is freed when the result is back.
+
+Copies of one mesh in a scene are simplified once (``lopcook.analyse.instances``, used by
+``lopcook.pipeline``).
 """
 
 from __future__ import annotations
@@ -107,6 +114,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..ingest.weld import sorted_unique, unique_rows, used_ids, weld_exact
+from ..memory import release_free_memory
+from . import isolate
 from ..types import MeshPart
 
 BACKENDS = ("pymeshlab", "fast")
@@ -382,7 +391,13 @@ def _point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):
 def _samples(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Referenced vertices and face centroids."""
     used = used_ids(faces, positions.shape[0])
-    return np.concatenate([positions[used], positions[faces].mean(axis=1)])
+    out = np.empty((used.size + faces.shape[0], 3), dtype=np.float64)
+    out[:used.size] = positions[used]
+    cen = out[used.size:]  # centroids in place: no (m, 3, 3) temporary
+    np.add(positions[faces[:, 0]], positions[faces[:, 1]], out=cen)
+    cen += positions[faces[:, 2]]
+    cen /= 3.0
+    return out
 
 
 def hausdorff(a: MeshPart, b: MeshPart) -> tuple[float, float, float]:
@@ -948,7 +963,9 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             if work.faces.shape[0] < MIN_SIMPLIFY_TRIANGLES:
                 raise _Failure(f"only {work.faces.shape[0]} non-degenerate triangles")
             tgt = min(target, work.faces.shape[0] - 1)
-            raw = _run_backend(name, work, tgt, preserve_boundary, topology=not nonmanifold)
+            # large inputs: in a child process (its memory is freed on return; a crash is a failure)
+            raw = isolate.call(_run_backend, name, work, tgt, preserve_boundary, topology=not nonmanifold,
+                               faces=work.faces.shape[0])
             res, dropped_out = _check_result(raw, tgt, work.faces.shape[0])
             if dropped_out:
                 notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
@@ -977,6 +994,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             notes.append(f"{info['flipped']} faces face against the source surface (under the "
                          f"{max_flipped_fraction:.0%} threshold; kept)")
         ref_to_lod = _measure_ref_to_lod(ref, lod_part)
+        release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
         tri = lod_part.n_triangles
         if abs(tri - target) > TARGET_TOLERANCE * target:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 
 from ..errors import LopcookError
+from ..memory import release_free_memory
 from ..settings import DEFAULT_INGEST, IngestSettings
 from ..types import Scene
 
@@ -106,6 +107,7 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
     except Exception as exc:  # a parser failure we did not anticipate: still one clear line
         raise LopcookError("ingest", path, f"cannot read {fmt} file: {type(exc).__name__}: {exc}",
                            hint="the file is malformed; re-export it (run with --debug for details)") from exc
+    release_free_memory()  # the parsers' and normal computation's temporaries
     return scene.validate()
 
 

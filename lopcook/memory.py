@@ -1,0 +1,27 @@
+"""Process memory housekeeping for the cook's large temporaries."""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+
+_LIBC = None
+
+
+def release_free_memory() -> None:
+    """Return the C heap's free pages to the system (glibc ``malloc_trim(0)``; a no-op elsewhere).
+    numpy and the native libraries free large temporaries into the heap, which glibc keeps; after
+    the 1.1M-triangle ingest that is about 200 MB of resident but unused memory. Called before a
+    fork (the child would otherwise start with it resident) and between the cook's stages."""
+    global _LIBC
+    if _LIBC is None:
+        try:
+            _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+            _LIBC.malloc_trim  # noqa: B018 - glibc only
+        except (OSError, AttributeError):
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)
+
+
+__all__ = ["release_free_memory"]

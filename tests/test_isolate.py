@@ -1,0 +1,56 @@
+"""``lopcook.analyse.isolate``: a backend call in a forked child returns the same result, re-raises
+the child's exception, and turns a crash into ``ChildFailed``, which the LOD chain falls back from."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from lopcook.analyse import isolate
+from lopcook.analyse import lod as L
+from lopcook.fixtures import unit_sphere
+from lopcook.types import MeshPart
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX only")
+
+
+def _pid_and_sum(a):
+    return os.getpid(), float(np.asarray(a).sum()), np.asarray(a) * 2
+
+
+def test_result_comes_back_from_a_child():
+    a = np.arange(300_000, dtype=np.float64)
+    pid, total, doubled = isolate.call(_pid_and_sum, a, faces=isolate.MIN_FACES)
+    assert pid != os.getpid() and total == float(a.sum()) and np.array_equal(doubled, 2 * a)
+    # small inputs stay in this process
+    assert isolate.call(_pid_and_sum, a, faces=isolate.MIN_FACES - 1)[0] == os.getpid()
+
+
+def _raise():
+    raise ValueError("bad input, said the child")
+
+
+def _crash():
+    os.kill(os.getpid(), signal.SIGSEGV)
+
+
+def test_exception_and_crash():
+    with pytest.raises(ValueError, match="said the child"):
+        isolate.call(_raise, faces=isolate.MIN_FACES)
+    with pytest.raises(isolate.ChildFailed, match="signal 11"):
+        isolate.call(_crash, faces=isolate.MIN_FACES)
+
+
+@pytest.mark.parametrize("backend", L.BACKENDS)
+def test_a_crashing_backend_falls_back(monkeypatch, backend):
+    s = unit_sphere(3)[0]
+    part = MeshPart("s", s.positions, s.indices, normals=s.normals)
+    func = {"pymeshlab": "_simplify_pymeshlab", "fast": "_simplify_fast"}[backend]
+    monkeypatch.setattr(L, func, lambda *a, **k: _crash())
+    monkeypatch.setattr(isolate, "MIN_FACES", 0)  # isolate even this small mesh
+    lod = L.simplify(part, 0.25, backend)
+    assert not lod.failed and lod.backend != backend
+    assert any(f"{backend} failed" in n and "signal 11" in n and "falling back" in n for n in lod.notes)
