@@ -137,3 +137,29 @@ def test_checks_report_pass_and_miss_from_rows():
     status = [c["status"] for c in got.values()]
     assert status == ["miss", "pass", "miss", "pass", "pass"]  # the chart lacks the four default assets  # 3.7 B/vertex at 45 dB; 2x gltfpack; slope 1
     assert B.checks(rows, scaling, ["x"], {}, [6, 7])[1]["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
+
+
+def test_cap_check_takes_the_cheapest_config_that_reaches_40_db():
+    rows = [B._row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=6.0, psnr_min_db=55.0)
+            for b in (6, 7)]
+    rows += [B._row(asset="x", tool="lopcook", config="CAP (calibrated)", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
+                    psnr_min_db=39.0 + b / 6) for b in (6, 7)]  # 40.0 and 40.17 dB
+    c = B.checks(rows, [], ["x"], {}, [6, 7])[1]
+    assert c["status"] == "pass" and c["assets"]["x"]["config"] == "CAP (calibrated)"
+    assert c["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
+    rows[-1]["psnr_min_db"] = 38.0  # calibrated misses 40 dB at level 7: the default CAP is taken
+    c = B.checks(rows, [], ["x"], {}, [6, 7])[1]
+    assert c["assets"]["x"]["config"] == "CAP" and c["status"] == "miss"  # 6 B/vertex > 4
+
+
+def test_results_table_one_row_per_configuration():
+    rows = [B._row(asset="x", tool="lopcook", config=v, bits=b, level=b, gpu_bytes_per_vertex=2.0 + b / 10,
+                   psnr_min_db=30.0 + b, file_bytes=2048, wall_s=1.5, peak_rss_mb=100.0, cracks_between_parts=0)
+            for v in ("AP", "CAP") for b in (6, 11)]
+    rows += [B._row(asset="x", tool="gltfpack", config="-vp 14", bits=14, level=b, gpu_bytes_per_vertex=8.0,
+                    psnr_min_db=float("inf") if b == 11 else 50.0, file_bytes=1024, wall_s=0.2, peak_rss_mb=60.0,
+                    cracks_between_parts=3) for b in (6, 11)]
+    lines = B.results_table(rows, [6, 11])
+    assert len(lines) == 2 + 3
+    assert "| x | lopcook | AP | 2.60-3.10 | 36.0 / 41.0 | 2 | 1.50 | 100 | 0 |" in lines
+    assert "| x | gltfpack | -vp 14 | 8.00 | 50.0 / inf | 1 | 0.20 | 60 | 3 |" in lines
