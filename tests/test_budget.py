@@ -148,6 +148,14 @@ def test_cli_target_bytes(gl, bumpy, tmp_path, capsys):
     assert b["target_bytes"] == b["float_bytes"] // 6 and b["chosen"]["bytes"] <= b["target_bytes"]
     assert all(r["status"] != "rendered" or r["level_fit"] is not None for r in b["lods"])
     assert len({c["lod"] for c in b["candidates"]}) == len(b["candidates"])  # --budget-levels 1
+    # the report of a budget container: its simplified LOD 0 rendered and coloured by level; not re-cooked
+    level = b["chosen"]["level"]
+    html_path = tmp_path / "out.html"
+    assert main(["-q", "report", str(out), "--source", str(src), "-o", str(html_path), "--views", "1",
+                 "--resolution", "96x54", "--levels", f"{max(1, level - 1)}-{level}"]) == 0
+    rep = json.loads(html_path.with_suffix(".json").read_text())
+    assert rep["cook"]["status"] == "not re-cooked" and "levels" in rep["images"]["kinds"]
+    assert rep["budget"]["chosen"] == b["chosen"]
     # nothing fits: exit 2, one line, no output file
     bad = tmp_path / "bad.lop"
     rc = main(["cook", str(src), "-o", str(bad), "--target-bytes", "3", "--lod-backend", "fast",

@@ -74,24 +74,35 @@ def container_levels(c, part: int, lod: int = 0) -> np.ndarray:
 
 
 def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -> tuple[Scene, int, int]:
-    """The source ``scene`` (LOD 0 of container ``c``) with vertex colours by minimum level and no
-    UVs or textures; the ramp runs from ``lo`` to ``hi`` (default: the lowest and highest level of
-    LOD 0). Returns (scene, lo, hi)."""
-    from .render import source_order
+    """LOD 0 of container ``c`` with vertex colours by minimum level and no UVs or textures; the
+    ramp runs from ``lo`` to ``hi`` (default: the lowest and highest level of LOD 0). When LOD 0
+    holds the source's vertices, the source ``scene``'s positions and normals are used (vertices
+    matched by ``render.source_order``); otherwise (a ``cook --target-bytes`` container whose only
+    LOD is simplified) the container's own LOD 0 decoded at its highest level. Returns (scene, lo, hi)."""
+    from ..emit.reader import decode_positions, lod_attributes
+    from .render import lod0_is_source, source_order
 
-    orders = source_order(c, scene)
-    per_part = []
-    for i, (part, order) in enumerate(zip(scene.parts, orders)):
-        lv = np.ones(part.n_vertices, dtype=np.uint8)
-        lv[order] = container_levels(c, i)
-        per_part.append(lv)
+    geometry, per_part = [], []
+    if lod0_is_source(c):
+        for i, (part, order) in enumerate(zip(scene.parts, source_order(c, scene))):
+            lv = np.ones(part.n_vertices, dtype=np.uint8)
+            lv[order] = container_levels(c, i)
+            geometry.append((part.positions, part.indices, part.normals))
+            per_part.append(lv)
+    else:
+        level = min(24, int(c.available_level))
+        for i in range(len(c.manifest["parts"])):
+            _, _, pos = decode_positions(c, i, 0, level, float32=False)
+            a = lod_attributes(c, i, 0)
+            geometry.append((np.asarray(pos, np.float64), a["indices"], a["normals"]))
+            per_part.append(container_levels(c, i))
     allv = np.concatenate(per_part)
     lo = int(allv.min()) if lo is None else int(lo)
     hi = int(allv.max()) if hi is None else int(hi)
-    parts = tuple(MeshPart(name=p.name, positions=p.positions, indices=p.indices, normals=p.normals, uvs=None,
+    parts = tuple(MeshPart(name=p.name, positions=pos, indices=np.asarray(ind, np.uint32), normals=nrm, uvs=None,
                            colors=level_colours(lv, lo, hi), source=p.source, normals_computed=p.normals_computed,
                            texture=None, mesh_key=p.mesh_key)
-                  for p, lv in zip(scene.parts, per_part))
+                  for p, (pos, ind, nrm), lv in zip(scene.parts, geometry, per_part))
     return replace(scene, parts=parts, source=f"{scene.source} (minimum levels)"), lo, hi
 
 
