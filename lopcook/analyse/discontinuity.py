@@ -94,15 +94,18 @@ def boundary_vertices(groups: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     n = groups.shape[0]
     if n == 0 or triangles.size == 0:
         return np.zeros(n, dtype=bool)
-    g = groups[np.asarray(triangles, dtype=np.int64)]
-    a = np.concatenate([g[:, 0], g[:, 1], g[:, 2]])
-    b = np.concatenate([g[:, 1], g[:, 2], g[:, 0]])
-    keep = a != b  # edges collapsed by welding are no edges
-    lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    key = lo * (int(groups.max()) + 1) + hi
-    uniq, count = np.unique(key, return_counts=True)
-    single = uniq[count == 1]
     ng = int(groups.max()) + 1
+    small = np.int32 if ng < (1 << 31) - 1 else np.int64  # halves the memory traffic of the 3M edges
+    g = groups.astype(small)[np.asarray(triangles)]
+    a = g.ravel()  # half-edge 3f + k runs from corner k to corner (k + 1) % 3 of face f
+    b = g[:, [1, 2, 0]].ravel()
+    keep = a != b  # edges collapsed by welding are no edges
+    a, b = a[keep], b[keep]
+    key = np.minimum(a, b).astype(np.int64) * ng + np.maximum(a, b)
+    key.sort()
+    first = np.r_[True, key[1:] != key[:-1]]
+    last = np.r_[key[1:] != key[:-1], True]
+    single = key[first & last]  # keys that occur once: edges of one triangle
     on = np.zeros(ng, dtype=bool)
     on[single // ng] = True
     on[single % ng] = True
@@ -168,29 +171,74 @@ def _cell_shift(level: int) -> int:
     return int(min(max(k, 0), BITS))
 
 
-def _edge_cells(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boundary: np.ndarray, shift: int,
-                offset: int, cos_half: float) -> np.ndarray:
-    """(N,) bool: the vertex's cell (side 2^shift grid units, lattice moved by ``offset``) holds an
-    open-boundary vertex or normals deviating from the cell's mean normal by more than the angle
-    whose cosine is ``cos_half``."""
-    c = (q + offset) >> shift
-    bits = BITS + 1 - shift
-    if 3 * bits <= 62:  # one int64 key per cell
-        _, inverse = np.unique((c[:, 0] << (2 * bits)) | (c[:, 1] << bits) | c[:, 2], return_inverse=True)
-        inverse = inverse.ravel()
-    else:
-        inverse = colocated_groups(c)
-    ncell = int(inverse.max()) + 1
-    w = has_normal.astype(np.float64)
-    mean = np.stack([np.bincount(inverse, weights=normals[:, a] * w, minlength=ncell) for a in range(3)], axis=1)
+def _spread3(x: np.ndarray) -> np.ndarray:
+    """(N,) int64 with the low 21 bits of ``x`` moved to every third bit (bit i -> bit 3i)."""
+    x = np.asarray(x, dtype=np.int64) & 0x1FFFFF
+    x = (x | (x << 32)) & 0x1F00000000FFFF
+    x = (x | (x << 16)) & 0x1F0000FF0000FF
+    x = (x | (x << 8)) & 0x100F00F00F00F00F
+    x = (x | (x << 4)) & 0x10C30C30C30C30C3
+    x = (x | (x << 2)) & 0x1249249249249249
+    return x
+
+
+def _morton(c: np.ndarray) -> np.ndarray:
+    """(N,) int64 Morton code of (N, 3) integers in [0, 2^21): cells of any coarser power-of-two
+    lattice (``c >> k``) are contiguous runs in this order (``morton >> 3k``)."""
+    return (_spread3(c[:, 0]) << 2) | (_spread3(c[:, 1]) << 1) | _spread3(c[:, 2])
+
+
+class _Fields(NamedTuple):
+    """Per-vertex inputs of the fold test, in one sorted order: weighted normals (N, 3), unit
+    normals (N, 3), has_normal (N,) bool, boundary (N,) bool."""
+
+    weighted: np.ndarray
+    normals: np.ndarray
+    has_normal: np.ndarray
+    boundary: np.ndarray
+
+
+def _sorted_fields(order: np.ndarray, normals, has_normal, boundary) -> _Fields:
+    n = normals[order]
+    h = has_normal[order]
+    return _Fields(n * h[:, None], n, h, boundary[order])
+
+
+def _edge_runs(starts: np.ndarray, f: _Fields, cos_half: float) -> np.ndarray:
+    """(N,) bool in the sorted order of ``f``: the vertex's cell holds an open-boundary vertex or a
+    normal deviating from the cell's mean normal by more than the angle whose cosine is
+    ``cos_half``. ``starts``: first sorted index of every cell (cells are contiguous runs)."""
+    size = f.normals.shape[0]
+    mean = np.add.reduceat(f.weighted, starts, axis=0)
     length = np.linalg.norm(mean, axis=1)
-    mean = mean / np.where(length > 0, length, 1.0)[:, None]
-    dots = np.where(has_normal, np.einsum("ij,ij->i", normals, mean[inverse]), 1.0)
-    low = np.ones(ncell)
-    np.minimum.at(low, inverse, dots)
-    edge = low < cos_half
-    edge |= np.bincount(inverse, weights=boundary.astype(np.float64), minlength=ncell) > 0
-    return edge[inverse]
+    mean /= np.where(length > 0, length, 1.0)[:, None]
+    cell = np.repeat(np.arange(starts.size), np.diff(np.append(starts, size)))
+    dots = np.where(f.has_normal, np.einsum("ij,ij->i", f.normals, mean[cell]), 1.0)
+    edge = np.minimum.reduceat(dots, starts) < cos_half
+    edge |= np.logical_or.reduceat(f.boundary, starts)
+    return edge[cell]
+
+
+def _run_starts(sorted_keys: np.ndarray) -> np.ndarray:
+    """First index of every run of equal values in a sorted (N,) array."""
+    return np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+
+
+def _shifted_edges(q: np.ndarray, normals, has_normal, boundary, shift: int, cos_half: float) -> np.ndarray:
+    """(N,) bool, vertex order: ``_edge_runs`` on the lattice of side 2^shift moved by half a cell."""
+    c = (q + (1 << (shift - 1))) >> shift
+    bits = BITS + 1 - shift
+    if bits <= 21:
+        key = _morton(c)
+        order = np.argsort(key, kind="stable")
+        starts = _run_starts(key[order])
+    else:
+        groups = colocated_groups(c)
+        order = np.argsort(groups, kind="stable")
+        starts = _run_starts(groups[order])
+    out = np.empty(q.shape[0], dtype=bool)
+    out[order] = _edge_runs(starts, _sorted_fields(order, normals, has_normal, boundary), cos_half)
+    return out
 
 
 def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boundary: np.ndarray, top: int,
@@ -198,20 +246,43 @@ def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boun
     """(N,) int64 B_v of folds (module doc): the highest level in [max(1, top - FOLD_LEVEL_SPAN), top]
     at which the vertex's one-pixel cell (either lattice) holds an edge; 0 when none does.
 
-    q (N, 3) grid integers, normals (N, 3) unit, has_normal (N,) bool, boundary (N,) bool."""
+    q (N, 3) grid integers, normals (N, 3) unit, has_normal (N,) bool, boundary (N,) bool.
+
+    Cells are grouped by sorting: the unshifted lattices of all levels share one sort by the Morton
+    code of the finest one (a coarser cell is a run of finer ones); each shifted lattice sorts its
+    own cells. Per cell: the mean normal (``np.add.reduceat``), the smallest dot product with it and
+    whether a boundary vertex is inside (``reduceat`` over the runs)."""
     n = q.shape[0]
     out = np.zeros(n, dtype=np.int64)
     if n == 0:
         return out
     q = np.asarray(q, dtype=np.int64)
     normals = np.asarray(normals, dtype=np.float64)
+    has_normal = np.asarray(has_normal, dtype=bool)
+    boundary = np.asarray(boundary, dtype=bool)
     cos_half = math.cos(math.radians(float(angle_deg)) / 2.0)
+    levels = list(range(int(top), max(1, int(top) - FOLD_LEVEL_SPAN) - 1, -1))
+    finest = _cell_shift(levels[0])  # the finest cells: the highest level
+    morton_ok = BITS - finest <= 21
+    if morton_ok:
+        code = _morton(q >> finest)
+        order0 = np.argsort(code, kind="stable")
+        code_sorted = code[order0]
+        fields0 = _sorted_fields(order0, normals, has_normal, boundary)
     pending = np.ones(n, dtype=bool)
-    for level in range(int(top), max(1, int(top) - FOLD_LEVEL_SPAN) - 1, -1):
+    for level in levels:
         shift = _cell_shift(level)
-        hit = _edge_cells(q, normals, has_normal, boundary, shift, 0, cos_half)
+        if morton_ok:
+            hit = np.empty(n, dtype=bool)
+            hit[order0] = _edge_runs(_run_starts(code_sorted >> (3 * (shift - finest))), fields0, cos_half)
+        else:
+            groups = colocated_groups(q >> shift)
+            order = np.argsort(groups, kind="stable")
+            hit = np.empty(n, dtype=bool)
+            hit[order] = _edge_runs(_run_starts(groups[order]),
+                                    _sorted_fields(order, normals, has_normal, boundary), cos_half)
         if shift > 0:
-            hit |= _edge_cells(q, normals, has_normal, boundary, shift, 1 << (shift - 1), cos_half)
+            hit |= _shifted_edges(q, normals, has_normal, boundary, shift, cos_half)
         new = hit & pending
         out[new] = level
         pending &= ~hit
