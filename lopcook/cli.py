@@ -670,12 +670,11 @@ def cmd_verify(args) -> int:
 
 def cmd_report(args) -> int:
     import os
+    import time
 
     from .emit.container import read
     from .emit.summary import describe_container
     from .ingest import load
-    import time
-
     from .report import analysis_warnings, build_report, render_for_report, write_html
     from .settings import IngestSettings
     from .verify.decoders import parse_levels
