@@ -82,7 +82,7 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         f"float32 {t['float32_position_bytes']:,} B)",
     ]
     for r in d["memory"]:
-        if r["level"] in SUMMARY_LEVELS:
+        if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]:  # not levels the file lacks
             lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
                          f"{r['ap_percent']:>5.1f}%")
     if d.get("savings"):
