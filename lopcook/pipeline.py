@@ -34,9 +34,9 @@ import numpy as np
 from .analyse import Grid, _colocated_max, analyse
 from .analyse.grid import BITS
 from .analyse.lod import lod_chain
+from .analyse.result import REASON_CODE
 from .errors import LopcookError
 from .memory import release_free_memory
-from .analyse.result import REASON_CODE
 from .settings import DEFAULT_ANALYSE, AnalyseSettings
 from .types import Scene
 from .viewing import Viewing, required_level

@@ -14,8 +14,8 @@ bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.
 PSNR chart and given as the last column of the table.
 
 Minimum levels (paper Fig. 7): the source coloured by each vertex's minimum level, rendered from
-the view and distance of the other images (image kind ``levels``); the histogram bars use the same
-colours, so the histogram is its legend.
+the other images' view at the distance where the object fills the frame (image kind ``levels``,
+cropped on its own); the histogram bars use the same colours, so the histogram is its legend.
 
 Cook timings: a container holds none (deterministic bytes), so ``lopcook report`` re-cooks the
 source with the recorded options (``lopcook.verify.reproduce.recook``), times every stage and
@@ -290,8 +290,8 @@ def render_for_report(container, scene, *, levels, views, resolution) -> tuple[d
     view at the coarsest level, the uniform 16-bit scene at the same cameras
     (``baselines.uniform_quantized_scene``), and the level-coloured source (``baselines.level_scene``)
     from the images' view at the frame distance (the object fills the frame: legible at any level;
-    ``lopcook.budget.frame_distance``), added to the images as ``levels`` (not cropped). Returns (evaluation, uniform16
-    evaluation, (lo, hi) of the level ramp or None)."""
+    ``lopcook.budget.frame_distance``), added to the images as ``levels`` (not cropped with them).
+    Returns (evaluation, uniform16 evaluation, (lo, hi) of the level ramp or None)."""
     from .budget import frame_distance
     from .verify.baselines import level_scene, uniform_quantized_scene
     from .verify.render import Harness, Shading, render_viewing
@@ -657,6 +657,31 @@ def lod_table_html(lods: dict) -> str:
     return "".join(out)
 
 
+def _span(values, fmt) -> str:
+    vals = [v for v in values if v is not None]
+    if not vals:
+        return "inf"
+    lo, hi = min(vals), max(vals)
+    return fmt(lo) if fmt(lo) == fmt(hi) else f"{fmt(lo)}-{fmt(hi)}"
+
+
+def time_bought(rep: dict, seconds: float) -> str:
+    """One sentence putting the cook time next to the accuracy it bought (CAP memory and PSNR over
+    the rendered levels, AP at the same levels for comparison)."""
+    rows = [r for r in rep["levels"] if "cap" in r]
+    if not rows:
+        return f"The cook took {seconds:.2f} s."
+    lv = f"{rows[0]['level']}-{rows[-1]['level']}" if len(rows) > 1 else str(rows[0]["level"])
+    cap_mem = _span([r["cap"]["percent_of_float32"] for r in rows], lambda v: f"{v:.1f}")
+    cap_db = _span([r["cap"]["psnr_min"] for r in rows], lambda v: f"{v:.1f}")
+    text = (f"The cook's {seconds:.2f} s bought CAP at {cap_mem} % of float32 position memory with a PSNR (min over "
+            f"views) of {cap_db} dB at levels {lv}")
+    ap = [r["ap"]["psnr_min"] for r in rows if "ap" in r]
+    if ap:
+        text += f"; AP at the same levels: {_span(ap, lambda v: f'{v:.1f}')} dB"
+    return text + "."
+
+
 def render_html(rep: dict, images: dict | None) -> str:
     e = _e
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -722,8 +747,7 @@ def render_html(rep: dict, images: dict | None) -> str:
         out.append('<table id="timings"><tr><th>stage</th><th>seconds</th></tr>' + "".join(
             f"<tr><td>{e(k)}</td><td>{v:.3f}</td></tr>" for k, v in tim.items())
             + f"<tr><td><b>total</b> (stages without a dot)</td><td>{total:.3f}</td></tr></table>")
-        out.append('<p class="note">What the time bought: the accuracy table and chart above (CAP memory and PSNR '
-                   'per level).</p>')
+        out.append(f'<p class="note" id="bought">{e(time_bought(rep, total))}</p>')
     else:
         out.append('<p class="note">cook stage timings: not measured (the source was not re-cooked).</p>')
     w = rep["warnings"]
@@ -768,4 +792,4 @@ def write_html(report_dict: dict, images: dict | None, path) -> tuple[Path, Path
 
 
 __all__ = ["budget_section", "budget_svg", "budget_html", "build_report", "write_html", "render_html", "analysis_warnings",
-           "table_rows", "png_data_uri", "lod_table", "crop_box", "apply_crop", "render_for_report", "uniform16_section"]
+           "table_rows", "time_bought", "png_data_uri", "lod_table", "crop_box", "apply_crop", "render_for_report", "uniform16_section"]

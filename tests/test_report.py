@@ -300,7 +300,7 @@ def test_cook_timings_from_an_identical_recook(reports, name):
     t = rep["cook_timings_s"]
     assert {"ingest", "analyse", "emit"} <= set(t) and all(v >= 0 for v in t.values())
     text = html_path.read_text()
-    assert 'data-status="identical"' in text and '<table id="timings">' in text
+    assert 'data-status="identical"' in text and '<table id="timings">' in text and 'id="bought"' in text
     assert rep["images"]["level_range"][0] >= 1 and "levels" in rep["images"]["kinds"]
 
 
