@@ -670,12 +670,12 @@ def time_bought(rep: dict, seconds: float) -> str:
     the rendered levels, AP at the same levels for comparison)."""
     rows = [r for r in rep["levels"] if "cap" in r]
     if not rows:
-        return f"The cook took {seconds:.2f} s."
+        return f"The cook's stages took {seconds:.2f} s."
     lv = f"{rows[0]['level']}-{rows[-1]['level']}" if len(rows) > 1 else str(rows[0]["level"])
     cap_mem = _span([r["cap"]["percent_of_float32"] for r in rows], lambda v: f"{v:.1f}")
     cap_db = _span([r["cap"]["psnr_min"] for r in rows], lambda v: f"{v:.1f}")
-    text = (f"The cook's {seconds:.2f} s bought CAP at {cap_mem} % of float32 position memory with a PSNR (min over "
-            f"views) of {cap_db} dB at levels {lv}")
+    text = (f"The cook's stages took {seconds:.2f} s (process start-up and imports not counted) and bought CAP at "
+            f"{cap_mem} % of float32 position memory with a PSNR (min over views) of {cap_db} dB at levels {lv}")
     ap = [r["ap"]["psnr_min"] for r in rows if "ap" in r]
     if ap:
         text += f"; AP at the same levels: {_span(ap, lambda v: f'{v:.1f}')} dB"
