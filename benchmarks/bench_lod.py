@@ -82,8 +82,11 @@ COLOURS = {"pymeshlab": "#1f77b4", "fast": "#d62728"}
 
 
 def _cpu() -> float:
+    """User + system CPU seconds of this process and of its reaped children (large simplifications
+    run in forked children, ``lopcook.analyse.isolate``)."""
     r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
+    c = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime
 
 
 def _wh(text: str) -> tuple[int, int]:

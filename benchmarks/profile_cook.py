@@ -16,7 +16,8 @@ ingest..write span.
 Columns: wall seconds, CPU seconds (user + system of every thread of the process, so a stage
 that uses two cores shows CPU > wall), and peak RSS in MB during the stage: VmHWM, reset at the
 start of every stage through ``/proc/self/clear_refs`` (Linux) so each stage reports its own
-high-water mark; the ``total`` row's peak RSS is the whole process's, imports included. With
+high-water mark; the ``total`` row's peak RSS is the whole process's, imports included, or the
+largest forked simplification child's (``lopcook.analyse.isolate``) when that is higher. With
 ``--repeat N`` the row of the run with the best total wall time is printed (the machine is
 shared, so single timings are noisy); peak RSS does not depend on timing. ``--cprofile N``
 prints the N most expensive functions (cumulative) of one extra run. The sha256 of the
@@ -57,8 +58,11 @@ def _reset_hwm() -> None:
 
 
 def _cpu() -> float:
+    """User + system CPU seconds of this process and of its reaped children (large simplifications
+    run in forked children, ``lopcook.analyse.isolate``)."""
     r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
+    c = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime
 
 
 class Recorder:
@@ -147,7 +151,8 @@ def child(args) -> dict:
             write_atomic(out, data)
     os.unlink(out)
     rows = rec.rows
-    rows["total"]["peak_rss_mb"] = max(rows["total"]["peak_rss_mb"], import_hwm / 1024.0)
+    rows["total"]["peak_rss_mb"] = max(rows["total"]["peak_rss_mb"], import_hwm / 1024.0,
+                                       resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)
     return {"source": args.source, "lods": args.lods, "backend": args.lod_backend,
             "triangles": scene.n_triangles, "vertices": scene.n_vertices,
             "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data), "stages": rows}
