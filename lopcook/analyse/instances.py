@@ -91,14 +91,20 @@ def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshP
                     texture=like.texture, mesh_key=like.mesh_key)
 
 
+#: a part is compared with at most this many groups of its signature (the affine fit is O(n) per
+#: comparison; many same-topology parts that are not copies, e.g. deformed variants, stay linear)
+MAX_CANDIDATES = 16
+
+
 def groups(parts) -> list[list[int]]:
     """Indices of ``parts`` grouped into copies, each group led by its first part (in part order);
-    a part that copies no earlier part leads a group of its own."""
+    a part that copies no earlier part leads a group of its own. Each part is tried against the
+    first ``MAX_CANDIDATES`` groups with its signature."""
     by_sig: dict = {}
     out: list[list[int]] = []
     for i, p in enumerate(parts):
         cands = by_sig.setdefault(signature(p), [])
-        for g in cands:
+        for g in cands[:MAX_CANDIDATES]:
             if affine_map(parts[g[0]], p) is not None:
                 g.append(i)
                 break
@@ -143,4 +149,4 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
     return out, rep
 
 
-__all__ = ["RTOL", "NORMAL_TOL", "signature", "affine_map", "map_normals", "similarity_scale", "place", "groups", "placed_chain"]
+__all__ = ["RTOL", "NORMAL_TOL", "MAX_CANDIDATES", "signature", "affine_map", "map_normals", "similarity_scale", "place", "groups", "placed_chain"]
