@@ -14,7 +14,7 @@ from lopcook.analyse import lod as L
 from lopcook.fixtures import unit_sphere
 from lopcook.types import MeshPart
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX only")
+pytestmark = pytest.mark.skipif(not isolate._available(), reason="backends are isolated on Linux only")
 
 
 def _pid_and_sum(a):

@@ -10,7 +10,7 @@ it is returned to the system the moment the result is back. The child shares the
 (copy on write), so the system's memory at any time is the parent's plus the child's private
 pages: the peak is not hidden, only no longer added to what comes after.
 
-``call(fn, *args)`` forks (POSIX only; elsewhere, and for small inputs where the ~10 ms of a fork
+``call(fn, *args)`` forks (Linux only; elsewhere, and for small inputs where the ~10 ms of a fork
 and the pickling are not worth it, the call runs in-process), runs ``fn(*args)`` in the child,
 sends the result (or the exception) back through a pipe with pickle, and returns it (or raises it).
 A child that dies without answering (a segmentation fault in a backend) raises ``ChildFailed``.
@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import pickle
 import struct
+import sys
 
 from ..memory import release_free_memory
 
@@ -47,7 +48,9 @@ def _quiet_child() -> None:
 
 
 def _available() -> bool:
-    return hasattr(os, "fork") and os.name == "posix"
+    """Linux only: on macOS a fork after the Objective-C runtime started (pymeshlab's Qt) may abort
+    the child, which would turn every large simplification into a fallback."""
+    return hasattr(os, "fork") and sys.platform.startswith("linux")
 
 
 def _read_exact(fd: int, n: int) -> bytes:
