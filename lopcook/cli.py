@@ -172,6 +172,9 @@ def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
     g.add_argument("--search", choices=("kf", "kf+edge"), default=None,
                    help="knobs to search: the k_f scale only (kf), or also the edge constraint's --edge-eps "
                         "(kf+edge, the default when --edges is on)")
+    g.add_argument("--no-calibration-confirm", dest="calibration_confirm", action="store_false",
+                   help="do not confirm the choice with lopcook verify's 20 views at 1280x720 (by default the "
+                        "k_f scale is raised until it passes there too)")
 
 
 def add_budget_options(p: argparse.ArgumentParser) -> None:
@@ -260,12 +263,16 @@ def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
 
     def progress(p):
         ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
-        _progress(args, f"calibrate: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
+        what = "confirm" if p.get("confirm") else "calibrate"
+        _progress(args, f"{what}: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
                         f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
+
+    from .verify.calibrate import CONFIRM
 
     return calibrate(scene, settings, target_psnr=args.target_psnr, levels=levels, views=views, resolution=resolution,
                      viewing=viewing, ingest_options={"crease_angle_deg": ingest_settings.crease_angle_deg},
-                     progress=progress, statistic=args.psnr_stat, search=args.search)
+                     progress=progress, statistic=args.psnr_stat, search=args.search,
+                     confirm=CONFIRM if args.calibration_confirm else None)
 
 
 def _viewing(args):
@@ -499,7 +506,11 @@ def _calibration_record(cal: dict) -> dict:
             "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
             "edge_eps": cal["edge_eps"],
             "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
-            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]]}
+            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]],
+            "confirmation": None if not cal.get("confirmation") else {
+                "views": cal["confirmation"]["views"], "resolution": cal["confirmation"]["resolution"],
+                "passed": cal["confirmation"]["passed"],
+                "probes": [{k: p[k] for k in keep} for p in cal["confirmation"]["probes"]]}}
 
 
 def cmd_calibrate(args) -> int:

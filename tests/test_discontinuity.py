@@ -275,7 +275,7 @@ def test_calibration_searches_edge_eps(gl):
     from lopcook.errors import LopcookError
 
     scene = scene_of([flat_cube()])
-    kw = dict(target_psnr=40.0, levels=[6], views=[0, 10], resolution=(160, 90))
+    kw = dict(target_psnr=40.0, levels=[6], views=[0, 10], resolution=(160, 90), confirm=None)
     # the paper's CAP: flat faces have E_v = 0, no k_f moves a bit, the hard edges stay at level 1
     paper = calibrate(scene, AnalyseSettings(edges=False), **kw)
     assert paper["reached"] is False and paper["search"] == "kf" and len(paper["curve"]) == 2

@@ -109,7 +109,8 @@ def test_argparse_usage_is_exit_2(crease_lop):
 def test_cook_target_psnr_records_the_calibration(tmp_path, capsys):
     out = tmp_path / "cal.lop"
     rc = main(["cook", CREASE, "-o", str(out), "--target-psnr", "45", "--calibration-views", "2",
-               "--calibration-resolution", "160x90", "--calibration-levels", "6-8", "--json"])
+               "--calibration-resolution", "160x90", "--calibration-levels", "6-8", "--json",
+               "--no-calibration-confirm"])
     desc = json.loads(capsys.readouterr().out)
     assert rc == 0
     assert desc["calibration"]["reached"] is True
@@ -129,7 +130,8 @@ def test_cook_unreachable_target_fails_without_output(tmp_path, capsys):
     out = tmp_path / "never.lop"
     # --no-edges: with the edge constraint searched, 24-bit rims render the plates exactly (PSNR inf)
     rc = main(["cook", PLATES, "-o", str(out), "--target-psnr", "200", "--calibration-views", "1",
-               "--calibration-resolution", "96x54", "--calibration-levels", "6", "--no-edges"])
+               "--calibration-resolution", "96x54", "--calibration-levels", "6", "--no-edges",
+               "--no-calibration-confirm"])
     assert rc == 1
     assert not out.exists()
     assert "200" in capsys.readouterr().err
@@ -137,7 +139,7 @@ def test_cook_unreachable_target_fails_without_output(tmp_path, capsys):
 
 def test_calibrate_command(capsys):
     rc = main(["calibrate", CREASE, "--target-psnr", "40", "--views", "2", "--resolution", "160x90",
-               "--levels", "6-7", "--json"])
+               "--levels", "6-7", "--json", "--no-calibration-confirm"])
     cal = json.loads(capsys.readouterr().out)
     assert rc == 0 and cal["reached"] is True
     assert all(len(p["cap_percent"]) == 2 for p in cal["curve"])
@@ -145,3 +147,26 @@ def test_calibrate_command(capsys):
     for a, b in zip(cal["curve"], cal["curve"][1:]):
         assert all(x <= y + 1e-9 for x, y in zip(a["cap_percent"], b["cap_percent"]))
     assert main(["calibrate", CREASE, "--target-psnr", "-3", "--views", "1"]) == 2
+
+
+def test_calibration_is_confirmed_on_the_gate_harness(gl):
+    """The k_f chosen on the reduced harness is checked on the gate's (here 4 views at 320x180) and
+    raised one tolerance step at a time until it passes there; the container records it."""
+    from lopcook.ingest import load
+    from lopcook.verify.calibrate import TOLERANCE, calibrate, format_calibration
+
+    scene = load(CREASE)
+    cal = calibrate(scene, target_psnr=45.0, levels=[6, 7], views=1, resolution=(96, 54), confirm=(4, (320, 180)))
+    conf = cal["confirmation"]
+    assert conf["views"] == 4 and conf["resolution"] == [320, 180] and conf["passed"] is cal["reached"] is True
+    steps = [p["log2_sigma"] for p in conf["probes"]]
+    search_choice = max(p["log2_sigma"] for p in cal["curve"] if p["sigma"] <= conf["probes"][0]["sigma"])
+    assert steps[0] == search_choice and all(b - a == pytest.approx(TOLERANCE) for a, b in zip(steps, steps[1:]))
+    assert all(p["confirm"] for p in conf["probes"])
+    assert all(p["psnr_min"] is not None and p["psnr_min"] < 45.0 for p in conf["probes"][:-1])
+    last = conf["probes"][-1]
+    assert last["psnr_min"] is None or last["psnr_min"] >= 45.0
+    assert cal["chosen"] is last and cal["sigma"] == last["sigma"] and "confirmed on 4 views" in format_calibration(cal)
+    # the same harness as the search: nothing to confirm
+    assert calibrate(scene, target_psnr=45.0, levels=[6], views=4, resolution=(320, 180),
+                     confirm=(4, (320, 180)))["confirmation"] is None
