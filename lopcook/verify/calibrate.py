@@ -174,7 +174,9 @@ def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, t
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
-    with Harness(scene, resolution, cache_float=True) as h:
+    # no float-render cache here: at 20 views x 1280x720 it would hold ~1 GB (7 levels); a re-render
+    # per extra step (usually none or one) is the cheaper price
+    with Harness(scene, resolution, cache_float=False) as h:
         for step in range(CONFIRM_STEPS + 1):
             p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
                       ingest_options=ingest_options, edge_scale=e)
