@@ -150,8 +150,9 @@ def test_calibrate_command(capsys):
 
 
 def test_calibration_is_confirmed_on_the_gate_harness(gl):
-    """The k_f chosen on the reduced harness is checked on the gate's (here 4 views at 320x180) and
-    raised one tolerance step at a time until it passes there; the container records it."""
+    """The k_f (and edge_eps) chosen on the reduced harness is checked on the gate's (here 4 views at
+    320x180); while it fails there, one step stricter on the edges and on k_f are tried, never
+    looser; the passing probe with the least memory is kept and recorded."""
     from lopcook.ingest import load
     from lopcook.verify.calibrate import TOLERANCE, calibrate, format_calibration
 
@@ -159,14 +160,35 @@ def test_calibration_is_confirmed_on_the_gate_harness(gl):
     cal = calibrate(scene, target_psnr=45.0, levels=[6, 7], views=1, resolution=(96, 54), confirm=(4, (320, 180)))
     conf = cal["confirmation"]
     assert conf["views"] == 4 and conf["resolution"] == [320, 180] and conf["passed"] is cal["reached"] is True
-    steps = [p["log2_sigma"] for p in conf["probes"]]
-    search_choice = max(p["log2_sigma"] for p in cal["curve"] if p["sigma"] <= conf["probes"][0]["sigma"])
-    assert steps[0] == search_choice and all(b - a == pytest.approx(TOLERANCE) for a, b in zip(steps, steps[1:]))
-    assert all(p["confirm"] for p in conf["probes"])
-    assert all(p["psnr_min"] is not None and p["psnr_min"] < 45.0 for p in conf["probes"][:-1])
-    last = conf["probes"][-1]
-    assert last["psnr_min"] is None or last["psnr_min"] >= 45.0
-    assert cal["chosen"] is last and cal["sigma"] == last["sigma"] and "confirmed on 4 views" in format_calibration(cal)
+    first = conf["probes"][0]
+    searched = {(p["log2_sigma"], p["edge_scale"]) for p in cal["curve"]}
+    assert (first["log2_sigma"], first["edge_scale"]) in searched  # starts at the search's choice
+    for p in conf["probes"]:
+        assert p["confirm"] and p["log2_sigma"] >= first["log2_sigma"] and p["edge_scale"] >= first["edge_scale"]
+        steps = (p["log2_sigma"] - first["log2_sigma"]) / TOLERANCE
+        assert steps == pytest.approx(round(steps)) and p["edge_scale"] == round(p["edge_scale"])
+    chosen = cal["chosen"]
+    assert chosen in conf["probes"] and (chosen["psnr_min"] is None or chosen["psnr_min"] >= 45.0)
+    assert cal["sigma"] == chosen["sigma"] and cal["edge_eps"] == chosen["edge_eps"]
+    for p in conf["probes"]:  # a probe with less memory than the choice did not pass
+        if sum(p["cap_percent"]) < sum(chosen["cap_percent"]):
+            assert p["psnr_min"] is not None and p["psnr_min"] < 45.0
+    assert "confirmed on 4 views" in format_calibration(cal)
     # the same harness as the search: nothing to confirm
     assert calibrate(scene, target_psnr=45.0, levels=[6], views=4, resolution=(320, 180),
                      confirm=(4, (320, 180)))["confirmation"] is None
+
+
+def test_failed_confirmation_is_one_clear_error():
+    from lopcook.errors import LopcookError
+    from lopcook.verify.calibrate import require_reached
+
+    probe = {"psnr_min": 38.5, "log2_sigma": 0.0}
+    result = {"reached": False, "statistic": "min", "target_psnr": 40.0, "views": 8, "resolution": [640, 360],
+              "curve": [dict(probe, psnr_min=41.0)], "search": "kf+edge", "edges": True,
+              "confirmation": {"views": 20, "resolution": [1280, 720], "passed": False,
+                               "probes": [probe, dict(probe, psnr_min=39.2)]}}
+    with pytest.raises(LopcookError, match=r"reached 40 dB there, but on the gate's 20 views at 1280x720 the best of "
+                                           r"2 stricter probes was 39.2 dB") as exc:
+        require_reached(result, "x.obj")
+    assert exc.value.exit_code == 1

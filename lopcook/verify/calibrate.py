@@ -59,9 +59,10 @@ the gate: at 8 views and 640 x 360 the choice passed there but missed by 1-2 dB 
 20 views at 1280 x 720 of ``lopcook verify`` (fewer views miss the worst one, and an object of ~37
 pixels is sensitive to its sub-pixel placement). So the choice is **confirmed** with the gate's
 harness (``confirm``, default ``lopcook verify``'s 20 views at 1280 x 720): while it misses the
-target there, log2 sigma is raised by ``tolerance`` and checked again (at most ``CONFIRM_STEPS``
-times); ``reached`` is then the confirmed result, and the confirmation probes are recorded
-(``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the
+target there, one step stricter on the edges (edge strictness + 1) and on k_f (log2 sigma +
+``tolerance``) are tried and the passing one with less memory kept, else both steps are taken (at
+most ``CONFIRM_STEPS`` times); ``reached`` is then the confirmed result, and the confirmation
+probes are recorded (``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the
 paper's CAP alone (``edges`` off), fandisk and the chess set cannot reach 40 dB at any k_f: their
 residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
 (docs/analyse.md, section 2b).
@@ -168,28 +169,53 @@ def _same_harness(confirm, views, resolution) -> bool:
 
 
 def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, target_psnr: float, statistic: str,
-             confirm, *, levels, viewing, options, ingest_options, progress) -> dict:
-    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness and raise x by
-    ``tolerance`` until it passes (at most ``CONFIRM_STEPS`` times, never beyond ``hi``)."""
+             confirm, *, edges: bool, levels, viewing, options, ingest_options, progress) -> dict:
+    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness; while it
+    fails, try one step stricter on each knob -- the edges (``e + 1``: one more bit on edge
+    vertices, when the search used them) and k_f (``x + tolerance``) -- and keep the passing one with
+    the least memory; when neither passes, take both steps (at most ``CONFIRM_STEPS`` times, x never
+    beyond ``hi``, e never beyond ``EDGE_RANGE``). Coverage error along edges does not depend on
+    k_f and shading error does not depend on the edges, so both are tried."""
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
-    # no float-render cache here: at 20 views x 1280x720 it would hold ~1 GB (7 levels); a re-render
-    # per extra step (usually none or one) is the cheaper price
+    probed: dict = {}
+    # no float-render cache here: at 20 views x 1280x720 it would hold ~1 GB (7 levels); the float
+    # renders are redone per probe instead
     with Harness(scene, resolution, cache_float=False) as h:
-        for step in range(CONFIRM_STEPS + 1):
-            p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
-                      ingest_options=ingest_options, edge_scale=e)
-            p["confirm"] = True
-            out["probes"].append(p)
-            if progress is not None:
-                progress(p)
-            if _passes(p, target_psnr, statistic):
-                out["passed"] = True
+        def run(c):
+            if c not in probed:
+                p = probe(scene, settings, 2.0**c[0], h, levels=levels, views=views, viewing=viewing,
+                          options=options, ingest_options=ingest_options, edge_scale=c[1])
+                p["confirm"] = True
+                probed[c] = p
+                out["probes"].append(p)
+                if progress is not None:
+                    progress(p)
+            return probed[c]
+
+        def ok(c) -> bool:
+            return _passes(run(c), target_psnr, statistic)
+
+        cur = (x, e)
+        chosen = cur if ok(cur) else None
+        for _ in range(CONFIRM_STEPS):
+            if chosen is not None:
                 break
-            if x >= hi:
+            edge_step = edges and cur[1] + 1 <= EDGE_RANGE
+            moves = ([(cur[0], cur[1] + 1)] if edge_step else []) + ([(min(hi, cur[0] + tolerance), cur[1])]
+                                                                    if cur[0] < hi else [])
+            if not moves:
                 break
-            x = min(hi, x + tolerance)
+            passing = [m for m in moves if ok(m)]
+            if passing:
+                chosen = min(passing, key=lambda m: (sum(run(m)["cap_percent"]), m[0]))
+                break
+            cur = (min(hi, cur[0] + tolerance), cur[1] + (1 if edge_step else 0))
+            if ok(cur):
+                chosen = cur
+        out["passed"] = chosen is not None
+        out["chosen"] = run(chosen if chosen is not None else cur)
     return out
 
 
@@ -289,10 +315,11 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     confirmation = None
     same = confirm is not None and _same_harness(confirm, views, resolution)
     if reached and confirm is not None and not same:
-        confirmation = _confirm(scene, settings, x, e, hi, tolerance, target_psnr, statistic, confirm, levels=levels,
-                                viewing=viewing, options=options, ingest_options=ingest_options, progress=progress)
+        confirmation = _confirm(scene, settings, x, e, hi, tolerance, target_psnr, statistic, confirm,
+                                edges=search == "kf+edge" and bool(settings.edges), levels=levels, viewing=viewing,
+                                options=options, ingest_options=ingest_options, progress=progress)
         reached = confirmation["passed"]
-        chosen = confirmation["probes"][-1]
+        chosen = confirmation.pop("chosen")
     curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
     return {
         "target_psnr": float(target_psnr),
@@ -333,6 +360,15 @@ def require_reached(result: dict, path: str | None = None) -> None:
         best = max((p for p in result["curve"] if p[key] is not None), key=lambda p: p[key], default=None)
         got = "" if best is None else (f": the best CAP PSNR ({result.get('statistic', 'min')} over views, worst "
                                        f"level) was {best[key]:.1f} dB, at k_f scale 2^{best['log2_sigma']:g}")
+        conf = result.get("confirmation")
+        if conf and not conf.get("passed") and conf.get("probes"):
+            best = max(conf["probes"], key=lambda p: float("inf") if p[key] is None else p[key])
+            raise LopcookError("verify", path, f"the k_f chosen on {result['views']} views at "
+                               f"{result['resolution'][0]}x{result['resolution'][1]} reached {result['target_psnr']:g} "
+                               f"dB there, but on the gate's {conf['views']} views at {conf['resolution'][0]}x"
+                               f"{conf['resolution'][1]} the best of {len(conf['probes'])} stricter probes was "
+                               f"{best[key]:.1f} dB", hint="calibrate on the gate's views (--calibration-views 20 "
+                               "--calibration-resolution 1280x720) or lower --target-psnr", exit_code=EXIT_VERIFY_FAILED)
         what = "k_f and edge_eps" if result.get("search") == "kf+edge" and result.get("edges") else "k_f"
         raise LopcookError("verify", path, f"no {what} reaches {result['target_psnr']:g} dB{got}",
                            hint="lower --target-psnr; coverage error along edges does not depend on k_f (turn on "
