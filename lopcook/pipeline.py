@@ -86,21 +86,19 @@ def parse_lod_ratios(text):
 
 
 def _chains(scene: Scene, lod_ratios, backend: str, max_error_m):
-    """LOD chain and report of every part, in part order. Copies of one mesh (``instances.groups``:
+    """LOD chain and report of every part, in part order. Copies of one mesh (``instances.copies``:
     same triangles and attributes, positions related by one affine map) are simplified once and
     the chain placed on every copy (``instances.placed_chain``). Serial on purpose: pymeshlab
     releases the GIL but is not thread-safe (two parts simplified in a thread pool crash the
     process, CesiumMilkTruck --lods 1/2,1/4: SIGSEGV), and fast-simplification and libigl hold
     the GIL."""
-    from .analyse.instances import affine_map, groups, placed_chain
+    from .analyse.instances import copies, placed_chain
 
     chains, reports = [None] * len(scene.parts), [None] * len(scene.parts)
-    for group in groups(scene.parts):
-        lead = scene.parts[group[0]]
-        lods, report = lod_chain(lead, ratios=list(lod_ratios), backend=backend, max_error_m=max_error_m)
-        chains[group[0]], reports[group[0]] = lods, report
-        for i in group[1:]:
-            a, t = affine_map(lead, scene.parts[i])
+    for lead, members in copies(scene.parts):
+        lods, report = lod_chain(scene.parts[lead], ratios=list(lod_ratios), backend=backend, max_error_m=max_error_m)
+        chains[lead], reports[lead] = lods, report
+        for i, a, t in members:
             chains[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
     return chains, reports
 

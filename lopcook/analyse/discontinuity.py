@@ -224,19 +224,23 @@ def _run_starts(sorted_keys: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
 
 
-def _shifted_edges(q: np.ndarray, normals, has_normal, boundary, shift: int, cos_half: float) -> np.ndarray:
-    """(N,) bool, vertex order: ``_edge_runs`` on the lattice of side 2^shift moved by half a cell."""
-    c = (q + (1 << (shift - 1))) >> shift
-    bits = BITS + 1 - shift
+def _cell_runs(c: np.ndarray, bits: int) -> tuple[np.ndarray, np.ndarray]:
+    """(order, starts) grouping the rows of ``c`` (N, 3) cell integers of ``bits`` bits: ``order``
+    sorts equal rows together (stable: vertex order within a cell), ``starts`` is the first sorted
+    index of every cell. Morton order where the code fits 63 bits, else lexicographic."""
     if bits <= 21:
         key = _morton(c)
         order = np.argsort(key, kind="stable")
-        starts = _run_starts(key[order])
-    else:
-        groups = colocated_groups(c)
-        order = np.argsort(groups, kind="stable")
-        starts = _run_starts(groups[order])
-    out = np.empty(q.shape[0], dtype=bool)
+        return order, _run_starts(key[order])
+    order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))
+    s = c[order]
+    return order, np.flatnonzero(np.r_[True, np.any(s[1:] != s[:-1], axis=1)])
+
+
+def _edges_on(c: np.ndarray, bits: int, normals, has_normal, boundary, cos_half: float) -> np.ndarray:
+    """(N,) bool, vertex order: ``_edge_runs`` on the cells ``c`` (N, 3) of ``bits`` bits."""
+    order, starts = _cell_runs(c, bits)
+    out = np.empty(c.shape[0], dtype=bool)
     out[order] = _edge_runs(starts, _sorted_fields(order, normals, has_normal, boundary), cos_half)
     return out
 
@@ -276,13 +280,10 @@ def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boun
             hit = np.empty(n, dtype=bool)
             hit[order0] = _edge_runs(_run_starts(code_sorted >> (3 * (shift - finest))), fields0, cos_half)
         else:
-            groups = colocated_groups(q >> shift)
-            order = np.argsort(groups, kind="stable")
-            hit = np.empty(n, dtype=bool)
-            hit[order] = _edge_runs(_run_starts(groups[order]),
-                                    _sorted_fields(order, normals, has_normal, boundary), cos_half)
-        if shift > 0:
-            hit |= _shifted_edges(q, normals, has_normal, boundary, shift, cos_half)
+            hit = _edges_on(q >> shift, BITS - shift, normals, has_normal, boundary, cos_half)
+        if shift > 0:  # the lattice moved by half a cell
+            hit |= _edges_on((q + (1 << (shift - 1))) >> shift, BITS + 1 - shift, normals, has_normal, boundary,
+                             cos_half)
         new = hit & pending
         out[new] = level
         pending &= ~hit

@@ -96,23 +96,30 @@ def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshP
 MAX_CANDIDATES = 16
 
 
-def groups(parts) -> list[list[int]]:
-    """Indices of ``parts`` grouped into copies, each group led by its first part (in part order);
-    a part that copies no earlier part leads a group of its own. Each part is tried against the
-    first ``MAX_CANDIDATES`` groups with its signature."""
+def copies(parts) -> list[tuple[int, list[tuple[int, np.ndarray, np.ndarray]]]]:
+    """``parts`` grouped into copies: ``[(lead, [(i, A, t), ...]), ...]`` in part order, each lead
+    the first part of its group and every member ``i`` a copy of it by ``x -> A x + t``
+    (``affine_map``). A part that copies no earlier part leads a group of its own. Each part is
+    tried against the first ``MAX_CANDIDATES`` groups with its signature."""
     by_sig: dict = {}
-    out: list[list[int]] = []
+    out: list = []
     for i, p in enumerate(parts):
         cands = by_sig.setdefault(signature(p), [])
-        for g in cands[:MAX_CANDIDATES]:
-            if affine_map(parts[g[0]], p) is not None:
-                g.append(i)
+        for lead, members in cands[:MAX_CANDIDATES]:
+            m = affine_map(parts[lead], p)
+            if m is not None:
+                members.append((i, *m))
                 break
         else:
-            g = [i]
+            g = (i, [])
             cands.append(g)
             out.append(g)
     return out
+
+
+def groups(parts) -> list[list[int]]:
+    """``copies`` as index lists: ``[[lead, member, ...], ...]``."""
+    return [[lead] + [i for i, _, _ in members] for lead, members in copies(parts)]
 
 
 def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarray,
@@ -149,4 +156,4 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
     return out, rep
 
 
-__all__ = ["RTOL", "NORMAL_TOL", "MAX_CANDIDATES", "signature", "affine_map", "map_normals", "similarity_scale", "place", "groups", "placed_chain"]
+__all__ = ["RTOL", "NORMAL_TOL", "MAX_CANDIDATES", "signature", "affine_map", "map_normals", "similarity_scale", "place", "copies", "groups", "placed_chain"]
