@@ -641,8 +641,7 @@ def results_table(rows: list[dict], levels) -> list[str]:
     for r in rows:
         if r.get("error"):
             continue
-        key = (r["asset"], r["tool"], r["config"] if r["tool"] != "lopcook" else r["config"])
-        groups.setdefault(key, []).append(r)
+        groups.setdefault((r["asset"], r["tool"], r["config"]), []).append(r)
 
     def db(v):
         f_ = _f(v)

@@ -724,7 +724,7 @@ def cmd_report(args) -> int:
 
         _progress(args, "re-cook the source (stage timings, warnings, determinism)")
         cook = recook(c, scene, ingest_s=ingest_s)
-        warnings = analysis_warnings(scene, c.manifest, cook["analysis"])
+        warnings = analysis_warnings(scene, cook["analysis"])
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
     rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
     html_path, json_path = write_html(rep, ev.get("images"), out)

@@ -76,15 +76,11 @@ def _name(p) -> str | None:
     return None if p is None else os.path.basename(str(p))
 
 
-def analysis_warnings(scene, manifest: dict, analysis=None) -> dict:
-    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``; default: ``lopcook.analyse.analyse``
-    re-run with the container's recorded settings, ``reproduce.recorded_settings``)."""
-    from .analyse import analyse
+def analysis_warnings(scene, analysis) -> dict:
+    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``: the re-cook's, ``reproduce.recook``)."""
     from .analyse.summary import describe_analysis
-    from .verify.reproduce import recorded_settings
 
-    an = analysis if analysis is not None else analyse(scene, recorded_settings(manifest))
-    d = describe_analysis(an, str(scene.source))
+    d = describe_analysis(analysis, str(scene.source))
     t = d["totals"]
     return {"available": True, "scene": [str(w) for w in scene.warnings],
             "touching": [list(p) for p in d["touching"]], "intersecting": [list(p) for p in d["intersecting"]],

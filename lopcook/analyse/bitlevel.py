@@ -65,4 +65,10 @@ def texture_slope(texture: Texture) -> float:
     return slope
 
 
-__all__ = ["attribute_level", "texture_slope", "BITS"]
+def clear_slope_cache() -> None:
+    """Forget the texture slopes computed so far in this process (``texture_slope`` caches them by
+    texture digest), so that the next analysis pays what a fresh cook pays."""
+    _SLOPE_CACHE.clear()
+
+
+__all__ = ["attribute_level", "texture_slope", "clear_slope_cache", "BITS"]

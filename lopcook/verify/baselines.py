@@ -25,8 +25,6 @@ from ..types import MeshPart, Scene
 
 #: bytes per vertex of VEC3 SHORT positions on the GPU (4-byte aligned attribute)
 UNIFORM16_BYTES_PER_VERTEX = 8
-#: normalized SHORT: the largest code
-_SHORT_MAX = 32767
 
 
 def uniform_quantize(positions: np.ndarray, bits: int = 16) -> np.ndarray:

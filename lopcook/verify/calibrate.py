@@ -77,7 +77,7 @@ from dataclasses import replace
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, AnalyseSettings
 from ..viewing import Viewing
-from .render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness
+from .render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness, select_views
 
 CAL_VIEWS = 8
 CAL_RESOLUTION = (640, 360)
@@ -163,9 +163,10 @@ def _passes(p: dict, target: float, statistic: str = "min") -> bool:
 
 
 def _same_harness(confirm, views, resolution) -> bool:
+    """Whether the gate's harness ``confirm`` = (views, (w, h)) renders the same views (as
+    ``render.select_views`` picks them from a count or a list) at the same size as the search's."""
     cv, cr = confirm
-    return (list(range(VIEW_COUNT)) if cv == VIEW_COUNT else cv) == (
-        list(range(VIEW_COUNT)) if views == VIEW_COUNT else views) and tuple(cr) == tuple(resolution)
+    return select_views(cv) == select_views(views) and tuple(cr) == tuple(resolution)
 
 
 def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, target_psnr: float, statistic: str,

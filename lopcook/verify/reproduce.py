@@ -79,9 +79,9 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
     from ..analyse import analyse
     from ..pipeline import cook_bytes, parse_lod_ratios
 
-    from ..analyse import bitlevel
+    from ..analyse.bitlevel import clear_slope_cache
 
-    bitlevel._SLOPE_CACHE.clear()  # time what a fresh cook pays (texture slopes are cached per process)
+    clear_slope_cache()  # time what a fresh cook pays
     m = container.manifest
     options = m.get("options") or {}
     settings = recorded_settings(m)
