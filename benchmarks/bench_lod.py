@@ -9,7 +9,7 @@ Not a test (pytest does not collect benchmarks/). Usage::
 For each asset (default: bunny, fandisk, spot, DamagedHelmet, CesiumMilkTruck, Duck, UtahTeapot; the
 chess set with ``--chess``, it takes minutes) and the ~1M-triangle mesh (the bunny subdivided twice,
 ``bench_ingest.make_big``; ``--no-big`` skips it), and for each backend, every part gets a chain
-``lopcook.analyse.lod.lod_chain(part, ratios, backend, max_error_m=None)`` with the default seam mode
+``lopcook.simplify.chain.lod_chain(part, ratios, backend, max_error_m=None)`` with the default seam mode
 (``"lock"``) and chaining (``"previous"``). The scene's LOD k is every part's LOD k (a part whose chain
 stopped early contributes its last LOD; counted in ``parts_short``). Per scene LOD:
 
@@ -34,7 +34,7 @@ stopped early contributes its last LOD; counted in ``parts_short``). Per scene L
 
   - ``near``: half the box diagonal r. With the 60 degree field of view the eye is then about 2r from
     the centre, where the bounding sphere just fills the frame height: the closest useful view.
-  - ``select``: the distance from which ``lopcook.select`` starts to pick this LOD,
+  - ``select``: the distance from which ``lopcook.selection`` starts to pick this LOD,
     ``lod_threshold_m(error_m, viewing)`` with the default viewing (60 degrees, half a pixel) and the
     render resolution as viewport, using the scene LOD's largest ``error_m``: the LOD's error
     projects to half a pixel of the rendered image there. LOD 0 (error 0) is not rendered.
@@ -68,9 +68,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
-from lopcook.analyse.lod import MIN_SIMPLIFY_TRIANGLES, TARGET_TOLERANCE, lod_chain  # noqa: E402
+from lopcook.simplify.chain import MIN_SIMPLIFY_TRIANGLES, TARGET_TOLERANCE, lod_chain  # noqa: E402
 from lopcook.ingest import load  # noqa: E402
-from lopcook.select import lod_threshold_m  # noqa: E402
+from lopcook.selection import lod_threshold_m  # noqa: E402
 from lopcook.settings import DEFAULT_INGEST  # noqa: E402
 from lopcook.viewing import Viewing  # noqa: E402
 
@@ -83,7 +83,7 @@ COLOURS = {"pymeshlab": "#1f77b4", "fast": "#d62728"}
 
 def _cpu() -> float:
     """User + system CPU seconds of this process and of its reaped children (large simplifications
-    run in forked children, ``lopcook.analyse.isolate``)."""
+    run in forked children, ``lopcook.isolate``)."""
     r = resource.getrusage(resource.RUSAGE_SELF)
     c = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime

@@ -12,7 +12,7 @@ Not a test (pytest does not collect benchmarks/). Usage::
 Per asset (default: bunny, fandisk, DamagedHelmet, CesiumMilkTruck, chess set):
 
 1. ingest (default settings);
-2. ``lopcook.verify.calibrate.calibrate``, once per ``--statistic`` (default both ``min``: every view
+2. ``lopcook.tune.calibrate.calibrate``, once per ``--statistic`` (default both ``min``: every view
    must reach the target, and ``mean``: the PSNR of the view-averaged MSE must): the least k_f scale
    (and, with ``--search kf+edge``, the default, the loosest edge_eps of the discontinuity
    constraint) whose CAP renders reach the target PSNR at every level, with the reduced harness
@@ -58,7 +58,7 @@ from lopcook.emit import build  # noqa: E402
 from lopcook.emit.container import from_bytes  # noqa: E402
 from lopcook.ingest import load  # noqa: E402
 from lopcook.settings import DEFAULT_ANALYSE, DEFAULT_INGEST  # noqa: E402
-from lopcook.verify.calibrate import calibrate, calibrated_settings, format_calibration  # noqa: E402
+from lopcook.tune.calibrate import calibrate, calibrated_settings, format_calibration  # noqa: E402
 from lopcook.verify.decoders import parse_levels  # noqa: E402
 from lopcook.verify.render import evaluate, format_table  # noqa: E402
 from lopcook.viewing import Viewing  # noqa: E402

@@ -17,7 +17,7 @@ Columns: wall seconds, CPU seconds (user + system of every thread of the process
 that uses two cores shows CPU > wall), and peak RSS in MB during the stage: VmHWM, reset at the
 start of every stage through ``/proc/self/clear_refs`` (Linux) so each stage reports its own
 high-water mark; the ``total`` row's peak RSS is the whole process's, imports included, or the
-largest forked simplification child's (``lopcook.analyse.isolate``) when that is higher. With
+largest forked simplification child's (``lopcook.isolate``) when that is higher. With
 ``--repeat N`` the row of the run with the best total wall time is printed (the machine is
 shared, so single timings are noisy); peak RSS does not depend on timing. ``--cprofile N``
 prints the N most expensive functions (cumulative) of one extra run. The sha256 of the
@@ -59,7 +59,7 @@ def _reset_hwm() -> None:
 
 def _cpu() -> float:
     """User + system CPU seconds of this process and of its reaped children (large simplifications
-    run in forked children, ``lopcook.analyse.isolate``)."""
+    run in forked children, ``lopcook.isolate``)."""
     r = resource.getrusage(resource.RUSAGE_SELF)
     c = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime

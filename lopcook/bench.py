@@ -98,7 +98,7 @@ class Source:
         self.classes = BM.colocation_classes(self.positions)
         lo, hi = scene.bounds()
         self.diagonal = float(np.linalg.norm(hi - lo))
-        from .analyse.grid import Grid
+        from .grid import Grid
 
         self.extent = float(Grid.fit([p.positions for p in parts]).extent)
         self.triangles = int(sum(p.n_triangles for p in parts))

@@ -147,9 +147,9 @@ def add_viewing_options(p: argparse.ArgumentParser) -> None:
 
 
 def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
-    from .verify.calibrate import CAL_RESOLUTION, CAL_VIEWS
+    from .tune.calibrate import CAL_RESOLUTION, CAL_VIEWS
 
-    g = p.add_argument_group("k_f calibration (renders CAP against the source; see lopcook.verify.calibrate)")
+    g = p.add_argument_group("k_f calibration (renders CAP against the source; see lopcook.tune.calibrate)")
     if cook:
         g.add_argument("--target-psnr", type=float, default=None, metavar="DB",
                        help="first search the k_f scale with the least memory whose CAP renders reach DB dB at "
@@ -178,7 +178,7 @@ def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
 
 
 def add_budget_options(p: argparse.ArgumentParser) -> None:
-    from .budget import DEFAULT_LEVELS_PER_LOD, DEFAULT_RESOLUTION, DEFAULT_SCOPE, DEFAULT_VIEWS, SCOPES
+    from .tune.budget import DEFAULT_LEVELS_PER_LOD, DEFAULT_RESOLUTION, DEFAULT_SCOPE, DEFAULT_VIEWS, SCOPES
 
     g = p.add_argument_group("byte budget (Purnomo et al. 2005, section 5; see docs/budget.md)")
     g.add_argument("--target-bytes", default=None, metavar="N|P/Q",
@@ -217,8 +217,8 @@ def _budget_target(text: str, float_size: int | None = None) -> int | None:
 
 
 def _run_budget(args, scene, settings, viewing, lod_ratios, options):
-    """``cook --target-bytes``: ``lopcook.budget.fit`` -> (data, info as ``cook_bytes`` gives it, record)."""
-    from .budget import fit, float_bytes
+    """``cook --target-bytes``: ``lopcook.tune.budget.fit`` -> (data, info as ``cook_bytes`` gives it, record)."""
+    from .tune.budget import fit, float_bytes
 
     target = _budget_target(args.target_bytes, float_bytes(scene, args.budget_scope))
     if target < 1:
@@ -251,7 +251,7 @@ def _views(n: int, flag: str) -> int:
 
 
 def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
-    from .verify.calibrate import calibrate
+    from .tune.calibrate import calibrate
     from .verify.decoders import parse_levels
 
     prefix = "--calibration-" if args.command == "cook" else "--"
@@ -267,7 +267,7 @@ def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
         _progress(args, f"{what}: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
                         f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
 
-    from .verify.calibrate import CONFIRM
+    from .tune.calibrate import CONFIRM
 
     return calibrate(scene, settings, target_psnr=args.target_psnr, levels=levels, views=views, resolution=resolution,
                      viewing=viewing, ingest_options={"crease_angle_deg": ingest_settings.crease_angle_deg},
@@ -436,7 +436,7 @@ def cmd_cook(args) -> int:
     if args.target_psnr is not None:
         from dataclasses import replace
 
-        from .verify.calibrate import require_reached
+        from .tune.calibrate import require_reached
 
         t0 = time.perf_counter()
         calibration = _run_calibration(args, scene, settings, viewing, ingest_settings)
@@ -483,11 +483,11 @@ def cmd_cook(args) -> int:
         print(json.dumps(desc, indent=1, sort_keys=True))
     elif not args.quiet:
         if calibration is not None:
-            from .verify.calibrate import format_calibration
+            from .tune.calibrate import format_calibration
 
             print(format_calibration(calibration))
         if budget is not None:
-            from .budget import format_budget
+            from .tune.budget import format_budget
 
             print(format_budget(budget))
         print(format_container(desc, timings=timings))
@@ -516,7 +516,7 @@ def _calibration_record(cal: dict) -> dict:
 def cmd_calibrate(args) -> int:
     from .errors import EXIT_VERIFY_FAILED
     from .ingest import load
-    from .verify.calibrate import format_calibration
+    from .tune.calibrate import format_calibration
 
     settings = _analyse_settings(args)
     viewing = _viewing(args)
@@ -570,7 +570,7 @@ def cmd_decode(args) -> int:
 
 def cmd_inspect(args) -> int:
     from .ingest import load
-    from .inspect import describe_scene, format_scene
+    from .ingest.summary import describe_scene, format_scene
 
     if _is_container(args.source):
         import os
@@ -720,7 +720,7 @@ def cmd_report(args) -> int:
     ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution)
     warnings = cook = None
     if not args.no_analyse:
-        from .verify.reproduce import recook
+        from .tune.recook import recook
 
         _progress(args, "re-cook the source (stage timings, warnings, determinism)")
         cook = recook(c, scene, ingest_s=ingest_s)

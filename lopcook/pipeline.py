@@ -2,14 +2,14 @@
 
 Steps of ``cook_bytes``:
 
-1. LOD chains per part (``lopcook.analyse.lod.lod_chain``) when ``lod_ratios`` is given; the
+1. LOD chains per part (``lopcook.simplify.chain.lod_chain``) when ``lod_ratios`` is given; the
    chain's ``max_error_m`` is the error the farthest useful view can show (``far_error_m``: the
    distance at which the whole scene spans one pixel; no cap when ``viewing.nearest_m`` is None).
 2. ONE grid fitted over every position of every part and every LOD.
 3. Every LOD index k analysed on that grid (``analyse(scene_k, settings, grid=grid)``, scene_k =
    the parts that have a LOD k); then co-located vertices (same quantized position, any part,
    any LOD) share the maximum of their minimum levels, so no two buffers can crack apart.
-4. LODs whose selection range is empty are dropped (``lopcook.select.selection_ranges``); the
+4. LODs whose selection range is empty are dropped (``lopcook.selection.selection_ranges``); the
    others record ``min_distance_m``.
 5. When ``viewing.nearest_m`` is set, the highest level any view can use is
    ``required_level(nearest_m, extent, viewing)`` (the nearest camera needs the most bits);
@@ -32,8 +32,8 @@ from fractions import Fraction
 import numpy as np
 
 from .analyse import Grid, _colocated_max, analyse
-from .analyse.grid import BITS
-from .analyse.lod import lod_chain
+from .grid import BITS
+from .simplify.chain import lod_chain
 from .analyse.result import REASON_CODE
 from .errors import LopcookError
 from .memory import release_free_memory
@@ -92,7 +92,7 @@ def _chains(scene: Scene, lod_ratios, backend: str, max_error_m):
     releases the GIL but is not thread-safe (two parts simplified in a thread pool crash the
     process, CesiumMilkTruck --lods 1/2,1/4: SIGSEGV), and fast-simplification and libigl hold
     the GIL."""
-    from .analyse.instances import copies, placed_chain
+    from .simplify.instances import copies, placed_chain
 
     chains, reports = [None] * len(scene.parts), [None] * len(scene.parts)
     for lead, members in copies(scene.parts):
@@ -157,7 +157,7 @@ def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE
     """
     from .emit import BufferInput, build
     from .emit.container import from_bytes
-    from .select import selection_ranges
+    from .selection import selection_ranges
 
     viewing = viewing or Viewing()
     timings: dict = {}

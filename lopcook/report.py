@@ -18,7 +18,7 @@ the other images' view at the distance where the object fills the frame (image k
 cropped on its own); the histogram bars use the same colours, so the histogram is its legend.
 
 Cook timings: a container holds none (deterministic bytes), so ``lopcook report`` re-cooks the
-source with the recorded options (``lopcook.verify.reproduce.recook``), times every stage and
+source with the recorded options (``lopcook.tune.recook.recook``), times every stage and
 compares the bytes with the file (``cook.status``: identical / prefix / differs / not re-cooked).
 The re-cooked analysis gives the warnings and the LOD chain's notes (fallbacks, missed targets).
 ``cook_timings_s`` and ``seconds`` are the only values that vary between identical runs.
@@ -93,7 +93,7 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
 
     Each LOD: ``lod`` (index), ``triangles``, ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
     distance to LOD 0, metres, as recorded), ``min_distance_m`` / ``max_distance_m`` (the camera
-    distances, metres, over which ``lopcook.select.select`` picks it under the manifest's viewing:
+    distances, metres, over which ``lopcook.selection.select`` picks it under the manifest's viewing:
     from its own ``min_distance_m`` to the next larger one of the part; ``max_distance_m`` None =
     no upper bound; a container cooked without LODs records no distance, and its single LOD covers
     [0, inf)), and bytes in the file: ``index_bytes``, ``attribute_bytes`` (normals, UVs, colours),
@@ -286,9 +286,9 @@ def render_for_report(container, scene, *, levels, views, resolution) -> tuple[d
     view at the coarsest level, the uniform 16-bit scene at the same cameras
     (``baselines.uniform_quantized_scene``), and the level-coloured source (``baselines.level_scene``)
     from the images' view at the frame distance (the object fills the frame: legible at any level;
-    ``lopcook.budget.frame_distance``), added to the images as ``levels`` (not cropped with them).
+    ``lopcook.tune.budget.frame_distance``), added to the images as ``levels`` (not cropped with them).
     Returns (evaluation, uniform16 evaluation, (lo, hi) of the level ramp or None)."""
-    from .budget import frame_distance
+    from .tune.budget import frame_distance
     from .verify.baselines import level_scene, uniform_quantized_scene
     from .verify.render import Harness, Shading, render_viewing
 
@@ -500,7 +500,7 @@ _LOD_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"
 
 def budget_section(manifest: dict) -> dict | None:
     """The byte-budget record of a container written by ``cook --target-bytes`` (manifest
-    ``options.budget``, ``lopcook.budget.budget_record``), or None for any other container."""
+    ``options.budget``, ``lopcook.tune.budget.budget_record``), or None for any other container."""
     b = (manifest.get("options") or {}).get("budget")
     return b if isinstance(b, dict) and b.get("candidates") else None
 
@@ -631,7 +631,7 @@ def lod_table_html(lods: dict) -> str:
     how = (f"simplified with {e(lods['backend'])} at ratios {e(lods['ratios'])}" if lods.get("backend")
            else "no LOD options recorded")
     out = [f"<h2>Levels of detail</h2><p class=\"note\">{how}. Error: symmetric Hausdorff distance to LOD 0 as "
-           "recorded in the container. Distances: the camera range over which lopcook.select picks the LOD under "
+           "recorded in the container. Distances: the camera range over which lopcook.selection picks the LOD under "
            "the container's viewing. Bytes: index + attribute sections, the LOD's mandatory bits and its bits in "
            "the refinement planes.</p>",
            '<table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th><th>vertices</th>'

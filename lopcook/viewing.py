@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analyse.grid import BITS, dx, smallest_level
+from .grid import BITS, dx, smallest_level
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,7 @@ def test_plane_sequence_equals_packing_from_scratch(buffer):
 
 
 def test_float_reconstruction_within_dx(rng):
-    from lopcook.analyse.grid import Grid
+    from lopcook.grid import Grid
 
     pts = rng.uniform(-2, 3, (2000, 3))
     grid = Grid.fit([pts])

@@ -1,4 +1,4 @@
-"""Byte-budget fit (lopcook.budget, ``cook --target-bytes``): sizes by scope, the Purnomo ordering on a
+"""Byte-budget fit (lopcook.tune.budget, ``cook --target-bytes``): sizes by scope, the Purnomo ordering on a
 small bumpy sphere (the chosen LOD and level beat quantize-only and simplify-only), the written
 container holds only the chosen LOD and planes, and the "nothing fits" error.
 
@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from lopcook import budget as BG
+from lopcook.tune import budget as BG
 from lopcook import fixtures as F
 from lopcook.cli import _budget_target, main
 from lopcook.emit.container import from_bytes, read

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from lopcook import fixtures as fx
 from lopcook.analyse.depth import (depth_levels, depth_levels_reference, level_from_distance,
                                    point_triangle_distance)
-from lopcook.analyse.grid import dx
+from lopcook.grid import dx
 
 
 def closed_form_level(gap, extent):

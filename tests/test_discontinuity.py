@@ -270,7 +270,7 @@ def test_cap_with_edges_beats_cap_without(gl):
 # ---- calibration searches the edge constraint ------------------------------------------------------
 
 def test_calibration_searches_edge_eps(gl):
-    from lopcook.verify.calibrate import calibrate, calibrated_settings, require_reached
+    from lopcook.tune.calibrate import calibrate, calibrated_settings, require_reached
 
     from lopcook.errors import LopcookError
 

@@ -1,9 +1,9 @@
-"""The scene grid (lopcook.analyse.grid): quantization, reconstruction bound dx(b), exactness."""
+"""The scene grid (lopcook.grid): quantization, reconstruction bound dx(b), exactness."""
 
 import numpy as np
 import pytest
 
-from lopcook.analyse.grid import BITS, CELLS, Grid, dx
+from lopcook.grid import BITS, CELLS, Grid, dx
 
 
 def test_fit_is_a_cube_on_the_min_corner():

@@ -1,4 +1,4 @@
-"""``lopcook.analyse.instances``: copies of one mesh are found by content and affine fit, simplified
+"""``lopcook.simplify.instances``: copies of one mesh are found by content and affine fit, simplified
 once, and their LOD chains placed with the exact (similarity) or measured (affine) error."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from lopcook import fixtures as F
-from lopcook.analyse import instances as I
-from lopcook.analyse.lod import hausdorff, lod_chain
+from lopcook.simplify import instances as I
+from lopcook.simplify.chain import hausdorff, lod_chain
 from lopcook.types import MeshPart, Scene
 
 

@@ -1,4 +1,4 @@
-"""``lopcook.analyse.isolate``: a backend call in a forked child returns the same result, re-raises
+"""``lopcook.isolate``: a backend call in a forked child returns the same result, re-raises
 the child's exception, and turns a crash into ``ChildFailed``, which the LOD chain falls back from."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import signal
 import numpy as np
 import pytest
 
-from lopcook.analyse import isolate
-from lopcook.analyse import lod as L
+from lopcook import isolate
+from lopcook.simplify import chain as L
 from lopcook.fixtures import unit_sphere
 from lopcook.types import MeshPart
 

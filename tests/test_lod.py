@@ -1,4 +1,4 @@
-"""LOD chains (lopcook.analyse.lod): target counts, measured monotone error, attribute carry-over,
+"""LOD chains (lopcook.simplify.chain): target counts, measured monotone error, attribute carry-over,
 UV seams kept by the seam-locked path, and a crafted mesh for every failure the chain survives."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from lopcook.analyse import lod as L
+from lopcook.simplify import chain as L
 from lopcook.ingest import load
-from lopcook.ingest.weld import degenerate_triangles, weld_exact
+from lopcook.mesh import degenerate_triangles, weld_exact
 from lopcook.types import MeshPart
 
 RATIOS = [1 / 2, 1 / 4, 1 / 8, 1 / 16]

@@ -154,7 +154,7 @@ def test_calibration_is_confirmed_on_the_gate_harness(gl):
     320x180); while it fails there, one step stricter on the edges and on k_f are tried, never
     looser; the passing probe with the least memory is kept and recorded."""
     from lopcook.ingest import load
-    from lopcook.verify.calibrate import TOLERANCE, calibrate, format_calibration
+    from lopcook.tune.calibrate import TOLERANCE, calibrate, format_calibration
 
     scene = load(CREASE)
     cal = calibrate(scene, target_psnr=45.0, levels=[6, 7], views=1, resolution=(96, 54), confirm=(4, (320, 180)))
@@ -181,7 +181,7 @@ def test_calibration_is_confirmed_on_the_gate_harness(gl):
 
 def test_failed_confirmation_is_one_clear_error():
     from lopcook.errors import LopcookError
-    from lopcook.verify.calibrate import require_reached
+    from lopcook.tune.calibrate import require_reached
 
     probe = {"psnr_min": 38.5, "log2_sigma": 0.0}
     result = {"reached": False, "statistic": "min", "target_psnr": 40.0, "views": 8, "resolution": [640, 360],

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from lopcook.analyse.grid import Grid, dx
+from lopcook.grid import Grid, dx
 from lopcook.viewing import (Viewing, distance_for_level, hao_varshney_level, nearest_box_distance,
                              per_vertex_level, required_level)
 

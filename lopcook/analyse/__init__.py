@@ -20,7 +20,7 @@ from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_ma
 from .bitlevel import attribute_level, texture_slope
 from .depth import depth_levels
 from .discontinuity import discontinuity_levels
-from .grid import BITS, Grid
+from ..grid import BITS, Grid
 from .result import REASON_CODE, Analysis, PartAnalysis
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..types import Texture
-from .grid import BITS, dx, smallest_level
+from ..grid import BITS, dx, smallest_level
 
 
 def attribute_level(e_v: np.ndarray, kf: float, eps: float, extent: float) -> np.ndarray:

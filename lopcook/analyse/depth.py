@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import BITS, dx
+from ..grid import BITS, dx
 
 DEFAULT_CEILING = 16
 

@@ -50,7 +50,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .grid import BITS
+from ..grid import BITS
 
 #: the half-pixel criterion's pixel error (``lopcook.viewing.Viewing``), pixels per dx(B)
 PIXEL_ERROR = 0.5

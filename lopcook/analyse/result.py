@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import BITS, Grid
+from ..grid import BITS, Grid
 
 #: why a vertex has its minimum level (uint8 codes in PartAnalysis.reason)
 REASONS = ("none", "normal", "uv", "color", "depth", "depth-capped", "co-located", "edge")

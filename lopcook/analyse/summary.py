@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import __version__
-from .grid import BITS
+from ..grid import BITS
 from .result import REASON_CLASS, REASONS, Analysis
 
 

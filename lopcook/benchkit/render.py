@@ -2,7 +2,7 @@
 
 Cameras, shading and metrics are those of ``lopcook.verify.render.evaluate``: the icosahedron
 views, the camera at ``camera_distance(B, extent, viewing)`` from the source bounding box for each
-level B (extent = the lopcook grid extent of the source, ``lopcook.analyse.grid.Grid.fit``),
+level B (extent = the lopcook grid extent of the source, ``lopcook.grid.Grid.fit``),
 Phong with the container's ks / shininess (defaults 0.5 / 32), 4x MSAA, masked PSNR
 (``lopcook.verify.metrics.image_metrics``) and depth-order errors from the part-ID images.
 

@@ -30,7 +30,7 @@ class BufferInput:
     """One GPU buffer to emit: a part's LOD. quantized (n, 3) uint32 grid integers, min_level (n,)
     ints in [1, 24], indices (m, 3) into these vertices, optional normals/uvs/colors (float32),
     geometric_error_m: the LOD's deviation from LOD 0 in metres (0 for LOD 0); min_distance_m: the
-    smallest camera distance (metres) at which a runtime selects this LOD (``lopcook.select``; 0.0
+    smallest camera distance (metres) at which a runtime selects this LOD (``lopcook.selection``; 0.0
     for LOD 0), written to the manifest only when given (None: the field is left out)."""
 
     quantized: np.ndarray

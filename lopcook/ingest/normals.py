@@ -18,7 +18,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .weld import weld_exact
+from ..mesh import weld_exact
 
 
 @dataclass(frozen=True)

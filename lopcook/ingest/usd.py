@@ -89,7 +89,7 @@ from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
 from .build import make_part, unique_names
 from .polygons import triangulate
-from .weld import unique_rows
+from ..mesh import unique_rows
 
 #: UV primvar names, in order of preference, before falling back to any texCoord2* primvar
 UV_NAMES = ("st", "st0", "UVMap", "map1", "uv")

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from ..analyse.grid import dx
+from ..grid import dx
 from ..emit.binning import LEVELS, table_bit_id
 from ..emit.bitplane import decode, reconstruct_float32, to_grid
 from ..errors import LopcookError

@@ -675,7 +675,7 @@ def lod_indices(c, lod: int) -> list[int]:
 def lod0_is_source(c) -> bool:
     """Whether LOD 0 of container ``c`` holds the source's own vertices (True unless the container
     was written by the byte-budget fit with a simplified LOD as its only LOD:
-    ``options.budget.chosen.lod`` > 0, see ``lopcook.budget``)."""
+    ``options.budget.chosen.lod`` > 0, see ``lopcook.tune.budget``)."""
     chosen = (((c.manifest.get("options") or {}).get("budget") or {}).get("chosen") or {})
     return int(chosen.get("lod", 0) or 0) == 0
 

@@ -1,4 +1,4 @@
-"""``lopcook.verify.reproduce``: re-cooking a container from its source with the recorded options
+"""``lopcook.tune.recook``: re-cooking a container from its source with the recorded options
 gives the same bytes (the report's determinism check and stage timings)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from lopcook.cli import main
 from lopcook.emit.container import read
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
-from lopcook.verify.reproduce import recook, recorded_settings, recorded_viewing
+from lopcook.tune.recook import recook, recorded_settings, recorded_viewing
 from lopcook.viewing import Viewing
 
 

@@ -23,7 +23,7 @@ import pickle
 import struct
 import sys
 
-from ..memory import release_free_memory
+from .memory import release_free_memory
 
 #: inputs with at least this many faces are simplified in a child process
 MIN_FACES = 200_000

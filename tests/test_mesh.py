@@ -1,8 +1,8 @@
-"""Welding and unique-row helpers (lopcook.ingest.weld): the fast paths equal numpy's definitions."""
+"""Welding and unique-row helpers (lopcook.mesh): the fast paths equal numpy's definitions."""
 
 import numpy as np
 
-from lopcook.ingest.weld import sorted_unique, unique_rows, used_ids, weld_exact
+from lopcook.mesh import sorted_unique, unique_rows, used_ids, weld_exact
 
 
 def _reference_unique_rows(keys):

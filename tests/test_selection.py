@@ -1,4 +1,4 @@
-"""lopcook.select: LOD and per-buffer level for a camera distance; monotone in distance."""
+"""lopcook.selection: LOD and per-buffer level for a camera distance; monotone in distance."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from lopcook.emit.container import from_bytes
 from lopcook.ingest import load
 from lopcook.pipeline import cook_bytes
-from lopcook.select import lod_threshold_m, select, selection_ranges, viewing_of
+from lopcook.selection import lod_threshold_m, select, selection_ranges, viewing_of
 from lopcook.settings import DEFAULT_ANALYSE
 from lopcook.viewing import Viewing, required_level
 

@@ -72,12 +72,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from .analyse.lod import MIN_SIMPLIFY_TRIANGLES
-from .emit.binning import LEVELS
-from .errors import LopcookError
-from .settings import DEFAULT_ANALYSE, AnalyseSettings
-from .types import Scene
-from .viewing import Viewing
+from ..simplify.chain import MIN_SIMPLIFY_TRIANGLES
+from ..emit.binning import LEVELS
+from ..errors import LopcookError
+from ..settings import DEFAULT_ANALYSE, AnalyseSettings
+from ..types import Scene
+from ..viewing import Viewing
 
 SCOPES = ("positions", "vertices", "all")
 DEFAULT_SCOPE = "positions"
@@ -210,7 +210,7 @@ def _round(p):
 
 def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
     """The float scene of LOD ``lods[i]`` per part: 24-bit grid positions, float attributes."""
-    from .types import MeshPart
+    from ..types import MeshPart
 
     parts = []
     for i, (p, k) in enumerate(zip(scene.parts, lods)):
@@ -245,10 +245,10 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
     (``budget_record``), ``info["cook"]`` the chain's ``cook_bytes`` info (no arrays),
     ``info["timings_s"]`` (``cook``, ``render``, ``emit``).
     """
-    from .emit import build
-    from .emit.container import from_bytes
-    from .pipeline import cook_bytes
-    from .verify.render import Harness, Shading, lod_indices
+    from ..emit import build
+    from ..emit.container import from_bytes
+    from ..pipeline import cook_bytes
+    from ..verify.render import Harness, Shading, lod_indices
 
     _check_scope(scope)
     target = int(target_bytes)

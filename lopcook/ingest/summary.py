@@ -7,9 +7,9 @@ The JSON form (``describe_scene``) is a stable interface, validated by
 from __future__ import annotations
 
 
-from . import __version__
-from .ingest.weld import degenerate_triangles, duplicated_positions
-from .types import Scene
+from .. import __version__
+from ..mesh import degenerate_triangles, duplicated_positions
+from ..types import Scene
 
 
 def _r(x: float) -> float:

@@ -96,11 +96,11 @@ Failures (never raised for mesh-quality reasons; each is a note)
   signed volume changes sign) or a count more than 2x off its target: the other backend is tried;
   if it fails too the LOD is not produced (``Lod.failed``) and the chain keeps the previous LODs;
 * a backend that crashes the process: inputs of ``isolate.MIN_FACES`` faces or more are simplified
-  in a forked child (``lopcook.analyse.isolate``), so a segmentation fault is a failure like the
+  in a forked child (``lopcook.isolate``), so a segmentation fault is a failure like the
   others and the backend's memory (pymeshlab peaks ~500 MB at 1.1M triangles; fast-simplification
   keeps ~320 MB until the process ends) is freed when the result is back.
 
-Copies of one mesh in a scene are simplified once (``lopcook.analyse.instances``, used by
+Copies of one mesh in a scene are simplified once (``lopcook.simplify.instances``, used by
 ``lopcook.pipeline``).
 """
 
@@ -113,9 +113,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..ingest.weld import sorted_unique, unique_rows, used_ids, weld_exact
+from ..mesh import sorted_unique, unique_rows, used_ids, weld_exact
 from ..memory import release_free_memory
-from . import isolate
+from .. import isolate
 from ..types import MeshPart
 
 BACKENDS = ("pymeshlab", "fast")

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .analyse.grid import BITS
+from .grid import BITS
 from .viewing import Viewing, required_level
 
 

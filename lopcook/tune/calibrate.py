@@ -77,7 +77,7 @@ from dataclasses import replace
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, AnalyseSettings
 from ..viewing import Viewing
-from .render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness, select_views
+from ..verify.render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness, select_views
 
 CAL_VIEWS = 8
 CAL_RESOLUTION = (640, 360)
