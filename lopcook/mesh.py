@@ -1,4 +1,6 @@
-"""Find co-located vertices: same position bits, possibly different attributes (UV/normal seams).
+"""Mesh helpers shared by every stage: co-located vertices (same position bits, possibly different
+attributes: UV/normal seams), unique rows, face normals, the one degenerate-triangle test,
+compaction and connected components.
 
 Shared by every loader (normals are computed on the welded topology so seams shade smoothly) and
 by ``inspect`` (duplicated positions). Exact comparison: two vertices are co-located when their
@@ -8,6 +10,8 @@ float64 coordinates are identical (``-0.0`` equals ``0.0``).
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 
 def weld_exact(positions: np.ndarray) -> tuple[np.ndarray, int]:
@@ -86,6 +90,12 @@ def unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     inverse : (c,) int64  unique id of each row
     """
     k = np.ascontiguousarray(keys)
+    if k.shape[1] == 1:  # one column: sort its values directly
+        _, first, inverse = np.unique(k[:, 0], return_index=True, return_inverse=True)
+        order = np.argsort(first, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.size)
+        return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
     rows = _pack_int_columns(k)  # one int64 per row where the column ranges allow: a faster sort
     if rows is None:
         rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
@@ -103,15 +113,70 @@ def duplicated_positions(positions: np.ndarray) -> int:
 
 
 def degenerate_triangles(positions: np.ndarray, indices: np.ndarray, rel_tol: float = 1e-12) -> int:
-    """Count zero-area triangles (repeated index, coincident or collinear corners).
+    """Number of degenerate triangles: ``degenerate_mask(positions, indices, rel_tol).sum()``."""
+    return int(np.count_nonzero(degenerate_mask(positions, np.asarray(indices).astype(np.int64), rel_tol)))
 
-    A triangle is degenerate when twice its area is <= rel_tol * (longest edge)^2, or its longest
-    edge is 0. ``rel_tol`` is dimensionless (the squared sine of the smallest angle, roughly).
+
+def face_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, 3) float64 cross products (p1 - p0) x (p2 - p0): direction = normal, length = 2 * area."""
+    p0 = positions[faces[:, 0]]  # three (m, 3) gathers: no (m, 3, 3) temporary
+    return np.cross(positions[faces[:, 1]] - p0, positions[faces[:, 2]] - p0)
+
+
+def degenerate_mask(positions: np.ndarray, faces: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
+    """(m,) bool: the degenerate triangles, the one definition lopcook uses (``inspect`` counts
+    them, ``simplify`` drops them).
+
+    A triangle is degenerate when it repeats an index, its longest edge is 0, or twice its area is
+    <= ``rel_tol * (longest edge)^2`` (``rel_tol`` is dimensionless: roughly the squared sine of
+    its smallest angle). positions (n, 3) float64, faces (m, 3) integer ids.
     """
-    t = positions[indices.astype(np.int64)]
-    e0 = t[:, 1] - t[:, 0]
-    e1 = t[:, 2] - t[:, 0]
-    e2 = t[:, 2] - t[:, 1]
+    if faces.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    p0, p1, p2 = positions[faces[:, 0]], positions[faces[:, 1]], positions[faces[:, 2]]
+    e0, e1, e2 = p1 - p0, p2 - p0, p2 - p1
+    del p0, p1
     area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
     longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
-    return int(np.count_nonzero((longest2 == 0) | (area2 <= rel_tol * longest2)))
+    return rep | (longest2 == 0) | (area2 <= rel_tol * longest2)
+
+
+def compact(positions: np.ndarray, faces: np.ndarray):
+    """Drop unreferenced vertices: (positions, faces, kept vertex ids)."""
+    used = np.zeros(positions.shape[0], dtype=bool)
+    used[faces.ravel()] = True
+    keep = np.flatnonzero(used)
+    remap = np.full(positions.shape[0], -1, dtype=np.int64)
+    remap[keep] = np.arange(keep.size)
+    return positions[keep], remap[faces], keep
+
+
+def edge_groups(a: np.ndarray, b: np.ndarray, n: int):
+    """Sort half-edges (a_i, b_i) by undirected key: (order, group starts, group sizes)."""
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo * np.int64(max(n, 1)) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]]) if ks.size else np.zeros(0, np.int64)
+    sizes = np.diff(np.r_[starts, ks.size])
+    return order, starts, sizes
+
+
+def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(m,) component label of each face, faces connected through shared vertex ids (labels by
+    first face)."""
+    if n_faces == 0:
+        return np.zeros(0, dtype=np.int64)
+    size = n_faces + n_vertices
+    cid = np.int32 if size < (1 << 31) - 1 else np.int64  # node ids of the face-vertex graph
+    f = np.repeat(np.arange(n_faces, dtype=cid), 3)
+    v = faces.ravel().astype(cid) + cid(n_faces)
+    g = coo_matrix((np.ones(f.size, dtype=np.int8), (f, v)), shape=(size, size))
+    _, lab = connected_components(g, directed=False)
+    lab = lab[:n_faces]
+    # renumber by first appearance for determinism
+    _, first, inv = np.unique(lab, return_index=True, return_inverse=True)
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+    return rank[inv.ravel()]

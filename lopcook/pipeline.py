@@ -33,7 +33,7 @@ import numpy as np
 
 from .analyse import Grid, _colocated_max, analyse
 from .grid import BITS
-from .simplify.chain import lod_chain
+from .simplify import lod_chain
 from .analyse.result import REASON_CODE
 from .errors import LopcookError
 from .memory import release_free_memory

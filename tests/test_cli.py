@@ -120,7 +120,7 @@ def test_global_flags_after_the_command():
 def test_cook_lods_auto_is_the_default_chain(tmp_path):
     """``--lods auto`` writes lod_chain's default chain (1/2, 1/4, ... down to 4 triangles), less the
     LODs no distance selects; ``--lods R1,R2`` keeps working and bad values are one-line usage errors."""
-    from lopcook.simplify.chain import lod_chain
+    from lopcook.simplify import lod_chain
     from lopcook.cli import main
     from lopcook.emit.container import read
     from lopcook.ingest import load

@@ -10,7 +10,7 @@ import pytest
 
 from lopcook import fixtures as F
 from lopcook.simplify import instances as I
-from lopcook.simplify.chain import hausdorff, lod_chain
+from lopcook.simplify import hausdorff, lod_chain
 from lopcook.types import MeshPart, Scene
 
 

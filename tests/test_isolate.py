@@ -10,7 +10,11 @@ import numpy as np
 import pytest
 
 from lopcook import isolate
+from lopcook.simplify import backends as B
 from lopcook.simplify import chain as L
+from lopcook.simplify import error as E
+from lopcook.simplify import topology as T
+from lopcook.simplify import transfer as X
 from lopcook.fixtures import unit_sphere
 from lopcook.types import MeshPart
 
@@ -44,12 +48,12 @@ def test_exception_and_crash():
         isolate.call(_crash, faces=isolate.MIN_FACES)
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_a_crashing_backend_falls_back(monkeypatch, backend):
     s = unit_sphere(3)[0]
     part = MeshPart("s", s.positions, s.indices, normals=s.normals)
-    func = {"pymeshlab": "_simplify_pymeshlab", "fast": "_simplify_fast"}[backend]
-    monkeypatch.setattr(L, func, lambda *a, **k: _crash())
+    func = {"pymeshlab": "simplify_pymeshlab", "fast": "simplify_fast"}[backend]
+    monkeypatch.setattr(B, func, lambda *a, **k: _crash())
     monkeypatch.setattr(isolate, "MIN_FACES", 0)  # isolate even this small mesh
     lod = L.simplify(part, 0.25, backend)
     assert not lod.failed and lod.backend != backend

@@ -8,7 +8,11 @@ import json
 import numpy as np
 import pytest
 
+from lopcook.simplify import backends as B
 from lopcook.simplify import chain as L
+from lopcook.simplify import error as E
+from lopcook.simplify import topology as T
+from lopcook.simplify import transfer as X
 from lopcook.ingest import load
 from lopcook.mesh import degenerate_triangles, weld_exact
 from lopcook.types import MeshPart
@@ -58,7 +62,7 @@ def ico():
 @pytest.fixture(scope="module")
 def bunny_chains(bunny):
     """One chain per backend on the bunny for ratios 1/2..1/16 (shared by several tests)."""
-    return {b: L.lod_chain(bunny, ratios=RATIOS, backend=b) for b in L.BACKENDS}
+    return {b: L.lod_chain(bunny, ratios=RATIOS, backend=b) for b in B.BACKENDS}
 
 
 def _within(lod, tol=L.TARGET_TOLERANCE) -> bool:
@@ -68,7 +72,7 @@ def _within(lod, tol=L.TARGET_TOLERANCE) -> bool:
 # ------------------------------------------------------------------------------------------ targets
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_bunny_triangle_counts_within_5_percent(bunny_chains, backend):
     lods, report = bunny_chains[backend]
     assert [lod.target_ratio for lod in lods] == [1.0] + RATIOS, report.as_dict()
@@ -80,14 +84,14 @@ def test_bunny_triangle_counts_within_5_percent(bunny_chains, backend):
         assert lod.part.n_triangles == lod.triangles
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_icosphere_triangle_counts_within_5_percent(ico, backend):
     lods, report = L.lod_chain(ico, ratios=RATIOS, backend=backend)
     assert len(lods) == 5, report.as_dict()
     for lod in lods[1:]:
         assert _within(lod), (lod.triangles, lod.target_triangles, lod.notes)
         # a closed sphere stays closed and keeps one vertex per position (smooth attributes)
-        defects = L.mesh_defects(lod.part.positions, lod.part.indices)
+        defects = T.mesh_defects(lod.part.positions, lod.part.indices)
         assert defects["closed"] and defects["nonmanifold_edges"] == 0
         assert lod.part.n_vertices == weld_exact(lod.part.positions)[1]
 
@@ -104,7 +108,7 @@ def test_default_ratios_halve_until_min_triangles(ico):
 # ------------------------------------------------------------------------------------------ error
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_error_is_measured_and_monotone(bunny, bunny_chains, backend):
     import igl
 
@@ -125,16 +129,16 @@ def test_error_is_measured_and_monotone(bunny, bunny_chains, backend):
         assert lod.hausdorff_m < 0.01  # 1 cm on a 15 cm bunny down to 1/16
     # a translated copy is exactly that far away
     moved = _part(bunny.positions + [0.0, 0.002, 0.0], bunny.indices)
-    h, ab, ba = L.hausdorff(moved, bunny)
+    h, ab, ba = E.hausdorff(moved, bunny)
     assert h == pytest.approx(0.002, rel=0.05) and ab <= h and ba <= h
-    assert L.hausdorff(bunny, bunny)[0] < 1e-12
+    assert E.hausdorff(bunny, bunny)[0] < 1e-12
 
 
 def test_chain_envelope_when_measured_error_drops(ico, monkeypatch):
     """error_m stays monotone even when a coarser LOD measures closer than the previous one."""
-    real = L._measure_ref_to_lod
+    real = E.measure_ref_to_lod
     calls = iter([0.05, 0.001, 0.001, 0.001])
-    monkeypatch.setattr(L, "_measure_ref_to_lod", lambda ref, part: max(real(ref, part), next(calls)))
+    monkeypatch.setattr(L, "measure_ref_to_lod", lambda ref, part: max(real(ref, part), next(calls)))
     lods, _ = L.lod_chain(ico, ratios=[0.5, 0.25], backend="fast")
     assert lods[1].hausdorff_m >= 0.05
     assert lods[2].hausdorff_m < lods[1].hausdorff_m
@@ -154,7 +158,7 @@ def test_max_error_stops_the_chain(bunny_chains, bunny):
 # ------------------------------------------------------------------------------------------ attributes
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_attributes_carried(bunny_chains, ico, spot, backend):
     for lod in bunny_chains[backend][0][1:]:
         p = lod.part
@@ -181,28 +185,28 @@ def test_attributes_carried(bunny_chains, ico, spot, backend):
 # ------------------------------------------------------------------------------------------ UV seams
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_seams_kept_on_spot(spot, backend):
-    before = L.seam_stats(spot)
-    assert before == L.SeamStats(seam_edges=288, seam_vertices=277, uv_islands=13)
+    before = T.seam_stats(spot)
+    assert before == T.SeamStats(seam_edges=288, seam_vertices=277, uv_islands=13)
     lods, report = L.lod_chain(spot, backend=backend, seams="lock")
     assert len(lods) >= 4, report.as_dict()
     for lod in lods:
         assert lod.seam_stats == before, (lod.target_ratio, lod.seam_stats, lod.notes)
-        assert L.seam_stats(lod.part) == before
+        assert T.seam_stats(lod.part) == before
     for lod in lods[1:4]:  # 1/2, 1/4, 1/8
         assert _within(lod), (lod.triangles, lod.target_triangles)
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_seams_kept_on_damaged_helmet(helmet, backend):
-    before = L.seam_stats(helmet)
+    before = T.seam_stats(helmet)
     assert before.uv_islands == 424 and before.seam_edges > 3000
     lods, report = L.lod_chain(helmet, ratios=[0.75, 0.5, 0.25], backend=backend, seams="lock")
     assert len(lods) == 3, report.as_dict()
     for lod in lods:
         assert lod.seam_stats == before, (lod.target_ratio, lod.seam_stats, lod.notes)
-        assert L.seam_stats(lod.part) == before
+        assert T.seam_stats(lod.part) == before
     assert _within(lods[1])  # 3/4 is reachable with every seam locked
     # 1/2 is not: the backend stops at the locked seams and the LOD is kept short of that wall
     assert lods[1].triangles > lods[2].triangles > lods[2].target_triangles * (1 + L.TARGET_TOLERANCE)
@@ -223,10 +227,10 @@ def test_seam_stats_crafted():
     # a quad split along its diagonal, the two triangles in different UV islands
     p = _part([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [3, 4, 5]],
               uvs=np.array([[0, 0], [1, 0], [0, 1], [0.5, 0.5], [1, 1], [0.2, 0.9]], dtype=np.float32))
-    assert L.seam_stats(p) == L.SeamStats(seam_edges=1, seam_vertices=2, uv_islands=2)
+    assert T.seam_stats(p) == T.SeamStats(seam_edges=1, seam_vertices=2, uv_islands=2)
     q = _part(p.positions, p.indices, uvs=np.array([[0, 0], [1, 0], [0, 1], [1, 0], [1, 1], [0, 1]], np.float32))
-    assert L.seam_stats(q) == L.SeamStats(seam_edges=0, seam_vertices=0, uv_islands=1)
-    assert L.seam_stats(_part(p.positions, p.indices)) is None
+    assert T.seam_stats(q) == T.SeamStats(seam_edges=0, seam_vertices=0, uv_islands=1)
+    assert T.seam_stats(_part(p.positions, p.indices)) is None
 
 
 def test_xatlas_parametrisation(spot):
@@ -259,10 +263,10 @@ def _nonmanifold() -> MeshPart:
     return _part(v2, f2, name="nonmanifold")
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_nonmanifold_input(backend):
     part = _nonmanifold()
-    defects = L.mesh_defects(part.positions, part.indices)
+    defects = T.mesh_defects(part.positions, part.indices)
     assert defects["nonmanifold_edges"] == 1 and defects["nonmanifold_vertices"] >= 1
     lod = L.simplify(part, 0.5, backend)
     assert not lod.failed and _within(lod)
@@ -276,9 +280,9 @@ def test_fin_and_bowtie_alone():
     p = _part([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1],
                [2, 0, 0], [3, 1, 0], [3, -1, 0], [1.2, 1, 0.2], [1.2, -1, 0.2]],
               [[0, 1, 2], [1, 0, 3], [0, 1, 4], [5, 6, 7], [5, 9, 8]])
-    d = L.mesh_defects(p.positions, p.indices)
+    d = T.mesh_defects(p.positions, p.indices)
     assert d["nonmanifold_edges"] == 1 and d["nonmanifold_vertices"] == 1
-    for backend in L.BACKENDS:
+    for backend in B.BACKENDS:
         lod = L.simplify(p, 0.5, backend)  # no exception, whatever the backends make of it
         assert lod.part.n_triangles >= 1
         lods, report = L.lod_chain(p, backend=backend)
@@ -287,7 +291,7 @@ def test_fin_and_bowtie_alone():
 
 def test_tiny_part_keeps_lod0_only():
     p = _part([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1, 2], [2, 1, 3]])
-    for backend in L.BACKENDS:
+    for backend in B.BACKENDS:
         lods, report = L.lod_chain(p, backend=backend)
         assert len(lods) == 1 and lods[0].part is p
         assert "LOD 0 only" in report.stop_reason
@@ -295,7 +299,7 @@ def test_tiny_part_keeps_lod0_only():
         assert lod.part is p and lod.hausdorff_m == 0.0 and "not simplified" in lod.notes[0]
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_zero_area_faces(backend):
     s = _icosphere(3)
     v, f = s.positions, s.indices.astype(np.int64)
@@ -314,33 +318,33 @@ def test_zero_area_faces(backend):
 
 
 def _other(backend):
-    return [b for b in L.BACKENDS if b != backend][0]
+    return [b for b in B.BACKENDS if b != backend][0]
 
 
-_FUNC = {"pymeshlab": "_simplify_pymeshlab", "fast": "_simplify_fast"}
+_FUNC = {"pymeshlab": "simplify_pymeshlab", "fast": "simplify_fast"}
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_backend_raises_falls_back(ico, monkeypatch, backend):
     def boom(*args, **kwargs):
         raise RuntimeError("backend exploded")
 
-    monkeypatch.setattr(L, _FUNC[backend], boom)
+    monkeypatch.setattr(B, _FUNC[backend], boom)
     lod = L.simplify(ico, 0.25, backend)
     assert lod.backend == _other(backend) and not lod.failed and _within(lod)
     assert any(f"{backend} failed: RuntimeError: backend exploded" in n and "falling back" in n for n in lod.notes)
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_backend_flipped_faces_fall_back(ico, monkeypatch, backend):
-    real = getattr(L, _FUNC[backend])
+    real = getattr(B, _FUNC[backend])
 
     def flipped(*args, **kwargs):
         res = real(*args, **kwargs)
         res.faces = res.faces[:, ::-1].copy()
         return res
 
-    monkeypatch.setattr(L, _FUNC[backend], flipped)
+    monkeypatch.setattr(B, _FUNC[backend], flipped)
     lod = L.simplify(ico, 0.25, backend)
     assert lod.backend == _other(backend) and not lod.failed
     assert any(f"{backend} failed" in n and "flipped" in n for n in lod.notes)
@@ -351,19 +355,19 @@ def test_backend_flipped_faces_fall_back(ico, monkeypatch, backend):
     assert (np.einsum("ij,ij->i", fn, p.positions[f].mean(1)) > 0).all()
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_backend_missing_target_falls_back(ico, monkeypatch, backend):
     def lazy(positions, faces, target, **kwargs):  # returns its input: 4x too many triangles
-        return L._BackendResult(np.asarray(positions, np.float64), np.asarray(faces, np.int64))
+        return B.BackendResult(np.asarray(positions, np.float64), np.asarray(faces, np.int64))
 
-    monkeypatch.setattr(L, _FUNC[backend], lazy)
+    monkeypatch.setattr(B, _FUNC[backend], lazy)
     lod = L.simplify(ico, 0.25, backend)
     assert lod.backend == _other(backend) and _within(lod)
     assert any(f"{backend} failed" in n and "2x off" in n for n in lod.notes)
 
 
 def test_backend_degenerate_and_nan_output(ico, monkeypatch):
-    real = L._simplify_pymeshlab
+    real = B.simplify_pymeshlab
 
     def with_degenerate(*args, **kwargs):
         res = real(*args, **kwargs)
@@ -371,7 +375,7 @@ def test_backend_degenerate_and_nan_output(ico, monkeypatch):
         res.faces = np.concatenate([res.faces, extra])
         return res
 
-    monkeypatch.setattr(L, "_simplify_pymeshlab", with_degenerate)
+    monkeypatch.setattr(B, "simplify_pymeshlab", with_degenerate)
     lod = L.simplify(ico, 0.25, "pymeshlab")
     assert lod.backend == "pymeshlab" and any("2 degenerate faces dropped" in n for n in lod.notes)
     assert degenerate_triangles(lod.part.positions, lod.part.indices) == 0
@@ -381,7 +385,7 @@ def test_backend_degenerate_and_nan_output(ico, monkeypatch):
         res.positions[0] = np.nan
         return res
 
-    monkeypatch.setattr(L, "_simplify_pymeshlab", with_nan)
+    monkeypatch.setattr(B, "simplify_pymeshlab", with_nan)
     lod = L.simplify(ico, 0.25, "pymeshlab")
     assert lod.backend == "fast" and any("NaN" in n for n in lod.notes)
 
@@ -390,8 +394,8 @@ def test_every_backend_fails_keeps_previous_lod(ico, monkeypatch):
     def boom(*args, **kwargs):
         raise MemoryError("no")
 
-    monkeypatch.setattr(L, "_simplify_pymeshlab", boom)
-    monkeypatch.setattr(L, "_simplify_fast", boom)
+    monkeypatch.setattr(B, "simplify_pymeshlab", boom)
+    monkeypatch.setattr(B, "simplify_fast", boom)
     lod = L.simplify(ico, 0.5)
     assert lod.failed and lod.backend == "none" and lod.part is ico
     assert any("keeping the previous LOD" in n for n in lod.notes)
@@ -401,7 +405,7 @@ def test_every_backend_fails_keeps_previous_lod(ico, monkeypatch):
 
 
 def test_failure_after_some_lods_keeps_them(ico, monkeypatch):
-    real = L._simplify_fast
+    real = B.simplify_fast
     calls = {"n": 0}
 
     def fails_late(*args, **kwargs):
@@ -410,7 +414,7 @@ def test_failure_after_some_lods_keeps_them(ico, monkeypatch):
             raise RuntimeError("late failure")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(L, "_simplify_fast", fails_late)
+    monkeypatch.setattr(B, "simplify_fast", fails_late)
     lods, report = L.lod_chain(ico, ratios=RATIOS, backend="fast", fallback=False)
     assert [lod.target_ratio for lod in lods] == [1.0, 0.5, 0.25]
     assert "could not be produced" in report.stop_reason
@@ -419,7 +423,7 @@ def test_failure_after_some_lods_keeps_them(ico, monkeypatch):
 # ------------------------------------------------------------------------------------------ determinism
 
 
-@pytest.mark.parametrize("backend", L.BACKENDS)
+@pytest.mark.parametrize("backend", B.BACKENDS)
 def test_deterministic(spot, backend):
     a, ra = L.lod_chain(spot, ratios=[0.5, 0.25], backend=backend)
     b, rb = L.lod_chain(spot, ratios=[0.5, 0.25], backend=backend)
@@ -440,21 +444,21 @@ def test_deterministic(spot, backend):
 
 
 def _brute_ref_to_lod(ref, part):
-    return float(np.sqrt(L._point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
+    return float(np.sqrt(E.point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
 
 
 def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(bunny):
-    ref = L._Reference(bunny)
+    ref = X.Reference(bunny)
     for ratio in (1 / 2, 1 / 8):
         lod = L.simplify(bunny, ratio, backend="fast")
-        assert L._measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
+        assert E.measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
 
 
 def test_ref_to_lod_finds_a_maximum_at_a_centroid():
     # the same four vertices, the non-planar quad split along the other diagonal: every vertex lies
     # on the LOD (distance 0), the deviation is at the face centroids only
     v = [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]
-    ref = L._Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
+    ref = X.Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
     lod = _part(v, [[0, 1, 3], [1, 2, 3]])
-    d = L._measure_ref_to_lod(ref, lod)
+    d = E.measure_ref_to_lod(ref, lod)
     assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)

@@ -603,7 +603,7 @@ class _Loader:
         for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary)):
             if values is not None and vary:
                 cols.append(_bits64(values))
-        first, inverse = _unique_first(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
+        first, inverse = unique_rows(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
         tris = inverse[tri_local]
         if str(self.get(mesh.GetOrientationAttr()) or "rightHanded") == "leftHanded":
             tris = tris[:, [0, 2, 1]]
@@ -751,18 +751,6 @@ def _bits64(values: np.ndarray) -> np.ndarray:
     if v.shape[1] % 2:
         v = np.concatenate([v, np.zeros((v.shape[0], 1), np.float32)], axis=1)
     return np.ascontiguousarray(v).view(np.int64)
-
-
-def _unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """weld.unique_rows, with a fast path for a single int64 column."""
-    if keys.shape[1] != 1:
-        return unique_rows(keys)
-    col = keys[:, 0]
-    _, first, inverse = np.unique(col, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.size)
-    return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
 
 
 def _place(name: str, source: str, local: _LocalMesh, m: np.ndarray, settings: IngestSettings) -> MeshPart:

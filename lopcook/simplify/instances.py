@@ -128,7 +128,7 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
     LOD 0 is ``copy`` itself, every other LOD ``place``d, errors scaled by the similarity scale or
     measured (module doc), the chain cut where an error exceeds ``max_error_m``. Returns
     ``(lods, report)`` for the copy."""
-    from .chain import hausdorff
+    from .error import hausdorff
 
     t0 = time.perf_counter()
     s = similarity_scale(a)

@@ -72,7 +72,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..simplify.chain import MIN_SIMPLIFY_TRIANGLES
+from ..simplify import MIN_SIMPLIFY_TRIANGLES
 from ..emit.binning import LEVELS
 from ..errors import LopcookError
 from ..settings import DEFAULT_ANALYSE, AnalyseSettings

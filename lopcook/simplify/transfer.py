@@ -1,0 +1,309 @@
+"""Attribute transfer from LOD 0 to a simplified mesh: closest-point barycentric interpolation of
+normals, UVs and colours, with corners re-split where LOD 0 has a crease or seam
+(see ``lopcook.simplify.chain`` for the contract)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids
+from ..types import MeshPart
+from .backends import BackendFailure, BackendResult, Work
+from .error import point_mesh, samples
+from .topology import SeamStats, mesh_defects, seam_stats, signed_volume
+
+
+#: a face whose normal is more than 120 degrees from LOD 0's nearby faces is flipped
+FLIP_COS = -0.5
+
+#: corners look for their side of a seam this fraction of the way towards the face centroid
+NUDGE = 0.25
+
+
+#: corners per step of the transfer's side test (bounds its (k, 3, 3) temporaries)
+TRANSFER_CHUNK = 1 << 17
+
+
+def barycentric(points: np.ndarray, tri: np.ndarray, clamp: bool) -> np.ndarray:
+    """(q, 3) barycentric coordinates of ``points`` projected on triangles ``tri`` (q, 3, 3);
+    clamped to the triangle (negative weights set to 0, renormalised) when ``clamp``. Degenerate
+    triangles get (1/3, 1/3, 1/3)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0, v1, v2 = b - a, c - a, points - a
+    d00 = (v0 * v0).sum(1)
+    d01 = (v0 * v1).sum(1)
+    d11 = (v1 * v1).sum(1)
+    d20 = (v2 * v0).sum(1)
+    d21 = (v2 * v1).sum(1)
+    den = d00 * d11 - d01 * d01
+    ok = den > 1e-30 * np.maximum(d00 * d11, 1e-300)
+    safe = np.where(ok, den, 1.0)
+    v = (d11 * d20 - d01 * d21) / safe
+    w = (d00 * d21 - d01 * d20) / safe
+    bary = np.stack([1.0 - v - w, v, w], axis=1)
+    bary = np.where(ok[:, None], bary, 1.0 / 3.0)
+    if clamp:
+        bary = np.clip(bary, 0.0, None)
+        s = bary.sum(1, keepdims=True)
+        bary = np.where(s > 0, bary / np.where(s > 0, s, 1.0), 1.0 / 3.0)
+    return bary
+
+
+class Reference:
+    """LOD 0 with what every LOD's transfer and measurement needs (computed once)."""
+
+    def __init__(self, part: MeshPart):
+        self.part = part
+        self.positions = part.positions
+        faces = part.indices.astype(np.int64)
+        self.faces_all = faces
+        self.degenerate = degenerate_mask(part.positions, faces)
+        # zero-area faces carry no surface and no trustworthy normal; keep them only if nothing else
+        self.faces = faces[~self.degenerate] if (~self.degenerate).any() and self.degenerate.any() else faces
+        fn = face_normals(part.positions, self.faces)
+        ln = np.linalg.norm(fn, axis=1)
+        self.face_unit = fn / np.where(ln > 0, ln, 1.0)[:, None]
+        self.region = components(self.faces.shape[0], self.faces, part.n_vertices)
+        self._samples = None
+        self._sample_vertices = None
+        self._tree = None
+        self._defects = None
+        self._seams = None
+        self._volume = None
+
+    def query(self, points: np.ndarray):
+        """Closest points on LOD 0 (libigl AABB tree built once): (squared distance, face, point)."""
+        import igl
+
+        if self._tree is None:
+            self._pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+            self._fac = np.ascontiguousarray(self.faces, dtype=np.int64)
+            self._tree = igl.AABB()
+            self._tree.init(self._pos, self._fac)
+        d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
+        return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
+
+    @property
+    def samples(self) -> np.ndarray:
+        """(len(sample_vertices) + len(faces), 3): the referenced vertices, then the face centroids."""
+        if self._samples is None:
+            self._samples = samples(self.positions, self.faces)
+        return self._samples
+
+    @property
+    def sample_vertices(self) -> np.ndarray:
+        """(k,) int64 sorted ids of the vertices in ``samples`` (the first k rows)."""
+        if self._sample_vertices is None:
+            self._sample_vertices = used_ids(self.faces, self.positions.shape[0])
+        return self._sample_vertices
+
+    @property
+    def defects(self) -> dict:
+        if self._defects is None:
+            self._defects = mesh_defects(self.positions, self.faces_all, self.degenerate)
+        return self._defects
+
+    @property
+    def seams(self) -> SeamStats | None:
+        if self._seams is None and self.part.uvs is not None:
+            self._seams = seam_stats(self.part)
+        return self._seams
+
+    @property
+    def volume(self) -> float:
+        if self._volume is None:
+            self._volume = signed_volume(self.positions, self.faces)
+        return self._volume
+
+
+def interpolate(values: np.ndarray, ref: Reference, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    corners = ref.faces[face]  # (q, 3) vertex ids
+    return np.einsum("qk,qkd->qd", bary, values[corners].astype(np.float64))
+
+
+#: corner values farther than this from their vertex's value belong to another side of a seam or
+#: crease: (normal angle in degrees, UV distance, colour distance)
+SPLIT_NORMAL_DEG = 30.0
+
+
+SPLIT_UV = 5e-3
+
+
+SPLIT_COLOR = 0.02
+
+
+def attributes_at(ref: Reference, names: list, face: np.ndarray, bary: np.ndarray,
+                   fallback_normal: np.ndarray) -> dict:
+    """LOD 0's attributes ``names`` interpolated at (face, bary): normals unit (LOD 0's face normal
+    where the interpolation vanishes), colours clipped."""
+    out = {}
+    src = ref.part
+    for name in names:
+        val = interpolate(getattr(src, name), ref, face, bary)
+        if name == "normals":
+            ln = np.linalg.norm(val, axis=1)
+            val = np.where((ln > 1e-6)[:, None], val / np.where(ln > 1e-6, ln, 1.0)[:, None], fallback_normal)
+        elif name == "colors":
+            val = np.clip(val, 0.0, 1.0)
+        out[name] = val
+    return out
+
+
+def differs(a: dict, b: dict) -> np.ndarray:
+    bad = None
+    for name, va in a.items():
+        vb = b[name]
+        if name == "normals":
+            d = np.einsum("ij,ij->i", va, vb) < np.cos(np.radians(SPLIT_NORMAL_DEG))
+        elif name == "uvs":
+            d = np.abs(va - vb).max(axis=1) > SPLIT_UV
+        else:
+            d = np.abs(va - vb).max(axis=1) > SPLIT_COLOR
+        bad = d if bad is None else bad | d
+    return bad
+
+
+def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart, work: Work, mode: str,
+              max_flipped_fraction: float) -> tuple[MeshPart, dict]:
+    """Attributes for the cleaned backend result; flip check; LOD -> LOD 0 distance.
+
+    Every LOD vertex takes LOD 0's attributes at its closest point. A face corner whose own side
+    (LOD 0's face nearest to the face centroid, refined by a query pulled ``NUDGE`` of the way from
+    the corner towards the centroid) gives clearly different values at the vertex (beyond the
+    ``_SPLIT_*`` tolerances: another side of a seam or crease) gets those values instead; corners
+    of one vertex that land in the same LOD 0 region share one value."""
+    P, F = res.positions, res.faces
+    m, k = F.shape[0], P.shape[0]
+    tri = P[F]
+    centroid = tri.mean(axis=1)
+    d2, fid, closest = ref.query(np.concatenate([P, centroid]))
+    fv, fc = fid[:k], fid[k:]
+    lod_to_ref = float(np.sqrt(d2.max()))
+
+    # flipped faces: facing away (more than 120 degrees) from LOD 0's nearest face at the centroid
+    # and at 2 of the 3 points half-way to the corners (one sample alone is fooled where a coarse
+    # face cuts a sharp edge or lies between two sheets)
+    fn = face_normals(P, F)
+    fl = np.linalg.norm(fn, axis=1)
+    unit = fn / np.where(fl > 0, fl, 1.0)[:, None]
+    cand = np.flatnonzero(np.einsum("ij,ij->i", unit, ref.face_unit[fc]) < FLIP_COS)
+    flipped = 0
+    if cand.size:
+        half = 0.5 * (tri[cand] + centroid[cand][:, None, :])  # (c, 3, 3)
+        fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
+        votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
+        flipped = int((votes >= 2).sum())
+    if flipped > max_flipped_fraction * m and flipped > 0:
+        raise BackendFailure(f"{flipped} of {m} faces are flipped against the source surface")
+    if ref.defects["closed"] and abs(ref.volume) > 0:
+        vol = signed_volume(P, F)
+        if np.sign(vol) != np.sign(ref.volume):
+            raise BackendFailure("the closed mesh's signed volume changed sign (inside out)")
+
+    src = ref.part
+    names = [n for n in ("normals", "colors") if getattr(src, n) is not None]
+    uv_from_ref = src.uvs is not None and mode != "xatlas" and res.wedge_uvs is None and not (
+        mode == "lock" and res.vertex_source is not None and work.region is not None)
+    if uv_from_ref:
+        names.append("uvs")
+    vid = F.ravel()
+    corner_attr = {}
+    if names:
+        face_of_corner = np.repeat(np.arange(m), 3)
+        bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
+        at_v = attributes_at(ref, names, fv, bary_v, ref.face_unit[fv])
+        # phase 1: the corner's side = LOD 0's face nearest to the LOD face's centroid. That face's
+        # attribute field, extrapolated linearly to the vertex, matches the vertex's own value on a
+        # smooth field and differs across a seam or crease.
+        g = fc[face_of_corner]
+        split = np.empty(vid.size, dtype=bool)
+        for s0 in range(0, vid.size, TRANSFER_CHUNK):  # row-wise: (chunk, 3, 3) temporaries only
+            sl = slice(s0, s0 + TRANSFER_CHUNK)
+            gs, vs = g[sl], vid[sl]
+            ext = attributes_at(ref, names, gs, barycentric(P[vs], ref.positions[ref.faces[gs]], clamp=False),
+                                 ref.face_unit[gs])
+            split[sl] = differs({n: at_v[n][vs] for n in names}, ext)
+            del ext
+        cs = np.flatnonzero(split)
+        at2 = {}
+        if cs.size:
+            # phase 2: only for corners that look split, find their side near the corner itself
+            q = P[vid[cs]]
+            q = q + NUDGE * (centroid[face_of_corner[cs]] - q)
+            g2 = ref.query(q)[1]
+            g[cs] = g2
+            pv_cs = P[vid[cs]]
+            tri2 = ref.positions[ref.faces[g2]]
+            ext2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=False), ref.face_unit[g2])
+            split[cs] = differs({n: at_v[n][vid[cs]] for n in names}, ext2)
+            # the value of a split corner: its side's field at the vertex, kept inside that face
+            at2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=True), ref.face_unit[g2])
+        # corners that agree with their vertex share its value; the others group by LOD 0 region
+        region = np.where(split, ref.region[g], -1)
+        first, group = unique_rows(np.stack([vid, region], axis=1))
+        own = ~split[first]
+        not_own = np.flatnonzero(~own)
+        at_split = np.searchsorted(cs, first[not_own])  # a corner still split after phase 2 is in cs
+        for n in names:
+            val = at_v[n][vid[first]]
+            if not_own.size:
+                val[not_own] = at2[n][at_split]
+            if n == "normals":
+                val = val / np.linalg.norm(val, axis=1, keepdims=True)
+            corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
+    per_group = bool(names)  # every attribute so far is a function of the corner's group
+    if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
+        if per_group:
+            corner_attr = {n: v[group] for n, v in corner_attr.items()}
+            per_group = False
+        if res.wedge_uvs is not None:
+            corner_attr["uvs"] = res.wedge_uvs.reshape(-1, 2).astype(np.float32)
+        else:
+            corner_attr["uvs"] = lock_uvs(res, input_part, work)[vid]
+
+    def unique_vertices(row_vid: np.ndarray):
+        keys = [row_vid.reshape(-1, 1).astype(np.int64)]
+        for name in ("uvs", "normals", "colors"):
+            if name in corner_attr:
+                keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32)
+                            .astype(np.int64))
+        return unique_rows(np.concatenate(keys, axis=1))
+
+    if per_group:
+        # corners of one group share their row, and groups are numbered by first appearance, so
+        # the unique rows of the groups, numbered by first appearance, are those of the corners
+        gfirst, ginv = unique_vertices(vid[first])
+        vfirst, vinv, pick = first[gfirst], ginv[group], gfirst
+    else:
+        vfirst, vinv = unique_vertices(vid)
+        pick = vfirst
+    out = MeshPart(
+        name=input_part.name,
+        positions=np.ascontiguousarray(P[vid[vfirst]], dtype=np.float64),
+        indices=vinv.reshape(m, 3).astype(np.uint32),
+        normals=corner_attr["normals"][pick] if "normals" in corner_attr else None,
+        uvs=corner_attr["uvs"][pick] if "uvs" in corner_attr else None,
+        colors=corner_attr["colors"][pick] if "colors" in corner_attr else None,
+        source=input_part.source,
+        normals_computed=input_part.normals_computed,
+        texture=input_part.texture,
+        mesh_key=input_part.mesh_key,
+    )
+    return out, {"lod_to_ref": lod_to_ref, "flipped": flipped}
+
+
+def lock_uvs(res: BackendResult, input_part: MeshPart, work: Work) -> np.ndarray:
+    """Per output vertex UVs for ``fast`` with locked seams: interpolate the input's UVs at the
+    closest point when that point lies in the vertex's own UV island (known from the collapse map),
+    else copy the UV of the input vertex it came from."""
+    src = res.vertex_source
+    P = res.positions
+    d2, fid, closest = point_mesh(P, work.positions, work.faces)
+    island_of_face = work.region[work.faces[:, 0]]
+    own = work.region[src]
+    ok = island_of_face[fid] == own
+    bary = barycentric(closest, work.positions[work.faces[fid]], clamp=True)
+    interp = np.einsum("qk,qkd->qd", bary, work.uvs[work.faces[fid]])
+    # a vertex that did not move (seam and border vertices are locked) keeps its UV bit for bit
+    unmoved = (P == work.positions[src]).all(axis=1)
+    return np.where((ok & ~unmoved)[:, None], interp, work.uvs[src]).astype(np.float32)
