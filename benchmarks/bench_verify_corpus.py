@@ -53,7 +53,6 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 
 from lopcook.analyse import analyse  # noqa: E402
-from lopcook.analyse.summary import _settings_dict  # noqa: E402
 from lopcook.emit import build  # noqa: E402
 from lopcook.emit.container import from_bytes  # noqa: E402
 from lopcook.ingest import load  # noqa: E402
@@ -106,7 +105,7 @@ def run_asset(path: Path, args) -> list[dict]:
             an = analyse(scene, settings)
             hist = an.histogram()
             min_level_percent = 100.0 * float(sum(b * int(hist[b]) for b in range(len(hist)))) / (32.0 * hist.sum())
-            data = build(scene, an, options={"analyse": _settings_dict(settings)}, viewing=viewing)
+            data = build(scene, an, options={"analyse": settings.to_record()}, viewing=viewing)
             c = from_bytes(data, path.name)
             t_cook = time.perf_counter() - t0
             t0 = time.perf_counter()
@@ -275,14 +274,14 @@ def diagnose(path: Path, args) -> None:
         nd = _NormalDepth(h)
         try:
             an = analyse(scene, settings)
-            c = from_bytes(build(scene, an, options={"analyse": _settings_dict(settings)}, viewing=viewing), None)
+            c = from_bytes(build(scene, an, options={"analyse": settings.to_record()}, viewing=viewing), None)
             print(f"== {path.name}: k_f scale {args.kf_scale:g}, edges {'on' if settings.edges else 'off'}, "
                   f"{args.views} views, {args.resolution}; reasons {an.reason_counts()}", flush=True)
             _print_split(_split(h, nd, c, levels, args.views))
             for f in [int(v) for v in args.fixed.split(",") if v]:
                 for pa in an.parts:
                     pa.min_level = np.full_like(pa.min_level, f)
-                c = from_bytes(build(scene, an, options={"analyse": _settings_dict(settings)}, viewing=viewing), None)
+                c = from_bytes(build(scene, an, options={"analyse": settings.to_record()}, viewing=viewing), None)
                 print(f"  every vertex at level {f}:", flush=True)
                 _print_split(_split(h, nd, c, levels, args.views))
         finally:

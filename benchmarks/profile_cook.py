@@ -6,11 +6,11 @@ Not a test (pytest does not collect benchmarks/). Usage::
         [--repeat 3] [--cprofile N] [--json OUT.json]
 
 Each run is a child process that does what ``lopcook cook SOURCE -o OUT --lods ...`` does (ingest,
-``cook_bytes``, ``write_atomic``) with the stages wrapped by a recorder. Stages: ``ingest``;
+``lopcook.pipeline.run``, ``write_atomic``) with the stages wrapped by a recorder. Stages: ``ingest``;
 ``lod`` (LOD chains, all parts); ``grid``, ``E_v`` (attribute error and level), ``depth``,
 ``co_located`` (inside ``analyse``, summed over LODs; ``co_located`` also holds the cross-LOD
 sharing of ``analyse_lods``); ``emit`` (binning, attributes, bit planes, container bytes; in LOD
-mode the container is built twice, see ``cook_bytes``); ``write``. ``total`` is the whole
+mode, see ``lopcook.pipeline.run``); ``write``. ``total`` is the whole
 ingest..write span.
 
 Columns: wall seconds, CPU seconds (user + system of every thread of the process, so a stage
@@ -113,24 +113,22 @@ def _wrap(rec: Recorder, module, attr: str, stage: str):
 def child(args) -> dict:
     """One cook in this process, stages recorded; returns the result dict."""
     import lopcook.analyse as an
-    import lopcook.emit as em
     import lopcook.pipeline as pl
-    from lopcook.pipeline import parse_lod_ratios as _lod_ratios
     from lopcook.emit.container import write_atomic
     from lopcook.ingest import load
-    from lopcook.settings import DEFAULT_ANALYSE
-    from lopcook.viewing import Viewing
+    from lopcook.settings import Settings, SimplifySettings, parse_lods
 
     rec = Recorder()
-    _wrap(rec, pl, "_chains", "lod")
+    _wrap(rec, pl, "chains", "lod")
     _wrap(rec, an, "triangle_frames", "E_v")
     _wrap(rec, an, "triangle_gradient_norms", "E_v")
     _wrap(rec, an, "vertex_max", "E_v")
     _wrap(rec, an, "attribute_level", "E_v")
     _wrap(rec, an, "depth_levels", "depth")
-    _wrap(rec, an, "_colocated_max", "co_located")
-    _wrap(rec, pl, "_colocated_max", "co_located")
-    _wrap(rec, em, "build", "emit")
+    _wrap(rec, an, "colocated_max", "co_located")
+    _wrap(rec, pl, "colocated_max", "co_located")
+    _wrap(rec, pl, "encode_buffer", "emit")
+    _wrap(rec, pl, "to_bytes", "emit")
     orig_analyse = an.analyse
 
     def analyse(*a, **k):  # grid = the part of analyse's own "grid" timing
@@ -139,14 +137,13 @@ def child(args) -> dict:
         return out
 
     pl.analyse = analyse
-    lod_ratios = _lod_ratios(args.lods)
+    settings = Settings(simplify=SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend))
     out = tempfile.mktemp(suffix=".lop", dir=args.tmp)
     import_hwm = _hwm_kb()
     with rec.stage("total"):
         with rec.stage("ingest"):
             scene = load(args.source)
-        data, _info = pl.cook_bytes(scene, DEFAULT_ANALYSE, Viewing(), lod_ratios=lod_ratios,
-                                    lod_backend=args.lod_backend, options=None)
+        data = pl.run(scene, settings).data
         with rec.stage("write"):
             write_atomic(out, data)
     os.unlink(out)

@@ -1,19 +1,21 @@
 """lopcook: an offline asset cooker for level-of-precision (LOP) vertex containers.
 
-Pipeline: ``load(path) -> Scene`` (ingest) -> analyse -> emit -> verify/report.
+Pipeline: ingest -> simplify -> analyse -> emit -> verify, with tune above the stages
+(docs/architecture.md). The Python API::
+
+    import lopcook
+    scene = lopcook.load("fixtures/two_plates.glb")
+    container = lopcook.cook(scene, lopcook.Settings())
+    container.write("two_plates.lop")
+
 Method: Q. Meyer, G. Sussner, G. Greiner, M. Stamminger, "Adaptive Level-of-Precision for
 GPU-Rendering", VMV 2011.
 """
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: E402
 
+from .api import cook, load, read  # noqa: E402
+from .emit.container import Container  # noqa: E402
+from .settings import DEFAULTS, Settings  # noqa: E402
 
-def load(path, settings=None):
-    """Load a glTF/GLB, OBJ or USD file into a validated ``Scene`` (see ``lopcook.ingest.load``)."""
-    from .ingest import load as _load
-    from .settings import DEFAULT_INGEST
-
-    return _load(path, settings or DEFAULT_INGEST)
-
-
-__all__ = ["__version__", "load"]
+__all__ = ["__version__", "load", "cook", "read", "Container", "Settings", "DEFAULTS"]

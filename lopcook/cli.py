@@ -10,15 +10,32 @@ import argparse
 import json
 import sys
 
-from . import __version__
+from .version import __version__
 from .errors import EXIT_OK, LopcookError
+from .settings import DEFAULTS as D
+from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs
 
 EXIT_INTERNAL = 3
 
 
 def _add_crease_angle(p: argparse.ArgumentParser) -> None:
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
-                   help="dihedral angle in degrees above which computed normals split (default 60; 180 = smooth)")
+                   help="dihedral angle above which computed normals split, degrees in [0, 180] "
+                        f"(default {D.ingest.crease_angle_deg:g}; 180 = smooth)")
+
+
+def _levels_text(levels) -> str:
+    """(6, 7, ..., 12) -> "6-12"; other sets as a comma list."""
+    lv = sorted(int(b) for b in levels)
+    return f"{lv[0]}-{lv[-1]}" if lv == list(range(lv[0], lv[-1] + 1)) else ",".join(map(str, lv))
+
+
+def _add_harness(g) -> None:
+    """--views and --resolution of the render harness, defaults from DEFAULTS.render."""
+    g.add_argument("--views", type=int, default=D.render.views, metavar="N",
+                   help=f"icosahedron views, 1..20 (default {D.render.views})")
+    g.add_argument("--resolution", default=D.render.resolution_text, metavar="WxH",
+                   help=f"render size in pixels (default {D.render.resolution_text})")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -49,8 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write LODs: auto (the default chain 1/2, 1/4, 1/8, ... until a LOD's error exceeds "
                         "what the farthest view can show, given --nearest, or its target falls under 4 triangles) "
                         "or these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
-    p.add_argument("--lod-backend", default="pymeshlab", choices=["pymeshlab", "fast"],
-                   help="simplifier: pymeshlab quadric collapse (seam-aware, default) or fast-simplification")
+    p.add_argument("--lod-backend", default=D.simplify.backend.value, choices=[b.value for b in LodBackend],
+                   help="simplifier: pymeshlab quadric collapse (seam-aware) or fast-simplification "
+                        f"(default {D.simplify.backend.value})")
     add_analyse_options(p)
     add_viewing_options(p)
     _add_crease_angle(p)
@@ -93,17 +111,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "table and fail (exit 1) when CAP's PSNR is below --min-psnr")
     p.add_argument("--levels", default=None, metavar="LEVELS",
                    help="per-buffer levels to check: a range or list in [1, 24], e.g. 1-24 or 6,8,12 "
-                        "(default: every level the file holds for --decoders, 6-12 for --source)")
+                        f"(default: every level the file holds for --decoders, {_levels_text(D.render.levels)} for --source)")
     r = p.add_argument_group("render check (--source)")
     r.add_argument("--min-psnr", type=float, default=40.0, metavar="DB",
                    help="CAP PSNR (dB) every level must reach (default 40); see --psnr-stat")
-    r.add_argument("--psnr-stat", choices=("min", "mean"), default="min",
+    r.add_argument("--psnr-stat", choices=[v.value for v in PsnrStat], default=D.tune.psnr_stat.value,
                    help="PSNR over views compared with --min-psnr: min (every view, default) or mean (PSNR of "
                         "the view-averaged MSE)")
     r.add_argument("--max-depth-errors", type=int, default=None, metavar="PIXELS",
                    help="fail when CAP shows more depth-order error pixels than this at a level (default: not checked)")
-    r.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
-    r.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    _add_harness(r)
     r.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="ingest setting for SOURCE (default: the one recorded in the container, else 60)")
     p.add_argument("--languages", default="glsl,hlsl", metavar="glsl,hlsl",
@@ -118,9 +135,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--source", metavar="SOURCE", required=True, help="the glTF/GLB, OBJ or USD file it was cooked from")
     p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
                    help="HTML file to write; the JSON goes beside it with the suffix .json")
-    p.add_argument("--levels", default=None, metavar="LEVELS", help="per-buffer levels, e.g. 6-12 (default 6-12)")
-    p.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
-    p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    p.add_argument("--levels", default=None, metavar="LEVELS",
+                   help=f"per-buffer levels in [1, 24], e.g. 6-12 (default {_levels_text(D.render.levels)})")
+    _add_harness(p)
     _add_crease_angle(p)
     p.add_argument("--no-analyse", action="store_true",
                    help="do not re-cook the source (no stage timings, no determinism check, no warnings from the "
@@ -138,17 +155,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def add_viewing_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("viewing conditions (recorded in the container)")
-    g.add_argument("--viewport", default="1920x1080", metavar="WxH", help="viewport in pixels (default 1920x1080)")
-    g.add_argument("--fov", type=float, default=60.0, metavar="DEG", help="vertical field of view, degrees (default 60)")
+    v = D.viewing
+    g.add_argument("--viewport", default=f"{v.viewport[0]}x{v.viewport[1]}", metavar="WxH",
+                   help=f"viewport in pixels (default {v.viewport[0]}x{v.viewport[1]})")
+    g.add_argument("--fov", type=float, default=v.fov_y_deg, metavar="DEG",
+                   help=f"vertical field of view, degrees in (0, 180) (default {v.fov_y_deg:g})")
     g.add_argument("--nearest", default=None, metavar="METRES",
-                   help="closest camera distance to the scene, metres (e.g. 0.5 or 0.5m; default unknown)")
-    g.add_argument("--pixel-error", type=float, default=0.5, metavar="PX",
-                   help="allowed screen-space error in pixels (default 0.5, the paper's half pixel)")
+                   help="closest camera distance to the scene, metres > 0 (e.g. 0.5 or 0.5m; default unknown)")
+    g.add_argument("--pixel-error", type=float, default=v.pixel_error, metavar="PX",
+                   help=f"allowed screen-space error, pixels > 0 (default {v.pixel_error:g}, the paper's half pixel)")
 
 
 def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
-    from .tune.calibrate import CAL_RESOLUTION, CAL_VIEWS
-
+    cal = D.tune.calibration
     g = p.add_argument_group("k_f calibration (renders CAP against the source; see lopcook.tune.calibrate)")
     if cook:
         g.add_argument("--target-psnr", type=float, default=None, metavar="DB",
@@ -159,120 +178,52 @@ def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
         g.add_argument("--target-psnr", type=float, required=True, metavar="DB",
                        help="CAP PSNR (dB) to reach at every level (see --psnr-stat)")
     prefix = "calibration-" if cook else ""
-    g.add_argument(f"--{prefix}views", dest="calibration_views", type=int, default=CAL_VIEWS, metavar="N",
-                   help=f"icosahedron views per probe, 1..20 (default {CAL_VIEWS})")
-    g.add_argument(f"--{prefix}resolution", dest="calibration_resolution",
-                   default=f"{CAL_RESOLUTION[0]}x{CAL_RESOLUTION[1]}", metavar="WxH",
-                   help=f"render size per probe (default {CAL_RESOLUTION[0]}x{CAL_RESOLUTION[1]})")
-    g.add_argument(f"--{prefix}levels", dest="calibration_levels", default="6-12", metavar="LEVELS",
-                   help="per-buffer levels every probe must pass (default 6-12)")
-    g.add_argument("--psnr-stat", choices=("min", "mean"), default="min",
+    g.add_argument(f"--{prefix}views", dest="calibration_views", type=int, default=cal.views, metavar="N",
+                   help=f"icosahedron views per probe, 1..20 (default {cal.views})")
+    g.add_argument(f"--{prefix}resolution", dest="calibration_resolution", default=cal.resolution_text,
+                   metavar="WxH", help=f"render size per probe, pixels (default {cal.resolution_text})")
+    g.add_argument(f"--{prefix}levels", dest="calibration_levels", default=_levels_text(cal.levels),
+                   metavar="LEVELS",
+                   help=f"per-buffer levels every probe must pass (default {_levels_text(cal.levels)})")
+    g.add_argument("--psnr-stat", choices=[v.value for v in PsnrStat], default=D.tune.psnr_stat.value,
                    help="PSNR over views that must reach the target: min (every view, default) or mean "
                         "(PSNR of the view-averaged MSE, as Purnomo et al. average errors)")
-    g.add_argument("--search", choices=("kf", "kf+edge"), default=None,
+    g.add_argument("--search", choices=[v.value for v in SearchKnobs], default=None,
                    help="knobs to search: the k_f scale only (kf), or also the edge constraint's --edge-eps "
                         "(kf+edge, the default when --edges is on)")
     g.add_argument("--no-calibration-confirm", dest="calibration_confirm", action="store_false",
-                   help="do not confirm the choice with lopcook verify's 20 views at 1280x720 (by default the "
-                        "k_f scale is raised until it passes there too)")
+                   help=f"do not confirm the choice with lopcook verify's {D.render.views} views at "
+                        f"{D.render.resolution_text} (by default the k_f scale is raised until it passes there too)")
 
 
 def add_budget_options(p: argparse.ArgumentParser) -> None:
-    from .tune.budget import DEFAULT_LEVELS_PER_LOD, DEFAULT_RESOLUTION, DEFAULT_SCOPE, DEFAULT_VIEWS, SCOPES
-
+    t = D.tune
     g = p.add_argument_group("byte budget (Purnomo et al. 2005, section 5; see docs/budget.md)")
     g.add_argument("--target-bytes", default=None, metavar="N|P/Q",
                    help="cook the LOD chain (--lods, default 1/2, 1/4, ...), render every (LOD, level) that fits "
                         "in N bytes and write only the one with the least image error; P/Q = that fraction of the "
                         "float size (e.g. 1/6). Fails (exit 2) when nothing fits")
-    g.add_argument("--budget-scope", choices=SCOPES, default=DEFAULT_SCOPE,
+    g.add_argument("--budget-scope", choices=[v.value for v in BudgetScope], default=t.budget_scope.value,
                    help="what the bytes count: positions (GPU position buffer; float size 12 B/vertex, default), "
                         "vertices (+ stored normals/UVs/colours), all (+ index buffer)")
-    g.add_argument("--budget-views", type=int, default=DEFAULT_VIEWS, metavar="N",
-                   help=f"icosahedron views per candidate, 1..20 (default {DEFAULT_VIEWS})")
-    g.add_argument("--budget-resolution", default=f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}", metavar="WxH",
-                   help=f"render size per candidate (default {DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]})")
-    g.add_argument("--budget-levels", type=int, default=DEFAULT_LEVELS_PER_LOD, metavar="N",
-                   help=f"levels rendered per LOD: the largest that fits and N-1 below (default {DEFAULT_LEVELS_PER_LOD})")
-
-
-def _budget_target(text: str, float_size: int | None = None) -> int | None:
-    """``--target-bytes``: an integer number of bytes, or P/Q of ``float_size`` (rounded down).
-    With ``float_size`` None only the syntax is checked (returns None for a fraction)."""
-    from fractions import Fraction
-
-    t = str(text).strip().replace("_", "").replace(",", "")
-    try:
-        value = Fraction(t)
-    except (ValueError, ZeroDivisionError):
-        raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a number of bytes (e.g. 150000) "
-                           "or a fraction of the float size (e.g. 1/6)") from None
-    if "/" not in t:
-        if value.denominator != 1 or value <= 0:
-            raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a positive whole number of bytes")
-        return int(value)
-    if not value > 0:
-        raise LopcookError("usage", None, f"--target-bytes {text!r}: the fraction must be positive")
-    return None if float_size is None else int(value * float_size)
-
-
-def _run_budget(args, scene, settings, viewing, lod_ratios, options):
-    """``cook --target-bytes``: ``lopcook.tune.budget.fit`` -> (data, info as ``cook_bytes`` gives it, record)."""
-    from .tune.budget import fit, float_bytes
-
-    target = _budget_target(args.target_bytes, float_bytes(scene, args.budget_scope))
-    if target < 1:
-        raise LopcookError("usage", args.source, f"--target-bytes {args.target_bytes}: less than one byte of the "
-                           f"float size {float_bytes(scene, args.budget_scope):,} B")
-    data, binfo = fit(scene, target, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
-                      scope=args.budget_scope, views=args.budget_views,
-                      resolution=_resolution(args.budget_resolution, "--budget-resolution"),
-                      levels_per_lod=args.budget_levels, options=options, progress=lambda m: _progress(args, m))
-    info = dict(binfo["cook"], analysis=binfo["analysis"])
-    info["timings_s"] = {k: v for k, v in binfo["cook"]["timings_s"].items() if k != "total"}
-    info["timings_s"].update({f"budget.{k}": v for k, v in binfo["timings_s"].items() if k != "cook"})
-    return data, info, binfo["budget"]
+    g.add_argument("--budget-views", type=int, default=t.budget.views, metavar="N",
+                   help=f"icosahedron views per candidate, 1..20 (default {t.budget.views})")
+    g.add_argument("--budget-resolution", default=t.budget.resolution_text, metavar="WxH",
+                   help=f"render size per candidate, pixels (default {t.budget.resolution_text})")
+    g.add_argument("--budget-levels", type=int, default=t.budget_levels, metavar="N",
+                   help=f"levels rendered per LOD, >= 1: the largest that fits and N-1 below (default {t.budget_levels})")
 
 
 def _resolution(text: str, flag: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in str(text).lower().split("x"))
-    except ValueError:
-        raise LopcookError("usage", None, f"{flag} {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise LopcookError("usage", None, f"{flag} {text!r}: width and height must be in [1, 16384] pixels")
-    return w, h
+    from .settings import parse_resolution
+
+    return parse_resolution(text, flag)
 
 
 def _views(n: int, flag: str) -> int:
     if not 1 <= int(n) <= 20:
         raise LopcookError("usage", None, f"{flag} {n}: expected 1..20 icosahedron views")
     return int(n)
-
-
-def _run_calibration(args, scene, settings, viewing, ingest_settings) -> dict:
-    from .tune.calibrate import calibrate
-    from .verify.decoders import parse_levels
-
-    prefix = "--calibration-" if args.command == "cook" else "--"
-    levels = parse_levels(args.calibration_levels)
-    views = _views(args.calibration_views, f"{prefix}views")
-    resolution = _resolution(args.calibration_resolution, f"{prefix}resolution")
-    if not args.target_psnr > 0:
-        raise LopcookError("usage", None, f"--target-psnr {args.target_psnr}: expected a positive number of dB")
-
-    def progress(p):
-        ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
-        what = "confirm" if p.get("confirm") else "calibrate"
-        _progress(args, f"{what}: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
-                        f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
-
-    from .tune.calibrate import CONFIRM
-
-    return calibrate(scene, settings, target_psnr=args.target_psnr, levels=levels, views=views, resolution=resolution,
-                     viewing=viewing, ingest_options={"crease_angle_deg": ingest_settings.crease_angle_deg},
-                     progress=progress, statistic=args.psnr_stat, search=args.search,
-                     confirm=CONFIRM if args.calibration_confirm else None)
 
 
 def _viewing(args):
@@ -296,35 +247,38 @@ def _viewing(args):
 
 
 def add_analyse_options(p: argparse.ArgumentParser) -> None:
-    from .settings import DEFAULT_ANALYSE as d
+    d = D.analyse
 
     g = p.add_argument_group("analysis (Meyer et al. 2011, section 5)")
     g.add_argument("--eps", type=float, default=d.eps, metavar="COLOUR",
-                   help="largest shading error a vertex may cause, colour units in [0,1] (default 1/255)")
-    g.add_argument("--ks", type=float, default=d.ks, help=f"Phong specular coefficient (default {d.ks})")
-    g.add_argument("--shininess", type=float, default=d.shininess, help=f"Phong exponent n (default {d.shininess:g}); "
-                   "normals use k_f = ks * n")
+                   help=f"largest shading error a vertex may cause, colour units in (0, 1] (default 1/255 = {d.eps:.6g})")
+    g.add_argument("--ks", type=float, default=d.ks, help=f"Phong specular coefficient, >= 0 (default {d.ks:g})")
+    g.add_argument("--shininess", type=float, default=d.shininess,
+                   help=f"Phong exponent n, >= 0 (default {d.shininess:g}); normals use k_f = ks * n")
     g.add_argument("--kf", type=float, default=None,
-                   help="override k_f for every attribute (colour per attribute unit)")
-    g.add_argument("--texture-kf", default="image", metavar="image|off|VALUE",
-                   help="k_f of UVs: the base-colour texture's maximum slope (image, default), off, or colour per UV unit")
-    g.add_argument("--depth", default="auto", metavar="auto|off|fixed:N",
-                   help="depth constraints: from distances to other parts (auto, default), none, or the paper's "
-                        "mode: vertices closer than --depth-threshold get level N")
-    g.add_argument("--depth-threshold", type=float, default=0.0, metavar="METRES",
-                   help="distance under which a vertex is depth-critical in fixed:N mode")
+                   help="override k_f for every attribute, colour per attribute unit >= 0 (default: from the shading)")
+    g.add_argument("--texture-kf", default=d.texture_kf.value, metavar="image|off|VALUE",
+                   help="k_f of UVs: the base-colour texture's maximum slope (image), off, or colour per UV unit "
+                        f">= 0 (default {d.texture_kf.value})")
+    g.add_argument("--depth", default=d.depth_text, metavar="auto|off|fixed:N",
+                   help="depth constraints: from distances to other parts (auto), none, or the paper's mode: "
+                        f"vertices closer than --depth-threshold get level N in [1, 24] (default {d.depth_text})")
+    g.add_argument("--depth-threshold", type=float, default=d.depth_threshold, metavar="METRES",
+                   help="distance under which a vertex is depth-critical in fixed:N mode, metres > 0 "
+                        f"(default {d.depth_threshold:g}: must be given with fixed:N)")
     g.add_argument("--depth-ceiling", type=int, default=d.depth_ceiling, metavar="N",
-                   help=f"highest level a depth constraint may impose; touching parts are capped there (default {d.depth_ceiling})")
+                   help=f"highest level a depth constraint may impose, in [1, 24]; touching parts are capped there "
+                        f"(default {d.depth_ceiling})")
     g.add_argument("--edges", action=argparse.BooleanOptionalAction, default=d.edges,
                    help="discontinuity constraint: raise vertices on hard edges, sub-pixel folds, open boundaries "
                         "and colour seams, which E_v cannot see (default on; docs/analyse.md)")
     g.add_argument("--edge-eps", type=float, default=d.edge_eps, metavar="COLOUR",
-                   help=f"colour change an edge may cause in a pixel, colour units in (0,1] (default {d.edge_eps:g}: "
+                   help=f"colour change an edge may cause in a pixel, colour units in (0, 1] (default {d.edge_eps:g}: "
                         "a full-range jump costs 2 bits above the level)")
     g.add_argument("--edge-level", type=int, default=d.edge_level, metavar="N",
-                   help=f"highest per-buffer level the edge bound is kept at, in [1,24] (default {d.edge_level})")
+                   help=f"highest per-buffer level the edge bound is kept at, in [1, 24] (default {d.edge_level})")
     g.add_argument("--edge-angle", type=float, default=d.edge_angle_deg, metavar="DEGREES",
-                   help=f"normal spread within one pixel that makes a fold, in (0,180] (default {d.edge_angle_deg:g})")
+                   help=f"normal spread within one pixel that makes a fold, degrees in (0, 180] (default {d.edge_angle_deg:g})")
 
 
 def _ingest_settings(args):
@@ -339,9 +293,9 @@ def _ingest_settings(args):
 
 
 def _analyse_settings(args):
-    from .settings import AnalyseSettings
+    from .settings import AnalyseSettings, DepthMode
 
-    depth = args.depth
+    depth, level = args.depth, None
     if depth.startswith("fixed:"):
         try:
             level = int(depth.split(":", 1)[1])
@@ -351,9 +305,11 @@ def _analyse_settings(args):
             raise LopcookError("usage", None, f"--depth {depth}: N must be an integer level in [1, 24]")
         if not args.depth_threshold > 0:
             raise LopcookError("usage", None, f"--depth {depth} needs --depth-threshold METRES > 0")
-        depth = ("fixed", level)
+        depth = DepthMode.FIXED
     elif depth not in ("auto", "off"):
         raise LopcookError("usage", None, f"--depth {depth!r}: expected auto, off or fixed:N")
+    if not 0 < args.eps <= 1:
+        raise LopcookError("usage", None, f"--eps {args.eps}: expected colour units in (0, 1], e.g. 0.0039 (1/255)")
     tk = args.texture_kf
     if tk not in ("image", "off"):
         try:
@@ -362,11 +318,51 @@ def _analyse_settings(args):
             raise LopcookError("usage", None, f"--texture-kf {tk!r}: expected image, off or a number") from None
     try:
         return AnalyseSettings(eps=args.eps, ks=args.ks, shininess=args.shininess, kf=args.kf, texture_kf=tk,
-                               depth=depth, depth_threshold=args.depth_threshold,
+                               depth=depth, depth_level=level, depth_threshold=args.depth_threshold,
                                depth_ceiling=args.depth_ceiling, edges=args.edges, edge_eps=args.edge_eps,
                                edge_level=args.edge_level, edge_angle_deg=args.edge_angle)
     except ValueError as exc:
         raise LopcookError("usage", None, str(exc)) from None
+
+
+def _tune_settings(args):
+    """``cook``/``calibrate`` flags -> TuneSettings (usage errors before any work)."""
+    from .api import budget_target
+    from .settings import RenderSettings, TuneSettings
+    from .verify.decoders import parse_levels
+
+    prefix = "--calibration-" if args.command == "cook" else "--"
+    if args.target_psnr is not None and not args.target_psnr > 0:
+        raise LopcookError("usage", None, f"--target-psnr {args.target_psnr}: expected a positive number of dB")
+    calibration = RenderSettings(views=_views(args.calibration_views, f"{prefix}views"),
+                                 resolution=_resolution(args.calibration_resolution, f"{prefix}resolution"),
+                                 levels=tuple(parse_levels(args.calibration_levels)))
+    kw = {}
+    if getattr(args, "target_bytes", None) is not None:
+        budget_target(args.target_bytes)
+        if args.budget_levels < 1:
+            raise LopcookError("usage", None, f"--budget-levels {args.budget_levels}: expected 1 or more")
+        kw = dict(target_bytes=args.target_bytes, budget_scope=args.budget_scope, budget_levels=args.budget_levels,
+                  budget=RenderSettings(views=_views(args.budget_views, "--budget-views"),
+                                        resolution=_resolution(args.budget_resolution, "--budget-resolution")))
+    try:
+        return TuneSettings(target_psnr=args.target_psnr, psnr_stat=args.psnr_stat, search=args.search,
+                            calibration=calibration, confirm=RenderSettings() if args.calibration_confirm else None,
+                            **kw)
+    except ValueError as exc:
+        raise LopcookError("usage", None, str(exc)) from None
+
+
+def settings_from_args(args):
+    """The argparse namespace of ``cook``, ``calibrate`` or ``analyse`` -> one frozen Settings."""
+    from .settings import DEFAULTS, Settings, SimplifySettings, parse_lods
+
+    simplify = DEFAULTS.simplify
+    if getattr(args, "lods", None) is not None:
+        simplify = SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend)
+    return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
+                    viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
+                    tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune)
 
 
 def cmd_analyse(args) -> int:
@@ -384,10 +380,18 @@ def cmd_analyse(args) -> int:
     return EXIT_OK
 
 
-def _progress(args, message: str) -> None:
-    """Stage lines on stderr, only on a terminal and without --quiet/--json (build logs stay clean)."""
-    if not args.quiet and not args.json and sys.stderr.isatty():
-        print(f"lopcook: {message}", file=sys.stderr, flush=True)
+def _progress(args, message) -> None:
+    """Stage lines on stderr, only on a terminal and without --quiet/--json (build logs stay clean).
+    ``message``: a line, or a calibration probe (dict)."""
+    if args.quiet or args.json or not sys.stderr.isatty():
+        return
+    if isinstance(message, dict):
+        p = message
+        ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
+        what = "confirm" if p.get("confirm") else "calibrate"
+        message = (f"{what}: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
+                   f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
+    print(f"lopcook: {message}", file=sys.stderr, flush=True)
 
 
 def _is_container(path: str) -> bool:
@@ -400,129 +404,89 @@ def _is_container(path: str) -> bool:
         return False
 
 
-def _lod_ratios(text):
-    """``--lods``: see ``lopcook.pipeline.parse_lod_ratios``."""
-    from .pipeline import parse_lod_ratios
-
-    return parse_lod_ratios(text)
-
-
 def cmd_cook(args) -> int:
     import os
     import time
 
-    from .emit.container import from_bytes, write_atomic
-    from .emit.summary import describe_container, format_container
-    from .ingest import load
+    from . import api
 
-    settings = _analyse_settings(args)
-    viewing = _viewing(args)
-    lod_ratios = _lod_ratios(args.lods)
-    ingest_settings = _ingest_settings(args)
+    settings = settings_from_args(args)
     if os.path.isdir(args.output):
         raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
-    if args.target_bytes is not None:  # usage errors before any work
-        _budget_target(args.target_bytes)
-        _views(args.budget_views, "--budget-views")
-        _resolution(args.budget_resolution, "--budget-resolution")
-        if args.budget_levels < 1:
-            raise LopcookError("usage", None, f"--budget-levels {args.budget_levels}: expected 1 or more")
-    timings = {}
     t0 = time.perf_counter()
     _progress(args, f"ingest {args.source}")
-    scene = load(args.source, ingest_settings)
-    timings["ingest"] = time.perf_counter() - t0
-    calibration = None
-    if args.target_psnr is not None:
-        from dataclasses import replace
-
-        from .tune.calibrate import require_reached
-
-        t0 = time.perf_counter()
-        calibration = _run_calibration(args, scene, settings, viewing, ingest_settings)
-        timings["calibrate"] = time.perf_counter() - t0
-        require_reached(calibration, args.source)
-        settings = replace(settings, eps=calibration["eps"], edge_eps=calibration["edge_eps"])
-    _progress(args, f"analyse and emit {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
-    from .analyse.summary import _settings_dict
-    from .pipeline import cook_bytes
-
-    options = {"analyse": _settings_dict(settings), "ingest": {"crease_angle_deg": ingest_settings.crease_angle_deg}}
-    if lod_ratios is not None:
-        options["lods"] = {"ratios": args.lods, "backend": args.lod_backend}
-    if calibration is not None:
-        options["calibration"] = _calibration_record(calibration)
-    budget = None
-    if args.target_bytes is not None:
-        data, info, budget = _run_budget(args, scene, settings, viewing, lod_ratios, options)
-    else:
-        data, info = cook_bytes(scene, settings, viewing, lod_ratios=lod_ratios, lod_backend=args.lod_backend,
-                                options=options)
-    analysis = info["analysis"]
-    timings.update({f"analyse.{k}": v for k, v in analysis.timings.items()})
-    timings.update({k: v for k, v in info["timings_s"].items() if k != "total"})
+    scene = api.load(args.source, settings)
+    ingest_s = time.perf_counter() - t0
+    container = api.cook(scene, settings, progress=lambda m: _progress(args, m))
     t0 = time.perf_counter()
-    write_atomic(args.output, data)
+    container.write(args.output)
     if args.depfile:
         from .depfile import write_depfile
 
         # phony rules: a listed file that does not exist yet (a missing texture) reruns the cook
         # instead of stopping make with "no rule to make target"
         write_depfile(args.depfile, args.output, scene.dependencies or (args.source,), phony=True)
-    timings["write"] = time.perf_counter() - t0
-    desc = describe_container(from_bytes(data, args.output), file_bytes=len(data))
-    desc["timings_s"] = timings
-    desc["warnings"] = list(scene.warnings)
-    desc["touching"] = [list(p) for p in analysis.touching]
-    desc["intersecting"] = [list(p) for p in analysis.intersecting]
-    if calibration is not None:
-        desc["calibration"] = calibration
-    if budget is not None:
-        desc["budget"] = budget
-    if args.json:
-        print(json.dumps(desc, indent=1, sort_keys=True))
-    elif not args.quiet:
-        if calibration is not None:
-            from .tune.calibrate import format_calibration
-
-            print(format_calibration(calibration))
-        if budget is not None:
-            from .tune.budget import format_budget
-
-            print(format_budget(budget))
-        print(format_container(desc, timings=timings))
-        if analysis.touching or analysis.intersecting:
-            print(f"  note: {len(analysis.touching)} touching and {len(analysis.intersecting)} intersecting part "
-                  f"pairs (depth levels capped at {settings.depth_ceiling}; see lopcook analyse)")
+    write_s = time.perf_counter() - t0
+    container.path = args.output
+    desc = _cook_summary(container, scene, ingest_s, write_s)
+    _print_cook(args, desc, container.result)
     return EXIT_OK
 
 
-def _calibration_record(cal: dict) -> dict:
-    """What the container records of a calibration (manifest options are free-form JSON): target,
-    the chosen k_f (scale sigma, eps, per-attribute k_f) and the curve (memory vs PSNR over k_f)."""
-    keep = ("sigma", "log2_sigma", "eps", "edge_eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
-            "psnr_mean_per_level", "cap_percent")
-    return {"target_psnr": cal["target_psnr"], "statistic": cal["statistic"], "reached": cal["reached"],
-            "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
-            "edge_eps": cal["edge_eps"],
-            "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
-            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]],
-            "confirmation": None if not cal.get("confirmation") else {
-                "views": cal["confirmation"]["views"], "resolution": cal["confirmation"]["resolution"],
-                "passed": cal["confirmation"]["passed"],
-                "probes": [{k: p[k] for k in keep} for p in cal["confirmation"]["probes"]]}}
+def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
+    """``cook --json``: the container's description, stage timings, warnings, touching and
+    intersecting part pairs, and the calibration and budget records when those ran."""
+    from .emit.summary import describe_container
+
+    result = container.result
+    an = result.analysis
+    timings = {"ingest": ingest_s}
+    if "calibrate" in result.timings_s:
+        timings["calibrate"] = result.timings_s["calibrate"]
+    timings.update({f"analyse.{k}": v for k, v in an.timings.items()})
+    timings.update({k: v for k, v in result.timings_s.items() if k != "calibrate"})
+    timings["write"] = write_s
+    desc = describe_container(container, file_bytes=len(container.data))
+    desc.update(timings_s=timings, warnings=list(scene.warnings), touching=[list(p) for p in an.touching],
+                intersecting=[list(p) for p in an.intersecting])
+    if result.calibration is not None:
+        desc["calibration"] = result.calibration
+    if result.budget is not None:
+        desc["budget"] = result.budget
+    return desc
+
+
+def _print_cook(args, desc: dict, result) -> None:
+    from .emit.summary import format_container
+
+    if args.json:
+        print(json.dumps(desc, indent=1, sort_keys=True))
+        return
+    if args.quiet:
+        return
+    if result.calibration is not None:
+        from .tune.calibrate import format_calibration
+
+        print(format_calibration(result.calibration))
+    if result.budget is not None:
+        from .tune.budget import format_budget
+
+        print(format_budget(result.budget))
+    print(format_container(desc, timings=desc["timings_s"]))
+    an = result.analysis
+    if an.touching or an.intersecting:
+        print(f"  note: {len(an.touching)} touching and {len(an.intersecting)} intersecting part "
+              f"pairs (depth levels capped at {an.settings.depth_ceiling}; see lopcook analyse)")
 
 
 def cmd_calibrate(args) -> int:
+    from .api import calibration, load
     from .errors import EXIT_VERIFY_FAILED
-    from .ingest import load
     from .tune.calibrate import format_calibration
 
-    settings = _analyse_settings(args)
-    viewing = _viewing(args)
-    ingest_settings = _ingest_settings(args)
-    scene = load(args.source, ingest_settings)
-    cal = _run_calibration(args, scene, settings, viewing, ingest_settings)
+    settings = settings_from_args(args)
+    scene = load(args.source, settings)
+    cal = calibration(scene, settings, lambda m: _progress(args, m))
     if args.json:
         print(json.dumps(cal, indent=1, sort_keys=True))
     elif not args.quiet or not cal["reached"]:
@@ -656,9 +620,7 @@ def cmd_verify(args) -> int:
         report["decoders"] = verify_decoders(c, dec_levels, languages, adapt=not args.no_adapt)
         ok = ok and report["decoders"]["ok"]
     if args.source is not None:
-        from .verify.render import DEFAULT_LEVELS
-
-        render = _render_check(args, c, levels if levels is not None else list(DEFAULT_LEVELS))
+        render = _render_check(args, c, levels if levels is not None else list(D.render.levels))
         report["render"] = render
         ok = ok and render["ok"]
     report["ok"] = bool(ok)
@@ -689,7 +651,6 @@ def cmd_report(args) -> int:
     from .report import analysis_warnings, build_report, render_for_report, write_html
     from .settings import IngestSettings
     from .verify.decoders import parse_levels
-    from .verify.render import DEFAULT_LEVELS
 
     out = args.output
     if os.path.isdir(out):
@@ -701,7 +662,7 @@ def cmd_report(args) -> int:
         raise LopcookError("usage", out, f"directory {os.path.dirname(out)!r} does not exist")
     views = _views(args.views, "--views")
     resolution = _resolution(args.resolution, "--resolution")
-    levels = parse_levels(args.levels, args.container) if args.levels is not None else list(DEFAULT_LEVELS)
+    levels = parse_levels(args.levels, args.container) if args.levels is not None else list(D.render.levels)
     if not os.path.isfile(args.source):
         raise LopcookError("usage", args.source, "source file not found")
     c = read(args.container, allow_prefix=True)
@@ -747,8 +708,7 @@ def _add_bench_parser(sub) -> None:
                         "$LOPCOOK_CORPUS or ../shared/corpus)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for CSVs, charts and summary")
     p.add_argument("--levels", default="6-11", metavar="LEVELS", help="camera levels, e.g. 6-11 (default 6-11)")
-    p.add_argument("--views", type=int, default=20, metavar="N", help="icosahedron views, 1..20 (default 20)")
-    p.add_argument("--resolution", default="1280x720", metavar="WxH", help="render size in pixels (default 1280x720)")
+    _add_harness(p)
     p.add_argument("--bits", default="10,12,14,16", metavar="N,...",
                    help="position bits of the peers' runs (default 10,12,14,16)")
     p.add_argument("--peers", default="gltfpack,gltf-transform,draco", metavar="LIST",

@@ -1,12 +1,9 @@
 """Run a simplification backend in a forked child process: its memory goes when the child exits,
 and a crash in native code becomes an error the LOD chain falls back from.
 
-Why: on the 1.1M-triangle subdivided bunny, pymeshlab's quadric collapse peaks at about 500 MB
-above the cook's own memory and fast-simplification keeps about 320 MB after it returns (the
-library's global ``std::vector``\\ s keep their capacity until the process ends; measured with
-``malloc_trim`` and VmRSS). In the parent that memory would stack with everything that follows
-(libigl AABB trees for the Hausdorff measurement: about 180 MB per million triangles). In a child
-it is returned to the system the moment the result is back. The child shares the parent's pages
+Why: a native simplifier's peak memory, and memory some libraries keep after they return (global
+containers keep their capacity until the process ends), would stack in the parent with everything
+that follows (docs/lod.md has the measured sizes). In a child it is returned to the system the moment the result is back. The child shares the parent's pages
 (copy on write), so the system's memory at any time is the parent's plus the child's private
 pages: the peak is not hidden, only no longer added to what comes after.
 

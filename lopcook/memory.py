@@ -11,7 +11,7 @@ _LIBC = None
 def release_free_memory() -> None:
     """Return the C heap's free pages to the system (glibc ``malloc_trim(0)``; a no-op elsewhere).
     numpy and the native libraries free large temporaries into the heap, which glibc keeps; after
-    the 1.1M-triangle ingest that is about 200 MB of resident but unused memory. Called before a
+    a large ingest that is resident but unused memory (docs/performance.md). Called before a
     fork (the child would otherwise start with it resident) and between the cook's stages."""
     global _LIBC
     if _LIBC is None:

@@ -1,43 +1,45 @@
-"""Scene -> container bytes with LOD chains and "no more than a scene needs" savings.
+"""The one orchestrator of the stages: Scene + Settings -> CookResult (a container and what was done).
 
-Steps of ``cook_bytes``:
+``run(scene, settings)`` goes ingest's Scene -> simplify -> analyse -> emit:
 
-1. LOD chains per part (``lopcook.simplify.chain.lod_chain``) when ``lod_ratios`` is given; the
-   chain's ``max_error_m`` is the error the farthest useful view can show (``far_error_m``: the
-   distance at which the whole scene spans one pixel; no cap when ``viewing.nearest_m`` is None).
+1. LOD chains per part (``lopcook.simplify.lod_chain``) when ``settings.simplify.lods`` is set;
+   a chain's ``max_error_m`` is the error the farthest useful view can show (``far_error_m``:
+   the distance at which the whole scene spans one pixel; no cap without ``viewing.nearest_m``).
 2. ONE grid fitted over every position of every part and every LOD.
 3. Every LOD index k analysed on that grid (``analyse(scene_k, settings, grid=grid)``, scene_k =
    the parts that have a LOD k); then co-located vertices (same quantized position, any part,
    any LOD) share the maximum of their minimum levels, so no two buffers can crack apart.
 4. LODs whose selection range is empty are dropped (``lopcook.selection.selection_ranges``); the
    others record ``min_distance_m``.
-5. When ``viewing.nearest_m`` is set, the highest level any view can use is
-   ``required_level(nearest_m, extent, viewing)`` (the nearest camera needs the most bits);
-   ``max_level`` = the larger of it and the highest minimum level of any vertex, so no vertex
-   is clamped and no guarantee lost; planes above it are not written.
-6. ``lopcook.emit.build``; the savings (planes not written, LODs dropped, bytes saved against the
-   same container without them) go to the manifest field ``savings``.
+5. With ``viewing.nearest_m`` the highest level any view can use is
+   ``required_level(nearest_m, extent, viewing)``; ``max_level`` = the larger of it and the
+   highest minimum level of any vertex (no vertex clamped, no guarantee lost); planes above it
+   are not written.
+6. Emit: every buffer encoded once (``lopcook.emit.encode_buffer``); the savings record (planes
+   not written, LODs dropped, bytes saved against the same container without them) is computed
+   from the encoded buffers' sizes, without writing the larger container.
 
-Without ``lod_ratios`` and without ``nearest_m`` (and ``max_level``) the bytes are exactly those
-of ``build(scene, analyse(scene, settings), viewing=viewing)``.
+Without LODs and ``nearest_m`` (and ``max_level``) the bytes are exactly those of
+``lopcook.emit.build(scene, analyse(scene, settings.analyse), viewing=settings.viewing)``.
+Stages never change their inputs: the co-located sharing returns new level arrays.
 """
 
 from __future__ import annotations
 
-import inspect
 import time
-from dataclasses import replace
-from fractions import Fraction
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .analyse import Grid, _colocated_max, analyse
-from .grid import BITS
-from .simplify import lod_chain
+from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
-from .errors import LopcookError
+from .emit import BufferInput, assemble, encode_buffer, plane_payload
+from .emit.container import Container, file_size, from_bytes, section_table, to_bytes
+from .grid import BITS, Grid
 from .memory import release_free_memory
-from .settings import DEFAULT_ANALYSE, AnalyseSettings
+from .selection import selection_ranges
+from .settings import DEFAULTS, Settings
+from .simplify import lod_chain
 from .types import Scene
 from .viewing import Viewing, required_level
 
@@ -58,229 +60,276 @@ def view_level(extent: float, viewing: Viewing) -> int | None:
     return int(np.asarray(required_level(float(viewing.nearest_m), extent, viewing)))
 
 
-def default_lod_ratios() -> list[float]:
-    """The default chain of ``lod_chain(ratios=None)`` as an explicit list: 1/2, 1/4, ... (its
-    ``max_levels`` of them). ``lod_chain`` stops it at the first target under ``min_triangles`` and at
-    the first LOD whose error exceeds ``max_error_m`` (``pipeline.far_error_m`` when --nearest is
-    given), so the LODs are those of ``ratios=None``; ``cook_bytes`` reserves None for "no LODs"."""
-    n = int(inspect.signature(lod_chain).parameters["max_levels"].default)
-    return [0.5 ** k for k in range(1, n + 1)]
+@dataclass
+class LodRow:
+    """One buffer of the cook: triangles, vertices, ``error_m`` (metres from LOD 0),
+    ``min_distance_m`` (None: dropped, no distance selects it), and, for kept buffers, its stored
+    bytes (``lopcook.emit.manifest.LodEntry``'s accounting)."""
+
+    triangles: int
+    vertices: int
+    error_m: float
+    min_distance_m: float | None
+    lod: int | None = None
+    mandatory_position_bytes: int = 0
+    plane_position_bytes: int = 0
+    attribute_bytes: int = 0
+    index_bytes: int = 0
+
+    @property
+    def kept(self) -> bool:
+        return self.min_distance_m is not None
+
+    def as_dict(self) -> dict:
+        d = {"triangles": self.triangles, "vertices": self.vertices, "error_m": self.error_m,
+             "min_distance_m": self.min_distance_m, "kept": self.kept}
+        if self.lod is not None:
+            d.update(lod=self.lod, mandatory_position_bytes=self.mandatory_position_bytes,
+                     plane_position_bytes=self.plane_position_bytes, attribute_bytes=self.attribute_bytes,
+                     index_bytes=self.index_bytes)
+        return d
 
 
-def parse_lod_ratios(text):
-    """``--lods`` text (as ``cook`` takes it and the manifest records it in ``options.lods.ratios``):
-    ``"1/2,1/4"`` -> [0.5, 0.25]; ``"auto"`` -> the default chain (``default_lod_ratios``); None
-    stays None. Ratios must be in (0, 1) and decreasing."""
-    if text is None:
-        return None
-    if text.strip().lower() == "auto":
-        return default_lod_ratios()
-    try:
-        ratios = [float(Fraction(t.strip())) for t in text.split(",") if t.strip()]
-    except (ValueError, ZeroDivisionError):
-        raise LopcookError("usage", None, f"--lods {text!r}: expected auto or fractions such as 1/2,1/4,1/8") from None
-    ratios = [r for r in ratios if r != 1.0]
-    if not ratios or any(not 0 < r < 1 for r in ratios) or any(a <= b for a, b in zip(ratios, ratios[1:])):
-        raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing")
-    return ratios
+@dataclass
+class CookResult:
+    """What ``run`` did. ``container``: the parsed container with its bytes (``.data``);
+    ``analysis``: the Analysis of LOD 0 of every part (warnings, touching pairs, stage timings);
+    ``timings_s``: stage -> seconds; ``lods``: per part, its LodRows; ``lod_reports``: per part,
+    the chain's ``LodReport.as_dict()`` (empty without LODs); ``buffers``: per part, the kept
+    BufferInputs (only with ``keep_buffers``)."""
+
+    container: Container
+    analysis: Analysis
+    timings_s: dict
+    lods: list
+    lod_reports: list = field(default_factory=list)
+    grid_extent_m: float = 0.0
+    lod_max_error_m: float | None = None
+    view_level: int | None = None
+    highest_min_level: int = 0
+    max_level: int = BITS
+    planes_dropped: list = field(default_factory=list)
+    lods_dropped: int = 0
+    bytes_without_savings: int = 0
+    colocated_raised_across_lods: int = 0
+    buffers: list | None = None
+    calibration: dict | None = None
+    budget: dict | None = None
+    settings: Settings | None = None
+
+    @property
+    def data(self) -> bytes:
+        return self.container.data
+
+    @property
+    def bytes(self) -> int:
+        return len(self.container.data)
+
+    @property
+    def bytes_saved(self) -> int:
+        return self.bytes_without_savings - self.bytes
+
+    @property
+    def vertices_clamped_to_max_level(self) -> int:
+        return int(self.container.manifest["stats"]["vertices_clamped_to_max_level"])
 
 
-def _chains(scene: Scene, lod_ratios, backend: str, max_error_m):
-    """LOD chain and report of every part, in part order. Copies of one mesh (``instances.copies``:
-    same triangles and attributes, positions related by one affine map) are simplified once and
-    the chain placed on every copy (``instances.placed_chain``). Serial on purpose: pymeshlab
-    releases the GIL but is not thread-safe (two parts simplified in a thread pool crash the
-    process, CesiumMilkTruck --lods 1/2,1/4: SIGSEGV), and fast-simplification and libigl hold
-    the GIL."""
+def chains(scene: Scene, settings: Settings, max_error_m: float | None):
+    """LOD chain and report of every part, in part order. Copies of one mesh
+    (``lopcook.simplify.instances.copies``: same triangles and attributes, positions related by one
+    affine map) are simplified once and the chain placed on every copy. Serial: pymeshlab is not
+    thread-safe, and fast-simplification and libigl hold the GIL."""
     from .simplify.instances import copies, placed_chain
 
-    chains, reports = [None] * len(scene.parts), [None] * len(scene.parts)
+    ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
+    out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
     for lead, members in copies(scene.parts):
-        lods, report = lod_chain(scene.parts[lead], ratios=list(lod_ratios), backend=backend, max_error_m=max_error_m)
-        chains[lead], reports[lead] = lods, report
+        lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, max_error_m=max_error_m)
+        out[lead], reports[lead] = lods, report
         for i, a, t in members:
-            chains[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
-    return chains, reports
+            out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
+    return out, reports
 
 
-def analyse_lods(scene: Scene, chains, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None):
+def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Grid | None = None):
     """Analyse every LOD level on one grid, then share levels between co-located vertices.
 
-    chains: per part, its list of MeshParts (LOD 0 first). Returns ``(grid, analyses, levels,
-    raised)``: ``analyses[k]`` the Analysis of LOD index k (parts that have one, in part order),
-    ``levels[i][k]`` the final (n,) uint8 minimum levels of part i's LOD k, ``raised`` how many
-    vertices the cross-LOD sharing raised beyond their own LOD's analysis."""
-    grid = grid or Grid.fit([p.positions for chain in chains for p in chain])
-    depth = max(len(c) for c in chains)
+    parts_chain: per part, its list of MeshParts (LOD 0 first). Returns ``(grid, analyses, levels,
+    raised)``: ``analyses[k]`` the Analysis of LOD index k (parts that have one, in part order;
+    its ``min_level`` and ``reason`` include the sharing), ``levels[i][k]`` the final (n,) uint8
+    minimum levels of part i's LOD k, ``raised`` how many vertices the sharing raised."""
+    grid = grid or Grid.fit([p.positions for chain in parts_chain for p in chain])
     analyses, members = [], []
-    for k in range(depth):
-        idx = [i for i, c in enumerate(chains) if len(c) > k]
-        scene_k = replace(scene, parts=tuple(chains[i][k] for i in idx))
-        analyses.append(analyse(scene_k, settings, grid=grid))
+    for k in range(max(len(c) for c in parts_chain)):
+        idx = [i for i, c in enumerate(parts_chain) if len(c) > k]
+        analyses.append(analyse(replace(scene, parts=tuple(parts_chain[i][k] for i in idx)), settings, grid=grid))
         members.append(idx)
     allq = np.concatenate([pa.quantized for an in analyses for pa in an.parts])
     alll = np.concatenate([pa.min_level.astype(np.int64) for an in analyses for pa in an.parts])
-    shared = _colocated_max(allq, alll)
+    shared = colocated_max(allq, alll)
     raised = int(np.count_nonzero(shared > alll))
-    levels = [[None] * len(c) for c in chains]
+    levels = [[None] * len(c) for c in parts_chain]
     start = 0
     for k, (an, idx) in enumerate(zip(analyses, members)):
+        new_parts = []
         for i, pa in zip(idx, an.parts):
-            n = pa.min_level.shape[0]
-            final = shared[start:start + n].astype(np.uint8)
+            final = shared[start:start + pa.min_level.shape[0]].astype(np.uint8)
+            start += final.shape[0]
             if np.any(final > pa.min_level):
-                pa.reason[final > pa.min_level] = REASON_CODE["co-located"]
-                pa.min_level = final
+                reason = np.where(final > pa.min_level, np.uint8(REASON_CODE["co-located"]), pa.reason)
+                pa = replace(pa, min_level=final, reason=reason.astype(pa.reason.dtype))
+            new_parts.append(pa)
             levels[i][k] = final
-            start += n
+        analyses[k] = replace(an, parts=new_parts)
     return grid, analyses, levels, raised
 
 
-def cook_bytes(scene: Scene, analyse_settings: AnalyseSettings = DEFAULT_ANALYSE, viewing: Viewing | None = None, *,
-               lod_ratios=None, lod_backend: str = "pymeshlab", max_level: int | None = None,
-               options: dict | None = None, keep_buffers: bool = False) -> tuple[bytes, dict]:
-    """Container bytes for ``scene`` and an info dict (see module doc).
-
-    lod_ratios : None (LOD 0 only) or fractions of LOD 0's triangles, e.g. [1/2, 1/4, 1/8]
-    lod_backend : ``"pymeshlab"`` or ``"fast"`` (``lod_chain``)
-    max_level : highest plane to write; default from ``viewing.nearest_m`` (24 when unknown).
-        Given explicitly it is used as is (vertices above it are clamped, see ``build``).
-    options : recorded verbatim in the manifest.
-    keep_buffers : also return ``info["buffers"]``, the BufferInputs written (per part, per kept
-        LOD; numpy arrays, not JSON) -- for tests and tools.
-
-    info: ``timings_s``, ``grid_extent_m``, ``lods`` (per part: triangles, vertices, error_m,
-    min_distance_m, bytes of its sections, kept), ``lod_reports``, ``view_level`` (None without
-    nearest_m), ``highest_min_level``, ``max_level``, ``planes_dropped``, ``lods_dropped``,
-    ``bytes``, ``bytes_without_savings``, ``bytes_saved``, ``colocated_raised_across_lods``,
-    ``vertices_clamped_to_max_level``.
-    """
-    from .emit import BufferInput, build
-    from .emit.container import from_bytes
-    from .selection import selection_ranges
-
-    viewing = viewing or Viewing()
+def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool) -> CookResult:
+    """No LODs, no viewing savings: one analysis, one build."""
     timings: dict = {}
-    info: dict = {"timings_s": timings}
-    plain = lod_ratios is None and viewing.nearest_m is None and max_level is None
-    if plain:  # today's behaviour, byte for byte
-        t0 = time.perf_counter()
-        analysis = analyse(scene, analyse_settings)
-        timings["analyse"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        data = build(scene, analysis, options=options, viewing=viewing)
-        timings["emit"] = time.perf_counter() - t0
-        info.update(grid_extent_m=float(analysis.grid.extent), view_level=None,
-                    highest_min_level=int(max(int(pa.min_level.max()) for pa in analysis.parts)),
-                    max_level=BITS, planes_dropped=[], lods_dropped=0, bytes=len(data),
-                    bytes_without_savings=len(data), bytes_saved=0, colocated_raised_across_lods=0,
-                    vertices_clamped_to_max_level=0, lod_reports=[],
-                    lods=[[{"triangles": p.n_triangles, "vertices": p.n_vertices, "error_m": 0.0,
-                            "min_distance_m": 0.0, "kept": True}] for p in scene.parts])
-        if keep_buffers:
-            info["buffers"] = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices,
-                                            normals=p.normals, uvs=p.uvs, colors=p.colors)]
-                               for p, pa in zip(scene.parts, analysis.parts)]
-        info["timings_s"]["total"] = sum(timings.values())
-        info["analysis"] = analysis
-        return data, info
-
-    # (1) LOD chains
     t0 = time.perf_counter()
-    scene_grid = Grid.fit([p.positions for p in scene.parts])
-    cap = None if viewing.nearest_m is None else far_error_m(scene_grid.extent, viewing)
-    if lod_ratios is not None:
-        chains_lod, reports = _chains(scene, lod_ratios, lod_backend, cap)
+    analysis = analyse(scene, settings.analyse)
+    timings["analyse"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
+                            uvs=p.uvs, colors=p.colors)] for p, pa in zip(scene.parts, analysis.parts)]
+    encoded = [[encode_buffer(b) for b in bufs] for bufs in buffers]
+    manifest, sections = assemble(scene, analysis.grid, encoded, max_level=BITS, options=options,
+                                  viewing=settings.viewing)
+    data = to_bytes(manifest, sections)
+    timings["emit"] = time.perf_counter() - t0
+    rows = [[LodRow(triangles=p.n_triangles, vertices=p.n_vertices, error_m=0.0, min_distance_m=0.0)]
+            for p in scene.parts]
+    result = CookResult(container=from_bytes(data, None), analysis=analysis, timings_s=timings, lods=rows,
+                        grid_extent_m=float(analysis.grid.extent),
+                        highest_min_level=int(max(int(pa.min_level.max()) for pa in analysis.parts)),
+                        bytes_without_savings=len(data), buffers=buffers if keep_buffers else None)
+    _account(result)
+    return result
+
+
+def _lod_stage(scene: Scene, settings: Settings, timings: dict):
+    """(1): per part its MeshParts and errors (LOD 0 alone without LODs), the reports, the cap."""
+    t0 = time.perf_counter()
+    cap = None
+    if settings.viewing.nearest_m is not None:
+        cap = far_error_m(Grid.fit([p.positions for p in scene.parts]).extent, settings.viewing)
+    if settings.simplify.lods is not None:
+        lods, reports = chains(scene, settings, cap)
+        parts_chain = [[lod.part for lod in c] for c in lods]
+        errors = [[float(lod.error_m) for lod in c] for c in lods]
     else:
-        chains_lod, reports = [[None] for _ in scene.parts], []
-    parts_chain = [[p] if c[0] is None else [lod.part for lod in c] for p, c in zip(scene.parts, chains_lod)]
-    errors = [[0.0] if c[0] is None else [float(lod.error_m) for lod in c] for c in chains_lod]
+        parts_chain, errors, reports = [[p] for p in scene.parts], [[0.0] for _ in scene.parts], []
     release_free_memory()  # the chains' temporaries: back to the system before the analysis
     timings["lod"] = time.perf_counter() - t0
-    info["lod_reports"] = [r.as_dict() for r in reports]
-    info["lod_max_error_m"] = cap
+    return parts_chain, errors, [r.as_dict() for r in reports], cap
 
-    # (2)+(3) one grid, every LOD analysed, co-located sharing across LODs
-    t0 = time.perf_counter()
-    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, analyse_settings)
-    release_free_memory()
-    timings["analyse"] = time.perf_counter() - t0
-    info["colocated_raised_across_lods"] = raised
-    info["grid_extent_m"] = float(grid.extent)
-    info["analysis"] = analyses[0]  # LOD 0 of every part (its stage timings, touching pairs)
 
-    # (4) selection ranges; LODs never selected are dropped
+def _select(parts_chain, errors, analyses, levels, settings: Settings):
+    """(4): per part every buffer (kept or not) and its LodRow; LODs no distance selects are
+    dropped (LOD 0 is always kept)."""
     quantized = [[None] * len(c) for c in parts_chain]
     for k, an in enumerate(analyses):
         idx = [i for i, c in enumerate(parts_chain) if len(c) > k]
         for i, pa in zip(idx, an.parts):
             quantized[i][k] = pa.quantized
-    all_buffers, kept_buffers, lod_info = [], [], []
-    lods_dropped = 0
+    with_lods = settings.simplify.lods is not None
+    all_buffers, rows = [], []
     for i, chain in enumerate(parts_chain):
-        ranges = selection_ranges(errors[i], [p.n_triangles for p in chain], viewing)
-        ranges[0] = 0.0  # LOD 0 (full detail) is always kept
-        full, kept, rows = [], [], []
-        for k, p in enumerate(chain):
-            with_lods = lod_ratios is not None
-            buf = BufferInput(quantized=quantized[i][k], min_level=levels[i][k], indices=p.indices,
-                              normals=p.normals, uvs=p.uvs, colors=p.colors, geometric_error_m=errors[i][k],
-                              min_distance_m=(ranges[k] if ranges[k] is not None else None) if with_lods else None)
-            full.append(buf)
-            if ranges[k] is not None:
-                kept.append(buf)
-            else:
-                lods_dropped += 1
-            rows.append({"triangles": p.n_triangles, "vertices": p.n_vertices, "error_m": errors[i][k],
-                         "min_distance_m": ranges[k], "kept": ranges[k] is not None})
-        all_buffers.append(full)
-        kept_buffers.append(kept)
-        lod_info.append(rows)
+        ranges = selection_ranges(errors[i], [p.n_triangles for p in chain], settings.viewing)
+        ranges[0] = 0.0
+        all_buffers.append([BufferInput(quantized=quantized[i][k], min_level=levels[i][k], indices=p.indices,
+                                        normals=p.normals, uvs=p.uvs, colors=p.colors,
+                                        geometric_error_m=errors[i][k],
+                                        min_distance_m=ranges[k] if with_lods else None)
+                            for k, p in enumerate(chain)])
+        rows.append([LodRow(triangles=p.n_triangles, vertices=p.n_vertices, error_m=errors[i][k],
+                            min_distance_m=ranges[k]) for k, p in enumerate(chain)])
+    return all_buffers, rows
 
-    # (5) the highest level any view needs
-    highest_min = int(max(int(np.max(b.min_level)) for bufs in kept_buffers for b in bufs))
-    vlevel = view_level(grid.extent, viewing)
-    if max_level is None:
-        max_level = BITS if vlevel is None else max(vlevel, highest_min)
-    max_level = int(max_level)
+
+def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings, options, max_level, vlevel,
+                       highest_min):
+    """(6): the container of the kept buffers up to ``max_level``; the savings record states the
+    bytes saved against the container of every buffer with every plane. Each buffer is encoded
+    once; the larger container's size comes from its manifest and section table."""
+    kept_mask = [[r.kept for r in rs] for rs in rows]
+    full_enc = [[encode_buffer(b, BITS) for b in bufs] for bufs in all_buffers]
+    kept_enc = [[encode_buffer(b, max_level) if b.min_level.max() > max_level else e
+                 for b, e, k in zip(bufs, encs, ks) if k]
+                for bufs, encs, ks in zip(all_buffers, full_enc, kept_mask)]
     planes_dropped = list(range(max_level + 1, BITS + 1))
-
-    # (6) build; the savings record states the bytes saved against the same container without them
-    t0 = time.perf_counter()
-    first_analysis = analyses[0]
-    full_data = build(scene, first_analysis, options=options, viewing=viewing, lods=all_buffers, max_level=BITS)
+    lods_dropped = sum(not k for ks in kept_mask for k in ks)
+    same = lods_dropped == 0 and all(a is b for ea, eb in zip(full_enc, kept_enc) for a, b in zip(ea, eb))
+    kept_planes = {p: plane_payload([e for es in kept_enc for e in es], p) for p in range(2, max_level + 1)}
+    full_manifest, full_sections = assemble(scene, grid, full_enc, max_level=BITS, options=options,
+                                            viewing=settings.viewing, planes=kept_planes if same else None)
+    full_size = file_size(full_manifest, section_table(full_sections)[0])
+    del full_sections
     savings = None
     if planes_dropped or lods_dropped:  # recorded only when something was left out
         savings = {"planes_dropped": planes_dropped, "lods_dropped": int(lods_dropped), "bytes_saved": 0,
-                   "bytes_without_savings": len(full_data), "view_level": vlevel, "highest_min_level": highest_min}
-    data = build(scene, first_analysis, options=options, viewing=viewing, lods=kept_buffers,
-                 max_level=max_level, savings=savings)
+                   "bytes_without_savings": full_size, "view_level": vlevel, "highest_min_level": highest_min}
+    manifest, sections = assemble(scene, grid, kept_enc, max_level=max_level, options=options,
+                                  viewing=settings.viewing, savings=savings, planes=kept_planes)
+    table = section_table(sections)
     for _ in range(4):  # the record's own digits change the manifest size: settle to a fixed point
-        if savings is None or savings["bytes_saved"] == len(full_data) - len(data):
+        saved = full_size - file_size(manifest, table[0])
+        if savings is None or savings["bytes_saved"] == saved:
             break
-        savings = dict(savings, bytes_saved=len(full_data) - len(data))
-        data = build(scene, first_analysis, options=options, viewing=viewing, lods=kept_buffers,
-                     max_level=max_level, savings=savings)
+        savings = dict(savings, bytes_saved=saved)
+        manifest = dict(manifest, savings=savings)
+    kept_buffers = [[b for b, k in zip(bufs, ks) if k] for bufs, ks in zip(all_buffers, kept_mask)]
+    return to_bytes(manifest, sections, table), full_size, planes_dropped, lods_dropped, kept_buffers
+
+
+def _account(result: CookResult) -> None:
+    """Fill every kept LodRow's byte counts from the container's typed manifest (the one
+    accounting, ``lopcook.emit.manifest.LodEntry``)."""
+    entries = result.container.entries
+    for part, rows in zip(entries.parts, result.lods):
+        for k, (row, e) in enumerate(zip([r for r in rows if r.kept], part.lods)):
+            row.lod = k
+            row.mandatory_position_bytes = e.mandatory_bytes
+            row.plane_position_bytes = e.plane_bytes(entries.max_level)
+            row.attribute_bytes = e.attribute_bytes
+            row.index_bytes = e.index_bytes
+
+
+def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = None, max_level: int | None = None,
+        keep_buffers: bool = False) -> CookResult:
+    """Cook ``scene`` with ``settings`` (see module doc). ``options``: the manifest's options
+    record (default ``settings.to_manifest()["options"]``). ``max_level``: highest plane to
+    write (default from ``viewing.nearest_m``, 24 when unknown); given explicitly it is used as
+    is (vertices above it are clamped and counted). ``keep_buffers``: also return the kept
+    BufferInputs (for the byte-budget fit)."""
+    options = settings.to_manifest()["options"] if options is None else options
+    if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
+        return _plain(scene, settings, options, keep_buffers)
+    timings: dict = {}
+    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings)
+    t0 = time.perf_counter()
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse)
+    release_free_memory()
+    timings["analyse"] = time.perf_counter() - t0
+    all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
+    highest_min = int(max(int(np.max(b.min_level)) for bufs, rs in zip(all_buffers, rows)
+                          for b, r in zip(bufs, rs) if r.kept))
+    vlevel = view_level(grid.extent, settings.viewing)
+    if max_level is None:
+        max_level = BITS if vlevel is None else max(vlevel, highest_min)
+    t0 = time.perf_counter()
+    data, full_size, planes_dropped, lods_dropped, kept = _emit_with_savings(
+        scene, grid, analyses[0], all_buffers, rows, settings, options, int(max_level), vlevel, highest_min)
     timings["emit"] = time.perf_counter() - t0
-
-    c = from_bytes(data)
-    sizes = {s["name"]: s["length"] for s in c.manifest["sections"]}
-    for i, part in enumerate(c.manifest["parts"]):
-        kept_rows = [r for r in lod_info[i] if r["kept"]]
-        for k, (row, e) in enumerate(zip(kept_rows, part["lods"])):
-            row["attribute_bytes"] = sum(sizes.get(e.get(key) or "", 0) for key in ("indices", "normals", "uvs", "colors"))
-            row["mandatory_position_bytes"] = 4 * int(e["mandatory_words"][1])
-            vid = e["vertex_id"]
-            row["plane_position_bytes"] = sum((3 * int(vid[p - 1]) + 7) // 8 for p in range(2, max_level + 1))
-            row["lod"] = k
-    info.update(lods=lod_info, view_level=vlevel, highest_min_level=highest_min, max_level=max_level,
-                planes_dropped=planes_dropped, lods_dropped=int(lods_dropped), bytes=len(data),
-                bytes_without_savings=len(full_data), bytes_saved=len(full_data) - len(data),
-                vertices_clamped_to_max_level=int(c.manifest["stats"]["vertices_clamped_to_max_level"]))
-    if keep_buffers:
-        info["buffers"] = kept_buffers
-    timings["total"] = sum(v for k, v in timings.items() if k != "total")
-    return data, info
+    result = CookResult(container=from_bytes(data, None), analysis=analyses[0], timings_s=timings, lods=rows,
+                        lod_reports=reports, grid_extent_m=float(grid.extent), lod_max_error_m=cap,
+                        view_level=vlevel, highest_min_level=highest_min, max_level=int(max_level),
+                        planes_dropped=planes_dropped, lods_dropped=int(lods_dropped),
+                        bytes_without_savings=full_size, colocated_raised_across_lods=raised,
+                        buffers=kept if keep_buffers else None)
+    _account(result)
+    return result
 
 
-__all__ = ["cook_bytes", "analyse_lods", "far_error_m", "view_level", "default_lod_ratios", "parse_lod_ratios"]
+__all__ = ["run", "CookResult", "LodRow", "chains", "analyse_lods", "far_error_m", "view_level"]

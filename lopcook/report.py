@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from .version import __version__
 from .atomic import write_atomic
 from .verify.baselines import UNIFORM16_BYTES_PER_VERTEX
 

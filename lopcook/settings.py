@@ -1,8 +1,162 @@
-"""Every knob lopcook has, with its unit, default and valid range (one place, as data)."""
+"""Every knob lopcook has, with its unit, default and valid range: one frozen ``Settings``.
+
+``Settings`` has one section per stage (``ingest``, ``simplify``, ``analyse``, ``viewing``,
+``render``, ``tune``); ``DEFAULTS`` is the instance with every default, and the CLI formats its
+help texts from it. Choices are enums, never strings or tuples. ``Settings.to_manifest()`` gives
+the container's ``options`` and ``viewing`` records and ``Settings.from_manifest()`` reads them
+back (exactly: ``from_manifest(s.to_manifest()) == s`` for the recorded sections); a record that
+does not parse is one ``LopcookError``, never a silent default.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field, fields, replace
+from enum import Enum
+from fractions import Fraction
+
+from .errors import LopcookError
+from .grid import BITS
+from .viewing import Viewing
+
+__all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
+           "LodSpec", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
+           "TuneSettings", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
+           "parse_lods"]
+
+
+class DepthMode(str, Enum):
+    """Depth constraints: ``AUTO`` from distances to other parts, ``OFF`` none, ``FIXED`` the
+    paper's mode (vertices closer than ``depth_threshold`` metres to another part get
+    ``depth_level``)."""
+
+    AUTO = "auto"
+    OFF = "off"
+    FIXED = "fixed"
+
+
+class TextureSlope(str, Enum):
+    """Where the UVs' k_f comes from when it is not a number: ``IMAGE`` the base-colour texture's
+    maximum slope, ``OFF`` UVs ignored."""
+
+    IMAGE = "image"
+    OFF = "off"
+
+
+class LodBackend(str, Enum):
+    """LOD simplifier (``lopcook.simplify.backends``)."""
+
+    PYMESHLAB = "pymeshlab"
+    FAST = "fast"
+
+
+class SeamMode(str, Enum):
+    """What the simplifier does with UV seams (``lopcook.simplify.chain``)."""
+
+    LOCK = "lock"
+    SIMPLIFY = "simplify"
+    IGNORE = "ignore"
+    XATLAS = "xatlas"
+
+
+class PsnrStat(str, Enum):
+    """PSNR over views compared with a threshold: ``MIN`` every view, ``MEAN`` the PSNR of the
+    view-averaged MSE."""
+
+    MIN = "min"
+    MEAN = "mean"
+
+
+class SearchKnobs(str, Enum):
+    """Knobs calibration searches: the k_f scale, or the k_f scale and the edge bound's eps."""
+
+    KF = "kf"
+    KF_EDGE = "kf+edge"
+
+
+class BudgetScope(str, Enum):
+    """What ``--target-bytes`` counts: the position buffer, + stored vertex attributes, + indices."""
+
+    POSITIONS = "positions"
+    VERTICES = "vertices"
+    ALL = "all"
+
+
+#: most LODs a default chain asks for (each half the triangles of the one before)
+DEFAULT_LOD_LEVELS = 24
+
+
+def halvings(max_levels: int = DEFAULT_LOD_LEVELS, triangles: int | None = None, min_triangles: int = 1) -> list[float]:
+    """The default LOD chain: ratios 1/2, 1/4, 1/8, ... of LOD 0's triangles, at most
+    ``max_levels`` of them, and, given ``triangles`` (LOD 0's count), only while
+    ``round(ratio * triangles) >= min_triangles``. The one definition every default chain uses."""
+    out, r = [], 0.5
+    while len(out) < max_levels and (triangles is None or round(r * triangles) >= min_triangles):
+        out.append(r)
+        r /= 2.0
+    return out
+
+
+def _enum(kind, value, what: str):
+    try:
+        return kind(value)
+    except ValueError:
+        raise ValueError(f"{what} {value!r}: expected one of {', '.join(v.value for v in kind)}") from None
+
+
+@dataclass(frozen=True)
+class LodSpec:
+    """The LOD chain asked for: ``auto`` (the default chain 1/2, 1/4, ... of ``max_levels``, cut
+    where no view selects a LOD) or explicit fractions of LOD 0's triangles, in (0, 1),
+    decreasing. ``text`` is the canonical spelling recorded in the manifest (``"auto"`` or
+    ``"1/2,1/4"``)."""
+
+    auto: bool = True
+    ratios: tuple[float, ...] = ()
+    max_levels: int = DEFAULT_LOD_LEVELS
+
+    def __post_init__(self) -> None:
+        r = self.ratios
+        if not self.auto and (not r or any(not 0 < x < 1 for x in r) or any(a <= b for a, b in zip(r, r[1:]))):
+            raise ValueError(f"LOD ratios {list(r)}: fractions must be in (0, 1) and decreasing")
+
+    def resolved(self) -> list[float]:
+        """The ratios to simplify to (the default chain for ``auto``)."""
+        return halvings(self.max_levels) if self.auto else list(self.ratios)
+
+    @property
+    def text(self) -> str:
+        if self.auto:
+            return "auto"
+        return ",".join(str(Fraction(x).limit_denominator(1 << 20)) for x in self.ratios)
+
+
+def parse_lods(text: str | None) -> LodSpec | None:
+    """``--lods`` text: ``"auto"`` or fractions such as ``"1/2,1/4"`` (a ratio of 1 is LOD 0 and
+    dropped); None stays None (no LODs). Raises LopcookError("usage") on anything else."""
+    if text is None:
+        return None
+    if text.strip().lower() == "auto":
+        return LodSpec(auto=True)
+    try:
+        ratios = tuple(float(Fraction(t.strip())) for t in text.split(",") if t.strip())
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--lods {text!r}: expected auto or fractions such as 1/2,1/4,1/8") from None
+    try:
+        return LodSpec(auto=False, ratios=tuple(r for r in ratios if r != 1.0))
+    except ValueError:
+        raise LopcookError("usage", None, f"--lods {text!r}: fractions must be in (0, 1) and decreasing") from None
+
+
+def parse_resolution(text: str, flag: str = "--resolution") -> tuple[int, int]:
+    """``"WxH"`` -> (W, H) pixels, each in [1, 16384]; LopcookError("usage") otherwise."""
+    try:
+        w, h = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise LopcookError("usage", None, f"{flag} {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise LopcookError("usage", None, f"{flag} {text!r}: width and height must be in [1, 16384] pixels")
+    return w, h
 
 
 @dataclass(frozen=True)
@@ -26,39 +180,50 @@ class IngestSettings:
             raise ValueError(f"crease_angle_deg must be in [0, 180], got {self.crease_angle_deg}")
 
 
-DEFAULT_INGEST = IngestSettings()
+@dataclass(frozen=True)
+class SimplifySettings:
+    """Options of the simplify stage (LOD chains, ``lopcook.simplify``).
+
+    lods : LodSpec or None  the chain to build; None = LOD 0 only (default)
+    backend : LodBackend  the simplifier (default pymeshlab)
+    seams : SeamMode  what happens to UV seams (default lock)
+    """
+
+    lods: LodSpec | None = None
+    backend: LodBackend = LodBackend.PYMESHLAB
+    seams: SeamMode = SeamMode.LOCK
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "backend", _enum(LodBackend, self.backend, "LOD backend"))
+        object.__setattr__(self, "seams", _enum(SeamMode, self.seams, "seam mode"))
 
 
 @dataclass(frozen=True)
 class AnalyseSettings:
     """Options of the analyse stage (minimum bit level per vertex).
 
-    eps : float, colour intensity in [0, 1] units; the largest shading error a vertex's
-        quantization may cause. Default 1/255 (one 8-bit step).
-    ks : float, dimensionless Phong specular coefficient. Default 0.5.
-    shininess : float, dimensionless Phong specular exponent n. Default 32.
+    eps : float > 0, colour intensity; the largest shading error a vertex's quantization may cause
+        (the CLI takes (0, 1]; calibration scales it). Default 1/255 (one 8-bit step).
+    ks : float >= 0, dimensionless Phong specular coefficient. Default 0.5.
+    shininess : float >= 0, dimensionless Phong specular exponent n. Default 32.
         The normal attribute's k_f = ks * shininess (colour per unit change of the normal).
-    kf : float or None: if given, overrides k_f for every attribute (colour per attribute unit).
-    texture_kf : "image" (k_f of UVs = the maximum slope of the base-colour texture, in colour
-        per UV unit, read from the image), a float (colour per UV unit), or "off" (UVs ignored).
-        Parts without a texture use ``untextured_uv_kf``.
-    untextured_uv_kf : float, colour per UV unit, for UVs of parts with no texture. Default 0
+    kf : float >= 0 or None: if given, overrides k_f for every attribute (colour per attribute unit).
+    texture_kf : TextureSlope or float >= 0: k_f of UVs, ``IMAGE`` (the maximum slope of the
+        base-colour texture in colour per UV unit, read from the image), ``OFF`` (UVs ignored) or
+        a number (colour per UV unit). Parts without a texture use ``untextured_uv_kf``.
+    untextured_uv_kf : float >= 0, colour per UV unit, for UVs of parts with no texture. Default 0
         (a UV set with no texture cannot change the colour).
-    color_kf : float, colour per colour unit, for vertex colours. Default 1.
-    depth : "auto" (depth levels from the distance to other parts), "off", or ("fixed", N) for
-        the paper's mode: vertices closer than ``depth_threshold`` metres to another part get N.
-    depth_threshold : float, metres, for the paper's fixed mode.
+    color_kf : float >= 0, colour per colour unit, for vertex colours. Default 1.
+    depth : DepthMode; ``depth_level`` (int in [1, 24]) is the level of the paper's FIXED mode.
+    depth_threshold : float >= 0, metres, for the paper's FIXED mode (must be > 0 there).
     depth_ceiling : int in [1, 24], the highest level a depth constraint may impose; vertices of
         touching/intersecting parts that would need more are capped there and reported. Default 16.
     edges : bool, the discontinuity constraint (``lopcook.analyse.discontinuity``): vertices on
         hard edges, folds sharper than a pixel, open boundaries and colour seams get
-        ``m >= B_v + ceil(log2(0.5 * J / edge_eps))``. Default True (without it, flat-shaded CAD
-        and hard-surface assets cannot reach 40 dB at any k_f; see docs/analyse.md).
+        ``m >= B_v + ceil(log2(0.5 * J / edge_eps))``. Default True (see docs/analyse.md).
     edge_eps : float, colour units in (0, 1]: the largest change of a pixel an edge of colour jump
-        J may cause at per-buffer levels up to ``edge_level``. Default 1/8 (a jump of 1 costs
-        B_v + 2 bits). ``lopcook calibrate`` can search it.
-    edge_level : int in [1, 24], the highest per-buffer level the edge bound is kept at (the
-        render harness's default levels are 6..12). Default 12.
+        J may cause at per-buffer levels up to ``edge_level``. Default 1/8.
+    edge_level : int in [1, 24], the highest per-buffer level the edge bound is kept at. Default 12.
     edge_angle_deg : float, degrees in (0, 180]: a one-pixel cell whose vertex normals spread by
         more than this holds a fold (a crease or a sub-pixel bevel). Default 45.
     """
@@ -67,10 +232,11 @@ class AnalyseSettings:
     ks: float = 0.5
     shininess: float = 32.0
     kf: float | None = None
-    texture_kf: object = "image"
+    texture_kf: TextureSlope | float = TextureSlope.IMAGE
     untextured_uv_kf: float = 0.0
     color_kf: float = 1.0
-    depth: object = "auto"
+    depth: DepthMode = DepthMode.AUTO
+    depth_level: int | None = None
     depth_threshold: float = 0.0
     depth_ceiling: int = 16
     edges: bool = True
@@ -79,20 +245,34 @@ class AnalyseSettings:
     edge_angle_deg: float = 45.0
 
     def __post_init__(self) -> None:
-        if not self.eps > 0:
-            raise ValueError(f"eps must be > 0 (colour units), got {self.eps}")
-        for name in ("ks", "shininess", "untextured_uv_kf", "color_kf"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.kf is not None and not self.kf >= 0:
-            raise ValueError(f"kf must be >= 0, got {self.kf}")
-        if not 1 <= int(self.depth_ceiling) <= 24:
+        object.__setattr__(self, "depth", _enum(DepthMode, self.depth, "depth mode"))
+        if not isinstance(self.texture_kf, TextureSlope):
+            if isinstance(self.texture_kf, str):
+                object.__setattr__(self, "texture_kf", _enum(TextureSlope, self.texture_kf, "texture k_f"))
+            elif not (math.isfinite(float(self.texture_kf)) and float(self.texture_kf) >= 0):
+                raise ValueError(f"texture_kf must be image, off or a finite number >= 0, got {self.texture_kf}")
+        if not (math.isfinite(self.eps) and self.eps > 0):
+            raise ValueError(f"eps must be a finite number > 0 (colour units), got {self.eps}")
+        for name in ("ks", "shininess", "untextured_uv_kf", "color_kf", "depth_threshold"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v}")
+        if self.kf is not None and not (math.isfinite(self.kf) and self.kf >= 0):
+            raise ValueError(f"kf must be a finite number >= 0, got {self.kf}")
+        if self.depth is DepthMode.FIXED:
+            if self.depth_level is None or not 1 <= int(self.depth_level) <= BITS:
+                raise ValueError(f"the fixed depth mode needs a level in [1, {BITS}], got {self.depth_level}")
+            if not self.depth_threshold > 0:
+                raise ValueError("the fixed depth mode needs a depth threshold > 0 metres")
+        elif self.depth_level is not None:
+            raise ValueError("depth_level is only used by the fixed depth mode")
+        if not 1 <= int(self.depth_ceiling) <= BITS:
             raise ValueError(f"depth_ceiling must be in [1, 24], got {self.depth_ceiling}")
-        if not 0.0 < self.edge_eps <= 1.0:
+        if not (math.isfinite(self.edge_eps) and 0.0 < self.edge_eps <= 1.0):
             raise ValueError(f"edge_eps must be in (0, 1] (colour units), got {self.edge_eps}")
-        if not 1 <= int(self.edge_level) <= 24:
+        if not 1 <= int(self.edge_level) <= BITS:
             raise ValueError(f"edge_level must be in [1, 24], got {self.edge_level}")
-        if not 0.0 < self.edge_angle_deg <= 180.0:
+        if not (math.isfinite(self.edge_angle_deg) and 0.0 < self.edge_angle_deg <= 180.0):
             raise ValueError(f"edge_angle_deg must be in (0, 180] degrees, got {self.edge_angle_deg}")
 
     @property
@@ -100,5 +280,149 @@ class AnalyseSettings:
         """k_f for normals: ks * shininess unless ``kf`` overrides (colour per unit normal change)."""
         return float(self.kf) if self.kf is not None else self.ks * self.shininess
 
+    @property
+    def depth_text(self) -> str:
+        """``"auto"``, ``"off"`` or ``"fixed:N"``: the CLI's and the manifest's spelling."""
+        return f"fixed:{int(self.depth_level)}" if self.depth is DepthMode.FIXED else self.depth.value
 
-DEFAULT_ANALYSE = AnalyseSettings()
+    def to_record(self) -> dict:
+        """The manifest's ``options.analyse`` record."""
+        tk = self.texture_kf.value if isinstance(self.texture_kf, TextureSlope) else float(self.texture_kf)
+        return {"eps": self.eps, "ks": self.ks, "shininess": self.shininess, "kf": self.kf, "texture_kf": tk,
+                "untextured_uv_kf": self.untextured_uv_kf, "color_kf": self.color_kf, "depth": self.depth_text,
+                "depth_threshold_m": self.depth_threshold, "depth_ceiling": self.depth_ceiling,
+                "edges": bool(self.edges), "edge_eps": float(self.edge_eps), "edge_level": int(self.edge_level),
+                "edge_angle_deg": float(self.edge_angle_deg)}
+
+    @classmethod
+    def from_record(cls, rec: dict) -> "AnalyseSettings":
+        """Inverse of ``to_record``; ValueError/TypeError/KeyError on a record that does not parse."""
+        kw = dict(rec)
+        kw["depth_threshold"] = kw.pop("depth_threshold_m")
+        depth = str(kw.pop("depth"))
+        if depth.startswith("fixed:"):
+            kw["depth"], kw["depth_level"] = DepthMode.FIXED, int(depth.split(":", 1)[1])
+        else:
+            kw["depth"] = DepthMode(depth)
+        known = {f.name for f in fields(cls)}
+        unknown = set(kw) - known
+        if unknown:
+            raise ValueError(f"unknown analyse options {sorted(unknown)}")
+        return cls(**kw)
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """The render harness (``lopcook.verify``): views in [1, 20] of the 20 icosahedron face-centre
+    views, resolution (W, H) pixels, per-buffer levels in [1, 24], MSAA samples."""
+
+    views: int = 20
+    resolution: tuple[int, int] = (1280, 720)
+    levels: tuple[int, ...] = tuple(range(6, 13))
+    samples: int = 4
+
+    def __post_init__(self) -> None:
+        if not 1 <= int(self.views) <= 20:
+            raise ValueError(f"views must be in [1, 20], got {self.views}")
+        w, h = self.resolution
+        if not (1 <= int(w) <= 16384 and 1 <= int(h) <= 16384):
+            raise ValueError(f"resolution must be in [1, 16384] pixels, got {self.resolution}")
+        if not self.levels or any(not 1 <= int(b) <= BITS for b in self.levels):
+            raise ValueError(f"levels must be in [1, 24], got {self.levels}")
+
+    @property
+    def resolution_text(self) -> str:
+        return f"{self.resolution[0]}x{self.resolution[1]}"
+
+
+@dataclass(frozen=True)
+class TuneSettings:
+    """Searches above the stages (``lopcook.tune``).
+
+    target_psnr : float dB or None  calibrate k_f to the least memory whose CAP renders reach it
+    psnr_stat : PsnrStat  PSNR over views compared with the target
+    search : SearchKnobs or None  knobs to search (None: k_f+edge when edges are on, else k_f)
+    calibration : RenderSettings  the reduced harness every calibration probe renders on
+    confirm : RenderSettings or None  the harness the choice is confirmed on (verify's)
+    target_bytes : str or None  ``--target-bytes``: N bytes or P/Q of the float size
+    budget_scope, budget : BudgetScope, RenderSettings  what the bytes count, the harness
+    budget_levels : int >= 1  levels rendered per LOD by the budget fit
+    """
+
+    target_psnr: float | None = None
+    psnr_stat: PsnrStat = PsnrStat.MIN
+    search: SearchKnobs | None = None
+    calibration: RenderSettings = RenderSettings(views=8, resolution=(640, 360))
+    confirm: RenderSettings | None = RenderSettings()
+    target_bytes: str | None = None
+    budget_scope: BudgetScope = BudgetScope.POSITIONS
+    budget: RenderSettings = RenderSettings(views=20, resolution=(640, 360))
+    budget_levels: int = 2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "psnr_stat", _enum(PsnrStat, self.psnr_stat, "PSNR statistic"))
+        object.__setattr__(self, "budget_scope", _enum(BudgetScope, self.budget_scope, "budget scope"))
+        if self.search is not None:
+            object.__setattr__(self, "search", _enum(SearchKnobs, self.search, "search"))
+        if self.target_psnr is not None and not (math.isfinite(self.target_psnr) and self.target_psnr > 0):
+            raise ValueError(f"target PSNR must be a positive finite number of dB, got {self.target_psnr}")
+        if int(self.budget_levels) < 1:
+            raise ValueError(f"budget levels must be >= 1, got {self.budget_levels}")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Every section of a cook, frozen. ``Settings()`` is ``DEFAULTS``."""
+
+    ingest: IngestSettings = field(default_factory=IngestSettings)
+    simplify: SimplifySettings = field(default_factory=SimplifySettings)
+    analyse: AnalyseSettings = field(default_factory=AnalyseSettings)
+    viewing: Viewing = field(default_factory=Viewing)
+    render: RenderSettings = field(default_factory=RenderSettings)
+    tune: TuneSettings = field(default_factory=TuneSettings)
+
+    def with_(self, **sections) -> "Settings":
+        """A copy with whole sections or fields of sections replaced: ``with_(analyse=...)`` or
+        ``with_(analyse={"eps": 0.01})``."""
+        kw = {}
+        for name, value in sections.items():
+            kw[name] = replace(getattr(self, name), **value) if isinstance(value, dict) else value
+        return replace(self, **kw)
+
+    def to_manifest(self) -> dict:
+        """``{"options": ..., "viewing": ...}`` as the container records them (JSON types only).
+        ``options.lods`` is present only when a LOD chain is asked for."""
+        options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
+        if self.simplify.lods is not None:
+            options["lods"] = {"ratios": self.simplify.lods.text, "backend": self.simplify.backend.value}
+        return {"options": options, "viewing": self.viewing.as_dict()}
+
+    @classmethod
+    def from_manifest(cls, manifest: dict, path: str | None = None) -> "Settings":
+        """The settings a container was cooked with (its ``options`` and ``viewing`` records;
+        render and tune sections at their defaults). Raises LopcookError("emit") when a record
+        is missing or does not parse."""
+        try:
+            options = manifest["options"]
+            analyse = AnalyseSettings.from_record(options["analyse"])
+            ingest = IngestSettings(crease_angle_deg=float(options["ingest"]["crease_angle_deg"]))
+            simplify = SimplifySettings()
+            if options.get("lods") is not None:
+                lods = options["lods"]
+                simplify = SimplifySettings(lods=parse_lods(str(lods["ratios"])), backend=LodBackend(lods["backend"]))
+            v = manifest["viewing"]
+            viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
+                              fov_y_deg=float(v["fov_y_deg"]),
+                              nearest_m=None if v["nearest_m"] is None else float(v["nearest_m"]),
+                              pixel_error=float(v["pixel_error"]))
+        except (KeyError, TypeError, ValueError, IndexError, LopcookError) as exc:
+            what = exc.message if isinstance(exc, LopcookError) else (
+                f"missing {exc}" if isinstance(exc, KeyError) else str(exc))
+            raise LopcookError("emit", path, f"the recorded cook options do not parse ({what})",
+                               hint="cook the source again with this lopcook version") from None
+        return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing)
+
+
+DEFAULTS = Settings()
+DEFAULT_INGEST = DEFAULTS.ingest
+DEFAULT_ANALYSE = DEFAULTS.analyse

@@ -56,9 +56,9 @@ def test_two_plates_depth_level_and_reason():
         assert np.all(p.reason == REASON_CODE["depth"])
     off = analyse(scene_of(parts), AnalyseSettings(depth="off", edges=False))
     assert all(np.all(p.min_level == 1) for p in off.parts)
-    fixed = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=0.01, edges=False))
+    fixed = analyse(scene_of(parts), AnalyseSettings(depth="fixed", depth_level=9, depth_threshold=0.01, edges=False))
     assert all(np.all(p.min_level == 9) for p in fixed.parts)
-    far = analyse(scene_of(parts), AnalyseSettings(depth=("fixed", 9), depth_threshold=1e-4, edges=False))
+    far = analyse(scene_of(parts), AnalyseSettings(depth="fixed", depth_level=9, depth_threshold=1e-4, edges=False))
     assert all(np.all(p.min_level == 1) for p in far.parts)
 
 

@@ -12,9 +12,13 @@ import json
 import numpy as np
 import pytest
 
+from lopcook.settings import Settings, SimplifySettings
 from lopcook.tune import budget as BG
+
+FAST = Settings(simplify=SimplifySettings(backend="fast"))
 from lopcook import fixtures as F
-from lopcook.cli import _budget_target, main
+from lopcook.api import budget_target as _budget_target
+from lopcook.cli import main
 from lopcook.emit.container import from_bytes, read
 from lopcook.emit.summary import memory_rows
 from lopcook.errors import LopcookError
@@ -46,7 +50,7 @@ def bumpy():
 @pytest.fixture(scope="module")
 def fitted(gl, bumpy):
     target = BG.float_bytes(bumpy) // 6
-    data, info = BG.fit(bumpy, target, lod_backend="fast", views=VIEWS, resolution=SMALL)
+    data, info = BG.fit(bumpy, target, FAST, views=VIEWS, resolution=SMALL)
     return target, data, info
 
 
@@ -122,13 +126,13 @@ def test_written_container_holds_only_the_chosen_lod_and_planes(fitted):
 
 def test_fit_is_deterministic(gl, bumpy, fitted):
     target, data, _ = fitted
-    again, _ = BG.fit(bumpy, target, lod_backend="fast", views=VIEWS, resolution=SMALL)
+    again, _ = BG.fit(bumpy, target, FAST, views=VIEWS, resolution=SMALL)
     assert again == data
 
 
 def test_nothing_fits_is_one_clear_error(gl, bumpy):
     with pytest.raises(LopcookError, match=r"nothing fits in 3 bytes.*smallest candidate.*takes \d"):
-        BG.fit(bumpy, 3, lod_backend="fast", views=1, resolution=(32, 18))
+        BG.fit(bumpy, 3, FAST, views=1, resolution=(32, 18))
 
 
 def test_cli_target_bytes(gl, bumpy, tmp_path, capsys):

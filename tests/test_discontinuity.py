@@ -246,7 +246,6 @@ EDGE_MARGIN_DB = 12.0
 
 
 def test_cap_with_edges_beats_cap_without(gl):
-    from lopcook.analyse.summary import _settings_dict
     from lopcook.emit import build
     from lopcook.emit.container import from_bytes
     from lopcook.verify import render as R
@@ -255,7 +254,7 @@ def test_cap_with_edges_beats_cap_without(gl):
 
     def cook(settings):
         a = analyse(scene, settings)
-        return from_bytes(build(scene, a, options={"analyse": _settings_dict(settings)}), None)
+        return from_bytes(build(scene, a, options={"analyse": settings.to_record()}), None)
 
     with_edges = cook(AnalyseSettings())
     without = cook(AnalyseSettings(edges=False))

@@ -106,9 +106,15 @@ def test_pipeline_simplifies_each_distinct_mesh_once(rng, monkeypatch):
         return real(part, **kw)
 
     monkeypatch.setattr(pipeline, "lod_chain", counting)
-    chains, reports = pipeline._chains(Scene(tuple(parts), "copies", "glb"), [0.5, 0.25], "fast", None)
+    chains, reports = pipeline.chains(Scene(tuple(parts), "copies", "glb"), _lod_settings([0.5, 0.25]), None)
     assert calls == ["a"] and len(chains) == 4
     for k in range(1, 4):
         assert [lod.triangles for lod in chains[k]] == [lod.triangles for lod in chains[0]]
         assert chains[k][1].error_m == pytest.approx(chains[0][1].error_m, rel=1e-12)
         assert reports[k].part == f"c{k - 1}"
+
+
+def _lod_settings(ratios):
+    from lopcook.settings import LodSpec, Settings, SimplifySettings
+
+    return Settings(simplify=SimplifySettings(lods=LodSpec(auto=False, ratios=tuple(ratios)), backend="fast"))

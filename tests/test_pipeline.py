@@ -1,4 +1,4 @@
-"""lopcook.pipeline.cook_bytes: LOD chains on one grid, cross-LOD co-located levels, selection
+"""lopcook.pipeline.run: LOD chains on one grid, cross-LOD co-located levels, selection
 thresholds, and the "no more than a scene needs" savings (issue 7, parts 3 and 5)."""
 
 from __future__ import annotations
@@ -18,9 +18,19 @@ from lopcook.emit.container import from_bytes
 from lopcook.emit.reader import decode_positions
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
-from lopcook.pipeline import cook_bytes
 from lopcook.settings import DEFAULT_ANALYSE
 from lopcook.viewing import Viewing, required_level
+
+
+def cook_bytes(scene, viewing=Viewing(), *, lod_ratios=None, lod_backend="fast", keep_buffers=False):
+    """The stages through ``pipeline.run`` with LOD ratios and viewing conditions: (bytes, CookResult)."""
+    from lopcook.settings import LodSpec, Settings, SimplifySettings
+
+    simplify = SimplifySettings() if lod_ratios is None else SimplifySettings(
+        lods=LodSpec(auto=False, ratios=tuple(r for r in lod_ratios if r != 1.0)), backend=lod_backend)
+    result = pipeline.run(scene, Settings(simplify=simplify, viewing=viewing), keep_buffers=keep_buffers)
+    return result.data, result
+
 
 RATIOS = [1.0, 1 / 2, 1 / 4, 1 / 8]
 
@@ -39,14 +49,14 @@ def bunny(corpus):
 
 @pytest.fixture(scope="module")
 def bunny_lods(bunny):
-    data, info = cook_bytes(bunny, DEFAULT_ANALYSE, Viewing(), lod_ratios=RATIOS, lod_backend="fast",
+    data, info = cook_bytes(bunny, Viewing(), lod_ratios=RATIOS, lod_backend="fast",
                             keep_buffers=True)
     return data, info, from_bytes(data)
 
 
 @pytest.fixture(scope="module")
 def bunny_near(bunny):
-    data, info = cook_bytes(bunny, DEFAULT_ANALYSE, Viewing(nearest_m=1.0), lod_ratios=RATIOS,
+    data, info = cook_bytes(bunny, Viewing(nearest_m=1.0), lod_ratios=RATIOS,
                             lod_backend="fast")
     return data, info, from_bytes(data)
 
@@ -58,15 +68,15 @@ def _errors(schema_validator, manifest) -> list[str]:
 @pytest.mark.parametrize("name", ["two_plates.glb", "seamed_cube.glb", "unit_sphere.glb"])
 def test_without_lods_bytes_equal_build(name):
     scene = load(FIXTURES / name)
-    data, info = cook_bytes(scene, DEFAULT_ANALYSE, Viewing())
-    assert data == build(scene, analyse(scene, DEFAULT_ANALYSE))
-    assert info["bytes_saved"] == 0 and info["max_level"] == 24
+    data, info = cook_bytes(scene, Viewing())
+    assert data == build(scene, analyse(scene, DEFAULT_ANALYSE), options=pipeline.DEFAULTS.to_manifest()["options"])
+    assert info.bytes_saved == 0 and info.max_level == 24
     assert "savings" not in from_bytes(data).manifest
 
 
 def test_without_lods_bytes_equal_build_bunny(bunny):
-    data, _ = cook_bytes(bunny, DEFAULT_ANALYSE, Viewing())
-    assert data == build(bunny, analyse(bunny))
+    data, _ = cook_bytes(bunny, Viewing())
+    assert data == build(bunny, analyse(bunny), options=pipeline.DEFAULTS.to_manifest()["options"])
 
 
 def test_bunny_lods_structure(bunny_lods, validator):
@@ -76,18 +86,18 @@ def test_bunny_lods_structure(bunny_lods, validator):
     tri = [e["triangles"] for e in lods]
     err = [e["geometric_error_m"] for e in lods]
     dist = [e["min_distance_m"] for e in lods]
-    assert tri[0] == bunny_lods[1]["lods"][0][0]["triangles"] and all(a > b for a, b in zip(tri, tri[1:]))
+    assert tri[0] == bunny_lods[1].lods[0][0].triangles and all(a > b for a, b in zip(tri, tri[1:]))
     assert err[0] == 0.0 and all(a <= b for a, b in zip(err, err[1:])) and err[-1] > 0
     assert dist[0] == 0.0 and all(a <= b for a, b in zip(dist, dist[1:]))
     assert abs(tri[1] / tri[0] - 0.5) < 0.05 and abs(tri[3] / tri[0] - 0.125) < 0.05
-    assert c.manifest["positions"]["max_level"] == 24 and info["view_level"] is None
-    assert info["lods_dropped"] == 0 and "savings" not in c.manifest
+    assert c.manifest["positions"]["max_level"] == 24 and info.view_level is None
+    assert info.lods_dropped == 0 and "savings" not in c.manifest
     assert _errors(validator, c.manifest) == []
 
 
 def test_every_lod_decodes_to_its_quantized_positions(bunny_lods):
     _, info, c = bunny_lods
-    for i, bufs in enumerate(info["buffers"]):
+    for i, bufs in enumerate(info.buffers):
         assert len(bufs) == len(c.manifest["parts"][i]["lods"])
         for k, buf in enumerate(bufs):
             bins = make_bins(np.asarray(buf.min_level, dtype=np.int64))
@@ -123,7 +133,7 @@ def test_colocated_vertices_share_one_level_across_lods(bunny_lods):
     np.minimum.at(lmin, inverse, lod)
     np.maximum.at(lmax, inverse, lod)
     assert np.count_nonzero(lmax > lmin) > 100
-    assert info["colocated_raised_across_lods"] > 0
+    assert info.colocated_raised_across_lods > 0
 
 
 def test_nearest_drops_planes_without_clamping(bunny_near, bunny_lods, validator):
@@ -131,36 +141,36 @@ def test_nearest_drops_planes_without_clamping(bunny_near, bunny_lods, validator
     m = c.manifest
     extent = m["grid"]["extent"]
     view = int(required_level(1.0, extent, Viewing(nearest_m=1.0)))
-    assert info["view_level"] == view
-    assert info["max_level"] == max(view, info["highest_min_level"]) == m["positions"]["max_level"] < 24
-    assert m["stats"]["vertices_clamped_to_max_level"] == 0 == info["vertices_clamped_to_max_level"]
-    assert m["savings"]["planes_dropped"] == list(range(info["max_level"] + 1, 25))
+    assert info.view_level == view
+    assert info.max_level == max(view, info.highest_min_level) == m["positions"]["max_level"] < 24
+    assert m["stats"]["vertices_clamped_to_max_level"] == 0 == info.vertices_clamped_to_max_level
+    assert m["savings"]["planes_dropped"] == list(range(info.max_level + 1, 25))
     assert len(data) < len(bunny_lods[0])
-    assert info["bytes"] == len(data) and info["bytes_saved"] == info["bytes_without_savings"] - len(data) > 0
-    assert m["savings"]["bytes_saved"] == info["bytes_saved"]
+    assert info.bytes == len(data) and info.bytes_saved == info.bytes_without_savings - len(data) > 0
+    assert m["savings"]["bytes_saved"] == info.bytes_saved
     assert _errors(validator, m) == []
     for k in range(len(m["parts"][0]["lods"])):
-        q, _, _ = decode_positions(c, 0, k, info["max_level"])
+        q, _, _ = decode_positions(c, 0, k, info.max_level)
         full, _, _ = decode_positions(bunny_lods[2], 0, k, 24)
-        s = np.uint32(24 - info["max_level"])
+        s = np.uint32(24 - info.max_level)
         np.testing.assert_array_equal(q >> s, full >> s)
     with pytest.raises(LopcookError):
-        decode_positions(c, 0, 0, info["max_level"] + 1)
+        decode_positions(c, 0, 0, info.max_level + 1)
 
 
 def test_nearest_on_a_small_scene(validator):
     scene = load(FIXTURES / "unit_sphere.glb")
-    base, _ = cook_bytes(scene, DEFAULT_ANALYSE, Viewing())
-    data, info = cook_bytes(scene, DEFAULT_ANALYSE, Viewing(nearest_m=50.0))
+    base, _ = cook_bytes(scene, Viewing())
+    data, info = cook_bytes(scene, Viewing(nearest_m=50.0))
     c = from_bytes(data)
-    assert info["max_level"] < 24 and info["max_level"] >= info["highest_min_level"]
+    assert info.max_level < 24 and info.max_level >= info.highest_min_level
     assert len(data) < len(base)
     assert c.manifest["stats"]["vertices_clamped_to_max_level"] == 0
     an = analyse(scene)
     for i, pa in enumerate(an.parts):
         bins = make_bins(pa.min_level)
-        q, widths, _ = decode_positions(c, i, 0, info["max_level"])
-        np.testing.assert_array_equal(widths, np.maximum(bins.levels, info["max_level"]))
+        q, widths, _ = decode_positions(c, i, 0, info.max_level)
+        np.testing.assert_array_equal(widths, np.maximum(bins.levels, info.max_level))
         s = (24 - widths)[:, None].astype(np.uint32)
         np.testing.assert_array_equal(q >> s, pa.quantized[bins.order] >> s)
     assert _errors(validator, c.manifest) == []
@@ -178,12 +188,12 @@ def test_lod_with_empty_selection_range_is_dropped(monkeypatch, validator):
 
     monkeypatch.setattr(pipeline, "lod_chain", fake)
     scene = load(FIXTURES / "unit_sphere.glb")
-    data, info = cook_bytes(scene, DEFAULT_ANALYSE, Viewing(), lod_ratios=[1 / 2, 1 / 4, 1 / 8], lod_backend="fast")
+    data, info = cook_bytes(scene, Viewing(), lod_ratios=[1 / 2, 1 / 4, 1 / 8], lod_backend="fast")
     m = from_bytes(data).manifest
-    assert info["lods_dropped"] == len(scene.parts)
-    for p, rows in zip(m["parts"], info["lods"]):
-        assert len(p["lods"]) == 3 and [r["kept"] for r in rows] == [True, False, True, True]
-        assert [e["triangles"] for e in p["lods"]] == [r["triangles"] for r in rows if r["kept"]]
+    assert info.lods_dropped == len(scene.parts)
+    for p, rows in zip(m["parts"], info.lods):
+        assert len(p["lods"]) == 3 and [r.kept for r in rows] == [True, False, True, True]
+        assert [e["triangles"] for e in p["lods"]] == [r.triangles for r in rows if r.kept]
     assert m["savings"]["lods_dropped"] == len(scene.parts) and m["savings"]["planes_dropped"] == []
-    assert m["savings"]["bytes_saved"] == info["bytes_saved"] > 0
+    assert m["savings"]["bytes_saved"] == info.bytes_saved > 0
     assert _errors(validator, m) == []

@@ -6,23 +6,35 @@ from __future__ import annotations
 from dataclasses import asdict
 
 from conftest import FIXTURES
-from lopcook.analyse.summary import _settings_dict
 from lopcook.cli import main
 from lopcook.emit.container import read
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
-from lopcook.tune.recook import recook, recorded_settings, recorded_viewing
+from lopcook.settings import Settings
+from lopcook.tune.recook import recook, recorded_settings
 from lopcook.viewing import Viewing
 
 
 def test_recorded_settings_round_trip():
-    s = AnalyseSettings(eps=0.002, ks=0.25, shininess=8.0, depth=("fixed", 9), depth_threshold=0.01,
+    s = AnalyseSettings(eps=0.002, ks=0.25, shininess=8.0, depth="fixed", depth_level=9, depth_threshold=0.01,
                         depth_ceiling=12, edges=False, edge_eps=0.25, edge_level=10)
-    back = recorded_settings({"options": {"analyse": _settings_dict(s)}})
-    assert asdict(back) == asdict(s)
-    assert asdict(recorded_settings({})) == asdict(AnalyseSettings())
-    assert recorded_viewing({"viewing": Viewing(viewport=(640, 480), nearest_m=0.5).as_dict()}) == \
-        Viewing(viewport=(640, 480), nearest_m=0.5)
+    full = Settings(analyse=s, viewing=Viewing(viewport=(640, 480), nearest_m=0.5))
+    back = recorded_settings(full.to_manifest())
+    assert back == full and asdict(back.analyse) == asdict(s)
+
+
+def test_unreadable_record_is_a_clear_error():
+    import pytest
+
+    from lopcook.errors import LopcookError
+
+    m = Settings().to_manifest()
+    m["options"]["analyse"]["depth"] = "sideways"
+    with pytest.raises(LopcookError, match="recorded cook options do not parse"):
+        recorded_settings(m)
+    del m["options"]["analyse"]
+    with pytest.raises(LopcookError, match="missing 'analyse'"):
+        recorded_settings(m)
 
 
 def _cook(tmp_path, src, *flags):

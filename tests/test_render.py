@@ -14,7 +14,6 @@ import pytest
 
 from conftest import FIXTURES
 from lopcook.analyse import analyse
-from lopcook.analyse.summary import _settings_dict
 from lopcook.emit import build
 from lopcook.emit.binning import LEVELS
 from lopcook.emit.bitplane import decode, reconstruct_float32
@@ -38,7 +37,7 @@ CREASE_MARGIN_DB = 20.0
 
 def _cook(scene, settings=AnalyseSettings(), viewing=None):
     a = analyse(scene, settings)
-    return from_bytes(build(scene, a, options={"analyse": _settings_dict(settings)}, viewing=viewing), scene.source)
+    return from_bytes(build(scene, a, options={"analyse": settings.to_record()}, viewing=viewing), scene.source)
 
 
 @pytest.fixture(scope="module")
@@ -285,10 +284,13 @@ def test_format_table(gl, crease):
 
 @pytest.fixture(scope="module")
 def sphere_lods():
-    from lopcook.pipeline import cook_bytes
+    from lopcook.pipeline import run
+    from lopcook.settings import LodSpec, Settings, SimplifySettings
 
     s = load(str(FIXTURES / "unit_sphere.glb"))
-    data, info = cook_bytes(s, AnalyseSettings(), lod_ratios=[0.5, 0.25], lod_backend="fast", keep_buffers=True)
+    info = run(s, Settings(simplify=SimplifySettings(lods=LodSpec(auto=False, ratios=(0.5, 0.25)), backend="fast")),
+               keep_buffers=True)
+    data = info.data
     return s, from_bytes(data, "sphere_lods.lop"), info
 
 

@@ -7,17 +7,28 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lopcook.emit.container import from_bytes
+from lopcook import pipeline
 from lopcook.ingest import load
-from lopcook.pipeline import cook_bytes
 from lopcook.selection import lod_threshold_m, select, selection_ranges, viewing_of
 from lopcook.settings import DEFAULT_ANALYSE
 from lopcook.viewing import Viewing, required_level
 
 
+def cook_bytes(scene, viewing=Viewing(), *, lod_ratios=None, lod_backend="fast", keep_buffers=False):
+    """The stages through ``pipeline.run`` with LOD ratios and viewing conditions: (bytes, CookResult)."""
+    from lopcook.settings import LodSpec, Settings, SimplifySettings
+
+    simplify = SimplifySettings() if lod_ratios is None else SimplifySettings(
+        lods=LodSpec(auto=False, ratios=tuple(r for r in lod_ratios if r != 1.0)), backend=lod_backend)
+    result = pipeline.run(scene, Settings(simplify=simplify, viewing=viewing), keep_buffers=keep_buffers)
+    return result.data, result
+
+
+
 @pytest.fixture(scope="module")
 def bunny_container(corpus):
     scene = load(corpus / "stanford-bunny.obj")
-    data, _ = cook_bytes(scene, DEFAULT_ANALYSE, Viewing(nearest_m=0.3), lod_ratios=[1 / 2, 1 / 4, 1 / 8],
+    data, _ = cook_bytes(scene, Viewing(nearest_m=0.3), lod_ratios=[1 / 2, 1 / 4, 1 / 8],
                          lod_backend="fast")
     return from_bytes(data)
 

@@ -5,7 +5,7 @@ sections 3-5. Steps: (1) one 24-bit grid for the scene, (2) E_v per shading attr
 attribute level, (2b) raised on the discontinuities E_v cannot see (``discontinuity``: hard edges,
 folds, open boundaries, colour seams), (3) depth-critical levels, (4) m_v = max of both, (5)
 co-located vertices (same quantized position, any part) share the maximum of their levels
-(``_colocated_max``).
+(``colocated_max``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from ..settings import DEFAULT_ANALYSE, AnalyseSettings
+from ..settings import DEFAULT_ANALYSE, AnalyseSettings, DepthMode
 from ..types import Scene
 from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
 from .bitlevel import attribute_level, texture_slope
@@ -24,7 +24,7 @@ from ..grid import BITS, Grid
 from .result import REASON_CODE, Analysis, PartAnalysis
 
 
-def _kf_for(part, settings: AnalyseSettings) -> dict:
+def attribute_kf(part, settings: AnalyseSettings) -> dict:
     """k_f per attribute present on ``part`` (colour per attribute unit); 0 means ignored."""
     kf = {}
     if part.normals is not None:
@@ -43,7 +43,7 @@ def _kf_for(part, settings: AnalyseSettings) -> dict:
     return kf
 
 
-def _colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
+def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
     """(N,) int64: the maximum of ``values`` (N,) over each group of equal rows of ``q`` (N, 3) uint32
     grid integers (co-located vertices), for every row.
 
@@ -91,7 +91,7 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
     attr_level, attr_reason, e_vs, kfs, degenerate, unsatisfied = [], [], [], [], [], []
     for part in scene.parts:
         n = part.n_vertices
-        kf = _kf_for(part, settings)
+        kf = attribute_kf(part, settings)
         level = np.ones(n, dtype=np.int64)
         reason = np.full(n, REASON_CODE["none"], dtype=np.uint8)
         e_v = {}
@@ -140,9 +140,9 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         depth_level = [np.ones(p.n_vertices, np.int64) for p in scene.parts]
         depth_dist = [np.full(p.n_vertices, np.inf) for p in scene.parts]
         capped = [np.zeros(p.n_vertices, bool) for p in scene.parts]
-    elif isinstance(depth, tuple) and depth[0] == "fixed":
+    elif depth is DepthMode.FIXED:
         res = depth_levels(positions, indices, grid.extent, threshold=settings.depth_threshold)
-        depth_level = [np.where(c > 0, int(depth[1]), 1).astype(np.int64) for c in res.level]
+        depth_level = [np.where(c > 0, int(settings.depth_level), 1).astype(np.int64) for c in res.level]
         depth_dist, capped = res.distance, res.capped
         intersecting = [(names[i], names[j]) for i, j in res.intersecting]
     else:
@@ -164,7 +164,7 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         reasons.append(reason)
     allq = np.concatenate(quantized)
     alll = np.concatenate(combined)
-    shared = _colocated_max(allq, alll)
+    shared = colocated_max(allq, alll)
     raised_total = int(np.count_nonzero(shared > alll))
     timings["co_located"] = time.perf_counter() - t0
 

@@ -65,7 +65,7 @@ class Analysis:
     grid: Grid
     parts: list[PartAnalysis]
     part_names: list[str]
-    settings: object
+    settings: "AnalyseSettings"
     touching: list[tuple[str, str]] = field(default_factory=list)
     intersecting: list[tuple[str, str]] = field(default_factory=list)
     timings: dict = field(default_factory=dict)

@@ -4,19 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..grid import BITS
 from .result import REASON_CLASS, REASONS, Analysis
-
-
-def _settings_dict(s) -> dict:
-    depth = s.depth if isinstance(s.depth, str) else f"fixed:{s.depth[1]}"
-    return {"eps": s.eps, "ks": s.ks, "shininess": s.shininess, "kf": s.kf,
-            "texture_kf": s.texture_kf if isinstance(s.texture_kf, str) else float(s.texture_kf),
-            "untextured_uv_kf": s.untextured_uv_kf, "color_kf": s.color_kf, "depth": depth,
-            "depth_threshold_m": s.depth_threshold, "depth_ceiling": s.depth_ceiling,
-            "edges": bool(s.edges), "edge_eps": float(s.edge_eps), "edge_level": int(s.edge_level),
-            "edge_angle_deg": float(s.edge_angle_deg)}
 
 
 def describe_analysis(an: Analysis, source: str) -> dict:
@@ -49,7 +39,7 @@ def describe_analysis(an: Analysis, source: str) -> dict:
         "file": source,
         "grid": {"origin_m": list(an.grid.origin), "extent_m": an.grid.extent, "bits": an.grid.bits,
                  "dx_m": [float(an.grid.dx(b)) for b in range(1, BITS + 1)]},
-        "settings": _settings_dict(an.settings),
+        "settings": an.settings.to_record(),
         "totals": {
             "parts": len(parts),
             "vertices": n,

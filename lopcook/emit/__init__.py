@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..viewing import Viewing
 from . import attributes as attr
 from .binning import LEVELS, make_bins, vertex_widths
@@ -59,82 +59,92 @@ def _pack_bits(bits: np.ndarray) -> bytes:
     return np.packbits(bits, bitorder="little").tobytes()
 
 
-def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
-          lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS,
-          savings: dict | None = None) -> bytes:
-    """Container bytes for ``scene`` analysed by ``analysis``.
+@dataclass
+class EncodedBuffer:
+    """One buffer binned and encoded at a highest plane ``max_level``: its manifest entry (without
+    ``mandatory_words``, which depend on the buffers before it), its attribute sections (name
+    suffix, payload), its mandatory words (the packed buffer at level 1), its VertexId table and
+    grid integers in binned order, its bin counts and how many vertices were clamped."""
 
-    ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
-    scene and the analysis. ``max_level``: highest refinement plane written (planes above it are
-    never needed by any view, see lopcook.viewing); vertices whose minimum level is higher are
-    stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options`` are recorded verbatim. ``savings``: recorded
-    as the optional manifest field ``savings`` when given (``lopcook.pipeline.cook_bytes``).
-    """
-    viewing = viewing or Viewing()
-    if lods is None:
-        lods = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices,
-                             normals=p.normals, uvs=p.uvs, colors=p.colors)]
-                for p, pa in zip(scene.parts, analysis.parts)]
+    entry: dict
+    attributes: list
+    mandatory: np.ndarray
+    vertex_id: np.ndarray
+    q: np.ndarray
+    counts: np.ndarray
+    clamped: int
+
+
+def encode_buffer(buf: BufferInput, max_level: int = LEVELS) -> EncodedBuffer:
+    """Bins, remapped indices and attribute payloads of one buffer (steps (1)-(3a) of the module
+    doc). Levels above ``max_level`` are stored at ``max_level`` and counted in ``clamped``."""
+    raw_levels = np.asarray(buf.min_level, dtype=np.int64)
+    clamped = int(np.count_nonzero(raw_levels > max_level))
+    bins = make_bins(np.minimum(raw_levels, max_level))
+    q = np.asarray(buf.quantized, dtype=np.uint32)[bins.order]
+    indices = bins.remap_indices(buf.indices)
+    n, m = q.shape[0], indices.shape[0]
+    entry = {"vertices": n, "triangles": m, "vertex_id": [int(v) for v in bins.vertex_id],
+             "geometric_error_m": float(buf.geometric_error_m)}
+    if buf.min_distance_m is not None:
+        entry["min_distance_m"] = float(buf.min_distance_m)
+    data, width = attr.encode_indices(indices, n)
+    attributes = [("indices", data.tobytes())]
+    entry["index_width"] = int(width)
+    if buf.normals is not None:
+        attributes.append(("normals", attr.encode_normals(np.asarray(buf.normals)[bins.order]).tobytes()))
+    if buf.uvs is not None:
+        codes, lo, hi = attr.encode_uvs(np.asarray(buf.uvs)[bins.order])
+        attributes.append(("uvs", codes.tobytes()))
+        entry["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
+    if buf.colors is not None:
+        attributes.append(("colors", attr.encode_colors(np.asarray(buf.colors)[bins.order]).tobytes()))
+    words = pack(top_bits(q, vertex_widths(bins.vertex_id, 1)), bins.vertex_id, 1)
+    return EncodedBuffer(entry=entry, attributes=attributes, mandatory=words, vertex_id=bins.vertex_id, q=q,
+                         counts=bins.counts(), clamped=clamped)
+
+
+def plane_payload(encoded: list[EncodedBuffer], plane: int) -> bytes:
+    """Refinement plane ``plane`` of the buffers ``encoded`` (manifest order), packed LSB first."""
+    return _pack_bits(np.concatenate([plane_bits(e.q, e.vertex_id, plane).ravel() for e in encoded]))
+
+
+def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, options: dict | None,
+             viewing: Viewing, savings: dict | None = None, planes: dict | None = None) -> tuple[dict, list]:
+    """The manifest (without its section table) and the sections of a container holding
+    ``parts`` (per part, its encoded buffers, LOD 0 first) with planes 2..``max_level``.
+    ``planes``: plane payloads already packed for exactly these buffers (plane -> bytes); the
+    others are packed here."""
     sections: list[tuple[str, bytes]] = []
     parts_manifest = []
-    binned = []  # (vertex_id, q in binned order, min levels) per buffer, manifest order
-    mandatory_words = []
-    word_offset = 0
     hist = np.zeros(LEVELS + 1, dtype=np.int64)
-    clamped = 0  # vertices whose minimum level exceeds max_level (their guarantee is lost: reported)
-    for i, (part, part_lods) in enumerate(zip(scene.parts, lods)):
+    word_offset, clamped = 0, 0
+    for i, (part, encoded) in enumerate(zip(scene.parts, parts)):
         lod_entries = []
-        for k, buf in enumerate(part_lods):
-            # (1) bins and remapped indices
-            raw_levels = np.asarray(buf.min_level, dtype=np.int64)
-            clamped += int(np.count_nonzero(raw_levels > max_level))
-            levels = np.minimum(raw_levels, max_level)
-            bins = make_bins(levels)
-            q = np.asarray(buf.quantized, dtype=np.uint32)[bins.order]
-            indices = bins.remap_indices(buf.indices)
-            n, m = q.shape[0], indices.shape[0]
-            hist += bins.counts()
+        for k, e in enumerate(encoded):
             prefix = f"part{i}/lod{k}"
-            entry = {"vertices": n, "triangles": m, "vertex_id": [int(v) for v in bins.vertex_id],
-                     "geometric_error_m": float(buf.geometric_error_m)}
-            if buf.min_distance_m is not None:
-                entry["min_distance_m"] = float(buf.min_distance_m)
-            # (2) attributes
-            data, width = attr.encode_indices(indices, n)
-            sections.append((f"{prefix}/indices", data.tobytes()))
-            entry.update(indices=f"{prefix}/indices", index_width=int(width))
+            entry = dict(e.entry)
             entry["normals"] = entry["uvs"] = entry["colors"] = None
-            if buf.normals is not None:
-                sections.append((f"{prefix}/normals", attr.encode_normals(np.asarray(buf.normals)[bins.order]).tobytes()))
-                entry["normals"] = f"{prefix}/normals"
-            if buf.uvs is not None:
-                codes, lo, hi = attr.encode_uvs(np.asarray(buf.uvs)[bins.order])
-                sections.append((f"{prefix}/uvs", codes.tobytes()))
-                entry["uvs"] = f"{prefix}/uvs"
-                entry["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
-            if buf.colors is not None:
-                sections.append((f"{prefix}/colors", attr.encode_colors(np.asarray(buf.colors)[bins.order]).tobytes()))
-                entry["colors"] = f"{prefix}/colors"
-            # (3a) mandatory bits: the packed buffer at level 1 (bin k holds k bits)
-            words = pack(top_bits(q, vertex_widths(bins.vertex_id, 1)), bins.vertex_id, 1)
-            mandatory_words.append(words)
-            entry["mandatory_words"] = [word_offset, int(words.size)]
-            word_offset += int(words.size)
-            binned.append((bins.vertex_id, q))
+            for kind, payload in e.attributes:
+                sections.append((f"{prefix}/{kind}", payload))
+                entry[kind] = f"{prefix}/{kind}"
+            entry["mandatory_words"] = [word_offset, int(e.mandatory.size)]
+            word_offset += int(e.mandatory.size)
+            hist += e.counts
+            clamped += e.clamped
             lod_entries.append(entry)
         parts_manifest.append({
             "name": part.name, "source": part.source, "mesh_key": part.mesh_key,
             "texture": None if part.texture is None else {"name": part.texture.name, "sha256": part.texture.digest},
             "normals_computed": bool(part.normals_computed), "lods": lod_entries,
         })
-    # (3b) positions: mandatory words of every buffer, then one section per refinement plane
-    sections.append(("positions/mandatory", np.concatenate(mandatory_words).astype("<u4").tobytes()))
-    planes = {}
+    flat = [e for encoded in parts for e in encoded]
+    sections.append(("positions/mandatory", np.concatenate([e.mandatory for e in flat]).astype("<u4").tobytes()))
+    plane_names = {}
     for p in range(2, max_level + 1):
-        stream = np.concatenate([plane_bits(q, vid, p).ravel() for vid, q in binned])
         name = f"positions/plane{p:02d}"
-        sections.append((name, _pack_bits(stream)))
-        planes[str(p)] = name
+        sections.append((name, planes[p] if planes and p in planes else plane_payload(flat, p)))
+        plane_names[str(p)] = name
     total_vertices = int(hist.sum())
     manifest = {
         "format": FORMAT,
@@ -143,12 +153,11 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
                    "sha256": _sha256_file(scene.source), "unit_scale_m": float(scene.unit_scale),
                    "up_axis": scene.up_axis},
         "options": options or {},
-        "grid": {"origin": [float(v) for v in analysis.grid.origin], "extent": float(analysis.grid.extent),
-                 "bits": LEVELS},
+        "grid": {"origin": [float(v) for v in grid.origin], "extent": float(grid.extent), "bits": LEVELS},
         "viewing": viewing.as_dict(),
         "encodings": attr.attribute_specs(),
         "parts": parts_manifest,
-        "positions": {"mandatory": "positions/mandatory", "planes": planes, "max_level": int(max_level),
+        "positions": {"mandatory": "positions/mandatory", "planes": plane_names, "max_level": int(max_level),
                       "plane_order": "buffers in manifest order (parts, then LODs), vertices in binned order, "
                                      "bits x, y, z; least significant bit first"},
         "stats": {"vertices": total_vertices, "triangles": int(sum(e["triangles"] for p in parts_manifest for e in p["lods"])),
@@ -157,4 +166,29 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
     }
     if savings is not None:
         manifest["savings"] = savings
+    return manifest, sections
+
+
+def default_buffers(scene, analysis) -> list[list[BufferInput]]:
+    """LOD 0 of every part as its only buffer, from the scene and its analysis."""
+    return [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
+                         uvs=p.uvs, colors=p.colors)] for p, pa in zip(scene.parts, analysis.parts)]
+
+
+def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
+          lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS,
+          savings: dict | None = None) -> bytes:
+    """Container bytes for ``scene`` analysed by ``analysis``.
+
+    ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
+    scene and the analysis. ``max_level``: highest refinement plane written (planes above it are
+    never needed by any view, see lopcook.viewing); vertices whose minimum level is higher are
+    stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options``
+    are recorded verbatim. ``savings``: recorded as the optional manifest field ``savings``.
+    """
+    viewing = viewing or Viewing()
+    lods = lods if lods is not None else default_buffers(scene, analysis)
+    parts = [[encode_buffer(buf, max_level) for buf in part_lods] for part_lods in lods]
+    manifest, sections = assemble(scene, analysis.grid, parts, max_level=max_level, options=options,
+                                  viewing=viewing, savings=savings)
     return to_bytes(manifest, sections)

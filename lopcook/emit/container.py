@@ -64,6 +64,23 @@ class Container:
     sections: dict = field(default_factory=dict)
     available_level: int = 0
     path: str | None = None
+    data: bytes | None = field(default=None, repr=False)
+    result: object = field(default=None, repr=False)
+
+    @property
+    def entries(self):
+        """The typed view of the manifest (``lopcook.emit.manifest.Manifest``): parts, LODs and
+        their byte accounting."""
+        from .manifest import Manifest
+
+        return Manifest.of(self.manifest)
+
+    def write(self, path) -> None:
+        """Write the container's bytes to ``path`` atomically (a temp file, then a rename)."""
+        if self.data is None:
+            raise LopcookError("emit", self.path, "this container holds no bytes to write",
+                               hint="read it with lopcook.read or cook it with lopcook.cook")
+        write_atomic(str(path), self.data)
 
     def section(self, name: str) -> bytes:
         try:
@@ -73,8 +90,8 @@ class Container:
                                f"(the file holds levels up to {self.available_level})") from None
 
 
-def to_bytes(manifest: dict, sections: list[tuple[str, bytes]]) -> bytes:
-    """Serialise: fills ``manifest["sections"]`` (name, offset, length, crc32) and returns the file."""
+def section_table(sections: list[tuple[str, bytes]]) -> tuple[list[dict], list[bytes]]:
+    """The manifest's ``sections`` table (name, offset, length, crc32) and the padded payloads."""
     table = []
     offset = 0
     payloads = []
@@ -83,6 +100,19 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]]) -> bytes:
         table.append({"name": name, "offset": offset, "length": len(data), "crc32": zlib.crc32(data)})
         payloads.append(data)
         offset += len(data)
+    return table, payloads
+
+
+def file_size(manifest: dict, table: list[dict]) -> int:
+    """Bytes of the file ``to_bytes`` writes for ``manifest`` with the section table ``table``."""
+    return HEADER_SIZE + len(manifest_bytes(dict(manifest, sections=table))) + sum(t["length"] for t in table)
+
+
+def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> bytes:
+    """Serialise: fills ``manifest["sections"]`` (name, offset, length, crc32) and returns the file.
+    ``table``: ``section_table(sections)`` when the caller has it already."""
+    table, payloads = table or section_table(sections)
+    offset = sum(t["length"] for t in table)
     manifest = dict(manifest)
     manifest["sections"] = table
     mbytes = manifest_bytes(manifest)
@@ -166,7 +196,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         sections[entry["name"]] = payload
     if not truncated and expected_end != total:
         fail(f"sections end at byte {expected_end}, file size says {total}")
-    container = Container(manifest=manifest, sections=sections, path=path)
+    container = Container(manifest=manifest, sections=sections, path=path, data=data)
     container.available_level = _available_level(manifest, sections)
     if container.available_level < 1:
         fail("the file ends before the mandatory position bits", "the copy is incomplete; cook it again")

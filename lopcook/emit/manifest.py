@@ -7,6 +7,10 @@ uses, so a manifest that passes its CRC but is inconsistent still gives one clea
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
+
 from ..errors import LopcookError
 
 FORMAT = "lopcook.lop"
@@ -121,3 +125,122 @@ def validate_manifest(m, path: str | None) -> None:
     for p, bits in plane_bits.items():
         if length[planes[str(p)]] < (bits + 7) // 8:
             fail(f"refinement plane {p} is shorter than its {bits} bits")
+
+
+# --------------------------------------------------------------------------------------------
+# the typed view: parts, LODs and the one definition of every byte count
+
+
+FLOAT32_BYTES_PER_VERTEX = 12  # three float32 components
+
+
+@dataclass(frozen=True)
+class LodEntry:
+    """One buffer (a part's LOD) of a container.
+
+    vertices, triangles : counts; vertex_id : (25,) the VertexId table (vertex_id[k] = vertices
+    with minimum level < k+1 ... see docs/format.md); geometric_error_m : metres from LOD 0;
+    min_distance_m : camera distance (metres) from which a runtime selects it, or None;
+    index_width : 2 or 4 bytes; section_bytes : stored bytes (padding included) of its
+    ``indices``, ``normals``, ``uvs`` and ``colors`` sections (0 when absent).
+    """
+
+    vertices: int
+    triangles: int
+    vertex_id: tuple
+    geometric_error_m: float
+    min_distance_m: float | None
+    index_width: int
+    section_bytes: dict
+
+    def cap_bytes(self, level: int) -> int:
+        """GPU-resident bytes of the binned (CAP) position buffer at per-buffer level B: every
+        vertex at max(B, m_v) bits per component, whole uint32 words (Meyer et al. 2011, 5.3)."""
+        from .binning import buffer_bytes
+
+        return buffer_bytes(np.asarray(self.vertex_id, dtype=np.int64), int(level))
+
+    def ap_bytes(self, level: int) -> int:
+        """GPU-resident bytes of the uniform (AP) position buffer at level B: B bits per component
+        for every vertex, whole uint32 words."""
+        return 4 * ((3 * int(level) * self.vertices + 31) // 32)
+
+    @property
+    def float32_bytes(self) -> int:
+        """Bytes of the same positions as float32 (12 per vertex)."""
+        return FLOAT32_BYTES_PER_VERTEX * self.vertices
+
+    @property
+    def mandatory_bytes(self) -> int:
+        """Stored bytes of its mandatory bits (the packed buffer at level 1)."""
+        return self.cap_bytes(1)
+
+    def plane_bytes(self, max_level: int) -> int:
+        """Stored bits of its refinement planes 2..max_level, in bytes rounded up per plane (the
+        planes of all buffers are packed together; this is this buffer's share)."""
+        return sum((3 * int(self.vertex_id[p - 1]) + 7) // 8 for p in range(2, int(max_level) + 1))
+
+    @property
+    def index_bytes(self) -> int:
+        """Stored bytes of its index section."""
+        return int(self.section_bytes.get("indices", 0))
+
+    @property
+    def attribute_bytes(self) -> int:
+        """Stored bytes of its vertex attributes (normals, UVs, colours); indices not included."""
+        return sum(int(self.section_bytes.get(k, 0)) for k in ("normals", "uvs", "colors"))
+
+
+@dataclass(frozen=True)
+class PartEntry:
+    """One part of a container: its name, source path and LODs (LOD 0 first)."""
+
+    name: str
+    source: str
+    lods: tuple
+
+    def lod(self, k: int) -> LodEntry:
+        """LOD k, or the coarsest when the chain is shorter (as a renderer draws it)."""
+        return self.lods[min(int(k), len(self.lods) - 1)]
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """The typed view of a validated manifest (``Manifest.of(container.manifest)``)."""
+
+    parts: tuple
+    max_level: int
+
+    @classmethod
+    def of(cls, m: dict) -> "Manifest":
+        sizes = {s["name"]: int(s["length"]) for s in m.get("sections", [])}
+        parts = []
+        for p in m["parts"]:
+            lods = tuple(LodEntry(vertices=int(e["vertices"]), triangles=int(e["triangles"]),
+                                  vertex_id=tuple(int(v) for v in e["vertex_id"]),
+                                  geometric_error_m=float(e.get("geometric_error_m", 0.0)),
+                                  min_distance_m=e.get("min_distance_m"), index_width=int(e["index_width"]),
+                                  section_bytes={k: sizes.get(e.get(k) or "", 0)
+                                                 for k in ("indices", "normals", "uvs", "colors")})
+                         for e in p["lods"])
+            parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods))
+        return cls(parts=tuple(parts), max_level=int(m["positions"]["max_level"]))
+
+    def buffers(self, lod: int = 0) -> list[LodEntry]:
+        """LOD ``lod`` of every part (a part's coarsest when its chain is shorter)."""
+        return [p.lod(lod) for p in self.parts]
+
+    def cap_bytes(self, level: int, lod: int = 0) -> int:
+        return sum(e.cap_bytes(level) for e in self.buffers(lod))
+
+    def ap_bytes(self, level: int, lod: int = 0) -> int:
+        return sum(e.ap_bytes(level) for e in self.buffers(lod))
+
+    def float32_bytes(self, lod: int = 0) -> int:
+        """float32 position bytes of LOD ``lod`` of every part: the baseline its percentages use."""
+        return sum(e.float32_bytes for e in self.buffers(lod))
+
+    @property
+    def float32_bytes_all_lods(self) -> int:
+        """float32 position bytes of every buffer the container holds (all parts, all LODs)."""
+        return sum(e.float32_bytes for p in self.parts for e in p.lods)

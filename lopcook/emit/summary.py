@@ -4,22 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from .binning import FLOAT32_BYTES_PER_VERTEX, LEVELS, buffer_bytes
+from .binning import LEVELS
 from .container import Container
 
 SUMMARY_LEVELS = range(6, 13)
 
 
-def memory_rows(c: Container, levels=range(1, LEVELS + 1)) -> list[dict]:
-    """Per per-buffer level B: GPU-resident position bytes of CAP (binned, all buffers of LOD 0),
-    of AP (every vertex at B bits), and float32 (12 bytes per vertex), with percentages."""
-    vids = [np.asarray(p["lods"][0]["vertex_id"], dtype=np.int64) for p in c.manifest["parts"]]
-    n = int(sum(int(v[LEVELS]) for v in vids))
-    f32 = FLOAT32_BYTES_PER_VERTEX * n
+def memory_rows(c: Container, levels=range(1, LEVELS + 1), lod: int = 0) -> list[dict]:
+    """Per per-buffer level B: GPU-resident position bytes of LOD ``lod`` of every part (a part's
+    coarsest when its chain is shorter) as CAP (binned), AP (every vertex at B bits) and float32
+    (12 bytes per vertex, the baseline of the percentages), from ``Manifest``'s accounting."""
+    m = c.entries
+    f32 = m.float32_bytes(lod)
     rows = []
     for b in levels:
-        cap = sum(buffer_bytes(v, b) for v in vids)
-        ap = sum(4 * ((3 * b * int(v[LEVELS]) + 31) // 32) for v in vids)
+        cap, ap = m.cap_bytes(b, lod), m.ap_bytes(b, lod)
         rows.append({"level": int(b), "cap_bytes": int(cap), "ap_bytes": int(ap), "float32_bytes": int(f32),
                      "cap_percent": 100.0 * cap / max(f32, 1), "ap_percent": 100.0 * ap / max(f32, 1)})
     return rows
@@ -55,13 +54,19 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "totals": {"parts": len(parts), "buffers": sum(len(p["lods"]) for p in parts),
                    "vertices": m["stats"]["vertices"], "triangles": m["stats"]["triangles"],
                    "histogram": m["stats"]["histogram"],
-                   "float32_position_bytes": m["stats"]["float32_position_bytes"]},
+                   "float32_position_bytes": m["stats"]["float32_position_bytes"],
+                   "float32_position_bytes_lod0": c.entries.float32_bytes(0)},
         "section_bytes": by_kind,
         "sections": sections,
         "memory": memory_rows(c),
         "savings": m.get("savings"),
         "parts": parts,
     }
+
+
+def _n(count: int, noun: str) -> str:
+    """``1 part``, ``2 parts``."""
+    return f"{count:,} {noun}" if count == 1 else f"{count:,} {noun}s"
 
 
 def _hist(h) -> str:
@@ -73,13 +78,15 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
     t = d["totals"]
     lines = [
         f"{d['file']}: {d['format']} by {d['generator']}, {d['file_bytes'] or 0:,} bytes, levels 1..{d['available_level']}",
-        f"  source {d['source']['file']} ({d['source']['format']}); {t['parts']} parts, {t['buffers']} buffers, "
+        f"  source {d['source']['file']} ({d['source']['format']}); {_n(t['parts'], 'part')}, "
+        f"{_n(t['buffers'], 'buffer')}, "
         f"{t['vertices']:,} vertices, {t['triangles']:,} triangles; grid extent {d['grid']['extent']:.6g} m",
         "  minimum levels (level:vertices): " + _hist(t["histogram"]),
         "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
         "",
-        f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions vs "
-        f"float32 {t['float32_position_bytes']:,} B)",
+        f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions of "
+        f"{'LOD 0' if t['buffers'] > t['parts'] else 'every part'} vs their float32 "
+        f"{d['memory'][0]['float32_bytes'] if d['memory'] else 0:,} B)",
     ]
     for r in d["memory"]:
         if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]:  # not levels the file lacks
@@ -87,8 +94,12 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
                          f"{r['ap_percent']:>5.1f}%")
     if d.get("savings"):
         sv = d["savings"]
-        lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: planes {sv['planes_dropped'] or 'none'} "
-                     f"not written, {sv['lods_dropped']} LODs dropped")
+        planes = sv["planes_dropped"]
+        what = [f"planes {planes[0]}-{planes[-1]} not written" if len(planes) > 1 else
+                f"plane {planes[0]} not written"] if planes else []
+        if sv["lods_dropped"]:
+            what.append(f"{_n(sv['lods_dropped'], 'LOD')} no distance selects dropped")
+        lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: {', '.join(what)}")
     if timings:
         lines.append("")
         lines.append("  time: " + ", ".join(f"{k} {v:.3f} s" for k, v in timings.items()))

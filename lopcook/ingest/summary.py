@@ -7,7 +7,7 @@ The JSON form (``describe_scene``) is a stable interface, validated by
 from __future__ import annotations
 
 
-from .. import __version__
+from ..version import __version__
 from ..mesh import degenerate_triangles, duplicated_positions
 from ..types import Scene
 

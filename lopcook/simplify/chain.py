@@ -13,10 +13,9 @@ Backends
     texture-aware ``..._with_texture`` variant, whose quadrics include the texture coordinates).
     Boundary-aware (``preserveboundary``: open-boundary vertices are locked), normal-aware
     (``preservenormal``: no collapse may flip a face), ``planarquadric`` and, without UVs,
-    ``preservetopology``. About 1 s per 70k input triangles.
+    ``preservetopology``.
 ``"fast"``
-    fast-simplification (a quadric collapse on positions only; the backend call is 10-25x faster
-    than pymeshlab's). Its collapse map (``return_collapses``) tells which input vertex every
+    fast-simplification (a quadric collapse on positions only). Its collapse map (``return_collapses``) tells which input vertex every
     output vertex is. Open borders are locked (``preserve_border``) like pymeshlab's with
     ``preserve_boundary=True`` (the default): boundary vertices keep their exact positions, so
     parts that share a boundary do not crack apart at any LOD.
@@ -39,12 +38,11 @@ UV seams (``seams=``)
     open boundary, and the backend locks boundary vertices: every seam edge, seam vertex and UV
     island of the source survives exactly (``SeamStats`` equal), seam vertices keep their exact
     positions on both sides (no cracks) and the source texture stays valid. The price: faces
-    touching a seam cannot be simplified, so a densely seamed mesh stops reducing early
-    (DamagedHelmet: at about 58% of its triangles). A backend driven into that wall makes forced,
-    bad collapses, so a LOD that misses its target is redone at 1.1x the count reached and the
-    clearly better of the two kept (DamagedHelmet 1/2: 8944 triangles at 0.18 m error, or 9838
-    at 0.014 m), with a note; one that misses by more than 2x is a failure, and a result whose
-    ``SeamStats`` (``lopcook.simplify.topology``) differ from its input's is a failure too. pymeshlab's texture-aware quadric
+    touching a seam cannot be simplified, so a densely seamed mesh stops reducing early (docs/lod.md).
+    A backend driven into that wall makes forced, bad collapses, so a LOD that misses its target
+    is redone at 1.1x the count reached and the clearly better of the two kept, with a note; one
+    that misses by more than 2x is a failure, and a result whose ``SeamStats``
+    (``lopcook.simplify.topology``) differ from its input's is a failure too. pymeshlab's texture-aware quadric
     supplies the UVs of interior vertices; with ``fast`` the collapse map gives each output
     vertex's UV island and UVs are interpolated inside that island (unmoved vertices keep theirs
     bit for bit).
@@ -75,14 +73,12 @@ anywhere inside a face; centroids catch faces that bridge a concavity or cut a c
 vertices alone miss). The LOD 0 -> LOD direction needs only the maximum, so it queries LOD 0's
 vertices first and then only the centroids whose Lipschitz bound (vertex distance + distance to
 that vertex) could reach it: the same value, about a third of the queries on a dense mesh
-(``_measure_ref_to_lod``). ``Lod.error_m`` is the monotone envelope along the chain,
+(``lopcook.simplify.error.measure_ref_to_lod``). ``Lod.error_m`` is the monotone envelope along the chain,
 ``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
 construction (the LOD is kept and a note says when the measured value dropped). Chains simplify
 each LOD from the previous one (``chain="previous"``, default) or from LOD 0 (``chain="source"``);
-error is always measured against LOD 0. On the bunny ``"previous"`` was both faster and more
-accurate for both backends (1/64: 2.2 mm vs 6.7 mm pymeshlab, 3.1 vs 5.1 mm fast); on a
-1.1M-triangle subdivided bunny fast's chained LODs were worse (1/64: 4.2 vs 1.2 mm), so a chained
-LOD that misses its target by more than 5% is redone from LOD 0 and the closer one kept.
+error is always measured against LOD 0. A chained LOD that misses its target by more than 5% is
+redone from LOD 0 and the closer one kept (why ``"previous"`` is the default: docs/lod.md).
 
 Failures (never raised for mesh-quality reasons; each is a note)
 ----------------------------------------------------------------
@@ -97,8 +93,7 @@ Failures (never raised for mesh-quality reasons; each is a note)
   if it fails too the LOD is not produced (``Lod.failed``) and the chain keeps the previous LODs;
 * a backend that crashes the process: inputs of ``isolate.MIN_FACES`` faces or more are simplified
   in a forked child (``lopcook.isolate``), so a segmentation fault is a failure like the
-  others and the backend's memory (pymeshlab peaks ~500 MB at 1.1M triangles; fast-simplification
-  keeps ~320 MB until the process ends) is freed when the result is back.
+  others and the backend's memory is freed when the result is back.
 
 Copies of one mesh in a scene are simplified once (``lopcook.simplify.instances``, used by
 ``lopcook.pipeline``).
@@ -113,6 +108,7 @@ import numpy as np
 
 from .. import isolate
 from ..memory import release_free_memory
+from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
 from .backends import BACKENDS, TARGET_FAIL_FACTOR, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, measure_ref_to_lod
@@ -369,7 +365,7 @@ def simplify(part: MeshPart, ratio: float, backend: str = "pymeshlab", *, seams:
 def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_error_m: float | None = None,
               min_triangles: int = MIN_SIMPLIFY_TRIANGLES, seams: str = "lock", chain: str = "previous",
               parametrise: bool = False, preserve_boundary: bool = True, fallback: bool = True,
-              max_flipped_fraction: float = MAX_FLIPPED_FRACTION, max_levels: int = 24):
+              max_flipped_fraction: float = MAX_FLIPPED_FRACTION, max_levels: int = DEFAULT_LOD_LEVELS):
     """A LOD chain for one part: ``(lods, report)`` with ``lods[0]`` = LOD 0 (the part, error 0).
 
     ratios : fractions of LOD 0's triangles in decreasing order (default 1/2, 1/4, 1/8, ... while
@@ -403,10 +399,7 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
         report.notes.append(report.stop_reason)
     else:
         if ratios is None:
-            ratios, r = [], 0.5
-            while len(ratios) < max_levels and round(r * n0) >= min_triangles:
-                ratios.append(r)
-                r /= 2
+            ratios = halvings(max_levels, n0, min_triangles)
             if not ratios:
                 report.stop_reason = f"no target of at least {min_triangles} triangles"
         ratios = sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)

@@ -52,10 +52,8 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
     The distance to a surface is 1-Lipschitz, so a centroid c of face (v0, v1, v2) is at most
     ``min_i d(v_i) + |c - v_i|`` from the LOD. The vertices are queried first; a centroid is
     queried only when that bound (plus a 1e-9 relative slack for rounding) reaches the largest
-    vertex distance, so the maximum is unchanged (1.1M-triangle bunny, fast to 1/2: 648 of
-    1,111,216 centroids are queried). Queries go to one libigl AABB tree over the LOD.
-    (Bounding vertices the same way, through edges to a queried quarter of them, still had to
-    query 46% of the others there -- edges are about as long as the error -- and was slower.)"""
+    vertex distance, so the maximum is unchanged. Queries go to one libigl AABB tree over the LOD
+    (how few centroids that queries: docs/lod.md)."""
     import igl
 
     pos = np.ascontiguousarray(lod.positions, dtype=np.float64)

@@ -1,8 +1,8 @@
 """Parts that are one mesh placed several times: found by content, so that a LOD chain is
 simplified once per distinct mesh and placed on every copy.
 
-Scenes place one mesh many times (USD instances and references, glTF nodes sharing a mesh, the
-chess set's 16 pawns: 49 parts, 8 distinct meshes). lopcook's scene model is in world space, so
+Scenes place one mesh many times (USD instances and references, glTF nodes sharing a mesh, a
+chess set's pawns). lopcook's scene model is in world space, so
 the copies differ in positions only. Two parts are **copies** when they have the same vertex count,
 the same triangles (index arrays equal), the same UVs and colours (bit for bit), and one affine map
 ``x -> A x + t`` takes every position of the first to the second's within ``rtol`` of the part's

@@ -60,8 +60,7 @@ Nothing fits -- not even the smallest candidate, the coarsest LOD at level 1 -- 
 ``LopcookError`` (exit 2) naming the smallest candidate's bytes.
 
 Cost: one cook of the chain plus ``views`` renders per rendered candidate (the float reference is
-rendered once per view and cached). Measured on llvmpipe (2 shared cores), the bunny at 1/6 of
-its float size, 20 views at 640x360: see docs/budget.md.
+rendered once per view and cached); measured costs are in docs/budget.md.
 """
 
 from __future__ import annotations
@@ -75,15 +74,15 @@ import numpy as np
 from ..simplify import MIN_SIMPLIFY_TRIANGLES
 from ..emit.binning import LEVELS
 from ..errors import LopcookError
-from ..settings import DEFAULT_ANALYSE, AnalyseSettings
+from ..settings import DEFAULT_LOD_LEVELS, DEFAULTS, BudgetScope, LodSpec, Settings, halvings
 from ..types import Scene
 from ..viewing import Viewing
 
-SCOPES = ("positions", "vertices", "all")
-DEFAULT_SCOPE = "positions"
-DEFAULT_RESOLUTION = (640, 360)
-DEFAULT_VIEWS = 20
-DEFAULT_LEVELS_PER_LOD = 2
+SCOPES = tuple(s.value for s in BudgetScope)
+DEFAULT_SCOPE = DEFAULTS.tune.budget_scope.value
+DEFAULT_RESOLUTION = DEFAULTS.tune.budget.resolution
+DEFAULT_VIEWS = DEFAULTS.tune.budget.views
+DEFAULT_LEVELS_PER_LOD = DEFAULTS.tune.budget_levels
 #: float32 bytes per vertex of each attribute (what "float size" counts)
 FLOAT_ATTRIBUTE_BYTES = {"normals": 12, "uvs": 8, "colors": 16}
 #: PSNR values recorded in the manifest are rounded to this many decimals (dB)
@@ -92,16 +91,11 @@ PSNR_DECIMALS = 4
 
 # ---- sizes ---------------------------------------------------------------------------------------
 
-def default_ratios(scene: Scene, max_levels: int = 24) -> list[float]:
+def default_ratios(scene: Scene, max_levels: int = DEFAULT_LOD_LEVELS) -> list[float]:
     """1/2, 1/4, 1/8, ... while the largest part's target keeps at least ``MIN_SIMPLIFY_TRIANGLES``
     triangles (at most ``max_levels`` ratios): ``lod_chain``'s default chain; smaller parts stop
     earlier on their own."""
-    n0 = max((p.n_triangles for p in scene.parts), default=0)
-    out, r = [], 0.5
-    while len(out) < max_levels and round(r * n0) >= MIN_SIMPLIFY_TRIANGLES:
-        out.append(r)
-        r /= 2.0
-    return out
+    return halvings(max_levels, max((p.n_triangles for p in scene.parts), default=0), MIN_SIMPLIFY_TRIANGLES)
 
 
 def float_bytes(scene: Scene, scope: str = DEFAULT_SCOPE) -> int:
@@ -222,10 +216,9 @@ def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
     return replace(scene, parts=tuple(parts))
 
 
-def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANALYSE, viewing: Viewing | None = None,
-        *, lod_ratios=None, lod_backend: str = "pymeshlab", scope: str = DEFAULT_SCOPE, views=DEFAULT_VIEWS,
-        resolution=DEFAULT_RESOLUTION, levels_per_lod: int = DEFAULT_LEVELS_PER_LOD, samples: int = 4,
-        options: dict | None = None, progress=None) -> tuple[bytes, dict]:
+def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope: str = DEFAULT_SCOPE,
+        views=DEFAULT_VIEWS, resolution=DEFAULT_RESOLUTION, levels_per_lod: int = DEFAULT_LEVELS_PER_LOD,
+        samples: int = 4, options: dict | None = None, progress=None) -> tuple[bytes, dict]:
     """Container bytes of the best (LOD, level) within ``target_bytes`` and an info dict.
 
     Parameters
@@ -242,12 +235,11 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
     progress : optional callable(str) for stage lines.
 
     Returns ``(data, info)``: ``info["budget"]`` is the record written to ``options.budget``
-    (``budget_record``), ``info["cook"]`` the chain's ``cook_bytes`` info (no arrays),
+    (``budget_record``), ``info["cook"]`` the chain's ``lopcook.pipeline.CookResult``,
     ``info["timings_s"]`` (``cook``, ``render``, ``emit``).
     """
     from ..emit import build
-    from ..emit.container import from_bytes
-    from ..pipeline import cook_bytes
+    from ..pipeline import run
     from ..verify.render import Harness, Shading, lod_indices
 
     _check_scope(scope)
@@ -256,7 +248,9 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
         raise LopcookError("usage", None, f"target bytes must be a positive integer, got {target_bytes}")
     if int(levels_per_lod) < 1:
         raise LopcookError("usage", None, f"levels per LOD must be >= 1, got {levels_per_lod}")
-    viewing = viewing or Viewing()
+    viewing = settings.viewing
+    lod_backend = settings.simplify.backend.value
+    lod_ratios = None if settings.simplify.lods is None else settings.simplify.lods.resolved()
     say = progress or (lambda _msg: None)
     timings: dict = {}
 
@@ -264,9 +258,9 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
     t0 = time.perf_counter()
     ratios = default_ratios(scene) if lod_ratios is None else [float(r) for r in lod_ratios]
     say(f"budget: LOD chain ({lod_backend}, {len(ratios)} ratios)")
-    full, cinfo = cook_bytes(scene, settings, viewing, lod_ratios=ratios, lod_backend=lod_backend,
-                             options=options, keep_buffers=True)
-    c = from_bytes(full)
+    chain = settings.with_(simplify={"lods": LodSpec(auto=False, ratios=tuple(ratios))})
+    cooked = run(scene, chain, options=options, keep_buffers=True)
+    c = cooked.container
     timings["cook"] = time.perf_counter() - t0
     depth = max(len(p["lods"]) for p in c.manifest["parts"])
     available = int(c.available_level)
@@ -329,7 +323,7 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
         if fits:
             row = fits[0]
             say(f"budget: render simplify-only LOD {row['lod']} (float)")
-            test = _simplified_scene(scene, cinfo["analysis"].grid, cinfo["buffers"], row["lods"])
+            test = _simplified_scene(scene, cooked.analysis.grid, cooked.buffers, row["lods"])
             rs = h.evaluate_scene(test, levels=[available], views=views, distance_m=distance, extent=extent,
                                   viewing=viewing, shading=Shading.from_manifest(c.manifest))
             s = rs["levels"][0]["scene"]
@@ -347,14 +341,13 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
                            chosen=best, quantize=quantize, simplify=simplify, levels_per_lod=levels_per_lod)
     t0 = time.perf_counter()
     chosen_lods = lod_indices(c, best["lod"])
-    buffers = [[replace(cinfo["buffers"][i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
+    buffers = [[replace(cooked.buffers[i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
     opts = dict(options or {})
     opts["budget"] = record
-    data = build(scene, cinfo["analysis"], options=opts, viewing=viewing, lods=buffers, max_level=best["level"])
+    data = build(scene, cooked.analysis, options=opts, viewing=viewing, lods=buffers, max_level=best["level"])
     timings["emit"] = time.perf_counter() - t0
     say(f"budget: chose LOD {best['lod']} at level {best['level']}: {best['bytes']:,} of {target:,} bytes")
-    cook_info = {k: v for k, v in cinfo.items() if k not in ("analysis", "buffers")}
-    return data, {"budget": record, "cook": cook_info, "analysis": cinfo["analysis"], "timings_s": timings}
+    return data, {"budget": record, "cook": cooked, "analysis": cooked.analysis, "timings_s": timings}
 
 
 def budget_record(*, target, scope, float_size, distance, rule, camera_level, views, resolution, samples, ratios,

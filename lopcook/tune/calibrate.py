@@ -39,8 +39,7 @@ sigma (less memory on edge vertices); (2b) if it did not, the least x_e in (0, E
 the largest sigma, then the k_f bisection again at that x_e; (2c) after (2a), if the edges could
 not be loosened all the way, the k_f bisection (above the sigma of (1)) with the loosest edges.
 Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
-chosen: on textured assets with few hard edges (DamagedHelmet) more k_f and loose edges cost less
-than the least k_f and strict edges, on CAD assets (fandisk) only strict edges pass. Every choice
+chosen (which wins on which kind of asset: docs/tune.md). Every choice
 passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
 probe). ``search="kf"`` keeps edge_eps as given.
 
@@ -52,19 +51,16 @@ viewport crops close-ups instead of shrinking the object; fewer views sample the
 directions more coarsely. Check the chosen k_f with ``lopcook verify OUT.lop --source SOURCE`` at
 the full 20 views and 1280 x 720.
 
-Measured (``benchmarks/bench_verify_corpus.py --statistic min --cal-views 20 --cal-resolution
-1280x720``, target 40 dB, levels 6-11, llvmpipe on 2 shared cores): 9-18 probes, 110-160 s for the
-bunny, fandisk, DamagedHelmet and CesiumMilkTruck. The reduced harness is not
-the gate: at 8 views and 640 x 360 the choice passed there but missed by 1-2 dB at level 6 with the
-20 views at 1280 x 720 of ``lopcook verify`` (fewer views miss the worst one, and an object of ~37
-pixels is sensitive to its sub-pixel placement). So the choice is **confirmed** with the gate's
+The reduced harness is not the gate (fewer views can miss the worst one, and a small object is
+sensitive to its sub-pixel placement; docs/tune.md has the measured misses). So the choice is
+**confirmed** with the gate's
 harness (``confirm``, default ``lopcook verify``'s 20 views at 1280 x 720): while it misses the
 target there, one step stricter on the edges (edge strictness + 1) and on k_f (log2 sigma +
 ``tolerance``) are tried and the passing one with less memory kept, else both steps are taken (at
 most ``CONFIRM_STEPS`` times); ``reached`` is then the confirmed result, and the confirmation
-probes are recorded (``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the
-paper's CAP alone (``edges`` off), fandisk and the chess set cannot reach 40 dB at any k_f: their
-residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
+probes are recorded (``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips
+it. With the paper's CAP alone (``edges`` off) hard-surface assets cannot reach 40 dB at any k_f:
+their residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
 (docs/analyse.md, section 2b).
 """
 
@@ -75,12 +71,12 @@ import time
 from dataclasses import replace
 
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
-from ..settings import DEFAULT_ANALYSE, AnalyseSettings
+from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
 from ..verify.render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness, select_views
 
-CAL_VIEWS = 8
-CAL_RESOLUTION = (640, 360)
+CAL_VIEWS = DEFAULTS.tune.calibration.views
+CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
 #: the gate's harness (``lopcook verify --source`` defaults): the calibration's choice is confirmed there
 CONFIRM = (VIEW_COUNT, RESOLUTION)
 #: at most this many raises of log2 sigma by ``tolerance`` while the confirmation misses the target
@@ -94,11 +90,11 @@ EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (e
 
 def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
     """sigma times the k_f the analysis uses per attribute present in the scene (max over parts)."""
-    from ..analyse import _kf_for
+    from ..analyse import attribute_kf
 
     out: dict = {}
     for part in scene.parts:
-        for name, kf in _kf_for(part, settings).items():
+        for name, kf in attribute_kf(part, settings).items():
             out[name] = max(out.get(name, 0.0), float(kf) * sigma)
     return out
 
@@ -119,7 +115,6 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
     "cap_bytes" [per level], "depth_order_errors" (summed), "seconds"}``."""
     from ..analyse import analyse
-    from ..analyse.summary import _settings_dict
     from ..emit import build
     from ..emit.container import from_bytes
 
@@ -127,7 +122,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     s = replace(settings, eps=settings.eps / float(sigma), edge_eps=_edge_eps(settings, edge_scale))
     analysis = analyse(scene, s)
     opts = dict(options or {})
-    opts["analyse"] = _settings_dict(s)
+    opts["analyse"] = s.to_record()
     if ingest_options is not None:
         opts["ingest"] = ingest_options
     c = from_bytes(build(scene, analysis, options=opts, viewing=viewing), None)
@@ -413,3 +408,19 @@ def format_calibration(result: dict) -> str:
 
 __all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE", "probe", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
+
+
+def calibration_record(cal: dict) -> dict:
+    """What the container records of a calibration (``options.calibration``): target, the chosen
+    k_f (scale sigma, eps, per-attribute k_f) and the curve (memory vs PSNR over k_f)."""
+    keep = ("sigma", "log2_sigma", "eps", "edge_eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
+            "psnr_mean_per_level", "cap_percent")
+    return {"target_psnr": cal["target_psnr"], "statistic": cal["statistic"], "reached": cal["reached"],
+            "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
+            "edge_eps": cal["edge_eps"],
+            "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
+            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]],
+            "confirmation": None if not cal.get("confirmation") else {
+                "views": cal["confirmation"]["views"], "resolution": cal["confirmation"]["resolution"],
+                "passed": cal["confirmation"]["passed"],
+                "probes": [{k: p[k] for k in keep} for p in cal["confirmation"]["probes"]]}}

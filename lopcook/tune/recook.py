@@ -3,9 +3,9 @@
 
 A container holds no timings (the same input and options must give the same bytes, and a clock
 would break that), so ``lopcook report`` measures them again: it runs the cook's pipeline
-(``lopcook.pipeline.cook_bytes``) on the already ingested source with the recorded analysis
-settings (``options.analyse``), LOD options (``options.lods``: ratios as ``--lods`` spells them,
-backend) and viewing conditions (``viewing``), and records the options verbatim, exactly as
+(``lopcook.pipeline.run``) on the already ingested source with the recorded analysis
+settings (``options.analyse``), LOD options (``options.lods``) and viewing conditions (``viewing``), read by
+``Settings.from_manifest``, and records the options verbatim, exactly as
 ``lopcook cook`` did. The bytes it produces are then compared with the file's:
 
 * ``"identical"``: same bytes (deterministic output, and the report describes what this lopcook
@@ -32,39 +32,14 @@ import time
 from dataclasses import fields
 from pathlib import Path
 
-from ..settings import AnalyseSettings
-from ..viewing import Viewing
+from ..errors import LopcookError
+from ..settings import Settings
 
 
-def recorded_settings(manifest: dict) -> AnalyseSettings:
-    """The ``AnalyseSettings`` recorded in ``options.analyse`` (defaults for fields not recorded or
-    not readable: ``depth`` is stored as ``"auto"``, ``"off"`` or ``"fixed:N"``)."""
-    rec = (manifest.get("options") or {}).get("analyse") or {}
-    names = {f.name for f in fields(AnalyseSettings)}
-    kw = {}
-    for k, v in rec.items():
-        k2 = "depth_threshold" if k == "depth_threshold_m" else k
-        if k2 not in names or v is None or isinstance(v, (dict, list)):
-            continue
-        if k2 == "depth" and isinstance(v, str) and v.startswith("fixed:"):
-            v = ("fixed", int(v.split(":", 1)[1]))
-        kw[k2] = v
-    try:
-        return AnalyseSettings(**kw)
-    except (TypeError, ValueError):
-        return AnalyseSettings()
-
-
-def recorded_viewing(manifest: dict) -> Viewing:
-    """The manifest's ``viewing`` record as a ``Viewing`` (defaults where absent)."""
-    v = manifest.get("viewing") or {}
-    d = Viewing()
-    try:
-        return Viewing(viewport=tuple(int(x) for x in v.get("viewport", d.viewport)),
-                       fov_y_deg=float(v.get("fov_y_deg", d.fov_y_deg)), nearest_m=v.get("nearest_m"),
-                       pixel_error=float(v.get("pixel_error", d.pixel_error)))
-    except (TypeError, ValueError):
-        return d
+def recorded_settings(manifest: dict, path: str | None = None) -> Settings:
+    """The Settings a container records (``Settings.from_manifest``); LopcookError when the
+    record does not parse."""
+    return Settings.from_manifest(manifest, path)
 
 
 def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes | None = None) -> dict:
@@ -77,34 +52,29 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
     LODs)}``. ``file_bytes``: the container file's bytes (default: read from ``container.path``).
     """
     from ..analyse import analyse
-    from ..pipeline import cook_bytes, parse_lod_ratios
-
     from ..analyse.bitlevel import clear_slope_cache
+    from ..pipeline import run
 
     clear_slope_cache()  # time what a fresh cook pays
     m = container.manifest
     options = m.get("options") or {}
-    settings = recorded_settings(m)
     timings = {} if ingest_s is None else {"ingest": float(ingest_s)}
+    try:
+        settings = recorded_settings(m, container.path)
+    except LopcookError as exc:
+        return {"status": "not re-cooked", "detail": exc.message, "timings_s": timings, "bytes": None,
+                "analysis": analyse(scene), "lod_reports": []}
     if options.get("budget") is not None:
         t0 = time.perf_counter()
-        an = analyse(scene, settings)
+        an = analyse(scene, settings.analyse)
         timings["analyse"] = time.perf_counter() - t0
         timings.update({f"analyse.{k}": float(v) for k, v in an.timings.items()})
         return {"status": "not re-cooked", "detail": "cooked with --target-bytes: the byte-budget fit renders "
                 "every candidate and is not re-run; only the analysis is timed", "timings_s": timings,
                 "bytes": None, "analysis": an, "lod_reports": []}
-    lods = options.get("lods") or {}
-    try:
-        ratios = parse_lod_ratios(lods.get("ratios")) if lods.get("ratios") is not None else None
-    except Exception:  # noqa: BLE001 - an unreadable record: cook without LODs, the bytes will differ
-        ratios = None
-    data, info = cook_bytes(scene, settings, recorded_viewing(m), lod_ratios=ratios,
-                            lod_backend=str(lods.get("backend") or "pymeshlab"), options=options or None)
-    an = info["analysis"]
-    for k, v in info["timings_s"].items():
-        if k != "total":
-            timings[k] = float(v)
+    result = run(scene, settings, options=options)
+    data, an = result.data, result.analysis
+    timings.update({k: float(v) for k, v in result.timings_s.items()})
     timings.update({f"analyse.{k}": float(v) for k, v in an.timings.items()})
     if file_bytes is None and container.path is not None and Path(container.path).is_file():
         file_bytes = Path(container.path).read_bytes()
@@ -122,7 +92,7 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
     if options.get("calibration") is not None:
         detail += "; the k_f calibration (cook --target-psnr) is not re-run or timed"
     return {"status": status, "detail": detail, "timings_s": timings, "bytes": len(data), "analysis": an,
-            "lod_reports": info.get("lod_reports") or []}
+            "lod_reports": result.lod_reports}
 
 
-__all__ = ["recorded_settings", "recorded_viewing", "recook"]
+__all__ = ["recorded_settings", "recook"]

@@ -1,0 +1,129 @@
+"""The Python API: ``load(path) -> Scene``, ``cook(scene, settings) -> Container``,
+``read(path) -> Container`` and ``Container.write(path)``.
+
+``cook`` is what ``lopcook cook`` runs: the stages (``lopcook.pipeline.run``), preceded by the
+k_f calibration when ``settings.tune.target_psnr`` is set (``lopcook.tune.calibrate``), or the
+byte-budget fit when ``settings.tune.target_bytes`` is set (``lopcook.tune.budget``). The
+returned Container holds its bytes (``.data``) and what the cook did (``.result``, a
+``CookResult`` with ``calibration`` and ``budget`` records when those ran).
+"""
+
+from __future__ import annotations
+
+import time
+from fractions import Fraction
+
+from .emit.container import Container
+from .emit.container import read as _read
+from .errors import LopcookError
+from .settings import DEFAULTS, Settings
+from .types import Scene
+
+
+def load(path, settings: Settings = DEFAULTS) -> Scene:
+    """Load a glTF/GLB, OBJ or USD file into a validated Scene (``settings.ingest``)."""
+    from .ingest import load as _load
+
+    return _load(str(path), settings.ingest)
+
+
+def read(path, *, allow_prefix: bool = False) -> Container:
+    """Read and check a .lop container (every corruption is one LopcookError)."""
+    return _read(str(path), allow_prefix=allow_prefix)
+
+
+def budget_target(text: str, float_size: int | None = None) -> int | None:
+    """``--target-bytes``: an integer number of bytes, or P/Q of ``float_size`` (rounded down).
+    With ``float_size`` None only the syntax is checked (returns None for a fraction)."""
+    t = str(text).strip().replace("_", "").replace(",", "")
+    try:
+        value = Fraction(t)
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a number of bytes (e.g. 150000) "
+                           "or a fraction of the float size (e.g. 1/6)") from None
+    if "/" not in t:
+        if value.denominator != 1 or value <= 0:
+            raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a positive whole number of bytes")
+        return int(value)
+    if not value > 0:
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: the fraction must be positive")
+    return None if float_size is None else int(value * float_size)
+
+
+def calibration(scene: Scene, settings: Settings, progress=None) -> dict:
+    """``lopcook calibrate``: the k_f search of ``settings.tune`` (``lopcook.tune.calibrate``);
+    its result says whether the target was reached."""
+    from .tune.calibrate import calibrate
+
+    t = settings.tune
+    confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
+    cal = calibrate(scene, settings.analyse, target_psnr=t.target_psnr, levels=list(t.calibration.levels),
+                    views=t.calibration.views, resolution=t.calibration.resolution, viewing=settings.viewing,
+                    ingest_options={"crease_angle_deg": settings.ingest.crease_angle_deg}, progress=progress,
+                    statistic=t.psnr_stat.value, search=None if t.search is None else t.search.value,
+                    confirm=confirm)
+    return cal
+
+
+def _calibrate(scene: Scene, settings: Settings, progress):
+    """``tune.target_psnr``: the calibration, its manifest record and the settings it chose;
+    LopcookError (exit 1) when the target is not reached."""
+    from .tune.calibrate import calibration_record, require_reached
+
+    cal = calibration(scene, settings, progress)
+    require_reached(cal, scene.source)
+    chosen = settings.with_(analyse={"eps": cal["eps"], "edge_eps": cal["edge_eps"]})
+    return cal, calibration_record(cal), chosen
+
+
+def _budget(scene: Scene, settings: Settings, options: dict, say):
+    """``tune.target_bytes``: the fitted container's bytes, the chain's CookResult and the record."""
+    from .tune.budget import fit, float_bytes
+
+    t = settings.tune
+    fsize = float_bytes(scene, t.budget_scope.value)
+    target = budget_target(t.target_bytes, fsize)
+    if target < 1:
+        raise LopcookError("usage", scene.source, f"--target-bytes {t.target_bytes}: less than one byte of the "
+                           f"float size {fsize:,} B")
+    data, info = fit(scene, target, settings, scope=t.budget_scope.value, views=t.budget.views,
+                     resolution=t.budget.resolution, levels_per_lod=t.budget_levels, options=options, progress=say)
+    return data, info
+
+
+def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress=None) -> Container:
+    """Cook ``scene`` into a container (module doc). ``progress``: optional callable(str) for
+    stage lines (calibration probes arrive as dicts). Deterministic: the same scene and settings
+    give the same bytes."""
+    from .emit.container import from_bytes
+    from .pipeline import run
+
+    say = progress or (lambda _m: None)
+    timings: dict = {}
+    calibration = record = None
+    if settings.tune.target_psnr is not None:
+        t0 = time.perf_counter()
+        calibration, record, settings = _calibrate(scene, settings, progress)
+        timings["calibrate"] = time.perf_counter() - t0
+    options = settings.to_manifest()["options"]
+    if record is not None:
+        options["calibration"] = record
+    say(f"analyse and emit {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
+    if settings.tune.target_bytes is not None:
+        data, info = _budget(scene, settings, options, say)
+        result = info["cook"]
+        result.budget = info["budget"]
+        result.timings_s = dict(result.timings_s, **{f"budget.{k}": v for k, v in info["timings_s"].items()
+                                                     if k != "cook"})
+        container = from_bytes(data, None)
+    else:
+        result = run(scene, settings, options=options)
+        container = result.container
+    result.timings_s = dict(timings, **result.timings_s)
+    result.calibration = calibration
+    result.settings = settings
+    container.result = result
+    return container
+
+
+__all__ = ["load", "cook", "read", "calibration", "budget_target", "Container", "Settings"]
