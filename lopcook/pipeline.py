@@ -34,7 +34,7 @@ import numpy as np
 from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
-from .emit.container import Container, file_size, from_bytes, section_table, to_bytes
+from .emit.container import Container, built, file_size, section_table
 from .grid import BITS, Grid
 from .memory import release_free_memory
 from .selection import selection_ranges
@@ -196,14 +196,14 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool) 
     encoded = [[encode_buffer(b) for b in bufs] for bufs in buffers]
     manifest, sections = assemble(scene, analysis.grid, encoded, max_level=BITS, options=options,
                                   viewing=settings.viewing)
-    data = to_bytes(manifest, sections)
+    container = built(manifest, sections)
     timings["emit"] = time.perf_counter() - t0
     rows = [[LodRow(triangles=p.n_triangles, vertices=p.n_vertices, error_m=0.0, min_distance_m=0.0)]
             for p in scene.parts]
-    result = CookResult(container=from_bytes(data, None), analysis=analysis, timings_s=timings, lods=rows,
+    result = CookResult(container=container, analysis=analysis, timings_s=timings, lods=rows,
                         grid_extent_m=float(analysis.grid.extent),
                         highest_min_level=int(max(int(pa.min_level.max()) for pa in analysis.parts)),
-                        bytes_without_savings=len(data), buffers=buffers if keep_buffers else None)
+                        bytes_without_savings=len(container.data), buffers=buffers if keep_buffers else None)
     _account(result)
     return result
 
@@ -272,15 +272,15 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
                    "bytes_without_savings": full_size, "view_level": vlevel, "highest_min_level": highest_min}
     manifest, sections = assemble(scene, grid, kept_enc, max_level=max_level, options=options,
                                   viewing=settings.viewing, savings=savings, planes=kept_planes)
-    table = section_table(sections)
+    table = section_table(sections)[0]
     for _ in range(4):  # the record's own digits change the manifest size: settle to a fixed point
-        saved = full_size - file_size(manifest, table[0])
+        saved = full_size - file_size(manifest, table)
         if savings is None or savings["bytes_saved"] == saved:
             break
         savings = dict(savings, bytes_saved=saved)
         manifest = dict(manifest, savings=savings)
     kept_buffers = [[b for b, k in zip(bufs, ks) if k] for bufs, ks in zip(all_buffers, kept_mask)]
-    return to_bytes(manifest, sections, table), full_size, planes_dropped, lods_dropped, kept_buffers
+    return built(manifest, sections), full_size, planes_dropped, lods_dropped, kept_buffers
 
 
 def _account(result: CookResult) -> None:
@@ -319,10 +319,10 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
     if max_level is None:
         max_level = BITS if vlevel is None else max(vlevel, highest_min)
     t0 = time.perf_counter()
-    data, full_size, planes_dropped, lods_dropped, kept = _emit_with_savings(
+    container, full_size, planes_dropped, lods_dropped, kept = _emit_with_savings(
         scene, grid, analyses[0], all_buffers, rows, settings, options, int(max_level), vlevel, highest_min)
     timings["emit"] = time.perf_counter() - t0
-    result = CookResult(container=from_bytes(data, None), analysis=analyses[0], timings_s=timings, lods=rows,
+    result = CookResult(container=container, analysis=analyses[0], timings_s=timings, lods=rows,
                         lod_reports=reports, grid_extent_m=float(grid.extent), lod_max_error_m=cap,
                         view_level=vlevel, highest_min_level=highest_min, max_level=int(max_level),
                         planes_dropped=planes_dropped, lods_dropped=int(lods_dropped),

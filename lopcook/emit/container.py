@@ -122,6 +122,18 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> b
     return b"".join([head, mbytes, *payloads])
 
 
+def built(manifest: dict, sections: list[tuple[str, bytes]], path: str | None = None) -> Container:
+    """The Container of a manifest and sections just assembled, with its bytes, without parsing
+    them back (``to_bytes`` followed by ``from_bytes`` gives an equal Container)."""
+    table, payloads = section_table(sections)
+    data = to_bytes(manifest, sections, (table, payloads))
+    full = dict(manifest, sections=table)
+    c = Container(manifest=json.loads(manifest_bytes(full)), sections={t["name"]: p for t, p in zip(table, payloads)},
+                  path=path, data=data)
+    c.available_level = _available_level(c.manifest, c.sections)
+    return c
+
+
 def _no_duplicates(pairs):
     obj = {}
     for key, value in pairs:

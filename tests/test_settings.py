@@ -1,0 +1,91 @@
+"""lopcook.settings: one frozen Settings, enums, DEFAULTS as data, an exact manifest round trip and
+one clear error for a record that does not parse."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from lopcook.cli import build_parser
+from lopcook.errors import LopcookError
+from lopcook.settings import (DEFAULTS, AnalyseSettings, DepthMode, IngestSettings, LodBackend, LodSpec, Settings,
+                              SimplifySettings, TextureSlope, halvings, parse_lods)
+from lopcook.viewing import Viewing
+
+
+def test_defaults_are_frozen_data():
+    assert Settings() == DEFAULTS
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        DEFAULTS.analyse.eps = 0.5  # type: ignore[misc]
+    assert DEFAULTS.analyse.depth is DepthMode.AUTO and DEFAULTS.analyse.texture_kf is TextureSlope.IMAGE
+    assert DEFAULTS.simplify.backend is LodBackend.PYMESHLAB and DEFAULTS.simplify.lods is None
+
+
+@pytest.mark.parametrize("settings", [
+    Settings(),
+    Settings(analyse=AnalyseSettings(eps=0.002, depth="fixed", depth_level=9, depth_threshold=0.01, texture_kf=3.5,
+                                     kf=2.0, edges=False, edge_level=10),
+             ingest=IngestSettings(crease_angle_deg=30.0),
+             simplify=SimplifySettings(lods=LodSpec(auto=False, ratios=(0.5, 0.25)), backend="fast"),
+             viewing=Viewing(viewport=(640, 480), fov_y_deg=45.0, nearest_m=0.5, pixel_error=1.0)),
+    Settings(simplify=SimplifySettings(lods=LodSpec()), analyse=AnalyseSettings(depth="off", texture_kf="off")),
+])
+def test_manifest_round_trip_is_exact(settings):
+    record = settings.to_manifest()
+    assert Settings.from_manifest(record) == settings
+    # the record is plain JSON data: enums appear as their strings
+    import json
+
+    assert json.loads(json.dumps(record)) == record
+
+
+def test_record_matches_the_cli_spelling():
+    rec = AnalyseSettings(depth="fixed", depth_level=9, depth_threshold=0.01).to_record()
+    assert rec["depth"] == "fixed:9" and rec["depth_threshold_m"] == 0.01 and rec["texture_kf"] == "image"
+    assert LodSpec(auto=False, ratios=(0.5, 0.25, 0.125)).text == "1/2,1/4,1/8" and LodSpec().text == "auto"
+
+
+@pytest.mark.parametrize("mutate, match", [
+    (lambda m: m["options"].pop("analyse"), "missing 'analyse'"),
+    (lambda m: m["options"]["analyse"].update(depth="sideways"), "do not parse"),
+    (lambda m: m["options"]["analyse"].update(eps=-1.0), "eps"),
+    (lambda m: m["options"]["analyse"].update(colour="red"), "unknown analyse options"),
+    (lambda m: m["options"].update(lods={"ratios": "1/2,2", "backend": "fast"}), "do not parse"),
+    (lambda m: m["viewing"].update(fov_y_deg="wide"), "do not parse"),
+])
+def test_a_record_that_does_not_parse_is_one_clear_error(mutate, match):
+    m = Settings().to_manifest()
+    mutate(m)
+    with pytest.raises(LopcookError, match=match) as err:
+        Settings.from_manifest(m, "x.lop")
+    assert err.value.path == "x.lop" and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("bad", [dict(eps=float("inf")), dict(eps=0.0), dict(ks=-1.0), dict(kf=float("nan")),
+                                 dict(texture_kf=-1.0), dict(texture_kf="sometimes"), dict(depth="fixed"),
+                                 dict(depth="off", depth_level=3), dict(depth_threshold=-1.0), dict(edge_eps=2.0),
+                                 dict(depth_ceiling=25)])
+def test_out_of_range_analyse_values_are_refused(bad):
+    with pytest.raises(ValueError):
+        AnalyseSettings(**bad)
+
+
+def test_lod_spec():
+    assert parse_lods("auto").resolved() == halvings()
+    assert parse_lods("1/2, 1/4").resolved() == [0.5, 0.25]
+    assert parse_lods("1,1/2").resolved() == [0.5]  # ratio 1 is LOD 0
+    assert parse_lods(None) is None
+    for bad in ("1/4,1/2", "2", "0", "half"):
+        with pytest.raises(LopcookError):
+            parse_lods(bad)
+    assert halvings(5, triangles=40, min_triangles=4) == [0.5, 0.25, 0.125]
+
+
+def test_cli_help_shows_the_defaults():
+    cook = build_parser()._subparsers._group_actions[0].choices["cook"]
+    text = cook.format_help()
+    for shown in (f"{DEFAULTS.render.views} views", DEFAULTS.tune.calibration.resolution_text,
+                  f"default {DEFAULTS.analyse.depth_ceiling}", f"default {DEFAULTS.simplify.backend.value}",
+                  f"{DEFAULTS.viewing.viewport[0]}x{DEFAULTS.viewing.viewport[1]}"):
+        assert shown in " ".join(text.split()), shown
