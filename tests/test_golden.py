@@ -33,6 +33,7 @@ def test_sums_list_every_golden_file_once_with_a_hash():
     assert {"fixtures/two_plates.glb", "fixtures/seamed_cube.glb", "fixtures/unit_sphere.obj",
             "fixtures/point_instancer.usda"} <= sources
     assert any("--lods" in g.argv for g in GOLDENS) and any("--nearest" in g.argv for g in GOLDENS)
+    assert any(g.argv[g.argv.index("--lods") + 1] == "auto" for g in GOLDENS if "--lods" in g.argv)
 
 
 def test_sums_parser_rejects_malformed_lines():
@@ -110,22 +111,23 @@ def test_decoded_lods_are_within_their_recorded_error(golden, sources):
     c = read(str(G.GOLDEN / golden.name))
     scene = sources(golden.source)
     g = c.manifest["grid"]
-    cell_err = float(Grid(origin=tuple(g["origin"]), extent=g["extent"]).dx(24))
+    level = c.available_level  # 24, or less where --nearest leaves the finest planes out
+    cell_err = float(Grid(origin=tuple(g["origin"]), extent=g["extent"]).dx(level))
     for i, part in enumerate(scene.parts):
         lods = c.manifest["parts"][i]["lods"]
         assert len(lods) > 1
         previous = 0.0
         for k in range(1, len(lods)):
-            _, _, p = decode_positions(c, i, k, 24, float32=False)
+            _, _, p = decode_positions(c, i, k, level, float32=False)
             a = lod_attributes(c, i, k)
             assert a["indices"].shape == (lods[k]["triangles"], 3) and p.shape == (lods[k]["vertices"], 3)
             assert lods[k]["triangles"] < lods[k - 1]["triangles"]
             h = hausdorff(MeshPart(name="lod", positions=p, indices=a["indices"]), part)[0]
             recorded = lods[k]["geometric_error_m"]
             assert recorded >= previous  # the recorded error is non-decreasing along the chain
-            # decoding at level 24 moves a vertex by at most dx(24): the measured distance of the
-            # decoded LOD to the source is the recorded one up to that (the first LOD's recorded
-            # error is its own measurement; later ones are the running maximum)
+            # decoding at that level moves a vertex by at most dx(level): the measured distance of
+            # the decoded LOD to the source is the recorded one up to that (the first LOD's
+            # recorded error is its own measurement; later ones are the running maximum)
             assert h <= recorded + 2 * cell_err
             if k == 1:
                 assert h == pytest.approx(recorded, abs=2 * cell_err)
