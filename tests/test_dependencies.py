@@ -169,8 +169,7 @@ def test_obj_without_mtllib_lists_only_itself(in_tmp):
 
 
 # ----------------------------------------------------------------------------- USD
-pxr = pytest.importorskip("pxr")
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt  # noqa: E402
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt  # noqa: E402  (usd-core is a dependency)
 
 
 def _stage(path: Path, default: str | None = None):

@@ -407,7 +407,6 @@ def test_obj_files_carry_the_data(name, parts):
     ("concave_ngon.usda", F.concave_ngon()), ("zup_cm.usda", F.zup_cm()),
 ])
 def test_usd_files_carry_the_data(name, parts):
-    pytest.importorskip("pxr")
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.Open(str(FIXTURES / name))
@@ -431,7 +430,6 @@ def test_usd_files_carry_the_data(name, parts):
 
 
 def test_usd_facevarying_cube_is_the_same_surface():
-    pytest.importorskip("pxr")
     from pxr import Usd, UsdGeom
 
     (cube,) = F.seamed_cube()
@@ -452,7 +450,6 @@ def test_usd_facevarying_cube_is_the_same_surface():
 
 
 def test_usd_point_instancer_file():
-    pytest.importorskip("pxr")
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.Open(str(FIXTURES / "point_instancer.usda"))

@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 
-pxr = pytest.importorskip("pxr")
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt  # noqa: E402
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt  # usd-core is a dependency: no skip
 
 from lopcook.errors import LopcookError  # noqa: E402
 from lopcook.ingest import load  # noqa: E402

@@ -49,7 +49,6 @@ def test_recook_default_is_identical(tmp_path):
     assert r["status"] == "identical" and r["bytes"] == len(open(c.path, "rb").read())
     t = r["timings_s"]
     assert t["ingest"] == 0.5 and {"analyse", "emit", "analyse.depth"} <= set(t)
-    assert all(v >= 0 for v in t.values())
     assert r["analysis"].parts[0].min_level.size == scene.parts[0].n_vertices
 
 

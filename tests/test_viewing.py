@@ -32,7 +32,7 @@ def test_distance_for_level_inverts_required_level():
     for b in range(2, 24):
         d = distance_for_level(b, extent)
         assert required_level(d * (1 + 1e-9), extent) <= b
-        assert required_level(d * 0.999, extent) > b - 1 or b == 1
+        assert required_level(d * 0.999, extent) >= b
 
 
 def test_one_more_doubling_of_distance_drops_one_level():

@@ -12,7 +12,6 @@ from lopcook.simplify import backends as B
 from lopcook.simplify import chain as L
 from lopcook.simplify import error as E
 from lopcook.simplify import topology as T
-from lopcook.simplify import transfer as X
 from lopcook.ingest import load
 from lopcook.mesh import degenerate_triangles, weld_exact
 from lopcook.types import MeshPart
@@ -223,16 +222,6 @@ def test_seam_simplify_mode_reaches_targets_and_reports(helmet):
     assert any("UV seams changed" in n for n in lod.notes)
 
 
-def test_seam_stats_crafted():
-    # a quad split along its diagonal, the two triangles in different UV islands
-    p = _part([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [3, 4, 5]],
-              uvs=np.array([[0, 0], [1, 0], [0, 1], [0.5, 0.5], [1, 1], [0.2, 0.9]], dtype=np.float32))
-    assert T.seam_stats(p) == T.SeamStats(seam_edges=1, seam_vertices=2, uv_islands=2)
-    q = _part(p.positions, p.indices, uvs=np.array([[0, 0], [1, 0], [0, 1], [1, 0], [1, 1], [0, 1]], np.float32))
-    assert T.seam_stats(q) == T.SeamStats(seam_edges=0, seam_vertices=0, uv_islands=1)
-    assert T.seam_stats(_part(p.positions, p.indices)) is None
-
-
 def test_xatlas_parametrisation(spot):
     ico = _icosphere(3)
     lods, report = L.lod_chain(ico, ratios=[0.5, 0.25], parametrise=True)
@@ -267,7 +256,7 @@ def _nonmanifold() -> MeshPart:
 def test_nonmanifold_input(backend):
     part = _nonmanifold()
     defects = T.mesh_defects(part.positions, part.indices)
-    assert defects["nonmanifold_edges"] == 1 and defects["nonmanifold_vertices"] >= 1
+    assert defects["nonmanifold_edges"] == 1 and defects["nonmanifold_vertices"] == 1  # the bow-tie vertex
     lod = L.simplify(part, 0.5, backend)
     assert not lod.failed and _within(lod)
     assert any("non-manifold" in n for n in lod.notes)
@@ -438,27 +427,3 @@ def test_deterministic(spot, backend):
         return [dict(lod, seconds=0.0) for lod in report.as_dict()["lods"]]
 
     assert timeless(ra) == timeless(rb)
-
-
-# ------------------------------------------------------------------- measurement shortcuts are exact
-
-
-def _brute_ref_to_lod(ref, part):
-    return float(np.sqrt(E.point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
-
-
-def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(bunny):
-    ref = X.Reference(bunny)
-    for ratio in (1 / 2, 1 / 8):
-        lod = L.simplify(bunny, ratio, backend="fast")
-        assert E.measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
-
-
-def test_ref_to_lod_finds_a_maximum_at_a_centroid():
-    # the same four vertices, the non-planar quad split along the other diagonal: every vertex lies
-    # on the LOD (distance 0), the deviation is at the face centroids only
-    v = [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]
-    ref = X.Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
-    lod = _part(v, [[0, 1, 3], [1, 2, 3]])
-    d = E.measure_ref_to_lod(ref, lod)
-    assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)

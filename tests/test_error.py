@@ -1,0 +1,110 @@
+"""lopcook.simplify.error: the sampled Hausdorff distance on analytic cases (a mesh and itself, a
+translated copy, a sheet inside a larger one), its samples, and the pruned LOD 0 -> LOD query,
+which must equal querying every sample."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lopcook import fixtures as F
+from lopcook.simplify import chain as L
+from lopcook.simplify import error as E
+from lopcook.simplify import transfer as X
+from lopcook.ingest import load
+from lopcook.types import MeshPart
+
+
+def _part(positions, indices, name="crafted", **kw) -> MeshPart:
+    return MeshPart(name=name, positions=np.asarray(positions, dtype=np.float64),
+                    indices=np.asarray(indices, dtype=np.uint32), **kw)
+
+
+def _moved(part: MeshPart, offset=(0.0, 0.0, 0.0), scale=1.0) -> MeshPart:
+    return _part(part.positions * scale + np.asarray(offset), part.indices, name=part.name + "'")
+
+
+@pytest.fixture(scope="module")
+def plate() -> MeshPart:
+    return F.two_plates()[0].as_mesh_part()  # x, z in [-0.5, 0.5] at y = 0
+
+
+@pytest.mark.parametrize("name", ["seamed_cube", "two_plates", "unit_sphere"])
+def test_distance_of_a_mesh_to_itself_is_zero_to_rounding(name):
+    part = getattr(F, name)()[0].as_mesh_part()
+    # vertices are found exactly; a face centroid is off its own face by float rounding only
+    assert max(E.hausdorff(part, part)) <= 1e-15
+
+
+@pytest.mark.parametrize("d", [2.0**-10, 0.25, 3.0])
+def test_translated_copy_along_the_normal_is_the_translation(plate, d):
+    h, ab, ba = E.hausdorff(plate, _moved(plate, (0.0, d, 0.0)))
+    assert h == pytest.approx(d, rel=1e-12) and ab == pytest.approx(d, rel=1e-12) and ba == pytest.approx(d, rel=1e-12)
+
+
+def test_translated_copy_in_the_plane_is_the_translation(plate):
+    # the strip the copy no longer covers is t wide: its far edge is t from the copy
+    t = 0.125
+    h, ab, ba = E.hausdorff(plate, _moved(plate, (t, 0.0, 0.0)))
+    assert h == pytest.approx(t, rel=1e-12) and ab == pytest.approx(t, rel=1e-12) and ba == pytest.approx(t, rel=1e-12)
+
+
+def test_one_sided_distances_of_a_sheet_inside_a_larger_one(plate):
+    small = _moved(plate, scale=0.5)  # x, z in [-0.25, 0.25], on the plate
+    h, small_to_plate, plate_to_small = E.hausdorff(small, plate)
+    assert small_to_plate <= 1e-15
+    # the plate's corner (0.5, 0.5) is a sample; the small sheet's nearest point is its corner
+    assert plate_to_small == pytest.approx(0.25 * math.sqrt(2.0), rel=1e-12) and h == plate_to_small
+
+
+def test_samples_are_referenced_vertices_then_centroids():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [7, 7, 7], [1, 1, 0]], dtype=np.float64)  # vertex 3 unused
+    f = np.array([[0, 1, 2], [1, 4, 2]], dtype=np.int64)
+    s = E.samples(p, f)
+    np.testing.assert_array_equal(s[:4], p[[0, 1, 2, 4]])
+    np.testing.assert_allclose(s[4:], [p[[0, 1, 2]].mean(0), p[[1, 4, 2]].mean(0)], rtol=0, atol=1e-15)
+
+
+def test_point_mesh_projects_onto_the_nearest_face():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
+    f = np.array([[0, 1, 2]], dtype=np.int64)
+    d2, fid, c = E.point_mesh(np.array([[0.25, 0.25, 0.5], [2.0, 0.0, 0.0]]), p, f)
+    np.testing.assert_allclose(d2, [0.25, 1.0], rtol=1e-12)
+    np.testing.assert_array_equal(fid, [0, 0])
+    np.testing.assert_allclose(c, [[0.25, 0.25, 0.0], [1.0, 0.0, 0.0]], atol=1e-12)
+
+
+# ------------------------------------------------------------------- the pruned LOD 0 -> LOD query
+
+
+def _brute_ref_to_lod(ref, part):
+    return float(np.sqrt(E.point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
+
+
+def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(corpus):
+    bunny = load(corpus / "stanford-bunny.obj").parts[0]
+    ref = X.Reference(bunny)
+    for ratio in (1 / 2, 1 / 8):
+        lod = L.simplify(bunny, ratio, backend="fast")
+        assert E.measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
+
+
+def test_ref_to_lod_on_a_fixture_equals_the_one_sided_hausdorff():
+    sphere = F.unit_sphere()[0].as_mesh_part()
+    ref = X.Reference(sphere)
+    lod = L.simplify(sphere, 0.25, backend="fast")
+    d = E.measure_ref_to_lod(ref, lod.part)
+    assert d > 0 and d == _brute_ref_to_lod(ref, lod.part)
+    assert d == pytest.approx(E.hausdorff(sphere, lod.part)[1], rel=1e-12)
+
+
+def test_ref_to_lod_finds_a_maximum_at_a_centroid():
+    # the same four vertices, the non-planar quad split along the other diagonal: every vertex lies
+    # on the LOD (distance 0), the deviation is at the face centroids only
+    v = [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]
+    ref = X.Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
+    lod = _part(v, [[0, 1, 3], [1, 2, 3]])
+    d = E.measure_ref_to_lod(ref, lod)
+    assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)

@@ -1,0 +1,111 @@
+"""lopcook.simplify.transfer: barycentric coordinates, the LOD 0 reference, and attribute transfer
+onto a mesh: an unsimplified mesh gets its own attributes back per corner (seams and creases
+re-split), a simplified plate keeps its linear UVs, and inside-out results are rejected."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lopcook import fixtures as F
+from lopcook.simplify import backends as B
+from lopcook.simplify import transfer as X
+from lopcook.simplify.error import samples
+from lopcook.types import MeshPart
+
+TRI = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def _parts():
+    return {"seamed_cube": F.seamed_cube()[0].as_mesh_part(), "two_plates": F.two_plates()[0].as_mesh_part(),
+            "unit_sphere": F.unit_sphere()[0].as_mesh_part()}
+
+
+def test_barycentric_at_corners_centroid_and_inside(rng):
+    tri = np.repeat(TRI[None], 5, axis=0)
+    pts = np.r_[TRI, [TRI.mean(0)], [[0.5, 0.25, 0.0]]]
+    bary = X.barycentric(pts, tri, clamp=False)
+    np.testing.assert_allclose(bary[:3], np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(bary[3], [1 / 3] * 3, atol=1e-15)
+    np.testing.assert_allclose(bary @ TRI, pts, atol=1e-15)  # reproduces points in the plane
+    # a point above the plane gets the coordinates of its projection
+    np.testing.assert_allclose(X.barycentric(pts + [0, 0, 3.0], tri, clamp=False), bary, atol=1e-15)
+    # random triangles: the weights sum to 1 and rebuild the projected point
+    t = rng.normal(size=(100, 3, 3))
+    w = rng.dirichlet([1, 1, 1], 100)
+    p = np.einsum("qk,qkd->qd", w, t)
+    np.testing.assert_allclose(X.barycentric(p, t, clamp=False), w, atol=1e-9)
+
+
+def test_barycentric_clamps_outside_points_and_handles_degenerate_triangles():
+    tri = np.repeat(TRI[None], 2, axis=0)
+    outside = np.array([[-1.0, -1.0, 0.0], [3.0, 0.5, 0.0]])
+    raw = X.barycentric(outside, tri, clamp=False)
+    assert (raw < 0).any(axis=1).all()
+    c = X.barycentric(outside, tri, clamp=True)
+    assert np.all(c >= 0) and np.allclose(c.sum(1), 1.0)
+    np.testing.assert_allclose(c[0], [1, 0, 0])  # below-left of the right angle: its corner
+    flat = np.array([[[0, 0, 0], [1, 0, 0], [2, 0, 0]]], dtype=np.float64)  # collinear
+    np.testing.assert_allclose(X.barycentric(np.array([[0.5, 0.5, 0.0]]), flat, clamp=True), [[1 / 3] * 3])
+
+
+def test_reference_leaves_zero_area_faces_out():
+    cube = _parts()["seamed_cube"]
+    idx = np.r_[cube.indices, [[0, 0, 1]]].astype(np.uint32)
+    part = MeshPart(name="cube", positions=cube.positions, indices=idx, normals=cube.normals, uvs=cube.uvs)
+    ref = X.Reference(part)
+    assert ref.degenerate.sum() == 1 and ref.faces.shape == (12, 3) and ref.faces_all.shape == (13, 3)
+    assert ref.defects["degenerate_faces"] == 1 and ref.defects["closed"]
+    assert ref.volume == pytest.approx(1.0, rel=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(ref.face_unit, axis=1), 1.0, rtol=1e-15)
+    np.testing.assert_array_equal(ref.samples, samples(cube.positions, cube.indices.astype(np.int64)))
+    # six faces, each its own set of 4 vertices: six vertex-connected regions
+    assert np.unique(ref.region).size == 6
+
+
+# seam modes differ only for parts with UVs (the sphere has none)
+@pytest.mark.parametrize("name, mode", [(n, m) for n in ("seamed_cube", "two_plates") for m in ("ignore", "lock", "simplify")]
+                         + [("unit_sphere", "ignore")])
+def test_transfer_onto_the_unsimplified_mesh_reproduces_its_attributes(name, mode):
+    part = _parts()[name]
+    ref = X.Reference(part)
+    work, _ = B.prepare(part, mode)
+    res = B.BackendResult(part.positions.copy(), part.indices.astype(np.int64))
+    out, info = X.transfer_attributes(res, ref, part, work, mode, 0.02)
+    assert info["flipped"] == 0 and info["lod_to_ref"] < 1e-15
+    # the same vertices (a cube corner is three vertices again: the crease and seams re-split) ...
+    assert out.n_vertices == part.n_vertices and out.n_triangles == part.n_triangles
+    np.testing.assert_array_equal(out.positions[out.indices], part.positions[part.indices])
+    # ... with the same attributes per corner: exactly, except that normals are renormalised in
+    # float32 (the sphere's float32 unit normals move by at most an ulp)
+    for attr in ("normals", "uvs", "colors"):
+        src, got = getattr(part, attr), getattr(out, attr)
+        assert (src is None) == (got is None), attr
+        if src is not None:
+            tol = 2.0**-24 if attr == "normals" and name == "unit_sphere" else 0.0
+            np.testing.assert_allclose(got[out.indices], src[part.indices], rtol=0, atol=tol)
+
+
+def test_transfer_onto_a_simplified_plate_keeps_linear_uvs_and_normals():
+    plate = _parts()["two_plates"]
+    ref = X.Reference(plate)
+    work, _ = B.prepare(plate, "ignore")
+    res, _ = B.check_result(B.simplify_fast(work.positions, work.faces, 32, lock_border=True), 32, 128)
+    out, info = X.transfer_attributes(res, ref, plate, work, "ignore", 0.02)
+    assert out.n_triangles == res.faces.shape[0] and info["flipped"] == 0
+    # UVs are u = x + 0.5, v = z + 0.5 on LOD 0, a linear field: interpolation keeps it
+    np.testing.assert_allclose(out.uvs[:, 0], out.positions[:, 0] + 0.5, atol=1e-6)
+    np.testing.assert_allclose(out.uvs[:, 1], out.positions[:, 2] + 0.5, atol=1e-6)
+    np.testing.assert_array_equal(out.normals, np.tile(np.float32([0, 1, 0]), (out.n_vertices, 1)))
+
+
+def test_inside_out_result_is_a_backend_failure():
+    cube = _parts()["seamed_cube"]
+    ref = X.Reference(cube)
+    work, _ = B.prepare(cube, "ignore")
+    res = B.BackendResult(cube.positions.copy(), cube.indices.astype(np.int64)[:, ::-1].copy())
+    with pytest.raises(B.BackendFailure, match="flipped"):
+        X.transfer_attributes(res, ref, cube, work, "ignore", 0.02)
+    # allowed to flip every face, the closed mesh's volume sign still rejects it
+    with pytest.raises(B.BackendFailure, match="inside out"):
+        X.transfer_attributes(res, ref, cube, work, "ignore", 1.0)
