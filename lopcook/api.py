@@ -16,6 +16,7 @@ from fractions import Fraction
 from .emit.container import Container
 from .emit.container import read as _read
 from .errors import LopcookError
+from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
 from .types import Scene
 
@@ -50,16 +51,28 @@ def budget_target(text: str, float_size: int | None = None) -> int | None:
     return None if float_size is None else int(value * float_size)
 
 
-def calibration(scene: Scene, settings: Settings, progress=None) -> dict:
+def calibration(scene: Scene, settings: Settings, progress: Progress = NONE) -> dict:
     """``lopcook calibrate``: the k_f search of ``settings.tune`` (``lopcook.tune.calibrate``);
     its result says whether the target was reached."""
+    from .tune.calibrate import calibrate
+
+    t = settings.tune
+    with progress.stage("calibrate (probes)") as st:
+        def on_probe(p):
+            st.advance()
+            progress(p)
+
+        return _search(scene, settings, on_probe)
+
+
+def _search(scene: Scene, settings: Settings, on_probe) -> dict:
     from .tune.calibrate import calibrate
 
     t = settings.tune
     confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
     cal = calibrate(scene, settings.analyse, target_psnr=t.target_psnr, levels=list(t.calibration.levels),
                     views=t.calibration.views, resolution=t.calibration.resolution, viewing=settings.viewing,
-                    ingest_options={"crease_angle_deg": settings.ingest.crease_angle_deg}, progress=progress,
+                    ingest_options={"crease_angle_deg": settings.ingest.crease_angle_deg}, progress=on_probe,
                     statistic=t.psnr_stat.value, search=None if t.search is None else t.search.value,
                     confirm=confirm)
     return cal
@@ -91,14 +104,13 @@ def _budget(scene: Scene, settings: Settings, options: dict, say):
     return data, info
 
 
-def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress=None) -> Container:
-    """Cook ``scene`` into a container (module doc). ``progress``: optional callable(str) for
-    stage lines (calibration probes arrive as dicts). Deterministic: the same scene and settings
-    give the same bytes."""
+def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
+    """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
+    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes."""
     from .emit.container import from_bytes
     from .pipeline import run
 
-    say = progress or (lambda _m: None)
+    say = progress
     timings: dict = {}
     calibration = record = None
     if settings.tune.target_psnr is not None:
@@ -108,7 +120,6 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress=None) -> Conta
     options = settings.to_manifest()["options"]
     if record is not None:
         options["calibration"] = record
-    say(f"analyse and emit {len(scene.parts)} parts, {scene.n_vertices:,} vertices")
     if settings.tune.target_bytes is not None:
         data, info = _budget(scene, settings, options, say)
         result = info["cook"]
@@ -117,7 +128,7 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress=None) -> Conta
                                                      if k != "cook"})
         container = from_bytes(data, None)
     else:
-        result = run(scene, settings, options=options)
+        result = run(scene, settings, options=options, progress=progress)
         container = result.container
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration

@@ -13,6 +13,7 @@ import sys
 from .version import __version__
 from .errors import EXIT_OK, LopcookError
 from .settings import DEFAULTS as D
+from .progress import MODES
 from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs
 
 EXIT_INTERNAL = 3
@@ -50,6 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"lopcook {__version__}")
     parser.add_argument("--debug", action="store_true", help="show Python tracebacks on errors")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors (and --json output)")
+    parser.add_argument("--progress", choices=MODES, default="auto",
+                        help="progress on stderr: a bar with counts and ETA on a terminal (auto, the default; "
+                             "nothing off a terminal), bar, plain (one line per stage with its time, for CI logs) "
+                             "or none")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -150,6 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
                              help="show Python tracebacks on errors")
         command.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                              help="print nothing but errors (and --json output)")
+        command.add_argument("--progress", choices=MODES, default=argparse.SUPPRESS,
+                             help="progress on stderr: auto, bar, plain or none (see lopcook --help)")
     return parser
 
 
@@ -380,18 +387,14 @@ def cmd_analyse(args) -> int:
     return EXIT_OK
 
 
-def _progress(args, message) -> None:
-    """Stage lines on stderr, only on a terminal and without --quiet/--json (build logs stay clean).
-    ``message``: a line, or a calibration probe (dict)."""
-    if args.quiet or args.json or not sys.stderr.isatty():
-        return
-    if isinstance(message, dict):
-        p = message
-        ps = "inf" if p["psnr_min"] is None else f"{p['psnr_min']:.1f} dB"
-        what = "confirm" if p.get("confirm") else "calibrate"
-        message = (f"{what}: k_f scale 2^{p['log2_sigma']:.3g}, edge eps {p['edge_eps']:.3g}: CAP {ps}, "
-                   f"{max(p['cap_percent']):.1f}% of float32 ({p['seconds']:.1f} s)")
-    print(f"lopcook: {message}", file=sys.stderr, flush=True)
+def _progress(args):
+    """The run's Progress (``--progress``; lopcook.progress): a bar on a terminal unless --quiet or
+    --json, nothing off a terminal, plain lines for CI logs."""
+    if getattr(args, "_progress", None) is None:
+        from .progress import make
+
+        args._progress = make(getattr(args, "progress", "auto"), quiet=args.quiet, json=getattr(args, "json", False))
+    return args._progress
 
 
 def _is_container(path: str) -> bool:
@@ -414,10 +417,10 @@ def cmd_cook(args) -> int:
     if os.path.isdir(args.output):
         raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
     t0 = time.perf_counter()
-    _progress(args, f"ingest {args.source}")
-    scene = api.load(args.source, settings)
+    with _progress(args).stage(f"ingest {os.path.basename(args.source)}"):
+        scene = api.load(args.source, settings)
     ingest_s = time.perf_counter() - t0
-    container = api.cook(scene, settings, progress=lambda m: _progress(args, m))
+    container = api.cook(scene, settings, progress=_progress(args))
     t0 = time.perf_counter()
     container.write(args.output)
     if args.depfile:
@@ -486,7 +489,7 @@ def cmd_calibrate(args) -> int:
 
     settings = settings_from_args(args)
     scene = load(args.source, settings)
-    cal = calibration(scene, settings, lambda m: _progress(args, m))
+    cal = calibration(scene, settings, _progress(args))
     if args.json:
         print(json.dumps(cal, indent=1, sort_keys=True))
     elif not args.quiet or not cal["reached"]:
@@ -672,18 +675,18 @@ def cmd_report(args) -> int:
     if crease is not None and not 0.0 <= float(crease) <= 180.0:
         raise LopcookError("usage", None, f"--crease-angle {crease} is outside [0, 180] degrees")
     ingest = IngestSettings(crease_angle_deg=float(crease)) if crease is not None else IngestSettings()
-    _progress(args, f"ingest {args.source}")
+    _progress(args)(f"ingest {args.source}")
     t0 = time.perf_counter()
     scene = load(args.source, ingest)
     ingest_s = time.perf_counter() - t0
-    _progress(args, f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]} (float, AP, CAP, "
+    _progress(args)(f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]} (float, AP, CAP, "
                     "uniform 16-bit, minimum levels)")
     ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution)
     warnings = cook = None
     if not args.no_analyse:
         from .tune.recook import recook
 
-        _progress(args, "re-cook the source (stage timings, warnings, determinism)")
+        _progress(args)("re-cook the source (stage timings, warnings, determinism)")
         cook = recook(c, scene, ingest_s=ingest_s)
         warnings = analysis_warnings(scene, cook["analysis"])
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))

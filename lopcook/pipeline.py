@@ -37,6 +37,7 @@ from .emit import BufferInput, assemble, encode_buffer, plane_payload
 from .emit.container import Container, built, file_size, section_table
 from .grid import BITS, Grid
 from .memory import release_free_memory
+from .progress import NONE, Progress
 from .selection import selection_ranges
 from .settings import DEFAULTS, Settings
 from .simplify import lod_chain
@@ -134,7 +135,7 @@ class CookResult:
         return int(self.container.manifest["stats"]["vertices_clamped_to_max_level"])
 
 
-def chains(scene: Scene, settings: Settings, max_error_m: float | None):
+def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress: Progress = NONE):
     """LOD chain and report of every part, in part order. Copies of one mesh
     (``lopcook.simplify.instances.copies``: same triangles and attributes, positions related by one
     affine map) are simplified once and the chain placed on every copy. Serial: pymeshlab is not
@@ -143,15 +144,19 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None):
 
     ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
     out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
-    for lead, members in copies(scene.parts):
-        lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, max_error_m=max_error_m)
-        out[lead], reports[lead] = lods, report
-        for i, a, t in members:
-            out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
+    groups = copies(scene.parts)
+    with progress.stage("LOD chains", total=len(groups)) as st:
+        for lead, members in groups:
+            lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, max_error_m=max_error_m)
+            out[lead], reports[lead] = lods, report
+            for i, a, t in members:
+                out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
+            st.advance()
     return out, reports
 
 
-def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Grid | None = None):
+def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Grid | None = None,
+                 progress: Progress = NONE):
     """Analyse every LOD level on one grid, then share levels between co-located vertices.
 
     parts_chain: per part, its list of MeshParts (LOD 0 first). Returns ``(grid, analyses, levels,
@@ -160,10 +165,13 @@ def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Gri
     minimum levels of part i's LOD k, ``raised`` how many vertices the sharing raised."""
     grid = grid or Grid.fit([p.positions for chain in parts_chain for p in chain])
     analyses, members = [], []
-    for k in range(max(len(c) for c in parts_chain)):
-        idx = [i for i, c in enumerate(parts_chain) if len(c) > k]
-        analyses.append(analyse(replace(scene, parts=tuple(parts_chain[i][k] for i in idx)), settings, grid=grid))
-        members.append(idx)
+    depth = max(len(c) for c in parts_chain)
+    with progress.stage("analyse", total=depth) as st:
+        for k in range(depth):
+            idx = [i for i, c in enumerate(parts_chain) if len(c) > k]
+            analyses.append(analyse(replace(scene, parts=tuple(parts_chain[i][k] for i in idx)), settings, grid=grid))
+            members.append(idx)
+            st.advance()
     allq = np.concatenate([pa.quantized for an in analyses for pa in an.parts])
     alll = np.concatenate([pa.min_level.astype(np.int64) for an in analyses for pa in an.parts])
     shared = colocated_max(allq, alll)
@@ -184,11 +192,13 @@ def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Gri
     return grid, analyses, levels, raised
 
 
-def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool) -> CookResult:
+def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, progress: Progress) -> CookResult:
     """No LODs, no viewing savings: one analysis, one build."""
     timings: dict = {}
     t0 = time.perf_counter()
-    analysis = analyse(scene, settings.analyse)
+    with progress.stage("analyse", total=1) as st:
+        analysis = analyse(scene, settings.analyse)
+        st.advance()
     timings["analyse"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
@@ -208,14 +218,14 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool) 
     return result
 
 
-def _lod_stage(scene: Scene, settings: Settings, timings: dict):
+def _lod_stage(scene: Scene, settings: Settings, timings: dict, progress: Progress):
     """(1): per part its MeshParts and errors (LOD 0 alone without LODs), the reports, the cap."""
     t0 = time.perf_counter()
     cap = None
     if settings.viewing.nearest_m is not None:
         cap = far_error_m(Grid.fit([p.positions for p in scene.parts]).extent, settings.viewing)
     if settings.simplify.lods is not None:
-        lods, reports = chains(scene, settings, cap)
+        lods, reports = chains(scene, settings, cap, progress)
         parts_chain = [[lod.part for lod in c] for c in lods]
         errors = [[float(lod.error_m) for lod in c] for c in lods]
     else:
@@ -297,19 +307,19 @@ def _account(result: CookResult) -> None:
 
 
 def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = None, max_level: int | None = None,
-        keep_buffers: bool = False) -> CookResult:
+        keep_buffers: bool = False, progress: Progress = NONE) -> CookResult:
     """Cook ``scene`` with ``settings`` (see module doc). ``options``: the manifest's options
     record (default ``settings.to_manifest()["options"]``). ``max_level``: highest plane to
     write (default from ``viewing.nearest_m``, 24 when unknown); given explicitly it is used as
     is (vertices above it are clamped and counted). ``keep_buffers``: also return the kept
-    BufferInputs (for the byte-budget fit)."""
+    BufferInputs (for the byte-budget fit). ``progress``: stage reporting (``lopcook.progress``)."""
     options = settings.to_manifest()["options"] if options is None else options
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
-        return _plain(scene, settings, options, keep_buffers)
+        return _plain(scene, settings, options, keep_buffers, progress)
     timings: dict = {}
-    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings)
+    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings, progress)
     t0 = time.perf_counter()
-    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse)
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress)
     release_free_memory()
     timings["analyse"] = time.perf_counter() - t0
     all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)

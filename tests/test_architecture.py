@@ -27,7 +27,7 @@ RANKS = {
     "api": 8,
     "top": 9,
 }
-FOUNDATION = {"errors", "types", "grid", "mesh", "settings", "viewing", "atomic", "memory", "depfile", "isolate", "version",
+FOUNDATION = {"errors", "types", "grid", "mesh", "settings", "viewing", "atomic", "memory", "depfile", "isolate", "version", "outputs", "progress",
               "selection", "__init__", "__main__"}
 TOP = {"cli", "report", "bench", "benchkit", "batch", "fixtures", "fuzzcases"}
 
