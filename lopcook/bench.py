@@ -9,7 +9,7 @@ Steps, per asset (``bench_asset``):
 2. lopcook: ``python -m lopcook cook SOURCE --json`` in a child process (default options; with
    ``--calibrated`` also ``--target-psnr 40``), then AP and CAP at each level: GPU bytes
    (``lopcook.emit.summary.memory_rows``), position error and cracks (CPU reference decoder,
-   vertices matched by order), masked PSNR (``lopcook.verify.render.evaluate``).
+   vertices matched by order), masked PSNR (``lopcook.verify.evaluate.evaluate``).
 3. Each peer configuration in a child process; its output ingested back with lopcook's reader
    (Draco: decoded by DracoPy), matched to the source by nearest neighbour, measured, and
    rendered with float positions against the float source (``lopcook.benchkit.render``).
@@ -178,7 +178,7 @@ def _lopcook_positions(c, src: Source, orders, level: int, variant: str) -> tupl
     CAP, and the source vertex of each (the container keeps the source's vertices; binned order)."""
     from .emit.bitplane import decode, reconstruct_float32
     from .emit.reader import gpu_buffer
-    from .verify.render import ap_buffer
+    from .verify.buffers import ap_buffer
 
     g = c.manifest["grid"]
     cell = g["extent"] / float(1 << 24)
@@ -195,7 +195,8 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
     """Rows for lopcook AP and CAP at each level, and {"stages": {...}, "cook": measured dict}."""
     from .emit.container import read
     from .emit.summary import memory_rows
-    from .verify.render import evaluate, source_order
+    from .verify.buffers import source_order
+    from .verify.evaluate import evaluate
 
     name = "CAP (calibrated)" if calibrated else "CAP"
     lop = adir / ("lopcook_cal.lop" if calibrated else "lopcook.lop")

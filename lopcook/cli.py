@@ -598,7 +598,7 @@ def _render_check(args, c, levels) -> dict:
     """``verify --source``: evaluate() + the thresholds; JSON-ready (images dropped)."""
     from .ingest import load
     from .settings import IngestSettings
-    from .verify.render import evaluate
+    from .verify.evaluate import evaluate
 
     if args.min_psnr is None or not args.min_psnr == args.min_psnr:
         raise LopcookError("usage", None, "--min-psnr must be a number of dB")
@@ -656,7 +656,7 @@ def cmd_verify(args) -> int:
         report["decoders"] = verify_decoders(c, dec_levels, languages, adapt=not args.no_adapt)
         ok = ok and report["decoders"]["ok"]
     if args.source is not None:
-        from .verify.render import DEFAULT_LEVELS
+        from .verify.buffers import DEFAULT_LEVELS
 
         render = _render_check(args, c, levels if levels is not None else list(DEFAULT_LEVELS))
         report["render"] = render
@@ -668,7 +668,7 @@ def cmd_verify(args) -> int:
         if "decoders" in report:
             print(format_report(report["decoders"]))
         if "render" in report:
-            from .verify.render import format_table
+            from .verify.tables import format_table
 
             r = report["render"]
             print(format_table(r))
@@ -689,7 +689,7 @@ def cmd_report(args) -> int:
     from .report import analysis_warnings, build_report, render_for_report, write_html
     from .settings import IngestSettings
     from .verify.decoders import parse_levels
-    from .verify.render import DEFAULT_LEVELS
+    from .verify.buffers import DEFAULT_LEVELS
 
     out = args.output
     if os.path.isdir(out):
@@ -731,7 +731,7 @@ def cmd_report(args) -> int:
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))
     elif not args.quiet:
-        from .verify.render import format_table
+        from .verify.tables import format_table
 
         print(format_table(ev))
         print(f"  wrote {html_path} and {json_path}")

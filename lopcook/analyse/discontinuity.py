@@ -56,7 +56,7 @@ from ..grid import BITS
 PIXEL_ERROR = 0.5
 #: levels below edge_level examined for folds (cells of 1 pixel at levels edge_level - 8 .. edge_level)
 FOLD_LEVEL_SPAN = 8
-#: grey the renderer uses for a part with neither texture nor vertex colours (lopcook.verify.render)
+#: grey the renderer uses for a part with neither texture nor vertex colours (lopcook.verify.renderer.BASE_GREY)
 BASE_GREY = 0.8
 
 

@@ -16,7 +16,7 @@ Steps of ``fit``:
    written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``;
    their count is ``clamped_vertices``: the budget trades their shading guarantee for bytes, and
    the image error measures what that costs). Its GPU buffer at level B is exactly AP at B of the
-   chain's LOD k (``lopcook.verify.render.ap_buffer``), which is what is rendered.
+   chain's LOD k (``lopcook.verify.buffers.ap_buffer``), which is what is rendered.
 3. Bytes of a candidate (``candidate_bytes``), by ``scope``:
 
    * ``"positions"`` (default): the GPU-resident position buffer at level B -- 3 B bits per vertex,
@@ -248,7 +248,8 @@ def fit(scene: Scene, target_bytes: int, settings: AnalyseSettings = DEFAULT_ANA
     from ..emit import build
     from ..emit.container import from_bytes
     from ..pipeline import cook_bytes
-    from ..verify.render import Harness, Shading, lod_indices
+    from ..verify.buffers import lod_indices
+    from ..verify.renderer import Harness, Shading
 
     _check_scope(scope)
     target = int(target_bytes)
