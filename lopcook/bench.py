@@ -1,5 +1,5 @@
 """``lopcook bench``: lopcook against gltfpack, glTF-Transform and Draco on the same meshes, and how
-the cook's cost grows with the mesh (issue 8). Not collected by pytest; see docs/bench.md.
+the cook's cost grows with the mesh. Not collected by pytest; see docs/bench.md.
 
 Steps, per asset (``bench_asset``):
 
@@ -16,7 +16,7 @@ Steps, per asset (``bench_asset``):
 4. Scaling (``bench_scaling``): the Stanford bunny subdivided 0..3 times (trimesh midpoint
    subdivision, as ``benchmarks/bench_ingest.py``) and the chess set, as GLB; ``lopcook cook
    --lods 1/2,1/4`` and ``gltfpack -si 0.5 -vp 14`` on each.
-5. CSVs, charts and ``summary.json`` / ``summary.md`` with the checks of issue 8 (``write_outputs``).
+5. CSVs, charts and ``summary.json`` / ``summary.md`` with the acceptance checks (``checks``, ``write_outputs``).
 """
 
 from __future__ import annotations
@@ -558,7 +558,7 @@ def _f(v) -> float:
 
 
 def checks(rows: list[dict], scaling: list[dict], assets: list[str], charts: dict, levels) -> list[dict]:
-    """The "done when" checks of issue 8, computed from the rows: each {"check", "status"
+    """The bench's acceptance checks (docs/bench.md), computed from the rows: each {"check", "status"
     (pass / miss / not measured), "detail", numbers}."""
     out = []
     # (1) Pareto chart for each asset
