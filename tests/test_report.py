@@ -1,7 +1,7 @@
 """``lopcook report``: self-contained HTML + report.json (schema, table numbers, determinism, headless
 Chromium decoding every image). Small renders (160x90, 2 views, levels 6-7) keep this to seconds.
-GL tests skip when EGL is missing, except under CI=true, where they fail; the Chromium test likewise. Module-level tests: test_report_model.py, test_report_images.py,
-test_report_svg.py."""
+GL tests skip when EGL is missing, except under CI=true, where they fail; the Chromium test likewise.
+Module-level tests: test_report_model.py, test_report_images.py, test_report_svg.py."""
 
 from __future__ import annotations
 

@@ -63,7 +63,10 @@ def _name(p) -> str | None:
 
 
 def analysis_warnings(scene, analysis) -> dict:
-    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``: the re-cook's, ``reproduce.recook``)."""
+    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``: the re-cook's,
+    ``lopcook.tune.recook.recook``): ``available`` True, the scene's import warnings, touching and
+    intersecting part pairs, and the counts of degenerate triangles, depth-capped vertices and
+    vertices whose attribute bound 24 bits cannot meet."""
     from ..analyse.summary import describe_analysis
 
     d = describe_analysis(analysis, str(scene.source))
@@ -87,7 +90,7 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     ``plane_position_bytes`` (its bits in the refinement planes 2..max_level: 3 bits per vertex
     whose minimum level is below the plane, rounded up to bytes per plane) and ``bytes``, the sum.
     ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
-    the re-cooked chain, ``reproduce.recook``), else those the container records
+    the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
     (``options.lods.reports[i].notes``), else empty."""
     sizes = {s["name"]: int(s["length"]) for s in manifest["sections"]}
     max_level = int(manifest["positions"].get("max_level", 24))
@@ -142,7 +145,7 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                  uniform16: dict | None = None, cook: dict | None = None, level_range=None) -> dict:
     """Every number of the report, JSON-ready (see module docstring). ``uniform16``: the
     ``evaluate_scene`` result of ``baselines.uniform_quantized_scene`` (None: not rendered);
-    ``cook``: ``reproduce.recook``'s result (None: not re-cooked); ``level_range``: (lo, hi) of
+    ``cook``: ``lopcook.tune.recook.recook``'s result (None: not re-cooked); ``level_range``: (lo, hi) of
     the level-colour ramp of the ``levels`` image."""
     ev = evaluation
     m = container.manifest

@@ -45,10 +45,10 @@ DISTANCE_MARGIN = 2.0**-20
 def icosahedron_directions() -> np.ndarray:
     """(20, 3) float64 unit vectors: the face centres of the regular icosahedron of
     ``lopcook.mesh.icosahedron`` (vertices (±1, ±φ, 0) and cyclic permutations), in its face order,
-    rotated by ``VIEW_ROTATION``. Directions point from the scene centre to the eye. Unrotated, 12 of the 20 lie in a coordinate plane, and a flat
-    axis-aligned part (a plate, a CAD face, a chess board) seen exactly edge-on is a line of
-    coverage pixels and nothing else; rotated, every direction is at least 8.9 degrees away from
-    each coordinate plane."""
+    rotated by ``VIEW_ROTATION``. Directions point from the scene centre to the eye. Unrotated, 12
+    of the 20 lie in a coordinate plane, and a flat axis-aligned part (a plate, a CAD face, a chess
+    board) seen exactly edge-on is a line of coverage pixels and nothing else; rotated, every
+    direction is at least 8.9 degrees away from each coordinate plane."""
     v, f = icosahedron()
     c = v[f].sum(axis=1)
     c = c / np.linalg.norm(c, axis=1, keepdims=True)
