@@ -285,6 +285,8 @@ def _decoded_output(cfg: dict, out_path: Path):
 
 
 def peer_run(cfg: dict, avail: dict, glb: Path, npz: Path, adir: Path) -> tuple[P.Measured, Path]:
+    """Run one peer configuration ``cfg`` on the bench's ``input.glb`` (Draco: ``parts.npz``) in a child
+    process; returns its wall time and peak RSS, and the output path in ``adir``."""
     tool = cfg["tool"]
     tag = re.sub(r"[^A-Za-z0-9]+", "_", f"{tool}_{cfg['config']}").strip("_")
     if tool == "gltfpack":
@@ -530,6 +532,8 @@ def bench_scaling(out_dir: Path, corpus, opts, avail: dict) -> tuple[list, list]
 # ---- outputs ----------------------------------------------------------------------------------
 
 def write_csv(path: Path, rows: list[dict], columns) -> None:
+    """Write ``rows`` to the CSV ``path`` atomically with the header ``columns`` (missing keys empty,
+    floats to 6 significant digits, infinity as ``inf``)."""
     from .atomic import write_atomic
 
     import io
@@ -662,6 +666,8 @@ def results_table(rows: list[dict], levels) -> list[str]:
 
 
 def machine() -> dict:
+    """The bench machine's description for the summary: Python version, platform, CPU count, and where
+    /proc allows the CPU model and memory in GiB."""
     import platform
 
     info = {"python": platform.python_version(), "platform": platform.platform(), "cpus": os.cpu_count()}
@@ -678,6 +684,8 @@ def machine() -> dict:
 
 
 def write_outputs(out_dir: Path, rows, scaling, stage_rows, assets, opts, meta: dict) -> dict:
+    """Write results.csv, scaling.csv, stages.csv, the charts (when matplotlib is installed), summary.json
+    and summary.md into ``out_dir``; returns the summary dict (``meta`` plus charts and checks)."""
     from .atomic import write_atomic
     from .benchkit import charts as C
 

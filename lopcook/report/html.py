@@ -145,6 +145,8 @@ def time_bought(rep: dict, seconds: float) -> str:
 
 
 def render_html(rep: dict, images: dict | None) -> str:
+    """The report page (UTF-8 HTML text) of ``rep`` (``lopcook.report.model.build_report``) and ``images``
+    (the evaluation's images of one view, or None: no image section). A function of its inputs only."""
     e = escape
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            f"<title>lopcook report: {e(rep['container'])}</title><style>{_CSS}</style></head><body>",

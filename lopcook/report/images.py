@@ -73,6 +73,8 @@ def apply_crop(a: np.ndarray, crop: dict | None) -> np.ndarray:
 
 
 def png_data_uri(a: np.ndarray) -> str:
+    """``a`` ((h, w) grey, (h, w, 3) RGB or (h, w, 4) RGBA uint8, top row first) as a
+    ``data:image/png;base64,`` URI; the same array gives the same string."""
     from PIL import Image
 
     a = np.ascontiguousarray(np.asarray(a, dtype=np.uint8))

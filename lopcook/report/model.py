@@ -221,6 +221,8 @@ def budget_section(manifest: dict) -> dict | None:
 
 
 def report_json_bytes(rep: dict) -> bytes:
+    """``rep`` as report.json bytes: JSON with sorted keys, indent 1, no NaN or infinity (ValueError),
+    UTF-8, one final newline. The same dict gives the same bytes."""
     return (json.dumps(rep, indent=1, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
 
 

@@ -27,14 +27,19 @@ class Plot:
         self.parts: list[str] = []
 
     def x(self, v):
+        """SVG x (pixels) of the data value ``v``."""
         return self.l + (v - self.xlo) / (self.xhi - self.xlo or 1) * (self.w - self.l - self.r)
 
     def y(self, v):
+        """SVG y (pixels) of the data value ``v``; None (+inf PSNR) goes to the band 12 pixels above the
+        axis top."""
         if v is None:
             return self.t - 12
         return self.h - self.b - (v - self.ylo) / (self.yhi - self.ylo or 1) * (self.h - self.t - self.b)
 
     def axes(self, xlabel, ylabel, xticks, yticks):
+        """Draw the x and y axes with their ticks (data values; None on the y axis is the inf band) and
+        labels."""
         p = self.parts
         x0, x1, y0, y1 = self.l, self.w - self.r, self.h - self.b, self.t
         p.append(f'<line x1="{x0}" y1="{y0}" x2="{x1}" y2="{y0}" stroke="#333"/>')
@@ -53,6 +58,8 @@ class Plot:
                  f'transform="rotate(-90 14 {(y0 + y1) / 2:.1f})">{escape(ylabel)}</text>')
 
     def series(self, pts, colour, name, labels=None, dash=""):
+        """Draw ``pts`` [(x, y)] as a polyline with round markers in ``colour``, a tooltip per point,
+        optional point ``labels`` and an SVG ``dash`` pattern; nothing for an empty list."""
         if not pts:
             return
         d = " ".join(f"{self.x(a):.1f},{self.y(b):.1f}" for a, b in pts)
@@ -67,6 +74,7 @@ class Plot:
                                   f'font-size="10">{escape(labels[i])}</text>')
 
     def svg(self, title, legend=()):
+        """The chart as an ``<svg>`` string with ``title`` and a legend of (name, colour) pairs."""
         leg = "".join(f'<rect x="{self.w - 150}" y="{24 + 14 * i}" width="10" height="10" fill="{c}"/>'
                       f'<text x="{self.w - 136}" y="{33 + 14 * i}">{escape(n)}</text>' for i, (n, c) in enumerate(legend))
         return (f'<svg class="chart" viewBox="0 0 {self.w} {self.h}" '
@@ -75,6 +83,8 @@ class Plot:
 
 
 def ticks(lo, hi, n=6):
+    """Round tick values from ``lo`` to ``hi`` (both included when on a step): about ``n`` steps of 1, 2 or
+    5 times a power of ten."""
     step = (hi - lo) / n if hi > lo else 1.0
     mag = 10 ** math.floor(math.log10(step))
     step = min((s * mag for s in (1, 2, 5, 10) if s * mag >= step), default=step)
@@ -147,6 +157,8 @@ def histogram_svg(hist: list[int]) -> str:
 
 
 def calibration_svg(cal: dict) -> str | None:
+    """The k_f calibration curve of a ``--target-psnr`` container (``options.calibration``): CAP memory %
+    of float32 against PSNR min per k_f scale, the target as a dashed line; None without a curve."""
     curve = [c for c in (cal or {}).get("curve") or [] if c.get("cap_percent") is not None]
     if not curve:
         return None

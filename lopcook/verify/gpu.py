@@ -63,6 +63,7 @@ def shader_dir() -> Path:
 
 
 def shader_source(name: str) -> str:
+    """The text of ``shaders/<name>`` from ``shader_dir()``."""
     return (shader_dir() / name).read_text()
 
 

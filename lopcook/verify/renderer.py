@@ -65,11 +65,15 @@ class Shading:
 
     @classmethod
     def from_manifest(cls, manifest: dict, ks: float | None = None, shininess: float | None = None) -> "Shading":
+        """Phong parameters of a container: ks and shininess from ``manifest['options']['analyse']``
+        (defaults 0.5 and 32, the analysis defaults), each replaced by the argument when given;
+        ambient, diffuse and base grey the module defaults."""
         a = (manifest.get("options") or {}).get("analyse") or {}
         return cls(ks=float(a.get("ks", 0.5) if ks is None else ks),
                    shininess=float(a.get("shininess", 32.0) if shininess is None else shininess))
 
     def as_dict(self) -> dict:
+        """JSON-ready record of the shading: model, light, ks, shininess, ambient, diffuse, base grey."""
         return {"model": "phong", "light": "directional headlight (from the scene centre to the eye)",
                 "ks": self.ks, "shininess": self.shininess, "ambient": self.ambient, "diffuse": self.diffuse,
                 "base_grey": self.base}
@@ -78,10 +82,10 @@ class Shading:
 # ---- the renderer -----------------------------------------------------------------------------------
 
 class Renderer:
-    """Programs and framebuffers for one resolution on the process's EGL context
-    (``lopcook.verify.gpu.context``). ``draw(items, camera, shading)`` renders a list of
-    ``(vao, part_index, has_normal, has_texture, has_color, texture)`` and returns
-    ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first."""
+    """Programs and framebuffers for one resolution ``(w, h)`` pixels on the process's EGL context
+    (``lopcook.verify.gpu.context``), with ``samples`` MSAA samples (at most the context's maximum
+    for colour and integer targets). ``draw`` renders draw items and returns the resolved colour and
+    part-ID images. Raises LopcookError (usage, exit 2) for a resolution below 1 x 1."""
 
     def __init__(self, resolution=RESOLUTION, samples: int = SAMPLES):
         from . import gpu
@@ -122,6 +126,11 @@ class Renderer:
                 program[name].value = value
 
     def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
+        """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
+        ``ssbo`` / ``ubo`` when ``decoded``) from ``camera`` with ``shading``, depth test on, no
+        culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first: the
+        MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
+        (part index + 1, 0 = background). Leaves the context's default 1x1 framebuffer bound."""
         import moderngl
 
         ctx = self.ctx
@@ -158,6 +167,7 @@ class Renderer:
         return rgba, ids
 
     def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
         for r in self._resources:
             r.release()
         self._resources = []
@@ -171,6 +181,9 @@ class Textures:
         self.cache: dict = {}
 
     def get(self, texture):
+        """The texture of a ``lopcook.types.Texture`` (None for None), built once per content digest: RGBA8
+        with mipmaps, trilinear filtering, repeat wrap. Raises LopcookError (exit 2) when the
+        image does not decode."""
         import moderngl
 
         if texture is None:
@@ -189,6 +202,7 @@ class Textures:
         return self.cache[key]
 
     def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
         for t in self.cache.values():
             t.release()
         self.cache = {}
@@ -251,6 +265,7 @@ class Harness:
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
 
     def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
         for b in self._buffers:
             b.release()
         self._buffers = []
@@ -265,6 +280,8 @@ class Harness:
         self.release()
 
     def render_float(self, camera: Camera, shading: Shading, key=None):
+        """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
+        (hashable: camera matrix, eye and shading) the result is computed once and reused."""
         if self.cache_float and key is not None and key in self.float_cache:
             return self.float_cache[key]
         out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
