@@ -73,7 +73,8 @@ def asset_name(path) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(path).stem)
 
 
-def _row(**kw) -> dict:
+def result_row(**kw) -> dict:
+    """One results.csv row: every ``ROW_COLUMNS`` key, empty unless given (None counts as not given)."""
     r = {c: "" for c in ROW_COLUMNS}
     r.update({k: v for k, v in kw.items() if v is not None})
     return r
@@ -205,7 +206,7 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
     m, desc = run_cook(source_path, lop, extra)
     if desc is None:
         err = (m.stderr.strip().splitlines() or [f"exit {m.returncode}"])[-1]
-        return [_row(asset=asset, tool="lopcook", config=name, error=err, wall_s=round(m.wall_s, 3))], {}
+        return [result_row(asset=asset, tool="lopcook", config=name, error=err, wall_s=round(m.wall_s, 3))], {}
     info = {"stages": cook_stages(desc.get("timings_s", {})), "wall_s": m.wall_s, "peak_rss_bytes": m.peak_rss_bytes}
     c = read(lop)
     mem = {r["level"]: r for r in memory_rows(c, levels=opts.levels)}
@@ -223,12 +224,12 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
             err = BM.position_errors(src.positions, pos, match, src.diagonal)
             cr = BM.count_cracks(src.classes, src.part, pos, match)
             gpu = mem[level]["ap_bytes" if variant == "AP" else "cap_bytes"]
-            r = _row(asset=asset, tool="lopcook", config=name if variant == "CAP" else "AP", bits=level, level=level,
-                     vertices=src.vertices, triangles=src.triangles, file_bytes=lop.stat().st_size,
-                     gpu_position_bytes=gpu, gpu_bytes_per_vertex=round(gpu / src.vertices, 4),
-                     max_err_rel=err["max_rel"], rms_err_rel=err["rms_rel"], cracks=cr["cracks"],
-                     cracks_between_parts=cr["cracks_between_parts"], wall_s=round(m.wall_s, 3),
-                     peak_rss_mb=_mb(m.peak_rss_bytes), match="order")
+            r = result_row(asset=asset, tool="lopcook", config=name if variant == "CAP" else "AP", bits=level,
+                           level=level, vertices=src.vertices, triangles=src.triangles, file_bytes=lop.stat().st_size,
+                           gpu_position_bytes=gpu, gpu_bytes_per_vertex=round(gpu / src.vertices, 4),
+                           max_err_rel=err["max_rel"], rms_err_rel=err["rms_rel"], cracks=cr["cracks"],
+                           cracks_between_parts=cr["cracks_between_parts"], wall_s=round(m.wall_s, 3),
+                           peak_rss_mb=_mb(m.peak_rss_bytes), match="order")
             if ev is not None:
                 e = ev[level][variant.lower()]
                 r.update(psnr_min_db=_db(e["psnr_min"]), psnr_mean_db=_db(e["psnr_mean"]),
@@ -347,7 +348,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
                 peak_rss_mb=_mb(m.peak_rss_bytes), triangles=src.triangles)
     if m.returncode != 0 or not out.exists():
         tail = (m.stderr.strip() or m.stdout.strip()).splitlines()
-        return _row(**base, error=f"exit {m.returncode}: {tail[-1] if tail else 'no output'}"), None
+        return result_row(**base, error=f"exit {m.returncode}: {tail[-1] if tail else 'no output'}"), None
     if cfg["tool"] == "draco":
         with np.load(out) as z:
             file_bytes = int(sum(z[n].size for n in z.files))
@@ -355,7 +356,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
         file_bytes = out.stat().st_size
     if cfg["compress"]:  # EXT_meshopt_compression: bytes from this file, accuracy from the -cc-free one
         gpu, verts = BM.gltf_position_bytes(glb_json(out))
-        return _row(**base, file_bytes=file_bytes, gpu_position_bytes=gpu, vertices=verts,
+        return result_row(**base, file_bytes=file_bytes, gpu_position_bytes=gpu, vertices=verts,
                     gpu_bytes_per_vertex=round(gpu / max(verts, 1), 4),
                     accuracy_from=cfg["config"].replace(" -cc", ""), cc_check=cc_check(out, cfg, avail)), None
     parts = _decoded_output(cfg, out)
@@ -368,7 +369,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
         gpu, _ = BM.gltf_position_bytes(glb_json(out))
     err = BM.position_errors(src.positions, pos, match, src.diagonal)
     cr = BM.count_cracks(src.classes, src.part, pos, match)
-    row = _row(**base, file_bytes=file_bytes, vertices=int(pos.shape[0]), gpu_position_bytes=gpu,
+    row = result_row(**base, file_bytes=file_bytes, vertices=int(pos.shape[0]), gpu_position_bytes=gpu,
                gpu_bytes_per_vertex=round(gpu / max(pos.shape[0], 1), 4), max_err_rel=err["max_rel"],
                rms_err_rel=err["rms_rel"], cracks=cr["cracks"], cracks_between_parts=cr["cracks_between_parts"],
                match="nearest")
@@ -398,7 +399,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> tuple[list, list]:
         try:
             r, info = lopcook_rows(asset, path, src, adir, opts, calibrated=calibrated)
         except Exception as exc:  # noqa: BLE001 -- one row with the error, never a crash
-            r, info = [_row(asset=asset, tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], {}
+            r, info = [result_row(asset=asset, tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], {}
         rows += r
         for st, sec in (info.get("stages") or {}).items():
             if st != "calibrate" or calibrated:
@@ -411,7 +412,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> tuple[list, list]:
             m, out = peer_run(cfg, avail, glb, npz, adir)
             row, variant = peer_measure(cfg, m, out, src, asset, avail)
         except Exception as exc:  # noqa: BLE001
-            row, variant = _row(asset=asset, tool=cfg["tool"], config=cfg["config"], bits=cfg["bits"],
+            row, variant = result_row(asset=asset, tool=cfg["tool"], config=cfg["config"], bits=cfg["bits"],
                                 error=f"{type(exc).__name__}: {exc}"), None
         if row["error"]:
             _log(opts, f"{asset}: {cfg['tool']} {cfg['config']} failed: {row['error']}")
@@ -757,7 +758,7 @@ def run(opts) -> dict:
             r, s = bench_asset(a, out_dir, opts, avail)
         except Exception as exc:  # noqa: BLE001 -- an unreadable asset is a row, not a crash
             _log(opts, f"{asset_name(a)}: failed: {type(exc).__name__}: {exc}")
-            r, s = [_row(asset=asset_name(a), tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], []
+            r, s = [result_row(asset=asset_name(a), tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], []
         rows += r
         stage_rows += s
         write_csv(out_dir / "results.csv", rows, ROW_COLUMNS)  # partial results survive an interrupted run
@@ -791,5 +792,5 @@ def _dracopy_version() -> str:
 
 __all__ = ["DEFAULT_ASSETS", "DEFAULT_LEVELS", "PEER_BITS", "ROW_COLUMNS", "SCALING_COLUMNS", "STAGE_COLUMNS",
            "corpus_dir", "asset_name", "Source", "results_table", "write_inputs", "cook_stages", "run_cook", "lopcook_rows",
-           "peer_configs", "peer_measure", "bench_asset", "scaling_inputs", "bench_scaling", "write_csv", "checks",
+           "peer_configs", "peer_measure", "bench_asset", "scaling_inputs", "bench_scaling", "result_row", "write_csv", "checks",
            "write_outputs", "run"]
