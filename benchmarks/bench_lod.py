@@ -27,7 +27,7 @@ stopped early contributes its last LOD; counted in ``parts_short``). Per scene L
 * ``fallbacks``: notes saying a backend failed and the other one was tried; ``notes``: all LOD notes;
 * image PSNR of the LOD against the float source (``lopcook.verify.metrics.image_metrics``, PSNR over
   object pixels, background in both excluded): both scenes are rendered with float positions by two
-  ``lopcook.verify.render.Harness`` objects (Phong, ``Shading()`` defaults: ks 0.5, n 32; source
+  ``lopcook.verify.renderer.Harness`` objects (Phong, ``Shading()`` defaults: ks 0.5, n 32; source
   normals/UVs/textures for the source, the LOD's carried attributes for the LOD) from the same
   ``--views`` icosahedron cameras (``make_camera`` on the **source** bounding box), at two distances
   (camera to the nearest bounding-box point, metres):
@@ -180,7 +180,8 @@ class Images:
     """Float renders of the source scene (near-distance views cached) against LOD scenes."""
 
     def __init__(self, scene, views: int, resolution):
-        from lopcook.verify.render import Harness, Shading, select_views
+        from lopcook.verify.cameras import select_views
+        from lopcook.verify.renderer import Harness, Shading
 
         self.scene = scene
         self.resolution = resolution
@@ -198,7 +199,8 @@ class Images:
     def compare(self, lod_scene, distances: dict) -> dict:
         """{name: {"distance_m", "psnr_min", "psnr_mean", "object_pixels_mean"}} per distance."""
         from lopcook.verify import metrics as M
-        from lopcook.verify.render import Harness, make_camera
+        from lopcook.verify.cameras import make_camera
+        from lopcook.verify.renderer import Harness
 
         out = {}
         with Harness(lod_scene, self.resolution) as h:

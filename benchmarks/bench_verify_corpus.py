@@ -59,7 +59,8 @@ from lopcook.ingest import load  # noqa: E402
 from lopcook.settings import DEFAULT_ANALYSE, DEFAULT_INGEST  # noqa: E402
 from lopcook.tune.calibrate import calibrate, calibrated_settings, format_calibration  # noqa: E402
 from lopcook.verify.decoders import parse_levels  # noqa: E402
-from lopcook.verify.render import evaluate, format_table  # noqa: E402
+from lopcook.verify.evaluate import evaluate  # noqa: E402
+from lopcook.verify.tables import format_table  # noqa: E402
 from lopcook.viewing import Viewing  # noqa: E402
 
 ASSETS = ["stanford-bunny.obj", "fandisk.obj", "DamagedHelmet/DamagedHelmet.gltf", "CesiumMilkTruck.glb",
@@ -141,10 +142,10 @@ class _NormalDepth:
     """Float render of unit normals (RGB) and eye distance in metres (A; -1 = background), 1 sample."""
 
     def __init__(self, h):
-        from lopcook.verify import render as R
+        from lopcook.verify.glsl import vertex_shader_source
 
         ctx = self.ctx = h.ctx
-        self.prog = ctx.program(vertex_shader=R.vertex_shader_source(False), fragment_shader=_NORMAL_FS)
+        self.prog = ctx.program(vertex_shader=vertex_shader_source(False), fragment_shader=_NORMAL_FS)
         self.size = w, hh = h.renderer.size
         self.tex = ctx.texture((w, hh), 4, dtype="f4")
         self.depth = ctx.depth_renderbuffer((w, hh))
@@ -177,8 +178,7 @@ class _NormalDepth:
             vao.render(moderngl.TRIANGLES)
         w, h = self.size
         out = np.frombuffer(self.tex.read(), "<f4").reshape(h, w, 4)[::-1].copy()
-        if gpu._FRAMEBUFFER is not None:
-            gpu._FRAMEBUFFER.use()
+        gpu.use_default_framebuffer()
         return out
 
     def release(self) -> None:
@@ -225,21 +225,21 @@ def pixel_classes(rgba, ids, normal_depth, pixel_m: float, angle_deg: float = 40
 
 
 def _split(h, nd, c, levels, views) -> list[dict]:
+    from lopcook.verify import cameras as C
     from lopcook.verify import metrics as M
-    from lopcook.verify import render as R
 
-    viewing = R.render_viewing(c.manifest, h.renderer.size)
+    viewing = C.render_viewing(c.manifest, h.renderer.size)
     rows = []
     for level in levels:
         acc = dict.fromkeys(CLASSES, 0.0)
         pixels = dict.fromkeys(CLASSES, 0)
         psnrs, mem = [], None
-        for view in R.select_views(views):
+        for view in C.select_views(views):
             res = h.evaluate(c, levels=[level], views=[view], variants=("cap",), keep_images=True, image_view=view)
             im, row = res["images"], res["levels"][0]
             mem = row["cap"]["percent_of_float32"]
             psnrs.append(row["cap"]["psnr_min"])
-            cam = R.make_camera(view, h.lo, h.hi, row["camera_distance_m"], viewing)
+            cam = C.make_camera(view, h.lo, h.hi, row["camera_distance_m"], viewing)
             masks = pixel_classes(im["float"], im["float_ids"], nd.draw(cam), float(viewing.pixel_size(
                 row["camera_distance_m"])))
             obj = M.object_mask(im["float"]) | M.object_mask(im["cap"])
@@ -264,13 +264,13 @@ def _print_split(rows) -> None:
 
 def diagnose(path: Path, args) -> None:
     """Print where the CAP error lies for one asset (module doc, ``--diagnose``)."""
-    from lopcook.verify import render as R
+    from lopcook.verify import renderer
 
     levels = parse_levels(args.levels)
     scene = load(str(path), DEFAULT_INGEST)
     settings = replace(DEFAULT_ANALYSE, eps=DEFAULT_ANALYSE.eps / args.kf_scale, edges=not args.no_edges)
     viewing = Viewing()
-    with R.Harness(scene, _wh(args.resolution), cache_float=True) as h:
+    with renderer.Harness(scene, _wh(args.resolution), cache_float=True) as h:
         nd = _NormalDepth(h)
         try:
             an = analyse(scene, settings)

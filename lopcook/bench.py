@@ -1,5 +1,5 @@
 """``lopcook bench``: lopcook against gltfpack, glTF-Transform and Draco on the same meshes, and how
-the cook's cost grows with the mesh (issue 8). Not collected by pytest; see docs/bench.md.
+the cook's cost grows with the mesh. Not collected by pytest; see docs/bench.md.
 
 Steps, per asset (``bench_asset``):
 
@@ -9,14 +9,14 @@ Steps, per asset (``bench_asset``):
 2. lopcook: ``python -m lopcook cook SOURCE --json`` in a child process (default options; with
    ``--calibrated`` also ``--target-psnr 40``), then AP and CAP at each level: GPU bytes
    (``lopcook.emit.summary.memory_rows``), position error and cracks (CPU reference decoder,
-   vertices matched by order), masked PSNR (``lopcook.verify.render.evaluate``).
+   vertices matched by order), masked PSNR (``lopcook.verify.evaluate.evaluate``).
 3. Each peer configuration in a child process; its output ingested back with lopcook's reader
    (Draco: decoded by DracoPy), matched to the source by nearest neighbour, measured, and
    rendered with float positions against the float source (``lopcook.benchkit.render``).
 4. Scaling (``bench_scaling``): the Stanford bunny subdivided 0..3 times (trimesh midpoint
    subdivision, as ``benchmarks/bench_ingest.py``) and the chess set, as GLB; ``lopcook cook
    --lods 1/2,1/4`` and ``gltfpack -si 0.5 -vp 14`` on each.
-5. CSVs, charts and ``summary.json`` / ``summary.md`` with the checks of issue 8 (``write_outputs``).
+5. CSVs, charts and ``summary.json`` / ``summary.md`` with the acceptance checks (``checks``, ``write_outputs``).
 """
 
 from __future__ import annotations
@@ -73,7 +73,8 @@ def asset_name(path) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(path).stem)
 
 
-def _row(**kw) -> dict:
+def result_row(**kw) -> dict:
+    """One results.csv row: every ``ROW_COLUMNS`` key, empty unless given (None counts as not given)."""
     r = {c: "" for c in ROW_COLUMNS}
     r.update({k: v for k, v in kw.items() if v is not None})
     return r
@@ -178,7 +179,7 @@ def _lopcook_positions(c, src: Source, orders, level: int, variant: str) -> tupl
     CAP, and the source vertex of each (the container keeps the source's vertices; binned order)."""
     from .emit.bitplane import decode, reconstruct_float32
     from .emit.reader import gpu_buffer
-    from .verify.render import ap_buffer
+    from .verify.buffers import ap_buffer
 
     g = c.manifest["grid"]
     cell = g["extent"] / float(1 << 24)
@@ -195,7 +196,8 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
     """Rows for lopcook AP and CAP at each level, and {"stages": {...}, "cook": measured dict}."""
     from .emit.container import read
     from .emit.summary import memory_rows
-    from .verify.render import evaluate, source_order
+    from .verify.buffers import source_order
+    from .verify.evaluate import evaluate
 
     name = "CAP (calibrated)" if calibrated else "CAP"
     lop = adir / ("lopcook_cal.lop" if calibrated else "lopcook.lop")
@@ -204,7 +206,7 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
     m, desc = run_cook(source_path, lop, extra)
     if desc is None:
         err = (m.stderr.strip().splitlines() or [f"exit {m.returncode}"])[-1]
-        return [_row(asset=asset, tool="lopcook", config=name, error=err, wall_s=round(m.wall_s, 3))], {}
+        return [result_row(asset=asset, tool="lopcook", config=name, error=err, wall_s=round(m.wall_s, 3))], {}
     info = {"stages": cook_stages(desc.get("timings_s", {})), "wall_s": m.wall_s, "peak_rss_bytes": m.peak_rss_bytes}
     c = read(lop)
     mem = {r["level"]: r for r in memory_rows(c, levels=opts.levels)}
@@ -222,12 +224,12 @@ def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, cali
             err = BM.position_errors(src.positions, pos, match, src.diagonal)
             cr = BM.count_cracks(src.classes, src.part, pos, match)
             gpu = mem[level]["ap_bytes" if variant == "AP" else "cap_bytes"]
-            r = _row(asset=asset, tool="lopcook", config=name if variant == "CAP" else "AP", bits=level, level=level,
-                     vertices=src.vertices, triangles=src.triangles, file_bytes=lop.stat().st_size,
-                     gpu_position_bytes=gpu, gpu_bytes_per_vertex=round(gpu / src.vertices, 4),
-                     max_err_rel=err["max_rel"], rms_err_rel=err["rms_rel"], cracks=cr["cracks"],
-                     cracks_between_parts=cr["cracks_between_parts"], wall_s=round(m.wall_s, 3),
-                     peak_rss_mb=_mb(m.peak_rss_bytes), match="order")
+            r = result_row(asset=asset, tool="lopcook", config=name if variant == "CAP" else "AP", bits=level,
+                           level=level, vertices=src.vertices, triangles=src.triangles, file_bytes=lop.stat().st_size,
+                           gpu_position_bytes=gpu, gpu_bytes_per_vertex=round(gpu / src.vertices, 4),
+                           max_err_rel=err["max_rel"], rms_err_rel=err["rms_rel"], cracks=cr["cracks"],
+                           cracks_between_parts=cr["cracks_between_parts"], wall_s=round(m.wall_s, 3),
+                           peak_rss_mb=_mb(m.peak_rss_bytes), match="order")
             if ev is not None:
                 e = ev[level][variant.lower()]
                 r.update(psnr_min_db=_db(e["psnr_min"]), psnr_mean_db=_db(e["psnr_mean"]),
@@ -284,6 +286,8 @@ def _decoded_output(cfg: dict, out_path: Path):
 
 
 def peer_run(cfg: dict, avail: dict, glb: Path, npz: Path, adir: Path) -> tuple[P.Measured, Path]:
+    """Run one peer configuration ``cfg`` on the bench's ``input.glb`` (Draco: ``parts.npz``) in a child
+    process; returns its wall time and peak RSS, and the output path in ``adir``."""
     tool = cfg["tool"]
     tag = re.sub(r"[^A-Za-z0-9]+", "_", f"{tool}_{cfg['config']}").strip("_")
     if tool == "gltfpack":
@@ -344,7 +348,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
                 peak_rss_mb=_mb(m.peak_rss_bytes), triangles=src.triangles)
     if m.returncode != 0 or not out.exists():
         tail = (m.stderr.strip() or m.stdout.strip()).splitlines()
-        return _row(**base, error=f"exit {m.returncode}: {tail[-1] if tail else 'no output'}"), None
+        return result_row(**base, error=f"exit {m.returncode}: {tail[-1] if tail else 'no output'}"), None
     if cfg["tool"] == "draco":
         with np.load(out) as z:
             file_bytes = int(sum(z[n].size for n in z.files))
@@ -352,7 +356,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
         file_bytes = out.stat().st_size
     if cfg["compress"]:  # EXT_meshopt_compression: bytes from this file, accuracy from the -cc-free one
         gpu, verts = BM.gltf_position_bytes(glb_json(out))
-        return _row(**base, file_bytes=file_bytes, gpu_position_bytes=gpu, vertices=verts,
+        return result_row(**base, file_bytes=file_bytes, gpu_position_bytes=gpu, vertices=verts,
                     gpu_bytes_per_vertex=round(gpu / max(verts, 1), 4),
                     accuracy_from=cfg["config"].replace(" -cc", ""), cc_check=cc_check(out, cfg, avail)), None
     parts = _decoded_output(cfg, out)
@@ -365,7 +369,7 @@ def peer_measure(cfg: dict, m: P.Measured, out: Path, src: Source, asset: str, a
         gpu, _ = BM.gltf_position_bytes(glb_json(out))
     err = BM.position_errors(src.positions, pos, match, src.diagonal)
     cr = BM.count_cracks(src.classes, src.part, pos, match)
-    row = _row(**base, file_bytes=file_bytes, vertices=int(pos.shape[0]), gpu_position_bytes=gpu,
+    row = result_row(**base, file_bytes=file_bytes, vertices=int(pos.shape[0]), gpu_position_bytes=gpu,
                gpu_bytes_per_vertex=round(gpu / max(pos.shape[0], 1), 4), max_err_rel=err["max_rel"],
                rms_err_rel=err["rms_rel"], cracks=cr["cracks"], cracks_between_parts=cr["cracks_between_parts"],
                match="nearest")
@@ -395,7 +399,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> tuple[list, list]:
         try:
             r, info = lopcook_rows(asset, path, src, adir, opts, calibrated=calibrated)
         except Exception as exc:  # noqa: BLE001 -- one row with the error, never a crash
-            r, info = [_row(asset=asset, tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], {}
+            r, info = [result_row(asset=asset, tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], {}
         rows += r
         for st, sec in (info.get("stages") or {}).items():
             if st != "calibrate" or calibrated:
@@ -408,7 +412,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> tuple[list, list]:
             m, out = peer_run(cfg, avail, glb, npz, adir)
             row, variant = peer_measure(cfg, m, out, src, asset, avail)
         except Exception as exc:  # noqa: BLE001
-            row, variant = _row(asset=asset, tool=cfg["tool"], config=cfg["config"], bits=cfg["bits"],
+            row, variant = result_row(asset=asset, tool=cfg["tool"], config=cfg["config"], bits=cfg["bits"],
                                 error=f"{type(exc).__name__}: {exc}"), None
         if row["error"]:
             _log(opts, f"{asset}: {cfg['tool']} {cfg['config']} failed: {row['error']}")
@@ -529,6 +533,8 @@ def bench_scaling(out_dir: Path, corpus, opts, avail: dict) -> tuple[list, list]
 # ---- outputs ----------------------------------------------------------------------------------
 
 def write_csv(path: Path, rows: list[dict], columns) -> None:
+    """Write ``rows`` to the CSV ``path`` atomically with the header ``columns`` (missing keys empty,
+    floats to 6 significant digits, infinity as ``inf``)."""
     from .atomic import write_atomic
 
     import io
@@ -557,7 +563,7 @@ def _f(v) -> float:
 
 
 def checks(rows: list[dict], scaling: list[dict], assets: list[str], charts: dict, levels) -> list[dict]:
-    """The "done when" checks of issue 8, computed from the rows: each {"check", "status"
+    """The bench's acceptance checks (docs/bench.md), computed from the rows: each {"check", "status"
     (pass / miss / not measured), "detail", numbers}."""
     out = []
     # (1) Pareto chart for each asset
@@ -661,6 +667,8 @@ def results_table(rows: list[dict], levels) -> list[str]:
 
 
 def machine() -> dict:
+    """The bench machine's description for the summary: Python version, platform, CPU count, and where
+    /proc allows the CPU model and memory in GiB."""
     import platform
 
     info = {"python": platform.python_version(), "platform": platform.platform(), "cpus": os.cpu_count()}
@@ -677,6 +685,8 @@ def machine() -> dict:
 
 
 def write_outputs(out_dir: Path, rows, scaling, stage_rows, assets, opts, meta: dict) -> dict:
+    """Write results.csv, scaling.csv, stages.csv, the charts (when matplotlib is installed), summary.json
+    and summary.md into ``out_dir``; returns the summary dict (``meta`` plus charts and checks)."""
     from .atomic import write_atomic
     from .benchkit import charts as C
 
@@ -748,7 +758,7 @@ def run(opts) -> dict:
             r, s = bench_asset(a, out_dir, opts, avail)
         except Exception as exc:  # noqa: BLE001 -- an unreadable asset is a row, not a crash
             _log(opts, f"{asset_name(a)}: failed: {type(exc).__name__}: {exc}")
-            r, s = [_row(asset=asset_name(a), tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], []
+            r, s = [result_row(asset=asset_name(a), tool="lopcook", config="CAP", error=f"{type(exc).__name__}: {exc}")], []
         rows += r
         stage_rows += s
         write_csv(out_dir / "results.csv", rows, ROW_COLUMNS)  # partial results survive an interrupted run
@@ -782,5 +792,5 @@ def _dracopy_version() -> str:
 
 __all__ = ["DEFAULT_ASSETS", "DEFAULT_LEVELS", "PEER_BITS", "ROW_COLUMNS", "SCALING_COLUMNS", "STAGE_COLUMNS",
            "corpus_dir", "asset_name", "Source", "results_table", "write_inputs", "cook_stages", "run_cook", "lopcook_rows",
-           "peer_configs", "peer_measure", "bench_asset", "scaling_inputs", "bench_scaling", "write_csv", "checks",
+           "peer_configs", "peer_measure", "bench_asset", "scaling_inputs", "bench_scaling", "result_row", "write_csv", "checks",
            "write_outputs", "run"]

@@ -565,7 +565,7 @@ def _render_check(args, c, levels) -> dict:
     """``verify --source``: evaluate() + the thresholds; JSON-ready (images dropped)."""
     from .ingest import load
     from .settings import IngestSettings
-    from .verify.render import evaluate
+    from .verify.evaluate import evaluate
 
     if args.min_psnr is None or not args.min_psnr == args.min_psnr:
         raise LopcookError("usage", None, "--min-psnr must be a number of dB")
@@ -633,7 +633,7 @@ def cmd_verify(args) -> int:
         if "decoders" in report:
             print(format_report(report["decoders"]))
         if "render" in report:
-            from .verify.render import format_table
+            from .verify.tables import format_table
 
             r = report["render"]
             print(format_table(r))
@@ -695,7 +695,7 @@ def cmd_report(args) -> int:
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))
     elif not args.quiet:
-        from .verify.render import format_table
+        from .verify.tables import format_table
 
         print(format_table(ev))
         print(f"  wrote {html_path} and {json_path}")

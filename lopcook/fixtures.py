@@ -51,6 +51,7 @@ import numpy as np
 
 from .emit.gltf_writer import (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
                                UNSIGNED_SHORT, BufferBuilder, gltf_json_text, pack_glb)
+from .mesh import icosahedron
 from .viewing import VIEW_ROTATION as GLOSSY_CREASE_ROTATION
 
 GENERATOR = "lopcook fixtures"
@@ -249,12 +250,6 @@ def two_plates(gap: float = 2.0**-10) -> list[FixturePart]:
     return [_grid_plate("plate_lower", 0.0), _grid_plate("plate_upper", gap)]
 
 
-_ICOSAHEDRON_FACES = np.array([
-    [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-    [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-    [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-
-
 def unit_sphere(subdivisions: int = 3) -> list[FixturePart]:
     """Icosphere of radius 1 m centred at the origin, one part "sphere", no UVs.
 
@@ -267,11 +262,8 @@ def unit_sphere(subdivisions: int = 3) -> list[FixturePart]:
     -------
     [FixturePart] with positions (V, 3), indices (F, 3), normals (V, 3), uvs None.
     """
-    t = (1.0 + 5.0**0.5) / 2.0
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], np.float64)
+    v, f = icosahedron()
     v /= np.linalg.norm(v, axis=1, keepdims=True)
-    f = _ICOSAHEDRON_FACES.astype(np.int64)
     for _ in range(subdivisions):
         m = len(f)
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)

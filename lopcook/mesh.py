@@ -180,3 +180,23 @@ def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     rank = np.empty(first.size, dtype=np.int64)
     rank[np.argsort(first, kind="stable")] = np.arange(first.size)
     return rank[inv.ravel()]
+
+
+def icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    """The regular icosahedron shared by the icosphere fixture and the render harness's 20 views.
+
+    Returns
+    -------
+    vertices : (12, 3) float64, (±1, ±φ, 0) and its cyclic permutations (φ = (1 + √5) / 2), not
+        normalised (length √(1 + φ²) ≈ 1.902), in a fixed order.
+    faces : (20, 3) int64 indices into ``vertices``, counter-clockwise seen from outside (outward
+        normals), in a fixed order.
+    """
+    t = (1.0 + 5.0**0.5) / 2.0
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], np.float64)
+    f = np.array([
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+        [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
+        [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], np.int64)
+    return v, f

@@ -75,3 +75,34 @@ def gltf_validator():
     except V.GltfValidatorUnavailable as exc:
         require(str(exc))
     return V
+
+
+def cook_container(scene, settings=None, viewing=None):
+    """``scene`` analysed and built in memory with the analysis options recorded (as ``cook`` does,
+    without LODs): a ``lopcook.emit.container.Container`` for the render tests."""
+    from lopcook.analyse import analyse
+    from lopcook.emit import build
+    from lopcook.emit.container import from_bytes
+    from lopcook.settings import AnalyseSettings
+
+    settings = AnalyseSettings() if settings is None else settings
+    a = analyse(scene, settings)
+    return from_bytes(build(scene, a, options={"analyse": settings.to_record()}, viewing=viewing), scene.source)
+
+
+@pytest.fixture(scope="session")
+def crease():
+    """(scene, container) of fixtures/glossy_crease.glb, cooked with the default analysis."""
+    from lopcook.ingest import load
+
+    s = load(str(FIXTURES / "glossy_crease.glb"))
+    return s, cook_container(s)
+
+
+@pytest.fixture(scope="session")
+def plates():
+    """(scene, container) of fixtures/two_plates.glb, cooked with the default analysis."""
+    from lopcook.ingest import load
+
+    s = load(str(FIXTURES / "two_plates.glb"))
+    return s, cook_container(s)

@@ -13,7 +13,7 @@ from lopcook.emit.container import from_bytes
 from lopcook.ingest import load
 from lopcook.verify.baselines import (container_levels, level_colours, level_scene, uniform_quantize,
                                       uniform_quantized_scene)
-from lopcook.verify.render import source_order
+from lopcook.verify.buffers import source_order
 
 
 def test_uniform_quantize_error_bound_and_grid(rng):

@@ -107,7 +107,7 @@ def test_cli_bench_prints_one_line_per_missing_peer(tmp_path):
 
 
 def test_csv_columns_and_values(tmp_path):
-    rows = [B._row(asset="a", tool="lopcook", config="CAP", level=6, psnr_min_db=float("inf"), max_err_rel=1.5e-7)]
+    rows = [B.result_row(asset="a", tool="lopcook", config="CAP", level=6, psnr_min_db=float("inf"), max_err_rel=1.5e-7)]
     B.write_csv(tmp_path / "r.csv", rows, B.ROW_COLUMNS)
     with open(tmp_path / "r.csv", newline="") as fh:
         got = list(csv.DictReader(fh))
@@ -127,7 +127,7 @@ def test_cook_stages_split_the_analysis():
 
 
 def test_checks_report_pass_and_miss_from_rows():
-    rows = [B._row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
+    rows = [B.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
                    psnr_min_db=45.0) for b in (6, 7)]
     scaling = [{"input": "bunny s2", "tool": "lopcook", "triangles": 1_111_216, "wall_s": 6.0, "peak_rss_mb": 500.0},
                {"input": "bunny s2", "tool": "gltfpack", "triangles": 1_111_216, "wall_s": 3.0, "peak_rss_mb": 300.0},
@@ -135,14 +135,15 @@ def test_checks_report_pass_and_miss_from_rows():
     got = {c["check"].split(" ")[0] + str(i): c for i, c in enumerate(B.checks(rows, scaling, ["x"], {"pareto": "p.png"},
                                                                             [6, 7]))}
     status = [c["status"] for c in got.values()]
-    assert status == ["miss", "pass", "miss", "pass", "pass"]  # the chart lacks the four default assets  # 3.7 B/vertex at 45 dB; 2x gltfpack; slope 1
+    # the chart lacks the four default assets; 3.7 B/vertex at 45 dB; 2x gltfpack; slope 1
+    assert status == ["miss", "pass", "miss", "pass", "pass"]
     assert B.checks(rows, scaling, ["x"], {}, [6, 7])[1]["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
 
 
 def test_cap_check_takes_the_cheapest_config_that_reaches_40_db():
-    rows = [B._row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=6.0, psnr_min_db=55.0)
+    rows = [B.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=6.0, psnr_min_db=55.0)
             for b in (6, 7)]
-    rows += [B._row(asset="x", tool="lopcook", config="CAP (calibrated)", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
+    rows += [B.result_row(asset="x", tool="lopcook", config="CAP (calibrated)", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
                     psnr_min_db=39.0 + b / 6) for b in (6, 7)]  # 40.0 and 40.17 dB
     c = B.checks(rows, [], ["x"], {}, [6, 7])[1]
     assert c["status"] == "pass" and c["assets"]["x"]["config"] == "CAP (calibrated)"
@@ -153,10 +154,10 @@ def test_cap_check_takes_the_cheapest_config_that_reaches_40_db():
 
 
 def test_results_table_one_row_per_configuration():
-    rows = [B._row(asset="x", tool="lopcook", config=v, bits=b, level=b, gpu_bytes_per_vertex=2.0 + b / 10,
+    rows = [B.result_row(asset="x", tool="lopcook", config=v, bits=b, level=b, gpu_bytes_per_vertex=2.0 + b / 10,
                    psnr_min_db=30.0 + b, file_bytes=2048, wall_s=1.5, peak_rss_mb=100.0, cracks_between_parts=0)
             for v in ("AP", "CAP") for b in (6, 11)]
-    rows += [B._row(asset="x", tool="gltfpack", config="-vp 14", bits=14, level=b, gpu_bytes_per_vertex=8.0,
+    rows += [B.result_row(asset="x", tool="gltfpack", config="-vp 14", bits=14, level=b, gpu_bytes_per_vertex=8.0,
                     psnr_min_db=float("inf") if b == 11 else 50.0, file_bytes=1024, wall_s=0.2, peak_rss_mb=60.0,
                     cracks_between_parts=3) for b in (6, 11)]
     lines = B.results_table(rows, [6, 11])

@@ -248,7 +248,7 @@ EDGE_MARGIN_DB = 12.0
 def test_cap_with_edges_beats_cap_without(gl):
     from lopcook.emit import build
     from lopcook.emit.container import from_bytes
-    from lopcook.verify import render as R
+    from lopcook.verify.evaluate import evaluate
 
     scene = scene_of([flat_cube()])
 
@@ -259,8 +259,8 @@ def test_cap_with_edges_beats_cap_without(gl):
     with_edges = cook(AnalyseSettings())
     without = cook(AnalyseSettings(edges=False))
     kw = dict(levels=[6, 9], views=[0, 5, 10, 15], resolution=(320, 180), variants=("cap",))
-    on = R.evaluate(with_edges, scene, **kw)
-    off = R.evaluate(without, scene, **kw)
+    on = evaluate(with_edges, scene, **kw)
+    off = evaluate(without, scene, **kw)
     for r_on, r_off in zip(on["levels"], off["levels"]):
         assert r_on["cap"]["psnr_min"] is None or r_on["cap"]["psnr_min"] >= r_off["cap"]["psnr_min"] + EDGE_MARGIN_DB
         assert r_on["cap"]["psnr_min"] is None or r_on["cap"]["psnr_min"] >= 40.0

@@ -38,3 +38,19 @@ def test_weld_exact_numbers_groups_by_first_appearance():
     p = np.array([[1.0, 0, 0], [0, 0, 0], [1.0, 0, 0], [-0.0, 0, 0]])
     inverse, n = weld_exact(p)
     assert n == 2 and inverse.tolist() == [0, 1, 0, 1]
+
+
+def test_icosahedron_is_regular_and_outward():
+    from lopcook.mesh import icosahedron
+
+    v, f = icosahedron()
+    assert v.shape == (12, 3) and v.dtype == np.float64 and f.shape == (20, 3) and f.dtype == np.int64
+    r = np.linalg.norm(v, axis=1)
+    np.testing.assert_allclose(r, np.sqrt(1 + ((1 + 5**0.5) / 2) ** 2), rtol=1e-15)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    assert len(unique) == 30 and np.all(counts == 2)  # closed: every edge in two faces
+    np.testing.assert_allclose(np.linalg.norm(v[unique[:, 0]] - v[unique[:, 1]], axis=1), 2.0, rtol=1e-15)
+    t = v[f]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normal, t.mean(axis=1)) > 0)  # counter-clockwise from outside

@@ -6,9 +6,8 @@ extends 5.1 to jumps. E_v = ||A M^-1|| is the gradient of an attribute *inside* 
 the attribute jumps *between* triangles -- a hard edge (co-located vertices with split normals), a
 UV or colour seam, a fold sharper than a pixel, an open boundary -- no triangle holds the jump, and
 on flat faces E_v = 0 puts the vertices at level 1. Yet moving such an edge changes the colour of
-every pixel it sweeps by the whole jump: coverage error, which k_f cannot reach (measured on the
-corpus: 80-99% of the CAP squared error at levels 6-11 lies within 2 pixels of silhouettes and hard
-edges; ``docs/analyse.md``).
+every pixel it sweeps by the whole jump: coverage error, which k_f cannot reach (on the corpus
+most of the CAP squared error lies within 2 pixels of silhouettes and hard edges: ``docs/analyse.md``).
 
 The model. At per-buffer level B the camera is where a B-bit grid cell projects to ``pixel_error``
 pixels (``lopcook.viewing``: dx(B) = pixel_error * s_B, s_B metres per pixel). A vertex decoded at
@@ -56,7 +55,7 @@ from ..grid import BITS
 PIXEL_ERROR = 0.5
 #: levels below edge_level examined for folds (cells of 1 pixel at levels edge_level - 8 .. edge_level)
 FOLD_LEVEL_SPAN = 8
-#: grey the renderer uses for a part with neither texture nor vertex colours (lopcook.verify.render)
+#: grey the renderer uses for a part with neither texture nor vertex colours (lopcook.verify.renderer.BASE_GREY)
 BASE_GREY = 0.8
 
 

@@ -11,7 +11,7 @@ from ..grid import BITS, Grid
 #: why a vertex has its minimum level (uint8 codes in PartAnalysis.reason)
 REASONS = ("none", "normal", "uv", "color", "depth", "depth-capped", "co-located", "edge")
 REASON_CODE = {name: i for i, name in enumerate(REASONS)}
-#: the issue's three coarse classes
+#: the three coarse classes of a reason (attribute, depth, co-located), and none
 REASON_CLASS = {"none": "none", "normal": "attribute", "uv": "attribute", "color": "attribute",
                 "depth": "depth", "depth-capped": "depth", "co-located": "co-located",
                 "edge": "attribute"}  # edge: lopcook.analyse.discontinuity (an attribute jump)

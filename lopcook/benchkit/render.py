@@ -1,6 +1,6 @@
 """Render peer outputs (float positions) against the float source with lopcook's render harness.
 
-Cameras, shading and metrics are those of ``lopcook.verify.render.evaluate``: the icosahedron
+Cameras, shading and metrics are those of ``lopcook.verify.evaluate.evaluate``: the icosahedron
 views, the camera at ``camera_distance(B, extent, viewing)`` from the source bounding box for each
 level B (extent = the lopcook grid extent of the source, ``lopcook.grid.Grid.fit``),
 Phong with the container's ks / shininess (defaults 0.5 / 32), 4x MSAA, masked PSNR
@@ -44,7 +44,7 @@ def _global_attribute(scene, name: str, width: int):
 def _items(h, scene, variant: Variant):
     """Draw items (as ``Harness.float_items``) of a variant, and the GL objects to release. Each
     output vertex takes the attributes of its matched source vertex (any part)."""
-    from lopcook.verify.render import _attribute_buffers
+    from lopcook.verify.renderer import attribute_buffers
 
     ctx = h.ctx
     attrs = {n: _global_attribute(scene, n, w) for n, w in (("normals", 3), ("uvs", 2), ("colors", 4))}
@@ -55,7 +55,7 @@ def _items(h, scene, variant: Variant):
         view = SimpleNamespace(**{n: None if getattr(src, n) is None else a for n, a in attrs.items()})
         vbo = ctx.buffer(np.ascontiguousarray(pos, dtype="<f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(idx, dtype="<u4").tobytes())
-        specs, bufs = _attribute_buffers(ctx, view, match)
+        specs, bufs = attribute_buffers(ctx, view, match)
         vao = ctx.vertex_array(h.renderer.float_program, [(vbo, "3f", "in_position"), *specs],
                                index_buffer=ibo, index_element_size=4)
         owned += [vbo, ibo, *bufs, vao]
@@ -73,7 +73,8 @@ def render_variants(scene, variants: list[Variant], *, levels, views, resolution
     distance); views : int N or view indices; resolution : (w, h) pixels; extent : grid extent,
     metres."""
     from lopcook.verify import metrics as M
-    from lopcook.verify.render import Harness, Shading, camera_distance, make_camera, select_views
+    from lopcook.verify.cameras import camera_distance, make_camera, select_views
+    from lopcook.verify.renderer import Harness, Shading
     from lopcook.viewing import Viewing
 
     view_ids = select_views(views)

@@ -9,8 +9,7 @@ out 32767 or 127 times too large; it also does not reject unknown ``extensionsRe
 its scene graph flattens names and primitive identity that we want in ``source``/``mesh_key``.
 A direct reader keeps every accessor vertex (no merging: vertex count = accessor count, as
 trimesh's glTF loader also does) and is as fast as ``trimesh.load(path, force="scene")`` on the
-corpus (best of 20, warm: DamagedHelmet 3.6 vs 3.8 ms, CesiumMilkTruck 0.7 vs 1.0 ms, Duck 0.34 vs
-0.36 ms, base-colour texture bytes included).
+corpus (timings: ``docs/measurements.md``).
 
 What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html)
 ------------------------------------------------------------------------------------------

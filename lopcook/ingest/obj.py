@@ -58,14 +58,8 @@ Only the rare name lines (``o``, ``g``, ``usemtl``, ``mtllib``, unknown statemen
 trimesh 5.2.0's ``trimesh.exchange.obj.load_obj`` was measured and rejected: it merges ``g``
 groups (and an ``o`` after them, even with ``split_object=True``) into one geometry, and it
 fan-triangulates n-gons (the concave L hexagon of the tests comes out with area 4 instead of 3
-and one flipped triangle); it is also slower. Best of 5 on this 2-core machine (shared, timings
-vary by up to 2x), stanford-bunny subdivided twice (556,051 ``v``, 1,111,216 triangles, 45 MB):
-trimesh ``load_obj`` 1.28 s, this parser with the per-corner split 0.56 s (1.0 M vertices/s,
-2.0 M triangles/s); the same mesh with ``v/vt/vn`` corners (117 MB): trimesh 2.63 s, this
-parser 1.84 s (0.30 M vertices/s). The corpus bunny parses in 0.05 s. ``ingest.load`` adds
-``make_part``'s crease-aware normals for files without ``vn``: 3.0 s in all for the 1.1 M triangle
-file without ``vn``, 0.18 s for the corpus bunny. Peak memory of the parse is about 11x the file
-size.
+and one flipped triangle); it is also slower (timings: ``docs/measurements.md``). Peak memory of
+the parse is about 11x the file size.
 """
 
 from __future__ import annotations

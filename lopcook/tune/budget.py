@@ -9,14 +9,14 @@ al. 2011 (binned adaptive precision buffers, ``lopcook.emit``).
 
 Steps of ``fit``:
 
-1. Cook the LOD chain (``lopcook.pipeline.cook_bytes``; default ratios 1/2, 1/4, 1/8, ... as
+1. Cook the LOD chain (``lopcook.pipeline.run``; default ratios 1/2, 1/4, 1/8, ... as
    ``lod_chain`` makes them, ``default_ratios``), all on one grid, every plane the viewing allows.
 2. For every LOD k and level B in 1..(highest level in the file): the **candidate (k, B)** is the
    container holding only LOD k with every vertex at B bits per component: planes above B are not
    written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``;
    their count is ``clamped_vertices``: the budget trades their shading guarantee for bytes, and
    the image error measures what that costs). Its GPU buffer at level B is exactly AP at B of the
-   chain's LOD k (``lopcook.verify.render.ap_buffer``), which is what is rendered.
+   chain's LOD k (``lopcook.verify.buffers.ap_buffer``), which is what is rendered.
 3. Bytes of a candidate (``candidate_bytes``), by ``scope``:
 
    * ``"positions"`` (default): the GPU-resident position buffer at level B -- 3 B bits per vertex,
@@ -240,7 +240,8 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     """
     from ..emit import build
     from ..pipeline import run
-    from ..verify.render import Harness, Shading, lod_indices
+    from ..verify.buffers import lod_indices
+    from ..verify.renderer import Harness, Shading
 
     _check_scope(scope)
     target = int(target_bytes)

@@ -4,7 +4,7 @@ This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Render
 sections 5.1 (the minimum level of a vertex: the smallest b with k_f * E_v * dx(b) <= eps) and 7
 ("For CAP we empirically choose k_f to avoid shading artifacts"). Here k_f is measured instead:
 every probe cooks the scene and renders its CAP buffers against the float source with the
-harness of ``lopcook.verify.render`` (Purnomo et al. 2005, section 4.1: views on an icosahedron,
+harness of ``lopcook.verify.evaluate`` (Purnomo et al. 2005, section 4.1: views on an icosahedron,
 error over object pixels).
 
 The knob. k_f enters the analysis only through the test ``k_f * E_v * dx(b) <= eps``. The
@@ -46,7 +46,7 @@ probe). ``search="kf"`` keeps edge_eps as given.
 Cost and the reduced harness. Each probe = analyse + build + CAP renders at every level and view
 (AP is not rendered; float renders are computed once and reused, they do not depend on sigma).
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
-covers the same pixels at level B whatever the resolution (``lopcook.verify.render``), so a smaller
+covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
 directions more coarsely. Check the chosen k_f with ``lopcook verify OUT.lop --source SOURCE`` at
 the full 20 views and 1280 x 720.
@@ -73,7 +73,9 @@ from dataclasses import replace
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
-from ..verify.render import DEFAULT_LEVELS, RESOLUTION, VIEW_COUNT, Harness, select_views
+from ..verify.buffers import DEFAULT_LEVELS
+from ..verify.cameras import VIEW_COUNT, select_views
+from ..verify.renderer import RESOLUTION, Harness
 
 CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution

@@ -78,7 +78,7 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
     matched by ``render.source_order``); otherwise (a ``cook --target-bytes`` container whose only
     LOD is simplified) the container's own LOD 0 decoded at its highest level. Returns (scene, lo, hi)."""
     from ..emit.reader import decode_positions, lod_attributes
-    from .render import lod0_is_source, source_order
+    from .buffers import lod0_is_source, source_order
 
     geometry, per_part = [], []
     if lod0_is_source(c):

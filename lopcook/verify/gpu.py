@@ -63,6 +63,7 @@ def shader_dir() -> Path:
 
 
 def shader_source(name: str) -> str:
+    """The text of ``shaders/<name>`` from ``shader_dir()``."""
     return (shader_dir() / name).read_text()
 
 
@@ -97,6 +98,13 @@ def context():
     _FRAMEBUFFER.use()
     _CONTEXT = ctx
     return ctx
+
+
+def use_default_framebuffer() -> None:
+    """Bind the context's 1x1 framebuffer again (what ``context`` leaves bound and the transform
+    feedback kernels draw into); a no-op before ``context()`` has run."""
+    if _FRAMEBUFFER is not None:
+        _FRAMEBUFFER.use()
 
 
 def context_info() -> dict:
@@ -550,7 +558,7 @@ def adapter(language: str) -> Adapter:
     return _ADAPTERS[key]
 
 
-__all__ = ["LANGUAGES", "KERNELS", "context", "context_info", "gl_available", "hlsl_tools_available",
+__all__ = ["LANGUAGES", "KERNELS", "context", "use_default_framebuffer", "context_info", "gl_available", "hlsl_tools_available",
            "require_hlsl_tools", "tool_versions", "hlsl_to_glsl", "vertex_shader_source", "compute_shader_source", "decode_block",
            "view_block", "Decoded", "VertexDecoder", "vertex_decoder", "Passthrough", "AdaptBuffer", "Adapter",
            "adapter"]

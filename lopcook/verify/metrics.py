@@ -7,14 +7,14 @@ error over 20 views; pixels that are background in both renderings are excluded)
 "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011, section 7.3 (PSNR and heat maps of AP
 and CAP against floating-point vertices) and section 3 (coverage, attribute and depth errors).
 
-Inputs (what ``lopcook.verify.render`` reads back):
+Inputs (what ``lopcook.verify.renderer`` reads back):
 
 * colour images: ``(h, w, 4) uint8`` RGBA, the MSAA-resolved 8-bit framebuffer. RGB is the shaded
   colour in [0, 1] (code / 255) over a black background; A is the pixel's coverage (0 where no
   sample saw the object, 255 where all did; the background is cleared to alpha 0). A pixel is an
   **object pixel** of an image when its alpha is > 0.
 * part-ID images: ``(h, w) uint32``, 0 for background, ``part index + 1`` otherwise (MSAA sample 0
-  of the pixel, see ``lopcook.verify.render``).
+  of the pixel, see ``lopcook.verify.renderer``).
 
 Definitions (all colour values in [0, 1], i.e. 8-bit code / 255):
 

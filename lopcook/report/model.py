@@ -1,0 +1,230 @@
+"""The report model: every number of ``report.json`` as plain JSON data, from a render evaluation,
+the container summary and, optionally, the re-cook's analysis and timings.
+
+``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate``, with images of one
+view), the container summary (``lopcook.emit.summary.describe_container``), the uniform 16-bit
+baseline's evaluation, the re-cook record (``lopcook.tune.recook.recook``) and the analysis
+warnings, and returns a dict of plain Python numbers only (numpy converted, non-finite floats as
+None: a PSNR of None is +inf, identical images), file names without directories and no
+timestamps; ``cook_timings_s`` and ``seconds`` are the only values that vary between identical
+runs. ``report_json_bytes`` serialises it deterministically (sorted keys, indent 1, UTF-8, one
+final newline); the result validates against ``schema/report.schema.json``.
+
+Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT over each part's
+bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
+rendered with the same cameras as AP and CAP, one PSNR row per level.
+
+LODs: ``lods`` holds the container's LOD table (``lod_table``: triangles, vertices, Hausdorff error,
+selection distance range and bytes per part and LOD).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+from ..version import __version__
+from ..verify.baselines import UNIFORM16_BYTES_PER_VERTEX
+from .images import crop_box
+
+#: bytes per vertex of float32 positions (3 x 4)
+FLOAT32_BYTES_PER_VERTEX = 12
+#: the keys of each variant's row copied from the evaluation (``lopcook.verify.evaluate.evaluate``)
+VARIANT_KEYS = ("bytes", "percent_of_float32", "psnr_min", "psnr_mean", "psnr_pooled", "psnr_interior_min",
+                "psnr_interior_mean", "max_error", "share_off", "pixels_off", "object_pixels",
+                "depth_order_errors", "depth_order_errors_views", "part_mismatch", "psnr_views")
+#: image kinds shown, in page order (``levels``: the minimum-level image, paper Fig. 7)
+IMAGE_KEYS = ("float", "ap", "cap", "ap_heatmap", "cap_heatmap", "levels")
+
+
+def _plain(x):
+    """numpy scalars/arrays -> Python; floats must be finite (None stands for +inf PSNR)."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    return x
+
+
+def _name(p) -> str | None:
+    return None if p is None else os.path.basename(str(p))
+
+
+def analysis_warnings(scene, analysis) -> dict:
+    """Warnings of ``analysis`` (an ``Analysis`` of ``scene``: the re-cook's,
+    ``lopcook.tune.recook.recook``): ``available`` True, the scene's import warnings, touching and
+    intersecting part pairs, and the counts of degenerate triangles, depth-capped vertices and
+    vertices whose attribute bound 24 bits cannot meet."""
+    from ..analyse.summary import describe_analysis
+
+    d = describe_analysis(analysis, str(scene.source))
+    t = d["totals"]
+    return {"available": True, "scene": [str(w) for w in scene.warnings],
+            "touching": [list(p) for p in d["touching"]], "intersecting": [list(p) for p in d["intersecting"]],
+            "degenerate_triangles": int(t["degenerate_triangles"]), "depth_capped": int(t["depth_capped"]),
+            "attribute_unsatisfied": int(t["attribute_unsatisfied"])}
+
+
+def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
+    """Per part of a container manifest, its LODs as written: ``{"part", "lods": [...], "notes"}``.
+
+    Each LOD: ``lod`` (index), ``triangles``, ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
+    distance to LOD 0, metres, as recorded), ``min_distance_m`` / ``max_distance_m`` (the camera
+    distances, metres, over which ``lopcook.selection.select`` picks it under the manifest's viewing:
+    from its own ``min_distance_m`` to the next larger one of the part; ``max_distance_m`` None =
+    no upper bound; a container cooked without LODs records no distance, and its single LOD covers
+    [0, inf)), and bytes in the file: ``index_bytes``, ``attribute_bytes`` (normals, UVs, colours),
+    ``mandatory_position_bytes`` (its share of the mandatory section),
+    ``plane_position_bytes`` (its bits in the refinement planes 2..max_level: 3 bits per vertex
+    whose minimum level is below the plane, rounded up to bytes per plane) and ``bytes``, the sum.
+    ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
+    the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
+    (``options.lods.reports[i].notes``), else empty."""
+    sizes = {s["name"]: int(s["length"]) for s in manifest["sections"]}
+    max_level = int(manifest["positions"].get("max_level", 24))
+    if not reports:
+        reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
+    out = []
+    for i, part in enumerate(manifest["parts"]):
+        starts = [e.get("min_distance_m") for e in part["lods"]]
+        rows = []
+        for k, e in enumerate(part["lods"]):
+            lo = starts[k] if starts[k] is not None else 0.0
+            later = [s for s in starts if s is not None and s > lo]
+            vid = e["vertex_id"]
+            index_bytes = sizes.get(e["indices"], 0)
+            attribute_bytes = sum(sizes.get(e.get(key) or "", 0) for key in ("normals", "uvs", "colors"))
+            mandatory = 4 * int(e["mandatory_words"][1])
+            planes = sum((3 * int(vid[p - 1]) + 7) // 8 for p in range(2, max_level + 1))
+            rows.append({"lod": k, "triangles": int(e["triangles"]), "vertices": int(e["vertices"]),
+                         "geometric_error_m": float(e.get("geometric_error_m", 0.0)),
+                         "min_distance_m": float(lo), "max_distance_m": min(later) if later else None,
+                         "index_bytes": index_bytes, "attribute_bytes": attribute_bytes,
+                         "mandatory_position_bytes": mandatory, "plane_position_bytes": planes,
+                         "bytes": index_bytes + attribute_bytes + mandatory + planes})
+        rec = reports[i] if i < len(reports) and isinstance(reports[i], dict) else {}
+        notes = [str(n) for n in rec.get("notes") or []]
+        if rec.get("stop_reason") and rec.get("stop_reason") != "all ratios done":
+            notes.append(f"chain stopped: {rec['stop_reason']}")
+        out.append({"part": part["name"], "lods": rows, "notes": notes})
+    return out
+
+
+def uniform16_section(evaluation_16: dict | None, scene, n_vertices: int) -> dict:
+    """The uniform 16-bit baseline's record: memory, its largest position error (over parts:
+    sqrt(3) * half cube side / 32767 / 2, metres) and, when rendered, one row per level
+    (``level``, ``psnr_min``, ``psnr_mean``, ``max_error``, ``share_off``, ``depth_order_errors``)."""
+    half = max(0.5 * float((p.positions.max(axis=0) - p.positions.min(axis=0)).max()) for p in scene.parts)
+    rows = []
+    for r in (evaluation_16 or {}).get("levels", []):
+        v = r["scene"]
+        rows.append({"level": int(r["level"]), "psnr_min": v["psnr_min"], "psnr_mean": v["psnr_mean"],
+                     "max_error": v["max_error"], "share_off": v["share_off"],
+                     "depth_order_errors": int(v["depth_order_errors"])})
+    return {"bytes_per_vertex": UNIFORM16_BYTES_PER_VERTEX, "bytes": UNIFORM16_BYTES_PER_VERTEX * int(n_vertices),
+            "percent_of_float32": 100.0 * UNIFORM16_BYTES_PER_VERTEX / FLOAT32_BYTES_PER_VERTEX,
+            "max_position_error_m": math.sqrt(3.0) * half / 32767.0 / 2.0, "rendered": bool(rows), "levels": rows,
+            "note": "KHR_mesh_quantization normalized SHORT over each part's bounding cube (glTF-Transform "
+                    "quantize's default volume), VEC3 padded to 8 bytes per vertex; rendered with the same cameras"
+            if rows else "not rendered"}
+
+
+def build_report(container, scene, evaluation: dict, container_desc: dict, *, warnings: dict | None = None,
+                 uniform16: dict | None = None, cook: dict | None = None, level_range=None) -> dict:
+    """Every number of the report, JSON-ready (see module docstring). ``uniform16``: the
+    ``evaluate_scene`` result of ``baselines.uniform_quantized_scene`` (None: not rendered);
+    ``cook``: ``lopcook.tune.recook.recook``'s result (None: not re-cooked); ``level_range``: (lo, hi) of
+    the level-colour ramp of the ``levels`` image."""
+    ev = evaluation
+    m = container.manifest
+    extent = float(m["grid"]["extent"])
+    options = container_desc.get("options") or {}
+    levels = []
+    for r in ev["levels"]:
+        row = {"level": r["level"], "camera_level": r["camera_level"], "camera_distance_m": r["camera_distance_m"],
+               "float_object_pixels": r["float_object_pixels"],
+               "cap_max_position_error_m": math.sqrt(3.0) * extent * 2.0 ** -(r["level"] + 1)}
+        for v in ("ap", "cap"):
+            if v in r:
+                row[v] = {k: r[v][k] for k in VARIANT_KEYS}
+        levels.append(row)
+    t = container_desc["totals"]
+    n = int(ev["vertices"])
+    u16 = uniform16_section(uniform16, scene, n)
+    imgs = ev.get("images")
+    if warnings is None:
+        warnings = {"available": False, "scene": [str(w) for w in getattr(scene, "warnings", ())],
+                    "touching": [], "intersecting": [], "degenerate_triangles": None, "depth_capped": None,
+                    "attribute_unsatisfied": None}
+    depth_total = {v: sum(r[v]["depth_order_errors"] for r in levels if v in r) for v in ("ap", "cap")}
+    images = None
+    if imgs:
+        images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
+                  "crop": crop_box({k: v for k, v in imgs.items() if k != "levels"})}
+        if "levels" in imgs and level_range is not None:
+            images["level_range"] = [int(level_range[0]), int(level_range[1])]
+    rep = {
+        "kind": "report",
+        "generator": f"lopcook {__version__}",
+        "container": _name(ev.get("container") or container.path),
+        "source": _name(ev.get("source")),
+        "render": {"resolution": ev["resolution"], "samples": ev["samples"], "views": ev["views"],
+                   "lod": ev["lod"], "shading": ev["shading"], "viewing": ev["viewing"], "variants": ev["variants"],
+                   "grid_extent_m": ev["grid_extent_m"], "box_m": ev["box_m"],
+                   "device": (ev.get("device") or {}).get("renderer")},
+        "parts": ev["parts"],
+        "vertices": n,
+        "triangles": int(t["triangles"]),
+        "float32_bytes": ev["float32_bytes"],
+        "available_level": int(container_desc["available_level"]),
+        "levels": levels,
+        "baselines": {"float32": {"percent_of_float32": 100.0, "psnr": None, "bytes": ev["float32_bytes"]},
+                      "uniform16": u16},
+        "histogram": [int(x) for x in t["histogram"]],
+        "memory": container_desc["memory"],
+        "images": images,
+        "cook": None if cook is None else {"status": cook["status"], "detail": cook["detail"],
+                                           "bytes": cook.get("bytes")},
+        "cook_timings_s": None if cook is None else dict(cook["timings_s"]),
+        "warnings": warnings,
+        "depth_order_errors_total": depth_total,
+        "calibration": options.get("calibration"),
+        "seconds": ev.get("seconds"),
+    }
+    rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
+                   "ratios": (options.get("lods") or {}).get("ratios"),
+                   "savings": m.get("savings"),
+                   "parts": lod_table(m, None if cook is None else cook.get("lod_reports"))}
+    budget = budget_section(m)
+    if budget is not None:  # optional key: containers written by cook --target-bytes
+        rep["budget"] = budget
+    return _plain(rep)
+
+
+def budget_section(manifest: dict) -> dict | None:
+    """The byte-budget record of a container written by ``cook --target-bytes`` (manifest
+    ``options.budget``, ``lopcook.tune.budget.budget_record``), or None for any other container."""
+    b = (manifest.get("options") or {}).get("budget")
+    return b if isinstance(b, dict) and b.get("candidates") else None
+
+
+def report_json_bytes(rep: dict) -> bytes:
+    """``rep`` as report.json bytes: JSON with sorted keys, indent 1, no NaN or infinity (ValueError),
+    UTF-8, one final newline. The same dict gives the same bytes."""
+    return (json.dumps(rep, indent=1, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
+
+
+__all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "lod_table",
+           "uniform16_section", "build_report", "budget_section", "report_json_bytes"]

@@ -1,0 +1,404 @@
+"""Render a container against its float source and measure AP and CAP: the render check of
+``lopcook verify --source`` and ``lopcook report``.
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+sections 4 (per-buffer level by the half-pixel criterion), 5 (CAP) and 7 (Table 1: levels 6 to 11,
+memory relative to float32; Fig. 13: PSNR and heat maps against floating-point vertices); and
+Purnomo et al., "Hardware-Compatible Vertex Compression Using Quantization and Simplification",
+Graphics Hardware 2005, section 4.1 (20 views on an icosahedron, error over object pixels,
+background excluded).
+
+What is rendered (``evaluate``), for every per-buffer level B and every view:
+
+* **float**: the source scene (``lopcook.types.Scene``), positions float64 rounded to float32, each
+  part with its own index buffer (the same triangles, in the same order, as the container's).
+* **AP** (paper section 4): every vertex decoded with B bits (``lopcook.verify.buffers.ap_buffer``).
+* **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
+  vertices of bin k > B keep k bits.
+
+Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the source's normals,
+UVs, colours and textures (``lopcook.verify.renderer``): only positions differ. That is LOD 0;
+``evaluate(..., lod=k)`` renders the container's LOD k against the same float LOD-0 source, with the
+LOD's own index buffer and decoded attributes (``lopcook.emit.reader.lod_attributes``).
+``evaluate_scene`` renders any float-position scene (e.g. a simplified mesh: "simplify only")
+against the source with the same cameras and metrics.
+
+Cameras (``lopcook.verify.cameras``): for level B, every view's eye is at the distance from the
+scene's bounding box where the half-pixel criterion selects B (``camera_distance``);
+``camera_levels`` lets the decode level and the camera level differ (e.g. decode at 24 from the
+level-8 distance: the harness sanity check), ``distance_m`` fixes one distance for every row.
+
+Metrics: ``lopcook.verify.metrics`` (PSNR over object pixels, max error, share > 1/255, depth-order
+errors from the part-ID images).
+
+Cost: every (level, view) renders float, AP and CAP once (the float render is reused when the
+harness caches it); GPU buffers are uploaded once per level and reused across views. ``views`` and
+``resolution`` (CLI ``--views N --resolution WxH``) scale the cost linearly; measured times are in
+``docs/measurements.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..emit.binning import LEVELS
+from ..emit.reader import gpu_buffer, lod_entry
+from ..errors import LopcookError
+from ..viewing import Viewing, required_level
+from . import metrics as M
+from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
+from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
+from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
+
+
+def parse_levels(levels, camera_levels, available: int, path) -> tuple[list[int], list[int]]:
+    """(decode levels, camera levels), one of each per row: ``levels`` ints in [1, 24] and at most
+    ``available`` (the file's levels); ``camera_levels`` None (= levels), one int, or one per level.
+    Raises LopcookError (usage, exit 2) otherwise; ``path`` names the container in the message."""
+    lv = [int(b) for b in levels]
+    if not lv:
+        raise LopcookError("usage", path, "no levels to render")
+    if min(lv) < 1 or max(lv) > LEVELS:
+        raise LopcookError("usage", path, f"levels must be in [1, {LEVELS}], got {lv}")
+    if max(lv) > available:
+        raise LopcookError("usage", path, f"level {max(lv)} is not in this file (it holds levels up to {available})",
+                           hint=f"use --levels up to {available}")
+    if camera_levels is None:
+        cl = list(lv)
+    elif isinstance(camera_levels, (int, np.integer)):
+        cl = [int(camera_levels)] * len(lv)
+    else:
+        cl = [int(b) for b in camera_levels]
+        if len(cl) != len(lv):
+            raise LopcookError("usage", path, "camera_levels must be one level or one per level")
+    if min(cl) < 1 or max(cl) > LEVELS:
+        raise LopcookError("usage", path, f"camera levels must be in [1, {LEVELS}], got {cl}")
+    return lv, cl
+
+
+def summarise(per_view: list[dict], depth: list[dict], nbytes: int, f32: int) -> dict:
+    """One variant's row entry (the keys documented in ``evaluate``) from its per-view
+    ``metrics.image_metrics`` and ``metrics.depth_order_errors`` dicts, its position bytes
+    ``nbytes`` and the float32 position bytes ``f32`` of LOD 0."""
+    mses = [m["mse"] for m in per_view]
+    psnrs = [m["psnr"] for m in per_view]
+    finite = [p for p in psnrs if p is not None]
+    obj = sum(m["object_pixels"] for m in per_view)
+    off = sum(m["pixels_off"] for m in per_view)
+    return {
+        "bytes": int(nbytes),
+        "percent_of_float32": 100.0 * nbytes / max(f32, 1),
+        "psnr_views": psnrs,
+        "psnr_min": min(finite) if finite else None,
+        "psnr_mean": M.mean_mse_psnr(mses),
+        "psnr_pooled": M.pooled_psnr(sum(m["sum_sq"] for m in per_view), obj),
+        "psnr_interior_min": min((m["psnr_interior"] for m in per_view if m["psnr_interior"] is not None),
+                                 default=None),
+        "psnr_interior_mean": M.mean_mse_psnr([m["interior_mse"] for m in per_view]),
+        "max_error": max((m["max_error"] for m in per_view), default=0.0),
+        "share_off": off / obj if obj else 0.0,
+        "pixels_off": int(off),
+        "object_pixels": int(obj),
+        "depth_order_errors": int(sum(d["depth_order_errors"] for d in depth)),
+        "depth_order_errors_views": [int(d["depth_order_errors"]) for d in depth],
+        "part_mismatch": int(sum(d["part_mismatch"] for d in depth)),
+    }
+
+
+def camera_rows(lv, cl, distance_m, extent, viewing) -> list[tuple[int, int, float]]:
+    """(decode level, camera level, camera distance m) per row; a fixed ``distance_m`` replaces the
+    level distances and its camera level is the level selected there."""
+    if distance_m is None:
+        return [(b, cb, camera_distance(cb, extent, viewing)) for b, cb in zip(lv, cl)]
+    d = float(distance_m)
+    if not d > 0.0 or not math.isfinite(d):
+        raise LopcookError("usage", None, f"camera distance must be a positive number of metres, got {distance_m}")
+    sel = int(np.asarray(required_level(d, extent, viewing)))
+    return [(b, sel, d) for b in lv]
+
+
+def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, variants, keep_images,
+                 image_view, seconds) -> tuple[list, dict | None]:
+    """The per-level render loop shared by ``evaluate`` and ``evaluate_scene``.
+
+    plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned GL
+    objects released after the level). Returns (rows without the variants' bytes: per variant
+    ``(per_view metrics, depth metrics)`` under ``"_raw"``, images or None)."""
+    rows = []
+    images = None
+    coarsest = min(b for b, _, _ in plan)
+    best_score = -1.0
+    for level, cam_level, distance in plan:
+        t0 = time.perf_counter()
+        drawn, owned_all = draws(level)
+        seconds["upload"] += time.perf_counter() - t0
+        per_view = {v: [] for v in variants}
+        depth = {v: [] for v in variants}
+        cams, float_pixels = [], []
+        try:
+            for view in view_ids:
+                cam = make_camera(view, h.lo, h.hi, distance, viewing)
+                cams.append(cam)
+                t0 = time.perf_counter()
+                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+                ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
+                outs = {v: h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1]) for v in variants}
+                seconds["render"] += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
+                for v in variants:
+                    per_view[v].append(M.image_metrics(ref_rgba, outs[v][0]))
+                    depth[v].append(M.depth_order_errors(ref_ids, outs[v][1]))
+                seconds["metrics"] += time.perf_counter() - t0
+                if keep_images and level == coarsest:
+                    score = per_view[variants[0]][-1]["sum_sq"]
+                    chosen = view == image_view if image_view is not None else score > best_score
+                    if chosen:
+                        best_score = score
+                        images = {"level": level, "view": int(view), "float": ref_rgba, "float_ids": ref_ids}
+                        for v in variants:
+                            images[v] = outs[v][0]
+                            images[f"{v}_ids"] = outs[v][1]
+                            images[f"{v}_heatmap"] = M.difference_heatmap(ref_rgba, outs[v][0])
+        finally:
+            for r in owned_all:
+                r.release()
+        rows.append({
+            "level": int(level),
+            "camera_level": int(cam_level),
+            "camera_distance_m": float(distance),
+            "selected_level": int(required_level(distance, extent, viewing)),
+            "eye_distance_m": [float(np.linalg.norm(cm.eye - cm.centre)) for cm in cams],
+            "near_far_m": [[cm.near, cm.far] for cm in cams],
+            "float_object_pixels": float_pixels,
+            "_raw": {v: (per_view[v], depth[v]) for v in variants},
+        })
+    return rows, images
+
+
+def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, seconds) -> dict:
+    """The top-level keys shared by ``evaluate`` and ``evaluate_scene`` (source, resolution,
+    samples, views and their directions, viewing, grid extent m, box m, shading, variants, parts,
+    vertices, float32 bytes, seconds rounded to 0.1 ms, GL device)."""
+    from . import gpu
+
+    return {
+        "source": str(h.scene.source),
+        "resolution": [int(h.renderer.size[0]), int(h.renderer.size[1])],
+        "samples": int(h.renderer.samples),
+        "views": view_ids,
+        "view_directions": [[float(x) for x in icosahedron_directions()[v]] for v in view_ids],
+        "viewing": viewing.as_dict(),
+        "grid_extent_m": extent,
+        "box_m": [[float(x) for x in h.lo], [float(x) for x in h.hi]],
+        "shading": shading.as_dict(),
+        "variants": list(variants),
+        "parts": len(h.scene.parts),
+        "vertices": int(f32 // 12),
+        "float32_bytes": int(f32),
+        "seconds": {k: round(v, 4) for k, v in seconds.items()},
+        "device": gpu.context_info(),
+    }
+
+
+def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
+                     image_view, lod=LOD, distance_m=None) -> dict:
+    """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result."""
+    t_start = time.perf_counter()
+    scene = h.scene
+    variants = tuple(variants)
+    for v in variants:
+        if v not in VARIANTS:
+            raise LopcookError("usage", c.path, f"unknown variant {v!r} (expected ap and/or cap)")
+    lv, cl = parse_levels(levels, camera_levels, int(c.available_level), c.path)
+    view_ids = select_views(views)
+    if image_view is not None and int(image_view) not in view_ids:
+        raise LopcookError("usage", c.path, f"image view {image_view} is not among the rendered views {view_ids}")
+    lods = lod_indices(c, lod)
+    if len(c.manifest["parts"]) != len(scene.parts):
+        raise LopcookError("verify", c.path, f"the container has {len(c.manifest['parts'])} parts, the source "
+                           f"{scene.source!r} has {len(scene.parts)}",
+                           hint="give the source the container was cooked from")
+    # source attributes where the container's buffer is the source mesh (LOD 0), its own elsewhere
+    use_source = lod0_is_source(c) and any(k == 0 for k in lods)
+    src_orders = source_order(c, scene) if use_source else [None] * len(lods)
+    orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
+    shading = Shading.from_manifest(c.manifest, ks, shininess)
+    viewing = render_viewing(c.manifest, h.renderer.size)
+    g = c.manifest["grid"]
+    extent = float(g["extent"])
+    origin = g["origin"]
+    half_cell = np.float32(extent / float(1 << LEVELS) / 2.0)
+    f32 = 12 * sum(int(lod_entry(c, i, 0)["vertices"]) for i in range(len(c.manifest["parts"])))
+    builders = {"ap": ap_buffer, "cap": gpu_buffer}
+    ctx = h.ctx
+    attr_cache: dict = {}
+    seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
+    plan = camera_rows(lv, cl, distance_m, extent, viewing)
+
+    def draws(level):
+        drawn, owned_all = {}, []
+        for v in variants:
+            items, owned = decoded_items(ctx, h.renderer.decode_program, c, scene, lods, orders, h.textures,
+                                          builders[v], level, origin, half_cell, attr_cache)
+            drawn[v] = (items, True)
+            owned_all += owned
+        return drawn, owned_all
+
+    try:
+        rows, images = render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
+                                    shading=shading, draws=draws, variants=variants, keep_images=keep_images,
+                                    image_view=image_view, seconds=seconds)
+    finally:
+        for entry in attr_cache.values():
+            for b in entry[2]:
+                b.release()
+    for row in rows:
+        raw = row.pop("_raw")
+        row["float32_bytes"] = int(f32)
+        mem = position_bytes(c, lods, row["level"])
+        for v in variants:
+            row[v] = summarise(raw[v][0], raw[v][1], mem[v], f32)
+    seconds["total"] = time.perf_counter() - t_start
+    out = view_header(h, view_ids, viewing, extent, shading, variants, f32, seconds)
+    out.update({"container": None if c.path is None else str(c.path), "lod": int(lod), "lods": lods,
+                "lod_vertices": int(sum(int(lod_entry(c, i, k)["vertices"]) for i, k in enumerate(lods))),
+                "levels": rows})
+    if keep_images:
+        out["images"] = images
+    return out
+
+
+def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, distance_m, extent, viewing,
+                           shading, keep_images, image_view) -> dict:
+    """``Harness.evaluate_scene`` on ``h``: same arguments and result."""
+    from ..analyse import Grid
+
+    t_start = time.perf_counter()
+    lv, cl = parse_levels(levels, camera_levels, LEVELS, None)
+    view_ids = select_views(views)
+    if image_view is not None and int(image_view) not in view_ids:
+        raise LopcookError("usage", None, f"image view {image_view} is not among the rendered views {view_ids}")
+    if not test.parts:
+        raise LopcookError("usage", test.source, "the test scene has no parts")
+    base = viewing or Viewing()
+    viewing = Viewing(viewport=h.renderer.size, fov_y_deg=base.fov_y_deg, pixel_error=base.pixel_error)
+    shading = shading or Shading()
+    if extent is None:
+        extent = float(Grid.fit([p.positions for p in h.scene.parts]).extent)
+    extent = float(extent)
+    f32 = 12 * sum(p.n_vertices for p in h.scene.parts)
+    test_bytes = 12 * sum(p.n_vertices for p in test.parts)
+    seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
+    plan = camera_rows(lv, cl, distance_m, extent, viewing)
+    t0 = time.perf_counter()
+    items, owned = float_items(h.ctx, h.renderer.float_program, test, h.textures)
+    seconds["upload"] += time.perf_counter() - t0
+    try:
+        rows, images = render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
+                                    shading=shading, draws=lambda level: ({"scene": (items, False)}, []),
+                                    variants=("scene",), keep_images=keep_images, image_view=image_view,
+                                    seconds=seconds)
+    finally:
+        for r in owned:
+            r.release()
+    for row in rows:
+        raw = row.pop("_raw")
+        row["float32_bytes"] = int(f32)
+        row["scene"] = summarise(raw["scene"][0], raw["scene"][1], test_bytes, f32)
+    seconds["total"] = time.perf_counter() - t_start
+    out = view_header(h, view_ids, viewing, extent, shading, ("scene",), f32, seconds)
+    out.update({"container": None, "lod": None, "test_source": str(test.source),
+                "test_vertices": int(sum(p.n_vertices for p in test.parts)),
+                "test_triangles": int(sum(p.n_triangles for p in test.parts)), "levels": rows})
+    if keep_images:
+        out["images"] = images
+    return out
+
+
+def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
+             keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
+             ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
+             lod: int = LOD, distance_m: float | None = None) -> dict:
+    """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
+    (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
+
+    Parameters
+    ----------
+    levels : per-buffer levels B to decode (default 6..12); each must be in the file.
+    views : int N in [1, 20] (N icosahedron views spread over the 20) or a list of view indices.
+    resolution : (width, height) pixels (default 1280 x 720).
+    keep_images : also return images of one view at the coarsest level (``images`` below).
+    camera_levels : None (camera at the distance of each level), one level for all, or one per level.
+    variants : subset of ("ap", "cap") to render (the float source is always rendered).
+    samples : MSAA samples (default 4). ks, shininess : override the manifest's Phong parameters.
+    image_view : the view kept with ``keep_images`` (default: the view with the largest AP error,
+        or CAP when AP is not rendered).
+    lod : the container's LOD to render (default 0), always against the float **source** (LOD 0).
+        A part with fewer LODs renders its last one (``lod_indices``). LOD 0 of a container cooked
+        from this source is drawn with the source's normals, UVs and colours (permuted to the binned
+        order, ``source_order``: only positions differ); any other LOD with the container's own
+        decoded attributes and index buffer (``lopcook.emit.reader.lod_attributes``), and the
+        source part's texture. Part IDs are part indices, so depth-order errors work at every LOD.
+    distance_m : None (camera at each level's distance, see the module doc), or one camera
+        distance in metres (eye to the nearest point of the source's bounding box) for every row;
+        each row's ``camera_level`` is then the level the half-pixel criterion selects there.
+
+    Returns a JSON-ready dict (``images`` excepted):
+
+    * ``container``, ``source`` (paths), ``lod`` (the LOD asked for), ``lods`` [per part, the LOD
+      index rendered], ``lod_vertices`` (vertices of those buffers), ``resolution`` [w, h],
+      ``samples``, ``views`` [indices], ``view_directions`` [[x, y, z]] (unit, scene centre to eye),
+      ``viewing`` (the Viewing the distances use: render resolution, container fov and pixel error),
+      ``grid_extent_m``, ``box_m`` [[lo], [hi]] (the scene's bounding box, metres),
+      ``shading`` (Phong parameters), ``variants``, ``parts``, ``vertices``, ``float32_bytes``
+      (12 bytes per vertex of LOD 0), ``device`` (GL renderer), ``seconds`` (upload, render,
+      metrics, total).
+    * ``levels``: one dict per level, in the order given:
+      ``level`` (decode level B), ``camera_level``, ``camera_distance_m`` (eye to nearest box point),
+      ``selected_level`` (``required_level`` at that distance: equals camera_level),
+      ``eye_distance_m`` [per view] (eye to box centre), ``near_far_m`` [[near, far] per view],
+      ``float_object_pixels`` [per view], ``float32_bytes``, and for each variant ``"ap"`` / ``"cap"``:
+
+      - ``bytes``: GPU-resident position bytes at B over all parts of the rendered LOD
+        (as ``lopcook.emit.summary.memory_rows`` counts LOD 0), ``percent_of_float32`` (of LOD 0's);
+      - ``psnr_views`` [dB or None per view], ``psnr_min`` (min over views; None when every view is
+        identical), ``psnr_mean`` (PSNR of the view-averaged MSE), ``psnr_pooled`` (PSNR of the
+        squared errors pooled over all object pixels of all views); ``psnr_interior_min``,
+        ``psnr_interior_mean``: the same over pixels fully covered in both images (shading error
+        without coverage error, ``metrics.image_metrics``);
+      - ``max_error`` (largest channel difference, [0, 1]), ``share_off`` (object pixels off by more
+        than 1/255, pooled over views), ``pixels_off``, ``object_pixels`` (summed over views);
+      - ``depth_order_errors`` (pixels, summed over views), ``depth_order_errors_views`` [per view],
+        ``part_mismatch`` (pixels whose visible part differs, coverage included).
+
+      PSNR, errors and pixel classes are defined in ``lopcook.verify.metrics``.
+    * ``images`` (only with ``keep_images``; None if nothing was rendered): ``level`` (the coarsest),
+      ``view``, ``float``, ``ap``, ``cap`` ((h, w, 4) uint8 RGBA, top row first, alpha = coverage),
+      ``float_ids``, ``ap_ids``, ``cap_ids`` ((h, w) uint32 part index + 1, 0 = background),
+      ``ap_heatmap``, ``cap_heatmap`` ((h, w, 3) uint8, ``metrics.difference_heatmap``, full scale
+      0.25). Keys of variants not rendered are absent.
+
+    Raises LopcookError: no EGL context (exit 2), levels not in the file, bad views or a LOD no
+    part has (usage, exit 2), a source that does not match the container (exit 2).
+    """
+    with Harness(scene, resolution, samples) as h:
+        return h.evaluate(container, levels=levels, views=views, camera_levels=camera_levels, variants=variants,
+                          ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view, lod=lod,
+                          distance_m=distance_m)
+
+
+def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
+                   samples: int = SAMPLES, **kw) -> dict:
+    """``Harness(scene, resolution, samples).evaluate_scene(test_scene, levels=..., views=..., **kw)``:
+    a float-position ``test_scene`` rendered against the float source ``scene`` with ``evaluate``'s
+    cameras; see ``Harness.evaluate_scene``."""
+    with Harness(scene, resolution, samples) as h:
+        return h.evaluate_scene(test_scene, levels=levels, views=views, **kw)
+
+
+__all__ = ["evaluate", "evaluate_scene", "harness_evaluate", "harness_evaluate_scene", "parse_levels",
+           "camera_rows", "render_rows", "summarise", "view_header"]

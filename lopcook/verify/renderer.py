@@ -1,0 +1,380 @@
+"""The GL side of the render harness: programs, multisampled framebuffers, textures, vertex buffers
+and the ``Harness`` that holds them for one source scene (moderngl on the process's EGL context,
+``lopcook.verify.gpu.context``).
+
+This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
+section 6.2 (positions decoded in the vertex shader) and Fig. 13 (renders against floating-point
+vertices).
+
+Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
+``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
+CPU. Float, AP and CAP use the same normals, UVs, colours and textures (the source's, permuted to the
+binned order for LOD 0 of a container cooked from that source; the container's decoded ones for any
+other LOD), so only positions differ.
+
+Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
+direction = from the box centre to the eye); ambient 0.15, diffuse 0.65, ks and shininess from the
+container's analysis options (``manifest["options"]["analyse"]``; defaults 0.5 and 32) so the
+k_f = ks * n the analysis assumed is the one rendered. Base-colour textures are sampled with
+trilinear mipmaps and repeat wrap, texel values used as they are (no sRGB decoding); vertex colours
+are linear RGB as stored; grey 0.8 when a part has neither. No back-face culling (quantization may
+flip a tiny triangle's winding; the paper does not cull either), depth test on.
+
+Framebuffer: ``SAMPLES`` x MSAA (4, or the context's maximum when lower), colour RGBA8 (alpha = 1
+where a sample saw the object; the background is cleared to 0, 0, 0, 0), a part-ID target R32UI
+(``part index + 1``, 0 = background) written by the same fragment shader in the same pass, and a
+24-bit depth buffer, all multisampled. Colour is resolved by a framebuffer blit (average of the
+samples) and read back as 8 bits per channel: the images are what an 8-bit display shows, and alpha
+is the pixel's coverage. The ID target is resolved by taking **sample 0** of each pixel, a
+documented convention. Images are returned top row first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..emit.reader import lod_attributes
+from ..errors import LopcookError
+from ..viewing import Viewing
+from .buffers import DEFAULT_LEVELS, LOD, VARIANTS
+from .cameras import VIEW_COUNT, Camera
+from .glsl import FS, RESOLVE_FS, RESOLVE_VS, vertex_shader_source
+
+#: render size (width, height) in pixels by default
+RESOLUTION = (1280, 720)
+#: MSAA samples per pixel by default
+SAMPLES = 4
+#: Phong ambient and diffuse weights (dimensionless)
+AMBIENT = 0.15
+DIFFUSE = 0.65
+#: base colour of a part with neither texture nor vertex colours (linear grey)
+BASE_GREY = 0.8
+
+
+@dataclass(frozen=True)
+class Shading:
+    """Phong parameters (dimensionless): ambient, diffuse, ks, shininess; base grey in [0, 1]."""
+
+    ks: float = 0.5
+    shininess: float = 32.0
+    ambient: float = AMBIENT
+    diffuse: float = DIFFUSE
+    base: float = BASE_GREY
+
+    @classmethod
+    def from_manifest(cls, manifest: dict, ks: float | None = None, shininess: float | None = None) -> "Shading":
+        """Phong parameters of a container: ks and shininess from ``manifest['options']['analyse']``
+        (defaults 0.5 and 32, the analysis defaults), each replaced by the argument when given;
+        ambient, diffuse and base grey the module defaults."""
+        a = (manifest.get("options") or {}).get("analyse") or {}
+        return cls(ks=float(a.get("ks", 0.5) if ks is None else ks),
+                   shininess=float(a.get("shininess", 32.0) if shininess is None else shininess))
+
+    def as_dict(self) -> dict:
+        """JSON-ready record of the shading: model, light, ks, shininess, ambient, diffuse, base grey."""
+        return {"model": "phong", "light": "directional headlight (from the scene centre to the eye)",
+                "ks": self.ks, "shininess": self.shininess, "ambient": self.ambient, "diffuse": self.diffuse,
+                "base_grey": self.base}
+
+
+# ---- the renderer -----------------------------------------------------------------------------------
+
+class Renderer:
+    """Programs and framebuffers for one resolution ``(w, h)`` pixels on the process's EGL context
+    (``lopcook.verify.gpu.context``), with ``samples`` MSAA samples (at most the context's maximum
+    for colour and integer targets). ``draw`` renders draw items and returns the resolved colour and
+    part-ID images. Raises LopcookError (usage, exit 2) for a resolution below 1 x 1."""
+
+    def __init__(self, resolution=RESOLUTION, samples: int = SAMPLES):
+        from . import gpu
+
+        self.ctx = ctx = gpu.context()
+        w, h = (int(resolution[0]), int(resolution[1]))
+        if w < 1 or h < 1:
+            raise LopcookError("usage", None, f"resolution must be positive, got {w}x{h}")
+        self.size = (w, h)
+        samples = int(min(samples, ctx.max_samples, ctx.max_integer_samples))
+        self.samples = samples
+        self.float_program = ctx.program(vertex_shader=vertex_shader_source(False), fragment_shader=FS)
+        self.decode_program = ctx.program(vertex_shader=vertex_shader_source(True), fragment_shader=FS)
+        self.resolve_program = ctx.program(vertex_shader=RESOLVE_VS, fragment_shader=RESOLVE_FS)
+        self.resolve_vao = ctx.vertex_array(self.resolve_program, [])
+        self._colour_ms = ctx.renderbuffer((w, h), 4, samples=samples)
+        self._ids_ms = ctx.texture((w, h), 1, dtype="u4", samples=samples)
+        self._depth_ms = ctx.depth_renderbuffer((w, h), samples=samples)
+        self.fbo_ms = ctx.framebuffer([self._colour_ms, self._ids_ms], self._depth_ms)
+        self.fbo_ms_colour = ctx.framebuffer([self._colour_ms])  # the blit source (same renderbuffer)
+        self._colour = ctx.renderbuffer((w, h), 4)
+        self.fbo_colour = ctx.framebuffer([self._colour])
+        self._ids = ctx.texture((w, h), 1, dtype="u4")
+        self.fbo_ids = ctx.framebuffer([self._ids])
+        self._resources = [self.float_program, self.decode_program, self.resolve_program, self.resolve_vao,
+                           self.fbo_ms, self.fbo_ms_colour, self._colour_ms, self._ids_ms, self._depth_ms,
+                           self.fbo_colour, self._colour, self.fbo_ids, self._ids]
+
+    def _uniforms(self, program, camera: Camera, shading: Shading) -> None:
+        program["u_mvp"].write(camera.mvp.T.astype("<f4").tobytes())
+        light = camera.eye - camera.centre
+        light = light / np.linalg.norm(light)
+        for name, value in (("u_eye", tuple(float(v) for v in camera.eye)),
+                            ("u_light", tuple(float(v) for v in light)),
+                            ("u_phong", (shading.ambient, shading.diffuse, shading.ks, shading.shininess)),
+                            ("u_base", (shading.base,) * 3), ("u_texture", 0)):
+            if name in program:
+                program[name].value = value
+
+    def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
+        """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
+        ``ssbo`` / ``ubo`` when ``decoded``) from ``camera`` with ``shading``, depth test on, no
+        culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first: the
+        MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
+        (part index + 1, 0 = background). Leaves the context's default 1x1 framebuffer bound."""
+        import moderngl
+
+        ctx = self.ctx
+        program = self.decode_program if decoded else self.float_program
+        self._uniforms(program, camera, shading)
+        self.fbo_ms.use()
+        self.fbo_ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        for it in items:
+            if decoded:
+                it["ssbo"].bind_to_storage_buffer(0)
+                it["ubo"].bind_to_uniform_block(0)
+            program["u_part"].value = int(it["part"]) + 1
+            program["u_has_normal"].value = int(it["has_normal"])
+            program["u_has_texture"].value = int(it["texture"] is not None)
+            program["u_has_color"].value = int(it["has_color"])
+            if it["texture"] is not None:
+                it["texture"].use(location=0)
+            it["vao"].render(moderngl.TRIANGLES)
+        # resolve: colour by a blit (average of samples), part IDs by sample 0
+        ctx.copy_framebuffer(self.fbo_colour, self.fbo_ms_colour)
+        self.fbo_ids.use()
+        ctx.disable(moderngl.DEPTH_TEST)
+        self._ids_ms.use(location=1)
+        self.resolve_program["u_ids"].value = 1
+        self.resolve_vao.render(moderngl.TRIANGLES, vertices=3)
+        w, h = self.size
+        rgba = np.frombuffer(self.fbo_colour.read(components=4, dtype="f1"), np.uint8).reshape(h, w, 4)[::-1].copy()
+        ids = np.frombuffer(self._ids.read(), "<u4").reshape(h, w)[::-1].copy()
+        from . import gpu
+
+        gpu.use_default_framebuffer()  # leave the context as gpu.py expects it (1x1 default target)
+        return rgba, ids
+
+    def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
+        for r in self._resources:
+            r.release()
+        self._resources = []
+
+
+class Textures:
+    """moderngl textures of the scene's base-colour images, by content digest (shared by parts)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.cache: dict = {}
+
+    def get(self, texture):
+        """The texture of a ``lopcook.types.Texture`` (None for None), built once per content digest: RGBA8
+        with mipmaps, trilinear filtering, repeat wrap. Raises LopcookError (exit 2) when the
+        image does not decode."""
+        import moderngl
+
+        if texture is None:
+            return None
+        key = texture.digest
+        if key not in self.cache:
+            try:
+                img = texture.image().convert("RGBA")
+            except Exception as exc:
+                raise LopcookError("verify", texture.name, f"cannot decode the base-colour texture ({exc})") from None
+            tex = self.ctx.texture(img.size, 4, img.tobytes())
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = True
+            self.cache[key] = tex
+        return self.cache[key]
+
+    def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
+        for t in self.cache.values():
+            t.release()
+        self.cache = {}
+
+
+def attribute_vbos(ctx, normals, uvs, colors, order=None) -> tuple[list, list]:
+    """VBO specs (buffer, format, name) of normals (n, 3) / uvs (n, 2) / colours (n, 4) float32 (each
+    optional; permuted by ``order`` when given) and the list of buffers to release."""
+    specs, bufs = [], []
+    for name, arr, fmt in (("in_normal", normals, "3f"), ("in_uv", uvs, "2f"), ("in_color", colors, "4f")):
+        if arr is None:
+            continue
+        a = np.asarray(arr, np.float32)
+        if order is not None:
+            a = a[order]
+        b = ctx.buffer(np.ascontiguousarray(a, dtype="<f4").tobytes())
+        bufs.append(b)
+        specs.append((b, fmt, name))
+    return specs, bufs
+
+
+def attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
+    """VBO specs (buffer, format, name) of a part's source normals / uvs / colours (permuted by
+    ``order`` for binned buffers) and the list of buffers to release."""
+    return attribute_vbos(ctx, part.normals, part.uvs, part.colors, order)
+
+
+def float_items(ctx, program, scene, textures) -> tuple[list, list]:
+    """Draw items (float32 positions) of every part of ``scene`` and the GL objects to release."""
+    items, owned = [], []
+    for i, p in enumerate(scene.parts):
+        pos = ctx.buffer(np.ascontiguousarray(p.positions, dtype="<f4").tobytes())
+        ibo = ctx.buffer(np.ascontiguousarray(p.indices, dtype="<u4").tobytes())
+        specs, bufs = attribute_buffers(ctx, p)
+        vao = ctx.vertex_array(program, [(pos, "3f", "in_position"), *specs], index_buffer=ibo,
+                               index_element_size=4)
+        owned += [pos, ibo, *bufs, vao]
+        items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
+                      "has_color": p.colors is not None, "texture": textures.get(p.texture)})
+    return items, owned
+
+
+class Harness:
+    """GPU state for one source scene at one resolution: the renderer, float-position draws of the
+    source parts, textures, and an optional cache of float renders (``cache_float=True``: keyed by
+    the camera matrix, eye and shading, reused across containers of the same scene, e.g. by the k_f
+    calibration or the byte-budget fit; about 8 bytes per pixel per cached view)."""
+
+    def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False):
+        from . import gpu
+
+        self.ctx = gpu.context()
+        self.scene = scene
+        self.renderer = Renderer(resolution, samples)
+        self.textures = Textures(self.ctx)
+        self.cache_float = cache_float
+        self.float_cache: dict = {}
+        lo, hi = scene.bounds()
+        self.lo, self.hi = lo, hi
+        self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
+
+    def release(self) -> None:
+        """Release the GL objects this holds; it is unusable afterwards."""
+        for b in self._buffers:
+            b.release()
+        self._buffers = []
+        self.textures.release()
+        self.renderer.release()
+        self.float_cache = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def render_float(self, camera: Camera, shading: Shading, key=None):
+        """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
+        (hashable: camera matrix, eye and shading) the result is computed once and reused."""
+        if self.cache_float and key is not None and key in self.float_cache:
+            return self.float_cache[key]
+        out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
+        if self.cache_float and key is not None:
+            self.float_cache[key] = out
+        return out
+
+    def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
+                 variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
+                 keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
+                 distance_m: float | None = None) -> dict:
+        """See ``lopcook.verify.evaluate.evaluate``."""
+        from .evaluate import harness_evaluate
+
+        return harness_evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
+                         variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
+                         image_view=image_view, lod=lod, distance_m=distance_m)
+
+    def evaluate_scene(self, test_scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
+                       distance_m: float | None = None, extent: float | None = None,
+                       viewing: Viewing | None = None, shading: Shading | None = None,
+                       keep_images: bool = False, image_view: int | None = None) -> dict:
+        """Render ``test_scene`` (a ``lopcook.types.Scene`` with **float** positions, e.g. a simplified
+        LOD chain level: "simplify only") against this harness's source scene, with the cameras
+        ``evaluate`` uses, and measure it like a decoded variant.
+
+        Parameters
+        ----------
+        test_scene : Scene whose part i stands for source part i (same order: part-ID depth-order
+            errors compare part indices); positions float64 metres (rendered as float32), its own
+            indices, normals, UVs, colours; textures: each test part's own ``texture``.
+        levels : per-buffer levels B (ints in [1, 24]) whose camera distances to use: one row per
+            level, the camera where the half-pixel criterion selects B (``camera_distance``); nothing
+            is decoded. ``camera_levels`` overrides the camera level per row as in ``evaluate``.
+        views : int N in [1, 20] or a list of icosahedron view indices (as ``evaluate``).
+        distance_m : when given, every row's camera sits this many metres from the nearest point
+            of the source's bounding box instead (its ``camera_level`` is then the level selected there).
+        extent : grid extent in metres for the distances (default: ``Grid.fit`` over the source
+            positions, the extent a container cooked without LODs has; pass a container's
+            ``manifest["grid"]["extent"]`` to use exactly its cameras).
+        viewing : field of view and pixel error (default ``Viewing()``: 60 degrees, half a pixel);
+            the viewport is always the render resolution (``render_viewing``).
+        shading : Phong parameters (default ``Shading()``: ks 0.5, shininess 32).
+        keep_images, image_view : as ``evaluate`` (image keys ``float``, ``scene``, ``float_ids``,
+            ``scene_ids``, ``scene_heatmap``).
+
+        Returns the dict ``evaluate`` returns (same top-level keys; ``container`` None, ``lod`` None,
+        ``variants`` ["scene"]) whose level rows hold one variant, ``"scene"``, with the same metrics
+        as ``"ap"``/``"cap"`` (``psnr_mean`` etc.); its ``bytes`` are the test scene's float32
+        positions (12 per vertex) and ``percent_of_float32`` is relative to the source's float32
+        positions (``float32_bytes``). Also ``test_source``, ``test_vertices``, ``test_triangles``.
+        """
+        from .evaluate import harness_evaluate_scene
+
+        return harness_evaluate_scene(self, test_scene, levels=levels, views=views, camera_levels=camera_levels,
+                               distance_m=distance_m, extent=extent, viewing=viewing, shading=shading,
+                               keep_images=keep_images, image_view=image_view)
+
+
+def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
+                   attr_cache: dict) -> tuple[list, list]:
+    """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
+    gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
+    source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
+    source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
+    file). Attribute VBOs and index buffers come from ``attr_cache``."""
+    from .gpu import decode_block
+
+    items, owned = [], []
+    for i, p in enumerate(scene.parts):
+        k = lods[i]
+        if i not in attr_cache:
+            a = lod_attributes(c, i, k)
+            ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
+            if orders[i] is not None:
+                specs, bufs = attribute_buffers(ctx, p, orders[i])
+                flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
+            else:
+                specs, bufs = attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
+                flags = (a["normals"] is not None, a["colors"] is not None,
+                         textures.get(p.texture) if a["uvs"] is not None else None)
+            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags)
+        ibo, specs, _, (has_normal, has_color, texture) = attr_cache[i]
+        buf = buffers_of(c, i, k, level)
+        words = np.ascontiguousarray(buf.words, dtype="<u4")
+        ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
+        ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, level, origin, half_cell, words.size))
+        vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
+        owned += [ssbo, ubo, vao]
+        items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
+                      "has_color": has_color, "texture": texture})
+    return items, owned
+
+
+__all__ = ["RESOLUTION", "SAMPLES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+           "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]

@@ -1,0 +1,70 @@
+"""The report model (lopcook.report.model): LOD table bytes and selection ranges, the 16-bit
+baseline record, deterministic JSON. No GL."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from lopcook.report import model as RM
+from lopcook.types import MeshPart, Scene
+
+
+def _manifest():
+    vid = [0] + [2] * 3 + [5] * 21  # 2 vertices at level <= 3, 5 in all
+    return {
+        "sections": [{"name": "p/0/indices", "length": 36}, {"name": "p/0/normals", "length": 60},
+                     {"name": "p/1/indices", "length": 12}],
+        "positions": {"max_level": 4},
+        "parts": [{"name": "p", "lods": [
+            {"vertex_id": vid, "indices": "p/0/indices", "normals": "p/0/normals", "mandatory_words": [0, 3],
+             "triangles": 3, "vertices": 5, "geometric_error_m": 0.0, "min_distance_m": None},
+            {"vertex_id": [0] + [3] * 24, "indices": "p/1/indices", "mandatory_words": [3, 2],
+             "triangles": 1, "vertices": 3, "geometric_error_m": 0.01, "min_distance_m": 2.5}]}],
+        "options": {"lods": {"reports": [{"notes": ["a note"], "stop_reason": "error bound"}]}},
+    }
+
+
+def test_lod_table_bytes_and_ranges():
+    (part,) = RM.lod_table(_manifest())
+    lod0, lod1 = part["lods"]
+    # planes 2..4: ceil(3 * vid[p - 1] / 8) bytes each: vid[1], vid[2], vid[3] = 2, 2, 2
+    assert lod0["plane_position_bytes"] == 3 * math.ceil(3 * 2 / 8)
+    assert (lod0["index_bytes"], lod0["attribute_bytes"], lod0["mandatory_position_bytes"]) == (36, 60, 12)
+    assert lod0["bytes"] == 36 + 60 + 12 + lod0["plane_position_bytes"]
+    assert lod1["plane_position_bytes"] == 3 * math.ceil(3 * 3 / 8)
+    assert (lod1["index_bytes"], lod1["attribute_bytes"], lod1["mandatory_position_bytes"]) == (12, 0, 8)
+    # LOD 0 from 0 m to where LOD 1 starts, LOD 1 without an upper bound
+    assert (lod0["min_distance_m"], lod0["max_distance_m"]) == (0.0, 2.5)
+    assert (lod1["min_distance_m"], lod1["max_distance_m"]) == (2.5, None)
+    assert part["notes"] == ["a note", "chain stopped: error bound"]
+    # the re-cook's reports replace the recorded ones
+    (part,) = RM.lod_table(_manifest(), [{"notes": [], "stop_reason": "all ratios done"}])
+    assert part["notes"] == []
+
+
+def test_uniform16_section_error_bound_and_memory():
+    pos = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 0.5], [1.0, 0.5, 0.25]])
+    scene = Scene((MeshPart("t", pos, np.array([[0, 1, 2]], np.uint32), None),), "t", "glb")
+    u = RM.uniform16_section(None, scene, 3)
+    assert u["bytes"] == 8 * 3 and u["percent_of_float32"] == pytest.approx(200 / 3)
+    assert u["max_position_error_m"] == pytest.approx(math.sqrt(3.0) * 1.0 / 32767.0 / 2.0)  # half side 1 m
+    assert not u["rendered"] and u["levels"] == [] and u["note"] == "not rendered"
+
+
+def test_report_json_bytes_are_sorted_and_refuse_nan():
+    data = RM.report_json_bytes({"b": 1, "a": [1.5, None]})
+    assert data == b'{\n "a": [\n  1.5,\n  null\n ],\n "b": 1\n}\n'
+    assert json.loads(data) == {"a": [1.5, None], "b": 1}
+    with pytest.raises(ValueError):
+        RM.report_json_bytes({"x": float("nan")})
+
+
+def test_budget_section_only_for_budget_containers():
+    assert RM.budget_section({}) is None
+    assert RM.budget_section({"options": {"budget": {"candidates": []}}}) is None
+    b = {"candidates": [{"lod": 0}], "chosen": {"lod": 0}}
+    assert RM.budget_section({"options": {"budget": b}}) is b
