@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from .version import __version__
 from .errors import EXIT_OK, LopcookError
@@ -67,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     p.add_argument("-o", "--output", required=True, metavar="OUT.lop", help="container to write (atomically)")
     p.add_argument("--depfile", metavar="OUT.d", help="write a Make-style depfile listing every file read")
+    p.add_argument("--strict", action="store_true",
+                   help="treat every warning (unreadable texture, LOD shortfall, ...) as an error: exit 2 and "
+                        "write nothing")
     p.add_argument("--lods", default=None, metavar="auto|R1,R2,...",
                    help="also write LODs: auto (the default chain 1/2, 1/4, 1/8, ... until a LOD's error exceeds "
                         "what the farthest view can show, given --nearest, or its target falls under 4 triangles) "
@@ -90,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(p)
 
     p = sub.add_parser("decode", help="decode a .lop container at a level into a standard glTF 2.0 file")
-    p.add_argument("container", metavar="OUT.lop")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
     p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
@@ -104,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("verify", help="check a .lop container (--decoders: the GPU shaders against the CPU reference; "
                                       "--source: renders against the float source)")
-    p.add_argument("container", metavar="OUT.lop")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     g = p.add_argument_group("checks (give at least one)")
     g.add_argument("--decoders", action="store_true",
                    help="decode every part/LOD with the GLSL and HLSL shaders of shaders/ (moderngl through EGL; "
@@ -136,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="one self-contained HTML report (and report.json) of a container rendered "
                                       "against its float source")
-    p.add_argument("container", metavar="OUT.lop")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--source", metavar="SOURCE", required=True, help="the glTF/GLB, OBJ or USD file it was cooked from")
     p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
                    help="HTML file to write; the JSON goes beside it with the suffix .json")
@@ -250,7 +254,9 @@ def _viewing(args):
     try:
         return Viewing(viewport=(w, h), fov_y_deg=args.fov, nearest_m=nearest, pixel_error=args.pixel_error)
     except ValueError as exc:
-        raise LopcookError("usage", None, str(exc)) from None
+        flag = {"nearest": "--nearest", "pixel": "--pixel-error", "fov": "--fov", "viewport": "--viewport"}[
+            str(exc).split(" ", 1)[0]]
+        raise LopcookError("usage", None, f"{flag}: {exc}") from None
 
 
 def add_analyse_options(p: argparse.ArgumentParser) -> None:
@@ -329,7 +335,19 @@ def _analyse_settings(args):
                                depth_ceiling=args.depth_ceiling, edges=args.edges, edge_eps=args.edge_eps,
                                edge_level=args.edge_level, edge_angle_deg=args.edge_angle)
     except ValueError as exc:
-        raise LopcookError("usage", None, str(exc)) from None
+        raise LopcookError("usage", None, _flag_message(str(exc))) from None
+
+
+#: AnalyseSettings fields whose flag is not the field name with dashes
+_FLAGS = {"edge_angle_deg": "--edge-angle", "depth_level": "--depth fixed:N"}
+
+
+def _flag_message(text: str) -> str:
+    """A settings error in the CLI's terms: ``texture_kf must ...`` -> ``--texture-kf must ...``."""
+    field = text.split(" ", 1)[0]
+    if field.isidentifier() and field.islower() and " must " in text:
+        return _FLAGS.get(field, "--" + field.replace("_", "-")) + text[len(field):]
+    return text
 
 
 def _tune_settings(args):
@@ -414,26 +432,74 @@ def cmd_cook(args) -> int:
     from . import api
 
     settings = settings_from_args(args)
-    if os.path.isdir(args.output):
-        raise LopcookError("usage", args.output, "output is a directory", hint="give a file name, e.g. out.lop")
+    _check_cook_outputs(args, (args.source,))
     t0 = time.perf_counter()
     with _progress(args).stage(f"ingest {os.path.basename(args.source)}"):
         scene = api.load(args.source, settings)
     ingest_s = time.perf_counter() - t0
+    _check_cook_outputs(args, tuple(scene.dependencies) + (args.source,))
+    depfile = _depfile_text(args, scene)
+    _warn(args, [f"{args.source}: {w}" for w in scene.warnings])
     container = api.cook(scene, settings, progress=_progress(args))
+    from .simplify import chain_warnings
+
+    _warn(args, chain_warnings(container.result.lod_reports))
     t0 = time.perf_counter()
     container.write(args.output)
-    if args.depfile:
-        from .depfile import write_depfile
+    if depfile is not None:
+        from .atomic import write_atomic
 
-        # phony rules: a listed file that does not exist yet (a missing texture) reruns the cook
-        # instead of stopping make with "no rule to make target"
-        write_depfile(args.depfile, args.output, scene.dependencies or (args.source,), phony=True)
+        write_atomic(args.depfile, depfile.encode("utf-8"))
     write_s = time.perf_counter() - t0
     container.path = args.output
     desc = _cook_summary(container, scene, ingest_s, write_s)
     _print_cook(args, desc, container.result)
     return EXIT_OK
+
+
+def _check_cook_outputs(args, inputs: tuple) -> None:
+    """``-o`` and ``--depfile`` are writable files, distinct, not an input or a dependency of the
+    source, and named for what is written (lopcook.outputs); a container not named ``.lop`` is a
+    warning."""
+    from .outputs import OTHER_OUTPUTS, SOURCE_EXTENSIONS, check_distinct, check_output
+
+    check_output(args.output, "-o", extensions=(".lop",), what="a .lop container", inputs=inputs,
+                 forbidden=SOURCE_EXTENSIONS + OTHER_OUTPUTS, required=False)
+    if args.depfile:
+        check_output(args.depfile, "--depfile", extensions=(".d",), what="a Make depfile", inputs=inputs,
+                     forbidden=SOURCE_EXTENSIONS + (".lop",), required=False)
+    check_distinct(("-o", args.output), ("--depfile", args.depfile))
+    if len(inputs) == 1 and not args.output.lower().endswith(".lop"):
+        _warn(args, [f"{args.output}: a .lop container is written to a file not named .lop"])
+
+
+def _depfile_text(args, scene) -> str | None:
+    """The depfile's text, made before anything is written: a dependency path Make cannot hold (a
+    newline) is a usage error that leaves every output untouched. Phony rules: a listed file that
+    does not exist yet (a missing texture) reruns the cook instead of stopping make."""
+    if not args.depfile:
+        return None
+    from .depfile import format_depfile
+
+    try:
+        return format_depfile(args.output, scene.dependencies or (args.source,), phony=True)
+    except ValueError as exc:
+        raise LopcookError("usage", args.source, f"--depfile: {exc}",
+                           hint="rename the file, or cook without --depfile") from None
+
+
+def _warn(args, lines: list[str]) -> None:
+    """Warnings on stderr (``lopcook: warning: ...``) unless --quiet; with --strict the first
+    warning is an error (exit 2) before anything is written."""
+    if not lines:
+        return
+    if getattr(args, "strict", False):
+        raise LopcookError("usage", None, f"--strict: {lines[0]}" + (f" (and {len(lines) - 1} more warnings)"
+                                                                      if len(lines) > 1 else ""))
+    if not args.quiet:
+        for line in lines:
+            print(f"lopcook: warning: {line}", file=sys.stderr)
+        sys.stderr.flush()
 
 
 def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
@@ -450,8 +516,11 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
     timings.update({k: v for k, v in result.timings_s.items() if k != "calibrate"})
     timings["write"] = write_s
     desc = describe_container(container, file_bytes=len(container.data))
+    from .simplify import chain_warnings
+
     desc.update(timings_s=timings, warnings=list(scene.warnings), touching=[list(p) for p in an.touching],
-                intersecting=[list(p) for p in an.intersecting])
+                intersecting=[list(p) for p in an.intersecting], lod_warnings=chain_warnings(result.lod_reports),
+                lod_reports=result.lod_reports)
     if result.calibration is not None:
         desc["calibration"] = result.calibration
     if result.budget is not None:
@@ -494,6 +563,9 @@ def cmd_calibrate(args) -> int:
         print(json.dumps(cal, indent=1, sort_keys=True))
     elif not args.quiet or not cal["reached"]:
         print(format_calibration(cal))
+        if cal["reached"]:
+            print(f"  apply it: lopcook cook {args.source} -o OUT.lop --eps {cal['eps']:.6g} "
+                  f"--edge-eps {cal['edge_eps']:.6g} (or cook --target-psnr {cal['target_psnr']:g} to search again)")
     return EXIT_OK if cal["reached"] else EXIT_VERIFY_FAILED
 
 
@@ -501,10 +573,15 @@ def cmd_decode(args) -> int:
     from .emit.container import read
     from .emit.gltf_writer import write_gltf
     from .emit.reader import decode_positions, lod_attributes
+    from .outputs import check_output
 
-    c = read(args.container)
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
+    check_output(args.output, "-o", extensions=(".glb", ".gltf"), what="a glTF 2.0 file", inputs=(args.container,))
+    if args.output.lower().endswith(".gltf"):
+        check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
+                     what="the glTF buffer", inputs=(args.container,))
+    c = read(args.container)
     parts = c.manifest["parts"]
     deepest = max(len(p["lods"]) for p in parts)
     if not 0 <= args.lod < deepest:
@@ -655,14 +732,13 @@ def cmd_report(args) -> int:
     from .settings import IngestSettings
     from .verify.decoders import parse_levels
 
+    from .outputs import check_output
+
     out = args.output
-    if os.path.isdir(out):
-        raise LopcookError("usage", out, "-o is a directory", hint="give a file name, e.g. report.html")
-    if not out.lower().endswith((".html", ".htm")):
-        raise LopcookError("usage", out, "-o must name an .html file (the JSON is written beside it)")
-    parent = os.path.dirname(os.path.abspath(out))
-    if not os.path.isdir(parent):
-        raise LopcookError("usage", out, f"directory {os.path.dirname(out)!r} does not exist")
+    inputs = (args.container, args.source)
+    check_output(out, "-o", extensions=(".html", ".htm"), what="the HTML report (its JSON beside it)", inputs=inputs)
+    check_output(str(Path(out).with_suffix(".json")), "-o's .json", extensions=(".json",), what="the report JSON",
+                 inputs=inputs)
     views = _views(args.views, "--views")
     resolution = _resolution(args.resolution, "--resolution")
     levels = parse_levels(args.levels, args.container) if args.levels is not None else list(D.render.levels)
@@ -763,7 +839,10 @@ COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "d
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # an unknown flag after a command: that command's usage, not the top level's
+        sub = parser._subparsers._group_actions[0].choices[args.command]
+        sub.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return COMMANDS[args.command](args)
     except LopcookError as exc:

@@ -40,10 +40,10 @@ class Viewing:
             raise ValueError(f"viewport must be positive pixels, got {self.viewport}")
         if not 0.0 < self.fov_y_deg < 180.0:
             raise ValueError(f"fov must be in (0, 180) degrees, got {self.fov_y_deg}")
-        if self.nearest_m is not None and not self.nearest_m > 0:
-            raise ValueError(f"nearest distance must be > 0 m, got {self.nearest_m}")
-        if not self.pixel_error > 0:
-            raise ValueError(f"pixel error must be > 0 pixels, got {self.pixel_error}")
+        if self.nearest_m is not None and not (math.isfinite(self.nearest_m) and self.nearest_m > 0):
+            raise ValueError(f"nearest distance must be a finite number > 0 m, got {self.nearest_m}")
+        if not (math.isfinite(self.pixel_error) and self.pixel_error > 0):
+            raise ValueError(f"pixel error must be a finite number > 0 pixels, got {self.pixel_error}")
 
     def pixel_size(self, distance) -> np.ndarray:
         """Metres covered by one pixel at ``distance`` metres."""

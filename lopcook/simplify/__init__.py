@@ -8,7 +8,7 @@ from LOD 0), ``error`` (measured Hausdorff error), ``topology`` (defects, UV sea
 """
 
 from .backends import BACKENDS
-from .chain import MIN_SIMPLIFY_TRIANGLES, SEAM_MODES, Lod, LodReport, lod_chain, parametrise, simplify
+from .chain import MIN_SIMPLIFY_TRIANGLES, SEAM_MODES, Lod, LodReport, chain_warnings, lod_chain, parametrise, simplify
 from .error import hausdorff
 from .topology import SeamStats, mesh_defects, seam_stats
 

@@ -452,5 +452,28 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
     return lods, report
 
 
-__all__ = ["Lod", "LodReport", "simplify", "lod_chain", "parametrise", "SEAM_MODES", "TARGET_TOLERANCE",
+def chain_warnings(reports: list[dict]) -> list[str]:
+    """The LOD shortfalls a user must see, one line each, from ``LodReport.as_dict()`` records:
+    backends that failed (and what they fell back to), LODs that missed their triangle target by
+    more than ``TARGET_TOLERANCE``, and parts that got no LODs although they could be simplified.
+    Copies of one mesh share one line (``part A and 3 copies``)."""
+    found: dict[str, list[str]] = {}
+    for rep in reports:
+        lines = []
+        for k, lod in enumerate(rep.get("lods") or []):
+            for note in lod.get("notes") or []:
+                if " failed: " in note or " triangles for a target of " in note:
+                    lines.append(f"LOD {k}: {note}")
+        if len(rep.get("lods") or []) <= 1 and rep.get("triangles", 0) >= MIN_SIMPLIFY_TRIANGLES:
+            lines.append(f"no LODs ({rep.get('stop_reason') or 'none produced'})")
+        for line in lines:
+            found.setdefault(line, []).append(rep["part"])
+    out = []
+    for line, parts in found.items():
+        who = f"part {parts[0]!r}" + (f" and {len(parts) - 1} more" if len(parts) > 1 else "")
+        out.append(f"{who}: {line}")
+    return out
+
+
+__all__ = ["Lod", "LodReport", "simplify", "lod_chain", "chain_warnings", "parametrise", "SEAM_MODES", "TARGET_TOLERANCE",
            "MIN_SIMPLIFY_TRIANGLES"]

@@ -52,7 +52,8 @@ def parse_levels(text: str | None, path: str | None = None) -> list[int]:
             if "-" in item:
                 a, b = (int(v) for v in item.split("-", 1))
                 if a > b:
-                    raise ValueError
+                    raise LopcookError("usage", path, f"--levels {text!r}: the range {a}-{b} is reversed "
+                                       f"(write {b}-{a})")
                 levels.update(range(a, b + 1))
             else:
                 levels.add(int(item))
