@@ -544,7 +544,7 @@ def _print_cook(args, desc: dict, result) -> None:
         from .tune.budget import format_budget
 
         print(format_budget(result.budget))
-    print(format_container(desc, timings=desc["timings_s"]))
+    print(format_container(dict(desc, lod_warnings=[]), timings=desc["timings_s"]))  # warnings went to stderr
     an = result.analysis
     if an.touching or an.intersecting:
         print(f"  note: {len(an.touching)} touching and {len(an.intersecting)} intersecting part "

@@ -24,6 +24,19 @@ def memory_rows(c: Container, levels=range(1, LEVELS + 1), lod: int = 0) -> list
     return rows
 
 
+def lod_shortfalls(c: Container) -> list[str]:
+    """What a container shows of its LOD chains' shortfalls: parts that got no LOD although LODs
+    were asked for (``options.lods``), grouped. Backend fallbacks are not stored in a container;
+    ``cook`` prints them when they happen."""
+    if not (c.manifest.get("options") or {}).get("lods"):
+        return []
+    bare = [p["name"] for p in c.manifest["parts"] if len(p["lods"]) == 1]
+    if not bare:
+        return []
+    more = f" and {len(bare) - 1} more" if len(bare) > 1 else ""
+    return [f"part {bare[0]!r}{more}: no LODs (LOD 0 only)"]
+
+
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
     m = c.manifest
@@ -61,6 +74,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "memory": memory_rows(c),
         "savings": m.get("savings"),
         "parts": parts,
+        "lod_warnings": lod_shortfalls(c),
     }
 
 
@@ -100,6 +114,8 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         if sv["lods_dropped"]:
             what.append(f"{_n(sv['lods_dropped'], 'LOD')} no distance selects dropped")
         lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: {', '.join(what)}")
+    for w in d.get("lod_warnings") or []:
+        lines.append(f"  LOD warning: {w}")
     if timings:
         lines.append("")
         lines.append("  time: " + ", ".join(f"{k} {v:.3f} s" for k, v in timings.items()))
