@@ -235,7 +235,7 @@ def test_cli_edge_options(tmp_path):
     assert off["totals"]["histogram"][1] == 24 and off["totals"]["reasons"]["edge"] == 0
     bad = subprocess.run([sys.executable, "-m", "lopcook", "analyse", FIXTURES / "seamed_cube.gltf",
                           "--edge-eps", "2"], capture_output=True, text=True)
-    assert bad.returncode == 2 and "edge_eps" in bad.stderr and "Traceback" not in bad.stderr
+    assert bad.returncode == 2 and "--edge-eps" in bad.stderr and "Traceback" not in bad.stderr
 
 
 # ---- render: the constraint removes the hard-edge error AP and plain CAP leave --------------------

@@ -181,7 +181,7 @@ def test_lod_k_renders_its_own_buffers(gl, sphere_lods):
     assert r["levels"][1]["ap"]["bytes"] == 4 * ((3 * 10 * n1 + 31) // 32)
     assert r["float32_bytes"] == 12 * s.parts[0].n_vertices  # relative to the source (LOD 0)
     b = info.buffers[0][1]
-    grid = info["analysis"].grid
+    grid = info.analysis.grid
     lod1 = Scene((MeshPart("sphere", grid.reconstruct(b.quantized, 24), b.indices, b.normals),), "lod1", "glb")
     f = E.evaluate_scene(lod1, s, levels=[9], views=4, resolution=SMALL, extent=c.manifest["grid"]["extent"])
     assert f["levels"][0]["camera_distance_m"] == r["levels"][0]["camera_distance_m"]
