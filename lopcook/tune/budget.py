@@ -71,10 +71,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..simplify import MIN_SIMPLIFY_TRIANGLES
 from ..emit.binning import LEVELS
+from ..emit.manifest import FLOAT32_BYTES_PER_VERTEX
 from ..errors import LopcookError
 from ..settings import DEFAULT_LOD_LEVELS, DEFAULTS, BudgetScope, LodSpec, Settings, halvings
+from ..simplify import MIN_SIMPLIFY_TRIANGLES
 from ..types import Scene
 from ..viewing import Viewing
 
@@ -85,6 +86,8 @@ DEFAULT_VIEWS = DEFAULTS.tune.budget.views
 DEFAULT_LEVELS_PER_LOD = DEFAULTS.tune.budget_levels
 #: float32 bytes per vertex of each attribute (what "float size" counts)
 FLOAT_ATTRIBUTE_BYTES = {"normals": 12, "uvs": 8, "colors": 16}
+#: bytes per triangle of a 32-bit index buffer
+FLOAT_INDEX_BYTES = 12
 #: PSNR values recorded in the manifest are rounded to this many decimals (dB)
 PSNR_DECIMALS = 4
 
@@ -104,12 +107,12 @@ def float_bytes(scene: Scene, scope: str = DEFAULT_SCOPE) -> int:
     _check_scope(scope)
     total = 0
     for p in scene.parts:
-        total += 12 * p.n_vertices
+        total += FLOAT32_BYTES_PER_VERTEX * p.n_vertices
         if scope != "positions":
             total += sum(FLOAT_ATTRIBUTE_BYTES[k] * p.n_vertices for k in FLOAT_ATTRIBUTE_BYTES
                          if getattr(p, k) is not None)
         if scope == "all":
-            total += 12 * p.n_triangles
+            total += FLOAT_INDEX_BYTES * p.n_triangles
     return int(total)
 
 
@@ -126,17 +129,16 @@ def candidate_bytes(c, lods: list[int], level: int, scope: str = DEFAULT_SCOPE) 
     section as stored), ``bytes`` (the sum of what ``scope`` counts), ``vertices``, ``triangles``
     and ``clamped_vertices`` (vertices whose minimum level is above B)."""
     _check_scope(scope)
-    sizes = {s["name"]: int(s["length"]) for s in c.manifest["sections"]}
     pos = attrs = idx = n = m = clamped = 0
+    parts = c.entries.parts
     for i, k in enumerate(lods):
-        e = c.manifest["parts"][i]["lods"][k]
-        nv = int(e["vertices"])
-        pos += 4 * ((3 * int(level) * nv + 31) // 32)
-        attrs += sum(sizes.get(e.get(key) or "", 0) for key in ("normals", "uvs", "colors"))
-        idx += sizes.get(e["indices"], 0)
-        n += nv
-        m += int(e["triangles"])
-        clamped += nv - int(e["vertex_id"][int(level)])
+        e = parts[i].lods[k]
+        pos += e.ap_bytes(level)
+        attrs += e.attribute_bytes
+        idx += e.index_bytes
+        n += e.vertices
+        m += e.triangles
+        clamped += e.vertices - int(e.vertex_id[int(level)])
     total = pos + (attrs if scope != "positions" else 0) + (idx if scope == "all" else 0)
     return {"position_bytes": int(pos), "attribute_bytes": int(attrs), "index_bytes": int(idx), "bytes": int(total),
             "vertices": int(n), "triangles": int(m), "clamped_vertices": int(clamped)}
@@ -146,14 +148,15 @@ def lod_float_bytes(c, lods: list[int], scope: str = DEFAULT_SCOPE) -> int:
     """Float size of the LOD itself ("simplify only"): float32 positions, plus float32 attributes the
     LOD has ("vertices"), plus 32-bit indices ("all")."""
     total = 0
+    parts = c.entries.parts
     for i, k in enumerate(lods):
-        e = c.manifest["parts"][i]["lods"][k]
-        nv = int(e["vertices"])
-        total += 12 * nv
+        e = parts[i].lods[k]
+        total += e.float32_bytes
         if scope != "positions":
-            total += sum(FLOAT_ATTRIBUTE_BYTES[key] * nv for key in FLOAT_ATTRIBUTE_BYTES if e.get(key))
+            total += sum(FLOAT_ATTRIBUTE_BYTES[key] * e.vertices for key in FLOAT_ATTRIBUTE_BYTES
+                         if e.section_bytes.get(key))
         if scope == "all":
-            total += 12 * int(e["triangles"])
+            total += FLOAT_INDEX_BYTES * e.triangles
     return int(total)
 
 

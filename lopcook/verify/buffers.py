@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..emit.binning import LEVELS, buffer_bytes, table_bit_id
+from ..emit.binning import LEVELS, table_bit_id
 from ..emit.bitplane import pack
 from ..emit.reader import GpuBuffer, lod_attributes, lod_entry, top_values
 from ..errors import LopcookError
+from ..settings import DEFAULTS
 
 #: per-buffer levels B rendered by default (the range of the paper's Table 1, plus 12)
-DEFAULT_LEVELS = tuple(range(6, 13))
+DEFAULT_LEVELS = DEFAULTS.render.levels
 #: the decoded variants: AP (every vertex B bits) and CAP (the container's bins)
 VARIANTS = ("ap", "cap")
 #: the LOD rendered by default
@@ -109,11 +110,9 @@ def position_bytes(c, lods: list[int], level: int) -> dict:
     """GPU-resident position bytes at per-buffer level B over all parts (part i's LOD ``lods[i]``):
     ``cap`` (binned buffers, ``buffer_bytes``) and ``ap`` (every vertex B bits, whole words per
     buffer), as ``lopcook.emit.summary.memory_rows`` counts them for LOD 0."""
-    cap = ap = 0
-    for i, k in enumerate(lods):
-        vid = np.asarray(lod_entry(c, i, k)["vertex_id"], dtype=np.int64)
-        cap += buffer_bytes(vid, level)
-        ap += 4 * ((3 * int(level) * int(vid[LEVELS]) + 31) // 32)
+    parts = c.entries.parts
+    cap = sum(parts[i].lods[k].cap_bytes(level) for i, k in enumerate(lods))
+    ap = sum(parts[i].lods[k].ap_bytes(level) for i, k in enumerate(lods))
     return {"cap": int(cap), "ap": int(ap)}
 
 

@@ -34,10 +34,11 @@ import numpy as np
 
 from ..errors import LopcookError
 from ..mesh import icosahedron
+from ..settings import DEFAULTS
 from ..viewing import VIEW_ROTATION, Viewing, distance_for_level, nearest_box_distance
 
 #: number of icosahedron view directions
-VIEW_COUNT = 20
+VIEW_COUNT = DEFAULTS.render.views
 #: cameras sit this much (relative) beyond d_B, so that ``required_level`` gives B
 DISTANCE_MARGIN = 2.0**-20
 

@@ -37,15 +37,16 @@ import numpy as np
 
 from ..emit.reader import lod_attributes
 from ..errors import LopcookError
+from ..settings import DEFAULTS
 from ..viewing import Viewing
 from .buffers import DEFAULT_LEVELS, LOD, VARIANTS
 from .cameras import VIEW_COUNT, Camera
 from .glsl import FS, RESOLVE_FS, RESOLVE_VS, vertex_shader_source
 
 #: render size (width, height) in pixels by default
-RESOLUTION = (1280, 720)
+RESOLUTION = DEFAULTS.render.resolution
 #: MSAA samples per pixel by default
-SAMPLES = 4
+SAMPLES = DEFAULTS.render.samples
 #: Phong ambient and diffuse weights (dimensionless)
 AMBIENT = 0.15
 DIFFUSE = 0.65
