@@ -1,0 +1,229 @@
+"""Decoding of the coded connectivity: whole hierarchy, one subtree, or one cut.
+
+This work is based on the view-dependent connectivity coding paper, sections 3, 5 and 9: a
+node's record is decodable from its ancestors' records alone ("decompression is only dependent
+on ancestor nodes"). The decoder walks nodes top-down in preorder; the only state a node needs
+is the list of ancestor-subtri corners that reached it (its control bits say which child each
+follows) and the path of ancestors (for the external corners' ``(h, diff)``).
+
+Every read is bounded by the node's record; a record that is too short or too long, an invalid
+Huffman prefix, or a value outside its range raises ``LopcookError`` (stage ``"decode"``).
+Decoding is a bounded loop over the nodes asked for: it always terminates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import LopcookError
+from .coding import NONE, NONMANIFOLD
+
+_HINT = "the hierarchy data is corrupt or truncated; re-encode it"
+
+
+def _fail(msg: str):
+    raise LopcookError("decode", None, f"connectivity: {msg}", hint=_HINT)
+
+
+class _Reader:
+    """Symbol reads on one bit buffer (MSB first)."""
+
+    def __init__(self, data: bytes):
+        self.buf = bytes(data) + b"\0" * 8
+
+    def peek32(self, pos: int) -> int:
+        k = pos >> 3
+        return (int.from_bytes(self.buf[k:k + 5], "big") >> (8 - (pos & 7))) & 0xFFFFFFFF
+
+
+def decode_records(h, nodes, want_pending: bool = False):
+    """Decode the records of ``nodes`` (internal nodes in preorder, each one's ancestors included).
+
+    Parameters
+    ----------
+    h : lopcook.hierarchy.format.Hierarchy
+    nodes : iterable of int, internal node indices (preorder numbering), sorted ascending and
+        closed under ancestors.
+
+    Returns
+    -------
+    owner : (t,) int64 node owning each decoded subtri
+    corners : (t, 3) int64 corners in input orientation; a value ``>= 0`` is a leaf ID, a value
+        ``< 0`` is ``-(node + 1)``: the corner lies below that node, whose record was not decoded.
+    """
+    var = h.variant
+    compact = var.numbering == "compact"
+    explicit = var.internal == "explicit"
+    predicted = var.control == "predicted"
+    left, right, depth, size, lo = h.left_l, h.right_l, h.depth_l, h.size_l, h.lo_l
+    rank = h.rank_l
+    starts = h.record_starts_l
+    rd = _Reader(h.data)
+    peek = rd.peek32
+    luts = {k: t.lut() for k, t in h.tables.items()}
+    Hs, Hl, HL = luts["H"]
+    Es, El, EL = luts["D" if var.tables == "single" else "E"]
+    if explicit:
+        Is, Il, IL = luts["D" if var.tables == "single" else "I"]
+    Ns, Nl, NL = luts["N"]
+    if predicted:
+        Cs, Cl, CL = luts["C"]
+    pending = {}
+    path = []
+    owner = []
+    corn = []
+    n_nodes = len(left)
+
+    def sym(lut_s, lut_l, L, pos, escbits, end):
+        x = peek(pos) >> (32 - L) if L else 0
+        ln = lut_l[x]
+        if ln == 0:
+            _fail(f"invalid code at bit {pos}")
+        s = lut_s[x]
+        pos += ln
+        if s is None:
+            if escbits:
+                s = peek(pos) >> (32 - escbits)
+                pos += escbits
+            else:
+                s = 0
+        if pos > end:
+            _fail(f"record overrun at bit {pos} (ends at {end})")
+        return s, pos
+
+    for u in nodes:
+        if u < 0 or u >= n_nodes or left[u] < 0:
+            _fail(f"node {u} is not an internal node")
+        r = rank[u]
+        pos, end = starts[r], starts[r + 1]
+        d = depth[u]
+        if d > len(path):
+            _fail(f"node {u} decoded before its ancestors")
+        del path[d:]
+        path.append(u)
+        Lu, Ru = left[u], right[u]
+        dbits = d.bit_length()
+        # (1) the subtris: slot symbols
+        entries = []  # (orient, h)
+        s, pos = sym(Hs, Hl, HL, pos, dbits, end)
+        if s == NONMANIFOLD:
+            n0, pos = sym(Ns, Nl, NL, pos, 16, end)
+            n1, pos = sym(Ns, Nl, NL, pos, 16, end)
+            todo = [0] * n0 + [1] * n1
+            first = None
+        else:
+            todo = [0, 1]
+            first = s
+        for k, orient in enumerate(todo):
+            if first is not None:
+                if k == 1:
+                    s, pos = sym(Hs, Hl, HL, pos, dbits, end)
+                else:
+                    s = first
+                if s == NONE:
+                    continue
+            else:
+                s, pos = sym(Hs, Hl, HL, pos, dbits, end)
+            hh = s
+            if hh is None or hh < 1 or hh > d:
+                _fail(f"height {hh} at node {u} (depth {d})")
+            vp = path[d - hh]
+            child = path[d - hh + 1]
+            vleft = child == left[vp]
+            if compact:
+                if var.refine:
+                    if vleft:
+                        base, rng = lo[right[vp]], size[right[vp]]
+                    else:
+                        base, rng = lo[vp], size[left[vp]]
+                else:
+                    base, rng = lo[vp], size[vp]
+            else:
+                if var.refine:
+                    if vleft:
+                        base, rng = right[vp], 2 * size[right[vp]] - 1
+                    else:
+                        base, rng = vp, 2 * size[left[vp]] + 1
+                else:
+                    base, rng = vp, 2 * size[vp] - 1
+            e, pos = sym(Es, El, EL, pos, (rng - 1).bit_length(), end)
+            if e is None or e < 0 or e >= rng:
+                _fail(f"external difference {e} outside [0, {rng}) at node {u}")
+            if compact:
+                c = base + e
+            else:
+                cn = base + e
+                if cn >= n_nodes or left[cn] >= 0:
+                    _fail(f"external corner {cn} is not a leaf at node {u}")
+                c = lo[cn]
+            t = len(owner)
+            owner.append(u)
+            if explicit:
+                ra = size[Lu] if compact else 2 * size[Lu] + 1
+                ia, pos = sym(Is, Il, IL, pos, (ra - 1).bit_length(), end)
+                if var.refine:
+                    rb = size[Ru] if compact else 2 * size[Ru] - 1
+                else:
+                    rb = size[u] if compact else 2 * size[u]
+                ib, pos = sym(Is, Il, IL, pos, (rb - 1).bit_length(), end)
+                if ia is None or ib is None or not (0 <= ia < ra) or not (0 <= ib < rb):
+                    _fail(f"internal difference outside its range at node {u}")
+                if compact:
+                    a = lo[u] + ia
+                    b = (lo[Ru] if var.refine else lo[u]) + ib
+                    if not (lo[Lu] <= a < lo[Ru]) or not (lo[Ru] <= b < lo[u] + size[u]):
+                        _fail(f"internal corner outside its subtree at node {u}")
+                else:
+                    an = u + ia
+                    bn = (Ru if var.refine else u) + ib
+                    if an >= n_nodes or bn >= n_nodes or left[an] >= 0 or left[bn] >= 0 \
+                            or not (Lu <= an < Ru) or not (Ru <= bn < u + 2 * size[u] - 1):
+                        _fail(f"internal corner is not a leaf of its subtree at node {u}")
+                    a, b = lo[an], lo[bn]
+                corn.extend((a, b, c) if orient == 0 else (b, a, c))
+            else:
+                if orient == 0:
+                    corn.extend((-(Lu + 1), -(Ru + 1), c))
+                    entries.append((3 * t, Lu))
+                    entries.append((3 * t + 1, Ru))
+                else:
+                    corn.extend((-(Ru + 1), -(Lu + 1), c))
+                    entries.append((3 * t + 1, Lu))
+                    entries.append((3 * t, Ru))
+        # (2) control bits for the ancestor corners that reached u, in arrival order
+        if not explicit:
+            pend = pending.pop(u, ())
+            k = len(pend)
+            if k:
+                if predicted:
+                    bits, pos = h.read_predicted(rd, pos, end, u, pend, corn, path)
+                else:
+                    if pos + k > end:
+                        _fail(f"record of node {u} too short for {k} control bits")
+                    bits = []
+                    p = pos
+                    rem = k
+                    while rem:
+                        take = min(rem, 32)
+                        w = peek(p) >> (32 - take)
+                        bits.extend((w >> (take - 1 - j)) & 1 for j in range(take))
+                        p += take
+                        rem -= take
+                    pos = p
+                for ref, bit in zip(pend, bits):
+                    ch = Ru if bit else Lu
+                    if left[ch] < 0:
+                        corn[ref] = lo[ch]
+                    else:
+                        corn[ref] = -(ch + 1)
+                        pending.setdefault(ch, []).append(ref)
+            for ref, ch in entries:
+                if left[ch] < 0:
+                    corn[ref] = lo[ch]
+                else:
+                    pending.setdefault(ch, []).append(ref)
+        if pos != end:
+            _fail(f"record of node {u} has {end - pos} bits left over")
+    own = np.asarray(owner, np.int64)
+    tri = np.asarray(corn, np.int64).reshape(-1, 3)
+    return own, tri
