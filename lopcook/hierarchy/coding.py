@@ -62,6 +62,12 @@ class Variant:
     corner : "id" or "path" (CAME baseline: measurement only).
     control : "raw" (one bit each, the paper) or "predicted" (geometric prediction, ours).
     table_size : entries per table including the escape (512 in the paper).
+    candidates : (ours) an external corner equal to the external corner of an ancestor subtri
+                 that reaches the node is coded as its index in that arrival-ordered list, by a
+                 special height symbol ``-(2 + index)`` (index < 16); needs ``internal="control"``.
+    external : "value" (the paper: Huffman over the difference values) or "bucket" (ours: the
+               difference's bit length Huffman-coded in one small table per height context
+               ``min(h, 16)``, then its bits below the leading one raw).
     """
 
     numbering: str = "compact"
@@ -72,14 +78,18 @@ class Variant:
     corner: str = "id"
     control: str = "raw"
     table_size: int = 512
+    candidates: bool = False
+    external: str = "value"
 
     @property
     def decodable(self) -> bool:
-        return self.corner == "id"
+        """Whether :func:`~lopcook.hierarchy.format.encode_hierarchy` can write (and the decoder
+        read) this variant; CAME paths and predicted control bits are measured only."""
+        return self.corner == "id" and self.control == "raw"
 
 
 PROPOSED = Variant()
-PROPOSED_PLUS = Variant(control="predicted")
+PROPOSED_PLUS = Variant(candidates=True, external="bucket")
 RELATIVE_ID = Variant(internal="explicit")
 CAME = Variant(corner="path", internal="explicit", numbering="vds", refine=False, restructure=False)
 
@@ -94,14 +104,22 @@ VARIANTS = {
     "relative_id_restructure": Variant(internal="explicit", tables="single"),
     "relative_id": RELATIVE_ID,
     "proposed": PROPOSED,
+    "proposed_predicted": Variant(control="predicted"),
+    "proposed_candidates": Variant(candidates=True),
+    "proposed_bucket": Variant(external="bucket"),
     "proposed_plus": PROPOSED_PLUS,
 }
+CAND_MAX = 16
+H_CONTEXTS = 16
 
 
 def _check_variant(v: Variant) -> None:
     ok = (v.numbering in ("compact", "vds") and v.tables in ("separate", "single")
           and v.internal in ("explicit", "control") and v.corner in ("id", "path")
-          and v.control in ("raw", "predicted") and 4 <= v.table_size <= 1 << 15)
+          and v.control in ("raw", "predicted") and 4 <= v.table_size <= 1 << 15
+          and v.external in ("value", "bucket")
+          and (v.internal == "control" or (not v.candidates and v.control == "raw"))
+          and (v.external == "value" or (v.corner == "id" and v.numbering == "compact")))
     if not ok:
         raise LopcookError("usage", None, f"invalid hierarchy coding variant {v}",
                            hint="see lopcook.hierarchy.coding.Variant for the allowed values")
@@ -295,7 +313,15 @@ def table_sizes(variant: Variant) -> dict:
         out["P"] = 64
     if variant.control == "predicted":
         out["C"] = s
+    if variant.external == "bucket":
+        for k in range(H_CONTEXTS):
+            out[context_table(k)] = 64
     return out
+
+
+def context_table(k: int) -> str:
+    """Table name of the bucket dictionary for height context ``k = min(h, 16) - 1``."""
+    return chr(ord("a") + k)
 
 
 def _table_for(variant, kind):
@@ -321,7 +347,7 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     owner_rank = rank_of[st.v]
     nm = st.nm
     # position in record
-    slotpos = np.where(nm, 3 + st.rank * 4, st.orient * 4)
+    slotpos = 2 * np.where(nm, 3 + st.rank * 4, st.orient * 4)  # even: symbols, odd: raw tails
     # NONE symbols for manifold-coded nodes lacking a slot
     internal = np.flatnonzero(L >= 0)
     n0 = np.bincount(st.v[st.orient == 0], minlength=L.shape[0])
@@ -330,16 +356,36 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     depth_bits = bitlen(depth)
     for slot, cnt in ((0, n0), (1, n1)):
         empty = internal[(~nmn[internal]) & (cnt[internal] == 0)]
-        toks.add("H", _key(rank_of[empty], slot * 4), np.full(empty.shape, NONE), depth_bits[empty])
+        toks.add("H", _key(rank_of[empty], slot * 8), np.full(empty.shape, NONE), depth_bits[empty])
     nmi = internal[nmn[internal]]
     toks.add("H", _key(rank_of[nmi], 0), np.full(nmi.shape, NONMANIFOLD), depth_bits[nmi])
     if np.any(n0[nmi] >= 1 << N_ESC_BITS) or np.any(n1[nmi] >= 1 << N_ESC_BITS):
         raise LopcookError("encode", None, "a node owns more than 65535 triangles of one orientation",
                            hint="split the part")
-    toks.add("N", _key(rank_of[nmi], 1), n0[nmi], N_ESC_BITS)
-    toks.add("N", _key(rank_of[nmi], 2), n1[nmi], N_ESC_BITS)
-    # heights
-    toks.add("H", _key(owner_rank, slotpos), st.h, depth_bits[st.v])
+    toks.add("N", _key(rank_of[nmi], 2), n0[nmi], N_ESC_BITS)
+    toks.add("N", _key(rank_of[nmi], 4), n1[nmi], N_ESC_BITS)
+    # control bits (and their sources) first: the candidate lists come from them
+    if variant.internal == "control":
+        w, bit, ckey, cti, cj = control_bits(lay, st, with_source=True)
+    cand = np.full(m, -1, np.int64)
+    if variant.candidates and w.size:
+        n_ids = int(lay.lo.max()) + 1
+        ck = w * n_ids + lay.lo[st.c[cti]]
+        _, first = np.unique(ck, return_index=True)
+        first = np.sort(first)  # arrival order (entries are sorted by record, then key)
+        dw, dk = w[first], ck[first]
+        gs = np.r_[0, np.flatnonzero(np.diff(dw)) + 1]
+        idx = np.arange(dw.shape[0]) - np.repeat(gs, np.diff(np.r_[gs, dw.shape[0]]))
+        o = np.argsort(dk)
+        sk = st.v * n_ids + lay.lo[st.c]
+        j = np.minimum(np.searchsorted(dk[o], sk), max(dk.shape[0] - 1, 0))
+        hit = dk[o][j] == sk
+        cand = np.where(hit, idx[o][j], -1)
+        cand[cand >= CAND_MAX] = -1
+    usec = cand >= 0
+    hval = np.where(usec, -2 - cand, st.h)
+    toks.add("H", _key(owner_rank, slotpos), hval, depth_bits[st.v])
+    keep = ~usec
     vp = st.vp
     if variant.corner == "id":
         # external difference and its range
@@ -356,7 +402,20 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
             else:
                 base, rng = lay.pre[vp], 2 * size[vp] - 1
         ediff = ident[st.c] - base
-        toks.add(_table_for(variant, "E"), _key(owner_rank, slotpos + 1), ediff, bitlen(rng - 1))
+        if variant.external == "value":
+            toks.add(_table_for(variant, "E"), _key(owner_rank[keep], slotpos[keep] + 2), ediff[keep],
+                     bitlen(rng - 1)[keep])
+        else:
+            bk = bitlen(ediff)
+            ctx = np.minimum(st.h, H_CONTEXTS) - 1
+            for k in np.unique(ctx[keep]).tolist():
+                sel = keep & (ctx == k)
+                toks.add(context_table(k), _key(owner_rank[sel], slotpos[sel] + 2), bk[sel],
+                         bitlen(bitlen(rng - 1))[sel])
+            mant = keep & (bk >= 2)
+            toks.add_raw(_key(owner_rank[mant], slotpos[mant] + 3),
+                         (ediff[mant] - (np.int64(1) << (bk[mant] - 1))).astype(np.uint64),
+                         bk[mant] - 1)
         if variant.internal == "explicit":
             v = st.v
             ia = ident[st.a] - ident[v]
@@ -368,26 +427,25 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
                 ib = ident[st.b] - ident[v]
                 rb = size[v] if compact else 2 * size[v]
             tb = _table_for(variant, "I")
-            toks.add(tb, _key(owner_rank, slotpos + 2), ia, bitlen(ra - 1))
-            toks.add(tb, _key(owner_rank, slotpos + 3), ib, bitlen(rb - 1))
+            toks.add(tb, _key(owner_rank, slotpos + 4), ia, bitlen(ra - 1))
+            toks.add(tb, _key(owner_rank, slotpos + 6), ib, bitlen(rb - 1))
     else:  # CAME-like relative paths: length symbol + raw path bits (first step implied)
         side = np.where(st.vleft, R[vp], L[vp])
         lc = depth[st.c] - depth[side]
         pb = bitlen(int(depth.max()))
-        toks.add("P", _key(owner_rank, slotpos + 1), lc, pb)
-        toks.add_raw(_key(owner_rank, slotpos + 1) | (1 << 30), np.zeros(m, np.uint64), lc)
+        toks.add("P", _key(owner_rank, slotpos + 2), lc, pb)
+        toks.add_raw(_key(owner_rank, slotpos + 3), np.zeros(m, np.uint64), lc)
         for j, (x, ch) in enumerate(((st.a, L[st.v]), (st.b, R[st.v]))):
             lx = depth[x] - depth[ch]
-            toks.add("P", _key(owner_rank, slotpos + 2 + j), lx, pb)
-            toks.add_raw(_key(owner_rank, slotpos + 2 + j) | (1 << 30), np.zeros(m, np.uint64), lx)
+            toks.add("P", _key(owner_rank, slotpos + 4 + 2 * j), lx, pb)
+            toks.add_raw(_key(owner_rank, slotpos + 5 + 2 * j), np.zeros(m, np.uint64), lx)
     n_control = 0
     if variant.internal == "control":
-        w, bit, ckey = control_bits(lay, st)
         n_control = int(w.shape[0])
         if variant.control == "raw":
             toks.add_raw(_key(rank_of[w], ckey), bit.astype(np.uint64), 1)
         else:
-            pred = predict_control(tree, lay, st, w, ckey)
+            pred = predict_control(tree, lay, st, w, cti, cj)
             _add_predicted(toks, rank_of, w, bit ^ pred)
     # ---- build tables and pack ----
     sizes = table_sizes(variant)
@@ -397,13 +455,14 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
         k = np.concatenate([x[0] for x in lst])
         val = np.concatenate([x[1] for x in lst])
         eb = np.concatenate([np.asarray(x[2]).reshape(-1) for x in lst])
-        force = (NONE, NONMANIFOLD) if name == "H" else ()
+        force = tuple(sorted({NONE, NONMANIFOLD} | set(np.unique(val[val < 0]).tolist()))) \
+            if name == "H" else ()
         t = Table.build(val, sizes[name], force=force)
         tables[name] = t
         cd, ln = t.encode(val, eb)
         keys.append(k), codes.append(cd), lens.append(ln), cats.append(np.full(k.shape, name, object))
-    for name in sizes:
-        if name not in tables and name != "C":
+    for name in ("H", "E", "I", "D", "N"):
+        if name in sizes and name not in tables:
             tables[name] = Table.build(np.zeros(0, np.int64), sizes[name],
                                        force=(NONE, NONMANIFOLD) if name == "H" else ())
     for k, cd, nb in toks.raw:
@@ -420,7 +479,8 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     bits = {"records": int(total),
             "tables": 8 * sum(len(t.to_bytes()) for t in tables.values()),
             "structure": int(L.shape[0]) + 32 * int(tree.roots.shape[0]),
-            "control": int(Ln[cat == "raw"].sum()) if variant.internal == "control" else 0,
+            "control": int(Ln[cat == "C"].sum()) if variant.control == "predicted" else
+            n_control,
             "control_count": n_control,
             "nonmanifold_nodes": int(nmn.sum()),
             "triangles": int(m)}
@@ -429,50 +489,87 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     return Coded(variant, tables, data, record_bits, bits)
 
 
-def control_bits(lay: Layout, st: Subtris):
+def control_bits(lay: Layout, st: Subtris, with_source: bool = False):
     """All control bits: (w node, bit, key in record) sorted by record and key.
 
     For the internal corner ``x`` of a subtri owned by ``A``, every internal node ``w`` strictly
     between ``A`` and the leaf ``x`` carries one bit: 1 when ``x`` follows ``right[w]``. Within
     ``w`` the bits are ordered by (depth of ``A``, rank of the subtri in ``A``'s record), which is
-    the order in which a top-down decoder sees the corners arrive.
+    the order in which a top-down decoder sees the corners arrive. With ``with_source`` also the
+    subtri index (into ``st``) and which corner (0: ``a``, 1: ``b``) each bit belongs to.
     """
     P = lay.parent
-    ws, bs, ks = [], [], []
+    ws, bs, ks, ts, cs = [], [], [], [], []
     base = (1 << 31) | (lay.depth[st.v] << 20) | st.rank
-    for x in (st.a, st.b):
+    m_all = np.arange(st.v.shape[0])
+    for j, x in enumerate((st.a, st.b)):
         prev = x.copy()
         cur = P[x]
         kb = base.copy()
         A = st.v
+        ti = m_all
         m = cur != A
-        prev, cur, kb, A = prev[m], cur[m], kb[m], A[m]
+        prev, cur, kb, A, ti = prev[m], cur[m], kb[m], A[m], ti[m]
         while cur.size:
             ws.append(cur)
             bs.append((lay.right[cur] == prev).astype(np.int64))
             ks.append(kb)
+            ts.append(ti)
+            cs.append(np.full(cur.shape, j, np.int64))
             prev = cur
             cur = P[cur]
             m = cur != A
-            prev, cur, kb, A = prev[m], cur[m], kb[m], A[m]
+            prev, cur, kb, A, ti = prev[m], cur[m], kb[m], A[m], ti[m]
     if not ws:
         z = np.zeros(0, np.int64)
-        return z, z, z
+        return (z, z, z, z, z) if with_source else (z, z, z)
     w = np.concatenate(ws)
     b = np.concatenate(bs)
     k = np.concatenate(ks)
     o = np.lexsort((k, lay.pre[w]))
+    if with_source:
+        return w[o], b[o], k[o], np.concatenate(ts)[o], np.concatenate(cs)[o]
     return w[o], b[o], k[o]
 
 
-def predict_control(tree, lay, st, w, ckey):
-    """Predicted control bit for each (w, key): 1 when the right child of ``w`` is nearer (see
-    :func:`lopcook.hierarchy.decode.predict_one` for the decoder's identical rule)."""
-    raise NotImplementedError
+def predict_control(tree, lay, st, w, cti, cj):
+    """Predicted control bit of each control entry, from positions the client holds.
+
+    For the corner of subtri ``t`` (owner ``A``) arriving at ``w``: ``q = P[o] + P[s]`` where
+    ``o`` is ``A``'s child holding the subtri's other internal corner and ``s`` the child of the
+    common ancestor ``v'`` that holds its external corner (both children of ancestors of ``w``:
+    no sibling data is used). The prediction is 1 when ``|2 P[right[w]] - q|^2 <
+    |2 P[left[w]] - q|^2`` (exact integers; a tie predicts 0).
+    """
+    P = tree.node_positions.astype(np.int64)
+    A = st.v[cti]
+    other = np.where(cj == 0, lay.right[A], lay.left[A])
+    vp = st.vp[cti]
+    cside = np.where(st.vleft[cti], lay.right[vp], lay.left[vp])
+    q = P[other] + P[cside]
+    dr = ((2 * P[lay.right[w]] - q) ** 2).sum(axis=1)
+    dl = ((2 * P[lay.left[w]] - q) ** 2).sum(axis=1)
+    return (dr < dl).astype(np.int64)
 
 
 def _add_predicted(toks, rank_of, w, xbits):
-    raise NotImplementedError
+    """Misprediction bits per node in groups of up to 8, each one symbol ``(1 << g) | bits``."""
+    if not w.size:
+        return
+    gs = np.r_[0, np.flatnonzero(np.diff(w)) + 1]
+    cnt = np.diff(np.r_[gs, w.shape[0]])
+    j = np.arange(w.shape[0]) - np.repeat(gs, cnt)
+    k = np.repeat(cnt, cnt)
+    chunk = j // CONTROL_MAX
+    g = np.minimum(CONTROL_MAX, k - chunk * CONTROL_MAX)
+    inpos = j % CONTROL_MAX
+    first = inpos == 0
+    gid = np.cumsum(first) - 1
+    val = np.zeros(int(first.sum()), np.int64)
+    np.add.at(val, gid, xbits.astype(np.int64) << (g - 1 - inpos))
+    gg = g[first]
+    val |= np.int64(1) << gg
+    toks.add("C", _key(rank_of[w[first]], (1 << 31) | chunk[first]), val, gg + 1)
 
 
 def measure(tree: VertexTree, variant: Variant = PROPOSED) -> dict:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LopcookError
-from .coding import NONE, NONMANIFOLD
+from .coding import H_CONTEXTS, NONE, NONMANIFOLD, context_table
 
 _HINT = "the hierarchy data is corrupt or truncated; re-encode it"
 
@@ -54,20 +54,25 @@ def decode_records(h, nodes, want_pending: bool = False):
     var = h.variant
     compact = var.numbering == "compact"
     explicit = var.internal == "explicit"
-    predicted = var.control == "predicted"
+    if var.control != "raw" or var.corner != "id":
+        _fail(f"variant {var} cannot be decoded")
+    cands_on = var.candidates
+    bucket = var.external == "bucket"
     left, right, depth, size, lo = h.left_l, h.right_l, h.depth_l, h.size_l, h.lo_l
+    parent = h.parent_l
     rank = h.rank_l
     starts = h.record_starts_l
     rd = _Reader(h.data)
     peek = rd.peek32
     luts = {k: t.lut() for k, t in h.tables.items()}
     Hs, Hl, HL = luts["H"]
-    Es, El, EL = luts["D" if var.tables == "single" else "E"]
+    if bucket:
+        ctx_luts = [luts.get(context_table(k)) for k in range(H_CONTEXTS)]
+    else:
+        Es, El, EL = luts["D" if var.tables == "single" else "E"]
     if explicit:
         Is, Il, IL = luts["D" if var.tables == "single" else "I"]
     Ns, Nl, NL = luts["N"]
-    if predicted:
-        Cs, Cl, CL = luts["C"]
     pending = {}
     path = []
     owner = []
@@ -91,18 +96,66 @@ def decode_records(h, nodes, want_pending: bool = False):
             _fail(f"record overrun at bit {pos} (ends at {end})")
         return s, pos
 
+    def external(hh, u, d, pos, end):
+        """Leaf ID of an external corner coded as (h, diff) at node u (depth d)."""
+        vp = path[d - hh]
+        child = path[d - hh + 1]
+        vleft = child == left[vp]
+        if compact:
+            if var.refine:
+                if vleft:
+                    base, rng = lo[right[vp]], size[right[vp]]
+                else:
+                    base, rng = lo[vp], size[left[vp]]
+            else:
+                base, rng = lo[vp], size[vp]
+        else:
+            if var.refine:
+                if vleft:
+                    base, rng = right[vp], 2 * size[right[vp]] - 1
+                else:
+                    base, rng = vp, 2 * size[left[vp]] + 1
+            else:
+                base, rng = vp, 2 * size[vp] - 1
+        if bucket:
+            lut = ctx_luts[min(hh, H_CONTEXTS) - 1]
+            if lut is None:
+                _fail(f"no bucket table for height {hh} at node {u}")
+            bk, pos = sym(lut[0], lut[1], lut[2], pos, ((rng - 1).bit_length()).bit_length(), end)
+            if bk is None or bk < 0 or bk > 32:
+                _fail(f"difference bucket {bk} at node {u}")
+            if bk >= 2:
+                e = (1 << (bk - 1)) | (peek(pos) >> (33 - bk))
+                pos += bk - 1
+                if pos > end:
+                    _fail(f"record overrun at bit {pos} (ends at {end})")
+            else:
+                e = bk
+        else:
+            e, pos = sym(Es, El, EL, pos, (rng - 1).bit_length(), end)
+        if e is None or e < 0 or e >= rng:
+            _fail(f"external difference {e} outside [0, {rng}) at node {u}")
+        if compact:
+            return base + e, pos
+        cn = base + e
+        if cn >= n_nodes or left[cn] >= 0:
+            _fail(f"external corner {cn} is not a leaf at node {u}")
+        return lo[cn], pos
+
     for u in nodes:
         if u < 0 or u >= n_nodes or left[u] < 0:
             _fail(f"node {u} is not an internal node")
         r = rank[u]
         pos, end = starts[r], starts[r + 1]
         d = depth[u]
-        if d > len(path):
+        if d > len(path) or (d and path[d - 1] != parent[u]):
             _fail(f"node {u} decoded before its ancestors")
         del path[d:]
         path.append(u)
         Lu, Ru = left[u], right[u]
         dbits = d.bit_length()
+        if cands_on:
+            cands = list(dict.fromkeys(corn[ref - ref % 3 + 2] for ref in pending.get(u, ())))
         # (1) the subtris: slot symbols
         entries = []  # (orient, h)
         s, pos = sym(Hs, Hl, HL, pos, dbits, end)
@@ -125,37 +178,15 @@ def decode_records(h, nodes, want_pending: bool = False):
             else:
                 s, pos = sym(Hs, Hl, HL, pos, dbits, end)
             hh = s
-            if hh is None or hh < 1 or hh > d:
+            if hh is not None and hh <= -2 and cands_on:
+                if -2 - hh >= len(cands):
+                    _fail(f"candidate {-2 - hh} of {len(cands)} at node {u}")
+                c = cands[-2 - hh]
+                hh = 0
+            elif hh is None or hh < 1 or hh > d:
                 _fail(f"height {hh} at node {u} (depth {d})")
-            vp = path[d - hh]
-            child = path[d - hh + 1]
-            vleft = child == left[vp]
-            if compact:
-                if var.refine:
-                    if vleft:
-                        base, rng = lo[right[vp]], size[right[vp]]
-                    else:
-                        base, rng = lo[vp], size[left[vp]]
-                else:
-                    base, rng = lo[vp], size[vp]
-            else:
-                if var.refine:
-                    if vleft:
-                        base, rng = right[vp], 2 * size[right[vp]] - 1
-                    else:
-                        base, rng = vp, 2 * size[left[vp]] + 1
-                else:
-                    base, rng = vp, 2 * size[vp] - 1
-            e, pos = sym(Es, El, EL, pos, (rng - 1).bit_length(), end)
-            if e is None or e < 0 or e >= rng:
-                _fail(f"external difference {e} outside [0, {rng}) at node {u}")
-            if compact:
-                c = base + e
-            else:
-                cn = base + e
-                if cn >= n_nodes or left[cn] >= 0:
-                    _fail(f"external corner {cn} is not a leaf at node {u}")
-                c = lo[cn]
+            if hh:
+                c, pos = external(hh, u, d, pos, end)
             t = len(owner)
             owner.append(u)
             if explicit:
@@ -195,21 +226,18 @@ def decode_records(h, nodes, want_pending: bool = False):
             pend = pending.pop(u, ())
             k = len(pend)
             if k:
-                if predicted:
-                    bits, pos = h.read_predicted(rd, pos, end, u, pend, corn, path)
-                else:
-                    if pos + k > end:
-                        _fail(f"record of node {u} too short for {k} control bits")
-                    bits = []
-                    p = pos
-                    rem = k
-                    while rem:
-                        take = min(rem, 32)
-                        w = peek(p) >> (32 - take)
-                        bits.extend((w >> (take - 1 - j)) & 1 for j in range(take))
-                        p += take
-                        rem -= take
-                    pos = p
+                if pos + k > end:
+                    _fail(f"record of node {u} too short for {k} control bits")
+                bits = []
+                p = pos
+                rem = k
+                while rem:
+                    take = min(rem, 32)
+                    w = peek(p) >> (32 - take)
+                    bits.extend((w >> (take - 1 - j)) & 1 for j in range(take))
+                    p += take
+                    rem -= take
+                pos = p
                 for ref, bit in zip(pend, bits):
                     ch = Ru if bit else Lu
                     if left[ch] < 0:

@@ -26,7 +26,7 @@ from .tree import VertexTree, build_tree
 MAGIC = b"LOPH"
 VERSION = 1
 _HINT = "the hierarchy data is corrupt or truncated; re-encode it"
-_TABLE_NAMES = ["H", "E", "I", "D", "N", "C"]
+_TABLE_NAMES = ["H", "E", "I", "D", "N", "C"] + [C.context_table(k) for k in range(C.H_CONTEXTS)]
 
 
 def _fail(msg: str):
@@ -36,16 +36,17 @@ def _fail(msg: str):
 def _variant_flags(v: C.Variant) -> int:
     return ((v.numbering == "vds") << 0 | (not v.refine) << 1 | (not v.restructure) << 2
             | (v.tables == "single") << 3 | (v.internal == "explicit") << 4
-            | (v.control == "predicted") << 5)
+            | (v.control == "predicted") << 5 | v.candidates << 6 | (v.external == "bucket") << 7)
 
 
 def _variant_from(flags: int, table_size: int) -> C.Variant:
-    if flags >> 6:
-        _fail(f"unknown variant flags {flags:#x}")
+    if flags & 32:
+        _fail(f"unsupported variant flags {flags:#x} (predicted control bits)")
     return C.Variant(numbering="vds" if flags & 1 else "compact", refine=not flags & 2,
                      restructure=not flags & 4, tables="single" if flags & 8 else "separate",
                      internal="explicit" if flags & 16 else "control",
-                     control="predicted" if flags & 32 else "raw", table_size=table_size)
+                     control="predicted" if flags & 32 else "raw", table_size=table_size,
+                     candidates=bool(flags & 64), external="bucket" if flags & 128 else "value")
 
 
 @dataclass
@@ -64,6 +65,7 @@ class Hierarchy:
     node_leaf : (N,) int64 representative leaf of each node (its position)
     error, cone_angle : (N,) float32; cone_axis : (N, 3) float32 (see ``tree.VertexTree``)
     vertex_of_leaf : (n,) int64 input vertex index of each leaf, or None when not stored
+    origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
     tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
     """
 
@@ -88,9 +90,12 @@ class Hierarchy:
     record_starts: np.ndarray
     rank: np.ndarray
     bits: dict
+    origin: np.ndarray
+    step: float
 
     def __post_init__(self):
         self.left_l = self.left.tolist()
+        self.parent_l = self.parent.tolist()
         self.right_l = self.right.tolist()
         self.depth_l = self.depth.tolist()
         self.size_l = self.size.tolist()
@@ -152,8 +157,6 @@ class Hierarchy:
         keep = (own >= node) & (own < node + 2 * self.size[node] - 1)
         return own[keep], tri[keep]
 
-    def read_predicted(self, rd, pos, end, u, pend, corn, path):  # pragma: no cover - stretch
-        _fail("predicted control bits are not supported by this version")
 
 
 def _shape_arrays(isint: np.ndarray, n_roots: int):
@@ -236,6 +239,7 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     for x in (n, N, int(tree.roots.shape[0]), int(tree.triangles.shape[0])):
         put_varint(body, x)
     body.append(1 if keep_vertex_order else 0)
+    body += struct.pack("<4d", *[float(x) for x in tree.origin], float(tree.step))
     body += np.packbits(isint).tobytes()
     body += np.packbits(repside).tobytes()
     pos = tree.positions[lay.leaf_vertex].astype("<u4")
@@ -282,6 +286,10 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
     if zlib.crc32(buf[:total - 4]) != crc:
         _fail("CRC-32 mismatch")
     variant = _variant_from(flags, tsize)
+    try:
+        C._check_variant(variant)
+    except LopcookError:
+        _fail(f"invalid variant flags {flags:#x}")
     body = buf[16:total - 4]
     p = 0
     n, p = get_varint(body, p, "hierarchy")
@@ -290,11 +298,15 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
     m, p = get_varint(body, p, "hierarchy")
     if not (n >= 1 and N == 2 * n - n_roots and 1 <= n_roots <= n) or m > 4 * N + 16:
         _fail(f"inconsistent counts (leaves {n}, nodes {N}, roots {n_roots}, triangles {m})")
-    need = 1 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 20 * N
+    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 20 * N
     if p + need > len(body):
         _fail("truncated before the node data")
     keep_order = body[p]
     p += 1
+    ox, oy, oz, step = struct.unpack_from("<4d", body, p)
+    p += 32
+    if keep_order > 1 or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
+        _fail("invalid header (vertex order flag or grid placement)")
     isint = np.unpackbits(np.frombuffer(body, np.uint8, (N + 7) // 8, p))[:N]
     p += (N + 7) // 8
     I = n - n_roots
@@ -332,7 +344,8 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
         if name not in _TABLE_NAMES or name in tables:
             _fail(f"unknown or repeated table {name!r}")
         tables[name], p = Table.from_bytes(body, p, f"hierarchy table {name}")
-    needed = {"H", "N", "D" if variant.tables == "single" else "E"}
+    needed = {"H", "N"} | ({"D" if variant.tables == "single" else "E"}
+                           if variant.external == "value" else set())
     if variant.internal == "explicit":
         needed.add("D" if variant.tables == "single" else "I")
     if variant.control == "predicted":
@@ -365,4 +378,5 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
                      parent=parent, depth=depth, size=size, lo=lo, positions=positions,
                      node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
                      vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
-                     rank=rank, bits={"connectivity": int(starts[-1])})
+                     rank=rank, bits={"connectivity": int(starts[-1])},
+                     origin=np.array([ox, oy, oz]), step=step)

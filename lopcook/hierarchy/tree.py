@@ -75,6 +75,10 @@ class VertexTree:
         Unit axis of the normal cone of the faces incident to the node's leaves (zero if none).
     cone_angle : (N,) float64
         Half-angle of that cone in radians (pi when the faces face every way or none exist).
+    origin : (3,) float64, step : float
+        World placement of the grid: a grid coordinate ``q`` lies at ``origin + (q + 0.5) * step``
+        (metres when built from float positions; the identity-like (0, 1) for grid input unless
+        ``grid=`` is given).
     """
 
     n_leaves: int
@@ -90,6 +94,8 @@ class VertexTree:
     radius: np.ndarray
     cone_axis: np.ndarray
     cone_angle: np.ndarray
+    origin: np.ndarray
+    step: float
 
     @property
     def n_nodes(self) -> int:
@@ -109,24 +115,28 @@ class VertexTree:
         return node_height(self.left, self.right)
 
 
-def quantize(positions: np.ndarray, bits: int = GRID_BITS) -> np.ndarray:
-    """(n, 3) float positions -> (n, 3) uint32 on a cube grid of ``2**bits`` cells over their bounds."""
+def quantize(positions: np.ndarray, bits: int = GRID_BITS):
+    """(n, 3) float positions -> ((n, 3) uint32, origin (3,), step) on a cube grid of ``2**bits``
+    cells over their bounds; a point decodes to ``origin + (q + 0.5) * step``."""
     p = np.asarray(positions, dtype=np.float64)
     if p.shape[0] == 0:
-        return np.zeros((0, 3), np.uint32)
+        return np.zeros((0, 3), np.uint32), np.zeros(3), 1.0
     lo = p.min(axis=0)
     extent = float((p.max(axis=0) - lo).max())
     if not np.isfinite(extent):
         raise LopcookError("analyse", None, "positions contain NaN or infinity",
                            hint="remove non-finite vertices before building a hierarchy")
     if extent <= 0.0:
-        return np.zeros(p.shape, np.uint32)
+        return np.zeros(p.shape, np.uint32), lo, 1.0
     cells = float(1 << bits)
-    return np.clip(np.floor((p - lo) / extent * cells), 0, cells - 1).astype(np.uint32)
+    q = np.clip(np.floor((p - lo) / extent * cells), 0, cells - 1).astype(np.uint32)
+    return q, lo, extent / cells
 
 
-def _check_input(positions, triangles):
+def _check_input(positions, triangles, grid=None):
     pos = np.asarray(positions)
+    origin, step = (np.zeros(3), 1.0) if grid is None else (np.asarray(grid[0], np.float64),
+                                                            float(grid[1]))
     tri = np.asarray(triangles)
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise LopcookError("analyse", None, f"positions must be (n, 3), got {pos.shape}",
@@ -135,7 +145,7 @@ def _check_input(positions, triangles):
         raise LopcookError("analyse", None, f"triangles must be (m, 3), got {tri.shape}",
                            hint="pass one part's triangle indices")
     if pos.dtype.kind == "f":
-        pos = quantize(pos)
+        pos, origin, step = quantize(pos)
     elif pos.dtype.kind in "ui":
         if pos.size and (pos.min() < 0 or pos.max() >= (1 << 32)):
             raise LopcookError("analyse", None, "grid positions outside [0, 2**32)",
@@ -155,7 +165,7 @@ def _check_input(positions, triangles):
         raise LopcookError("analyse", None,
                            f"{int(degenerate.sum())} triangles repeat a corner (first: triangle {k})",
                            hint="drop degenerate triangles (lopcook.hierarchy.drop_degenerate) first")
-    return pos, tri
+    return pos, tri, origin, step
 
 
 def drop_degenerate(triangles: np.ndarray) -> np.ndarray:
@@ -247,7 +257,7 @@ def _roots_of(parent: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         r[m] = p[m]
 
 
-def build_tree(positions: np.ndarray, triangles: np.ndarray) -> VertexTree:
+def build_tree(positions: np.ndarray, triangles: np.ndarray, grid=None) -> VertexTree:
     """Build the vertex forest of one part (see the module docstring for the contract).
 
     Parameters
@@ -256,8 +266,10 @@ def build_tree(positions: np.ndarray, triangles: np.ndarray) -> VertexTree:
         or (n, 3) uint32 grid coordinates (used as they are).
     triangles : (m, 3) int
         Triangle corners in [0, n), counter-clockwise; no repeated corner within a triangle.
+    grid : (origin (3,), step) or None
+        World placement of uint32 grid input (ignored for float input, which defines its own).
     """
-    pos, tri = _check_input(positions, triangles)
+    pos, tri, origin, step = _check_input(positions, triangles, grid)
     n = pos.shape[0]
     left, right, rep, cur_l, dead = _collapse_forest(n, tri, pos)
 
@@ -314,7 +326,7 @@ def build_tree(positions: np.ndarray, triangles: np.ndarray) -> VertexTree:
     axis, angle = _normal_cones(parent, L, R, pos, tri, n)
     return VertexTree(n_leaves=n, left=L, right=R, parent=parent, roots=roots, rep=repa,
                       positions=pos, triangles=tri, owner=owner, error=error, radius=radius,
-                      cone_axis=axis, cone_angle=angle)
+                      cone_axis=axis, cone_angle=angle, origin=origin, step=step)
 
 
 class Lifting:
