@@ -62,8 +62,13 @@ def decode_records(h, nodes, want_pending: bool = False):
     parent = h.parent_l
     rank = h.rank_l
     starts = h.record_starts_l
-    rd = _Reader(h.data)
-    peek = rd.peek32
+    buf = bytes(h.data) + b"\0" * 16
+    R = 0
+    Rend = 0
+
+    def peek(pos):
+        # the next 32 bits of the current record's window (R holds bytes [k0, k0 + nb))
+        return (R >> (Rend - pos - 32)) & 0xFFFFFFFF
     luts = {k: t.lut() for k, t in h.tables.items()}
     Hs, Hl, HL = luts["H"]
     if bucket:
@@ -147,6 +152,10 @@ def decode_records(h, nodes, want_pending: bool = False):
             _fail(f"node {u} is not an internal node")
         r = rank[u]
         pos, end = starts[r], starts[r + 1]
+        k0 = pos >> 3
+        k1 = (end >> 3) + 9
+        R = int.from_bytes(buf[k0:k1], "big")
+        Rend = k1 << 3
         d = depth[u]
         if d > len(path) or (d and path[d - 1] != parent[u]):
             _fail(f"node {u} decoded before its ancestors")
@@ -154,8 +163,7 @@ def decode_records(h, nodes, want_pending: bool = False):
         path.append(u)
         Lu, Ru = left[u], right[u]
         dbits = d.bit_length()
-        if cands_on:
-            cands = list(dict.fromkeys(corn[ref - ref % 3 + 2] for ref in pending.get(u, ())))
+        cands = None
         # (1) the subtris: slot symbols
         entries = []  # (orient, h)
         s, pos = sym(Hs, Hl, HL, pos, dbits, end)
@@ -179,6 +187,9 @@ def decode_records(h, nodes, want_pending: bool = False):
                 s, pos = sym(Hs, Hl, HL, pos, dbits, end)
             hh = s
             if hh is not None and hh <= -2 and cands_on:
+                if cands is None:
+                    cands = list(dict.fromkeys([corn[ref - ref % 3 + 2]
+                                                for ref in pending.get(u, ())]))
                 if -2 - hh >= len(cands):
                     _fail(f"candidate {-2 - hh} of {len(cands)} at node {u}")
                 c = cands[-2 - hh]
@@ -228,23 +239,22 @@ def decode_records(h, nodes, want_pending: bool = False):
             if k:
                 if pos + k > end:
                     _fail(f"record of node {u} too short for {k} control bits")
-                bits = []
-                p = pos
-                rem = k
-                while rem:
-                    take = min(rem, 32)
-                    w = peek(p) >> (32 - take)
-                    bits.extend((w >> (take - 1 - j)) & 1 for j in range(take))
-                    p += take
-                    rem -= take
-                pos = p
-                for ref, bit in zip(pend, bits):
-                    ch = Ru if bit else Lu
-                    if left[ch] < 0:
-                        corn[ref] = lo[ch]
+                w = (R >> (Rend - pos - k)) & ((1 << k) - 1)
+                pos += k
+                Lleaf, Rleaf = left[Lu] < 0, left[Ru] < 0
+                for ref in pend:
+                    k -= 1
+                    if (w >> k) & 1:
+                        if Rleaf:
+                            corn[ref] = lo[Ru]
+                        else:
+                            corn[ref] = -(Ru + 1)
+                            pending.setdefault(Ru, []).append(ref)
+                    elif Lleaf:
+                        corn[ref] = lo[Lu]
                     else:
-                        corn[ref] = -(ch + 1)
-                        pending.setdefault(ch, []).append(ref)
+                        corn[ref] = -(Lu + 1)
+                        pending.setdefault(Lu, []).append(ref)
             for ref, ch in entries:
                 if left[ch] < 0:
                     corn[ref] = lo[ch]

@@ -109,8 +109,10 @@ class Hierarchy:
 
     @property
     def node_positions(self) -> np.ndarray:
-        """(N, 3) uint32 grid position of every node."""
-        return self.positions[self.node_leaf]
+        """(N, 3) uint32 grid position of every node (computed once)."""
+        if getattr(self, "_node_positions", None) is None:
+            self._node_positions = self.positions[self.node_leaf]
+        return self._node_positions
 
     @property
     def roots(self) -> np.ndarray:

@@ -1,0 +1,182 @@
+"""Bits per triangle of every hierarchy connectivity variant on the corpus, with references.
+
+Not a test. Usage::
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_connectivity.py [--corpus DIR] [--assets A ...]
+        [--json OUT.json]
+
+For each asset, every part with at least 4 triangles is built into a vertex tree (the part's own
+vertices and index buffer, degenerate triangles dropped) and coded with every variant of
+``lopcook.hierarchy.coding.VARIANTS``. Numbers are summed over parts: ``bits`` are connectivity
+records only (the paper's way), ``+tab`` adds the Huffman tables, ``struct`` is the tree structure
+(one preorder bit per node). References on the same index buffers:
+
+* meshoptimizer's index codec: ``encode_index_buffer`` after ``optimize_vertex_cache`` and
+  ``optimize_vertex_fetch_remap`` (raw bytes, no general-purpose compressor after it);
+* Draco (DracoPy, Edgebreaker, compression level 7, 14-bit positions): whole-mesh bits per
+  triangle and the same minus a point cloud of the same positions (an estimate of its
+  connectivity share; Draco does not report it separately).
+
+Throughput: ``encode_hierarchy`` (tree given) and ``decode_hierarchy`` + ``triangles()`` for the
+proposed and proposed_plus variants, in triangles per second; for the bunny also one
+view-dependent cut (select + decode) for a near, middle and far camera.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+ASSETS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/DamagedHelmet.gltf",
+          "CesiumMilkTruck.glb", "Duck.glb", "UtahTeapot.usd", "chess_set_flat.usdc"]
+SHOW = ["came", "relative_id_refine", "relative_id", "proposed", "proposed_plus"]
+
+
+def best_of(fn, repeat=3):
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+def meshopt_bits(tri, n):
+    import meshoptimizer as mo
+
+    idx = np.ascontiguousarray(tri.reshape(-1).astype(np.uint32))
+    opt = np.zeros_like(idx)
+    mo.optimize_vertex_cache(opt, idx, idx.size, n)
+    remap = np.zeros(n, np.uint32)
+    mo.optimize_vertex_fetch_remap(remap, opt, opt.size, n)
+    opt = remap[opt].astype(np.uint32)
+    return 8 * len(mo.encode_index_buffer(opt, opt.size, n))
+
+
+def draco_bits(pos, tri):
+    import DracoPy
+
+    mesh = DracoPy.encode(pos.astype(np.float32), tri.astype(np.uint32), quantization_bits=14,
+                          compression_level=7)
+    cloud = DracoPy.encode(pos.astype(np.float32), None, quantization_bits=14, compression_level=7)
+    return 8 * len(mesh), 8 * (len(mesh) - len(cloud))
+
+
+def run_asset(path, variants):
+    import lopcook
+    from lopcook.hierarchy import build_tree, drop_degenerate, measure
+
+    scene = lopcook.load(path)
+    acc = {k: {"bits": 0, "tables": 0, "struct": 0} for k in variants}
+    ref = {"tri": 0, "meshopt": 0, "draco": 0, "draco_conn": 0, "parts": 0, "build_s": 0.0,
+           "depth": 0}
+    trees = []
+    for part in scene.parts:
+        tri = drop_degenerate(np.asarray(part.indices, np.int64))
+        if tri.shape[0] < 4:
+            continue
+        t = time.perf_counter()
+        T = build_tree(part.positions, tri)
+        ref["build_s"] += time.perf_counter() - t
+        ref["depth"] = max(ref["depth"], int(T.depth().max()))
+        trees.append((T, part))
+        ref["tri"] += tri.shape[0]
+        ref["parts"] += 1
+        for k, v in variants.items():
+            r = measure(T, v)
+            acc[k]["bits"] += r["records"]
+            acc[k]["tables"] += r["tables"]
+            acc[k]["struct"] += r["structure"]
+        ref["meshopt"] += meshopt_bits(tri, part.positions.shape[0])
+        d, dc = draco_bits(part.positions, tri)
+        ref["draco"] += d
+        ref["draco_conn"] += dc
+    return acc, ref, trees
+
+
+def throughput(trees):
+    from lopcook.hierarchy import PROPOSED, PROPOSED_PLUS, decode_hierarchy, encode_hierarchy
+
+    out = {}
+    m = sum(T.triangles.shape[0] for T, _ in trees)
+    for name, v in (("proposed", PROPOSED), ("proposed_plus", PROPOSED_PLUS)):
+        te, blobs = best_of(lambda: [encode_hierarchy(T, variant=v) for T, _ in trees], 2)
+        td, _ = best_of(lambda: [decode_hierarchy(b).triangles() for b in blobs], 2)
+        out[name] = {"encode_tri_per_s": m / te, "decode_tri_per_s": m / td, "decode_s": td,
+                     "blob_bytes": sum(len(b) for b in blobs)}
+    return out
+
+
+def cut_timings(T):
+    from lopcook.hierarchy import PROPOSED_PLUS, decode_hierarchy, encode_hierarchy, select_cut
+
+    h = decode_hierarchy(encode_hierarchy(T, variant=PROPOSED_PLUS))
+    p = h.origin + (h.positions.astype(np.float64) + 0.5) * h.step
+    c = p.mean(axis=0)
+    ext = float(np.ptp(p, axis=0).max())
+    rows = []
+    for name, k in (("near", 0.8), ("middle", 3.0), ("far", 30.0)):
+        cam = c + np.array([0.3, 0.2, 1.0]) * ext * k
+        dt, cut = best_of(lambda: select_cut(h, cam, c, fov=60, viewport=(1024, 768),
+                                             pixel_error=1.0), 3)
+        rows.append({"camera": name, "seconds": dt, "triangles": int(cut.triangles.shape[0]),
+                     "split_nodes": int(cut.split.shape[0])})
+    return rows
+
+
+def main(argv=None):
+    from lopcook.hierarchy import VARIANTS
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--corpus", default=os.environ.get("LOPCOOK_CORPUS", str(REPO.parent / "shared" / "corpus")))
+    ap.add_argument("--assets", nargs="*", default=ASSETS)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    results = {}
+    print(f"{'asset':34s} {'tris':>8s} {'depth':>5s} " + " ".join(f"{k[:14]:>14s}" for k in SHOW)
+          + f" {'+tab':>6s} {'struct':>6s} {'meshopt':>7s} {'draco':>6s} {'dr.conn':>7s}")
+    for a in args.assets:
+        path = Path(args.corpus) / a
+        acc, ref, trees = run_asset(path, VARIANTS)
+        m = max(ref["tri"], 1)
+        row = {k: {x: y / m for x, y in v.items()} for k, v in acc.items()}
+        res = {"triangles": ref["tri"], "parts": ref["parts"], "max_depth": ref["depth"],
+               "build_s": ref["build_s"], "bits_per_triangle": row,
+               "meshopt_bits_per_triangle": ref["meshopt"] / m,
+               "draco_bits_per_triangle": ref["draco"] / m,
+               "draco_connectivity_estimate": ref["draco_conn"] / m,
+               "throughput": throughput(trees)}
+        if a == "stanford-bunny.obj":
+            res["cuts"] = cut_timings(trees[0][0])
+        results[a] = res
+        print(f"{a:34s} {ref['tri']:8d} {ref['depth']:5d} "
+              + " ".join(f"{row[k]['bits']:14.2f}" for k in SHOW)
+              + f" {row['proposed_plus']['tables']:6.2f} {row['proposed']['struct']:6.2f}"
+              + f" {res['meshopt_bits_per_triangle']:7.2f} {res['draco_bits_per_triangle']:6.2f}"
+              + f" {res['draco_connectivity_estimate']:7.2f}", flush=True)
+    print("\nall variants (records only, bits/triangle):")
+    for a, res in results.items():
+        print(a, {k: round(v["bits"], 2) for k, v in res["bits_per_triangle"].items()})
+    print("\nthroughput (triangles/s) and blob bytes:")
+    for a, res in results.items():
+        print(a, {k: {x: (round(y) if x != "decode_s" else round(y, 3)) for x, y in v.items()}
+                  for k, v in res["throughput"].items()}, f"build {res['build_s']:.2f}s")
+    for a, res in results.items():
+        for c in res.get("cuts", []):
+            print(f"{a} cut {c['camera']}: {c['seconds']:.3f} s, {c['triangles']} triangles, "
+                  f"{c['split_nodes']} split nodes")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()
