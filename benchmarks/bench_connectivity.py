@@ -14,8 +14,14 @@ records only (the paper's way), ``+tab`` adds the Huffman tables, ``struct`` is 
 * meshoptimizer's index codec: ``encode_index_buffer`` after ``optimize_vertex_cache`` and
   ``optimize_vertex_fetch_remap`` (raw bytes, no general-purpose compressor after it);
 * Draco (DracoPy, Edgebreaker, compression level 7, 14-bit positions): whole-mesh bits per
-  triangle and the same minus a point cloud of the same positions (an estimate of its
-  connectivity share; Draco does not report it separately).
+  triangle, positions included (DracoPy does not report the connectivity share, and subtracting
+  a point cloud of the same positions gives negative numbers: the mesh codec predicts positions
+  from the connectivity).
+
+Random access: the blob indexes every record (one varint of its bit length per internal node).
+``index`` lists, for proposed_plus, the index bits per triangle if instead only nodes whose
+subtree has at least U leaves stored the bit length of their left subtree (a reader skips to any
+node through those and parses at most about 2U records sequentially below them).
 
 Throughput: ``encode_hierarchy`` (tree given) and ``decode_hierarchy`` + ``triangles()`` for the
 proposed and proposed_plus variants, in triangles per second; for the bunny also one
@@ -67,8 +73,36 @@ def draco_bits(pos, tri):
 
     mesh = DracoPy.encode(pos.astype(np.float32), tri.astype(np.uint32), quantization_bits=14,
                           compression_level=7)
-    cloud = DracoPy.encode(pos.astype(np.float32), None, quantization_bits=14, compression_level=7)
-    return 8 * len(mesh), 8 * (len(mesh) - len(cloud))
+    return 8 * len(mesh)
+
+
+UNITS = (1, 8, 64, 512, 4096)
+
+
+def index_bits(T, variant):
+    """{"per_record": bits, U: bits} of the random-access index (see the module docstring)."""
+    from lopcook.hierarchy import coding as C
+
+    lay = C.layout(T, variant.restructure)
+    coded = C.encode_connectivity(T, variant, lay)
+
+    def varint_bits(x):
+        x = np.maximum(np.asarray(x, np.int64), 1)
+        return 8 * ((np.floor(np.log2(x)).astype(np.int64) // 7) + 1)
+
+    out = {"per_record": int(varint_bits(coded.record_bits).sum())}
+    bits_pre = np.zeros(lay.order.shape[0], np.int64)
+    inner = lay.left[lay.order] >= 0
+    bits_pre[inner] = coded.record_bits
+    cs = np.r_[0, np.cumsum(bits_pre)]
+    internal = np.flatnonzero(lay.left >= 0)
+    k = lay.pre[internal]
+    L = lay.left[internal]
+    left_bits = cs[k + 1 + 2 * lay.size[L] - 1] - cs[k + 1]
+    for U in UNITS:
+        sel = lay.size[internal] >= U
+        out[U] = int(varint_bits(left_bits[sel]).sum())
+    return out
 
 
 def run_asset(path, variants):
@@ -77,8 +111,8 @@ def run_asset(path, variants):
 
     scene = lopcook.load(path)
     acc = {k: {"bits": 0, "tables": 0, "struct": 0} for k in variants}
-    ref = {"tri": 0, "meshopt": 0, "draco": 0, "draco_conn": 0, "parts": 0, "build_s": 0.0,
-           "depth": 0}
+    ref = {"tri": 0, "meshopt": 0, "draco": 0, "parts": 0, "build_s": 0.0, "depth": 0,
+           "index": {}}
     trees = []
     for part in scene.parts:
         tri = drop_degenerate(np.asarray(part.indices, np.int64))
@@ -97,9 +131,9 @@ def run_asset(path, variants):
             acc[k]["tables"] += r["tables"]
             acc[k]["struct"] += r["structure"]
         ref["meshopt"] += meshopt_bits(tri, part.positions.shape[0])
-        d, dc = draco_bits(part.positions, tri)
-        ref["draco"] += d
-        ref["draco_conn"] += dc
+        ref["draco"] += draco_bits(part.positions, tri)
+        for key, b in index_bits(T, variants["proposed_plus"]).items():
+            ref["index"][key] = ref["index"].get(key, 0) + b
     return acc, ref, trees
 
 
@@ -143,7 +177,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     results = {}
     print(f"{'asset':34s} {'tris':>8s} {'depth':>5s} " + " ".join(f"{k[:14]:>14s}" for k in SHOW)
-          + f" {'+tab':>6s} {'struct':>6s} {'meshopt':>7s} {'draco':>6s} {'dr.conn':>7s}")
+          + f" {'+tab':>6s} {'struct':>6s} {'meshopt':>7s} {'draco':>6s}")
     for a in args.assets:
         path = Path(args.corpus) / a
         acc, ref, trees = run_asset(path, VARIANTS)
@@ -153,7 +187,7 @@ def main(argv=None):
                "build_s": ref["build_s"], "bits_per_triangle": row,
                "meshopt_bits_per_triangle": ref["meshopt"] / m,
                "draco_bits_per_triangle": ref["draco"] / m,
-               "draco_connectivity_estimate": ref["draco_conn"] / m,
+               "index_bits_per_triangle": {str(k): v / m for k, v in ref["index"].items()},
                "throughput": throughput(trees)}
         if a == "stanford-bunny.obj":
             res["cuts"] = cut_timings(trees[0][0])
@@ -161,11 +195,14 @@ def main(argv=None):
         print(f"{a:34s} {ref['tri']:8d} {ref['depth']:5d} "
               + " ".join(f"{row[k]['bits']:14.2f}" for k in SHOW)
               + f" {row['proposed_plus']['tables']:6.2f} {row['proposed']['struct']:6.2f}"
-              + f" {res['meshopt_bits_per_triangle']:7.2f} {res['draco_bits_per_triangle']:6.2f}"
-              + f" {res['draco_connectivity_estimate']:7.2f}", flush=True)
+              + f" {res['meshopt_bits_per_triangle']:7.2f} {res['draco_bits_per_triangle']:6.2f}",
+              flush=True)
     print("\nall variants (records only, bits/triangle):")
     for a, res in results.items():
         print(a, {k: round(v["bits"], 2) for k, v in res["bits_per_triangle"].items()})
+    print("\nrandom-access index, bits/triangle (per record as stored; per unit of U leaves):")
+    for a, res in results.items():
+        print(a, {k: round(v, 2) for k, v in res["index_bits_per_triangle"].items()})
     print("\nthroughput (triangles/s) and blob bytes:")
     for a, res in results.items():
         print(a, {k: {x: (round(y) if x != "decode_s" else round(y, 3)) for x, y in v.items()}
