@@ -1,7 +1,8 @@
 """Connectivity coding of a vertex tree, every variant of the paper selectable.
 
-This work is based on the view-dependent connectivity coding paper (Grabner & Zach style
-"relative encoding of triangle topology"):
+This work is based on the view-dependent connectivity coding paper
+(``shared/papers/view-dependent-connectivity-coding.txt``, "relative encoding of triangle
+topology"):
 
 * section 4.1: internal corners as ``n.id - v.id``, the external corner as ``(h, c.id - v'.id)``
   (``v'`` the common ancestor of the owner ``v`` and ``c``, ``h`` their depth difference); the
@@ -20,10 +21,13 @@ This work is based on the view-dependent connectivity coding paper (Grabner & Za
   paper describes it: corners as relative paths (Huffman-coded path length + raw path bits, the
   implied first step omitted). It is measured here, not decoded.
 
-Improvement not in the paper (``control="predicted"``): each control bit is predicted from node
-positions the client already holds (the two children of the splitting node and, for the other
-two corners of the ancestor subtri, the children of their branching ancestors); the per-node
-pattern of mispredictions ``(1 << k) | xor_bits`` is Huffman-coded in its own bounded table.
+Improvements not in the paper (``PROPOSED_PLUS``): ``candidates`` codes an external corner as
+its index among the external corners of the ancestor subtris that reach the node (known to a
+top-down decoder, so still dependency-free); ``external="bucket"`` codes a difference as its bit
+length, Huffman-coded per height context, plus raw low bits. Tried and measured only:
+``control="predicted"`` predicts each control bit from positions of children of ancestors and
+Huffman-codes groups of up to 8 mispredictions as ``(1 << g) | xor_bits`` (it costs more than the
+raw bits on the corpus; see docs/hierarchy.md).
 
 Record layout (one record per internal node, preorder): see ``docs/hierarchy.md``. A record holds
 the node's subtris in two orientation slots (slot 0: ``(a, b, c)`` with ``a`` in the left child,
@@ -35,7 +39,7 @@ structure counted apart.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -478,7 +482,7 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     record_bits = np.bincount(K >> 32, weights=Ln, minlength=n_int).astype(np.int64)
     bits = {"records": int(total),
             "tables": 8 * sum(len(t.to_bytes()) for t in tables.values()),
-            "structure": int(L.shape[0]) + 32 * int(tree.roots.shape[0]),
+            "structure": int(L.shape[0]),  # one preorder bit per node (the blob's shape bits)
             "control": int(Ln[cat == "C"].sum()) if variant.control == "predicted" else
             n_control,
             "control_count": n_control,

@@ -25,17 +25,6 @@ def _fail(msg: str):
     raise LopcookError("decode", None, f"connectivity: {msg}", hint=_HINT)
 
 
-class _Reader:
-    """Symbol reads on one bit buffer (MSB first)."""
-
-    def __init__(self, data: bytes):
-        self.buf = bytes(data) + b"\0" * 8
-
-    def peek32(self, pos: int) -> int:
-        k = pos >> 3
-        return (int.from_bytes(self.buf[k:k + 5], "big") >> (8 - (pos & 7))) & 0xFFFFFFFF
-
-
 def decode_records(h, nodes, want_pending: bool = False):
     """Decode the records of ``nodes`` (internal nodes in preorder, each one's ancestors included).
 

@@ -196,9 +196,7 @@ def _shape_arrays(isint: np.ndarray, n_roots: int):
     size[left >= 0] = 0
     for k in np.flatnonzero(left >= 0)[::-1].tolist():
         size[k] = size[left[k]] + size[right[k]]
-    lo = np.cumsum(~isint.astype(bool)) - 1  # leaf rank at or before k
-    lo = np.where(isint.astype(bool), np.r_[lo[1:], 0] + 0, lo)
-    # internal node id = its leftmost leaf = next leaf after it in preorder
+    # a node's compact ID is its leftmost leaf: the first leaf at or after it in preorder
     leaves = np.flatnonzero(~isint.astype(bool))
     nxt = np.searchsorted(leaves, np.arange(N))
     lo = nxt.astype(np.int64)

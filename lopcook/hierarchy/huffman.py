@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import LopcookError
 
 MAX_LEN = 15
-ESCAPE = None  # the escape entry is kept apart from the integer symbols
+ESCAPE = None  # the symbol a decoding table returns for the escape code
 
 
 def bitlen(x) -> np.ndarray:
@@ -266,22 +266,3 @@ def pack_bits(codes: np.ndarray, nbits: np.ndarray) -> tuple[bytes, int]:
     shift = (nbits[idx] - 1 - j).astype(np.uint64)
     bits = ((codes[idx] >> shift) & np.uint64(1)).astype(np.uint8)
     return np.packbits(bits).tobytes(), total
-
-
-class BitReader:
-    """MSB-first reads from ``data`` within [start, end) bits; reading past ``end`` raises."""
-
-    __slots__ = ("buf", "end", "what")
-
-    def __init__(self, data: bytes, end_bit: int, what: str = "connectivity"):
-        self.buf = bytes(data) + b"\0" * 8
-        self.end = end_bit
-        self.what = what
-
-    def peek32(self, pos: int) -> int:
-        k = pos >> 3
-        return (int.from_bytes(self.buf[k:k + 5], "big") >> (8 - (pos & 7))) & 0xFFFFFFFF
-
-    def fail(self, msg: str):
-        raise LopcookError("decode", None, f"{self.what}: {msg}",
-                           hint="the hierarchy data is corrupt or truncated; re-encode it")

@@ -2,11 +2,10 @@
 
 This work is based on:
 
-* M. Grabner, C. Zach, "Compression of View Dependent Meshes" style connectivity coding, the
-  paper "Efficient Encoding of View Dependent Meshes" (view-dependent connectivity coding),
-  section 2.1 and Figure 4: the vertex tree of VDSlib (D. Luebke, C. Erikson, "View-Dependent
-  Simplification of Arbitrary Polygonal Environments", SIGGRAPH 1997), where every triangle is a
-  *subtri* of the node whose unfolding makes it appear.
+* the view-dependent connectivity coding paper (``shared/papers/view-dependent-connectivity-
+  coding.txt``), section 2.1 and Figure 4: the vertex tree of VDSlib (D. Luebke, C. Erikson,
+  "View-Dependent Simplification of Arbitrary Polygonal Environments", SIGGRAPH 1997), where
+  every triangle is a *subtri* of the node whose unfolding makes it appear.
 * M. Garland, P. Heckbert, "Surface Simplification Using Quadric Error Metrics", SIGGRAPH 1997:
   the collapse sequence comes from fast-simplification's quadric simplifier
   (``simplify(..., return_collapses=True)``).
@@ -206,17 +205,6 @@ def _depth_by_levels(parent, left, right):
     return d
 
 
-def levels_top_down(parent, left, right):
-    """List of (k,) int arrays: the nodes at depth 0, 1, 2, ... (roots first)."""
-    out = []
-    level = np.flatnonzero(parent < 0)
-    while level.size:
-        out.append(level)
-        ch = np.concatenate([left[level], right[level]])
-        level = ch[ch >= 0]
-    return out
-
-
 def _collapse_forest(n, tri, pos):
     """Leaves 0..n-1, internal nodes from the quadric simplifier's collapse sequence."""
     import fast_simplification
@@ -224,14 +212,13 @@ def _collapse_forest(n, tri, pos):
     left = [-1] * n
     right = [-1] * n
     rep = list(range(n))
-    cur = np.arange(n, dtype=np.int64)  # current node of each surviving vertex
     if tri.shape[0]:
         _, _, col = fast_simplification.simplify(pos.astype(np.float64), tri.astype(np.int32),
                                                  target_count=0, return_collapses=True)
         col = np.asarray(col, dtype=np.int64).reshape(-1, 2)
     else:
         col = np.zeros((0, 2), np.int64)
-    cur_l = cur.tolist()
+    cur_l = list(range(n))  # current node of each surviving vertex
     dead = bytearray(n)
     k = n
     for i0, i1 in col.tolist():
@@ -302,7 +289,6 @@ def build_tree(positions: np.ndarray, triangles: np.ndarray, grid=None) -> Verte
                 continue
             used.add(a)
             used.add(b)
-            # keep the representative of the larger-index (later, usually bigger) cluster
             left.append(a)
             right.append(b)
             rep.append(rep[a])
