@@ -60,6 +60,7 @@ def decode_records(h, nodes, want_pending: bool = False):
         return (R >> (Rend - pos - 32)) & 0xFFFFFFFF
     luts = {k: t.lut() for k, t in h.tables.items()}
     Hs, Hl, HL = luts["H"]
+    HM = (1 << HL) - 1
     if bucket:
         ctx_luts = [luts.get(context_table(k)) for k in range(H_CONTEXTS)]
     else:
@@ -67,7 +68,7 @@ def decode_records(h, nodes, want_pending: bool = False):
     if explicit:
         Is, Il, IL = luts["D" if var.tables == "single" else "I"]
     Ns, Nl, NL = luts["N"]
-    pending = {}
+    pend_of = [None] * len(left)  # ancestor corners (refs into corn) that reached each node
     path = []
     owner = []
     corn = []
@@ -153,9 +154,21 @@ def decode_records(h, nodes, want_pending: bool = False):
         Lu, Ru = left[u], right[u]
         dbits = d.bit_length()
         cands = None
+        pend = pend_of[u]
+        pend_of[u] = None
         # (1) the subtris: slot symbols
         entries = []  # (orient, h)
-        s, pos = sym(Hs, Hl, HL, pos, dbits, end)
+        x = (R >> (Rend - pos - HL)) & HM
+        ln = Hl[x]
+        if not ln:
+            _fail(f"invalid code at bit {pos}")
+        s = Hs[x]
+        pos += ln
+        if s is None:
+            s = (R >> (Rend - pos - dbits)) & ((1 << dbits) - 1)
+            pos += dbits
+        if pos > end:
+            _fail(f"record overrun at bit {pos} (ends at {end})")
         if s == NONMANIFOLD:
             n0, pos = sym(Ns, Nl, NL, pos, 16, end)
             n1, pos = sym(Ns, Nl, NL, pos, 16, end)
@@ -178,7 +191,7 @@ def decode_records(h, nodes, want_pending: bool = False):
             if hh is not None and hh <= -2 and cands_on:
                 if cands is None:
                     cands = list(dict.fromkeys([corn[ref - ref % 3 + 2]
-                                                for ref in pending.get(u, ())]))
+                                                for ref in (pend or ())]))
                 if -2 - hh >= len(cands):
                     _fail(f"candidate {-2 - hh} of {len(cands)} at node {u}")
                 c = cands[-2 - hh]
@@ -223,8 +236,7 @@ def decode_records(h, nodes, want_pending: bool = False):
                     entries.append((3 * t, Ru))
         # (2) control bits for the ancestor corners that reached u, in arrival order
         if not explicit:
-            pend = pending.pop(u, ())
-            k = len(pend)
+            k = len(pend) if pend else 0
             if k:
                 if pos + k > end:
                     _fail(f"record of node {u} too short for {k} control bits")
@@ -238,17 +250,29 @@ def decode_records(h, nodes, want_pending: bool = False):
                             corn[ref] = lo[Ru]
                         else:
                             corn[ref] = -(Ru + 1)
-                            pending.setdefault(Ru, []).append(ref)
+                            q = pend_of[Ru]
+                            if q is None:
+                                pend_of[Ru] = [ref]
+                            else:
+                                q.append(ref)
                     elif Lleaf:
                         corn[ref] = lo[Lu]
                     else:
                         corn[ref] = -(Lu + 1)
-                        pending.setdefault(Lu, []).append(ref)
+                        q = pend_of[Lu]
+                        if q is None:
+                            pend_of[Lu] = [ref]
+                        else:
+                            q.append(ref)
             for ref, ch in entries:
                 if left[ch] < 0:
                     corn[ref] = lo[ch]
                 else:
-                    pending.setdefault(ch, []).append(ref)
+                    q = pend_of[ch]
+                    if q is None:
+                        pend_of[ch] = [ref]
+                    else:
+                        q.append(ref)
         if pos != end:
             _fail(f"record of node {u} has {end - pos} bits left over")
     own = np.asarray(owner, np.int64)
