@@ -151,3 +151,29 @@ def test_random_triangle_soups_round_trip(seed):
     for name in DECODABLE:
         h = decode_hierarchy(encode_hierarchy(T, variant=VARIANTS[name]))
         assert np.array_equal(canonical(h.triangles()), canonical(t)), name
+
+
+def test_quantised_cones_stay_conservative():
+    """The blob's normal cones (octahedral axis, rounded-up angle) still contain every face normal
+    around each node's leaves, and its errors are never below the tree's."""
+    p, t = icosphere(3)
+    T = build_tree(p, t)
+    h = decode_hierarchy(encode_hierarchy(T))
+    from lopcook.hierarchy.coding import layout
+
+    order = layout(T, True).order
+    assert np.all(h.error.astype(np.float64) >= T.error[order])
+    pos = T.positions.astype(np.float64)
+    fn = np.cross(pos[t[:, 1]] - pos[t[:, 0]], pos[t[:, 2]] - pos[t[:, 0]])
+    fn /= np.linalg.norm(fn, axis=1)[:, None]
+    node_of = np.empty(T.n_nodes, np.int64)
+    node_of[order] = np.arange(T.n_nodes)  # tree node -> blob (preorder) node
+    for f in range(t.shape[0]):
+        for corner in t[f].tolist():
+            x = corner
+            while x >= 0:
+                k = node_of[x]
+                if h.cone_angle[k] < np.pi:
+                    ang = np.arccos(np.clip(fn[f] @ h.cone_axis[k].astype(np.float64), -1, 1))
+                    assert ang <= h.cone_angle[k] + 1e-6
+                x = int(T.parent[x])

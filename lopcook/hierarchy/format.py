@@ -63,7 +63,9 @@ class Hierarchy:
     left, right, parent, depth, size, lo : (N,) int64 (``-1`` children / parent where none)
     positions : (n, 3) uint32 grid coordinates of the leaves (by leaf ID)
     node_leaf : (N,) int64 representative leaf of each node (its position)
-    error, cone_angle : (N,) float32; cone_axis : (N, 3) float32 (see ``tree.VertexTree``)
+    error, cone_angle : (N,) float32; cone_axis : (N, 3) float32 (see ``tree.VertexTree``;
+        quantised conservatively: the error rounded up, the cone widened to cover its
+        quantised axis, axis zero and angle pi where no cone is usable)
     vertex_of_leaf : (n,) int64 input vertex index of each leaf, or None when not stored
     origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
     tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
@@ -161,6 +163,65 @@ class Hierarchy:
 
 
 
+def _oct_encode(axis: np.ndarray) -> np.ndarray:
+    """(N, 3) unit (or zero) vectors -> (N, 2) int16 octahedral coordinates."""
+    a = np.asarray(axis, np.float64)
+    l1 = np.abs(a).sum(axis=1)
+    l1[l1 == 0] = 1.0
+    p = a / l1[:, None]
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    ox = np.where(z >= 0, x, (1 - np.abs(y)) * np.sign(x + (x == 0)))
+    oy = np.where(z >= 0, y, (1 - np.abs(x)) * np.sign(y + (y == 0)))
+    return np.clip(np.round(np.stack([ox, oy], axis=1) * 32767), -32767, 32767).astype(np.int16)
+
+
+def _oct_decode(q: np.ndarray) -> np.ndarray:
+    """(N, 2) int16 octahedral coordinates -> (N, 3) unit vectors."""
+    o = np.asarray(q, np.float64) / 32767
+    x, y = o[:, 0], o[:, 1]
+    z = 1 - np.abs(x) - np.abs(y)
+    t = np.maximum(-z, 0)
+    x = x - t * np.sign(x + (x == 0))
+    y = y - t * np.sign(y + (y == 0))
+    v = np.stack([x, y, z], axis=1)
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def _pack_selection(error, axis, angle):
+    """Per-node selection data, conservatively quantised: f32 error rounded up, octahedral int16
+    axis, u16 half-angle rounded up and widened by the axis' quantisation error (65535 = pi, no
+    usable cone)."""
+    err = np.asarray(error, np.float64)
+    e32 = err.astype(np.float32)
+    low = e32.astype(np.float64) < err
+    e32[low] = np.nextafter(e32[low], np.float32(np.inf))
+    q = _oct_encode(axis)
+    dec = _oct_decode(q)
+    has = np.linalg.norm(axis, axis=1) > 0.5
+    delta = np.zeros(err.shape[0])
+    delta[has] = np.arccos(np.clip(np.einsum("ij,ij->i", dec[has], axis[has]), -1, 1))
+    ang = np.where(has, np.asarray(angle, np.float64) + delta + 1e-6, np.pi)
+    qa = np.minimum(np.ceil(ang / np.pi * 65535), 65535).astype(np.uint16)
+    q[~has] = 0
+    return e32.astype("<f4").tobytes() + q.astype("<i2").tobytes() + qa.astype("<u2").tobytes()
+
+
+def _unpack_selection(body, p, N):
+    error = np.frombuffer(body, "<f4", N, p).astype(np.float32)
+    p += 4 * N
+    q = np.frombuffer(body, "<i2", 2 * N, p).reshape(N, 2)
+    p += 4 * N
+    qa = np.frombuffer(body, "<u2", N, p).astype(np.float64)
+    p += 2 * N
+    angle = (qa / 65535 * np.pi).astype(np.float32)
+    axis = _oct_decode(q).astype(np.float32)
+    axis[qa == 65535] = 0.0
+    angle[qa == 65535] = np.float32(np.pi)
+    if not np.isfinite(error).all() or (error < 0).any():
+        _fail("node errors are not finite and non-negative")
+    return error, axis, angle, p
+
+
 def _shape_arrays(isint: np.ndarray, n_roots: int):
     """Preorder internal/leaf bits -> left, right, parent, depth, size (validated)."""
     N = isint.shape[0]
@@ -244,9 +305,7 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     body += np.packbits(repside).tobytes()
     pos = tree.positions[lay.leaf_vertex].astype("<u4")
     body += pos.tobytes()
-    body += tree.error[order].astype("<f4").tobytes()
-    body += tree.cone_axis[order].astype("<f4").tobytes()
-    body += tree.cone_angle[order].astype("<f4").tobytes()
+    body += _pack_selection(tree.error[order], tree.cone_axis[order], tree.cone_angle[order])
     if keep_vertex_order:
         body += lay.leaf_vertex.astype("<u4").tobytes()
     names = [k for k in _TABLE_NAMES if k in coded.tables]
@@ -298,7 +357,7 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
     m, p = get_varint(body, p, "hierarchy")
     if not (n >= 1 and N == 2 * n - n_roots and 1 <= n_roots <= n) or m > 4 * N + 16:
         _fail(f"inconsistent counts (leaves {n}, nodes {N}, roots {n_roots}, triangles {m})")
-    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 20 * N
+    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 10 * N
     if p + need > len(body):
         _fail("truncated before the node data")
     keep_order = body[p]
@@ -316,12 +375,7 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
     p += (I + 7) // 8
     positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
     p += 12 * n
-    error = np.frombuffer(body, "<f4", N, p).astype(np.float32)
-    p += 4 * N
-    axis = np.frombuffer(body, "<f4", 3 * N, p).reshape(N, 3).astype(np.float32)
-    p += 12 * N
-    angle = np.frombuffer(body, "<f4", N, p).astype(np.float32)
-    p += 4 * N
+    error, axis, angle, p = _unpack_selection(body, p, N)
     vol = None
     if keep_order:
         if p + 4 * n > len(body):
