@@ -25,7 +25,7 @@ def _fail(msg: str):
     raise LopcookError("decode", None, f"connectivity: {msg}", hint=_HINT)
 
 
-def decode_records(h, nodes, want_pending: bool = False):
+def decode_records(h, nodes):
     """Decode the records of ``nodes`` (internal nodes in preorder, each one's ancestors included).
 
     Parameters
