@@ -1,0 +1,436 @@
+"""Serialisation of a coded vertex hierarchy: ``encode_hierarchy(...) -> bytes`` and back.
+
+Self-delimiting and versioned; the byte layout is documented field by field in
+``docs/hierarchy.md`` (all integers little-endian). The blob holds the tree structure (one
+preorder bit per node), the node positions (leaf grid coordinates plus one representative bit
+per internal node), the per-node selection data (error, normal cone), the Huffman tables, the
+per-record bit lengths (the random-access index) and the coded connectivity, closed by a CRC-32
+of everything before it. ``decode_hierarchy`` checks the CRC, every count and the tree shape
+before anything is decoded, and raises ``LopcookError`` (stage ``"decode"``) on any mismatch.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LopcookError
+from . import coding as C
+from .decode import decode_records
+from .huffman import Table, get_varint, put_varint
+from .tree import VertexTree, build_tree
+
+MAGIC = b"LOPH"
+VERSION = 1
+_HINT = "the hierarchy data is corrupt or truncated; re-encode it"
+_TABLE_NAMES = ["H", "E", "I", "D", "N", "C"] + [C.context_table(k) for k in range(C.H_CONTEXTS)]
+
+
+def _fail(msg: str):
+    raise LopcookError("decode", None, f"hierarchy: {msg}", hint=_HINT)
+
+
+def _variant_flags(v: C.Variant) -> int:
+    return ((v.numbering == "vds") << 0 | (not v.refine) << 1 | (not v.restructure) << 2
+            | (v.tables == "single") << 3 | (v.internal == "explicit") << 4
+            | (v.control == "predicted") << 5 | v.candidates << 6 | (v.external == "bucket") << 7)
+
+
+def _variant_from(flags: int, table_size: int) -> C.Variant:
+    if flags & 32:
+        _fail(f"unsupported variant flags {flags:#x} (predicted control bits)")
+    return C.Variant(numbering="vds" if flags & 1 else "compact", refine=not flags & 2,
+                     restructure=not flags & 4, tables="single" if flags & 8 else "separate",
+                     internal="explicit" if flags & 16 else "control",
+                     control="predicted" if flags & 32 else "raw", table_size=table_size,
+                     candidates=bool(flags & 64), external="bucket" if flags & 128 else "value")
+
+
+@dataclass
+class Hierarchy:
+    """A decoded hierarchy blob; connectivity stays coded until asked for.
+
+    Nodes are numbered in preorder (``0..N-1``; a node's subtree is ``[k, k + 2*size[k] - 1)``).
+    Leaf IDs ``0..n-1`` number the leaves left to right; ``leaf_node[i]`` is leaf ``i``'s node.
+
+    Attributes
+    ----------
+    n_leaves, n_nodes, n_triangles : int
+    variant : Variant
+    left, right, parent, depth, size, lo : (N,) int64 (``-1`` children / parent where none)
+    positions : (n, 3) uint32 grid coordinates of the leaves (by leaf ID)
+    node_leaf : (N,) int64 representative leaf of each node (its position)
+    error, cone_angle : (N,) float32; cone_axis : (N, 3) float32 (see ``tree.VertexTree``;
+        quantised conservatively: the error rounded up, the cone widened to cover its
+        quantised axis, axis zero and angle pi where no cone is usable)
+    vertex_of_leaf : (n,) int64 input vertex index of each leaf, or None when not stored
+    origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
+    tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
+    """
+
+    n_leaves: int
+    n_nodes: int
+    n_triangles: int
+    variant: C.Variant
+    left: np.ndarray
+    right: np.ndarray
+    parent: np.ndarray
+    depth: np.ndarray
+    size: np.ndarray
+    lo: np.ndarray
+    positions: np.ndarray
+    node_leaf: np.ndarray
+    error: np.ndarray
+    cone_axis: np.ndarray
+    cone_angle: np.ndarray
+    vertex_of_leaf: np.ndarray | None
+    tables: dict
+    data: bytes
+    record_starts: np.ndarray
+    rank: np.ndarray
+    bits: dict
+    origin: np.ndarray
+    step: float
+
+    def __post_init__(self):
+        self.left_l = self.left.tolist()
+        self.parent_l = self.parent.tolist()
+        self.right_l = self.right.tolist()
+        self.depth_l = self.depth.tolist()
+        self.size_l = self.size.tolist()
+        self.lo_l = self.lo.tolist()
+        self.rank_l = self.rank.tolist()
+        self.record_starts_l = self.record_starts.tolist()
+
+    @property
+    def internal_nodes(self) -> np.ndarray:
+        return np.flatnonzero(self.left >= 0)
+
+    @property
+    def node_positions(self) -> np.ndarray:
+        """(N, 3) uint32 grid position of every node (computed once)."""
+        if getattr(self, "_node_positions", None) is None:
+            self._node_positions = self.positions[self.node_leaf]
+        return self._node_positions
+
+    @property
+    def roots(self) -> np.ndarray:
+        return np.flatnonzero(self.parent < 0)
+
+    def leaf_nodes(self) -> np.ndarray:
+        out = np.empty(self.n_leaves, np.int64)
+        leaves = np.flatnonzero(self.left < 0)
+        out[self.lo[leaves]] = leaves
+        return out
+
+    def triangles(self, input_vertices: bool = True) -> np.ndarray:
+        """(m, 3) int64 all triangles, in record order; input vertex indices when stored."""
+        _, tri = decode_records(self, self.internal_nodes.tolist())
+        if (tri < 0).any():
+            _fail("a corner was left unresolved after decoding every record")
+        if input_vertices and self.vertex_of_leaf is not None:
+            return self.vertex_of_leaf[tri]
+        return tri
+
+    def ancestors(self, node: int) -> list[int]:
+        out = []
+        p = int(self.parent[node])
+        while p >= 0:
+            out.append(p)
+            p = int(self.parent[p])
+        return out[::-1]
+
+    def decode_subtree(self, node: int):
+        """Subtris of ``node``'s subtree, decoded from the records of its ancestors and subtree only.
+
+        Returns (owner (t,), corners (t, 3) leaf IDs) for the subtris owned by nodes in the
+        subtree (all corners resolved: the subtree's own records suffice for its internal
+        corners, external corners are explicit).
+        """
+        node = int(node)
+        if not 0 <= node < self.n_nodes:
+            raise LopcookError("usage", None, f"node {node} outside [0, {self.n_nodes})",
+                               hint="pass a preorder node index of this hierarchy")
+        sub = np.arange(node, node + 2 * self.size[node] - 1)
+        sub = sub[self.left[sub] >= 0]
+        nodes = self.ancestors(node) + sub.tolist()
+        own, tri = decode_records(self, nodes)
+        keep = (own >= node) & (own < node + 2 * self.size[node] - 1)
+        return own[keep], tri[keep]
+
+
+
+def _oct_encode(axis: np.ndarray) -> np.ndarray:
+    """(N, 3) unit (or zero) vectors -> (N, 2) int16 octahedral coordinates."""
+    a = np.asarray(axis, np.float64)
+    l1 = np.abs(a).sum(axis=1)
+    l1[l1 == 0] = 1.0
+    p = a / l1[:, None]
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    ox = np.where(z >= 0, x, (1 - np.abs(y)) * np.sign(x + (x == 0)))
+    oy = np.where(z >= 0, y, (1 - np.abs(x)) * np.sign(y + (y == 0)))
+    return np.clip(np.round(np.stack([ox, oy], axis=1) * 32767), -32767, 32767).astype(np.int16)
+
+
+def _oct_decode(q: np.ndarray) -> np.ndarray:
+    """(N, 2) int16 octahedral coordinates -> (N, 3) unit vectors."""
+    o = np.asarray(q, np.float64) / 32767
+    x, y = o[:, 0], o[:, 1]
+    z = 1 - np.abs(x) - np.abs(y)
+    t = np.maximum(-z, 0)
+    x = x - t * np.sign(x + (x == 0))
+    y = y - t * np.sign(y + (y == 0))
+    v = np.stack([x, y, z], axis=1)
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def _pack_selection(error, axis, angle):
+    """Per-node selection data, conservatively quantised: f32 error rounded up, octahedral int16
+    axis, u16 half-angle rounded up and widened by the axis' quantisation error (65535 = pi, no
+    usable cone)."""
+    err = np.asarray(error, np.float64)
+    e32 = err.astype(np.float32)
+    low = e32.astype(np.float64) < err
+    e32[low] = np.nextafter(e32[low], np.float32(np.inf))
+    q = _oct_encode(axis)
+    dec = _oct_decode(q)
+    has = np.linalg.norm(axis, axis=1) > 0.5
+    delta = np.zeros(err.shape[0])
+    delta[has] = np.arccos(np.clip(np.einsum("ij,ij->i", dec[has], axis[has]), -1, 1))
+    ang = np.where(has, np.asarray(angle, np.float64) + delta + 1e-6, np.pi)
+    qa = np.minimum(np.ceil(ang / np.pi * 65535), 65535).astype(np.uint16)
+    q[~has] = 0
+    return e32.astype("<f4").tobytes() + q.astype("<i2").tobytes() + qa.astype("<u2").tobytes()
+
+
+def _unpack_selection(body, p, N):
+    error = np.frombuffer(body, "<f4", N, p).astype(np.float32)
+    p += 4 * N
+    q = np.frombuffer(body, "<i2", 2 * N, p).reshape(N, 2)
+    p += 4 * N
+    qa = np.frombuffer(body, "<u2", N, p).astype(np.float64)
+    p += 2 * N
+    angle = (qa / 65535 * np.pi).astype(np.float32)
+    axis = _oct_decode(q).astype(np.float32)
+    axis[qa == 65535] = 0.0
+    angle[qa == 65535] = np.float32(np.pi)
+    if not np.isfinite(error).all() or (error < 0).any():
+        _fail("node errors are not finite and non-negative")
+    return error, axis, angle, p
+
+
+def _shape_arrays(isint: np.ndarray, n_roots: int):
+    """Preorder internal/leaf bits -> left, right, parent, depth, size (validated)."""
+    N = isint.shape[0]
+    flags = isint.tolist()
+    left = [-1] * N
+    right = [-1] * N
+    parent = [-1] * N
+    depth = [0] * N
+    stack = []  # (node, state) state 0: expecting left, 1: expecting right
+    roots = 0
+    for k in range(N):
+        if stack:
+            p, st = stack[-1]
+            parent[k] = p
+            depth[k] = depth[p] + 1
+            if st == 0:
+                left[p] = k
+                stack[-1] = (p, 1)
+            else:
+                right[p] = k
+                stack.pop()
+        else:
+            roots += 1
+        if flags[k]:
+            stack.append((k, 0))
+    if stack or roots != n_roots:
+        _fail("tree structure bits do not describe a full binary forest")
+    left = np.asarray(left, np.int64)
+    right = np.asarray(right, np.int64)
+    parent = np.asarray(parent, np.int64)
+    depth = np.asarray(depth, np.int64)
+    size = np.ones(N, np.int64)
+    size[left >= 0] = 0
+    for k in np.flatnonzero(left >= 0)[::-1].tolist():
+        size[k] = size[left[k]] + size[right[k]]
+    # a node's compact ID is its leftmost leaf: the first leaf at or after it in preorder
+    leaves = np.flatnonzero(~isint.astype(bool))
+    nxt = np.searchsorted(leaves, np.arange(N))
+    lo = nxt.astype(np.int64)
+    return left, right, parent, depth, size, lo
+
+
+def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.PROPOSED,
+                     keep_vertex_order: bool = True) -> bytes:
+    """Serialise a part's vertex hierarchy with coded connectivity.
+
+    Parameters
+    ----------
+    tree_or_positions : VertexTree, or (n, 3) positions (float64 or uint32 grid) with ``triangles``
+    triangles : (m, 3) int, when positions are given
+    variant : a decodable Variant (``corner == "id"``)
+    keep_vertex_order : store the leaf -> input vertex permutation (``n`` uint32), so
+        ``triangles()`` returns input vertex indices.
+
+    Returns
+    -------
+    bytes, deterministic for the same input and options.
+    """
+    tree = tree_or_positions if isinstance(tree_or_positions, VertexTree) else \
+        build_tree(tree_or_positions, triangles)
+    if not variant.decodable:
+        raise LopcookError("usage", None, f"variant {variant} is measurable but not decodable",
+                           hint="use corner='id'")
+    lay = C.layout(tree, variant.restructure)
+    coded = C.encode_connectivity(tree, variant, lay)
+    order = lay.order  # preorder -> tree node
+    N = tree.n_nodes
+    n = tree.n_leaves
+    isint = (lay.left[order] >= 0).astype(np.uint8)
+    internal = order[isint.astype(bool)]
+    repside = (tree.rep[internal] != tree.rep[lay.left[internal]]).astype(np.uint8)
+    out = bytearray()
+    out += MAGIC
+    out += struct.pack("<BBH", VERSION, _variant_flags(variant), variant.table_size)
+    body = bytearray()
+    for x in (n, N, int(tree.roots.shape[0]), int(tree.triangles.shape[0])):
+        put_varint(body, x)
+    body.append(1 if keep_vertex_order else 0)
+    body += struct.pack("<4d", *[float(x) for x in tree.origin], float(tree.step))
+    body += np.packbits(isint).tobytes()
+    body += np.packbits(repside).tobytes()
+    pos = tree.positions[lay.leaf_vertex].astype("<u4")
+    body += pos.tobytes()
+    body += _pack_selection(tree.error[order], tree.cone_axis[order], tree.cone_angle[order])
+    if keep_vertex_order:
+        body += lay.leaf_vertex.astype("<u4").tobytes()
+    names = [k for k in _TABLE_NAMES if k in coded.tables]
+    body.append(len(names))
+    for k in names:
+        body.append(ord(k))
+        body += coded.tables[k].to_bytes()
+    for b in coded.record_bits.tolist():
+        put_varint(body, int(b))
+    put_varint(body, len(coded.data))
+    body += coded.data
+    out += struct.pack("<Q", len(body))
+    out += body
+    out += struct.pack("<I", zlib.crc32(bytes(out)))
+    return bytes(out)
+
+
+def blob_length(buf: bytes, offset: int = 0) -> int:
+    """Length in bytes of the hierarchy blob starting at ``offset`` (header read only)."""
+    if len(buf) - offset < 16 or buf[offset:offset + 4] != MAGIC:
+        _fail("missing LOPH magic")
+    (blen,) = struct.unpack_from("<Q", buf, offset + 8)
+    return 16 + blen + 4
+
+
+def decode_hierarchy(buf: bytes) -> Hierarchy:
+    """Parse and validate a blob written by :func:`encode_hierarchy` (trailing bytes ignored)."""
+    buf = bytes(buf)
+    total = blob_length(buf)
+    if total > len(buf):
+        _fail(f"truncated: {len(buf)} bytes, the header announces {total}")
+    version, flags, tsize = struct.unpack_from("<BBH", buf, 4)
+    if version != VERSION:
+        raise LopcookError("decode", None, f"hierarchy: version {version}, this build reads {VERSION}",
+                           hint="re-encode the hierarchy with this lopcook version")
+    (crc,) = struct.unpack_from("<I", buf, total - 4)
+    if zlib.crc32(buf[:total - 4]) != crc:
+        _fail("CRC-32 mismatch")
+    variant = _variant_from(flags, tsize)
+    try:
+        C._check_variant(variant)
+    except LopcookError:
+        _fail(f"invalid variant flags {flags:#x}")
+    body = buf[16:total - 4]
+    p = 0
+    n, p = get_varint(body, p, "hierarchy")
+    N, p = get_varint(body, p, "hierarchy")
+    n_roots, p = get_varint(body, p, "hierarchy")
+    m, p = get_varint(body, p, "hierarchy")
+    if not (n >= 1 and N == 2 * n - n_roots and 1 <= n_roots <= n) or m > 4 * N + 16:
+        _fail(f"inconsistent counts (leaves {n}, nodes {N}, roots {n_roots}, triangles {m})")
+    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 10 * N
+    if p + need > len(body):
+        _fail("truncated before the node data")
+    keep_order = body[p]
+    p += 1
+    ox, oy, oz, step = struct.unpack_from("<4d", body, p)
+    p += 32
+    if keep_order > 1 or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
+        _fail("invalid header (vertex order flag or grid placement)")
+    isint = np.unpackbits(np.frombuffer(body, np.uint8, (N + 7) // 8, p))[:N]
+    p += (N + 7) // 8
+    I = n - n_roots
+    if int(isint.sum()) != I:
+        _fail("tree structure bits do not match the node counts")
+    repside = np.unpackbits(np.frombuffer(body, np.uint8, (I + 7) // 8, p))[:I]
+    p += (I + 7) // 8
+    positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
+    p += 12 * n
+    error, axis, angle, p = _unpack_selection(body, p, N)
+    vol = None
+    if keep_order:
+        if p + 4 * n > len(body):
+            _fail("truncated vertex order")
+        vol = np.frombuffer(body, "<u4", n, p).astype(np.int64)
+        p += 4 * n
+        if not np.array_equal(np.sort(vol), np.arange(n)):
+            _fail("vertex order is not a permutation")
+    left, right, parent, depth, size, lo = _shape_arrays(isint, n_roots)
+    if p >= len(body):
+        _fail("truncated before the tables")
+    nt = body[p]
+    p += 1
+    tables = {}
+    for _ in range(nt):
+        if p >= len(body):
+            _fail("truncated table list")
+        name = chr(body[p])
+        p += 1
+        if name not in _TABLE_NAMES or name in tables:
+            _fail(f"unknown or repeated table {name!r}")
+        tables[name], p = Table.from_bytes(body, p, f"hierarchy table {name}")
+    needed = {"H", "N"} | ({"D" if variant.tables == "single" else "E"}
+                           if variant.external == "value" else set())
+    if variant.internal == "explicit":
+        needed.add("D" if variant.tables == "single" else "I")
+    if variant.control == "predicted":
+        needed.add("C")
+    if not needed <= set(tables):
+        _fail(f"missing tables {sorted(needed - set(tables))}")
+    rb = np.zeros(I, np.int64)
+    for i in range(I):
+        rb[i], p = get_varint(body, p, "hierarchy record index")
+    nbytes, p = get_varint(body, p, "hierarchy")
+    if p + nbytes != len(body):
+        _fail(f"connectivity is {len(body) - p} bytes, the index announces {nbytes}")
+    starts = np.r_[0, np.cumsum(rb)]
+    if starts[-1] > 8 * nbytes:
+        _fail("record index runs past the connectivity bytes")
+    data = body[p:]
+    rank = np.full(N, -1, np.int64)
+    rank[left >= 0] = np.arange(I)
+    # representative leaf of each node: follow the representative side down to a leaf
+    side = np.zeros(N, np.uint8)
+    side[left >= 0] = repside
+    x = np.arange(N)
+    while True:
+        inner = left[x] >= 0
+        if not inner.any():
+            break
+        x = np.where(inner, np.where(side[x] == 1, right[np.maximum(x, 0)], left[x]), x)
+    node_leaf = lo[x]
+    return Hierarchy(n_leaves=n, n_nodes=N, n_triangles=m, variant=variant, left=left, right=right,
+                     parent=parent, depth=depth, size=size, lo=lo, positions=positions,
+                     node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
+                     vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
+                     rank=rank, bits={"connectivity": int(starts[-1])},
+                     origin=np.array([ox, oy, oz]), step=step)

@@ -1,0 +1,136 @@
+"""lopcook.hierarchy.decode / format: dependency-free subtree access, bad data -> LopcookError."""
+
+from __future__ import annotations
+
+import dataclasses
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+from hierarchy_meshes import book, canonical, grid, icosphere
+from lopcook.errors import LopcookError
+from lopcook.hierarchy import (PROPOSED, PROPOSED_PLUS, RELATIVE_ID, blob_length, build_tree,
+                               decode_hierarchy, drop_degenerate, encode_hierarchy)
+from lopcook.hierarchy.decode import decode_records
+
+
+def _scramble_except(h, keep_nodes, rng):
+    """A copy of ``h`` whose records outside ``keep_nodes`` are replaced by random bits."""
+    bits = np.unpackbits(np.frombuffer(h.data, np.uint8))
+    keep = np.zeros(h.n_nodes, bool)
+    keep[list(keep_nodes)] = True
+    starts = h.record_starts
+    for node in h.internal_nodes.tolist():
+        if not keep[node]:
+            r = h.rank[node]
+            a, b = starts[r], starts[r + 1]
+            bits[a:b] = rng.integers(0, 2, b - a)
+    return dataclasses.replace(h, data=np.packbits(bits).tobytes())
+
+
+def _rows(own, tri):
+    return sorted((o, tuple(t)) for o, t in zip(own.tolist(), tri.tolist()))
+
+
+@pytest.mark.parametrize("variant", [PROPOSED, PROPOSED_PLUS, RELATIVE_ID])
+def test_subtree_decodes_from_its_ancestors_alone(variant, rng):
+    p, t = icosphere(3)
+    h = decode_hierarchy(encode_hierarchy(p, t, variant=variant))
+    own_all, tri_all = decode_records(h, h.internal_nodes.tolist())
+    internal = h.internal_nodes
+    picks = [internal[h.depth[internal] == d][0] for d in (1, 3, 6) if (h.depth[internal] == d).any()]
+    picks += rng.choice(internal, 5, replace=False).tolist()
+    for w in picks:
+        w = int(w)
+        sub = np.arange(w, w + 2 * h.size[w] - 1)
+        needed = h.ancestors(w) + sub[h.left[sub] >= 0].tolist()
+        scrambled = _scramble_except(h, needed, rng)
+        own, tri = scrambled.decode_subtree(w)
+        mine = (own_all >= w) & (own_all < w + 2 * h.size[w] - 1)
+        assert _rows(own, tri) == _rows(own_all[mine], tri_all[mine])
+        assert own.shape[0] == mine.sum() > 0
+        assert (tri >= 0).all()
+
+
+def test_scrambled_sibling_changes_the_full_decode(rng):
+    """The scrambling above is not a no-op: the same scrambling breaks a full decode."""
+    p, t = icosphere(3)
+    h = decode_hierarchy(encode_hierarchy(p, t))
+    w = int(h.left[h.roots[0]])
+    scrambled = _scramble_except(h, [h.roots[0]] + list(range(w, w + 2 * h.size[w] - 1)), rng)
+    try:
+        bad = scrambled.triangles()
+    except LopcookError:
+        return
+    assert not np.array_equal(canonical(bad), canonical(t))
+
+
+@pytest.mark.parametrize("mesh", [icosphere, book, grid])
+def test_truncation_is_a_lopcook_error(mesh):
+    p, t = mesh()
+    blob = encode_hierarchy(p, t, variant=PROPOSED_PLUS)
+    assert blob_length(blob) == len(blob)
+    for k in sorted(set(np.linspace(0, len(blob) - 1, 60).astype(int).tolist())):
+        with pytest.raises(LopcookError):
+            decode_hierarchy(blob[:k])
+    # trailing bytes (the next section of a container) are ignored
+    assert np.array_equal(decode_hierarchy(blob + b"xyz").triangles(), decode_hierarchy(blob).triangles())
+
+
+def test_every_byte_flip_is_detected():
+    p, t = icosphere(1)
+    blob = encode_hierarchy(p, t)
+    for k in range(len(blob)):
+        bad = bytearray(blob)
+        bad[k] ^= 0x40
+        with pytest.raises(LopcookError):
+            decode_hierarchy(bytes(bad))
+
+
+def _recrc(buf: bytearray) -> bytes:
+    total = blob_length(bytes(buf))
+    buf[total - 4:total] = struct.pack("<I", zlib.crc32(bytes(buf[:total - 4])))
+    return bytes(buf)
+
+
+@pytest.mark.parametrize("variant", [PROPOSED, PROPOSED_PLUS, RELATIVE_ID])
+def test_corrupt_payload_with_valid_crc_never_crashes(variant, rng):
+    """Bit flips behind a recomputed CRC: either a LopcookError or triangles, nothing else."""
+    p, t = icosphere(2)
+    blob = encode_hierarchy(p, t, variant=variant)
+    errors = 0
+    for _ in range(300):
+        bad = bytearray(blob)
+        k = int(rng.integers(16, len(blob) - 4))
+        bad[k] ^= 1 << int(rng.integers(0, 8))
+        try:
+            h = decode_hierarchy(_recrc(bad))
+            tri = h.triangles()
+            assert tri.ndim == 2 and tri.shape[1] == 3
+        except LopcookError as exc:
+            assert exc.stage == "decode"
+            errors += 1
+    assert errors > 0
+
+
+def test_wrong_magic_and_version():
+    p, t = icosphere(1)
+    blob = bytearray(encode_hierarchy(p, t))
+    with pytest.raises(LopcookError, match="magic"):
+        decode_hierarchy(b"NOPE" + bytes(blob[4:]))
+    blob[4] = 99
+    with pytest.raises(LopcookError, match="version 99"):
+        decode_hierarchy(_recrc(blob))
+
+
+def test_decode_speed_inputs_bunny_round_trip(corpus):
+    """The corpus bunny decodes exactly through the blob (the speed is measured in the benchmark)."""
+    import lopcook
+
+    part = lopcook.load(corpus / "stanford-bunny.obj").parts[0]
+    tri0 = drop_degenerate(part.indices)
+    h = decode_hierarchy(encode_hierarchy(build_tree(part.positions, tri0), variant=PROPOSED_PLUS))
+    assert np.array_equal(canonical(h.triangles()), canonical(tri0))
+    assert h.n_triangles == 69451
