@@ -22,7 +22,7 @@ Layout (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF
 * Accessors: POSITION float32 VEC3 with ``min``/``max`` equal to the componentwise extremes of
   the float32 values written (exactly: JSON numbers are Python ``repr`` of those float32 values,
   which parse back to the same double), NORMAL float32 VEC3, TEXCOORD_0 float32 VEC2, COLOR_0
-  float32 VEC4; indices UNSIGNED_SHORT (5123) when every index < 65535 (65535 is the primitive
+  float32 VEC4, TANGENT float32 VEC4; indices UNSIGNED_SHORT (5123) when every index < 65535 (65535 is the primitive
   restart value the specification forbids) else UNSIGNED_INT (5125).
 * ``asset``: ``version`` "2.0", ``generator`` (default "lopcook"), optional ``extras`` (any
   JSON value; NaN/Infinity are rejected because JSON has no such numbers).
@@ -199,6 +199,15 @@ def _prepare(index: int, mesh) -> dict:
         if dev.max() > NORMAL_TOLERANCE:
             raise ValueError(f"{label}: normals must be unit length (max | |n| - 1 | = {dev.max():.3g}, "
                              f"allowed {NORMAL_TOLERANCE:g}); normalise them first")
+    value = _field(mesh, "tangents")
+    out["tangents"] = None if value is None else _float_array(label, "tangents", value, n, 4)
+    if out["tangents"] is not None:
+        t = out["tangents"]
+        dev = np.abs(np.linalg.norm(t[:, :3].astype(np.float64), axis=1) - 1.0)
+        if dev.max() > NORMAL_TOLERANCE or not np.isin(t[:, 3], (-1.0, 1.0)).all():
+            raise ValueError(f"{label}: tangents must be unit xyz with w = +1 or -1")
+        if out["normals"] is None:
+            raise ValueError(f"{label}: tangents need normals")
     if out["colors"] is not None and (out["colors"].min() < 0.0 or out["colors"].max() > 1.0):
         raise ValueError(f"{label}: colors must be linear RGBA in [0, 1] "
                          f"(got [{out['colors'].min():.6g}, {out['colors'].max():.6g}])")
@@ -300,6 +309,8 @@ def build_gltf(meshes, *, generator: str = "lopcook", extras=None, materials=Non
         attributes = {"POSITION": buf.add(m["positions"], "VEC3", FLOAT, ARRAY_BUFFER, minmax=True)}
         if m["normals"] is not None:
             attributes["NORMAL"] = buf.add(m["normals"], "VEC3", FLOAT, ARRAY_BUFFER)
+        if m["tangents"] is not None:
+            attributes["TANGENT"] = buf.add(m["tangents"], "VEC4", FLOAT, ARRAY_BUFFER)
         if m["uvs"] is not None:
             attributes["TEXCOORD_0"] = buf.add(m["uvs"], "VEC2", FLOAT, ARRAY_BUFFER)
         if m["colors"] is not None:
@@ -357,7 +368,8 @@ def write_gltf(path, meshes, *, generator: str = "lopcook", extras=None, materia
         metres, +Y up), ``indices`` (m, 3) integers in [0, n) (counter-clockwise triangles), and
         optionally ``normals`` (n, 3) unit float32, ``uvs`` (n, 2) float32 (glTF convention,
         origin top-left) and ``colors`` (n, 4) float32 linear RGBA in [0, 1]; missing attributes
-        may be absent or None. ``lopcook.types.MeshPart`` objects qualify. An optional
+        may be absent or None. ``lopcook.types.MeshPart`` objects qualify. Optional ``tangents``
+        (n, 4) float32 (unit xyz, w = +-1 the bitangent's sign; needs normals). An optional
         ``material`` (int) indexes ``materials["materials"]``; a textured material needs ``uvs``.
     generator : str
         ``asset.generator``.
