@@ -665,9 +665,11 @@ def _rotation(q: list[float]) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def fit_trs(p: np.ndarray, q: np.ndarray) -> tuple[list, list, list, float] | None:
+def fit_trs(p: np.ndarray, q: np.ndarray, snap_tol: float = 0.0) -> tuple[list, list, list, float] | None:
     """``(translation, rotation xyzw, scale, max residual)`` of the TRS map nearest the least-
-    squares affine map taking ``p`` (n, 3) to ``q``; None when the points do not determine it."""
+    squares affine map taking ``p`` (n, 3) to ``q``; None when the points do not determine it.
+    A scale within 1e-5 of +-1 is written as exactly +-1 when the residual then stays within
+    ``snap_tol`` (metres) or within twice the fitted one."""
     p, q = np.asarray(p, np.float64), np.asarray(q, np.float64)
     if p.shape[0] < 4:
         return None
@@ -697,7 +699,7 @@ def fit_trs(p: np.ndarray, q: np.ndarray) -> tuple[list, list, list, float] | No
     unit = np.sign(scale)  # a scale within fitting noise of +-1 is written as exactly +-1
     if np.abs(np.abs(scale) - 1.0).max() < 1e-5:
         t1, r1 = residual(unit)
-        if r1 <= 2.0 * resid:
+        if r1 <= max(2.0 * resid, snap_tol):
             t, resid, scale = t1, r1, unit
     return [float(v) for v in t], quat, [float(v) for v in scale], resid
 
@@ -770,7 +772,7 @@ def instance_nodes(c, lods: list[int], meshes: list[dict], keys: list) -> tuple[
                 continue
             if fine_lead is None:
                 fine_lead = decode_positions(c, lead, lods[lead], 24)[2].astype(np.float64)
-            fit = fit_trs(fine_lead, decode_positions(c, i, lods[i], 24)[2].astype(np.float64))
+            fit = fit_trs(fine_lead, decode_positions(c, i, lods[i], 24)[2].astype(np.float64), tol)
             if fit is None or fit[3] > tol:
                 continue
             t, quat, s, _ = fit
