@@ -31,8 +31,9 @@ from the *source* asset, here, without changing the container or the importers:
     B = metallic, from the channel each connection reads), ``opacity`` (< 1: BLEND) and
     ``opacityThreshold`` (> 0: MASK with that cutoff), ``normal``, ``emissiveColor`` and
     ``occlusion`` textures; the mesh's ``doubleSided``. A prim without a bound preview surface
-    gets UsdPreviewSurface's defaults (diffuse white, since ``displayColor`` is already the
-    vertex colour, metallic 0, roughness 0.5) instead of glTF's metallic default material.
+    gets UsdPreviewSurface's defaults (metallic 0, roughness 0.5; diffuse white when the part
+    has vertex colours, its ``displayColor``, else the 0.18 default grey) instead of glTF's
+    metallic default material.
 
 * ``instance_nodes(c, lods, meshes, keys)``: parts that are copies of one mesh (the same
   ``mesh_key`` and material, identical indices, UVs and colours at the decoded LOD) become
@@ -216,11 +217,21 @@ def _untextured(mat: dict) -> dict:
     return out
 
 
-def source_materials(path: str, fmt: str, parts: list[dict], has_uvs: list[bool]) -> tuple[dict, list, list[str]]:
+#: marks USD's no-material fallback until the part's vertex colours are known
+_FALLBACK = "lopcook:usd-fallback"
+#: UsdPreviewSurface's diffuseColor default (linear)
+USD_DEFAULT_DIFFUSE = 0.18
+
+
+def source_materials(path: str, fmt: str, parts: list[dict], has_uvs: list[bool],
+                     has_colors: list[bool] | None = None) -> tuple[dict, list, list[str]]:
     """``(materials for write_gltf, material index or None per part, warnings)``.
 
     ``parts`` are manifest part entries (``mesh_key``, ``source``); ``has_uvs[i]`` says whether
-    part i is decoded with UVs (a part without gets the material's untextured variant).
+    part i is decoded with UVs (a part without gets the material's untextured variant), and
+    ``has_colors[i]`` (default: none have) whether with vertex colours: a USD prim without a
+    preview surface is drawn in its ``displayColor`` (the vertex colours, base colour white)
+    or, without one, in UsdPreviewSurface's default diffuse ``USD_DEFAULT_DIFFUSE`` grey.
     Unreadable sources raise nothing: they give no materials and a warning.
     """
     col = _Collector()
@@ -238,10 +249,15 @@ def source_materials(path: str, fmt: str, parts: list[dict], has_uvs: list[bool]
         return {}, [None] * len(parts), [f"materials of {os.path.basename(path)} unreadable ({exc}); "
                                          "decoded geometry only"]
     out = []
-    for mat, uv in zip(per_part, has_uvs):
+    has_colors = [False] * len(parts) if has_colors is None else has_colors
+    for mat, uv, colored in zip(per_part, has_uvs, has_colors):
         if mat is None:
             out.append(None)
             continue
+        if _FALLBACK in mat:
+            grey = 1.0 if colored else USD_DEFAULT_DIFFUSE
+            mat = {k: v for k, v in mat.items() if k != _FALLBACK}
+            mat["pbrMetallicRoughness"] = dict(mat["pbrMetallicRoughness"], baseColorFactor=[grey] * 3 + [1.0])
         out.append(col.material(mat if uv else _untextured(mat)))
     return col.as_writer_arg(), out, col.warnings
 
@@ -575,7 +591,7 @@ def _usd(path: str, parts: list[dict], col: _Collector) -> list:
         shader = mat.ComputeSurfaceSource()[0] if mat else None
         double = bool(UsdGeom.Mesh(prim).GetDoubleSidedAttr().Get()) if prim.IsA(UsdGeom.Mesh) else False
         if not shader or shader.GetShaderId() != "UsdPreviewSurface":
-            out = {"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.5}}
+            out = {_FALLBACK: True, "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.5}}
             if double:
                 out["doubleSided"] = True
             return out
@@ -817,7 +833,8 @@ def preview(c, container_path: str, meshes: list[dict], lods: list[int], source:
     materials, per_part = None, [None] * len(parts)
     if path is not None:
         materials, per_part, more = source_materials(path, c.manifest["source"].get("format", ""), parts,
-                                                     [m["uvs"] is not None for m in meshes])
+                                                     [m["uvs"] is not None for m in meshes],
+                                                     [m["colors"] is not None for m in meshes])
         warnings += more
         if not materials:
             materials, per_part = None, [None] * len(parts)
