@@ -167,6 +167,28 @@ def test_texture_on_another_uv_set_is_left_out_with_a_warning(tmp_path):
         "baseColorFactor"]
 
 
+def test_unreadable_images_are_left_out_with_a_warning(tmp_path, gltf_validator):
+    src = tmp_path / "tex.gltf"
+    F.write_textured_gltf(src, binary=False)
+    good = F.textured_images()
+    (tmp_path / "tex_albedo.png").write_bytes(b"not an image at all")
+    (tmp_path / "tex_normal.png").write_bytes(good["normal"][:60])  # header, then truncated
+    (tmp_path / "tex_emissive.png").unlink()
+    parts = [{"mesh_key": "mesh0/prim0", "source": "x"}]
+    mats, per_part, warnings = P.source_materials(str(src), "gltf", parts, [True])
+    (mat,) = mats["materials"]
+    assert "baseColorTexture" not in mat["pbrMetallicRoughness"] and "normalTexture" not in mat
+    assert "emissiveTexture" not in mat and "metallicRoughnessTexture" in mat["pbrMetallicRoughness"]
+    assert [im["data"] for im in mats["images"]] == [good["orm"]]
+    text = " | ".join(warnings)
+    assert "not PNG or JPEG" in text and "cannot be decoded" in text and "not found" in text
+    cube = F.seamed_cube()[0]
+    out = tmp_path / "out.glb"
+    write_gltf(out, [{"name": "c", "positions": cube.positions, "indices": cube.indices, "normals": cube.normals,
+                      "uvs": cube.uvs, "material": per_part[0]}], materials=mats)
+    _clean(gltf_validator, out)
+
+
 # ---------------------------------------------------------------------------------------------
 # OBJ + .mtl
 # ---------------------------------------------------------------------------------------------

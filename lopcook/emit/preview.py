@@ -67,6 +67,9 @@ from .reader import decode_positions
 #: this many cells of the 24-bit grid (the decode itself is exact to half a cell).
 INSTANCE_TOL_STEPS = 8
 
+#: Largest image side carried (px); a larger or undecodable image is left out with a warning.
+MAX_IMAGE_SIDE = 8192
+
 _MIME = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
 _WRAP_USD = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
 
@@ -197,13 +200,17 @@ class _Collector:
 
 
 def _readable(data: bytes) -> bool:
-    """The image header parses and its size is sane (Pillow; decompression-bomb capped)."""
+    """The image decodes completely and no side exceeds ``MAX_IMAGE_SIDE`` (checked on the
+    header, before decoding)."""
     try:
         from PIL import Image
 
         with Image.open(io.BytesIO(data)) as im:
             w, h = im.size
-            return 0 < w <= 16384 and 0 < h <= 16384
+            if not (0 < w <= MAX_IMAGE_SIDE and 0 < h <= MAX_IMAGE_SIDE):
+                return False
+            im.load()
+            return True
     except Exception:  # noqa: BLE001 - any decoder failure means: not usable
         return False
 
@@ -245,7 +252,7 @@ def source_materials(path: str, fmt: str, parts: list[dict], has_uvs: list[bool]
             per_part = _usd(path, parts, col)
         else:
             return {}, [None] * len(parts), [f"no materials for source format {fmt!r}"]
-    except (OSError, ValueError, KeyError, TypeError, IndexError, struct.error) as exc:
+    except (OSError, ValueError, KeyError, TypeError, IndexError, RuntimeError, struct.error) as exc:
         return {}, [None] * len(parts), [f"materials of {os.path.basename(path)} unreadable ({exc}); "
                                          "decoded geometry only"]
     out = []
@@ -644,7 +651,12 @@ def _usd(path: str, parts: list[dict], col: _Collector) -> list:
         prim_path = re.sub(r" \[instance \d+\]$", "", str(p.get("source", "")))
         if prim_path not in cache:
             prim = stage.GetPrimAtPath(prim_path) if prim_path.startswith("/") else None
-            cache[prim_path] = material(prim) if prim else None
+            try:
+                cache[prim_path] = material(prim) if prim else None
+            except Exception as exc:  # noqa: BLE001 - a broken shading network only loses the material
+                why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                col.warn(f"{prim_path}: material unreadable ({why}); default material")
+                cache[prim_path] = None
         per_part.append(cache[prim_path])
     return per_part
 
