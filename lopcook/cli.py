@@ -585,6 +585,13 @@ def cmd_decode(args) -> int:
         check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
                      what="the glTF buffer", inputs=(args.container,))
     c = read(args.container)
+    from .emit.preview import preview, source_candidate
+    from .outputs import check_not_input
+
+    source_in = (source_candidate(args.container, c.manifest, args.source),)  # materials are read from it
+    check_not_input(args.output, "-o", source_in)
+    if args.output.lower().endswith(".gltf"):
+        check_not_input(str(Path(args.output).with_suffix(".bin")), "-o's .bin", source_in)
     parts = c.manifest["parts"]
     deepest = max(len(p["lods"]) for p in parts)
     if not 0 <= args.lod < deepest:
@@ -605,8 +612,6 @@ def cmd_decode(args) -> int:
     if coarsest and not args.quiet and not args.json:
         print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "
               f"used ({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
-    from .emit.preview import preview
-
     pv = preview(c, args.container, meshes, lods, args.source)
     if not args.quiet:
         for w in pv["warnings"]:

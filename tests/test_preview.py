@@ -342,6 +342,12 @@ def test_missing_or_mismatched_source_gives_geometry_only_and_one_warning(tmp_pa
         _clean(gltf_validator, out)
     rc, _, err = _cli(capsys, "decode", moved, "--level", 16, "-o", tmp_path / "quiet.glb", "-q")
     assert rc == 0 and err == ""
+    # the source is an input: never overwritten, given or found beside the container
+    before = src.read_bytes()
+    for argv in (("-o", src), ("-o", changed, "--source", changed)):
+        rc, _, err = _cli(capsys, "decode", lop, "--level", 16, *argv)
+        assert rc == 2 and "input of this run" in err and len(err.strip().splitlines()) == 1
+    assert src.read_bytes() == before and changed.read_bytes() == bytes(data)
     assert P.find_source(str(moved), {"source": {"file": "tex.glb"}}, str(src))[0] is None  # no sha256
 
 

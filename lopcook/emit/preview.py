@@ -94,6 +94,19 @@ def _sha256(path: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
+def source_candidate(container_path: str, manifest: dict, given: str | None) -> str | None:
+    """The path ``find_source`` looks at (whether or not it exists): ``given``, else the
+    manifest's ``source.file`` beside the container; None when there is neither. ``decode``
+    refuses an output there (it never overwrites what it reads)."""
+    if given is not None:
+        return given
+    src = manifest.get("source") if isinstance(manifest.get("source"), dict) else {}
+    name = src.get("file")
+    if not isinstance(name, str) or not name:
+        return None
+    return os.path.join(os.path.dirname(os.path.abspath(container_path)), os.path.basename(name))
+
+
 def find_source(container_path: str, manifest: dict, given: str | None) -> tuple[str | None, str | None]:
     """``(path, None)`` when the source can give the preview its materials, else ``(None, reason)``.
 
@@ -861,4 +874,4 @@ def preview(c, container_path: str, meshes: list[dict], lods: list[int], source:
             "source": path, **stats}
 
 
-__all__ = ["find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview", "INSTANCE_TOL_STEPS"]
+__all__ = ["source_candidate", "find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview", "INSTANCE_TOL_STEPS"]
