@@ -25,7 +25,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+#: where .ci/run installs npm packages; else beside the validator GLTF_VALIDATOR_DIR names
 NODE_MODULES = REPO / ".ci" / "node" / "node_modules"
+if not (NODE_MODULES / "three").is_dir() and os.environ.get("GLTF_VALIDATOR_DIR"):
+    NODE_MODULES = Path(os.environ["GLTF_VALIDATOR_DIR"]).parent
 CHROMIUM = os.environ.get("LOPCOOK_CHROMIUM", "/usr/bin/chromium")
 #: what .ci/run installs (keep the two in step)
 THREE_VERSION = "0.170.0"
