@@ -98,6 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
     p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
+    p.add_argument("--source", metavar="SRC", default=None,
+                   help="source asset to take materials and textures from (default: the manifest's source file "
+                        "beside the container; used only when its sha256 matches)")
     _add_common(p)
 
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
@@ -582,16 +585,24 @@ def cmd_decode(args) -> int:
         check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
                      what="the glTF buffer", inputs=(args.container,))
     c = read(args.container)
+    from .emit.preview import preview, source_candidate
+    from .outputs import check_not_input
+
+    source_in = (source_candidate(args.container, c.manifest, args.source),)  # materials are read from it
+    check_not_input(args.output, "-o", source_in)
+    if args.output.lower().endswith(".gltf"):
+        check_not_input(str(Path(args.output).with_suffix(".bin")), "-o's .bin", source_in)
     parts = c.manifest["parts"]
     deepest = max(len(p["lods"]) for p in parts)
     if not 0 <= args.lod < deepest:
         raise LopcookError("usage", args.container, f"--lod {args.lod}: no part has LOD {args.lod} (the container has "
                            f"LODs 0..{deepest - 1})")
-    meshes, coarsest = [], []
+    meshes, coarsest, lods = [], [], []
     for i, part in enumerate(parts):
         # a part whose chain stopped early (too few triangles, or a LOD no distance selects) is
         # drawn with its coarsest LOD at every farther distance: decode that, as a renderer would
         lod = min(args.lod, len(part["lods"]) - 1)
+        lods.append(lod)
         if lod != args.lod:
             coarsest.append(part["name"])
         _, _, pos = decode_positions(c, i, lod, args.level)
@@ -601,12 +612,19 @@ def cmd_decode(args) -> int:
     if coarsest and not args.quiet and not args.json:
         print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "
               f"used ({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
-    written = write_gltf(args.output, meshes, generator=f"lopcook {__version__}",
-                         extras={"lopcook": {"level": args.level, "lod": args.lod,
-                                             "source": c.manifest["source"]["file"]}})
+    pv = preview(c, args.container, meshes, lods, args.source)
+    if not args.quiet:
+        for w in pv["warnings"]:
+            print(f"lopcook: warning: {w}", file=sys.stderr)
+    written = write_gltf(args.output, pv["meshes"], generator=f"lopcook {__version__}", materials=pv["materials"],
+                         nodes=pv["nodes"], extras={"lopcook": {"level": args.level, "lod": args.lod,
+                                                               "source": c.manifest["source"]["file"]}})
     if args.json:
         print(json.dumps({"written": [str(w) for w in written], "level": args.level, "lod": args.lod,
-                          "parts": len(meshes), "parts_at_coarsest_lod": coarsest}, sort_keys=True))
+                          "parts": len(meshes), "parts_at_coarsest_lod": coarsest,
+                          "materials": len((pv["materials"] or {}).get("materials", [])),
+                          "instances": pv["instances"], "max_instancing_offset_m": pv["max_instancing_offset_m"],
+                          "warnings": pv["warnings"]}, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
     return EXIT_OK

@@ -843,3 +843,102 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+# ---------------------------------------------------------------------------------------------
+# Textured fixtures (materials for decoded previews; added for lopcook.emit.preview's tests)
+# ---------------------------------------------------------------------------------------------
+
+
+def png_bytes(rgba: np.ndarray) -> bytes:
+    """A PNG (8-bit RGBA, no filter, zlib level 9) of an (h, w, 4) uint8 array; deterministic."""
+    import struct
+    import zlib
+
+    rgba = np.ascontiguousarray(rgba, np.uint8)
+    h, w = rgba.shape[:2]
+    raw = np.concatenate([np.zeros((h, 1), np.uint8), rgba.reshape(h, w * 4)], axis=1).tobytes()
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def textured_images(size: int = 16) -> dict[str, bytes]:
+    """Four small PNGs: ``albedo`` (red/blue checker, alpha 255 or 64 by cell), ``orm`` (R
+    occlusion, G roughness, B metallic ramps), ``normal`` (a tilted tangent-space normal) and
+    ``emissive`` (a green stripe), each ``size`` x ``size``."""
+    y, x = np.mgrid[0:size, 0:size]
+    checker = ((x // 4 + y // 4) % 2).astype(bool)
+    albedo = np.zeros((size, size, 4), np.uint8)
+    albedo[checker] = (220, 40, 30, 255)
+    albedo[~checker] = (30, 60, 200, 64)
+    ramp = (x * 255 // max(size - 1, 1)).astype(np.uint8)
+    orm = np.stack([np.full_like(ramp, 230), ramp, 255 - ramp, np.full_like(ramp, 255)], axis=2)
+    normal = np.zeros((size, size, 4), np.uint8)
+    normal[...] = (160, 128, 240, 255)
+    emissive = np.zeros((size, size, 4), np.uint8)
+    emissive[..., 3] = 255
+    emissive[size // 2 - 1: size // 2 + 1, :, 1] = 255
+    return {k: png_bytes(v) for k, v in
+            (("albedo", albedo), ("orm", orm), ("normal", normal), ("emissive", emissive))}
+
+
+#: The material of ``write_textured_gltf`` (texture indices: 0 albedo, 1 orm, 2 normal, 3 emissive).
+TEXTURED_MATERIAL = {
+    "name": "painted",
+    "pbrMetallicRoughness": {"baseColorFactor": [0.875, 0.5, 0.25, 1.0], "baseColorTexture": {"index": 0},
+                             "metallicFactor": 0.25, "roughnessFactor": 0.75,
+                             "metallicRoughnessTexture": {"index": 1}},
+    "normalTexture": {"index": 2, "scale": 0.5},
+    "occlusionTexture": {"index": 1, "strength": 0.75},
+    "emissiveTexture": {"index": 3},
+    "emissiveFactor": [0.125, 0.25, 0.5],
+    "alphaMode": "MASK",
+    "alphaCutoff": 0.375,
+    "doubleSided": True,
+}
+#: Its sampler (nearest filtering, clamp / mirrored-repeat wrapping).
+TEXTURED_SAMPLER = {"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33648}
+#: The two nodes placing the one cube mesh (the second turned 90 degrees about +Y).
+TEXTURED_NODES = [
+    {"name": "cube_left", "mesh": 0, "translation": [-1.0, 0.0, 0.0]},
+    {"name": "cube_right", "mesh": 0, "translation": [1.5, 0.25, 0.0],
+     "rotation": [0.0, _SQRT_HALF, 0.0, _SQRT_HALF]},
+]
+
+
+def write_textured_gltf(path, binary: bool = True) -> list[Path]:
+    """``seamed_cube`` with ``TEXTURED_MATERIAL`` (base colour, metallic-roughness, normal,
+    occlusion and emissive textures, MASK alpha, double-sided) placed twice (``TEXTURED_NODES``,
+    one mesh shared by two nodes). Images from ``textured_images()``: embedded as bufferViews in
+    a ``.glb`` (``binary``), or PNG files ``<stem>_<name>.png`` beside a ``.gltf`` + ``.bin``.
+
+    Returns the paths written (the glTF/GLB first).
+    """
+    path = Path(path)
+    doc, blob = _gltf_document(seamed_cube(name="cube"), [dict(n) for n in TEXTURED_NODES], None)
+    blob = bytearray(blob)
+    images, written = [], []
+    for name, data in textured_images().items():
+        if binary:
+            doc["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)})
+            blob.extend(data)
+            blob.extend(b"\0" * (-len(blob) % 4))
+            images.append({"name": name, "bufferView": len(doc["bufferViews"]) - 1, "mimeType": "image/png"})
+        else:
+            img_path = path.with_name(f"{path.stem}_{name}.png")
+            written.append(_write_bytes(img_path, data))
+            images.append({"name": name, "uri": img_path.name})
+    doc["buffers"][0]["byteLength"] = len(blob)
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    doc.update(materials=[json.loads(json.dumps(TEXTURED_MATERIAL))], samplers=[dict(TEXTURED_SAMPLER)],
+               textures=[{"sampler": 0, "source": i} for i in range(len(images))], images=images)
+    if binary:
+        return [_write_bytes(path, pack_glb(json.dumps(doc, separators=(",", ":")).encode("ascii"), bytes(blob)))]
+    bin_path = path.with_suffix(".bin")
+    doc["buffers"][0]["uri"] = bin_path.name
+    return [_write_bytes(path, gltf_json_text(doc, sort_keys=False).encode("ascii")),
+            _write_bytes(bin_path, bytes(blob))] + written

@@ -18,6 +18,11 @@ FIXTURES = REPO / "fixtures"
 IN_CI = os.environ.get("CI", "").lower() == "true"
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: over a minute (headless-browser screenshots of corpus assets); "
+                                       "runs in CI too")
+
+
 def require(reason: str | None) -> None:
     """A missing system tool (EGL, glslang, chromium, node...): skip locally, fail under CI=true."""
     if reason is not None:

@@ -12,14 +12,17 @@ Layout (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF
 --------------------------------------------------------------------------------------
 * ``scene`` 0 holds one root node ``"root"`` (no transform, no mesh) whose ``children`` are one
   node per input mesh, in input order (node k + 1 shows mesh k; node and mesh carry the input
-  ``name``). Each mesh has exactly one TRIANGLES primitive and no material (default material).
+  ``name``), or the given ``nodes`` (instancing: several nodes sharing a mesh, each with its
+  TRS). Each mesh has exactly one TRIANGLES primitive, with the given ``material`` or none
+  (default material); materials, textures, samplers and images are written as given, images
+  embedded as bufferViews (no ``target``) after the geometry's.
 * One buffer; one bufferView per accessor, each starting at a 4-byte aligned offset and tightly
   packed (``byteStride`` omitted), ``target`` 34962 (ARRAY_BUFFER) for vertex attributes and
   34963 (ELEMENT_ARRAY_BUFFER) for indices.
 * Accessors: POSITION float32 VEC3 with ``min``/``max`` equal to the componentwise extremes of
   the float32 values written (exactly: JSON numbers are Python ``repr`` of those float32 values,
   which parse back to the same double), NORMAL float32 VEC3, TEXCOORD_0 float32 VEC2, COLOR_0
-  float32 VEC4; indices UNSIGNED_SHORT (5123) when every index < 65535 (65535 is the primitive
+  float32 VEC4, TANGENT float32 VEC4; indices UNSIGNED_SHORT (5123) when every index < 65535 (65535 is the primitive
   restart value the specification forbids) else UNSIGNED_INT (5125).
 * ``asset``: ``version`` "2.0", ``generator`` (default "lopcook"), optional ``extras`` (any
   JSON value; NaN/Infinity are rejected because JSON has no such numbers).
@@ -65,6 +68,9 @@ MAX_USHORT_INDEX = 65534
 #: Allowed | |normal| - 1 |: the tolerance of ``MeshPart.validate``. glTF-Validator 2.0.0-dev.3.10
 #: reports the error ACCESSOR_VECTOR3_NON_UNIT from somewhere between 0.005 and 0.01 (measured).
 NORMAL_TOLERANCE = 1e-3
+
+#: Image types the writer embeds (the two glTF 2.0 core allows).
+IMAGE_MIME = ("image/jpeg", "image/png")
 
 _NUMBER_ARRAY = re.compile(r"\[\s+([-+0-9.eE,\s]+?)\s+\]")  # JSON arrays of numbers -> one line
 
@@ -193,6 +199,15 @@ def _prepare(index: int, mesh) -> dict:
         if dev.max() > NORMAL_TOLERANCE:
             raise ValueError(f"{label}: normals must be unit length (max | |n| - 1 | = {dev.max():.3g}, "
                              f"allowed {NORMAL_TOLERANCE:g}); normalise them first")
+    value = _field(mesh, "tangents")
+    out["tangents"] = None if value is None else _float_array(label, "tangents", value, n, 4)
+    if out["tangents"] is not None:
+        t = out["tangents"]
+        dev = np.abs(np.linalg.norm(t[:, :3].astype(np.float64), axis=1) - 1.0)
+        if dev.max() > NORMAL_TOLERANCE or not np.isin(t[:, 3], (-1.0, 1.0)).all():
+            raise ValueError(f"{label}: tangents must be unit xyz with w = +1 or -1")
+        if out["normals"] is None:
+            raise ValueError(f"{label}: tangents need normals")
     if out["colors"] is not None and (out["colors"].min() < 0.0 or out["colors"].max() > 1.0):
         raise ValueError(f"{label}: colors must be linear RGBA in [0, 1] "
                          f"(got [{out['colors'].min():.6g}, {out['colors'].max():.6g}])")
@@ -204,7 +219,70 @@ def _prepare(index: int, mesh) -> dict:
 # ---------------------------------------------------------------------------------------------
 
 
-def build_gltf(meshes, *, generator: str = "lopcook", extras=None) -> tuple[dict, bytes]:
+def _check_materials(materials) -> dict:
+    """``materials`` (see ``write_gltf``) checked: lists of the right types, indices in range."""
+    if not isinstance(materials, Mapping):
+        raise ValueError(f"materials must be a mapping, got {type(materials).__name__}")
+    out = {k: list(materials.get(k) or []) for k in ("materials", "textures", "samplers", "images")}
+    for i, img in enumerate(out["images"]):
+        if not isinstance(img, Mapping) or not isinstance(img.get("data"), (bytes, bytearray)) or not img["data"]:
+            raise ValueError(f"image {i}: needs non-empty bytes 'data'")
+        if img.get("mimeType") not in IMAGE_MIME:
+            raise ValueError(f"image {i}: mimeType must be one of {sorted(IMAGE_MIME)}, got {img.get('mimeType')!r}")
+    for i, tex in enumerate(out["textures"]):
+        if not isinstance(tex, Mapping) or not 0 <= _int(tex.get("source")) < len(out["images"]):
+            raise ValueError(f"texture {i}: source must index images (0..{len(out['images']) - 1})")
+        if "sampler" in tex and not 0 <= _int(tex["sampler"]) < len(out["samplers"]):
+            raise ValueError(f"texture {i}: sampler {tex['sampler']!r} out of range")
+    for i, mat in enumerate(out["materials"]):
+        if not isinstance(mat, Mapping):
+            raise ValueError(f"material {i} must be a mapping")
+        for ref in _texture_refs(mat):
+            if not 0 <= _int(ref.get("index")) < len(out["textures"]):
+                raise ValueError(f"material {i}: texture index {ref.get('index')!r} out of range")
+    return out
+
+
+def _int(v) -> int:
+    return v if isinstance(v, int) and not isinstance(v, bool) else -1
+
+
+def _texture_refs(mat: Mapping) -> list:
+    """The textureInfo objects of a core glTF material."""
+    pbr = mat.get("pbrMetallicRoughness") or {}
+    refs = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture"), mat.get("normalTexture"),
+            mat.get("occlusionTexture"), mat.get("emissiveTexture")]
+    return [r for r in refs if r is not None]
+
+
+def _check_nodes(nodes, n_meshes: int) -> list[dict]:
+    """``nodes`` (see ``write_gltf``) checked: a mesh index each, finite TRS of the right sizes."""
+    out = []
+    for i, node in enumerate(nodes):
+        if not isinstance(node, Mapping) or not isinstance(node.get("name"), str):
+            raise ValueError(f"node {i}: needs a str 'name'")
+        if not 0 <= _int(node.get("mesh")) < n_meshes:
+            raise ValueError(f"node {i} {node['name']!r}: mesh must index meshes (0..{n_meshes - 1})")
+        entry = {"mesh": node["mesh"], "name": node["name"]}
+        for key, size in (("translation", 3), ("rotation", 4), ("scale", 3)):
+            if node.get(key) is None:
+                continue
+            v = np.asarray(node[key], dtype=np.float64)
+            if v.shape != (size,) or not np.isfinite(v).all():
+                raise ValueError(f"node {i} {node['name']!r}: {key} must be {size} finite numbers")
+            if key == "rotation" and abs(float(np.linalg.norm(v)) - 1.0) > 1e-6:
+                raise ValueError(f"node {i} {node['name']!r}: rotation must be a unit quaternion")
+            if key == "scale" and (v == 0).any():
+                raise ValueError(f"node {i} {node['name']!r}: scale must be non-zero")
+            entry[key] = [float(x) for x in v]
+        out.append(entry)
+    used = {n["mesh"] for n in out}
+    if len(used) != n_meshes:
+        raise ValueError(f"meshes {sorted(set(range(n_meshes)) - used)} are placed by no node")
+    return out
+
+
+def build_gltf(meshes, *, generator: str = "lopcook", extras=None, materials=None, nodes=None) -> tuple[dict, bytes]:
     """The glTF JSON dict (without ``buffers[0].uri``) and the binary buffer for ``meshes``.
 
     Raises ValueError for invalid input (see ``write_gltf``).
@@ -214,38 +292,70 @@ def build_gltf(meshes, *, generator: str = "lopcook", extras=None) -> tuple[dict
     prepared = [_prepare(i, m) for i, m in enumerate(meshes)]
     if not prepared:
         raise ValueError("no meshes to write")
+    mats = _check_materials(materials) if materials is not None else None
+    for i, m in enumerate(meshes):
+        mi = _field(m, "material")
+        if mi is None:
+            continue
+        if mats is None or not 0 <= _int(mi) < len(mats["materials"]):
+            raise ValueError(f"mesh {i} {prepared[i]['name']!r}: material {mi!r} does not index materials")
+        if _texture_refs(mats["materials"][mi]) and prepared[i]["uvs"] is None:
+            raise ValueError(f"mesh {i} {prepared[i]['name']!r}: material {mi} has textures but the mesh no UVs")
+        prepared[i]["material"] = mi
+    placed = _check_nodes(nodes, len(prepared)) if nodes is not None else None
     buf = BufferBuilder()
     gl_meshes = []
     for m in prepared:
         attributes = {"POSITION": buf.add(m["positions"], "VEC3", FLOAT, ARRAY_BUFFER, minmax=True)}
         if m["normals"] is not None:
             attributes["NORMAL"] = buf.add(m["normals"], "VEC3", FLOAT, ARRAY_BUFFER)
+        if m["tangents"] is not None:
+            attributes["TANGENT"] = buf.add(m["tangents"], "VEC4", FLOAT, ARRAY_BUFFER)
         if m["uvs"] is not None:
             attributes["TEXCOORD_0"] = buf.add(m["uvs"], "VEC2", FLOAT, ARRAY_BUFFER)
         if m["colors"] is not None:
             attributes["COLOR_0"] = buf.add(m["colors"], "VEC4", FLOAT, ARRAY_BUFFER)
         ind = buf.add(m["indices"], "SCALAR", m["component"], ELEMENT_ARRAY_BUFFER)
-        gl_meshes.append({"name": m["name"],
-                          "primitives": [{"attributes": attributes, "indices": ind, "mode": TRIANGLES}]})
+        prim = {"attributes": attributes, "indices": ind, "mode": TRIANGLES}
+        if "material" in m:
+            prim["material"] = m["material"]
+        gl_meshes.append({"name": m["name"], "primitives": [prim]})
     asset = {"generator": generator, "version": "2.0"}
     if extras is not None:
         asset["extras"] = extras
-    nodes = [{"children": list(range(1, len(prepared) + 1)), "name": "root"}]
-    nodes += [{"mesh": k, "name": m["name"]} for k, m in enumerate(prepared)]
+    if placed is None:
+        placed = [{"mesh": k, "name": m["name"]} for k, m in enumerate(prepared)]
+    nodes_out = [{"children": list(range(1, len(placed) + 1)), "name": "root"}] + placed
     doc = {
         "accessors": buf.accessors,
         "asset": asset,
         "bufferViews": buf.views,
-        "buffers": [{"byteLength": len(buf.blob)}],
+        "buffers": [],
         "meshes": gl_meshes,
-        "nodes": nodes,
+        "nodes": nodes_out,
         "scene": 0,
         "scenes": [{"nodes": [0]}],
     }
+    if mats is not None:
+        images = []
+        for img in mats["images"]:  # image bytes: bufferViews without a target, after the geometry
+            data = bytes(img["data"])
+            buf.views.append({"buffer": 0, "byteOffset": len(buf.blob), "byteLength": len(data)})
+            buf.blob.extend(data)
+            buf.blob.extend(b"\0" * (-len(buf.blob) % 4))
+            entry = {"bufferView": len(buf.views) - 1, "mimeType": img["mimeType"]}
+            if isinstance(img.get("name"), str):
+                entry["name"] = img["name"]
+            images.append(entry)
+        for key, value in (("materials", mats["materials"]), ("textures", mats["textures"]),
+                           ("samplers", mats["samplers"]), ("images", images)):
+            if value:
+                doc[key] = [dict(v) for v in value]
+    doc["buffers"] = [{"byteLength": len(buf.blob)}]
     return doc, bytes(buf.blob)
 
 
-def write_gltf(path, meshes, *, generator: str = "lopcook", extras=None) -> list[str]:
+def write_gltf(path, meshes, *, generator: str = "lopcook", extras=None, materials=None, nodes=None) -> list[str]:
     """Write ``meshes`` as a glTF 2.0 asset: ``.glb`` if ``path`` ends in ``.glb`` (any case),
     otherwise ``path`` (JSON) plus ``<stem>.bin`` beside it.
 
@@ -258,11 +368,23 @@ def write_gltf(path, meshes, *, generator: str = "lopcook", extras=None) -> list
         metres, +Y up), ``indices`` (m, 3) integers in [0, n) (counter-clockwise triangles), and
         optionally ``normals`` (n, 3) unit float32, ``uvs`` (n, 2) float32 (glTF convention,
         origin top-left) and ``colors`` (n, 4) float32 linear RGBA in [0, 1]; missing attributes
-        may be absent or None. ``lopcook.types.MeshPart`` objects qualify.
+        may be absent or None. ``lopcook.types.MeshPart`` objects qualify. Optional ``tangents``
+        (n, 4) float32 (unit xyz, w = +-1 the bitangent's sign; needs normals). An optional
+        ``material`` (int) indexes ``materials["materials"]``; a textured material needs ``uvs``.
     generator : str
         ``asset.generator``.
     extras : JSON-able or None
         Stored as ``asset.extras`` when not None.
+    materials : mapping or None
+        ``{"materials": [...], "textures": [...], "samplers": [...], "images": [...]}``: glTF 2.0
+        core material, texture and sampler objects (written as given, texture references index
+        ``textures``, ``textures[i]["source"]`` indexes ``images``), and images as
+        ``{"name", "mimeType" ("image/png" | "image/jpeg"), "data" (bytes)}``, embedded as
+        bufferViews of the one buffer (also for ``.gltf``: one ``.bin`` holds everything).
+    nodes : sequence of mappings or None
+        The root's children: ``{"name", "mesh" (int), "translation"?, "rotation"? (unit xyzw
+        quaternion), "scale"?}``; several nodes may share one mesh (instancing). Every mesh must
+        be placed by a node. None: one untransformed node per mesh, in order.
 
     Returns
     -------
@@ -275,12 +397,13 @@ def write_gltf(path, meshes, *, generator: str = "lopcook", extras=None) -> list
         Empty ``meshes``; a mesh without vertices or triangles; wrong shapes or dtypes;
         NaN/Inf values (also after float32 conversion); indices out of range; normals that are
         not unit length (within ``NORMAL_TOLERANCE``); colours outside [0, 1]; ``extras`` that
-        is not JSON-able. Nothing is written then.
+        is not JSON-able; materials, textures or nodes whose indices are out of range, a textured
+        material on a mesh without UVs, a mesh no node places. Nothing is written then.
     OSError
         From the file system; no temporary file is left behind.
     """
     path = Path(path)
-    doc, blob = build_gltf(meshes, generator=generator, extras=extras)
+    doc, blob = build_gltf(meshes, generator=generator, extras=extras, materials=materials, nodes=nodes)
     try:
         if path.suffix.lower() == ".glb":
             data = pack_glb(json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
