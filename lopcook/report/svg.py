@@ -112,12 +112,12 @@ class Plot:
         self.pending = []
 
     def place_label(self, X, Y, text, colour, font_size=LABEL_FONT):
-        """Put ``text`` near the point (X, Y): the first of the candidate offsets (nearest first, eight
-        directions) whose box (``text_box``) stays inside the chart and overlaps no placed label, no
+        """Put ``text`` near the point (X, Y): the first of the candidate offsets (nearest first; right of
+        the point first, then the other seven directions) whose box (``text_box``) stays inside the chart and overlaps no placed label, no
         marker and no axis text. Returns the box, or None when no candidate is free (left out)."""
         width, fs = text_width(text, font_size), float(font_size)
         for dist in (4, 8, 13, 19, 27):
-            for ux, uy in ((1, -1), (1, 1), (-1, -1), (-1, 1), (0, -1), (0, 1), (1, 0), (-1, 0)):
+            for ux, uy in ((1, 0), (1, -1), (1, 1), (-1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1)):
                 x = X + dist if ux > 0 else X - dist - width if ux < 0 else X - width / 2
                 y = (Y - dist - 0.25 * fs) if uy < 0 else (Y + dist + 0.8 * fs) if uy > 0 else (Y + 0.275 * fs)
                 box = text_box(x, y, text, font_size)
@@ -252,7 +252,7 @@ def histogram_svg(hist: list[int], log: bool = False) -> str:
              f'<line x1="{l}" y1="{h - b}" x2="{l}" y2="{t}" stroke="#333"/>']
     yt = [10 ** k for k in range(0, int(math.floor(math.log10(top))) + 1)] if log else \
         [v for v in ticks(0, top, 4) if v == int(v)]
-    for v in [0] + yt if log else yt:
+    for v in [0] + [x for x in yt if x >= 10] if log else yt:
         Y = h - b - height(v)
         parts.append(f'<line x1="{l - 4}" y1="{Y:.1f}" x2="{w - 10}" y2="{Y:.1f}" stroke="#eee"/>'
                      f'<text class="tick" x="{l - 6}" y="{Y + 4:.1f}" text-anchor="end">{int(v):,}</text>')
@@ -278,7 +278,7 @@ def heatmap_scale_svg(vmax: float, steps: int = 64) -> str:
     is white), ticks with the difference as a fraction and in 8-bit codes, and the background swatch."""
     from ..verify.metrics import colormap
 
-    w, h, l, r, top, sh = 480, 58, 10, 110, 4, 16
+    w, h, l, r, top, sh = 480, 58, 16, 110, 4, 16
     sw = (w - l - r) / steps
     cols = colormap((np.arange(steps) + 0.5) / steps)
     parts = [f'<rect class="ramp" x="{l + i * sw:.2f}" y="{top}" width="{sw + 0.05:.2f}" height="{sh}" '
