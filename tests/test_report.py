@@ -410,3 +410,20 @@ def test_no_analyse_skips_the_recook(reports, tmp_path):
     rep = json.loads(out.with_suffix(".json").read_text())
     assert rep["cook"] is None and rep["cook_timings_s"] is None and rep["warnings"]["available"] is False
     assert "not measured" in out.read_text()
+
+
+def test_progress_stages(reports, tmp_path, capsys):
+    """``--progress plain``: one line per stage on stderr (ingest, every render counted, re-cook, page),
+    nothing on stdout but the summary; the default off a terminal is silent."""
+    src, lop, _, _ = reports["two_plates"]
+    out = tmp_path / "p.html"
+    assert main(["--progress", "plain", "report", lop, "--source", src, "-o", str(out), *ARGS]) == 0
+    cap = capsys.readouterr()
+    err = cap.err.splitlines()
+    assert any(re.fullmatch(r"lopcook: ingest two_plates\.glb: in [\d.]+ s", x) for x in err), err
+    # 2 levels: 2 container evaluations, 2 baseline ones, the depth-order view and the level image
+    assert any(re.fullmatch(r"lopcook: render: 6 of 6 in [\d.]+ s", x) for x in err), err
+    assert any(x.startswith("lopcook: re-cook") for x in err) and any(x.startswith("lopcook: page:") for x in err)
+    assert "lopcook:" not in cap.out and "wrote" in cap.out
+    assert main(["report", lop, "--source", src, "-o", str(out), *ARGS]) == 0
+    assert capsys.readouterr().err == ""
