@@ -1,8 +1,8 @@
 """The report model: every number of ``report.json`` as plain JSON data, from a render evaluation,
 the container summary and, optionally, the re-cook's analysis and timings.
 
-``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate``, with images of one
-view), the container summary (``lopcook.emit.summary.describe_container``), the uniform 16-bit
+``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate`` with images of one
+view at every level: ``lopcook.report.render.render_for_report``), the container summary (``lopcook.emit.summary.describe_container``), the uniform 16-bit
 baseline's evaluation, the re-cook record (``lopcook.tune.recook.recook``) and the analysis
 warnings, and returns a dict of plain Python numbers only (numpy converted, non-finite floats as
 None: a PSNR of None is +inf, identical images), file names without directories and no
@@ -13,6 +13,11 @@ final newline); the result validates against ``schema/report.schema.json``.
 Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT over each part's
 bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
 rendered with the same cameras as AP and CAP, one PSNR row per level.
+
+Images: ``images`` records the view shown, one crop and one zoom per level (``per_level``:
+``level_image_record``), the depth-order view (``depth``: ``depth_record``) and the heat maps' full
+scale; the pixels themselves are only in the page. ``scene_parts`` lists the source's parts and
+their attributes (N* = normals computed by lopcook).
 
 LODs: ``lods`` holds the container's LOD table (``lod_table``: triangles, vertices, Hausdorff error,
 selection distance range and bytes per part and LOD).
