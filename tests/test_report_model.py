@@ -118,3 +118,12 @@ def test_depth_target_prefers_cap_then_the_largest_view():
     for r in rows:
         r["ap"]["depth_order_errors_views"] = r["cap"]["depth_order_errors_views"] = [0, 0]
     assert depth_target(rows) is None
+
+
+def test_choose_view_shows_the_most_parts_then_the_worst_error():
+    from lopcook.report.render import choose_view
+
+    assert choose_view([3, 5, 5, 2], [30.0, 25.0, 20.0, 10.0], 3) == 2  # most parts, then lowest PSNR
+    assert choose_view([3, 5, 5, 2], [30.0, 25.0, 20.0, 10.0], 1) == 1  # the worst view kept when it shows them
+    assert choose_view([4, 4], [None, None], 5) == 0  # identical everywhere: the first
+    assert choose_view([2, 2, 2], [40.0, None, 35.0], 7) == 2

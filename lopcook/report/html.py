@@ -127,8 +127,9 @@ def level_images_html(rep: dict, images: dict) -> str:
     per = images.get("per_level") or [images]
     rows = {r["level"]: r for r in rep["levels"]}
     out = [f'<h2>Images at every level (view {im["view"]})</h2>',
-           f'<p class="note">View {im["view"]} is the one with the largest AP error at the coarsest level; every level '
-           "shows the same view, its camera at the distance where the half-pixel criterion selects that level. "
+           f'<p class="note">View {im["view"]}: of the views showing the most parts at the coarsest level, the one '
+           "with the largest AP error there; every level shows the same view, its camera at the distance where the "
+           "half-pixel criterion selects that level. "
            "Heat maps: the largest channel difference per pixel against float32.</p>",
            '<div class="heat-legend">' + heatmap_scale_svg(im.get("heatmap_vmax", 0.25)) + "</div>"]
     for rec, imgs in zip(im.get("per_level") or [], per):

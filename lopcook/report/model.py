@@ -225,7 +225,7 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                   "crop": crop_box({k: v for k, v in imgs.items() if k not in ("levels", "per_level", "depth")}),
                   "per_level": [level_image_record(x) for x in per_level],
                   "depth": depth_record(imgs.get("depth")),
-                  "heatmap_vmax": float(HEATMAP_VMAX)}
+                  "heatmap_vmax": float(HEATMAP_VMAX), "view_parts": imgs.get("view_parts")}
         if "levels" in imgs and level_range is not None:
             images["level_range"] = [int(level_range[0]), int(level_range[1])]
     rep = {

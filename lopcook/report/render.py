@@ -2,8 +2,10 @@
 
 * **Every level**: the container is evaluated one level at a time (``Harness.evaluate`` with one
   level; the rows are those of one evaluation over all levels), keeping the images of one view at
-  each level: the view with the largest AP error at the coarsest level, the same view at every
-  level, so a reader compares like with like.
+  each level, the same view at every level so a reader compares like with like: the view that
+  shows the most parts at the coarsest level (distinct part IDs in its float render: a chess set
+  seen from above, not from under the board), among those the one with the largest AP error
+  (``choose_view``).
 * **Depth order**: the (level, view) with the most depth-order errors (CAP, else AP) is rendered
   again with its part-ID images when it is not the images' view, so the page can show where they are.
 * **Uniform 16-bit** baseline at the same cameras, one level at a time.
@@ -54,6 +56,18 @@ def depth_target(rows: list[dict]) -> tuple[int, int, str, int] | None:
     return None
 
 
+def choose_view(visible: list[int], ap_psnr: list, worst: int) -> int:
+    """Index (into the rendered views) of the view the report shows: among the views whose float
+    render shows the most distinct parts (``visible``, per view), the one with the lowest AP PSNR
+    (``ap_psnr``, per view; None = identical = last), the first on ties; ``worst`` (the view with
+    the largest AP squared error, ``evaluate``'s own choice) when it is among them."""
+    most = max(visible)
+    best = [i for i, n in enumerate(visible) if n == most]
+    if worst in best:
+        return worst
+    return min(best, key=lambda i: (float("inf") if ap_psnr[i] is None else ap_psnr[i], i))
+
+
 def render_for_report(container, scene, *, levels, views, resolution,
                       progress=NONE) -> tuple[dict, dict, tuple[int, int] | None]:
     """All renders of a report in one GL harness (module doc). Returns (evaluation, uniform16
@@ -64,7 +78,8 @@ def render_for_report(container, scene, *, levels, views, resolution,
     ``ap``, ``cap``, heat maps, ID images, as ``evaluate``'s ``keep_images``), plus ``per_level`` (the
     same dict for every level, in row order), ``depth`` (None, or ``{"level", "view", "variant",
     "errors", "images"}``: the images of the view with the most depth-order errors, ``depth_target``)
-    and ``levels`` (the minimum-level image). ``progress``: a ``lopcook.progress.Progress``."""
+    ``levels`` (the minimum-level image) and ``view_parts`` (parts seen per rendered view at the
+    coarsest level, or None when not counted: one part or one view). ``progress``: a ``lopcook.progress.Progress``."""
     from ..tune.budget import frame_distance
     from ..verify.baselines import level_scene, uniform_quantized_scene
     from ..verify.cameras import render_viewing, select_views
@@ -75,10 +90,29 @@ def render_for_report(container, scene, *, levels, views, resolution,
     view_ids = select_views(views)
     with Harness(scene, resolution) as h, progress.stage("render", total=2 * len(order) + 2) as st:
         first = h.evaluate(container, levels=[order[0]], views=views, keep_images=True)
-        st.advance()
         parts = [first]
         imgs = first.get("images")
         image_view = imgs["view"] if imgs else None
+        visible = None
+        if imgs and len(scene.parts) > 1 and len(view_ids) > 1:
+            import numpy as np
+
+            from ..verify.cameras import make_camera
+
+            row = first["levels"][0]
+            viewing0 = render_viewing(m, resolution)
+            shading0 = Shading.from_manifest(m)
+            visible = [int(np.unique(h.render_float(make_camera(v, h.lo, h.hi, row["camera_distance_m"], viewing0),
+                                                    shading0)[1]).size) for v in view_ids]
+            pick = view_ids[choose_view(visible, row["ap"]["psnr_views"] if "ap" in row else [None] * len(view_ids),
+                                        view_ids.index(image_view))]
+            if pick != image_view:
+                image_view = pick
+                imgs = h.evaluate(container, levels=[order[0]], views=[pick], keep_images=True,
+                                  image_view=pick)["images"]
+                first = dict(first, images=imgs)
+                parts = [first]
+        st.advance()
         per_level = {order[0]: imgs}
         for b in order[1:]:
             e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
@@ -100,6 +134,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
         if imgs:
             imgs = dict(imgs)
             imgs["per_level"] = [per_level[int(b)] for b in levels]
+            imgs["view_parts"] = None if visible is None else [n - 1 for n in visible]  # background is not a part
             target = depth_target(ev["levels"])
             imgs["depth"] = None
             if target is not None:
@@ -128,4 +163,4 @@ def render_for_report(container, scene, *, levels, views, resolution,
     return ev, u16, level_range
 
 
-__all__ = ["render_for_report", "depth_target"]
+__all__ = ["render_for_report", "depth_target", "choose_view"]
