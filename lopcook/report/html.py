@@ -63,7 +63,8 @@ def budget_html(b: dict) -> str:
 _CSS = """*{box-sizing:border-box}
 body{font-family:system-ui,sans-serif;margin:0 auto;padding:1em 2em;max-width:1400px;color:#222;
 overflow-wrap:anywhere;line-height:1.35}
-@media (max-width:700px){body{padding:0.5em 0.6em}h1{font-size:1.3em}h2{font-size:1.15em}}
+@media (max-width:700px){body{padding:0.5em 0.6em}h1{font-size:1.3em}h2{font-size:1.15em}
+.imgs{grid-template-columns:repeat(2,minmax(0,1fr))!important}}
 .scroll{overflow-x:auto;max-width:100%}
 table{border-collapse:collapse;margin:0.6em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;
 overflow-wrap:normal}td{white-space:nowrap}
