@@ -82,7 +82,8 @@ def test_worst_window_finds_the_largest_error_sum():
     assert z["sum_sq"] == float(err[y0:y1, x0:x1].sum()) and 0.99 < z["share"] < 1.0
     # brute force over every window of that side agrees on the best sum
     bx0, by0, bx1, by1 = crop["box"]
-    best = max(err[y:y + side, x:x + side].sum() for y in range(by0, by1 - side + 1) for x in range(bx0, bx1 - side + 1))
+    best = max(err[y:y + side, x:x + side].sum()
+               for y in range(by0, by1 - side + 1) for x in range(bx0, bx1 - side + 1))
     assert z["sum_sq"] == pytest.approx(float(best), rel=1e-12)
     assert worst_window(squared_error(ref, ref), crop) is None  # no error: no zoom
 

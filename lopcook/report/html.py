@@ -290,7 +290,8 @@ def lod_table_html(lods: dict) -> str:
            "recorded in the container. Distances: the camera range over which lopcook.selection picks the LOD under "
            "the container's viewing. Bytes: index + attribute sections, the LOD's mandatory bits and its bits in "
            "the refinement planes.</p>",
-           '<div class="scroll"><table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th><th>vertices</th>'
+           '<div class="scroll"><table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th>'
+           '<th>vertices</th>'
            "<th>Hausdorff error m</th><th>selected from m</th><th>to m</th><th>bytes</th></tr></thead><tbody>"]
     for part in lods["parts"]:
         for r in part["lods"]:

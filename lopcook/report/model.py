@@ -3,9 +3,10 @@ the container summary and, optionally, the re-cook's analysis and timings.
 
 ``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate`` with images of one
 view at every level: ``lopcook.report.render.render_for_report``), the container summary
-(``lopcook.emit.summary.describe_container``), the uniform 16-bit baseline's evaluation, the re-cook record (``lopcook.tune.recook.recook``) and the analysis
-warnings, and returns a dict of plain Python numbers only (numpy converted, non-finite floats as
-None: a PSNR of None is +inf, identical images), file names without directories and no
+(``lopcook.emit.summary.describe_container``), the uniform 16-bit baseline's evaluation, the
+re-cook record (``lopcook.tune.recook.recook``) and the analysis warnings, and returns a dict of
+plain Python numbers only (numpy converted, non-finite floats as None: a PSNR of None is +inf,
+identical images), file names without directories and no
 timestamps; ``cook_timings_s`` and ``seconds`` are the only values that vary between identical
 runs. ``report_json_bytes`` serialises it deterministically (sorted keys, indent 1, UTF-8, one
 final newline); the result validates against ``schema/report.schema.json``.

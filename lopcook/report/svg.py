@@ -113,8 +113,9 @@ class Plot:
 
     def place_label(self, X, Y, text, colour, font_size=LABEL_FONT):
         """Put ``text`` near the point (X, Y): the first of the candidate offsets (nearest first; right of
-        the point first, then the other seven directions) whose box (``text_box``) stays inside the chart and overlaps no placed label, no
-        marker and no axis text. Returns the box, or None when no candidate is free (left out)."""
+        the point first, then the other seven directions) whose box (``text_box``) stays inside the
+        chart and overlaps no placed label, no marker and no axis text. Returns the box, or None when
+        no candidate is free (left out)."""
         width, fs = text_width(text, font_size), float(font_size)
         for dist in (4, 8, 13, 19, 27):
             for ux, uy in ((1, 0), (1, -1), (1, 1), (-1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1)):
@@ -260,7 +261,8 @@ def histogram_svg(hist: list[int], log: bool = False) -> str:
         bh = height(hist[lv])
         x = l + i * bw
         parts.append(f'<rect class="bar" data-level="{lv}" data-count="{hist[lv]}" x="{x + 1:.1f}" '
-                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" fill="{level_fill(lv, lo, hi)}">'
+                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" '
+                     f'fill="{level_fill(lv, lo, hi)}">'
                      f'<title>level {lv}: {hist[lv]:,} vertices</title></rect>'
                      f'<text x="{x + bw / 2:.1f}" y="{h - b + 14}" text-anchor="middle">{lv}</text>')
     scale = "log" if log else "linear"
