@@ -769,23 +769,24 @@ def cmd_report(args) -> int:
     if crease is not None and not 0.0 <= float(crease) <= 180.0:
         raise LopcookError("usage", None, f"--crease-angle {crease} is outside [0, 180] degrees")
     ingest = IngestSettings(crease_angle_deg=float(crease)) if crease is not None else IngestSettings()
-    _progress(args)(f"ingest {args.source}")
-    t0 = time.perf_counter()
-    scene = load(args.source, ingest)
-    ingest_s = time.perf_counter() - t0
-    _progress(args)(f"render levels {levels}, {views} views at {resolution[0]}x{resolution[1]} (float, AP, CAP, "
-                    "uniform 16-bit, minimum levels)")
-    ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution)
+    progress = _progress(args)
+    with progress.stage(f"ingest {os.path.basename(args.source)}"):
+        t0 = time.perf_counter()
+        scene = load(args.source, ingest)
+        ingest_s = time.perf_counter() - t0
+    ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution,
+                                              progress=progress)
     warnings = cook = None
     if not args.no_analyse:
         from .tune.recook import recook
 
-        _progress(args)("re-cook the source (stage timings, warnings, determinism)")
-        cook = recook(c, scene, ingest_s=ingest_s)
-        warnings = analysis_warnings(scene, cook["analysis"])
+        with progress.stage("re-cook (stage timings, warnings, determinism)"):
+            cook = recook(c, scene, ingest_s=ingest_s)
+            warnings = analysis_warnings(scene, cook["analysis"])
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
-    rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
-    html_path, json_path = write_html(rep, ev.get("images"), out)
+    with progress.stage("page"):
+        rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
+        html_path, json_path = write_html(rep, ev.get("images"), out)
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))
     elif not args.quiet:

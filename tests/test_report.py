@@ -43,21 +43,31 @@ def _schema():
     return json.loads((REPO / "schema" / "report.schema.json").read_text())
 
 
+def _expected_images(rep) -> int:
+    """Images the page shows: the level image, five per level (float, AP, CAP, two heat maps), four per
+    zoom (float, AP, CAP, the variant's heat map) and three for the depth-order view."""
+    im = rep["images"]
+    return (1 + 5 * len(im["per_level"]) + 4 * sum(1 for r in im["per_level"] if r["zoom"])
+            + (3 if im["depth"] else 0))
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_html_self_contained(reports, name):
-    _, _, html_path, _ = reports[name]
+    _, _, html_path, json_path = reports[name]
     text = html_path.read_text()
+    rep = json.loads(json_path.read_text())
     assert "http://" not in text and "https://" not in text
     assert not re.search(r"<(script|link|iframe|img)[^>]*\s(src|href)=\"(?!data:)", text)
     srcs = re.findall(r"<img[^>]*\ssrc=\"([^\"]*)\"", text)
-    assert len(srcs) == 6  # float, AP, CAP, AP and CAP heat maps, minimum levels (Fig. 7)
-    crop = json.loads(html_path.with_suffix(".json").read_text())["images"]["crop"]
+    assert len(srcs) == _expected_images(rep) >= 1 + 5 * 2
     for s in srcs:
         assert s.startswith("data:image/png;base64,")
-    for k, a in _pngs(text).items():  # every image decodes
-        if k != "levels":  # the level image is framed on its own
-            assert (a.shape[1], a.shape[0]) == tuple(crop["size"]), k  # the view's images share one crop
-    assert text.count("<svg") >= 2  # memory-vs-PSNR chart, histogram
+    imgs = _pngs(text)  # every image decodes
+    for r in rep["images"]["per_level"]:  # each level's images share that level's crop
+        for k in ("float", "ap", "cap", "ap_heatmap", "cap_heatmap"):
+            a = imgs[f"L{r['level']}-{k}"]
+            assert (a.shape[1], a.shape[0]) == tuple(r["crop"]["size"]), (r["level"], k)
+    assert text.count("<svg") >= 4  # memory-vs-PSNR chart, histogram (linear and log), heat-map scale
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -109,17 +119,63 @@ def test_bad_input(tmp_path, capsys):
     assert not list(tmp_path.glob("*.html")) and not list(tmp_path.glob("*.json"))
 
 
+def _chromium_page(url: str, width: int, tmp_path, screenshot=None) -> dict:
+    """Open ``url`` in headless Chromium inside an iframe ``width`` CSS pixels wide (headless windows are
+    at least 500 wide; the iframe gives a phone's viewport) and return the report's ``body`` data
+    attributes (images decoded, scroll width, inner width, chart text overlaps). ``screenshot``: also
+    save a PNG of the frame's first 5000 pixels there."""
+    exe = shutil.which("chromium")
+    require(None if exe else "chromium is not on PATH (Debian package chromium)")
+    wrap = tmp_path / f"wrap{width}.html"
+    wrap.write_text(f'<!DOCTYPE html><html><body style="margin:0"><iframe id="f" src="{url}" '
+                    f'style="width:{width}px;height:5000px;border:0"></iframe><script>'
+                    "document.getElementById('f').addEventListener('load',function(){"
+                    "var d=this.contentDocument.body.dataset;for(var k in d)document.body.dataset[k]=d[k];"
+                    "document.body.dataset.done='1';});</script></body></html>")
+    base = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync", "--hide-scrollbars",
+            "--allow-file-access-from-files", f"--user-data-dir={tmp_path / 'profile'}",
+            f"--window-size={max(width, 500)},5000"]
+    r = subprocess.run(base + ["--dump-dom", wrap.as_uri()], capture_output=True, text=True, timeout=120)
+    m = re.search(r"<body([^>]*)>", r.stdout)
+    assert m and 'data-done="1"' in m.group(1), r.stderr[-2000:]
+    if screenshot is not None:
+        subprocess.run(base + [f"--screenshot={screenshot}", wrap.as_uri()], capture_output=True, timeout=120)
+    return {k: v for k, v in re.findall(r'data-([a-z-]+)="([^"]*)"', m.group(1))}
+
+
+@pytest.mark.parametrize("width", [1400, 390])
+def test_chromium_every_image_loads_and_nothing_overflows(reports, tmp_path, width):
+    """At a desktop width and a phone's, in headless Chromium: every image decodes (naturalWidth > 0),
+    the page is no wider than the viewport (tables scroll inside their box, images and charts shrink)
+    and no two texts of any chart overlap or reach outside their chart (their rendered boxes)."""
+    _, _, html_path, json_path = reports["two_plates"]
+    rep = json.loads(json_path.read_text())
+    shot = tmp_path / f"report{width}.png"
+    d = _chromium_page(html_path.resolve().as_uri(), width, tmp_path, screenshot=shot)
+    n = _expected_images(rep)
+    assert d["images-total"] == str(n) and d["images-ok"] == str(n)
+    assert d["inner-width"] == str(width)
+    assert int(d["scroll-width"]) <= width
+    assert d["text-overlaps"] == "0" and d["text-clipped"] == "0"
+    if shot.exists():
+        from PIL import Image
+
+        assert Image.open(shot).size[0] == max(width, 500)
+
+
 def test_chromium_decodes(reports, tmp_path):
     exe = shutil.which("chromium")
     require(None if exe else "chromium is not on PATH (Debian package chromium)")
-    _, _, html_path, _ = reports["glossy_crease"]
+    _, _, html_path, json_path = reports["glossy_crease"]
+    n = _expected_images(json.loads(json_path.read_text()))
     cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
            f"--user-data-dir={tmp_path / 'profile'}", "--dump-dom", html_path.resolve().as_uri()]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
     dom = r.stdout
-    assert 'data-images-total="6"' in dom, r.stderr[-2000:]
-    assert 'data-images-ok="6"' in dom
+    assert f'data-images-total="{n}"' in dom, r.stderr[-2000:]
+    assert f'data-images-ok="{n}"' in dom
     assert '<table id="levels">' in dom and 'data-level="6"' in dom and 'data-level="7"' in dom
 
 
@@ -136,7 +192,7 @@ def test_calibration_and_timings_sections(reports):
     rep["cook_timings_s"] = {"ingest": 0.25, "analyse": 0.02}
     jsonschema.validate(rep, _schema(), cls=jsonschema.Draft202012Validator)
     text = render_html(rep, None)
-    assert "k_f calibration" in text and text.count("<svg") == 3
+    assert "k_f calibration" in text and text.count("<svg") == 4  # memory, histogram linear + log, calibration
     assert '<table id="timings">' in text and "0.250" in text
 
 
@@ -151,39 +207,106 @@ def _pngs(text: str) -> dict:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_images_cropped_to_the_object(reports, name):
-    """At level 6 the object is some 37 pixels tall: every image is the same crop of the 160x90
-    frame, enlarged by an integer nearest-neighbour factor, with the whole object inside it and a
-    background margin around it (unless the frame edge cuts it)."""
+def test_images_at_every_level_cropped_to_the_object(reports, name):
+    """Every rendered level shows the same view's float, AP, CAP and heat maps, cropped to the object
+    at that level and enlarged by an integer nearest-neighbour factor: at level 6 the object is some
+    37 pixels tall, so it is enlarged to several times the 160x90 frame; the whole object is inside
+    the crop with a background margin around it (unless the frame edge cuts it)."""
     _, _, html_path, json_path = reports[name]
     rep = json.loads(json_path.read_text())
-    crop = rep["images"]["crop"]
-    (fw, fh), (x0, y0, x1, y1), s = crop["frame"], crop["box"], crop["scale"]
-    assert (fw, fh) == (160, 90)
-    assert 0 <= x0 < x1 <= fw and 0 <= y0 < y1 <= fh
-    assert (x1 - x0) < fw and (y1 - y0) < fh  # the object is small: the crop is smaller than the frame
-    assert s >= 1 and crop["size"] == [(x1 - x0) * s, (y1 - y0) * s]
-    assert crop["size"][0] <= fw and crop["size"][1] <= fh
-    imgs = _pngs(html_path.read_text())
-    assert sorted(imgs) == sorted(rep["images"]["kinds"])
+    im = rep["images"]
+    assert [r["level"] for r in im["per_level"]] == [r["level"] for r in rep["levels"]] == [6, 7]
+    text = html_path.read_text()
+    imgs = _pngs(text)
     levels_image = imgs.pop("levels")  # framed on its own (frame distance, own crop)
     assert levels_image.shape[2] == 4 and (levels_image[..., 3] > 0).any()
-    for k, a in imgs.items():
-        assert a.shape[:2] == (crop["size"][1], crop["size"][0]), k
-        small = a[::s, ::s]
-        # nearest neighbour: every s x s block is one rendered pixel
-        assert np.array_equal(np.repeat(np.repeat(small, s, 0), s, 1), a), k
-    alpha = np.zeros((y1 - y0, x1 - x0), dtype=bool)
-    for k in ("float", "ap", "cap"):
-        alpha |= imgs[k][::s, ::s, 3] > 0
-    assert alpha.any()
-    # the margin is background on every side the frame does not cut
-    edges = {"top": (y0 > 0, alpha[0]), "bottom": (y1 < fh, alpha[-1]), "left": (x0 > 0, alpha[:, 0]),
-             "right": (x1 < fw, alpha[:, -1])}
-    for side, (inside, line) in edges.items():
-        if inside:
-            assert not line.any(), side
-    assert f"columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1}" in html_path.read_text()
+    for r in im["per_level"]:
+        lv, crop = r["level"], r["crop"]
+        (fw, fh), (x0, y0, x1, y1), s = crop["frame"], crop["box"], crop["scale"]
+        assert (fw, fh) == (160, 90)
+        assert 0 <= x0 < x1 <= fw and 0 <= y0 < y1 <= fh
+        assert s >= 1 and crop["size"] == [(x1 - x0) * s, (y1 - y0) * s]
+        if lv == 6:
+            assert (x1 - x0) < fw / 2 and s >= 4 and max(crop["size"]) > fh  # small object, legible size
+        alpha = np.zeros((y1 - y0, x1 - x0), dtype=bool)
+        for k in ("float", "ap", "cap", "ap_heatmap", "cap_heatmap"):
+            a = imgs[f"L{lv}-{k}"]
+            assert a.shape[:2] == (crop["size"][1], crop["size"][0]), (lv, k)
+            small = a[::s, ::s]
+            # nearest neighbour: every s x s block is one rendered pixel
+            assert np.array_equal(np.repeat(np.repeat(small, s, 0), s, 1), a), (lv, k)
+            if k in ("float", "ap", "cap"):
+                alpha |= small[..., 3] > 0
+        assert alpha.any()
+        edges = {"top": (y0 > 0, alpha[0]), "bottom": (y1 < fh, alpha[-1]), "left": (x0 > 0, alpha[:, 0]),
+                 "right": (x1 < fw, alpha[:, -1])}
+        for side, (inside, line) in edges.items():
+            if inside:
+                assert not line.any(), (lv, side)
+        assert f"columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1}" in text
+    # the finer level is closer: the object covers more frame pixels there
+    b6, b7 = (r["crop"]["box"] for r in im["per_level"])
+    assert (b7[2] - b7[0]) * (b7[3] - b7[1]) > (b6[2] - b6[0]) * (b6[3] - b6[1])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_zoom_is_where_the_error_is_worst(reports, name):
+    """Each level's zoom window is, among all windows of its side inside the crop, the one whose CAP
+    (else AP) squared error against float sums highest, recomputed here from the page's own images;
+    its zoom images are those pixels, enlarged."""
+    from lopcook.report.images import squared_error
+
+    _, _, html_path, json_path = reports[name]
+    rep = json.loads(json_path.read_text())
+    imgs = _pngs(html_path.read_text())
+    zoomed = 0
+    for r in rep["images"]["per_level"]:
+        z, crop, lv = r["zoom"], r["crop"], r["level"]
+        if z is None:
+            continue
+        zoomed += 1
+        s, (bx0, by0, _, _) = crop["scale"], crop["box"]
+        ref = imgs[f"L{lv}-float"][::s, ::s]
+        tst = imgs[f"L{lv}-{z['variant']}"][::s, ::s]
+        err = squared_error(ref, tst)  # crop-local frame pixels
+        x0, y0, x1, y1 = z["box"]
+        side = x1 - x0
+        sums = np.array([[err[y:y + side, x:x + side].sum() for x in range(err.shape[1] - side + 1)]
+                         for y in range(err.shape[0] - side + 1)])
+        assert err[y0 - by0:y1 - by0, x0 - bx0:x1 - bx0].sum() == pytest.approx(sums.max(), rel=1e-9)
+        assert z["sum_sq"] == pytest.approx(sums.max(), rel=1e-9) and 0 < z["share"] <= 1
+        for k in ("float", "ap", "cap"):
+            a = imgs[f"L{lv}-zoom-{k}"]
+            assert a.shape[:2] == (z["size"][1], z["size"][0])
+            want = imgs[f"L{lv}-{k}"][::s, ::s][y0 - by0:y1 - by0, x0 - bx0:x1 - bx0]
+            assert np.array_equal(a[::z["scale"], ::z["scale"]], want), (lv, k)
+    assert zoomed >= 1  # AP at level 6 always differs from float
+
+
+def test_depth_order_view_is_shown(reports):
+    """Two plates close together: the page names the level and view with the most depth-order error
+    pixels and shows them as a mask whose pixel count is the table's count for that view."""
+    _, _, html_path, json_path = reports["two_plates"]
+    rep = json.loads(json_path.read_text())
+    d = rep["images"]["depth"]
+    assert d is not None and d["errors"] == d["pixels"] > 0
+    row = next(r for r in rep["levels"] if r["level"] == d["level"])
+    counts = [(r[v]["depth_order_errors_views"], v) for r in rep["levels"] for v in ("cap", "ap")]
+    vi = rep["render"]["views"].index(d["view"])
+    assert row[d["variant"]]["depth_order_errors_views"][vi] == d["errors"]
+    best_cap = max(max(c) for c, v in counts if v == "cap")
+    assert d["variant"] == ("cap" if best_cap > 0 else "ap")
+    assert d["errors"] == max(max(c) for c, v in counts if v == d["variant"])
+    text = html_path.read_text()
+    assert f'<p id="depth" data-level="{d["level"]}" data-view="{d["view"]}">' in text
+    mask = _pngs(text)["depth-mask"]
+    s = d["crop"]["scale"]
+    magenta = np.all(mask[::s, ::s] == (255, 0, 255), axis=-1)
+    assert int(magenta.sum()) == d["pixels"]
+    # glossy crease: one part, no depth-order errors: said so
+    rep2 = json.loads(reports["glossy_crease"][3].read_text())
+    assert rep2["images"]["depth"] is None
+    assert "No depth-order errors at any rendered level" in reports["glossy_crease"][2].read_text()
 
 
 @pytest.fixture(scope="module")
@@ -287,3 +410,20 @@ def test_no_analyse_skips_the_recook(reports, tmp_path):
     rep = json.loads(out.with_suffix(".json").read_text())
     assert rep["cook"] is None and rep["cook_timings_s"] is None and rep["warnings"]["available"] is False
     assert "not measured" in out.read_text()
+
+
+def test_progress_stages(reports, tmp_path, capsys):
+    """``--progress plain``: one line per stage on stderr (ingest, every render counted, re-cook, page),
+    nothing on stdout but the summary; the default off a terminal is silent."""
+    src, lop, _, _ = reports["two_plates"]
+    out = tmp_path / "p.html"
+    assert main(["--progress", "plain", "report", lop, "--source", src, "-o", str(out), *ARGS]) == 0
+    cap = capsys.readouterr()
+    err = cap.err.splitlines()
+    assert any(re.fullmatch(r"lopcook: ingest two_plates\.glb: in [\d.]+ s", x) for x in err), err
+    # 2 levels: 2 container evaluations, 2 baseline ones, the depth-order view and the level image
+    assert any(re.fullmatch(r"lopcook: render: 6 of 6 in [\d.]+ s", x) for x in err), err
+    assert any(x.startswith("lopcook: re-cook") for x in err) and any(x.startswith("lopcook: page:") for x in err)
+    assert "lopcook:" not in cap.out and "wrote" in cap.out
+    assert main(["report", lop, "--source", src, "-o", str(out), *ARGS]) == 0
+    assert capsys.readouterr().err == ""

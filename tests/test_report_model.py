@@ -68,3 +68,62 @@ def test_budget_section_only_for_budget_containers():
     assert RM.budget_section({"options": {"budget": {"candidates": []}}}) is None
     b = {"candidates": [{"lod": 0}], "chosen": {"lod": 0}}
     assert RM.budget_section({"options": {"budget": b}}) is b
+
+
+def _frame(ids_box=None):
+    rgba = np.zeros((90, 160, 4), np.uint8)
+    rgba[30:60, 40:100] = (120, 120, 120, 255)
+    ids = np.zeros((90, 160), np.uint32)
+    ids[30:60, 40:70], ids[30:60, 70:100] = 1, 2
+    return rgba, ids
+
+
+def test_level_image_record_zooms_on_cap_else_ap_else_none():
+    f, fid = _frame()
+    ap, cap = f.copy(), f.copy()
+    ap[40:44, 50:54, 0] = 250  # AP errs on the left
+    rec = RM.level_image_record({"level": 7, "view": 3, "float": f, "float_ids": fid, "ap": ap, "cap": cap})
+    assert rec["level"] == 7 and rec["zoom"]["variant"] == "ap"  # CAP is exact: AP's error is zoomed
+    x0, y0, x1, y1 = rec["zoom"]["box"]
+    assert x0 <= 50 and x1 >= 54 and y0 <= 40 and y1 >= 44
+    cap[50:52, 90:92, 1] = 10  # a small CAP error on the right wins over AP's larger one
+    rec = RM.level_image_record({"level": 7, "view": 3, "float": f, "float_ids": fid, "ap": ap, "cap": cap})
+    assert rec["zoom"]["variant"] == "cap" and rec["zoom"]["box"][2] >= 92
+    assert RM.level_image_record({"level": 6, "view": 0, "float": f, "ap": f, "cap": f})["zoom"] is None
+
+
+def test_depth_record_counts_the_mask():
+    f, fid = _frame()
+    cid = fid.copy()
+    cid[35:45, 66:69] = 2  # part 2 in front of part 1, inside part 1
+    rec = RM.depth_record({"level": 8, "view": 5, "variant": "cap", "errors": 7,
+                           "images": {"float": f, "float_ids": fid, "cap": f, "cap_ids": cid}})
+    from lopcook.verify.metrics import depth_order_errors
+
+    assert rec["pixels"] == depth_order_errors(fid, cid)["depth_order_errors"] > 0
+    assert (rec["level"], rec["view"], rec["variant"], rec["errors"]) == (8, 5, "cap", 7)
+    assert RM.depth_record(None) is None
+
+
+def test_depth_target_prefers_cap_then_the_largest_view():
+    from lopcook.report.render import depth_target
+
+    rows = [{"level": 6, "ap": {"depth_order_errors_views": [5, 9]}, "cap": {"depth_order_errors_views": [0, 0]}},
+            {"level": 7, "ap": {"depth_order_errors_views": [1, 0]}, "cap": {"depth_order_errors_views": [0, 0]}}]
+    assert depth_target(rows) == (6, 1, "ap", 9)
+    rows[1]["cap"]["depth_order_errors_views"] = [2, 3]
+    assert depth_target(rows) == (7, 1, "cap", 3)  # CAP's errors are what ships
+    rows[1]["cap"]["depth_order_errors_views"] = [3, 3]
+    assert depth_target(rows) == (7, 0, "cap", 3)  # the first of equal counts
+    for r in rows:
+        r["ap"]["depth_order_errors_views"] = r["cap"]["depth_order_errors_views"] = [0, 0]
+    assert depth_target(rows) is None
+
+
+def test_choose_view_shows_the_most_parts_then_the_worst_error():
+    from lopcook.report.render import choose_view
+
+    assert choose_view([3, 5, 5, 2], [30.0, 25.0, 20.0, 10.0], 3) == 2  # most parts, then lowest PSNR
+    assert choose_view([3, 5, 5, 2], [30.0, 25.0, 20.0, 10.0], 1) == 1  # the worst view kept when it shows them
+    assert choose_view([4, 4], [None, None], 5) == 0  # identical everywhere: the first
+    assert choose_view([2, 2, 2], [40.0, None, 35.0], 7) == 2

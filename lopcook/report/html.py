@@ -1,14 +1,19 @@
 """The ``lopcook report`` page: one self-contained HTML file with inline CSS, images as PNG ``data:``
-URIs and charts as inline SVG (no JavaScript library, no network; a five-line inline script only
-counts decoded images into ``body[data-images-ok]`` for headless checks), written beside its
-``report.json``.
+URIs and charts as inline SVG (no JavaScript library, no network; a short inline script only
+writes, for headless checks, into ``body``'s data attributes: ``images-ok`` / ``images-total``
+(decoded images), ``scroll-width`` / ``inner-width`` (horizontal overflow) and ``text-overlaps``
+(pairs of chart texts whose boxes overlap), ``text-clipped`` (chart texts reaching outside their
+chart)), written beside its ``report.json``. The histogram's
+log scale is a CSS-only toggle (a checkbox).
 
 Sections, in order: accuracy per level (Table 1 of Meyer et al. 2011: AP and CAP memory and PSNR,
-depth-order errors, the uniform 16-bit baseline), memory vs PSNR chart, minimum-level histogram,
-images of one view (float, AP, CAP, heat maps, minimum levels), levels of detail, cook (re-cook
-status and stage timings), warnings, k_f calibration and byte budget when the container records
-them. Input: the dict of ``lopcook.report.model.build_report``; the page is a function of it and
-the images only.
+depth-order errors, the uniform 16-bit baseline), memory vs PSNR chart, minimum-level histogram
+(linear or log) and level image, images of one view at every level (float, AP, CAP, heat maps with
+their colour scale, and a zoom where the error is worst), the level and view with the most
+depth-order errors, the source's parts, levels of detail, cook (re-cook status and stage timings),
+warnings (grouped and worded, ``text.warning_groups``), k_f calibration and byte budget when the
+container records them. Input: the dict of ``lopcook.report.model.build_report``; the page is a
+function of it and the images only.
 
 Cook timings: a container holds none (deterministic bytes), so ``lopcook report`` re-cooks the
 source with the recorded options (``lopcook.tune.recook.recook``), times every stage and compares
@@ -20,10 +25,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..atomic import write_atomic
-from .images import apply_crop, crop_box, png_data_uri
-from .model import IMAGE_KEYS, report_json_bytes
-from .svg import budget_svg, calibration_svg, histogram_svg, memory_psnr_svg
-from .text import escape, fmt_pct, fmt_psnr
+from .images import apply_crop, crop_box, depth_error_mask, depth_overlay, png_data_uri
+from .model import report_json_bytes
+from .svg import budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
+from .text import escape, fmt_pct, fmt_psnr, warning_groups
 
 
 def budget_html(b: dict) -> str:
@@ -42,7 +47,7 @@ def budget_html(b: dict) -> str:
            f'{cam["resolution"][0]}x{cam["resolution"][1]}, camera {cam["distance_m"]:.4g} m from the bounding box '
            f'({e(cam["rule"])} distance; level {cam["level"]} there). PSNR of the view-averaged MSE over object '
            f'pixels (Purnomo et al. 2005, Fig. 11).</p>', budget_svg(b),
-           '<table id="budget"><thead><tr><th>LOD</th><th>level</th><th>vertices</th><th>bytes</th>'
+           '<div class="scroll"><table id="budget"><thead><tr><th>LOD</th><th>level</th><th>vertices</th><th>bytes</th>'
            "<th>bits/vertex</th><th>PSNR mean dB</th><th>PSNR min dB</th></tr></thead><tbody>"]
     for c in b["candidates"]:
         chosen = (c["lod"], c["level"]) == (ch["lod"], ch["level"])
@@ -51,21 +56,206 @@ def budget_html(b: dict) -> str:
                    f'<td>{c["lod"]}{" (chosen)" if chosen else ""}</td><td>{c["level"]}</td><td>{c["vertices"]:,}</td>'
                    f'<td>{c["bytes"]:,}</td><td>{c["bits_per_vertex"]:.1f}</td><td>{fmt_psnr(c["psnr_mean"])}</td>'
                    f'<td>{fmt_psnr(c.get("psnr_min"))}</td></tr>')
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "".join(out)
 
 
-_CSS = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
-th{background:#f4f4f4}figure{display:inline-block;margin:0 1em 1em 0;vertical-align:top}
-figure img{image-rendering:pixelated;border:1px solid #ccc;background:#fff}
+_CSS = """*{box-sizing:border-box}
+body{font-family:system-ui,sans-serif;margin:0 auto;padding:1em 2em;max-width:1400px;color:#222;
+overflow-wrap:anywhere;line-height:1.35}
+@media (max-width:700px){body{padding:0.5em 0.6em}h1{font-size:1.3em}h2{font-size:1.15em}
+.imgs{grid-template-columns:repeat(2,minmax(0,1fr))!important}}
+.scroll{overflow-x:auto;max-width:100%}
+table{border-collapse:collapse;margin:0.6em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;
+overflow-wrap:normal}td{white-space:nowrap}
+td.name{text-align:left;white-space:nowrap}th{background:#f4f4f4}
+img{max-width:100%;height:auto}svg.chart{display:block;max-width:100%;height:auto;border:1px solid #eee;margin:0.5em 0}
+.imgs{display:grid;grid-template-columns:repeat(auto-fill,minmax(min(100%,220px),1fr));gap:0.6em;margin:0.4em 0}
+figure{margin:0}figure img{width:100%;image-rendering:pixelated;border:1px solid #ccc;background:#fff}
 figcaption{font-size:0.85em;color:#555}.warn{color:#a40}.note{font-size:0.85em;color:#555}
-svg.chart{border:1px solid #eee;margin:0.5em 1em 0.5em 0}"""
+.hist .hist-log{display:none}#hist-log:checked~.hist-linear{display:none}#hist-log:checked~.hist-log{display:block}
+.warn-group h3{margin:0.8em 0 0.2em;font-size:1em}.warn-group p{margin:0.2em 0}
+section.level{border-top:1px solid #ddd;margin-top:0.8em}"""
 
-_SCRIPT = """<script>window.addEventListener('load',function(){var n=0;
+_SCRIPT = """<script>window.addEventListener('load',function(){var n=0,b=document.body.dataset;
 document.querySelectorAll('img').forEach(function(i){if(i.complete&&i.naturalWidth>0)n++;});
-document.body.dataset.imagesOk=String(n);document.body.dataset.imagesTotal=String(document.images.length);});
+b.imagesOk=String(n);b.imagesTotal=String(document.images.length);
+b.scrollWidth=String(document.documentElement.scrollWidth);b.innerWidth=String(window.innerWidth);
+var o=0,x=0;document.querySelectorAll('svg.chart').forEach(function(s){var q=s.getBoundingClientRect();
+var r=[].map.call(s.querySelectorAll('text'),function(t){return t.getBoundingClientRect();}).filter(function(r){
+if(r.width>0&&(r.left<q.left-0.5||r.right>q.right+0.5||r.top<q.top-0.5||r.bottom>q.bottom+0.5))x++;return r.width>0;});
+for(var i=0;i<r.length;i++)for(var j=i+1;j<r.length;j++){var a=r[i],c=r[j];
+if(a.left<c.right-0.5&&c.left<a.right-0.5&&a.top<c.bottom-0.5&&c.top<a.bottom-0.5)o++;}});
+b.textOverlaps=String(o);b.textClipped=String(x);});
 </script>"""
+
+#: captions of the image kinds
+CAPTIONS = {"float": "float32", "ap": "AP", "cap": "CAP", "ap_heatmap": "AP error heat map",
+            "cap_heatmap": "CAP error heat map"}
+#: image kinds shown at every level, in order
+LEVEL_KINDS = ("float", "ap", "cap", "ap_heatmap", "cap_heatmap")
+#: at most this many names are listed openly under a warning; more go in a collapsed list
+OPEN_ITEMS = 6
+
+
+def _figure(img_id: str, a, caption: str, alt: str | None = None) -> str:
+    e = escape
+    return (f'<figure><img id="{e(img_id)}" alt="{e(alt or caption)}" width="{a.shape[1]}" height="{a.shape[0]}" '
+            f'src="{png_data_uri(a)}"><figcaption>{e(caption)}</figcaption></figure>')
+
+
+def _box_text(box) -> str:
+    x0, y0, x1, y1 = box
+    return f"columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1}"
+
+
+def crop_note(crop: dict) -> str:
+    """The sentence saying how a level's images are cropped and enlarged."""
+    (fw, fh), box, sc = crop["frame"], crop["box"], crop["scale"]
+    if list(box) == [0, 0, fw, fh] and sc == 1:
+        return f"Whole {fw}x{fh} frame, shown at 1x."
+    return (f"Cropped to {_box_text(box)} of the {fw}x{fh} frame (the object pixels of all renders plus a margin) "
+            f"and shown {sc}x enlarged with nearest-neighbour sampling ({crop['size'][0]}x{crop['size'][1]} pixels): "
+            f"one rendered pixel is a {sc}x{sc} block.")
+
+
+def level_images_html(rep: dict, images: dict) -> str:
+    """The "Images at every level" section: per level, the float, AP, CAP renders and both heat maps
+    (one crop per level, ``images.per_level[i].crop``), then the zoom on the window where the error
+    is worst (``zoom``); the heat maps' colour scale once above."""
+    e = escape
+    im = rep["images"]
+    per = images.get("per_level") or [images]
+    rows = {r["level"]: r for r in rep["levels"]}
+    out = [f'<h2>Images at every level (view {im["view"]})</h2>',
+           f'<p class="note">View {im["view"]}: of the views showing the most parts at the coarsest level, the one '
+           "with the largest AP error there; every level shows the same view, its camera at the distance where the "
+           "half-pixel criterion selects that level. "
+           "Heat maps: the largest channel difference per pixel against float32.</p>",
+           '<div class="heat-legend">' + heatmap_scale_svg(im.get("heatmap_vmax", 0.25)) + "</div>"]
+    for rec, imgs in zip(im.get("per_level") or [], per):
+        lv, crop, zoom = rec["level"], rec["crop"], rec["zoom"]
+        r = rows.get(lv, {})
+        cap = r.get("cap") or {}
+        head = f"Level {lv}"
+        if r:
+            head += f": camera {r['camera_distance_m']:.4g} m"
+        vi = per_view_index(rep, im["view"])
+        if cap.get("psnr_views") and vi is not None:
+            head += f", CAP PSNR {fmt_psnr(cap['psnr_views'][vi])} dB in this view"
+        out.append(f'<section class="level" id="level-{lv}" data-level="{lv}"><h3>{e(head)}</h3>'
+                   f'<p class="note crop">{e(crop_note(crop))}</p><div class="imgs">')
+        for k in LEVEL_KINDS:
+            if imgs.get(k) is not None:
+                out.append(_figure(f"img-L{lv}-{k}", apply_crop(imgs[k], crop), CAPTIONS[k]))
+        out.append("</div>")
+        if zoom:
+            v = zoom["variant"]
+            side = zoom["box"][2] - zoom["box"][0]
+            out.append(f'<p class="note zoom" data-level="{lv}">Zoom where the {v.upper()} error is worst: '
+                       f"{_box_text(zoom['box'])} ({side}x{side} frame pixels, shown {zoom['scale']}x), "
+                       f"{100 * zoom['share']:.0f} % of this view's {v.upper()} squared error.</p><div class=\"imgs\">")
+            for k in ("float", "ap", "cap", f"{v}_heatmap"):
+                if imgs.get(k) is not None:
+                    out.append(_figure(f"img-L{lv}-zoom-{k}", apply_crop(imgs[k], zoom),
+                                       f"{CAPTIONS[k]}, zoom {zoom['scale']}x"))
+            out.append("</div>")
+        else:
+            out.append('<p class="note zoom">AP and CAP match the float render exactly in this view: no zoom.</p>')
+        out.append("</section>")
+    return "".join(out)
+
+
+def per_view_index(rep: dict, view: int):
+    """Index of ``view`` among the rendered views, or None."""
+    views = list(rep["render"]["views"])
+    return views.index(view) if view in views else None
+
+
+def depth_html(rep: dict, images: dict) -> str:
+    """The "Depth-order errors" section: the level and view with the most depth-order error pixels,
+    the float render, the variant's render and the error pixels in magenta over the float render."""
+    e = escape
+    d = (rep.get("images") or {}).get("depth")
+    total = rep.get("depth_order_errors_total") or {}
+    out = ["<h2>Depth-order errors</h2>"]
+    if not d or not images.get("depth"):
+        out.append(f'<p id="depth" class="note">No depth-order errors at any rendered level and view '
+                   f'(AP {total.get("ap", 0)}, CAP {total.get("cap", 0)} pixels).</p>')
+        return "".join(out)
+    im = images["depth"]["images"]
+    v = d["variant"]
+    mask = depth_error_mask(im["float_ids"], im[f"{v}_ids"])
+    crop = d["crop"]
+    out.append(f'<p id="depth" data-level="{d["level"]}" data-view="{d["view"]}">Most depth-order errors: '
+               f'<b>level {d["level"]}</b>, view {d["view"]}, {v.upper()}: {d["errors"]:,} pixels show another part '
+               f'than the float render inside a part (magenta below). Over all levels and views: AP '
+               f'{total.get("ap", 0):,}, CAP {total.get("cap", 0):,} pixels.</p>'
+               f'<p class="note">{e(crop_note(crop))}</p><div class="imgs">')
+    out.append(_figure("img-depth-float", apply_crop(im["float"], crop), "float32"))
+    out.append(_figure(f"img-depth-{v}", apply_crop(im[v], crop), CAPTIONS[v]))
+    out.append(_figure("img-depth-mask", apply_crop(depth_overlay(im["float"], mask), crop),
+                       f"depth-order error pixels of {v.upper()} (magenta)"))
+    out.append("</div>")
+    return "".join(out)
+
+
+def parts_html(rep: dict) -> str:
+    """The "Parts" table of the source (``scene_parts``): vertices, triangles and attributes, N* for
+    normals lopcook computed; the N* legend only when some part has N*."""
+    e = escape
+    parts = rep.get("scene_parts") or []
+    if not parts:
+        return ""
+    rows = []
+    for q in parts:
+        attrs = []
+        if q["normals"]:
+            attrs.append("N*" if q["normals"] == "computed" else "N")
+        if q["uvs"]:
+            attrs.append("UV")
+        if q["colors"]:
+            attrs.append("C")
+        if q["texture"]:
+            attrs.append(f"texture {q['texture']}")
+        rows.append(f'<tr><td class="name">{e(q["name"])}</td><td>{q["vertices"]:,}</td><td>{q["triangles"]:,}</td>'
+                    f'<td class="name">{e(" ".join(attrs) or "-")}</td></tr>')
+    table = ('<div class="scroll"><table id="parts"><thead><tr><th>part</th><th>vertices</th><th>triangles</th>'
+             "<th>attributes</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table></div>")
+    n = len(parts)
+    out = [f"<h2>Parts</h2><p>{n:,} part{'' if n == 1 else 's'} in the source.</p>"]
+    out.append(table if n <= 12 else f"<details><summary>show the {n:,} parts</summary>{table}</details>")
+    keys = ["N = normals from the source"]
+    if any(q["normals"] == "computed" for q in parts):
+        keys.append("N* = normals computed by lopcook (area-weighted, split at creases)")
+    keys += ["UV = texture coordinates", "C = vertex colours"]
+    out.append(f'<p class="note" id="parts-legend">{e("; ".join(keys))}.</p>')
+    return "".join(out)
+
+
+def warnings_html(w: dict) -> str:
+    """The "Warnings" section: ``text.warning_groups`` as headed paragraphs, long lists collapsed."""
+    e = escape
+    out = ["<h2>Warnings</h2>"]
+    if not w["available"]:
+        out.append('<p class="note">The analysis was not re-run (--no-analyse): only the importer\'s warnings are '
+                   "shown.</p>")
+    groups = warning_groups(w)
+    if not groups:
+        out.append('<p id="warnings">none</p>')
+        return "".join(out)
+    out.append('<div id="warnings">')
+    for g in groups:
+        out.append(f'<div class="warn-group" id="warn-{g["id"]}"><h3>{e(g["title"])}</h3>'
+                   f'<p class="warn">{e(g["summary"])}</p>')
+        items = g["items"]
+        if items:
+            ul = "<ul>" + "".join(f"<li>{e(x)}</li>" for x in items) + "</ul>"
+            out.append(ul if len(items) <= OPEN_ITEMS else f"<details><summary>show all {len(items):,}</summary>{ul}"
+                       "</details>")
+        out.append("</div>")
+    out.append("</div>")
+    return "".join(out)
 
 
 def table_rows(rep: dict) -> list[list[str]]:
@@ -100,7 +290,8 @@ def lod_table_html(lods: dict) -> str:
            "recorded in the container. Distances: the camera range over which lopcook.selection picks the LOD under "
            "the container's viewing. Bytes: index + attribute sections, the LOD's mandatory bits and its bits in "
            "the refinement planes.</p>",
-           '<table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th><th>vertices</th>'
+           '<div class="scroll"><table id="lods"><thead><tr><th>part</th><th>LOD</th><th>triangles</th>'
+           '<th>vertices</th>'
            "<th>Hausdorff error m</th><th>selected from m</th><th>to m</th><th>bytes</th></tr></thead><tbody>"]
     for part in lods["parts"]:
         for r in part["lods"]:
@@ -108,7 +299,7 @@ def lod_table_html(lods: dict) -> str:
                        f"<td>{r['lod']}</td><td>{r['triangles']:,}</td><td>{r['vertices']:,}</td>"
                        f"<td>{r['geometric_error_m']:.4g}</td><td>{_dist(r['min_distance_m'])}</td>"
                        f"<td>{_dist(r['max_distance_m'])}</td><td>{r['bytes']:,}</td></tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     sv = lods.get("savings")
     if sv:
         out.append(f'<p class="note">Not written (no view needs them): {sv["lods_dropped"]} LODs, planes '
@@ -146,58 +337,50 @@ def time_bought(rep: dict, seconds: float) -> str:
 
 def render_html(rep: dict, images: dict | None) -> str:
     """The report page (UTF-8 HTML text) of ``rep`` (``lopcook.report.model.build_report``) and ``images``
-    (the evaluation's images of one view, or None: no image section). A function of its inputs only."""
+    (``render_for_report``'s images: every level's, the depth-order view's and the level image, or
+    None: no image sections). A function of its inputs only. The page fits any width from a phone's
+    up: tables scroll sideways inside their box, images and charts shrink to the column."""
     e = escape
+    nparts = rep["parts"]
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           '<meta name="viewport" content="width=device-width, initial-scale=1">',
            f"<title>lopcook report: {e(rep['container'])}</title><style>{_CSS}</style></head><body>",
            f"<h1>lopcook report: {e(rep['container'])}</h1>",
-           f"<p>source <b>{e(rep['source'])}</b>: {rep['parts']} parts, {rep['vertices']:,} vertices, "
-           f"{rep['triangles']:,} triangles; levels 1..{rep['available_level']} in the file. Rendered at "
+           f"<p>source <b>{e(rep['source'])}</b>: {nparts:,} part{'' if nparts == 1 else 's'}, {rep['vertices']:,} "
+           f"vertices, {rep['triangles']:,} triangles; levels 1..{rep['available_level']} in the file. Rendered at "
            f"{rep['render']['resolution'][0]}x{rep['render']['resolution'][1]}, {rep['render']['samples']}x MSAA, "
            f"{len(rep['render']['views'])} views on {e(rep['render']['device'])}.</p>",
            "<h2>Accuracy per level (Table 1)</h2>",
-           '<table id="levels"><thead><tr><th>level</th><th>AP memory %</th><th>AP PSNR dB min / mean</th>'
-           "<th>CAP memory %</th><th>CAP PSNR dB min / mean</th><th>depth-order error px AP / CAP</th>"
+           '<div class="scroll"><table id="levels"><thead><tr><th>level</th><th>AP memory %</th>'
+           "<th>AP PSNR dB min / mean</th><th>CAP memory %</th><th>CAP PSNR dB min / mean</th>"
+           "<th>depth-order error px AP / CAP</th>"
            f"<th>16-bit ({rep['baselines']['uniform16']['percent_of_float32']:.1f} %) PSNR dB min / mean</th></tr>"
            "</thead><tbody>"]
     for row in table_rows(rep):
         out.append(f'<tr data-level="{e(row[0])}">' + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
-    out.append(f'</tbody></table><p class="note">Memory: GPU-resident position bytes vs float32 '
+    out.append(f'</tbody></table></div><p class="note">Memory: GPU-resident position bytes vs float32 '
                f'({rep["float32_bytes"]:,} B). PSNR over object pixels against the float render; inf = identical.</p>')
     out.append("<h2>Memory vs PSNR</h2>" + memory_psnr_svg(rep))
     u = rep["baselines"]["uniform16"]
-    out.append(f'<p class="note">float32 (100 %, PSNR inf) is drawn in the top band. Uniform 16-bit quantization '
+    out.append(f'<p class="note">Labels: the level of each point (points drawn on top of each other share one label, '
+               f'e.g. 6-8). float32 (100 %, PSNR inf) is drawn in the top band. Uniform 16-bit quantization '
                f'({u["bytes_per_vertex"]} B/vertex = {u["percent_of_float32"]:.1f} %): {e(u["note"])}; max position '
                f'error {u["max_position_error_m"]:.3g} m.</p>')
-    out.append("<h2>Minimum-level histogram</h2>" + histogram_svg(rep["histogram"]))
-    if images and rep.get("images"):
-        im = rep["images"]
-        crop = im.get("crop")
-        out.append(f"<h2>Images at level {im['level']} (view {im['view']})</h2>")
-        if crop:
-            (fw, fh), (x0, y0, x1, y1), sc = crop["frame"], crop["box"], crop["scale"]
-            whole = [x0, y0, x1, y1] == [0, 0, fw, fh]
-            out.append('<p class="note" id="crop">' + (
-                f"Whole {fw}x{fh} frame, shown at 1x." if whole else
-                f"Every image is cropped to the same box, columns {x0}..{x1 - 1} and rows {y0}..{y1 - 1} of the "
-                f"{fw}x{fh} frame (the object pixels of all renders plus a margin; the rest is background), "
-                f"and shown {sc}x enlarged with nearest-neighbour sampling ({crop['size'][0]}x{crop['size'][1]} "
-                f"pixels): one rendered pixel is a {sc}x{sc} block.") + "</p>")
-        out.append("<div>")
-        captions = {"float": "float32", "ap": "AP", "cap": "CAP", "ap_heatmap": "AP error heat map",
-                    "cap_heatmap": "CAP error heat map", "levels": "minimum level per vertex (Fig. 7; camera at the frame distance)"}
-        if im.get("level_range"):
-            lo, hi = im["level_range"]
-            captions["levels"] += f", levels {lo} (blue) to {hi} (red), colours as in the histogram"
-        for k in IMAGE_KEYS:
-            if k in images and images[k] is not None:
-                a = apply_crop(images[k], crop if k != "levels" else crop_box({k: images[k]}))
-                cropped = crop and crop["scale"] > 1 and k != "levels"
-                cap_text = captions.get(k, k) + (f" (crop, {crop['scale']}x)" if cropped else "")
-                out.append(f'<figure><img id="img-{k}" alt="{e(captions.get(k, k))}" width="{a.shape[1]}" '
-                           f'height="{a.shape[0]}" src="{png_data_uri(a)}"><figcaption>{e(cap_text)}'
-                           f"</figcaption></figure>")
-        out.append("</div>")
+    out.append('<h2>Minimum-level histogram</h2><div class="hist"><input type="checkbox" id="hist-log">'
+               '<label for="hist-log"> log scale</label><div class="hist-linear">' + histogram_svg(rep["histogram"])
+               + '</div><div class="hist-log">' + histogram_svg(rep["histogram"], log=True) + "</div></div>")
+    im = rep.get("images")
+    if images and im:
+        if images.get("levels") is not None:
+            cap_text = "minimum level per vertex (Fig. 7; camera at the frame distance)"
+            if im.get("level_range"):
+                lo, hi = im["level_range"]
+                cap_text += f", levels {lo} (blue) to {hi} (red), colours as in the histogram"
+            a = apply_crop(images["levels"], crop_box({"levels": images["levels"]}))
+            out.append('<div class="imgs">' + _figure("img-levels", a, cap_text) + "</div>")
+        out.append(level_images_html(rep, images))
+        out.append(depth_html(rep, images))
+    out.append(parts_html(rep))
     lods = rep.get("lods")
     if lods and lods.get("parts"):
         out.append(lod_table_html(lods))
@@ -208,26 +391,13 @@ def render_html(rep: dict, images: dict | None) -> str:
                    f'recorded options to time the stages: <b>{e(cook["status"])}</b>; {e(cook["detail"])}.</p>')
     if tim:
         total = sum(v for k, v in tim.items() if "." not in k)
-        out.append('<table id="timings"><tr><th>stage</th><th>seconds</th></tr>' + "".join(
+        out.append('<div class="scroll"><table id="timings"><tr><th>stage</th><th>seconds</th></tr>' + "".join(
             f"<tr><td>{e(k)}</td><td>{v:.3f}</td></tr>" for k, v in tim.items())
-            + f"<tr><td><b>total</b> (stages without a dot)</td><td>{total:.3f}</td></tr></table>")
+            + f"<tr><td><b>total</b> (stages without a dot)</td><td>{total:.3f}</td></tr></table></div>")
         out.append(f'<p class="note" id="bought">{e(time_bought(rep, total))}</p>')
     else:
         out.append('<p class="note">cook stage timings: not measured (the source was not re-cooked).</p>')
-    w = rep["warnings"]
-    items = [f"scene: {x}" for x in w["scene"]]
-    if w["touching"]:
-        items.append(f"{len(w['touching'])} touching part pairs: {w['touching']}")
-    if w["intersecting"]:
-        items.append(f"{len(w['intersecting'])} intersecting part pairs: {w['intersecting']}")
-    for k in ("degenerate_triangles", "depth_capped", "attribute_unsatisfied"):
-        if w.get(k):
-            items.append(f"{w[k]} {k.replace('_', ' ')}")
-    out.append("<h2>Warnings</h2>")
-    if not w["available"]:
-        out.append('<p class="note">analysis not re-run; only scene warnings are shown.</p>')
-    out.append('<ul id="warnings">' + "".join(f'<li class="warn">{e(x)}</li>' for x in items) + "</ul>"
-               if items else '<p id="warnings">none</p>')
+    out.append(warnings_html(rep["warnings"]))
     cal = rep.get("calibration")
     if cal:
         svg = calibration_svg(cal)
@@ -251,4 +421,5 @@ def write_html(report_dict: dict, images: dict | None, path) -> tuple[Path, Path
     return path, jpath
 
 
-__all__ = ["budget_html", "table_rows", "lod_table_html", "time_bought", "render_html", "write_html"]
+__all__ = ["budget_html", "table_rows", "crop_note", "level_images_html", "per_view_index", "depth_html", "parts_html",
+           "warnings_html", "lod_table_html", "time_bought", "render_html", "write_html"]

@@ -1,11 +1,12 @@
 """The report model: every number of ``report.json`` as plain JSON data, from a render evaluation,
 the container summary and, optionally, the re-cook's analysis and timings.
 
-``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate``, with images of one
-view), the container summary (``lopcook.emit.summary.describe_container``), the uniform 16-bit
-baseline's evaluation, the re-cook record (``lopcook.tune.recook.recook``) and the analysis
-warnings, and returns a dict of plain Python numbers only (numpy converted, non-finite floats as
-None: a PSNR of None is +inf, identical images), file names without directories and no
+``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate`` with images of one
+view at every level: ``lopcook.report.render.render_for_report``), the container summary
+(``lopcook.emit.summary.describe_container``), the uniform 16-bit baseline's evaluation, the
+re-cook record (``lopcook.tune.recook.recook``) and the analysis warnings, and returns a dict of
+plain Python numbers only (numpy converted, non-finite floats as None: a PSNR of None is +inf,
+identical images), file names without directories and no
 timestamps; ``cook_timings_s`` and ``seconds`` are the only values that vary between identical
 runs. ``report_json_bytes`` serialises it deterministically (sorted keys, indent 1, UTF-8, one
 final newline); the result validates against ``schema/report.schema.json``.
@@ -13,6 +14,11 @@ final newline); the result validates against ``schema/report.schema.json``.
 Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT over each part's
 bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
 rendered with the same cameras as AP and CAP, one PSNR row per level.
+
+Images: ``images`` records the view shown, one crop and one zoom per level (``per_level``:
+``level_image_record``), the depth-order view (``depth``: ``depth_record``) and the heat maps' full
+scale; the pixels themselves are only in the page. ``scene_parts`` lists the source's parts and
+their attributes (N* = normals computed by lopcook).
 
 LODs: ``lods`` holds the container's LOD table (``lod_table``: triangles, vertices, Hausdorff error,
 selection distance range and bytes per part and LOD).
@@ -28,7 +34,7 @@ import numpy as np
 
 from ..version import __version__
 from ..verify.baselines import UNIFORM16_BYTES_PER_VERTEX
-from .images import crop_box
+from .images import crop_box, depth_error_mask, squared_error, worst_window
 
 #: bytes per vertex of float32 positions (3 x 4)
 FLOAT32_BYTES_PER_VERTEX = 12
@@ -71,10 +77,52 @@ def analysis_warnings(scene, analysis) -> dict:
 
     d = describe_analysis(analysis, str(scene.source))
     t = d["totals"]
+    ceiling = (d.get("settings") or {}).get("depth_ceiling")
     return {"available": True, "scene": [str(w) for w in scene.warnings],
-            "touching": [list(p) for p in d["touching"]], "intersecting": [list(p) for p in d["intersecting"]],
+            "touching": [[str(a), str(b)] for a, b in d["touching"]],
+            "intersecting": [[str(a), str(b)] for a, b in d["intersecting"]],
             "degenerate_triangles": int(t["degenerate_triangles"]), "depth_capped": int(t["depth_capped"]),
+            "depth_ceiling": None if ceiling is None else int(ceiling),
             "attribute_unsatisfied": int(t["attribute_unsatisfied"])}
+
+
+def scene_parts(scene) -> list[dict]:
+    """Per part of ``scene``: ``name``, ``vertices``, ``triangles``, ``normals`` ("source", "computed":
+    by lopcook, shown as N*, or None), ``uvs``, ``colors`` (bool) and ``texture`` (its name or None)."""
+    return [{"name": str(p.name), "vertices": int(p.n_vertices), "triangles": int(p.n_triangles),
+             "normals": None if p.normals is None else ("computed" if p.normals_computed else "source"),
+             "uvs": p.uvs is not None, "colors": p.colors is not None,
+             "texture": None if p.texture is None else str(p.texture.name)} for p in scene.parts]
+
+
+def level_image_record(images: dict) -> dict:
+    """The record of one level's images (``evaluate``'s ``keep_images`` dict): ``level``, ``crop``
+    (``crop_box`` of its renders) and ``zoom``: the window where the error is worst
+    (``images.worst_window`` of CAP's per-pixel squared error against float, or AP's when CAP's is
+    zero everywhere) with its ``variant``, or None when both match the float render exactly."""
+    crop = crop_box({k: v for k, v in images.items() if k != "levels"})
+    zoom = None
+    for variant in ("cap", "ap"):
+        if variant in images and "float" in images:
+            z = worst_window(squared_error(images["float"], images[variant]), crop)
+            if z is not None:
+                zoom = dict(z, variant=variant)
+                break
+    return {"level": int(images["level"]), "crop": crop, "zoom": zoom}
+
+
+def depth_record(depth: dict | None) -> dict | None:
+    """The record of the depth-order view (``render.depth_target``): ``level``, ``view``, ``variant``,
+    ``errors`` (pixels, as the accuracy table counts them), ``pixels`` (the mask's count, the same
+    number: ``images.depth_error_mask``) and ``crop`` (around the object and the error pixels)."""
+    if not depth:
+        return None
+    im = depth["images"]
+    v = depth["variant"]
+    mask = depth_error_mask(im["float_ids"], im[f"{v}_ids"])
+    crop = crop_box({"float": im["float"], v: im[v], "mask": mask})
+    return {"level": int(depth["level"]), "view": int(depth["view"]), "variant": v, "errors": int(depth["errors"]),
+            "pixels": int(mask.sum()), "crop": crop}
 
 
 def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
@@ -167,12 +215,18 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
     if warnings is None:
         warnings = {"available": False, "scene": [str(w) for w in getattr(scene, "warnings", ())],
                     "touching": [], "intersecting": [], "degenerate_triangles": None, "depth_capped": None,
-                    "attribute_unsatisfied": None}
+                    "depth_ceiling": None, "attribute_unsatisfied": None}
     depth_total = {v: sum(r[v]["depth_order_errors"] for r in levels if v in r) for v in ("ap", "cap")}
     images = None
     if imgs:
+        from ..verify.metrics import HEATMAP_VMAX
+
+        per_level = imgs.get("per_level") or [imgs]
         images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
-                  "crop": crop_box({k: v for k, v in imgs.items() if k != "levels"})}
+                  "crop": crop_box({k: v for k, v in imgs.items() if k not in ("levels", "per_level", "depth")}),
+                  "per_level": [level_image_record(x) for x in per_level],
+                  "depth": depth_record(imgs.get("depth")),
+                  "heatmap_vmax": float(HEATMAP_VMAX), "view_parts": imgs.get("view_parts")}
         if "levels" in imgs and level_range is not None:
             images["level_range"] = [int(level_range[0]), int(level_range[1])]
     rep = {
@@ -185,6 +239,7 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                    "grid_extent_m": ev["grid_extent_m"], "box_m": ev["box_m"],
                    "device": (ev.get("device") or {}).get("renderer")},
         "parts": ev["parts"],
+        "scene_parts": scene_parts(scene),
         "vertices": n,
         "triangles": int(t["triangles"]),
         "float32_bytes": ev["float32_bytes"],
@@ -226,5 +281,6 @@ def report_json_bytes(rep: dict) -> bytes:
     return (json.dumps(rep, indent=1, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
 
 
-__all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "lod_table",
+__all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "scene_parts",
+           "level_image_record", "depth_record", "lod_table",
            "uniform16_section", "build_report", "budget_section", "report_json_bytes"]

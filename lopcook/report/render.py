@@ -1,47 +1,166 @@
 """The GL pass of ``lopcook report``: every render the page shows, in one render harness.
 
-Minimum levels (Meyer et al. 2011, Fig. 7): the source coloured by each vertex's minimum level,
-rendered from the other images' view at the distance where the object fills the frame (image kind
-``levels``, cropped on its own); the histogram bars use the same colours, so the histogram is its
-legend.
+* **Every level**: the container is evaluated one level at a time (``Harness.evaluate`` with one
+  level; the rows are those of one evaluation over all levels), keeping the images of one view at
+  each level, the same view at every level so a reader compares like with like: the view that
+  shows the most parts at the coarsest level (distinct part IDs in its float render: a chess set
+  seen from above, not from under the board), among those the one with the largest AP error
+  (``choose_view``).
+* **Depth order**: the (level, view) with the most depth-order errors (CAP, else AP) is rendered
+  again with its part-ID images when it is not the images' view, so the page can show where they are.
+* **Uniform 16-bit** baseline at the same cameras, one level at a time.
+* **Minimum levels** (Meyer et al. 2011, Fig. 7): the source coloured by each vertex's minimum level,
+  rendered from the images' view at the distance where the object fills the frame (image kind
+  ``levels``, cropped on its own); the histogram bars use the same colours.
+
+Progress: one ``render`` stage (``lopcook.progress``) counting evaluations: one per level for the
+container, one per level for the 16-bit baseline, one for the depth-order view, one for the level
+image.
 """
 
 from __future__ import annotations
 
+from ..progress import NONE
 
-def render_for_report(container, scene, *, levels, views, resolution) -> tuple[dict, dict, tuple[int, int] | None]:
-    """All renders of a report in one GL harness: ``evaluate`` of the container with images of one
-    view at the coarsest level, the uniform 16-bit scene at the same cameras
-    (``baselines.uniform_quantized_scene``), and the level-coloured source (``baselines.level_scene``)
-    from the images' view at the frame distance (the object fills the frame: legible at any level;
-    ``lopcook.tune.budget.frame_distance``), added to the images as ``levels`` (not cropped with them).
-    Returns (evaluation, uniform16 evaluation, (lo, hi) of the level ramp or None)."""
+
+def _merge(parts: list[dict], levels: list[int]) -> dict:
+    """One evaluation from single-level evaluations ``parts`` (coarsest first): the rows in the order
+    of ``levels``, per-stage seconds summed, the rest from the first."""
+    ev = dict(parts[0])
+    by_level = {p["levels"][0]["level"]: p["levels"][0] for p in parts}
+    ev["levels"] = [by_level[int(b)] for b in levels]
+    secs: dict = {}
+    for p in parts:
+        for k, v in (p.get("seconds") or {}).items():
+            secs[k] = round(secs.get(k, 0.0) + v, 4)
+    ev["seconds"] = secs
+    return ev
+
+
+def depth_target(rows: list[dict]) -> tuple[int, int, str, int] | None:
+    """(level, view, variant, errors) of the rendered view with the most depth-order error pixels:
+    CAP's worst (level, view) when CAP has any, else AP's; the first of equal counts (levels in
+    ``rows`` order, views in render order). None when no view of any level has one. ``rows``: the
+    evaluation's ``levels`` (each variant with ``depth_order_errors_views``), views ``views``."""
+    for variant in ("cap", "ap"):
+        best = None
+        for r in rows:
+            v = r.get(variant)
+            if not v:
+                continue
+            for i, n in enumerate(v["depth_order_errors_views"]):
+                if n > 0 and (best is None or n > best[3]):
+                    best = (int(r["level"]), i, variant, int(n))
+        if best is not None:
+            return best
+    return None
+
+
+def choose_view(visible: list[int], ap_psnr: list, worst: int) -> int:
+    """Index (into the rendered views) of the view the report shows: among the views whose float
+    render shows the most distinct parts (``visible``, per view), the one with the lowest AP PSNR
+    (``ap_psnr``, per view; None = identical = last), the first on ties; ``worst`` (the view with
+    the largest AP squared error, ``evaluate``'s own choice) when it is among them."""
+    most = max(visible)
+    best = [i for i, n in enumerate(visible) if n == most]
+    if worst in best:
+        return worst
+    return min(best, key=lambda i: (float("inf") if ap_psnr[i] is None else ap_psnr[i], i))
+
+
+def render_for_report(container, scene, *, levels, views, resolution,
+                      progress=NONE) -> tuple[dict, dict, tuple[int, int] | None]:
+    """All renders of a report in one GL harness (module doc). Returns (evaluation, uniform16
+    evaluation, (lo, hi) of the level ramp or None).
+
+    The evaluation is that of ``Harness.evaluate(container, levels=levels, views=views)`` (rows in the
+    order of ``levels``) with ``images``: the coarsest level's images (``level``, ``view``, ``float``,
+    ``ap``, ``cap``, heat maps, ID images, as ``evaluate``'s ``keep_images``), plus ``per_level`` (the
+    same dict for every level, in row order), ``depth`` (None, or ``{"level", "view", "variant",
+    "errors", "images"}``: the images of the view with the most depth-order errors, ``depth_target``)
+    ``levels`` (the minimum-level image) and ``view_parts`` (parts seen per rendered view at the
+    coarsest level, or None when not counted: one part or one view). ``progress``: a ``lopcook.progress.Progress``."""
     from ..tune.budget import frame_distance
     from ..verify.baselines import level_scene, uniform_quantized_scene
-    from ..verify.cameras import render_viewing
+    from ..verify.cameras import render_viewing, select_views
     from ..verify.renderer import Harness, Shading
 
     m = container.manifest
-    with Harness(scene, resolution) as h:
-        ev = h.evaluate(container, levels=levels, views=views, keep_images=True)
+    order = sorted(int(b) for b in levels)
+    view_ids = select_views(views)
+    with Harness(scene, resolution) as h, progress.stage("render", total=2 * len(order) + 2) as st:
+        first = h.evaluate(container, levels=[order[0]], views=views, keep_images=True)
+        parts = [first]
+        imgs = first.get("images")
+        image_view = imgs["view"] if imgs else None
+        visible = None
+        if imgs and len(scene.parts) > 1 and len(view_ids) > 1:
+            import numpy as np
+
+            from ..verify.cameras import make_camera
+
+            row = first["levels"][0]
+            viewing0 = render_viewing(m, resolution)
+            shading0 = Shading.from_manifest(m)
+            visible = [int(np.unique(h.render_float(make_camera(v, h.lo, h.hi, row["camera_distance_m"], viewing0),
+                                                    shading0)[1]).size) for v in view_ids]
+            pick = view_ids[choose_view(visible, row["ap"]["psnr_views"] if "ap" in row else [None] * len(view_ids),
+                                        view_ids.index(image_view))]
+            if pick != image_view:
+                image_view = pick
+                imgs = h.evaluate(container, levels=[order[0]], views=[pick], keep_images=True,
+                                  image_view=pick)["images"]
+                first = dict(first, images=imgs)
+                parts = [first]
+        st.advance()
+        per_level = {order[0]: imgs}
+        for b in order[1:]:
+            e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
+            per_level[b] = e.get("images")
+            parts.append(e)
+            st.advance()
+        ev = _merge(parts, levels)
         viewing = render_viewing(m, resolution)
         shading = Shading.from_manifest(m)
         extent = float(m["grid"]["extent"])
-        u16 = h.evaluate_scene(uniform_quantized_scene(scene), levels=levels, views=views, extent=extent,
-                               viewing=viewing, shading=shading)
+        u16_scene = uniform_quantized_scene(scene)
+        u16_parts = []
+        for b in order:
+            u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
+                                              shading=shading))
+            st.advance()
+        u16 = _merge(u16_parts, levels)
         level_range = None
-        imgs = ev.get("images")
         if imgs:
+            imgs = dict(imgs)
+            imgs["per_level"] = [per_level[int(b)] for b in levels]
+            imgs["view_parts"] = None if visible is None else [n - 1 for n in visible]  # background is not a part
+            target = depth_target(ev["levels"])
+            imgs["depth"] = None
+            if target is not None:
+                lv, vi, variant, n = target
+                vid = view_ids[vi]
+                if vid == image_view:
+                    dimgs = per_level[lv]
+                else:
+                    dimgs = h.evaluate(container, levels=[lv], views=[vid], keep_images=True,
+                                       image_view=vid)["images"]
+                imgs["depth"] = {"level": lv, "view": int(vid), "variant": variant, "errors": n, "images": dimgs}
+            st.advance()
             hist = [b for b, c in enumerate(m["stats"]["histogram"]) if c and b > 0]
             coloured, lo, hi = level_scene(container, scene, hist[0], hist[-1])
             box = scene.bounds()
-            lv = h.evaluate_scene(coloured, levels=[imgs["level"]], views=[imgs["view"]], extent=extent,
-                                  viewing=viewing, shading=Shading(ks=0.0), keep_images=True,
-                                  image_view=imgs["view"],
-                                  distance_m=frame_distance(box[0], box[1], viewing.fov_y_deg, resolution))
-            imgs["levels"] = lv["images"]["scene"]
+            lv_ev = h.evaluate_scene(coloured, levels=[imgs["level"]], views=[imgs["view"]], extent=extent,
+                                     viewing=viewing, shading=Shading(ks=0.0), keep_images=True,
+                                     image_view=imgs["view"],
+                                     distance_m=frame_distance(box[0], box[1], viewing.fov_y_deg, resolution))
+            imgs["levels"] = lv_ev["images"]["scene"]
             level_range = (lo, hi)
+            ev["images"] = imgs
+            st.advance()
+        else:
+            st.advance(2)
     return ev, u16, level_range
 
 
-__all__ = ["render_for_report"]
+__all__ = ["render_for_report", "depth_target", "choose_view"]

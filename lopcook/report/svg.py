@@ -17,6 +17,13 @@ import numpy as np
 from .text import escape, fmt_psnr
 
 
+#: chart font size (px) and point-label font size
+FONT = 11
+LABEL_FONT = 10
+#: marker radius (px)
+MARKER_R = 3.5
+
+
 class Plot:
     """Linear x/y axes into an SVG viewport; ``inf`` (None) y values go to a band at the top."""
 
@@ -25,6 +32,11 @@ class Plot:
         self.w, self.h = w, h
         self.l, self.r, self.t, self.b = pad
         self.parts: list[str] = []
+        #: boxes (x0, y0, x1, y1) of placed point labels, markers and fixed texts (axes), for ``place_label``
+        self.labels: list[tuple] = []
+        self.markers: list[tuple] = []
+        self.fixed: list[tuple] = []
+        self.pending: list = []
 
     def x(self, v):
         """SVG x (pixels) of the data value ``v``."""
@@ -48,38 +60,127 @@ class Plot:
             X = self.x(v)
             p.append(f'<line x1="{X:.1f}" y1="{y0}" x2="{X:.1f}" y2="{y0 + 4}" stroke="#333"/>'
                      f'<text x="{X:.1f}" y="{y0 + 16}" text-anchor="middle">{escape(f"{v:g}")}</text>')
+            self.fixed.append(text_box(X, y0 + 16, f"{v:g}", FONT, "middle"))
         for v in yticks:
             Y = self.y(v)
             lab = "inf" if v is None else f"{v:g}"
             p.append(f'<line x1="{x0 - 4}" y1="{Y:.1f}" x2="{x1}" y2="{Y:.1f}" stroke="#ddd"/>'
                      f'<text x="{x0 - 6}" y="{Y + 4:.1f}" text-anchor="end">{escape(lab)}</text>')
+            self.fixed.append(text_box(x0 - 6, Y + 4, lab, FONT, "end"))
         p.append(f'<text x="{(x0 + x1) / 2:.1f}" y="{self.h - 6}" text-anchor="middle">{escape(xlabel)}</text>')
+        self.fixed.append(text_box((x0 + x1) / 2, self.h - 6, xlabel, FONT, "middle"))
         p.append(f'<text x="14" y="{(y0 + y1) / 2:.1f}" text-anchor="middle" '
                  f'transform="rotate(-90 14 {(y0 + y1) / 2:.1f})">{escape(ylabel)}</text>')
 
     def series(self, pts, colour, name, labels=None, dash=""):
         """Draw ``pts`` [(x, y)] as a polyline with round markers in ``colour``, a tooltip per point,
-        optional point ``labels`` and an SVG ``dash`` pattern; nothing for an empty list."""
+        optional point ``labels`` (placed by ``place_label``: points whose markers overlap share one
+        label, e.g. "6-8", and no label overlaps another text, marker or the plot's edge; a label
+        with no free place is left out, its point keeps its tooltip) and an SVG ``dash`` pattern;
+        nothing for an empty list."""
         if not pts:
             return
         d = " ".join(f"{self.x(a):.1f},{self.y(b):.1f}" for a, b in pts)
         da = f' stroke-dasharray="{dash}"' if dash else ""
         self.parts.append(f'<polyline points="{d}" fill="none" stroke="{colour}" stroke-width="1.5"{da}>'
                           f'<title>{escape(name)}</title></polyline>')
-        for i, (a, b) in enumerate(pts):
-            self.parts.append(f'<circle cx="{self.x(a):.1f}" cy="{self.y(b):.1f}" r="3.5" fill="{colour}">'
+        for a, b in pts:
+            X, Y = self.x(a), self.y(b)
+            self.markers.append((X - MARKER_R, Y - MARKER_R, X + MARKER_R, Y + MARKER_R))
+            self.parts.append(f'<circle cx="{X:.1f}" cy="{Y:.1f}" r="{MARKER_R}" fill="{colour}">'
                               f'<title>{escape(name)}: {a:.1f} %, {fmt_psnr(b)} dB</title></circle>')
-            if labels:
-                self.parts.append(f'<text x="{self.x(a) + 5:.1f}" y="{self.y(b) - 5:.1f}" fill="{colour}" '
-                                  f'font-size="10">{escape(labels[i])}</text>')
+        if labels:
+            self.pending.append((pts, labels, colour))
+
+    def _place_labels(self):
+        """Place the pending series labels (``series``) once every marker is known."""
+        for pts, labels, colour in self.pending:
+            groups: list[list[int]] = []
+            for i, (a, b) in enumerate(pts):
+                X, Y = self.x(a), self.y(b)
+                if groups:
+                    j = groups[-1][-1]
+                    if math.hypot(X - self.x(pts[j][0]), Y - self.y(pts[j][1])) < 2 * MARKER_R + 1:
+                        groups[-1].append(i)
+                        continue
+                groups.append([i])
+            for g in groups:
+                text = group_label([labels[i] for i in g])
+                X = sum(self.x(pts[i][0]) for i in g) / len(g)
+                Y = sum(self.y(pts[i][1]) for i in g) / len(g)
+                self.place_label(X, Y, text, colour)
+        self.pending = []
+
+    def place_label(self, X, Y, text, colour, font_size=LABEL_FONT):
+        """Put ``text`` near the point (X, Y): the first of the candidate offsets (nearest first; right of
+        the point first, then the other seven directions) whose box (``text_box``) stays inside the
+        chart and overlaps no placed label, no marker and no axis text. Returns the box, or None when
+        no candidate is free (left out)."""
+        width, fs = text_width(text, font_size), float(font_size)
+        for dist in (4, 8, 13, 19, 27):
+            for ux, uy in ((1, 0), (1, -1), (1, 1), (-1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1)):
+                x = X + dist if ux > 0 else X - dist - width if ux < 0 else X - width / 2
+                y = (Y - dist - 0.25 * fs) if uy < 0 else (Y + dist + 0.8 * fs) if uy > 0 else (Y + 0.275 * fs)
+                box = text_box(x, y, text, font_size)
+                if box[0] < self.l + 2 or box[2] > self.w - 2 or box[1] < 1 or box[3] > self.h - self.b - 1:
+                    continue
+                if any(overlaps(box, o) for o in self.labels + self.markers + self.fixed):
+                    continue
+                self.labels.append(box)
+                self.parts.append(f'<text class="point-label" x="{x:.1f}" y="{y:.1f}" fill="{colour}" '
+                                  f'font-size="{font_size}">{escape(text)}</text>')
+                return box
+        return None
 
     def svg(self, title, legend=()):
-        """The chart as an ``<svg>`` string with ``title`` and a legend of (name, colour) pairs."""
-        leg = "".join(f'<rect x="{self.w - 150}" y="{24 + 14 * i}" width="10" height="10" fill="{c}"/>'
-                      f'<text x="{self.w - 136}" y="{33 + 14 * i}">{escape(n)}</text>' for i, (n, c) in enumerate(legend))
-        return (f'<svg class="chart" viewBox="0 0 {self.w} {self.h}" '
-                f'width="{self.w}" height="{self.h}" font-size="11" role="img" aria-label="{escape(title)}">'
-                f'<title>{escape(title)}</title>' + "".join(self.parts) + leg + "</svg>")
+        """The chart as an ``<svg>`` string with ``title`` and a legend of (name, colour) pairs in rows
+        below the x axis label (never over the data)."""
+        self._place_labels()
+        items, x, row = [], self.l, 0
+        for n, c in legend:
+            width = 14 + text_width(n, FONT) + 16
+            if x + width > self.w - 4 and x > self.l:
+                x, row = self.l, row + 1
+            y = self.h + 6 + 16 * row
+            items.append(f'<rect x="{x:.1f}" y="{y}" width="10" height="10" fill="{c}"/>'
+                         f'<text class="legend" x="{x + 14:.1f}" y="{y + 9}">{escape(n)}</text>')
+            x += width
+        height = self.h + (16 * (row + 1) + 8 if legend else 0)
+        return (f'<svg class="chart" viewBox="0 0 {self.w} {height}" '
+                f'width="{self.w}" height="{height}" font-size="{FONT}" role="img" aria-label="{escape(title)}">'
+                f'<title>{escape(title)}</title>' + "".join(self.parts) + "".join(items) + "</svg>")
+
+
+
+
+def text_width(text: str, font_size: float) -> float:
+    """An upper estimate of the rendered width (px) of ``text`` in a sans-serif font: 0.62 em per
+    character (digits and lower case are about 0.55 em)."""
+    return 0.62 * font_size * len(str(text))
+
+
+def text_box(x: float, y: float, text: str, font_size: float, anchor: str = "start") -> tuple:
+    """(x0, y0, x1, y1) of ``text`` drawn at baseline (x, y) with ``anchor`` (start, middle, end):
+    from 0.8 em above the baseline to 0.25 em below, ``text_width`` wide."""
+    w = text_width(text, font_size)
+    x0 = x - (w / 2 if anchor == "middle" else w if anchor == "end" else 0.0)
+    return (x0, y - 0.8 * font_size, x0 + w, y + 0.25 * font_size)
+
+
+def overlaps(a, b) -> bool:
+    """Whether the boxes ``a`` and ``b`` (x0, y0, x1, y1) share interior area."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def group_label(labels: list[str]) -> str:
+    """One label for points drawn on top of each other: "6", "6-8" (consecutive integers) or "6,9"."""
+    if len(labels) == 1:
+        return labels[0]
+    try:
+        v = [int(x) for x in labels]
+    except ValueError:
+        return ",".join(labels)
+    return f"{v[0]}-{v[-1]}" if v == list(range(v[0], v[0] + len(v))) else ",".join(labels)
 
 
 def ticks(lo, hi, n=6):
@@ -133,27 +234,72 @@ def level_fill(level: int, lo: int, hi: int) -> str:
     return f"#{r:02x}{g:02x}{b:02x}"
 
 
-def histogram_svg(hist: list[int]) -> str:
-    """Bars per minimum level, coloured as the level image (``levels``): its legend."""
+def histogram_svg(hist: list[int], log: bool = False) -> str:
+    """Bars per minimum level, coloured as the level image (``levels``): its legend. ``log``: bar
+    heights proportional to ``log10(1 + count)`` with ticks at powers of ten (a level holding a few
+    vertices next to one holding millions stays visible), else to the count with round ticks."""
     nz = [b for b in range(1, len(hist)) if hist[b]]
     lo, hi = (nz[0], nz[-1]) if nz else (1, 24)
     top = max(hist) or 1
-    w, h, l, b, t = 560, 220, 56, 36, 16
+    w, h, l, b, t = 560, 220, 64, 36, 16
+
+    def height(n):
+        if log:
+            return (h - b - t) * math.log10(1 + n) / math.log10(1 + top)
+        return (h - b - t) * n / top
+
     bw = (w - l - 10) / (hi - lo + 1)
-    parts = [f'<line x1="{l}" y1="{h - b}" x2="{w - 10}" y2="{h - b}" stroke="#333"/>']
+    parts = [f'<line x1="{l}" y1="{h - b}" x2="{w - 10}" y2="{h - b}" stroke="#333"/>'
+             f'<line x1="{l}" y1="{h - b}" x2="{l}" y2="{t}" stroke="#333"/>']
+    yt = [10 ** k for k in range(0, int(math.floor(math.log10(top))) + 1)] if log else \
+        [v for v in ticks(0, top, 4) if v == int(v)]
+    for v in [0] + [x for x in yt if x >= 10] if log else yt:
+        Y = h - b - height(v)
+        parts.append(f'<line x1="{l - 4}" y1="{Y:.1f}" x2="{w - 10}" y2="{Y:.1f}" stroke="#eee"/>'
+                     f'<text class="tick" x="{l - 6}" y="{Y + 4:.1f}" text-anchor="end">{int(v):,}</text>')
     for i, lv in enumerate(range(lo, hi + 1)):
-        bh = (h - b - t) * hist[lv] / top
+        bh = height(hist[lv])
         x = l + i * bw
         parts.append(f'<rect class="bar" data-level="{lv}" data-count="{hist[lv]}" x="{x + 1:.1f}" '
-                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" fill="{level_fill(lv, lo, hi)}">'
-                     f'<title>level {lv}: {hist[lv]} vertices</title></rect>'
+                     f'y="{h - b - bh:.1f}" width="{max(bw - 2, 1):.1f}" height="{bh:.1f}" '
+                     f'fill="{level_fill(lv, lo, hi)}">'
+                     f'<title>level {lv}: {hist[lv]:,} vertices</title></rect>'
                      f'<text x="{x + bw / 2:.1f}" y="{h - b + 14}" text-anchor="middle">{lv}</text>')
-    parts.append(f'<text x="{l - 6}" y="{t + 4}" text-anchor="end">{top}</text>'
-                 f'<text x="{(l + w) / 2:.1f}" y="{h - 4}" text-anchor="middle">minimum level (bits per component)'
-                 f'</text>')
-    return (f'<svg class="chart" viewBox="0 0 {w} {h}" width="{w}" height="{h}" '
-            f'font-size="11" role="img" aria-label="minimum-level histogram"><title>minimum-level histogram</title>'
-            + "".join(parts) + "</svg>")
+    scale = "log" if log else "linear"
+    parts.append(f'<text x="{(l + w) / 2:.1f}" y="{h - 4}" text-anchor="middle">minimum level (bits per component)'
+                 f'</text><text x="14" y="{(h - b + t) / 2:.1f}" text-anchor="middle" '
+                 f'transform="rotate(-90 14 {(h - b + t) / 2:.1f})">vertices ({scale} scale)</text>')
+    return (f'<svg class="chart hist-{scale}" viewBox="0 0 {w} {h}" width="{w}" height="{h}" data-scale="{scale}" '
+            f'font-size="11" role="img" aria-label="minimum-level histogram, {scale} scale">'
+            f'<title>minimum-level histogram ({scale} scale)</title>' + "".join(parts) + "</svg>")
+
+
+def heatmap_scale_svg(vmax: float, steps: int = 64) -> str:
+    """The heat maps' colour scale (``lopcook.verify.metrics.colormap``): a strip of ``steps`` colours
+    from 0 to ``vmax`` (the largest channel difference per pixel, colour units 0..1; ``vmax`` and above
+    is white), ticks with the difference as a fraction and in 8-bit codes, and the background swatch."""
+    from ..verify.metrics import colormap
+
+    w, h, l, r, top, sh = 480, 58, 16, 110, 4, 16
+    sw = (w - l - r) / steps
+    cols = colormap((np.arange(steps) + 0.5) / steps)
+    parts = [f'<rect class="ramp" x="{l + i * sw:.2f}" y="{top}" width="{sw + 0.05:.2f}" height="{sh}" '
+             f'fill="#{c[0]:02x}{c[1]:02x}{c[2]:02x}"/>' for i, c in enumerate(cols)]
+    for k in range(6):
+        f = k / 5
+        X = l + f * (w - l - r)
+        v = f * vmax
+        lab = f"{v:.2f}" + ("+" if k == 5 else "")
+        parts.append(f'<line x1="{X:.1f}" y1="{top + sh}" x2="{X:.1f}" y2="{top + sh + 4}" stroke="#333"/>'
+                     f'<text class="tick" data-value="{v:g}" x="{X:.1f}" y="{top + sh + 15}" '
+                     f'text-anchor="middle">{lab}</text>')
+    parts.append(f'<rect x="{w - r + 14}" y="{top}" width="{sh}" height="{sh}" fill="#181818"/>'
+                 f'<text x="{w - r + 34}" y="{top + 12}">background</text>'
+                 f'<text x="{l}" y="{h - 4}">largest channel difference per pixel, colour units '
+                 f'(x255: 8-bit codes); {vmax:g}+ is white</text>')
+    return (f'<svg class="chart heat-scale" viewBox="0 0 {w} {h}" width="{w}" height="{h}" font-size="10" '
+            f'role="img" aria-label="heat map colour scale"><title>heat map colour scale: 0 (black) to {vmax:g} '
+            f'and above (white)</title>' + "".join(parts) + "</svg>")
 
 
 def calibration_svg(cal: dict) -> str | None:
@@ -237,5 +383,6 @@ def budget_svg(b: dict) -> str:
     return p.svg(f"PSNR against bits per vertex within {b['target_bytes']:,} bytes", legend)
 
 
-__all__ = ["Plot", "ticks", "memory_psnr_svg", "level_fill", "histogram_svg", "calibration_svg", "LOD_COLOURS",
+__all__ = ["Plot", "FONT", "LABEL_FONT", "MARKER_R", "text_width", "text_box", "overlaps", "group_label", "ticks",
+           "memory_psnr_svg", "level_fill", "histogram_svg", "heatmap_scale_svg", "calibration_svg", "LOD_COLOURS",
            "budget_svg"]

@@ -20,4 +20,63 @@ def escape(s) -> str:
     return html.escape(str(s), quote=True)
 
 
-__all__ = ["fmt_pct", "fmt_psnr", "escape"]
+def plural(n: int, one: str, many: str | None = None) -> str:
+    """``n`` with thousands separators and the noun in the right number: ``1 vertex``, ``3 vertices``."""
+    return f"{n:,} {one if n == 1 else (many or one + 's')}"
+
+
+def _pairs(pairs) -> list[str]:
+    return [f"{a} and {b}" for a, b in pairs]
+
+
+def warning_groups(w: dict) -> list[dict]:
+    """The report's warnings (``report.json`` ``warnings``) grouped and worded for a reader: a list of
+    ``{"id", "title", "summary", "items"}`` (``items``: the individual lines under the summary, e.g.
+    the part pairs as "A and B", or identical import warnings once each with a count), in a fixed
+    order: import, touching parts, intersecting parts, degenerate triangles, attribute precision.
+    Empty when there is nothing to say. No Python reprs: every line is a sentence or a name pair."""
+    groups = []
+    scene = [str(x) for x in w.get("scene") or []]
+    if scene:
+        counts: dict[str, int] = {}
+        for x in scene:
+            counts[x] = counts.get(x, 0) + 1
+        items = [x if n == 1 else f"{x} ({n} times)" for x, n in counts.items()]
+        groups.append({"id": "import", "title": "Import",
+                       "summary": f"The importer reported {plural(len(scene), 'warning')}:", "items": items})
+    ceiling = w.get("depth_ceiling")
+    at = f"level {ceiling}" if ceiling is not None else "the depth ceiling"
+    if w.get("touching"):
+        n = len(w["touching"])
+        capped = w.get("depth_capped") or 0
+        text = (f"{plural(n, 'pair')} of parts touch: " + (
+            f"{plural(capped, 'vertex', 'vertices')} where they meet would need more than {at} to keep their "
+            f"depth order, so their level is capped at {at} and the parts may show through each other there "
+            "at close range." if capped else "their depth order may not be kept where they meet."))
+        groups.append({"id": "touching", "title": "Parts that touch", "summary": text, "items": _pairs(w["touching"])})
+    elif w.get("depth_capped"):
+        groups.append({"id": "touching", "title": "Parts that touch",
+                       "summary": f"{plural(w['depth_capped'], 'vertex', 'vertices')} lie so close to another "
+                                  f"part that their depth constraint is capped at {at}.", "items": []})
+    if w.get("intersecting"):
+        n = len(w["intersecting"])
+        groups.append({"id": "intersecting", "title": "Parts that intersect",
+                       "summary": f"{plural(n, 'pair')} of parts intersect (a vertex of one lies behind the "
+                                  "nearest face of the other): no precision keeps their depth order where they "
+                                  "cross.", "items": _pairs(w["intersecting"])})
+    if w.get("degenerate_triangles"):
+        n = w["degenerate_triangles"]
+        groups.append({"id": "degenerate", "title": "Degenerate triangles",
+                       "summary": f"{plural(n, 'zero-area triangle')} {'is' if n == 1 else 'are'} left out of the "
+                                  "position error bound (they cover no pixel).", "items": []})
+    if w.get("attribute_unsatisfied"):
+        n = w["attribute_unsatisfied"]
+        groups.append({"id": "attribute", "title": "Attribute precision",
+                       "summary": f"{plural(n, 'vertex', 'vertices')} need{'s' if n == 1 else ''} more than 24 bits "
+                                  f"for {'its' if n == 1 else 'their'} attribute error; "
+                                  f"{'it is' if n == 1 else 'they are'} stored at full precision (24 bits).",
+                       "items": []})
+    return groups
+
+
+__all__ = ["fmt_pct", "fmt_psnr", "escape", "plural", "warning_groups"]
