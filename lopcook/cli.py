@@ -781,7 +781,7 @@ def cmd_report(args) -> int:
         from .tune.recook import recook
 
         with progress.stage("re-cook (stage timings, warnings, determinism)"):
-            cook = recook(c, scene, ingest_s=ingest_s)
+            cook = recook(c, scene, ingest_s=ingest_s, progress=progress)
             warnings = analysis_warnings(scene, cook["analysis"])
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
     with progress.stage("page"):

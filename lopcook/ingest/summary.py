@@ -67,7 +67,8 @@ def format_scene(d: dict, max_parts: int = 40) -> str:
     ext = " x ".join(f"{v:.4g}" for v in d["extent_m"])
     lines = [
         f"{d['file']}  ({d['format']}, up {d['up_axis']}, {d['unit_scale_m']:g} m/unit)",
-        f"  {t['parts']} parts ({t['distinct_meshes']} distinct meshes), {t['vertices']:,} vertices, "
+        f"  {t['parts']} part{'' if t['parts'] == 1 else 's'} ({t['distinct_meshes']} distinct "
+        f"mesh{'' if t['distinct_meshes'] == 1 else 'es'}), {t['vertices']:,} vertices, "
         f"{t['triangles']:,} triangles, extent {ext} m",
         f"  degenerate triangles: {t['degenerate_triangles']:,}   duplicated positions: {t['duplicated_positions']:,}",
         "",
@@ -87,7 +88,8 @@ def format_scene(d: dict, max_parts: int = 40) -> str:
         lines.append(f"  {name:<40} {q['vertices']:>10,} {q['triangles']:>10,}  {' '.join(attrs)}")
     if len(d["parts"]) > max_parts:
         lines.append(f"  … {len(d['parts']) - max_parts} more parts (use --json for all)")
-    lines.append("  (N* = normals computed by lopcook: area-weighted, split at creases)")
+    if any(q["normals"] == "computed" for q in d["parts"][:max_parts]):
+        lines.append("  (N* = normals computed by lopcook: area-weighted, split at creases)")
     for w in d["warnings"]:
         lines.append(f"  warning: {w}")
     return "\n".join(lines)

@@ -33,6 +33,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..errors import LopcookError
+from ..progress import NONE, Progress
 from ..settings import Settings
 
 
@@ -42,7 +43,8 @@ def recorded_settings(manifest: dict, path: str | None = None) -> Settings:
     return Settings.from_manifest(manifest, path)
 
 
-def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes | None = None) -> dict:
+def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes | None = None,
+           progress: Progress = NONE) -> dict:
     """Re-cook ``container`` (``lopcook.emit.container.Container``) from ``scene`` (its ingested
     source) and compare (see module doc).
 
@@ -72,7 +74,7 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
         return {"status": "not re-cooked", "detail": "cooked with --target-bytes: the byte-budget fit renders "
                 "every candidate and is not re-run; only the analysis is timed", "timings_s": timings,
                 "bytes": None, "analysis": an, "lod_reports": []}
-    result = run(scene, settings, options=options)
+    result = run(scene, settings, options=options, progress=progress)
     data, an = result.data, result.analysis
     timings.update({k: float(v) for k, v in result.timings_s.items()})
     timings.update({f"analyse.{k}": float(v) for k, v in an.timings.items()})
