@@ -634,12 +634,14 @@ def _run_backend(backend: str, work: _Work, target: int, lock_border: bool, topo
     if backend == "fast":
         lock = lock_border if work.mode not in ("lock",) else True
         return _simplify_fast(work.positions, work.faces, target, lock_border=lock)
+    simplifier = _simplify_pymeshlab
+    if backend == "meshopt":  # pymeshlab's arguments (lopcook.simplify_meshopt)
+        from ..simplify_meshopt import simplify_meshopt as simplifier
     if work.mode == "lock":
-        return _simplify_pymeshlab(work.positions, work.faces, target, uvs=work.uvs, lock_border=True)
+        return simplifier(work.positions, work.faces, target, uvs=work.uvs, lock_border=True)
     if work.mode == "simplify":
-        return _simplify_pymeshlab(work.positions, work.faces, target, uvs=work.uvs, weld=True,
-                                   lock_border=lock_border)
-    return _simplify_pymeshlab(work.positions, work.faces, target, lock_border=lock_border, topology=topology)
+        return simplifier(work.positions, work.faces, target, uvs=work.uvs, weld=True, lock_border=lock_border)
+    return simplifier(work.positions, work.faces, target, lock_border=lock_border, topology=topology)
 
 
 def _check_result(res: _BackendResult, target: int, n_in: int) -> tuple[_BackendResult, int]:
