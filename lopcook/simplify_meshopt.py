@@ -48,7 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .analyse.lod import _BackendResult
-from .ingest.weld import used_ids, weld_exact
+from .ingest.normals import _weld_labels
+from .ingest.weld import used_ids
 
 #: attribute weight of UVs (texture coordinates in [0, 1]) and of unit normals; positions are
 #: normalised by meshoptimizer to the mesh extent, so these weigh a UV or normal change of 1
@@ -89,7 +90,7 @@ def _simplify_fn():
 
 def seam_vertices(positions: np.ndarray) -> np.ndarray:
     """(n,) bool: vertices whose exact position is shared with another vertex."""
-    w, k = weld_exact(positions)
+    w, k = _weld_labels(positions, np.int64)
     return np.bincount(w, minlength=k)[w] > 1
 
 
@@ -97,7 +98,7 @@ def border_vertices(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(n,) bool: vertices on an open boundary of the mesh welded by exact position (an edge with
     one face there; seams are not borders)."""
     n = positions.shape[0]
-    w, k = weld_exact(positions)
+    w, k = _weld_labels(positions, np.int64)
     f = w[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
     a = f.ravel()
     b = f[:, [1, 2, 0]].ravel()
