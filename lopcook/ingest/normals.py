@@ -54,6 +54,7 @@ def _group_sum(group: np.ndarray, face_values: np.ndarray, size: int) -> np.ndar
     """(size, 3) sums per group id of the values of each corner's face: corner c (of face c // 3)
     adds ``face_values[c // 3]`` (m, 3) to ``group[c]``. One bincount per column, corners in
     order (the summation order of a (3m, 3) array of repeated rows, without building it)."""
+    group = group.astype(np.intp, copy=False)  # bincount's index type: converted once, not per column
     return np.stack([np.bincount(group, weights=np.repeat(face_values[:, k], 3), minlength=size)
                      for k in range(3)], axis=1)
 
@@ -109,6 +110,16 @@ def _weld_labels(positions: np.ndarray, cid) -> tuple[np.ndarray, int]:
     return out, int(lab[-1]) + 1 if n else 0
 
 
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Row lengths of (k, 3) float64: ``np.linalg.norm(v, axis=1)``'s bits ((x*x + y*y) + z*z,
+    then sqrt), from columns instead of a reduction over rows of three."""
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    s = x * x
+    s += y * y
+    s += z * z
+    return np.sqrt(s, out=s)
+
+
 def _next_corner(h: np.ndarray) -> np.ndarray:
     """Corner at the end of half-edge h (corner h = 3f + k goes to corner 3f + (k + 1) % 3)."""
     nxt = h + 1
@@ -150,27 +161,24 @@ def _single_fans(succ: np.ndarray, a: np.ndarray, fan: np.ndarray, clean: np.nda
     """(nw,) bool: clean vertices (every incident half-edge has a smooth, oppositely oriented twin)
     whose corners form one cycle. ``succ[x]`` is the next corner around x's vertex (across x's
     outgoing edge); from one corner of each vertex the walk must come back after exactly
-    ``fan[v]`` steps, not before."""
+    ``fan[v]`` steps, not before. Vertices are walked in blocks of equal fan size (no
+    per-step compaction: one gather per corner in all)."""
     nw = fan.size
     start = np.empty(nw, dtype=cid)
     start[a] = np.arange(a.size, dtype=cid)  # any corner of each vertex (which one does not matter)
-    verts = np.flatnonzero(clean & (fan > 0) & (fan <= _MAX_WALK)).astype(cid, copy=False)
-    s0 = start[verts]
-    del start
-    cur = s0
-    k = fan[verts]
-    ok = np.ones(verts.size, dtype=bool)
+    cand = clean & (fan > 0) & (fan <= _MAX_WALK)
     out = np.zeros(nw, dtype=bool)
-    step = 0
-    while verts.size:
-        step += 1
+    sizes = np.bincount(fan[cand], minlength=_MAX_WALK + 1)
+    for k in np.flatnonzero(sizes).tolist():
+        verts = np.flatnonzero(cand & (fan == k))
+        s0 = start[verts]
+        cur = s0
+        early = np.zeros(verts.size, dtype=bool)
+        for _ in range(k - 1):
+            cur = succ[cur]
+            early |= cur == s0
         cur = succ[cur]
-        fin = k == step
-        ok &= (cur == s0) == fin
-        if fin.any():
-            out[verts[fin & ok]] = True
-            keep = ~fin
-            verts, s0, cur, k, ok = verts[keep], s0[keep], cur[keep], k[keep], ok[keep]
+        out[verts[(cur == s0) & ~early]] = True
     return out
 
 
@@ -225,9 +233,13 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     np.multiply(e1[:, 0], e2[:, 1], out=fn[:, 2])
     fn[:, 2] -= e1[:, 1] * e2[:, 0]
     del e1, e2
-    flen = np.linalg.norm(fn, axis=1)
+    flen = _norm(fn)
     degenerate = flen <= 1e-300
-    unit = np.where(degenerate[:, None], 0.0, fn / np.where(degenerate, 1.0, flen)[:, None])
+    any_degenerate = bool(degenerate.any())
+    if any_degenerate:
+        unit = np.where(degenerate[:, None], 0.0, fn / np.where(degenerate, 1.0, flen)[:, None])
+    else:
+        unit = fn / flen[:, None]
     del flen
 
     # half-edges: corner h = 3f + k of face f goes from a[h] to b[h] = a[next corner]
@@ -271,8 +283,10 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         smooth = np.empty(h1.size, dtype=bool)
         for s0 in range(0, h1.size, _CHUNK):  # (k, 3) gathers, not (pairs, 3)
             g1, g2 = f1[s0:s0 + _CHUNK], f2[s0:s0 + _CHUNK]
-            smooth[s0:s0 + _CHUNK] = ((np.einsum("ij,ij->i", np.take(unit, g1, axis=0), np.take(unit, g2, axis=0))
-                                       >= cos_limit - 1e-12) | degenerate[g1] | degenerate[g2])
+            ok = np.einsum("ij,ij->i", np.take(unit, g1, axis=0), np.take(unit, g2, axis=0)) >= cos_limit - 1e-12
+            if any_degenerate:
+                ok |= degenerate[g1] | degenerate[g2]
+            smooth[s0:s0 + _CHUNK] = ok
         del f1, f2
         h1, h2 = h1[smooth], h2[smooth]
         del smooth
@@ -409,7 +423,7 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     if unused.size:
         source_vertex = np.concatenate([source_vertex, unused])
         normals = np.concatenate([normals, np.zeros((unused.size, 3))])
-    length = np.linalg.norm(normals, axis=1)
+    length = _norm(normals)
     bad = length <= 1e-300
     normals = np.where(bad[:, None], np.array([0.0, 1.0, 0.0]), normals / np.where(bad, 1.0, length)[:, None])
     return NormalResult(
