@@ -29,10 +29,10 @@ Arguments as for pymeshlab:
 Error: ``error_m`` is meshoptimizer's ``result_error`` with ``meshopt_SimplifyErrorAbsolute``: the
 square root of the largest collapse's quadric error, in metres for the position part (the
 attribute terms, unitless, are added into it). It is an estimate of the distance from the
-simplified mesh to its *input*, not a bound; along a chain built from the previous LOD, the
-distance to LOD 0 is at most the sum of the steps' distances (triangle inequality), which is the
-honest accumulated value (``accumulate``). docs/performance.md compares it with the measured
-symmetric Hausdorff distance.
+simplified mesh to its *input*, not a bound (docs/performance.md: 0.06 to 1.4 times the measured
+symmetric Hausdorff distance, median 0.46). Along a chain built from the previous LOD, the
+distance to LOD 0 is at most the sum of the steps' distances (triangle inequality); ``accumulate``
+sums the steps' errors that way.
 
 The PyPI wrapper (``meshoptimizer`` 0.2.30a0) declares no C prototype for
 ``meshopt_simplifyWithAttributes``, so its ``simplify_with_attributes`` raises ``ctypes.ArgumentError``
@@ -177,6 +177,8 @@ def simplify_meshopt(positions, faces, target, *, uvs=None, weld=False, lock_bor
 
 
 def accumulate(step_errors) -> list[float]:
-    """Errors along a chain built from the previous LOD: LOD k's bound on its distance to LOD 0
-    is the sum of the steps up to k (triangle inequality), hence non-decreasing."""
+    """Errors along a chain built from the previous LOD: the sum of the steps' errors up to LOD k,
+    non-decreasing. By the triangle inequality the Hausdorff distance from LOD k to LOD 0 is at
+    most the sum of the steps' distances, so if each step's error bounded its step, the sum would
+    bound LOD k; meshoptimizer's error is an estimate, so the sum is one too."""
     return [float(v) for v in np.cumsum(np.asarray(step_errors, dtype=np.float64))]

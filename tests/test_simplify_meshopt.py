@@ -160,3 +160,20 @@ def test_runs_through_lod_backend_dispatch(corpus):
         res, dropped = L._check_result(raw, target, work.faces.shape[0])
         assert res.faces.shape[0] <= 1.05 * target or mode == "lock"
         assert np.array_equal(res.positions, work.positions[res.vertex_source])
+
+
+def test_lod_chain_with_meshopt_keeps_seams_closed(corpus, monkeypatch):
+    # the whole lod_chain (prepare, backend, result check, attribute transfer, error) once
+    # "meshopt" is an accepted backend name: each LOD from the previous one, seams simplified
+    monkeypatch.setattr(L, "BACKENDS", L.BACKENDS + ("meshopt",))
+    part = _part(corpus, "spot.obj")
+    lods, report = L.lod_chain(part, ratios=RATIOS, backend="meshopt", seams="simplify", fallback=False)
+    assert len(lods) == 1 + len(RATIOS) and not any(lod.failed for lod in lods)
+    assert all(lod.backend == "meshopt" for lod in lods[1:])
+    errors = [lod.error_m for lod in lods]
+    assert all(b >= a for a, b in zip(errors, errors[1:])) and errors[-1] > 0
+    for lod in lods[1:]:
+        assert abs(lod.triangles - lod.target_triangles) <= L.TARGET_TOLERANCE * lod.target_triangles
+        ids, = _position_ids(lod.part.positions)
+        assert not _open_edges(ids, lod.part.indices)  # spot is closed: no crack at any LOD
+        assert lod.part.uvs is not None and np.isfinite(lod.part.uvs).all()
