@@ -150,6 +150,33 @@ def chart(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+CHAINS = (("spot.obj", "simplify"), ("spot.obj", "lock"), ("DamagedHelmet/DamagedHelmet.gltf", "simplify"),
+          ("DamagedHelmet/DamagedHelmet.gltf", "lock"), ("stanford-bunny.obj", "lock"))
+
+
+def chains(L, corpus: Path, out: Path) -> int:
+    """``lod.lod_chain`` (default ratios 1/2, 1/4, ... from the previous LOD, no fallback) with
+    meshopt and pymeshlab; "meshopt" is added to ``lod.BACKENDS`` for the run."""
+    from lopcook.ingest import load
+
+    if "meshopt" not in L.BACKENDS:
+        L.BACKENDS = L.BACKENDS + ("meshopt",)
+    rows = []
+    for name, seams in CHAINS:
+        part = load(corpus / name).parts[0]
+        for backend in ("meshopt", "pymeshlab"):
+            t0 = time.perf_counter()
+            lods, report = L.lod_chain(part, backend=backend, seams=seams, fallback=False)
+            rows.append({"mesh": name, "seams": seams, "backend": backend, "seconds": time.perf_counter() - t0,
+                         "triangles": [lod.triangles for lod in lods], "error_m": [lod.error_m for lod in lods],
+                         "stop": report.stop_reason})
+            print(f"{name:<34} {seams:<8} {backend:<9} {rows[-1]['seconds']:6.1f} s  "
+                  + " ".join(f"{t}:{e:.3g}" for t, e in zip(rows[-1]["triangles"][1:], rows[-1]["error_m"][1:]))
+                  + f"  ({report.stop_reason})", flush=True)
+    (out / "chains.json").write_text(json.dumps(rows, indent=1))
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--corpus", default=os.environ.get("LOPCOOK_CORPUS", str(REPO.parent / "shared" / "corpus")))
@@ -162,11 +189,15 @@ def main() -> int:
     ap.add_argument("--update", action="store_true",
                     help="replace the rows measured now in an existing simplifiers.json, keep the others")
     ap.add_argument("--chart-only", action="store_true", help="redraw table and chart from simplifiers.json")
+    ap.add_argument("--chains", action="store_true",
+                    help="instead: full lod_chain runs (each LOD from the previous one), meshopt vs pymeshlab")
     args = ap.parse_args()
     from lopcook.analyse import lod as L
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.chains:
+        return chains(L, Path(args.corpus), out)
     ratios = [float(r) for r in args.ratios.split(",")]
     backends = [b for b in args.backends.split(",") if b]
     wanted = {m for m in args.meshes.split(",") if m}
