@@ -37,6 +37,54 @@ def weld_exact(positions: np.ndarray) -> tuple[np.ndarray, int]:
     return rank[inverse.ravel()].astype(np.int64), int(first.size)
 
 
+_FMIX = (np.uint64(33), np.uint64(0xFF51AFD7ED558CCD), np.uint64(0xC4CEB9FE1A85EC53))
+
+
+def _fmix(h: np.ndarray) -> np.ndarray:
+    """MurmurHash3's 64-bit finaliser, in place on a uint64 array (every input bit reaches every
+    output bit: positions converted from float32 have 29 zero low bits per coordinate)."""
+    h ^= h >> _FMIX[0]
+    h *= _FMIX[1]
+    h ^= h >> _FMIX[0]
+    h *= _FMIX[2]
+    h ^= h >> _FMIX[0]
+    return h
+
+
+def weld_labels(positions: np.ndarray, cid) -> tuple[np.ndarray, int]:
+    """(n,) ids equal exactly for identical float64 positions (``-0.0 == 0.0``), in [0, k), and k.
+
+    The numbering is arbitrary (the caller only compares ids): rows are sorted by a 64-bit hash of
+    their bit patterns and equal neighbours compared exactly; a hash collision between different
+    positions (never seen, but possible) falls back to ``weld_exact``."""
+    n = positions.shape[0]
+    p = np.ascontiguousarray(positions, dtype=np.float64) + 0.0  # -0.0 -> 0.0
+    bits = p.view(np.uint64)
+    h = _fmix(bits[:, 0].copy())
+    h ^= bits[:, 1]
+    h = _fmix(h)
+    h ^= bits[:, 2]
+    h = _fmix(h)
+    order = np.argsort(h)
+    hs = h[order]
+    del h
+    same_hash = hs[1:] == hs[:-1]
+    del hs
+    new = np.ones(n, dtype=bool)
+    if same_hash.any():
+        at = np.flatnonzero(same_hash)
+        same_row = (bits[order[at]] == bits[order[at + 1]]).all(axis=1)
+        if not same_row.all():  # two different positions share a hash: exact slow path
+            w, k = weld_exact(positions)
+            return w.astype(cid), k
+        new[at + 1] = False
+    lab = np.cumsum(new, dtype=cid)
+    lab -= 1
+    out = np.empty(n, dtype=cid)
+    out[order] = lab
+    return out, int(lab[-1]) + 1 if n else 0
+
+
 def sorted_unique(values: np.ndarray) -> np.ndarray:
     """``np.unique(values)`` (sorted distinct values, 1-D) through one ``np.sort``: numpy 2's
     hash-based ``np.unique`` without return arrays is much slower on millions of integers."""

@@ -36,9 +36,9 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
         res = compute_normals(positions, indices, settings.crease_angle_deg)
         sv = res.source_vertex
         if sv.size != positions.shape[0] or not np.array_equal(sv, np.arange(sv.size)):
-            positions = positions[sv]
-            uvs = None if uvs is None else uvs[sv]
-            colors = None if colors is None else colors[sv]
+            positions = np.take(positions, sv, axis=0)  # row gathers: np.take is 2-3x faster than [sv]
+            uvs = None if uvs is None else np.take(uvs, sv, axis=0)
+            colors = None if colors is None else np.take(colors, sv, axis=0)
         indices = res.indices
         normals = res.normals
         computed = True

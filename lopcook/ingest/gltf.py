@@ -580,6 +580,7 @@ class _GltfReader:
             self.warn(f"node {ni}: world transform is singular (zero scale); its mesh is skipped")
             return []
         normal_matrix = np.linalg.inv(lin)  # n_world = n @ inv(A)  ==  (inv(A).T @ n.T).T
+        identity = bool(np.array_equal(lin, np.eye(3)))
         node_name = node.get("name") or f"node{ni}"
         mesh_name = mesh.get("name") or f"mesh{mi}"
         out = []
@@ -587,7 +588,10 @@ class _GltfReader:
             geom = self._geometry_of(mi, k, prim, mesh)
             if geom is None:
                 continue
-            pos = geom["positions"] @ lin.T + world[:3, 3]
+            if identity:  # the product would add only zeros: the same bits, without a BLAS call
+                pos = geom["positions"] + world[:3, 3]
+            else:
+                pos = geom["positions"] @ lin.T + world[:3, 3]
             tri = geom["triangles"]
             if det < 0:
                 tri = tri[:, ::-1]

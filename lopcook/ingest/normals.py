@@ -8,6 +8,17 @@ with several groups (a vertex on a crease, e.g. fandisk's feature lines) is spli
 per group. Each group's normal is the sum of its triangles' cross products (area weighting),
 normalised. A group whose triangles all have zero area gets the normal of the nearest
 non-degenerate direction available: +Y as a last resort (counted in ``NormalResult.fallback``).
+
+Implementation: corner and vertex ids are int32 while they fit. The undirected edges are found by
+one ``np.sort`` of packed int64 values (edge key, half-edge id). A vertex whose incident edges are
+all smooth manifold edges between consistently oriented triangles has one corner group when the
+walk around its fan from one corner visits every corner (a bowtie of two closed fans does not):
+that is checked for all such vertices at once, one step per fan position. Only the corners of the
+other vertices (creases, boundaries, bowties) go through the general grouping: pointer doubling on
+the "next corner around the vertex" map, or scipy's connected components when some neighbours are
+inconsistently oriented. The output is bit-identical to the direct formulation
+(tests/test_normals_fast.py keeps it as the reference): same groups, same numbering of the new
+vertices, and every sum in the same order.
 """
 
 from __future__ import annotations
@@ -18,7 +29,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..mesh import weld_exact
+from ..mesh import face_normals, weld_exact, weld_labels
 
 
 @dataclass(frozen=True)
@@ -33,22 +44,88 @@ class NormalResult:
     fallback: int
 
 
-def face_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """(m, 3) float64 cross products (p1 - p0) x (p2 - p0): direction = normal, length = 2 * area."""
-    p0 = positions[indices[:, 0]]  # three (m, 3) gathers: no (m, 3, 3) temporary
-    return np.cross(positions[indices[:, 1]] - p0, positions[indices[:, 2]] - p0)
-
-
 def _group_sum(group: np.ndarray, face_values: np.ndarray, size: int) -> np.ndarray:
     """(size, 3) sums per group id of the values of each corner's face: corner c (of face c // 3)
     adds ``face_values[c // 3]`` (m, 3) to ``group[c]``. One bincount per column, corners in
     order (the summation order of a (3m, 3) array of repeated rows, without building it)."""
+    group = group.astype(np.intp, copy=False)  # bincount's index type: converted once, not per column
     return np.stack([np.bincount(group, weights=np.repeat(face_values[:, k], 3), minlength=size)
                      for k in range(3)], axis=1)
 
 
 #: half-edge pairs handled per step of the dihedral test ((k, 3) float64 temporaries)
 _CHUNK = 1 << 18
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Row lengths of (k, 3) float64: ``np.linalg.norm(v, axis=1)``'s bits ((x*x + y*y) + z*z,
+    then sqrt), from columns instead of a reduction over rows of three."""
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    s = x * x
+    s += y * y
+    s += z * z
+    return np.sqrt(s, out=s)
+
+
+def _next_corner(h: np.ndarray) -> np.ndarray:
+    """Corner at the end of half-edge h (corner h = 3f + k goes to corner 3f + (k + 1) % 3)."""
+    nxt = h + 1
+    nxt[nxt - 3 * (nxt // 3) == 0] -= 3
+    return nxt
+
+
+def _prev_corner(h: np.ndarray) -> np.ndarray:
+    """Start corner of the half-edge that ends at corner h (3f + (k + 2) % 3)."""
+    prv = h - 1
+    prv[h - 3 * (h // 3) == 0] += 3
+    return prv
+
+
+def _orbit_min(succ: np.ndarray, pred: np.ndarray, rounds: int) -> np.ndarray:
+    """Smallest node of each node's component in a graph of paths and cycles given by an
+    injective successor map (``succ[i] == i`` at a path's end, ``pred`` its inverse, ``pred[i]
+    == i`` at a path's start). Pointer doubling: after ``rounds`` with ``2**rounds`` >= the
+    largest component, ``low[i]`` is the minimum of i's forward orbit, and the path's start (or
+    any node of a cycle) carries the component's minimum."""
+    low = np.arange(succ.size, dtype=succ.dtype)
+    ahead = succ.copy()
+    head = pred.copy()
+    for _ in range(rounds):
+        np.minimum(low, low[ahead], out=low)
+        ahead = ahead[ahead]
+        head = head[head]
+    return low[head]
+
+
+#: bits of a packed sort key (int64 without its sign); wider keys fall back to an argsort
+_PACK_BITS = 63
+
+#: fans with more corners than this go through the general grouping
+_MAX_WALK = 64
+
+
+def _single_fans(succ: np.ndarray, a: np.ndarray, fan: np.ndarray, clean: np.ndarray, cid) -> np.ndarray:
+    """(nw,) bool: clean vertices (every incident half-edge has a smooth, oppositely oriented twin)
+    whose corners form one cycle. ``succ[x]`` is the next corner around x's vertex (across x's
+    outgoing edge); from one corner of each vertex the walk must come back after exactly
+    ``fan[v]`` steps, not before. Vertices are walked in blocks of equal fan size (no
+    per-step compaction: one gather per corner in all)."""
+    nw = fan.size
+    start = np.empty(nw, dtype=cid)
+    start[a] = np.arange(a.size, dtype=cid)  # any corner of each vertex (which one does not matter)
+    cand = clean & (fan > 0) & (fan <= _MAX_WALK)
+    out = np.zeros(nw, dtype=bool)
+    sizes = np.bincount(fan[cand], minlength=_MAX_WALK + 1)
+    for k in np.flatnonzero(sizes).tolist():
+        verts = np.flatnonzero(cand & (fan == k))
+        s0 = start[verts]
+        cur = s0
+        early = np.zeros(verts.size, dtype=bool)
+        for _ in range(k - 1):
+            cur = succ[cur]
+            early |= cur == s0
+        cur = succ[cur]
+        out[verts[(cur == s0) & ~early]] = True
+    return out
 
 
 def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg: float = 60.0) -> NormalResult:
@@ -63,118 +140,236 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     Returns
     -------
     NormalResult (see class doc). Vertices used by no triangle keep one copy with normal +Y.
+    New vertices are numbered by (original vertex, first corner of the group); each normal is the
+    float64 sum of its group's face cross products in corner order, normalised, then float32:
+    the result is deterministic and does not depend on the sort or graph algorithms used.
 
-    Memory: about 215 bytes per triangle at the peak (corner ids are int32 where 3m < 2^31; the
-    (m, 3, 3) and (3m, 3) temporaries of a direct formulation are avoided); 1.1M triangles: 228 MB
-    (tracemalloc; with int64 ids and those temporaries the whole GLB ingest peaked at 1024 MB).
+    Memory: int32 corner ids where 3m < 2^31; the largest temporaries are (m, 3) float64 arrays
+    and one int64 per half-edge (docs/performance.md has the measured peak).
     """
     n = positions.shape[0]
-    tri = np.asarray(indices, dtype=np.int64)
-    m = tri.shape[0]
+    m = int(np.shape(indices)[0])
     c = 3 * m
     small = max(c, n) < (1 << 31) - 1
     cid = np.int32 if small else np.int64  # corner / vertex ids
-    weld, _ = weld_exact(positions)
-    wtri = weld.astype(cid)[tri]  # (m, 3) welded vertex per corner
-    del weld
-    fn = face_normals(positions, tri)
-    flen = np.linalg.norm(fn, axis=1)
+    tri = np.asarray(indices).astype(cid, copy=False).reshape(m, 3)
+    if m == 0:
+        return NormalResult(indices=np.zeros((0, 3), np.uint32), source_vertex=np.arange(n, dtype=np.int64),
+                            normals=np.tile(np.array([0.0, 1.0, 0.0], np.float32), (n, 1)), fallback=n)
+    ov = tri.ravel()  # original vertex per corner
+    weld, nw = weld_labels(positions, cid)
+    seams = nw < n
+    if seams:
+        a = weld[ov]  # welded vertex per corner
+    else:
+        weld = np.arange(n, dtype=cid)
+        a = ov
+    fn = np.empty((m, 3))
+    p0 = np.take(positions, tri[:, 0], axis=0)
+    e1 = np.take(positions, tri[:, 1], axis=0)
+    e1 -= p0
+    e2 = np.take(positions, tri[:, 2], axis=0)
+    e2 -= p0
+    del p0
+    # the operations of np.cross, in its order (face_normals gives the same bits)
+    np.multiply(e1[:, 1], e2[:, 2], out=fn[:, 0])
+    fn[:, 0] -= e1[:, 2] * e2[:, 1]
+    np.multiply(e1[:, 2], e2[:, 0], out=fn[:, 1])
+    fn[:, 1] -= e1[:, 0] * e2[:, 2]
+    np.multiply(e1[:, 0], e2[:, 1], out=fn[:, 2])
+    fn[:, 2] -= e1[:, 1] * e2[:, 0]
+    del e1, e2
+    flen = _norm(fn)
     degenerate = flen <= 1e-300
-    unit = np.where(degenerate[:, None], 0.0, fn / np.where(degenerate, 1.0, flen)[:, None])
+    any_degenerate = bool(degenerate.any())
+    if any_degenerate:
+        unit = np.where(degenerate[:, None], 0.0, fn / np.where(degenerate, 1.0, flen)[:, None])
+    else:
+        unit = fn / flen[:, None]
     del flen
 
-    # half-edges: corner h = 3f + k of face f goes from wtri[f, k] to wtri[f, (k+1) % 3]
-    a = wtri.ravel()
-    b = wtri[:, [1, 2, 0]].ravel()
+    # half-edges: corner h = 3f + k of face f goes from a[h] to b[h] = a[next corner]
+    b = a.reshape(m, 3)[:, [1, 2, 0]].ravel()
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
+    forward = a < b
     del b
-    valid = np.flatnonzero(lo != hi)
-    # sort half-edges by undirected key (lo, hi); order within a key does not matter (links are
-    # symmetric), so the faster unstable sort is fine and the result is still deterministic
-    key = lo[valid].astype(np.int64) * np.int64(max(int(a.max()) + 1 if c else 1, 1)) + hi[valid]
-    del lo, hi
-    srt = np.argsort(key)
-    key = key[srt]
-    order = valid[srt].astype(cid)
-    del srt, valid
-    same_next = key[:-1] == key[1:]
-    del key
+    valid = np.flatnonzero(lo != hi).astype(cid, copy=False)
+    hbits = max(c - 1, 1).bit_length()
+    if nw.bit_length() * 2 + hbits <= _PACK_BITS:
+        # one np.sort of (edge key << hbits | half-edge): no argsort, no int64 permutation
+        packed = lo[valid].astype(np.int64)
+        packed *= nw
+        packed += hi[valid]
+        packed <<= hbits
+        packed |= valid
+        del lo, hi, valid
+        packed.sort()
+        order = (packed & ((1 << hbits) - 1)).astype(cid)
+        packed >>= hbits
+        key = packed
+    else:
+        key = lo[valid].astype(np.int64) * np.int64(nw) + hi[valid]
+        del lo, hi
+        srt = np.argsort(key)
+        key = key[srt]
+        order = valid[srt]
+        del srt, valid
     # manifold edges: exactly two half-edges with this key
-    starts = np.flatnonzero(np.r_[True, ~same_next])
-    del same_next
-    sizes = np.diff(np.r_[starts, order.size])
-    pair = starts[sizes == 2]
-    del starts, sizes
+    eq = np.zeros(key.size + 1, dtype=bool)
+    np.equal(key[1:], key[:-1], out=eq[1:-1])
+    del key
+    pair = np.flatnonzero(eq[1:-1] & ~eq[:-2] & ~eq[2:])
+    del eq
     h1, h2 = order[pair], order[pair + 1]
     del order, pair
-    f1, f2 = h1 // 3, h2 // 3
-    cos_limit = np.cos(np.radians(crease_angle_deg))
-    if crease_angle_deg >= 180.0:
-        smooth = np.ones(h1.size, dtype=bool)
-    else:
+    if crease_angle_deg < 180.0:
+        cos_limit = np.cos(np.radians(crease_angle_deg))
+        f1, f2 = h1 // 3, h2 // 3
         smooth = np.empty(h1.size, dtype=bool)
         for s0 in range(0, h1.size, _CHUNK):  # (k, 3) gathers, not (pairs, 3)
             g1, g2 = f1[s0:s0 + _CHUNK], f2[s0:s0 + _CHUNK]
-            smooth[s0:s0 + _CHUNK] = ((np.einsum("ij,ij->i", unit[g1], unit[g2]) >= cos_limit - 1e-12)
-                                      | degenerate[g1] | degenerate[g2])
-    del unit, f1, f2, degenerate
-    h1, h2 = h1[smooth], h2[smooth]
-    del smooth
-    # link the corners at the same welded vertex: corner of h1 at a matches the corner of h2 at a
-    same_dir = a[h1] == a[h2]  # consistently oriented neighbours have opposite half-edges
-    cb1 = h1 - h1 % 3 + (h1 % 3 + 1) % 3  # corner at the other end of half-edge h1
-    cb2 = h2 - h2 % 3 + (h2 % 3 + 1) % 3
-    link_u = np.concatenate([h1, cb1])
-    link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
-    del h1, h2, cb1, cb2, same_dir
-    graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(c, c))
-    del link_u, link_v
-    _, group = connected_components(graph, directed=False)
-    del graph
-    n_groups = int(group.max()) + 1 if group.size else 0
+            ok = np.einsum("ij,ij->i", np.take(unit, g1, axis=0), np.take(unit, g2, axis=0)) >= cos_limit - 1e-12
+            if any_degenerate:
+                ok |= degenerate[g1] | degenerate[g2]
+            smooth[s0:s0 + _CHUNK] = ok
+        del f1, f2
+        h1, h2 = h1[smooth], h2[smooth]
+        del smooth
+    del unit, degenerate
+    # corners of one vertex are linked across its smooth manifold edges; consistently oriented
+    # neighbours have opposite half-edges (h2 runs from b[h1] to a[h1])
+    same_dir = forward[h1] == forward[h2]
+    del forward
+    fan = np.bincount(a, minlength=nw).astype(cid, copy=False)  # corners per welded vertex
+    if not same_dir.any():
+        del same_dir
+        succ = np.full(c, -1, dtype=cid)  # next corner around the vertex, -1 at a break
+        succ[h1] = _next_corner(h2)
+        succ[h2] = _next_corner(h1)
+        del h1, h2
+        broken = np.flatnonzero(succ < 0).astype(cid, copy=False)  # half-edges without smooth twin
+        clean = np.ones(nw, dtype=bool)
+        clean[a[broken]] = False
+        clean[a[_next_corner(broken)]] = False
+        del broken
+        simple_v = _single_fans(succ, a, fan, clean, cid)
+        del clean
+        cplx = np.flatnonzero(~simple_v[a]).astype(cid, copy=False)  # corners of the other vertices
+        if cplx.size:
+            nx = succ[cplx]
+            nx = np.where(nx >= 0, nx, cplx)
+            # the corner before y around its vertex: twin of y's incoming half-edge, where
+            # twin(x) = prev(succ[x])
+            pv = succ[_prev_corner(cplx)]
+            pv = np.where(pv >= 0, _prev_corner(np.maximum(pv, 0)), cplx)
+            nx = np.searchsorted(cplx, nx).astype(cid, copy=False)
+            pv = np.searchsorted(cplx, pv).astype(cid, copy=False)
+            rounds = max(int(fan[a[cplx]].max()) - 1, 1).bit_length()
+            low = _orbit_min(nx, pv, rounds)  # local index of the group's smallest corner
+            del nx, pv
+        else:
+            low = np.zeros(0, dtype=cid)
+        del succ
+    else:  # inconsistently oriented neighbours: every vertex through the general grouping
+        cb1 = _next_corner(h1)  # corner at the other end of half-edge h1
+        cb2 = _next_corner(h2)
+        link_u = np.concatenate([h1, cb1])
+        link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
+        del h1, h2, cb1, cb2, same_dir
+        graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(c, c))
+        del link_u, link_v
+        _, lab = connected_components(graph, directed=False)
+        del graph
+        _, first = np.unique(lab, return_index=True)  # labels are numbered by smallest corner
+        low = first.astype(cid)[lab]
+        del lab, first
+        simple_v = np.zeros(nw, dtype=bool)
+        cplx = np.arange(c, dtype=cid)
 
-    # a group made only of zero-area triangles has no direction: merge its corners into another
-    # group of the same welded vertex that has one (so degenerate slivers do not split vertices)
-    gsum = _group_sum(group, fn, n_groups)
-    good = (np.linalg.norm(gsum, axis=1) > 1e-300)[group]
-    if not good.all():
-        wv = a
-        donor = np.full(int(wv.max()) + 1 if m else 0, np.iinfo(np.int64).max, dtype=np.int64)
-        np.minimum.at(donor, wv[good], group[good])
-        take = ~good & (donor[wv] != np.iinfo(np.int64).max)
-        if take.any():
-            group = np.where(take, donor[wv], group)
-            gsum = _group_sum(group, fn, int(group.max()) + 1)
-        del donor, take
-    del good, a, wtri, fn
+    # group label per corner: the welded vertex for single-group vertices, nw + j for the j-th
+    # group (in order of smallest corner) of the others
+    is_root = low == np.arange(low.size, dtype=cid)
+    number = np.cumsum(is_root, dtype=cid)
+    n_cplx = int(number[-1]) if number.size else 0
+    number -= 1
+    label = a.copy()
+    label[cplx] = nw + number[low]
+    croot = cplx[is_root]  # smallest corner of complex group j
+    del number, is_root, low
+    n_labels = nw + n_cplx
 
-    # new vertex = (original vertex, corner group); number them by first corner appearance
-    ov = tri.ravel()
-    key = ov * np.int64(c + 1) + group
-    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    del key
-    ovf = ov[first]
-    order_new = np.argsort(ovf * np.int64(c + 1) + first, kind="stable")
-    rank = np.empty_like(order_new)
-    rank[order_new] = np.arange(order_new.size)
-    new_index = rank[inverse.ravel()]
-    del inverse, rank
-    source_vertex = ovf[order_new]
+    # a group made only of zero-area triangles has no direction: merge its corners into the group
+    # of the same welded vertex that has one and the smallest first corner (so degenerate slivers
+    # do not split vertices); a single-group vertex has no other group to merge into
+    gsum = _group_sum(label, fn, n_labels)
+    if cplx.size:
+        clab = label[cplx] - nw
+        good = np.linalg.norm(gsum[nw:], axis=1)[clab] > 1e-300
+        if not good.all():
+            wv = a[cplx]
+            big = np.iinfo(cid).max
+            donor = np.full(nw, big, dtype=cid)
+            np.minimum.at(donor, wv[good], croot[clab[good]])
+            take = ~good & (donor[wv] != big)
+            if take.any():
+                j_of_root = np.full(c, -1, dtype=cid)
+                j_of_root[croot] = np.arange(croot.size, dtype=cid)
+                label[cplx[take]] = nw + j_of_root[donor[wv[take]]]
+                gsum = _group_sum(label, fn, n_labels)
+                del j_of_root
+            del donor, take, wv
+        del clab, good
+    del fn
 
-    # area-weighted normals per group, then per new vertex
-    first_corner = first[order_new]
-    normals = gsum[group[first_corner]]
-    del gsum, group
+    # new vertex = (original vertex, group), numbered by original vertex, then first corner.
+    # The original vertices of a single-group welded vertex have one new vertex each.
+    if seams:
+        used = np.zeros(n, dtype=bool)
+        used[ov] = True
+    else:
+        used = fan > 0
+    count = used.astype(cid)
+    cplx_v = ~simple_v[weld]  # original vertices at welded vertices with several groups
+    count[cplx_v] = 0
+    if cplx.size:
+        clab = label[cplx]
+        cov = ov[cplx]
+        pkey = cov.astype(np.int64) * np.int64(n_labels) + clab
+        _, pfirst, pinv = np.unique(pkey, return_index=True, return_inverse=True)
+        del pkey
+        pinv = pinv.ravel()
+        p_ov = cov[pfirst]
+        p_label = clab[pfirst]
+        p_first = cplx[pfirst]
+        del clab, cov, pfirst
+        porder = np.argsort(p_ov.astype(np.int64) * np.int64(c) + p_first)
+        s_ov = p_ov[porder]
+        rank = np.empty(porder.size, dtype=cid)
+        rank[porder] = np.arange(porder.size, dtype=cid) - np.searchsorted(s_ov, s_ov).astype(cid)
+        count += np.bincount(p_ov, minlength=n).astype(cid)
+        del porder, s_ov
+    offset = np.cumsum(count, dtype=np.int64) - count
+    total = int(offset[-1] + count[-1]) if n else 0
+    new_index = offset.astype(cid)[ov]
+    row = np.empty(total, dtype=cid)
+    simple_used = np.flatnonzero(used & ~cplx_v)
+    row[offset[simple_used]] = weld[simple_used]
+    if cplx.size:
+        at = offset[p_ov] + rank
+        row[at] = p_label
+        new_index[cplx] = at[pinv]
+        del at, rank, pinv, p_label, p_first
+    source_vertex = np.repeat(np.arange(n, dtype=np.int64), count)
+    normals = np.take(gsum, row, axis=0)
+    del gsum, row
 
     # unused vertices keep a copy (so indices of used vertices and counts stay explainable)
-    used = np.zeros(n, dtype=bool)
-    used[ov] = True
     unused = np.flatnonzero(~used)
     if unused.size:
         source_vertex = np.concatenate([source_vertex, unused])
         normals = np.concatenate([normals, np.zeros((unused.size, 3))])
-    length = np.linalg.norm(normals, axis=1)
+    length = _norm(normals)
     bad = length <= 1e-300
     normals = np.where(bad[:, None], np.array([0.0, 1.0, 0.0]), normals / np.where(bad, 1.0, length)[:, None])
     return NormalResult(

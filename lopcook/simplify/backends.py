@@ -138,12 +138,14 @@ def run_backend(backend: str, work: Work, target: int, lock_border: bool, topolo
     if backend == "fast":
         lock = lock_border if work.mode not in ("lock",) else True
         return simplify_fast(work.positions, work.faces, target, lock_border=lock)
+    simplifier = simplify_pymeshlab
+    if backend == "meshopt":  # pymeshlab's arguments (lopcook.simplify.meshopt)
+        from .meshopt import simplify_meshopt as simplifier
     if work.mode == "lock":
-        return simplify_pymeshlab(work.positions, work.faces, target, uvs=work.uvs, lock_border=True)
+        return simplifier(work.positions, work.faces, target, uvs=work.uvs, lock_border=True)
     if work.mode == "simplify":
-        return simplify_pymeshlab(work.positions, work.faces, target, uvs=work.uvs, weld=True,
-                                   lock_border=lock_border)
-    return simplify_pymeshlab(work.positions, work.faces, target, lock_border=lock_border, topology=topology)
+        return simplifier(work.positions, work.faces, target, uvs=work.uvs, weld=True, lock_border=lock_border)
+    return simplifier(work.positions, work.faces, target, lock_border=lock_border, topology=topology)
 
 
 def check_result(res: BackendResult, target: int, n_in: int) -> tuple[BackendResult, int]:
