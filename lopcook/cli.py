@@ -11,6 +11,7 @@ import json
 import sys
 
 from . import __version__
+from .batch.cli import _add_batch_parser, cmd_batch
 from .errors import EXIT_OK, LopcookError
 
 EXIT_INTERNAL = 3
@@ -127,6 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "analysis: touching/intersecting parts, degenerate triangles)")
     _add_common(p)
     _add_bench_parser(sub)
+    _add_batch_parser(sub)
     # the global flags also work after the command (lopcook cook x.glb -o x.lop -q)
     for command in sub.choices.values():
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -795,7 +797,7 @@ def cmd_bench(args) -> int:
 
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report,
-            "bench": cmd_bench}
+            "bench": cmd_bench, "batch": cmd_batch}
 
 
 def main(argv: list[str] | None = None) -> int:
