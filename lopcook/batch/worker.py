@@ -20,7 +20,8 @@ the cook's one-line ``lopcook: error: ...`` message when there is one, else the 
 else the signal's name.
 
 Result keys: ``status`` ("cooked" | "failed"), ``error``, ``time_s`` (wall, in the child),
-``cpu_s`` (user + system of the child), ``peak_rss_bytes``, ``bytes``, ``output_sha256``,
+``cpu_s`` (user + system of the child and the processes it waited for), ``peak_rss_bytes``
+(the child's ``VmHWM``, or of a process it forked if larger), ``bytes``, ``output_sha256``,
 ``key``, ``deps``, ``exit_code``, ``signal``.
 """
 
@@ -108,10 +109,29 @@ def child_main(argv: list[str]) -> int:
     except Exception as exc:  # noqa: BLE001 - reported as this asset's failure
         result = {"status": "failed", "exit_code": 3, "error": f"internal error: {type(exc).__name__}: {exc}"}
     result["time_s"] = time.perf_counter() - t0
+    result["peak_rss_bytes"] = _own_peak_rss()
     from ..atomic import write_atomic
 
     write_atomic(task["result"], json.dumps(result).encode())
     return 0
+
+
+def _own_peak_rss() -> int | None:
+    """Peak resident memory of this process (``VmHWM``, which restarts at ``exec``, so it does not
+    include the launching process) or of a child it forked (the cook forks its simplifier;
+    ``RUSAGE_CHILDREN``, which for a fork includes this process's RSS at the fork), in bytes."""
+    import resource
+
+    peak = None
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    peak = int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
+    return max(peak or 0, children) or None
 
 
 def format_bytes(n) -> str:
@@ -173,6 +193,8 @@ def run_isolated(task: dict) -> dict:
                 raise
             proc.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - t0
+        # wait4 sees the child even when it crashed; its ru_maxrss is an upper bound (Linux carries
+        # the launching process's RSS high-water mark across fork + exec): the child's own figure wins
         usage = {"cpu_s": ru.ru_utime + ru.ru_stime, "peak_rss_bytes": ru.ru_maxrss * 1024}
         try:
             with open(child_task["result"], encoding="utf-8") as fh:
@@ -191,7 +213,9 @@ def run_isolated(task: dict) -> dict:
                 result = {"status": "failed", "exit_code": rc,
                           "error": f"worker exited with status {rc}: {error_line(stderr, rc)}"}
             result["time_s"] = wall
-        result.update(usage)
+        result["cpu_s"] = usage["cpu_s"]
+        if not result.get("peak_rss_bytes"):
+            result["peak_rss_bytes"] = usage["peak_rss_bytes"]
         result["wall_s"] = wall
         return result
     finally:
