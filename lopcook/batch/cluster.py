@@ -37,7 +37,7 @@ def run_cluster(tasks: Iterable[dict], scheduler: str, on_result: Callable[[dict
 
     tasks = list(tasks)
     try:
-        client = Client(scheduler, timeout=timeout_s, set_as_default=False)
+        client = Client(scheduler, timeout=timeout_s)
     except (OSError, TimeoutError) as exc:
         raise LopcookError("usage", None, f"--scheduler {scheduler}: cannot connect: {exc}",
                            hint="start it with `dask scheduler` and give its tcp://HOST:PORT") from None

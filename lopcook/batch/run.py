@@ -107,7 +107,8 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
         ok = result.get("status") == "cooked"
         rec.update(status="cooked" if ok else "failed", error=result.get("error"), bytes=result.get("bytes"),
                    time_s=result.get("wall_s", result.get("time_s")), cpu_s=result.get("cpu_s"),
-                   peak_rss_bytes=result.get("peak_rss_bytes"))
+                   peak_rss_bytes=result.get("peak_rss_bytes"), host=result.get("host"),
+                   runner_pid=result.get("runner_pid"))
         if result.get("signal"):
             rec["signal"] = result["signal"]
         if ok:
@@ -144,7 +145,7 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
             pass
     assets = [records[p.asset.output] for p in planned]
     counts = {s: sum(1 for a in assets if a["status"] == s) for s in ("cooked", "up-to-date", "failed")}
-    summary = {"lopcook": __version__, "outdir": outdir, "config": config.path, "jobs": None if scheduler else jobs,
+    summary = {"lopcook": __version__, "pid": os.getpid(), "outdir": outdir, "config": config.path, "jobs": None if scheduler else jobs,
                "scheduler": scheduler, "memory_cap_bytes": memory_cap, "assets": assets,
                "counts": counts, "ok": counts["failed"] == 0,
                "wall_s": time.perf_counter() - t0,

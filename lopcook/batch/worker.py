@@ -22,7 +22,8 @@ else the signal's name.
 Result keys: ``status`` ("cooked" | "failed"), ``error``, ``time_s`` (wall, in the child),
 ``cpu_s`` (user + system of the child and the processes it waited for), ``peak_rss_bytes``
 (the child's ``VmHWM``, or of a process it forked if larger), ``bytes``, ``output_sha256``,
-``key``, ``deps``, ``exit_code``, ``signal``.
+``key``, ``deps``, ``exit_code``, ``signal``, and ``host`` / ``runner_pid``: the machine and the
+process that launched the child (the batch itself, or a Dask worker).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -217,6 +219,8 @@ def run_isolated(task: dict) -> dict:
         if not result.get("peak_rss_bytes"):
             result["peak_rss_bytes"] = usage["peak_rss_bytes"]
         result["wall_s"] = wall
+        result["host"] = socket.gethostname()
+        result["runner_pid"] = os.getpid()
         return result
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
