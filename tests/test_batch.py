@@ -376,3 +376,30 @@ def test_usage_errors_are_one_line(tmp_path, args, needle):
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("lopcook: error: ") and needle in lines[0], proc.stderr
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="pty.fork: Linux")
+def test_progress_bar_on_a_terminal(tmp_path):
+    import pty
+
+    root = tmp_path / "a"
+    root.mkdir()
+    shutil.copy(FIXTURES / "seamed_cube.glb", root / "cube.glb")
+    pid, fd = pty.fork()        # stdout and stderr are a terminal (a 0 x 0 window, as in CI)
+    if pid == 0:  # pragma: no cover - the child
+        os.execv(sys.executable, [sys.executable, "-m", "lopcook", "batch", str(root), "-o", str(tmp_path / "o")])
+    out = b""
+    while True:
+        try:
+            chunk = os.read(fd, 4096)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out += chunk
+    _, status = os.waitpid(pid, 0)
+    text = out.decode("utf-8", "replace")
+    assert os.waitstatus_to_exitcode(status) == 0, text
+    assert "\rlopcook batch: 100%|" in text and "1/1" in text     # the tqdm bar, redrawn in place
+    assert "[1/1] cooked" not in text                            # not the log lines
+    assert "lopcook batch: 1 asset: 1 cooked" in text

@@ -3,6 +3,7 @@ otherwise (build logs, CI), nothing with ``-q``."""
 
 from __future__ import annotations
 
+import os
 import sys
 
 
@@ -22,8 +23,15 @@ class Progress:
         if mode == "bar" and total:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, unit="asset", file=self.stream, dynamic_ncols=True, leave=False,
-                            desc="lopcook batch")
+            try:
+                width, height = os.get_terminal_size(self.stream.fileno())
+            except (OSError, ValueError, AttributeError):
+                width = height = 0
+            # a pty may report a 0 x 0 window: tqdm would then draw nothing
+            size = {"dynamic_ncols": True} if width > 0 else {"ncols": 80}
+            if height <= 0:
+                size["nrows"] = 24
+            self.bar = tqdm(total=total, unit="asset", file=self.stream, leave=False, desc="lopcook batch", **size)
 
     def advance(self, relpath: str, result: dict) -> None:
         self.done += 1

@@ -164,7 +164,7 @@ def format_summary(summary: dict) -> str:
     if c["cooked"] == 0 and c["failed"] == 0:
         return (f"lopcook batch: nothing to cook: {'all ' if n else ''}{n} asset{'s' if n != 1 else ''} up to date "
                 f"in {summary['outdir']} ({summary['wall_s']:.2f} s)")
-    lines = [f"lopcook batch: {n} assets: {c['cooked']} cooked, {c['up-to-date']} up to date, {c['failed']} failed "
+    lines = [f"lopcook batch: {n} asset{'s' if n != 1 else ''}: {c['cooked']} cooked, {c['up-to-date']} up to date, {c['failed']} failed "
              f"({summary['wall_s']:.1f} s wall, {summary['cpu_s']:.1f} s CPU in cooks, {where}) -> "
              f"{summary['outdir']}"]
     for a in summary["assets"]:
