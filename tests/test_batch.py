@@ -296,7 +296,7 @@ def test_a_bad_asset_fails_alone(tree, tmp_path):
         assert err.startswith("ingest: ") and str(root / rel) in err and "\n" not in err
     # no partial output, and the old output of the now-corrupt asset is gone (it no longer matches)
     assert not (out / "glossy.lop").exists() and not (out / "broken.lop").exists()
-    assert sorted(p.name for p in out.rglob("*") if p.is_file()) == [".lopcook-batch.json", "cube.lop",
+    assert sorted(p.name for p in out.rglob("*") if p.is_file()) == [".lopcook-batch.json", ".lopcook-batch.lock", "cube.lop",
                                                                        "plates.lop", "sphere.lop"]
     # the text summary names each failure with its error; -q keeps only those lines, on stderr
     proc = batch(root, "-o", out, "--config", cfg)
@@ -361,6 +361,21 @@ def test_progress_lines_and_quiet(tmp_path):
     assert proc.stdout.startswith("lopcook batch: 2 assets: 2 cooked, 0 up to date, 0 failed")
     proc = batch(root, "-o", tmp_path / "out2", "-q")
     assert proc.returncode == 0 and proc.stdout == "" and proc.stderr == ""
+
+
+def test_one_batch_per_outdir_at_a_time(tmp_path):
+    import fcntl
+
+    (tmp_path / "SRC").mkdir()
+    shutil.copy(FIXTURES / "seamed_cube.glb", tmp_path / "SRC/cube.glb")
+    (tmp_path / "out").mkdir()
+    with open(tmp_path / "out/.lopcook-batch.lock", "a+b") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)   # what a running batch holds
+        proc = batch("SRC", "-o", "out", cwd=tmp_path)
+        assert proc.returncode == 2 and "another lopcook batch is writing this OUTDIR" in proc.stderr
+        assert not (tmp_path / "out/cube.lop").exists()
+    assert batch("SRC", "-o", "out", "-q", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "out/cube.lop").is_file()
 
 
 @pytest.mark.parametrize("args, needle", [

@@ -64,6 +64,25 @@ def _input_bytes(p: Planned, state: State) -> int:
     return total
 
 
+def _lock(outdir: str):
+    """An exclusive ``flock`` on ``OUTDIR/.lopcook-batch.lock`` (released when the returned file
+    closes): two batches writing one OUTDIR at once would lose each other's state entries."""
+    from ..errors import LopcookError
+
+    fh = open(os.path.join(outdir, ".lopcook-batch.lock"), "a+b")
+    try:
+        import fcntl
+
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except ImportError:  # not POSIX: no lock
+        pass
+    except OSError:
+        fh.close()
+        raise LopcookError("usage", outdir, "another lopcook batch is writing this OUTDIR",
+                           hint="wait for it to finish, or give another -o") from None
+    return fh
+
+
 def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: int = 1,
               scheduler: str | None = None, memory_cap: int | None = DEFAULT_MEMORY_CAP, force: bool = False,
               progress: str | None = "quiet") -> dict:
@@ -78,6 +97,7 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     outdir = os.path.abspath(outdir)
     planned = plan(sources, outdir, config)
     os.makedirs(outdir, exist_ok=True)
+    lock = _lock(outdir)
     state = State.load(outdir)
     records: dict[str, dict] = {}
     todo: list[Planned] = []
@@ -143,6 +163,7 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
             os.rmdir(scratch_root)
         except OSError:
             pass
+        lock.close()
     assets = [records[p.asset.output] for p in planned]
     counts = {s: sum(1 for a in assets if a["status"] == s) for s in ("cooked", "up-to-date", "failed")}
     summary = {"lopcook": __version__, "pid": os.getpid(), "outdir": outdir, "config": config.path, "jobs": None if scheduler else jobs,
