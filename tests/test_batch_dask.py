@@ -104,3 +104,20 @@ def test_dask_batch_gives_the_local_bytes(cluster, corpus, tmp_path):
     # incremental on the cluster too
     again = run("-o", str(tmp_path / "dask"), "--scheduler", cluster)
     assert {a["relpath"] for a in json.loads(again.stdout)["assets"] if a["status"] == "cooked"} == set()
+
+
+def test_unreachable_scheduler_is_one_usage_error(tmp_path):
+    import socket
+
+    with socket.socket() as s:       # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    (tmp_path / "a").mkdir()
+    shutil.copy(FIXTURES / "seamed_cube.glb", tmp_path / "a/cube.glb")
+    proc = subprocess.run([sys.executable, "-m", "lopcook", "batch", str(tmp_path / "a"), "-o", str(tmp_path / "o"),
+                           "--scheduler", f"tcp://127.0.0.1:{port}", "--scheduler-timeout", "2"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lopcook: error: usage: --scheduler tcp://127.0.0.1:")
+    assert "cannot connect" in lines[0] and not (tmp_path / "o/cube.lop").exists()

@@ -40,6 +40,8 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run the cooks on this Dask distributed scheduler's workers (needs a shared filesystem; "
                         "see docs/batch.md)")
+    p.add_argument("--scheduler-timeout", type=float, default=30.0, metavar="SECONDS",
+                   help="how long to wait for the scheduler and its first worker (default 30)")
     p.add_argument("--emit-ninja", default=None, metavar="build.ninja",
                    help="write a Ninja file with one `lopcook cook` edge per asset (depfiles, deps = gcc) "
                         "instead of cooking")
@@ -62,6 +64,8 @@ def cmd_batch(args) -> int:
     if args.scheduler is not None and "://" not in args.scheduler:
         raise LopcookError("usage", None, f"--scheduler {args.scheduler!r}: expected an address such as "
                            "tcp://10.0.0.5:8786")
+    if not args.scheduler_timeout > 0:
+        raise LopcookError("usage", None, f"--scheduler-timeout {args.scheduler_timeout}: expected seconds > 0")
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise LopcookError("usage", args.output, "-o must be a directory (OUTDIR)")
     from .run import default_config_path
@@ -72,7 +76,7 @@ def cmd_batch(args) -> int:
     from .run import format_summary, run_batch
 
     summary = run_batch(args.sources, args.output, config=config, jobs=jobs, scheduler=args.scheduler,
-                        memory_cap=memory_cap, force=args.force,
+                        memory_cap=memory_cap, force=args.force, scheduler_timeout_s=args.scheduler_timeout,
                         progress="quiet" if args.quiet else None)
     if args.json:
         print(json.dumps(summary, indent=1, sort_keys=True))

@@ -85,7 +85,7 @@ def _lock(outdir: str):
 
 def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: int = 1,
               scheduler: str | None = None, memory_cap: int | None = DEFAULT_MEMORY_CAP, force: bool = False,
-              progress: str | None = "quiet") -> dict:
+              scheduler_timeout_s: float = 30.0, progress: str | None = "quiet") -> dict:
     """Cook what is out of date; return the summary (the ``--json`` document, docs/batch.md).
 
     ``progress``: ``progress.Progress``'s mode: "bar", "lines", "quiet" (default) or None (a bar
@@ -148,11 +148,11 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
             last_save[0] = time.perf_counter()
 
     try:
-        if scheduler:
+        if scheduler and tasks:  # nothing to cook: no need to reach the cluster
             from .cluster import run_cluster
 
-            cluster_info = run_cluster(tasks, scheduler, on_result)
-        else:
+            cluster_info = run_cluster(tasks, scheduler, on_result, timeout_s=scheduler_timeout_s)
+        elif not scheduler:
             from .local import run_local
 
             run_local(tasks, jobs, on_result)
