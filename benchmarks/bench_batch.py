@@ -97,10 +97,13 @@ def main() -> int:
                 assert r["proc"].returncode == 0, r["proc"].stderr
                 doc = json.loads(r["proc"].stdout)
                 same = lop_files(out) == want
+                # cooks running at once, on average: the sum of their wall times over the batch's
+                concurrency = sum(x["time_s"] or 0.0 for x in doc["assets"]) / r["wall_s"]
                 runs[jobs].append({k: r[k] for k in ("wall_s", "cpu_s", "others_cpu_s", "load1")}
-                                  | {"identical": same, "cook_cpu_s": doc["cpu_s"]})
+                                  | {"identical": same, "cook_cpu_s": doc["cpu_s"], "concurrency": concurrency})
                 print(f"--jobs {jobs} (run {i + 1}): {r['wall_s']:.2f} s wall, {r['cpu_s']:.1f} s CPU ours, "
-                      f"{r['others_cpu_s']:.1f} s CPU others, load {r['load1']:.2f}, identical to cook: {same}")
+                      f"{r['others_cpu_s']:.1f} s CPU others, load {r['load1']:.2f}, cooks at once "
+                      f"{concurrency:.2f}, identical to cook: {same}")
         best = {j: min(x["wall_s"] for x in v) for j, v in runs.items()}
         med = {j: statistics.median(x["wall_s"] for x in v) for j, v in runs.items()}
         report["runs"] = runs

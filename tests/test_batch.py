@@ -326,8 +326,8 @@ def _grid_usdc(path: Path, n: int = 100) -> None:
 
 
 def test_a_worker_crash_fails_only_its_asset(tmp_path):
-    """A real crash: under a 1 GB address-space cap, usd-core's crate reader dies with SIGSEGV
-    opening this grid (its failed allocations are not checked), while the small GLB cooks."""
+    """A real crash: under a 1 GB address-space cap, usd-core (0.26) dies with SIGSEGV opening
+    this crate file, while the small GLB beside it cooks."""
     root = tmp_path / "a"
     root.mkdir()
     _grid_usdc(root / "grid.usdc")

@@ -38,11 +38,6 @@ import sys
 import tempfile
 import time
 
-#: dependency mtimes later than the cook's start by more than this mean the input changed during
-#: the cook: the key is then not recorded (the next run re-cooks)
-_MTIME_SLACK_NS = 0
-
-
 def _cook_in_child(task: dict) -> dict:
     import contextlib
     import io
@@ -67,7 +62,7 @@ def _cook_in_child(task: dict) -> dict:
     key = asset_key(task["source"], deps, task["resolved"])
     for d in deps:  # an input written while we cooked: do not claim this output is current
         try:
-            if os.stat(d).st_mtime_ns > start_ns + _MTIME_SLACK_NS:
+            if os.stat(d).st_mtime_ns > start_ns:
                 key = None
                 break
         except OSError:
