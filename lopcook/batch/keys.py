@@ -35,13 +35,14 @@ _CHUNK = 1 << 20
 
 
 def file_sha256(path: str) -> str | None:
-    """Hex SHA-256 of a file's bytes, None when it does not exist (or is not a regular file)."""
+    """Hex SHA-256 of a file's bytes, None when it cannot be read (missing, a directory, no
+    permission): such a dependency counts as absent, so the asset re-cooks and the cook reports it."""
     h = hashlib.sha256()
     try:
         with open(path, "rb") as fh:
             while chunk := fh.read(_CHUNK):
                 h.update(chunk)
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+    except OSError:
         return None
     return h.hexdigest()
 
