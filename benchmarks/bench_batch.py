@@ -9,6 +9,7 @@
    time minus ours), so a shared machine's interference is visible;
 3. the outputs equal the references byte for byte; a second ``--jobs 2`` run cooks nothing (time);
 4. a copy of the corpus plus one corrupt file: exit 2, the others cook, the summary names it;
+   then the DamagedHelmet albedo texture's bytes change: only that asset re-cooks;
 5. ``--dask``: a scheduler and two workers on 127.0.0.1: the same bytes;
 6. ``--ninja``: ``--emit-ninja``, ninja twice (the second: "no work to do"), the same bytes.
 """
@@ -130,6 +131,14 @@ def main() -> int:
         report["corrupt"] = {"exit": r["proc"].returncode, "summary": lines,
                              "identical_others": lop_files(work / "out-corrupt") == want}
         print(f"corrupt file: exit {r['proc'].returncode}; " + " | ".join(lines))
+        # then: the corrupt file removed, one texture's bytes changed -> only its asset cooks
+        (tree / "broken.glb").unlink()
+        tex = tree / "DamagedHelmet" / "Default_albedo.jpg"
+        tex.write_bytes(tex.read_bytes() + b"\0")
+        r = timed(batch(tree, "-o", work / "out-corrupt", "--jobs", "2", "--json", "-q"))
+        cooked = [x["relpath"] for x in json.loads(r["proc"].stdout)["assets"] if x["status"] == "cooked"]
+        report["texture_change"] = {"cooked": cooked, "wall_s": r["wall_s"]}
+        print(f"albedo texture changed: cooked {cooked} ({r['wall_s']:.1f} s)")
 
         if a.dask:
             report["dask"] = _dask(corpus, work, want)
