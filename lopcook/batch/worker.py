@@ -183,16 +183,21 @@ def run_isolated(task: dict) -> dict:
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=errf,
                                     env=_child_env())
             try:
-                _, status, ru = os.wait4(proc.pid, 0)
+                if hasattr(os, "wait4"):
+                    _, status, ru = os.wait4(proc.pid, 0)
+                    proc.returncode = os.waitstatus_to_exitcode(status)
+                else:  # not POSIX: no resource usage of the child
+                    proc.wait()
+                    ru = None
             except BaseException:
                 proc.kill()
                 proc.wait()
                 raise
-            proc.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - t0
         # wait4 sees the child even when it crashed; its ru_maxrss is an upper bound (Linux carries
         # the launching process's RSS high-water mark across fork + exec): the child's own figure wins
-        usage = {"cpu_s": ru.ru_utime + ru.ru_stime, "peak_rss_bytes": ru.ru_maxrss * 1024}
+        usage = ({"cpu_s": ru.ru_utime + ru.ru_stime, "peak_rss_bytes": ru.ru_maxrss * 1024} if ru is not None
+                 else {"cpu_s": None, "peak_rss_bytes": None})
         try:
             with open(child_task["result"], encoding="utf-8") as fh:
                 result = json.load(fh)
