@@ -91,6 +91,7 @@ def test_resolved_options_are_canonical():
     ('options = ["-o", "x.lop"]\n', "-o"),
     ('options = ["--depfile", "x.d"]\n', "--depfile"),
     ('options = ["--json"]\n', "--json"),
+    ('options = ["--help"]\n', "--help"),
     ('options = ["other.glb"]\n', "other.glb"),
     ('[[rules]]\noptions = ["--lods", "auto"]\n', "glob"),
     ('colour = "red"\n', "colour"),

@@ -184,7 +184,7 @@ def _parse_cook(options) -> dict:
 
     err = io.StringIO()
     try:
-        with contextlib.redirect_stderr(err):
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):  # --help prints
             ns = build_parser().parse_args(["cook", _SENTINEL_SOURCE, "-o", _SENTINEL_OUTPUT, *options])
     except SystemExit:
         lines = [ln for ln in err.getvalue().strip().splitlines() if ln.strip()]
