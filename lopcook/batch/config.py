@@ -179,7 +179,8 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
 
 
 def _parse_cook(options) -> dict:
-    """``lopcook cook``'s parser over ``options`` -> the Namespace as a dict, or LopcookError text."""
+    """``lopcook cook``'s parser over ``options`` -> the Namespace as a dict; ``ValueError`` with
+    argparse's message when they do not parse."""
     from ..cli import build_parser
 
     err = io.StringIO()
