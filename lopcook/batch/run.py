@@ -108,7 +108,7 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
         if not force and state.up_to_date(p.asset.source, p.asset.output, p.resolved):
             e = state.entries[state.rel(p.asset.output)]
             rec.update(status="up-to-date", bytes=e.get("bytes"), time_s=None, cpu_s=None, peak_rss_bytes=None,
-                       error=None)
+                       error=None, warnings=[])
         else:
             todo.append(p)
     todo.sort(key=lambda p: (-_input_bytes(p, state), p.asset.output))
@@ -128,7 +128,7 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
         rec.update(status="cooked" if ok else "failed", error=result.get("error"), bytes=result.get("bytes"),
                    time_s=result.get("wall_s", result.get("time_s")), cpu_s=result.get("cpu_s"),
                    peak_rss_bytes=result.get("peak_rss_bytes"), host=result.get("host"),
-                   runner_pid=result.get("runner_pid"))
+                   runner_pid=result.get("runner_pid"), warnings=result.get("warnings", []))
         if result.get("signal"):
             rec["signal"] = result["signal"]
         if ok:
