@@ -29,7 +29,6 @@ Ninja compares modification times, not contents (``lopcook batch``'s own check h
 
 from __future__ import annotations
 
-import os
 import shlex
 import sys
 
