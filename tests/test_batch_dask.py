@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from conftest import FIXTURES, REPO
+from conftest import FIXTURES, REPO, require
 
 
 def _dask(*args, cwd, log):
@@ -38,8 +38,10 @@ def _stop(procs):
 @pytest.fixture
 def cluster(tmp_path):
     """tcp address of a scheduler with two single-threaded workers, each in its own directory."""
-    pytest.importorskip("distributed")
-    from distributed import Client
+    try:
+        from distributed import Client
+    except ImportError:
+        require("the distributed package is not installed (pip install 'lopcook[test]')")
 
     sched_file = tmp_path / "scheduler.json"
     procs = []
