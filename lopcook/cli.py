@@ -11,11 +11,12 @@ import json
 import sys
 from pathlib import Path
 
-from .version import __version__
+from .batch.cli import add_batch_parser, cmd_batch
 from .errors import EXIT_OK, LopcookError
-from .settings import DEFAULTS as D
 from .progress import MODES
+from .settings import DEFAULTS as D
 from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs
+from .version import __version__
 
 EXIT_INTERNAL = 3
 
@@ -156,6 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "analysis: touching/intersecting parts, degenerate triangles)")
     _add_common(p)
     _add_bench_parser(sub)
+    add_batch_parser(sub)
     # the global flags also work after the command (lopcook cook x.glb -o x.lop -q)
     for command in sub.choices.values():
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -853,7 +855,7 @@ def cmd_bench(args) -> int:
 
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report,
-            "bench": cmd_bench}
+            "bench": cmd_bench, "batch": cmd_batch}
 
 
 def main(argv: list[str] | None = None) -> int:
