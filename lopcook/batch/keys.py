@@ -27,7 +27,7 @@ import hashlib
 import json
 import os
 
-from .. import __version__
+from ..version import __version__
 
 KEY_FORMAT = "lopcook-batch-key/1"
 STATE_FORMAT = "lopcook-batch-state/1"

@@ -32,7 +32,7 @@ from __future__ import annotations
 import shlex
 import sys
 
-from .. import __version__
+from ..version import __version__
 
 
 def ninja_path(path: str) -> str:

@@ -19,7 +19,7 @@ import os
 import time
 from dataclasses import dataclass
 
-from .. import __version__
+from ..version import __version__
 from . import SCRATCH_DIR
 from .config import BatchConfig, load_config, resolve
 from .discover import Asset, discover
