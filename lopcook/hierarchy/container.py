@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..emit import attributes as attr
+from ..emit.summary import hierarchy_stats
 from ..emit.reader import decode_positions, lod_attributes, top_values
 from ..errors import LopcookError
 from ..grid import BITS
@@ -101,24 +102,8 @@ def add_hierarchy(manifest: dict, sections: list, lod0: list, grid, cache: dict 
 
 
 def part_stats(c, part: int) -> dict | None:
-    """``inspect``'s per-part figures, or None when the part has no hierarchy: bits per coded
-    triangle of the connectivity records (``bits_per_triangle``) and of the tree shape
-    (``structure_bits_per_triangle``), and ``position_bits_per_vertex``: the stored bits that
-    place the nodes, per leaf (LOD 0's mandatory bits and planes up to the file's highest level,
-    which the nodes share, plus the section's vertex map and representative bits)."""
-    rec = c.manifest["parts"][part].get("hierarchy")
-    if rec is None:
-        return None
-    entries = c.entries
-    lod = entries.parts[part].lods[0]
-    shared = 8 * (lod.mandatory_bytes + lod.plane_bytes(entries.max_level))
-    m = max(int(rec["triangles"]), 1)
-    return {"bits_per_triangle": rec["connectivity_bits"] / m,
-            "structure_bits_per_triangle": rec["structure_bits"] / m,
-            "position_bits_per_vertex": (shared + rec["vertex_map_bits"] + rec["representative_bits"])
-            / max(int(rec["leaves"]), 1),
-            "section_bytes": len(c.sections.get(rec["section"], b"")),
-            "variant": rec["variant"], "nodes": rec["nodes"], "triangles": rec["triangles"]}
+    """``lopcook.emit.summary.hierarchy_stats``: inspect's figures of one part's hierarchy."""
+    return hierarchy_stats(c, part)
 
 
 def read_part(c, part: int, level: int | None = None):
