@@ -161,6 +161,7 @@ types:
     seq:
       - id: magic
         contents: LOPH
+        doc: Blob magic "LOPH".
       - id: version
         type: u1
         doc: Blob version, 1.
@@ -172,6 +173,7 @@ types:
         doc: Huffman table size including the escape (512).
       - id: len_body
         type: u8
+        doc: Body length in bytes.
       - id: body
         size: len_body
         doc: Counts, grid placement, tree shape, representative bits, selection data, vertex
