@@ -866,6 +866,10 @@ def _add_bench_parser(sub) -> None:
     p.add_argument("--repeat", type=int, default=1, metavar="N", help="scaling runs per input, best wall time (default 1)")
     p.add_argument("--calibrated", action="store_true",
                    help="also cook with --target-psnr 40 (slow on the chess set)")
+    p.add_argument("--connectivity", action="store_true",
+                   help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
+                        "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "
+                        "default assets: the corpus)")
     _add_common(p)
 
 

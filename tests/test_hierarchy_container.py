@@ -277,3 +277,16 @@ def test_cli_refine_bad_input(tmp_path, capsys):
         assert main(["refine", str(plain), *extra, "-o", glb]) == 2
         assert what in capsys.readouterr().err
     assert main(["refine", str(plain), "--camera", "0,0,0", "--target", "0,0,0", "-o", str(tmp_path / "v.txt")]) == 2
+
+
+def test_bench_connectivity_writes_json_and_chart(tmp_path, corpus):
+    """``lopcook bench --connectivity`` on one small asset: the results and the chart; the index
+    shrinks as the random-access unit grows (fewer nodes hold an entry)."""
+    for module in ("meshoptimizer", "DracoPy", "matplotlib"):
+        pytest.importorskip(module)
+    assert main(["-q", "bench", "--connectivity", "-o", str(tmp_path), str(corpus / "UtahTeapot.usd")]) == 0
+    (res,) = json.loads((tmp_path / "connectivity.json").read_text()).values()
+    index = [res["index_bits_per_triangle"][str(u)] for u in (1, 8, 64, 512, 4096)]
+    assert all(a >= b for a, b in zip(index, index[1:])) and index[0] > index[-1]
+    assert res["bits_per_triangle"]["proposed_plus"]["bits"] < res["bits_per_triangle"]["proposed"]["bits"]
+    assert (tmp_path / "connectivity_unit_size.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
