@@ -290,3 +290,22 @@ def test_bench_connectivity_writes_json_and_chart(tmp_path, corpus):
     assert all(a >= b for a, b in zip(index, index[1:])) and index[0] > index[-1]
     assert res["bits_per_triangle"]["proposed_plus"]["bits"] < res["bits_per_triangle"]["proposed"]["bits"]
     assert (tmp_path / "connectivity_unit_size.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_hierarchy_with_lods_and_dropped_planes():
+    """With a LOD chain and a nearest distance (the savings path) the hierarchy is LOD 0's, the
+    savings record counts it on both sides, and LOD 0's triangles still round-trip."""
+    from dataclasses import replace
+
+    scene = api.load(FIXTURES / "unit_sphere.glb")
+    s = Settings(simplify=SimplifySettings(lods=parse_lods("1/2"), hierarchy=True))
+    s = replace(s, viewing=replace(s.viewing, nearest_m=5.0))
+    c = from_bytes(api.cook(scene, s).data)
+    plain = from_bytes(api.cook(scene, replace(s, simplify=replace(s.simplify, hierarchy=False))).data)
+    added = len(c.sections["part0/lod0/hierarchy"])
+    assert len(c.data) - len(plain.data) >= added
+    assert c.manifest["positions"]["max_level"] < 24 and len(c.manifest["parts"][0]["lods"]) == 2
+    assert c.manifest["savings"]["bytes_without_savings"] - plain.manifest["savings"]["bytes_without_savings"] \
+        == len(c.data) - len(plain.data)
+    h, _, _ = read_part(c, 0)
+    assert np.array_equal(canonical(h.triangles()), canonical(_lod0(c, 0)))
