@@ -115,12 +115,15 @@ def read_part(c, part: int, level: int | None = None):
                            hint="cook the source with lopcook cook --hierarchy")
     level = c.available_level if level is None else int(level)
     q, _, _ = decode_positions(c, part, 0, level)
-    blob = c.section(parts[part]["hierarchy"]["section"])
+    return _decode(c, part, q), q, level
+
+
+def _decode(c, part: int, q):
+    blob = c.section(c.manifest["parts"][part]["hierarchy"]["section"])
     try:
-        h = decode_hierarchy(blob, positions=q)
+        return decode_hierarchy(blob, positions=q)
     except LopcookError as exc:
         raise LopcookError("emit", c.path, f"part {part}: {exc.message}", hint=exc.hint) from None
-    return h, q, level
 
 
 def part_level(c, part: int, eye, viewing: Viewing) -> int:
@@ -165,9 +168,9 @@ def refine(c, camera, target, *, fov: float = 60.0, viewport=(1920, 1080), pixel
     meshes = []
     for i in have:
         level = part_level(c, i, eye, viewing)
-        h, _, _ = read_part(c, i, level)
+        q, _, pos = decode_positions(c, i, 0, level)
+        h = _decode(c, i, q)
         cut = select_cut(h, camera, target, fov=fov, viewport=viewport, pixel_error=pixel_error, up=up)
-        _, _, pos = decode_positions(c, i, 0, level)
         vert = h.vertex_of_leaf[h.node_leaf[cut.nodes]]
         a = lod_attributes(c, i, 0)
         meshes.append({"name": parts[i]["name"], "positions": pos[vert], "indices": cut.triangles,
