@@ -2,11 +2,11 @@
 ``refine`` gives at a far, a middle and a near camera. Not a test. Usage::
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_refine.py [--corpus DIR] [--assets A ...]
-        [--pixel-error PX] [--resolution WxH] [--json OUT.json]
+        [--pixel-error PX] [--resolution WxH] [--levels 6,8,10] [--no-backface] [--json OUT.json]
 
 Per asset: the cook's wall time with and without ``--hierarchy`` (in-process, default settings),
 the container bytes it adds, ``inspect``'s per-part figures summed over parts
-(``lopcook.emit.summary.hierarchy_stats``), then for the harness cameras of levels 6, 8 and 10
+(``lopcook.emit.summary.hierarchy_stats``), then for the harness cameras of ``--levels``
 (icosahedron view 0, ``lopcook.verify.cameras.make_camera``) the cut of ``refine`` (wall time,
 triangles against LOD 0, position level) rendered against the float source with the harness
 (``evaluate_scene``: same shading and metrics as the render check; textures and UVs kept).
@@ -31,7 +31,7 @@ ASSETS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/Damage
 LEVELS = (6, 8, 10)
 
 
-def run_asset(path, pixel_error, resolution):
+def run_asset(path, pixel_error, resolution, levels=LEVELS, backface=True):
     import lopcook
     from lopcook.emit.summary import hierarchy_stats
     from lopcook.hierarchy.container import refine
@@ -63,10 +63,10 @@ def run_asset(path, pixel_error, resolution):
     v = Viewing(viewport=resolution)
     extent = float(c.manifest["grid"]["extent"])
     textures = {p.name: p.texture for p in scene.parts}
-    for level in LEVELS:
+    for level in levels:
         cam = make_camera(0, lo, hi, camera_distance(level, extent, v), v)
         t = time.perf_counter()
-        meshes = refine(c, cam.eye, cam.centre, viewport=resolution, pixel_error=pixel_error)
+        meshes = refine(c, cam.eye, cam.centre, viewport=resolution, pixel_error=pixel_error, backface=backface)
         t_ref = time.perf_counter() - t
         test = Scene(tuple(MeshPart(x["name"], x["positions"].astype(np.float64), x["indices"].astype(np.uint32),
                                     normals=x["normals"], uvs=x["uvs"], colors=x["colors"],
@@ -86,12 +86,16 @@ def main(argv=None):
     ap.add_argument("--assets", nargs="*", default=ASSETS)
     ap.add_argument("--pixel-error", type=float, default=0.1)
     ap.add_argument("--resolution", default="320x180")
+    ap.add_argument("--levels", default="6,8,10", help="camera levels (far to near)")
+    ap.add_argument("--no-backface", dest="backface", action="store_false",
+                    help="refine without Hoppe's back-face test")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     res = tuple(int(x) for x in args.resolution.split("x"))
     results = {}
     for a in args.assets:
-        r = run_asset(Path(args.corpus) / a, args.pixel_error, res)
+        r = run_asset(Path(args.corpus) / a, args.pixel_error, res, [int(x) for x in args.levels.split(",")],
+                      args.backface)
         results[a] = r
         cams = "; ".join(f"L{x['camera_level']}: {x['triangles']} t, {x['psnr_db'] if x['psnr_db'] is None else round(x['psnr_db'], 1)} dB, "
                          f"{x['refine_s']:.2f} s" for x in r["cameras"])

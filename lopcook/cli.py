@@ -111,6 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--viewport", default="1920x1080", metavar="WxH", help="pixels (default 1920x1080)")
     p.add_argument("--pixel-error", type=float, default=0.5, metavar="PX",
                    help="tolerated projected error, pixels (default 0.5)")
+    p.add_argument("--no-backface", dest="backface", action="store_false",
+                   help="also refine back-facing regions (no Hoppe 1997 back-face test): more triangles, but no "
+                        "coarse back-facing triangles showing at silhouettes of thin or multi-part assets")
     p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
     _add_common(p)
 
@@ -660,11 +663,13 @@ def cmd_refine(args) -> int:
         check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
                      what="the glTF buffer", inputs=(args.container,))
     c = read(args.container)
-    meshes = refine(c, camera, target, fov=args.fov, viewport=viewport, pixel_error=args.pixel_error)
+    meshes = refine(c, camera, target, fov=args.fov, viewport=viewport, pixel_error=args.pixel_error,
+                    backface=args.backface)
     stats = [dict(m.pop("stats"), part=m["name"]) for m in meshes]
     written = write_gltf(args.output, meshes, generator=f"lopcook {__version__}",
                          extras={"lopcook": {"refine": {"camera": camera, "target": target, "fov": args.fov,
-                                                        "viewport": list(viewport), "pixel_error": args.pixel_error},
+                                                        "viewport": list(viewport), "pixel_error": args.pixel_error,
+                                                        "backface": args.backface},
                                              "source": c.manifest["source"]["file"]}})
     tri, full = sum(s["triangles"] for s in stats), sum(s["lod0_triangles"] for s in stats)
     if args.json:

@@ -29,8 +29,9 @@ CORPUS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/Damage
           "CesiumMilkTruck.glb", "Duck.glb", "UtahTeapot.usd"]
 RES = (320, 180)
 #: camera levels of the render check (far, middle, near) and the pixel tolerance of those cuts:
-#: at 0.5 px a cut's silhouette moves by up to half a pixel, which a few hundred object pixels
-#: see as 25-35 dB; 0.1 px keeps every camera above 40 dB (docs/hierarchy.md, section 7)
+#: at 0.5 px a cut's silhouette moves by up to half a pixel, which the far camera's few hundred
+#: object pixels see as 26-35 dB; 0.1 px keeps every camera of every corpus asset above 40 dB
+#: (docs/hierarchy.md, section 7)
 CAMERA_LEVELS = (6, 8, 10)
 CUT_PIXEL_ERROR = 0.1
 
@@ -203,7 +204,7 @@ def test_cut_has_no_holes(cooked, name):
     tri = _lod0(c, 0)
     full_boundary = chain(tri)
     for _, cam in _cameras(scene, c):
-        cut = select_cut(h, cam.eye, cam.centre, viewport=RES, pixel_error=CUT_PIXEL_ERROR)
+        cut = select_cut(h, cam.eye, cam.centre, viewport=RES, pixel_error=CUT_PIXEL_ERROR, backface=True)
         assert 0 < cut.triangles.shape[0] < tri.shape[0]
         node = cut_node_of_vertex(h, cut)
         got = chain(cut.nodes[cut.triangles])
@@ -217,11 +218,13 @@ def test_cut_has_no_holes(cooked, name):
         assert np.array_equal(canonical(cut.nodes[cut.triangles]), canonical(mapped[keep]))
 
 
+@pytest.mark.parametrize("backface", [False, True])
 @pytest.mark.parametrize("name", ["stanford-bunny.obj", "fandisk.obj"])
-def test_cut_renders_within_40_db_of_float(gl, cooked, name):
+def test_cut_renders_within_40_db_of_float(gl, cooked, name, backface):
     """refine's meshes for a far, a middle and a near camera render at >= 40 dB against the
-    float source at that camera (the harness's shading and metrics); the far cut has fewer
-    triangles than LOD 0."""
+    float source at that camera (the harness's shading and metrics), with and without Hoppe's
+    back-face test; with it (refine's default) the far cut has under 70 % of LOD 0's triangles
+    (measured: 61 % on the bunny, 49 % on fandisk)."""
     from lopcook.types import MeshPart, Scene
     from lopcook.verify.evaluate import evaluate_scene
 
@@ -229,7 +232,8 @@ def test_cut_renders_within_40_db_of_float(gl, cooked, name):
     extent = float(c.manifest["grid"]["extent"])
     counts = []
     for level, cam in _cameras(scene, c):
-        meshes = refine(c, cam.eye, cam.centre, fov=60.0, viewport=RES, pixel_error=CUT_PIXEL_ERROR)
+        meshes = refine(c, cam.eye, cam.centre, fov=60.0, viewport=RES, pixel_error=CUT_PIXEL_ERROR,
+                        backface=backface)
         test = Scene(tuple(MeshPart(m["name"], m["positions"].astype(np.float64), m["indices"].astype(np.uint32),
                                     m["normals"]) for m in meshes), "cut", "glb")
         r = evaluate_scene(test, scene, levels=[level], views=[0], resolution=RES, extent=extent)
@@ -237,7 +241,10 @@ def test_cut_renders_within_40_db_of_float(gl, cooked, name):
         assert psnr is None or psnr >= 40.0, (level, psnr)
         assert r["levels"][0]["scene"]["object_pixels"] > 100
         counts.append(sum(m["stats"]["triangles"] for m in meshes))
-    assert counts[0] < sum(p["lods"][0]["triangles"] for p in c.manifest["parts"])
+    lod0 = sum(p["lods"][0]["triangles"] for p in c.manifest["parts"])
+    assert counts[0] <= lod0
+    if backface:  # without it, 0.1 px at this far camera keeps (nearly) every triangle
+        assert counts[0] < 0.7 * lod0, (counts, lod0)
 
 
 def test_cli_cook_inspect_refine(tmp_path, gltf_validator, capsys):

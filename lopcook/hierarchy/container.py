@@ -63,7 +63,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
     kept = drop_degenerate(tri)
     step = float(grid.extent) / float(1 << BITS)
     tree = build_tree(encoded.q, kept, grid=(np.asarray(grid.origin, np.float64), step))
-    blob = encode_hierarchy(tree, variant=VARIANT, store_positions=False)
+    blob = encode_hierarchy(tree, variant=VARIANT, store_positions=False, store_reach=True)
     h = decode_hierarchy(blob, positions=encoded.q)
     n, N = h.n_leaves, h.n_nodes
     internal = n - int(h.roots.shape[0])
@@ -74,7 +74,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
               "degenerate_triangles": int(m - kept.shape[0]), "connectivity_bits": int(h.bits["connectivity"]),
               "structure_bits": int(N), "record_index_bits": int(rec_index), "table_bits": int(tables),
               "vertex_map_bits": int(n * index_width(n)), "representative_bits": int(internal),
-              "selection_bits": int(80 * N)}
+              "selection_bits": int(112 * N)}
     return blob, record
 
 
@@ -144,13 +144,15 @@ def part_level(c, part: int, eye, viewing: Viewing) -> int:
 
 
 def refine(c, camera, target, *, fov: float = 60.0, viewport=(1920, 1080), pixel_error: float = 0.5,
-           up=(0.0, 1.0, 0.0)) -> list[dict]:
+           up=(0.0, 1.0, 0.0), backface: bool = True) -> list[dict]:
     """The view-dependent meshes of every part with a hierarchy, for one camera.
 
     Per part: the positions are decoded at ``part_level`` (the planes the camera needs), the cut
     is selected by ``select_cut`` (frustum, back-face and ``pixel_error`` pixels of projected
     error at ``fov`` degrees and ``viewport`` (w, h) pixels) and only the split nodes' records
-    are decoded. Each mesh: ``name``, ``positions`` (k, 3) float32 metres (the cut vertices as
+    are decoded. ``backface``: Hoppe's back-face test (on by default; False also refines
+    back-facing regions, whose coarse triangles can show at silhouettes of thin or multi-part
+    assets; docs/hierarchy.md, section 7). Each mesh: ``name``, ``positions`` (k, 3) float32 metres (the cut vertices as
     the shaders decode them at that level), ``indices`` (t, 3) counter-clockwise, ``normals`` /
     ``uvs`` / ``colors`` of each node's representative vertex (or None), and ``stats`` (level,
     split nodes, cut vertices, triangles, LOD 0 triangles)."""
@@ -170,7 +172,8 @@ def refine(c, camera, target, *, fov: float = 60.0, viewport=(1920, 1080), pixel
         level = part_level(c, i, eye, viewing)
         q, _, pos = decode_positions(c, i, 0, level)
         h = _decode(c, i, q)
-        cut = select_cut(h, camera, target, fov=fov, viewport=viewport, pixel_error=pixel_error, up=up)
+        cut = select_cut(h, camera, target, fov=fov, viewport=viewport, pixel_error=pixel_error, up=up,
+                         backface=backface)
         vert = h.vertex_of_leaf[h.node_leaf[cut.nodes]]
         a = lod_attributes(c, i, 0)
         meshes.append({"name": parts[i]["name"], "positions": pos[vert], "indices": cut.triangles,

@@ -68,6 +68,8 @@ class Hierarchy:
         quantised axis, axis zero and angle pi where no cone is usable)
     vertex_of_leaf : (n,) int64 input vertex index of each leaf, or None when not stored
     origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
+    reach : (N,) float32 or None: radius (grid cells) of the triangles each node's refinement
+        affects (``tree.VertexTree.reach``), when the blob stores it
     tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
     """
 
@@ -94,6 +96,7 @@ class Hierarchy:
     bits: dict
     origin: np.ndarray
     step: float
+    reach: np.ndarray | None = None
 
     def __post_init__(self):
         self.left_l = self.left.tolist()
@@ -206,6 +209,14 @@ def _pack_selection(error, axis, angle):
     return e32.astype("<f4").tobytes() + q.astype("<i2").tobytes() + qa.astype("<u2").tobytes()
 
 
+def _round_up_f32(x) -> np.ndarray:
+    x = np.asarray(x, np.float64)
+    f = x.astype(np.float32)
+    low = f.astype(np.float64) < x
+    f[low] = np.nextafter(f[low], np.float32(np.inf))
+    return f
+
+
 def _unpack_selection(body, p, N):
     error = np.frombuffer(body, "<f4", N, p).astype(np.float32)
     p += 4 * N
@@ -283,7 +294,8 @@ def index_width(n: int) -> int:
 
 
 def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.PROPOSED,
-                     keep_vertex_order: bool = True, store_positions: bool = True) -> bytes:
+                     keep_vertex_order: bool = True, store_positions: bool = True,
+                     store_reach: bool = False) -> bytes:
     """Serialise a part's vertex hierarchy with coded connectivity.
 
     Parameters
@@ -297,6 +309,8 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
         input vertices' grid positions to ``decode_hierarchy(..., positions=)``, as the
         container does from its LOP bit planes. The vertex order is then always stored, packed
         at ``index_width(n)`` bits per leaf.
+    store_reach : also store each node's ``reach`` (flag bit 2; f32 grid cells rounded up), the
+        radius of the triangles its refinement affects, for the frustum and back-face tests.
 
     Returns
     -------
@@ -323,13 +337,17 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
         put_varint(body, x)
     external = not store_positions
     keep_vertex_order = keep_vertex_order or external
-    body.append((1 if keep_vertex_order else 0) | (2 if external else 0))
+    if store_reach and tree.reach is None:
+        raise LopcookError("usage", None, "store_reach: this tree has no reach radii", hint="build it with build_tree")
+    body.append((1 if keep_vertex_order else 0) | (2 if external else 0) | (4 if store_reach else 0))
     body += struct.pack("<4d", *[float(x) for x in tree.origin], float(tree.step))
     body += np.packbits(isint).tobytes()
     body += np.packbits(repside).tobytes()
     if not external:
         body += tree.positions[lay.leaf_vertex].astype("<u4").tobytes()
     body += _pack_selection(tree.error[order], tree.cone_axis[order], tree.cone_angle[order])
+    if store_reach:
+        body += _round_up_f32(tree.reach[order]).astype("<f4").tobytes()
     if external:
         body += _pack_uint(lay.leaf_vertex, index_width(n))
     elif keep_vertex_order:
@@ -389,14 +407,14 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     if p >= len(body):
         _fail("truncated before the node data")
     flag = body[p]
-    keep_order, external = flag & 1, flag >> 1 & 1
+    keep_order, external, has_reach = flag & 1, flag >> 1 & 1, flag >> 2 & 1
     need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + (0 if external else 12 * n) + 10 * N
     if p + need > len(body):
         _fail("truncated before the node data")
     p += 1
     ox, oy, oz, step = struct.unpack_from("<4d", body, p)
     p += 32
-    if flag > 3 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
+    if flag > 7 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
         _fail("invalid header (vertex order flag or grid placement)")
     if external and positions is None:
         raise LopcookError("usage", None, "hierarchy: this blob keeps its positions outside; pass positions=",
@@ -412,6 +430,14 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
         p += 12 * n
     error, axis, angle, p = _unpack_selection(body, p, N)
+    reach = None
+    if has_reach:
+        if p + 4 * N > len(body):
+            _fail("truncated reach radii")
+        reach = np.frombuffer(body, "<f4", N, p).astype(np.float32)
+        p += 4 * N
+        if not np.isfinite(reach).all() or (reach < 0).any():
+            _fail("node reach radii are not finite and non-negative")
     vol = None
     if external:
         w = index_width(n)
@@ -482,4 +508,4 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
                      node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
                      vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
                      rank=rank, bits={"connectivity": int(starts[-1])},
-                     origin=np.array([ox, oy, oz]), step=step)
+                     origin=np.array([ox, oy, oz]), step=step, reach=reach)
