@@ -127,6 +127,7 @@ def test_default_cook_unchanged_and_settings_round_trip(corpus):
     assert all("hierarchy" not in p for p in plain.manifest["parts"])
     assert not any(s["name"].endswith("hierarchy") for s in plain.manifest["sections"])
     assert hier.manifest["options"]["hierarchy"] is True
+    assert api.cook(scene, HIER).data == hier.data  # deterministic
     assert Settings.from_manifest(hier.manifest) == HIER
     assert Settings.from_manifest(plain.manifest) == DEFAULTS
     # the position sections and every other section are the same bytes
