@@ -54,7 +54,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
     ``degenerate_triangles``), ``connectivity_bits`` (the records, the paper's measure),
     ``structure_bits`` (one per node: the preorder shape), ``record_index_bits``, ``table_bits``
     (Huffman tables), ``vertex_map_bits`` and ``representative_bits`` (what places the nodes on
-    LOD 0's vertices), ``selection_bits`` (error and normal cone, 80 per node)."""
+    LOD 0's vertices), ``selection_bits`` (error, normal cone and reach radius, 112 per node)."""
     e = encoded.entry
     raw = dict(encoded.attributes)["indices"]
     width = int(e["index_width"])
