@@ -730,10 +730,27 @@ def write_outputs(out_dir: Path, rows, scaling, stage_rows, assets, opts, meta: 
 
 # ---- entry ------------------------------------------------------------------------------------
 
+def run_connectivity(opts) -> dict:
+    """``lopcook bench --connectivity``: ``lopcook.benchkit.connectivity`` on ``opts.assets`` (default
+    every corpus asset) into ``opts.output`` (connectivity.json, connectivity_unit_size.png)."""
+    from .benchkit.connectivity import ASSETS, main
+    from .errors import LopcookError
+
+    corpus = corpus_dir()
+    if not opts.assets and corpus is None:
+        raise LopcookError("usage", None, "no ASSETS given and no corpus found",
+                           hint="give asset files, or set LOPCOOK_CORPUS to the shared corpus folder")
+    argv = ["--out", str(opts.output), "--corpus", str(corpus or "."), "--assets"]
+    argv += [str(Path(a).resolve()) for a in opts.assets] or list(ASSETS)
+    return main(argv)
+
+
 def run(opts) -> dict:
     """Run the bench described by ``opts`` (the parsed ``lopcook bench`` arguments: assets, output,
     levels, views, resolution, bits, peers, scaling, scaling_max_triangles, skip_render,
     calibrated, repeat, quiet) and write everything into ``opts.output``. Returns the summary."""
+    if getattr(opts, "connectivity", False):
+        return run_connectivity(opts)
     t0 = time.perf_counter()
     out_dir = Path(opts.output)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -79,6 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lod-backend", default=D.simplify.backend.value, choices=[b.value for b in LodBackend],
                    help="simplifier: pymeshlab quadric collapse (seam-aware) or fast-simplification "
                         f"(default {D.simplify.backend.value})")
+    p.add_argument("--hierarchy", action="store_true",
+                   help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
+                        "lopcook refine; docs/hierarchy.md)")
     add_analyse_options(p)
     add_viewing_options(p)
     _add_crease_angle(p)
@@ -102,6 +105,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--source", metavar="SRC", default=None,
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")
+    _add_common(p)
+
+    p = sub.add_parser("refine", help="the view-dependent cut of a --hierarchy container for one camera, as glTF 2.0")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container cooked with --hierarchy")
+    p.add_argument("--camera", required=True, metavar="X,Y,Z", help="eye position, metres")
+    p.add_argument("--target", required=True, metavar="X,Y,Z", help="point looked at, metres")
+    p.add_argument("--fov", type=float, default=60.0, metavar="DEG", help="vertical field of view (default 60)")
+    p.add_argument("--viewport", default="1920x1080", metavar="WxH", help="pixels (default 1920x1080)")
+    p.add_argument("--pixel-error", type=float, default=0.5, metavar="PX",
+                   help="tolerated projected error, pixels (default 0.5)")
+    p.add_argument("--no-backface", dest="backface", action="store_false",
+                   help="also refine back-facing regions (no Hoppe 1997 back-face test): more triangles, but no "
+                        "coarse back-facing triangles showing at silhouettes of thin or multi-part assets")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
     _add_common(p)
 
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
@@ -385,11 +402,15 @@ def _tune_settings(args):
 
 def settings_from_args(args):
     """The argparse namespace of ``cook``, ``calibrate`` or ``analyse`` -> one frozen Settings."""
+    from dataclasses import replace
+
     from .settings import DEFAULTS, Settings, SimplifySettings, parse_lods
 
     simplify = DEFAULTS.simplify
     if getattr(args, "lods", None) is not None:
         simplify = SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend)
+    if getattr(args, "hierarchy", False):
+        simplify = replace(simplify, hierarchy=True)
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
                     tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune)
@@ -632,6 +653,54 @@ def cmd_decode(args) -> int:
     return EXIT_OK
 
 
+def _xyz(text: str, flag: str):
+    import math
+
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise LopcookError("usage", None, f"{flag} {text!r}: expected three finite numbers X,Y,Z")
+    return v
+
+
+def cmd_refine(args) -> int:
+    import math
+
+    from .emit.container import read
+    from .emit.gltf_writer import write_gltf
+    from .hierarchy.container import refine
+    from .outputs import check_output
+
+    camera, target = _xyz(args.camera, "--camera"), _xyz(args.target, "--target")
+    viewport = _resolution(args.viewport, "--viewport")
+    for flag, v, ok in (("--fov", args.fov, 0 < args.fov < 180), ("--pixel-error", args.pixel_error, args.pixel_error > 0)):
+        if not (math.isfinite(v) and ok):
+            raise LopcookError("usage", None, f"{flag} {v}: out of range (fov in (0, 180) degrees, pixel error > 0)")
+    check_output(args.output, "-o", extensions=(".glb", ".gltf"), what="a glTF 2.0 file", inputs=(args.container,))
+    if args.output.lower().endswith(".gltf"):
+        check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
+                     what="the glTF buffer", inputs=(args.container,))
+    c = read(args.container)
+    meshes = refine(c, camera, target, fov=args.fov, viewport=viewport, pixel_error=args.pixel_error,
+                    backface=args.backface)
+    stats = [dict(m.pop("stats"), part=m["name"]) for m in meshes]
+    written = write_gltf(args.output, meshes, generator=f"lopcook {__version__}",
+                         extras={"lopcook": {"refine": {"camera": camera, "target": target, "fov": args.fov,
+                                                        "viewport": list(viewport), "pixel_error": args.pixel_error,
+                                                        "backface": args.backface},
+                                             "source": c.manifest["source"]["file"]}})
+    tri, full = sum(s["triangles"] for s in stats), sum(s["lod0_triangles"] for s in stats)
+    if args.json:
+        print(json.dumps({"written": [str(w) for w in written], "triangles": tri, "lod0_triangles": full,
+                          "parts": stats}, sort_keys=True))
+    elif not args.quiet:
+        print(f"{args.output}: {len(meshes)} meshes, {tri:,} of {full:,} LOD 0 triangles "
+              f"(levels {min(s['level'] for s in stats)}-{max(s['level'] for s in stats)})")
+    return EXIT_OK
+
+
 def cmd_inspect(args) -> int:
     from .ingest import load
     from .ingest.summary import describe_scene, format_scene
@@ -823,6 +892,10 @@ def _add_bench_parser(sub) -> None:
     p.add_argument("--repeat", type=int, default=1, metavar="N", help="scaling runs per input, best wall time (default 1)")
     p.add_argument("--calibrated", action="store_true",
                    help="also cook with --target-psnr 40 (slow on the chess set)")
+    p.add_argument("--connectivity", action="store_true",
+                   help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
+                        "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "
+                        "default assets: the corpus)")
     _add_common(p)
 
 
@@ -853,7 +926,7 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode,
+COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "refine": cmd_refine,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report,
             "bench": cmd_bench, "batch": cmd_batch}
 

@@ -19,6 +19,9 @@
    not written, LODs dropped, bytes saved against the same container without them) is computed
    from the encoded buffers' sizes, without writing the larger container.
 
+With ``simplify.hierarchy`` every part's LOD 0 buffer also gets its vertex hierarchy section
+(``lopcook.hierarchy.container.add_hierarchy``), before the position sections.
+
 Without LODs and ``nearest_m`` (and ``max_level``) the bytes are exactly those of
 ``lopcook.emit.build(scene, analyse(scene, settings.analyse), viewing=settings.viewing)``.
 Stages never change their inputs: the co-located sharing returns new level arrays.
@@ -36,6 +39,7 @@ from .analyse.result import REASON_CODE
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
 from .emit.container import Container, built, file_size, section_table
 from .grid import BITS, Grid
+from .hierarchy.container import add_hierarchy
 from .memory import release_free_memory
 from .progress import NONE, Progress
 from .selection import selection_ranges
@@ -206,6 +210,8 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
     encoded = [[encode_buffer(b) for b in bufs] for bufs in buffers]
     manifest, sections = assemble(scene, analysis.grid, encoded, max_level=BITS, options=options,
                                   viewing=settings.viewing)
+    if settings.simplify.hierarchy:
+        manifest, sections = add_hierarchy(manifest, sections, [e[0] for e in encoded], analysis.grid)
     container = built(manifest, sections)
     timings["emit"] = time.perf_counter() - t0
     rows = [[LodRow(triangles=p.n_triangles, vertices=p.n_vertices, error_m=0.0, min_distance_m=0.0)]
@@ -274,6 +280,10 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
     kept_planes = {p: plane_payload([e for es in kept_enc for e in es], p) for p in range(2, max_level + 1)}
     full_manifest, full_sections = assemble(scene, grid, full_enc, max_level=BITS, options=options,
                                             viewing=settings.viewing, planes=kept_planes if same else None)
+    trees: dict = {}  # one hierarchy per distinct LOD 0 encoding, shared by both containers
+    if settings.simplify.hierarchy:
+        full_manifest, full_sections = add_hierarchy(full_manifest, full_sections, [e[0] for e in full_enc],
+                                                     grid, trees)
     full_size = file_size(full_manifest, section_table(full_sections)[0])
     del full_sections
     savings = None
@@ -282,6 +292,8 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
                    "bytes_without_savings": full_size, "view_level": vlevel, "highest_min_level": highest_min}
     manifest, sections = assemble(scene, grid, kept_enc, max_level=max_level, options=options,
                                   viewing=settings.viewing, savings=savings, planes=kept_planes)
+    if settings.simplify.hierarchy:
+        manifest, sections = add_hierarchy(manifest, sections, [e[0] for e in kept_enc], grid, trees)
     table = section_table(sections)[0]
     for _ in range(4):  # the record's own digits change the manifest size: settle to a fixed point
         saved = full_size - file_size(manifest, table)

@@ -187,11 +187,14 @@ class SimplifySettings:
     lods : LodSpec or None  the chain to build; None = LOD 0 only (default)
     backend : LodBackend  the simplifier (default pymeshlab)
     seams : SeamMode  what happens to UV seams (default lock)
+    hierarchy : bool  also write each part's view-dependent vertex hierarchy, built from LOD 0's
+        full collapse sequence (``lopcook.hierarchy.container``; default False)
     """
 
     lods: LodSpec | None = None
     backend: LodBackend = LodBackend.PYMESHLAB
     seams: SeamMode = SeamMode.LOCK
+    hierarchy: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "backend", _enum(LodBackend, self.backend, "LOD backend"))
@@ -391,10 +394,13 @@ class Settings:
 
     def to_manifest(self) -> dict:
         """``{"options": ..., "viewing": ...}`` as the container records them (JSON types only).
-        ``options.lods`` is present only when a LOD chain is asked for."""
+        ``options.lods`` is present only when a LOD chain is asked for, ``options.hierarchy``
+        (true) only with ``simplify.hierarchy``: default containers keep their bytes."""
         options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
         if self.simplify.lods is not None:
             options["lods"] = {"ratios": self.simplify.lods.text, "backend": self.simplify.backend.value}
+        if self.simplify.hierarchy:
+            options["hierarchy"] = True
         return {"options": options, "viewing": self.viewing.as_dict()}
 
     @classmethod
@@ -410,6 +416,10 @@ class Settings:
             if options.get("lods") is not None:
                 lods = options["lods"]
                 simplify = SimplifySettings(lods=parse_lods(str(lods["ratios"])), backend=LodBackend(lods["backend"]))
+            if options.get("hierarchy", False) is not False:
+                if options["hierarchy"] is not True:
+                    raise ValueError(f"options.hierarchy must be true when present, got {options['hierarchy']!r}")
+                simplify = replace(simplify, hierarchy=True)
             v = manifest["viewing"]
             viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
                               fov_y_deg=float(v["fov_y_deg"]),

@@ -63,12 +63,15 @@ seq:
 
       Order and names: for each part i (manifest order), for each LOD k:
       "part{i}/lod{k}/indices", then "part{i}/lod{k}/normals", "part{i}/lod{k}/uvs",
-      "part{i}/lod{k}/colors" when present; then "positions/mandatory"; then
+      "part{i}/lod{k}/colors" when present; then, in containers cooked with --hierarchy,
+      "part{i}/lod0/hierarchy" for every part i (manifest parts[i].hierarchy.section); then
+      "positions/mandatory"; then
       "positions/plane02" .. "positions/planeNN" (two-digit plane number, NN =
       manifest.positions.max_level).
 
       Interpret a section with: indices_section, normals_section, uvs_section,
-      colors_section (attributes of one buffer), mandatory_section (positions/mandatory),
+      colors_section (attributes of one buffer), hierarchy_section (a part's vertex
+      hierarchy), mandatory_section (positions/mandatory),
       refinement_plane (positions/planePP); a buffer's packed positions at a level are
       described by packed_position_buffer. To cut the area into its sections, parse it as
       section_list(lengths) with the lengths taken from the manifest.
@@ -143,6 +146,44 @@ types:
         repeat: expr
         repeat-expr: lengths.size
         doc: Raw payload of section i, padding included.
+
+  hierarchy_section:
+    doc: |
+      Section "part{i}/lod0/hierarchy" (only with `lopcook cook --hierarchy`; manifest
+      parts[i].hierarchy): the view-dependent vertex hierarchy of part i's LOD 0 buffer with
+      its dependency-free connectivity coding (the blob of lopcook.hierarchy.encode_hierarchy,
+      written with positions kept outside). Its leaves are that buffer's vertices; every node
+      sits on the position of one of them, so node positions are the buffer's LOP bit-plane
+      positions (a node's minimum level is its vertex's). The body's fields are varint-coded
+      and described field by field in docs/hierarchy.md, section 4; flag byte of the body = 7
+      (vertex order stored, positions outside, reach radii stored; the vertex order is packed
+      at bitlen(leaves - 1) bits per leaf, least significant bit first).
+    seq:
+      - id: magic
+        contents: LOPH
+        doc: Blob magic "LOPH".
+      - id: version
+        type: u1
+        doc: Blob version, 1.
+      - id: variant_flags
+        type: u1
+        doc: Coding variant (docs/hierarchy.md section 4); lopcook writes proposed_plus (0xC0).
+      - id: table_size
+        type: u2
+        doc: Huffman table size including the escape (512).
+      - id: len_body
+        type: u8
+        doc: Body length in bytes.
+      - id: body
+        size: len_body
+        doc: Counts, grid placement, tree shape, representative bits, selection data, vertex
+          order, Huffman tables, record index and coded connectivity (docs/hierarchy.md).
+      - id: crc32
+        type: u4
+        doc: CRC-32 (zlib) of every byte of the blob before this field.
+      - id: padding
+        size-eos: true
+        doc: 0 to 3 zero bytes up to a multiple of 4.
 
   indices_section:
     doc: |

@@ -77,6 +77,14 @@ def validate_manifest(m, path: str | None) -> None:
     plane_bits = {p: 0 for p in range(2, max_level + 1)}
     for i, part in enumerate(parts):
         need(part, "name", str, f"parts[{i}]")
+        if part.get("hierarchy") is not None:  # optional (cook --hierarchy): lopcook.hierarchy.container
+            hier = need(part, "hierarchy", dict, f"parts[{i}]")
+            if need(hier, "section", str, f"parts[{i}].hierarchy") not in names or hier["section"].startswith("positions/"):
+                fail(f"parts[{i}].hierarchy.section names no hierarchy section")
+            for key in ("leaves", "nodes", "triangles", "connectivity_bits", "structure_bits", "vertex_map_bits",
+                        "representative_bits"):
+                if need(hier, key, int, f"parts[{i}].hierarchy") < 0:
+                    fail(f"parts[{i}].hierarchy.{key} is negative")
         lods = need(part, "lods", list, f"parts[{i}]")
         if not lods:
             fail(f"parts[{i}] has no LODs")

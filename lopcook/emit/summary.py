@@ -37,6 +37,31 @@ def lod_shortfalls(c: Container) -> list[str]:
     return [f"part {bare[0]!r}{more}: no LODs (LOD 0 only)"]
 
 
+def hierarchy_stats(c: Container, part: int) -> dict | None:
+    """Part ``part``'s hierarchy figures (``inspect``'s ``hierarchy`` record), None without one:
+    ``bits_per_triangle`` (the connectivity records, the paper's measure) and
+    ``structure_bits_per_triangle`` (the tree shape, one bit per node) per coded triangle, and
+    ``position_bits_per_vertex``: the stored bits that place the nodes, per leaf (LOD 0's
+    mandatory bits and planes up to the file's highest level, which the nodes share, plus the
+    section's vertex map and representative bits); ``section_bytes``, ``record_index_bits_per_triangle``
+    (the random-access index), ``variant``, ``nodes``, ``triangles``."""
+    rec = c.manifest["parts"][part].get("hierarchy")
+    if rec is None:
+        return None
+    entries = c.entries
+    lod = entries.parts[part].lods[0]
+    shared = 8 * (lod.mandatory_bytes + lod.plane_bytes(entries.max_level))
+    m = max(int(rec["triangles"]), 1)
+    size = next((s["length"] for s in c.manifest["sections"] if s["name"] == rec["section"]), 0)
+    return {"bits_per_triangle": rec["connectivity_bits"] / m,
+            "structure_bits_per_triangle": rec["structure_bits"] / m,
+            "position_bits_per_vertex": (shared + rec["vertex_map_bits"] + rec["representative_bits"])
+            / max(int(rec["leaves"]), 1),
+            "record_index_bits_per_triangle": rec.get("record_index_bits", 0) / m,
+            "section_bytes": int(size), "variant": rec.get("variant"), "nodes": int(rec["nodes"]),
+            "triangles": int(rec["triangles"])}
+
+
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
     m = c.manifest
@@ -52,6 +77,8 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
                  "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
                  "attributes": [k for k in ("normals", "uvs", "colors") if e.get(k)]} for e in p["lods"]]
         parts.append({"name": p["name"], "source": p["source"], "lods": lods})
+        if p.get("hierarchy") is not None:
+            parts[-1]["hierarchy"] = hierarchy_stats(c, len(parts) - 1)
     return {
         "kind": "container",
         "file": c.path,
@@ -114,6 +141,12 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         if sv["lods_dropped"]:
             what.append(f"{_n(sv['lods_dropped'], 'LOD')} no distance selects dropped")
         lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: {', '.join(what)}")
+    for p in d["parts"][:max_parts]:
+        hs = p.get("hierarchy")
+        if hs:
+            lines.append(f"  hierarchy {p['name'][-32:]}: {hs['nodes']:,} nodes, {hs['bits_per_triangle']:.2f} bits/triangle "
+                         f"connectivity + {hs['structure_bits_per_triangle']:.2f} structure, "
+                         f"{hs['position_bits_per_vertex']:.1f} position bits/vertex, {hs['section_bytes']:,} B")
     for w in d.get("lod_warnings") or []:
         lines.append(f"  LOD warning: {w}")
     if timings:

@@ -68,6 +68,8 @@ class Hierarchy:
         quantised axis, axis zero and angle pi where no cone is usable)
     vertex_of_leaf : (n,) int64 input vertex index of each leaf, or None when not stored
     origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
+    reach : (N,) float32 or None: radius (grid cells) of the triangles each node's refinement
+        affects (``tree.VertexTree.reach``), when the blob stores it
     tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
     """
 
@@ -94,6 +96,7 @@ class Hierarchy:
     bits: dict
     origin: np.ndarray
     step: float
+    reach: np.ndarray | None = None
 
     def __post_init__(self):
         self.left_l = self.left.tolist()
@@ -206,6 +209,14 @@ def _pack_selection(error, axis, angle):
     return e32.astype("<f4").tobytes() + q.astype("<i2").tobytes() + qa.astype("<u2").tobytes()
 
 
+def _round_up_f32(x) -> np.ndarray:
+    x = np.asarray(x, np.float64)
+    f = x.astype(np.float32)
+    low = f.astype(np.float64) < x
+    f[low] = np.nextafter(f[low], np.float32(np.inf))
+    return f
+
+
 def _unpack_selection(body, p, N):
     error = np.frombuffer(body, "<f4", N, p).astype(np.float32)
     p += 4 * N
@@ -264,8 +275,27 @@ def _shape_arrays(isint: np.ndarray, n_roots: int):
     return left, right, parent, depth, size, lo
 
 
+def _pack_uint(values: np.ndarray, width: int) -> bytes:
+    """(n,) non-negative ints < 2**width -> ``ceil(n * width / 8)`` bytes, LSB first."""
+    v = np.asarray(values, np.uint64)
+    bits = ((v[:, None] >> np.arange(width, dtype=np.uint64)) & np.uint64(1)).astype(np.uint8)
+    return np.packbits(bits.ravel(), bitorder="little").tobytes()
+
+
+def _unpack_uint(body, p: int, n: int, width: int) -> np.ndarray:
+    nbytes = (n * width + 7) // 8
+    bits = np.unpackbits(np.frombuffer(body, np.uint8, nbytes, p), bitorder="little")[:n * width]
+    return (bits.reshape(n, width).astype(np.int64) << np.arange(width, dtype=np.int64)).sum(axis=1)
+
+
+def index_width(n: int) -> int:
+    """Bits of one packed vertex index for ``n`` vertices (at least 1)."""
+    return max(1, int(n - 1).bit_length())
+
+
 def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.PROPOSED,
-                     keep_vertex_order: bool = True) -> bytes:
+                     keep_vertex_order: bool = True, store_positions: bool = True,
+                     store_reach: bool = False) -> bytes:
     """Serialise a part's vertex hierarchy with coded connectivity.
 
     Parameters
@@ -275,6 +305,12 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     variant : a decodable Variant (``corner == "id"``)
     keep_vertex_order : store the leaf -> input vertex permutation (``n`` uint32), so
         ``triangles()`` returns input vertex indices.
+    store_positions : False leaves the leaf positions out (flag bit 1): the reader passes the
+        input vertices' grid positions to ``decode_hierarchy(..., positions=)``, as the
+        container does from its LOP bit planes. The vertex order is then always stored, packed
+        at ``index_width(n)`` bits per leaf.
+    store_reach : also store each node's ``reach`` (flag bit 2; f32 grid cells rounded up), the
+        radius of the triangles its refinement affects, for the frustum and back-face tests.
 
     Returns
     -------
@@ -299,14 +335,22 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     body = bytearray()
     for x in (n, N, int(tree.roots.shape[0]), int(tree.triangles.shape[0])):
         put_varint(body, x)
-    body.append(1 if keep_vertex_order else 0)
+    external = not store_positions
+    keep_vertex_order = keep_vertex_order or external
+    if store_reach and tree.reach is None:
+        raise LopcookError("usage", None, "store_reach: this tree has no reach radii", hint="build it with build_tree")
+    body.append((1 if keep_vertex_order else 0) | (2 if external else 0) | (4 if store_reach else 0))
     body += struct.pack("<4d", *[float(x) for x in tree.origin], float(tree.step))
     body += np.packbits(isint).tobytes()
     body += np.packbits(repside).tobytes()
-    pos = tree.positions[lay.leaf_vertex].astype("<u4")
-    body += pos.tobytes()
+    if not external:
+        body += tree.positions[lay.leaf_vertex].astype("<u4").tobytes()
     body += _pack_selection(tree.error[order], tree.cone_axis[order], tree.cone_angle[order])
-    if keep_vertex_order:
+    if store_reach:
+        body += _round_up_f32(tree.reach[order]).astype("<f4").tobytes()
+    if external:
+        body += _pack_uint(lay.leaf_vertex, index_width(n))
+    elif keep_vertex_order:
         body += lay.leaf_vertex.astype("<u4").tobytes()
     names = [k for k in _TABLE_NAMES if k in coded.tables]
     body.append(len(names))
@@ -331,8 +375,11 @@ def blob_length(buf: bytes, offset: int = 0) -> int:
     return 16 + blen + 4
 
 
-def decode_hierarchy(buf: bytes) -> Hierarchy:
-    """Parse and validate a blob written by :func:`encode_hierarchy` (trailing bytes ignored)."""
+def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarchy:
+    """Parse and validate a blob written by :func:`encode_hierarchy` (trailing bytes ignored).
+
+    ``positions``: (n, 3) uint32 grid positions of the input vertices, required exactly when the
+    blob was written with ``store_positions=False`` (and ignored otherwise)."""
     buf = bytes(buf)
     total = blob_length(buf)
     if total > len(buf):
@@ -357,15 +404,21 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
     m, p = get_varint(body, p, "hierarchy")
     if not (n >= 1 and N == 2 * n - n_roots and 1 <= n_roots <= n) or m > 4 * N + 16:
         _fail(f"inconsistent counts (leaves {n}, nodes {N}, roots {n_roots}, triangles {m})")
-    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + 12 * n + 10 * N
+    if p >= len(body):
+        _fail("truncated before the node data")
+    flag = body[p]
+    keep_order, external, has_reach = flag & 1, flag >> 1 & 1, flag >> 2 & 1
+    need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + (0 if external else 12 * n) + 10 * N
     if p + need > len(body):
         _fail("truncated before the node data")
-    keep_order = body[p]
     p += 1
     ox, oy, oz, step = struct.unpack_from("<4d", body, p)
     p += 32
-    if keep_order > 1 or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
+    if flag > 7 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
         _fail("invalid header (vertex order flag or grid placement)")
+    if external and positions is None:
+        raise LopcookError("usage", None, "hierarchy: this blob keeps its positions outside; pass positions=",
+                           hint="read it through lopcook.hierarchy.container, which decodes them from the planes")
     isint = np.unpackbits(np.frombuffer(body, np.uint8, (N + 7) // 8, p))[:N]
     p += (N + 7) // 8
     I = n - n_roots
@@ -373,11 +426,33 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
         _fail("tree structure bits do not match the node counts")
     repside = np.unpackbits(np.frombuffer(body, np.uint8, (I + 7) // 8, p))[:I]
     p += (I + 7) // 8
-    positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
-    p += 12 * n
+    if not external:
+        positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
+        p += 12 * n
     error, axis, angle, p = _unpack_selection(body, p, N)
+    reach = None
+    if has_reach:
+        if p + 4 * N > len(body):
+            _fail("truncated reach radii")
+        reach = np.frombuffer(body, "<f4", N, p).astype(np.float32)
+        p += 4 * N
+        if not np.isfinite(reach).all() or (reach < 0).any():
+            _fail("node reach radii are not finite and non-negative")
     vol = None
-    if keep_order:
+    if external:
+        w = index_width(n)
+        if p + (n * w + 7) // 8 > len(body):
+            _fail("truncated vertex order")
+        vol = _unpack_uint(body, p, n, w)
+        p += (n * w + 7) // 8
+        if not np.array_equal(np.sort(vol), np.arange(n)):
+            _fail("vertex order is not a permutation")
+        given = np.asarray(positions)
+        if given.shape != (n, 3):
+            raise LopcookError("usage", None, f"hierarchy: positions must be ({n}, 3), got {given.shape}",
+                               hint="pass the grid positions of the buffer the hierarchy was built on")
+        positions = given.astype(np.uint32)[vol]
+    elif keep_order:
         if p + 4 * n > len(body):
             _fail("truncated vertex order")
         vol = np.frombuffer(body, "<u4", n, p).astype(np.int64)
@@ -433,4 +508,4 @@ def decode_hierarchy(buf: bytes) -> Hierarchy:
                      node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
                      vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
                      rank=rank, bits={"connectivity": int(starts[-1])},
-                     origin=np.array([ox, oy, oz]), step=step)
+                     origin=np.array([ox, oy, oz]), step=step, reach=reach)

@@ -46,10 +46,14 @@ def _vec3(x, name):
     return a
 
 
-def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pixel_error):
-    """(k,) bool: Hoppe's refinement test for ``nodes`` (frustum, back-face, screen error)."""
+def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pixel_error, backface=True):
+    """(k,) bool: Hoppe's refinement test for ``nodes`` (frustum, back-face unless
+    ``backface=False``, screen error)."""
     c = h.origin + (h.node_positions[nodes].astype(np.float64) + 0.5) * h.step
-    r = h.error[nodes].astype(np.float64) * h.step + h.step
+    # the sphere of the region the node's refinement affects (its leaves' incident triangles)
+    # when the blob has it, else of its leaves
+    extent = h.error if getattr(h, "reach", None) is None else np.maximum(h.reach, h.error)
+    r = extent[nodes].astype(np.float64) * h.step + h.step
     d = c - eye
     dist = np.linalg.norm(d, axis=1)
     z = d @ forward
@@ -69,7 +73,7 @@ def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pi
     alpha = h.cone_angle[nodes].astype(np.float64)
     s = np.einsum("ij,ij->i", d, n)
     has = np.linalg.norm(n, axis=1) > 0.5
-    back = has & (alpha < np.pi / 2) & (s > r) & ((s - r) ** 2 > dist ** 2 * np.sin(alpha) ** 2)
+    back = has & (alpha < np.pi / 2) & (s > r) & ((s - r) ** 2 > dist ** 2 * np.sin(alpha) ** 2) & bool(backface)
     # screen-space error in pixels
     near = np.maximum(dist - r, 1e-9)
     px = h.error[nodes].astype(np.float64) * h.step / near * (viewport_h / (2 * ty))
@@ -77,7 +81,7 @@ def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pi
 
 
 def select_cut(h, camera, target, fov: float = 60.0, viewport=(1024, 768), pixel_error: float = 1.0,
-               up=(0.0, 1.0, 0.0), max_nodes: int | None = None) -> Cut:
+               up=(0.0, 1.0, 0.0), max_nodes: int | None = None, backface: bool = True) -> Cut:
     """Select the cut for one camera and decode only its triangles.
 
     Parameters
@@ -89,6 +93,9 @@ def select_cut(h, camera, target, fov: float = 60.0, viewport=(1024, 768), pixel
     pixel_error : tolerated projected error in pixels (> 0)
     up : world up vector
     max_nodes : optional cap on split nodes (coarsest first), None for no cap
+    backface : Hoppe's back-face test (a node whose normal cone faces away from the viewer is
+        not split). Its coarse triangles can still turn towards the viewer and show at
+        silhouettes (docs/hierarchy.md, section 7); False refines back-facing regions as well.
     """
     eye = _vec3(camera, "camera")
     tgt = _vec3(target, "target")
@@ -117,7 +124,7 @@ def select_cut(h, camera, target, fov: float = 60.0, viewport=(1024, 768), pixel
         inner = front[h.left[front] >= 0]
         if not inner.size:
             break
-        m = refine_mask(h, inner, eye, fwd, rgt, upo, fov_y, w / hh, hh, pixel_error)
+        m = refine_mask(h, inner, eye, fwd, rgt, upo, fov_y, w / hh, hh, pixel_error, backface)
         go = inner[m]
         if budget is not None:
             go = go[:max(budget, 0)]

@@ -70,6 +70,11 @@ class VertexTree:
         subtree, made monotone (a parent's error is at least its children's). 0 for leaves.
     radius : (N,) float64
         Bounding-sphere radius around the node position (grid cells), covering its leaves.
+    reach : (N,) float64
+        Radius around the node position (grid cells) covering every triangle incident to one of
+        its leaves: the region its refinement affects (Hoppe 1997, section 4.1), made monotone.
+        Used by the frustum and back-face tests, so a node whose triangles reach into the view
+        is refined even when its leaves lie outside it.
     cone_axis : (N, 3) float64
         Unit axis of the normal cone of the faces incident to the node's leaves (zero if none).
     cone_angle : (N,) float64
@@ -95,6 +100,7 @@ class VertexTree:
     cone_angle: np.ndarray
     origin: np.ndarray
     step: float
+    reach: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -309,10 +315,11 @@ def build_tree(positions: np.ndarray, triangles: np.ndarray, grid=None) -> Verte
 
     owner = triangle_owner(parent, L, R, n, tri)
     error, radius = _node_error(parent, L, R, repa, pos, n)
+    reach = _node_reach(parent, L, R, repa, pos, n, tri)
     axis, angle = _normal_cones(parent, L, R, pos, tri, n)
     return VertexTree(n_leaves=n, left=L, right=R, parent=parent, roots=roots, rep=repa,
                       positions=pos, triangles=tri, owner=owner, error=error, radius=radius,
-                      cone_axis=axis, cone_angle=angle, origin=origin, step=step)
+                      cone_axis=axis, cone_angle=angle, origin=origin, step=step, reach=reach)
 
 
 class Lifting:
@@ -389,6 +396,30 @@ def _node_error(parent, left, right, rep, pos, n):
     for grp in np.split(order, np.flatnonzero(np.diff(hs)) + 1):
         err[grp] = np.maximum(err[grp], np.maximum(err[left[grp]], err[right[grp]]))
     return err, radius
+
+
+def _node_reach(parent, left, right, rep, pos, n, tri):
+    """(N,) grid cells: max over the node's leaves l of |p_l - p_node| + (longest edge at l)."""
+    posf = pos.astype(np.float64)
+    ring = np.zeros(n)
+    if tri.shape[0]:
+        e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+        length = np.linalg.norm(posf[e[:, 0]] - posf[e[:, 1]], axis=1)
+        np.maximum.at(ring, e[:, 0], length)
+        np.maximum.at(ring, e[:, 1], length)
+    N = parent.shape[0]
+    reach = np.zeros(N)
+    reach[:n] = ring
+    leaf = np.arange(n, dtype=np.int64)
+    cur = parent[leaf].astype(np.int64)
+    while True:
+        m = cur >= 0
+        if not m.any():
+            break
+        leaf, cur = leaf[m], cur[m]
+        np.maximum.at(reach, cur, np.linalg.norm(posf[leaf] - posf[rep[cur]], axis=1) + ring[leaf])
+        cur = parent[cur].astype(np.int64)
+    return reach
 
 
 def _normal_cones(parent, left, right, pos, tri, n):
