@@ -56,7 +56,7 @@ def test_text_output():
     (["--depth", "sometimes"], "--depth"),
     (["--eps", "0"], "eps"),
     (["--texture-kf", "lots"], "--texture-kf"),
-    (["--depth-ceiling", "30"], "depth_ceiling"),
+    (["--depth-ceiling", "30"], "--depth-ceiling"),
 ])
 def test_bad_options_exit_2(flags, needle):
     proc = run("analyse", FIXTURES / "two_plates.glb", *flags)
