@@ -595,6 +595,16 @@ def cmd_calibrate(args) -> int:
     return EXIT_OK if cal["reached"] else EXIT_VERIFY_FAILED
 
 
+def _check_gltf_output(args) -> None:
+    """``decode``/``refine -o``: a .glb, or a .gltf and its .bin, never the container read."""
+    from .outputs import check_output
+
+    check_output(args.output, "-o", extensions=(".glb", ".gltf"), what="a glTF 2.0 file", inputs=(args.container,))
+    if args.output.lower().endswith(".gltf"):
+        check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
+                     what="the glTF buffer", inputs=(args.container,))
+
+
 def cmd_decode(args) -> int:
     from .emit.container import read
     from .emit.gltf_writer import write_gltf
@@ -603,10 +613,7 @@ def cmd_decode(args) -> int:
 
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
-    check_output(args.output, "-o", extensions=(".glb", ".gltf"), what="a glTF 2.0 file", inputs=(args.container,))
-    if args.output.lower().endswith(".gltf"):
-        check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
-                     what="the glTF buffer", inputs=(args.container,))
+    _check_gltf_output(args)
     c = read(args.container)
     from .emit.preview import preview, source_candidate
     from .outputs import check_not_input
@@ -678,10 +685,7 @@ def cmd_refine(args) -> int:
     for flag, v, ok in (("--fov", args.fov, 0 < args.fov < 180), ("--pixel-error", args.pixel_error, args.pixel_error > 0)):
         if not (math.isfinite(v) and ok):
             raise LopcookError("usage", None, f"{flag} {v}: out of range (fov in (0, 180) degrees, pixel error > 0)")
-    check_output(args.output, "-o", extensions=(".glb", ".gltf"), what="a glTF 2.0 file", inputs=(args.container,))
-    if args.output.lower().endswith(".gltf"):
-        check_output(str(Path(args.output).with_suffix(".bin")), "-o's .bin", extensions=(".bin",),
-                     what="the glTF buffer", inputs=(args.container,))
+    _check_gltf_output(args)
     c = read(args.container)
     meshes = refine(c, camera, target, fov=args.fov, viewport=viewport, pixel_error=args.pixel_error,
                     backface=args.backface)

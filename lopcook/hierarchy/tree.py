@@ -373,20 +373,26 @@ def triangle_owner(parent, left, right, n, tri) -> np.ndarray:
     return np.choose(k, c).astype(np.int32)
 
 
-def _node_error(parent, left, right, rep, pos, n):
-    N = parent.shape[0]
-    posf = pos.astype(np.float64)
-    err = np.zeros(N)
+def _leaf_ancestors(parent, n):
+    """Yield ``(leaf, ancestor)`` id arrays level by level: every leaf paired with its parent,
+    then its grandparent, ... up to its root (one vectorised step per tree level)."""
     leaf = np.arange(n, dtype=np.int64)
     cur = parent[leaf].astype(np.int64)
     while True:
         m = cur >= 0
         if not m.any():
-            break
+            return
         leaf, cur = leaf[m], cur[m]
-        d = np.linalg.norm(posf[leaf] - posf[rep[cur]], axis=1)
-        np.maximum.at(err, cur, d)
+        yield leaf, cur
         cur = parent[cur].astype(np.int64)
+
+
+def _node_error(parent, left, right, rep, pos, n):
+    N = parent.shape[0]
+    posf = pos.astype(np.float64)
+    err = np.zeros(N)
+    for leaf, cur in _leaf_ancestors(parent, n):
+        np.maximum.at(err, cur, np.linalg.norm(posf[leaf] - posf[rep[cur]], axis=1))
     radius = err.copy()
     # monotone: parent >= children, bottom-up by height
     h = node_height(left, right)
@@ -410,15 +416,8 @@ def _node_reach(parent, left, right, rep, pos, n, tri):
     N = parent.shape[0]
     reach = np.zeros(N)
     reach[:n] = ring
-    leaf = np.arange(n, dtype=np.int64)
-    cur = parent[leaf].astype(np.int64)
-    while True:
-        m = cur >= 0
-        if not m.any():
-            break
-        leaf, cur = leaf[m], cur[m]
+    for leaf, cur in _leaf_ancestors(parent, n):
         np.maximum.at(reach, cur, np.linalg.norm(posf[leaf] - posf[rep[cur]], axis=1) + ring[leaf])
-        cur = parent[cur].astype(np.int64)
     return reach
 
 
