@@ -77,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "what the farthest view can show, given --nearest, or its target falls under 4 triangles) "
                         "or these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
     p.add_argument("--lod-backend", default=D.simplify.backend.value, choices=[b.value for b in LodBackend],
-                   help="simplifier: pymeshlab quadric collapse (seam-aware) or fast-simplification "
+                   help="simplifier: pymeshlab quadric collapse (seam-aware), fast-simplification, or "
+                        "meshoptimizer's attribute-aware collapse (docs/performance.md) "
                         f"(default {D.simplify.backend.value})")
     p.add_argument("--hierarchy", action="store_true",
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "

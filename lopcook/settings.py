@@ -48,6 +48,7 @@ class LodBackend(str, Enum):
 
     PYMESHLAB = "pymeshlab"
     FAST = "fast"
+    MESHOPT = "meshopt"
 
 
 class SeamMode(str, Enum):

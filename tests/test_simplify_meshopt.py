@@ -179,3 +179,20 @@ def test_lod_chain_with_meshopt_keeps_seams_closed(corpus, monkeypatch):
         ids, = _position_ids(lod.part.positions)
         assert not _open_edges(ids, lod.part.indices)  # spot is closed: no crack at any LOD
         assert lod.part.uvs is not None and np.isfinite(lod.part.uvs).all()
+
+
+def test_cook_with_the_meshopt_backend(corpus, tmp_path):
+    """``cook --lods ... --lod-backend meshopt`` writes a chain that reaches its targets, with the
+    error growing along it; the fallback order of the other backends is unchanged."""
+    from lopcook.cli import main
+    from lopcook.emit.container import read
+
+    assert B.BACKENDS == ("pymeshlab", "fast") and "meshopt" in B.SELECTABLE
+    out = tmp_path / "spot.lop"
+    assert main(["-q", "cook", str(corpus / "spot.obj"), "-o", str(out), "--lods", "1/2,1/4", "--lod-backend",
+                 "meshopt"]) == 0
+    lods = read(str(out)).manifest["parts"][0]["lods"]
+    n0 = lods[0]["triangles"]
+    assert [round(e["triangles"] / n0, 2) for e in lods] == [1.0, 0.5, 0.25]
+    err = [e["geometric_error_m"] for e in lods]
+    assert err[0] == 0 < err[1] <= err[2]

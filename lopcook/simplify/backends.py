@@ -20,6 +20,8 @@ from ..types import MeshPart
 TARGET_FAIL_FACTOR = 2.0
 
 BACKENDS = ("pymeshlab", "fast")
+#: every backend a chain can be asked for; a failed one falls back through ``BACKENDS`` in order
+SELECTABLE = BACKENDS + ("meshopt",)
 
 
 @dataclass

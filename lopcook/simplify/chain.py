@@ -110,7 +110,7 @@ from .. import isolate
 from ..memory import release_free_memory
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
-from .backends import BACKENDS, TARGET_FAIL_FACTOR, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
+from .backends import BACKENDS, SELECTABLE, TARGET_FAIL_FACTOR, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, measure_ref_to_lod
 from .topology import mesh_defects, seam_stats
 from .transfer import Reference, transfer_attributes
@@ -248,8 +248,8 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
     """One LOD; returns (lod, fallbacks used)."""
     t0 = time.perf_counter()
     notes: list = []
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend not in SELECTABLE:
+        raise ValueError(f"backend must be one of {SELECTABLE}, got {backend!r}")
     if seams not in SEAM_MODES:
         raise ValueError(f"seams must be one of {SEAM_MODES}, got {seams!r}")
     if part.n_triangles < MIN_SIMPLIFY_TRIANGLES:
