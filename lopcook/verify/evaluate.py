@@ -29,7 +29,8 @@ scene's bounding box where the half-pixel criterion selects B (``camera_distance
 level-8 distance: the harness sanity check), ``distance_m`` fixes one distance for every row.
 
 Metrics: ``lopcook.verify.metrics`` (PSNR over object pixels, max error, share > 1/255, depth-order
-errors from the part-ID images).
+errors from the part-ID images), computed per view by ``metrics.view_metrics`` in one pass over the
+pixels where the test render differs from the float one.
 
 Cost: every (level, view) renders float, AP and CAP once (the float render is reused when the
 harness caches it); GPU buffers are uploaded once per level and reused across views. ``views`` and
@@ -150,8 +151,9 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                 t0 = time.perf_counter()
                 float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
                 for v in variants:
-                    per_view[v].append(M.image_metrics(ref_rgba, outs[v][0]))
-                    depth[v].append(M.depth_order_errors(ref_ids, outs[v][1]))
+                    colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1])
+                    per_view[v].append(colour)
+                    depth[v].append(order)
                 seconds["metrics"] += time.perf_counter() - t0
                 if keep_images and level == coarsest:
                     score = per_view[variants[0]][-1]["sum_sq"]

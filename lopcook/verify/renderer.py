@@ -51,6 +51,36 @@ AMBIENT = 0.15
 DIFFUSE = 0.65
 #: base colour of a part with neither texture nor vertex colours (linear grey)
 BASE_GREY = 0.8
+#: the most bytes a harness's float-render cache holds (cropped renders, ``Harness``)
+FLOAT_CACHE_BYTES = 384 << 20
+
+
+def _crop(rgba: np.ndarray, ids: np.ndarray):
+    """(box, rgba crop, ids crop) of a render: the box of its non-background pixels (alpha > 0 or a
+    part ID), None when there are none; IDs as uint16 when they fit."""
+    occupied = (rgba[..., 3] != 0) | (ids != 0)
+    rows = np.flatnonzero(occupied.any(axis=1))
+    if rows.size == 0:
+        return None, np.zeros((0, 0, 4), np.uint8), np.zeros((0, 0), np.uint16)
+    cols = np.flatnonzero(occupied.any(axis=0))
+    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    if np.any(rgba[~occupied]):
+        box = (0, rgba.shape[0], 0, rgba.shape[1])  # background not the clear colour: keep it all
+    crop = ids[box[0]:box[1], box[2]:box[3]]
+    crop = crop.astype(np.uint16) if int(ids.max(initial=0)) < 65536 else crop.copy()
+    return box, rgba[box[0]:box[1], box[2]:box[3]].copy(), crop
+
+
+def _expand(entry, size) -> tuple[np.ndarray, np.ndarray]:
+    """The full (rgba, ids) render of a ``_crop`` entry at ``size`` (w, h)."""
+    box, rgba_c, ids_c = entry
+    w, h = size
+    rgba = np.zeros((h, w, 4), np.uint8)
+    ids = np.zeros((h, w), np.uint32)
+    if box is not None:
+        rgba[box[0]:box[1], box[2]:box[3]] = rgba_c
+        ids[box[0]:box[1], box[2]:box[3]] = ids_c
+    return rgba, ids
 
 
 @dataclass(frozen=True)
@@ -249,9 +279,14 @@ class Harness:
     """GPU state for one source scene at one resolution: the renderer, float-position draws of the
     source parts, textures, and an optional cache of float renders (``cache_float=True``: keyed by
     the camera matrix, eye and shading, reused across containers of the same scene, e.g. by the k_f
-    calibration or the byte-budget fit; about 8 bytes per pixel per cached view)."""
+    calibration or the byte-budget fit). A cached render keeps only the box of its object pixels
+    (outside it the image is background: RGBA 0 and part ID 0, exactly what the renderer clears to),
+    at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; renders past
+    ``cache_bytes`` (default ``FLOAT_CACHE_BYTES``) are not cached. A hit returns the same arrays a
+    fresh render would (re-expanded to the full size)."""
 
-    def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False):
+    def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False,
+                 cache_bytes: int | None = None):
         from . import gpu
 
         self.ctx = gpu.context()
@@ -260,6 +295,8 @@ class Harness:
         self.textures = Textures(self.ctx)
         self.cache_float = cache_float
         self.float_cache: dict = {}
+        self.cache_bytes = FLOAT_CACHE_BYTES if cache_bytes is None else int(cache_bytes)
+        self.cached_bytes = 0
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
@@ -272,6 +309,7 @@ class Harness:
         self.textures.release()
         self.renderer.release()
         self.float_cache = {}
+        self.cached_bytes = 0
 
     def __enter__(self):
         return self
@@ -283,10 +321,14 @@ class Harness:
         """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
         (hashable: camera matrix, eye and shading) the result is computed once and reused."""
         if self.cache_float and key is not None and key in self.float_cache:
-            return self.float_cache[key]
+            return _expand(self.float_cache[key], self.renderer.size)
         out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
         if self.cache_float and key is not None:
-            self.float_cache[key] = out
+            entry = _crop(*out)
+            size = entry[1].nbytes + entry[2].nbytes
+            if self.cached_bytes + size <= self.cache_bytes:
+                self.float_cache[key] = entry
+                self.cached_bytes += size
         return out
 
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
@@ -376,5 +418,5 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     return items, owned
 
 
-__all__ = ["RESOLUTION", "SAMPLES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+__all__ = ["RESOLUTION", "SAMPLES", "FLOAT_CACHE_BYTES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
