@@ -74,7 +74,11 @@ def test_search_returns_the_least_passing_sigma_within_tolerance(searched, targe
     assert r["sigma"] == chosen["sigma"] and r["eps"] == chosen["eps"]
     curve = r["curve"]
     assert [p["log2_sigma"] for p in curve] == sorted(p["log2_sigma"] for p in curve)
-    assert curve[0]["log2_sigma"] == -4.0 and curve[-1]["log2_sigma"] == 4.0  # both ends probed
+    assert 0.0 in [p["log2_sigma"] for p in curve]  # the search starts at the default cook's k_f
+    # the model needs fewer probes than a bisection of the range to the same grid (2 ends + 4 halvings)
+    assert len(curve) < 2 + 4
+    grid = [(p["log2_sigma"] + 4.0) / 0.5 for p in curve]
+    assert all(g == round(g) for g in grid)  # every probe on the grid lo + k * tolerance
     # bisection: a failing probe lies within the tolerance below the choice
     below = [p for p in curve if r["log2_sigma"] - 0.5 <= p["log2_sigma"] < r["log2_sigma"]]
     assert below and all(p["psnr_min"] is not None and p["psnr_min"] < target for p in below)
@@ -91,8 +95,13 @@ def test_calibrated_settings_reproduce_the_chosen_probe(gl, scene, searched):
 
 
 def test_an_easy_target_takes_the_lower_end(gl, scene, probes):
-    r = C.calibrate(scene, AnalyseSettings(), target_psnr=probes[-4.0]["psnr_min"] - 1.0, **KW)
-    assert r["reached"] and r["log2_sigma"] == -4.0 and len(r["curve"]) == 1
+    # the default's k_f passes by a margin the model (6 dB per doubling) reads as room past the
+    # range's end: the lower end is probed next, and passes
+    easy = probes[-4.0]["psnr_min"] - 10.0
+    assert (probes[0.0]["psnr_min"] - easy) / C.SLOPE_DB > 4.0
+    r = C.calibrate(scene, AnalyseSettings(), target_psnr=easy, **KW)
+    assert r["reached"] and r["log2_sigma"] == -4.0
+    assert [p["log2_sigma"] for p in r["curve"]] == [-4.0, 0.0]
     C.require_reached(r)  # reached: no error
 
 

@@ -82,12 +82,23 @@ CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
 #: the gate's harness (``lopcook verify --source`` defaults): the calibration's choice is confirmed there
 CONFIRM = (VIEW_COUNT, RESOLUTION)
 #: at most this many raises of log2 sigma by ``tolerance`` while the confirmation misses the target
-CONFIRM_STEPS = 8
+CONFIRM_STEPS = 4
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
 STATISTICS = ("min", "mean")
 SEARCHES = ("kf", "kf+edge")
 EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (edge_eps / 2^8 at most)
+#: the model's slope of PSNR per doubling of sigma with one probe (MSE / 4: 10 log10 4 dB) and its clip
+SLOPE_DB = 10.0 * math.log10(4.0)
+SLOPE_MIN, SLOPE_MAX = 0.75, 12.0
+#: predictions of the model per k_f search before it bisects what is left of the bracket
+MODEL_STEPS = 4
+#: the model aims this far above the target (dB): the predicted grid point should pass
+MODEL_MARGIN_DB = 0.1
+#: the confirmation's move toward the default aims this far above the target on the gate (dB)
+CONFIRM_MARGIN_DB = 0.25
+#: an identical render (PSNR None, infinite) in the model's arithmetic, dB
+INF_DB = 200.0
 
 
 def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
@@ -99,6 +110,13 @@ def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
         for name, kf in attribute_kf(part, settings).items():
             out[name] = max(out.get(name, 0.0), float(kf) * sigma)
     return out
+
+
+def _log2(sigma: float) -> float:
+    """log2 sigma, exact for the searched grid (multiples of 2^-10, where 2^x round-trips)."""
+    lg = math.log2(float(sigma))
+    r = round(lg * 1024.0) / 1024.0
+    return r if 2.0**r == float(sigma) else lg
 
 
 def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
@@ -136,7 +154,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     kf = _kf_dict(scene, settings, sigma)
     return {
         "sigma": float(sigma),
-        "log2_sigma": math.log2(sigma),
+        "log2_sigma": _log2(sigma),
         "eps": float(s.eps),
         "edge_scale": float(edge_scale),
         "edge_eps": float(s.edge_eps),
@@ -166,21 +184,102 @@ def _same_harness(confirm, views, resolution) -> bool:
     return select_views(cv) == select_views(views) and tuple(cr) == tuple(resolution)
 
 
-def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, target_psnr: float, statistic: str,
-             confirm, *, edges: bool, levels, viewing, options, ingest_options, progress) -> dict:
-    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness; while it
-    fails, try one step stricter on each knob -- the edges (``e + 1``: one more bit on edge
-    vertices, when the search used them) and k_f (``x + tolerance``) -- and keep the passing one with
-    the least memory; when neither passes, take both steps (at most ``CONFIRM_STEPS`` times, x never
-    beyond ``hi``, e never beyond ``EDGE_RANGE``). Coverage error along edges does not depend on
-    k_f and shading error does not depend on the edges, so both are tried."""
+def _level_psnrs(p: dict, statistic: str) -> list[float]:
+    """Per level, the probe's PSNR statistic in dB (an identical render, None, counts as ``INF_DB``)."""
+    return [INF_DB if v is None else float(v) for v in p[f"psnr_{statistic}_per_level"]]
+
+
+def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> float:
+    """The least log2 sigma at which every level is predicted to reach its target (dB), from probes
+    ``points`` = [(log2 sigma, PSNR per level)] of one edge strictness (module doc, "The model").
+
+    Per level: PSNR is taken as linear in log2 sigma through the two probes nearest the level's
+    crossing (the highest failing and the lowest passing one when both exist), its slope clipped
+    to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling; with one probe the slope is ``SLOPE_DB``
+    (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB)."""
+    pts = sorted(points, key=lambda t: t[0])
+    need = -math.inf
+    for li, target in enumerate(targets):
+        below = [(x, ps[li]) for x, ps in pts if ps[li] < target]
+        above = [(x, ps[li]) for x, ps in pts if ps[li] >= target]
+        if below and above and max(b[0] for b in below) < min(a[0] for a in above):
+            (xa, pa), (xb, pb) = max(below), min(above)
+        elif len(pts) >= 2:
+            near = sorted(pts, key=lambda t: abs(t[1][li] - target))[:2]
+            (xa, pa), (xb, pb) = sorted((x, ps[li]) for x, ps in near)
+        else:
+            (xa, pa) = (xb, pb) = (pts[0][0], pts[0][1][li])
+        slope = (pb - pa) / (xb - xa) if xb > xa else SLOPE_DB
+        slope = min(SLOPE_MAX, max(SLOPE_MIN, slope))
+        ref_x, ref_p = (xa, pa) if abs(pa - target) <= abs(pb - target) else (xb, pb)
+        need = max(need, ref_x + (target - ref_p) / slope)
+    return need
+
+
+def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs, targets, give_up=None):
+    """Least x on the grid ``lo + k * tol`` (``hi`` the last point) with ``ok(run(x))``, assuming
+    ``ok`` is non-decreasing in x: probe ``start``, then the grid point the model predicts
+    (``_predict`` over every probe made so far, ``psnrs(probe)`` per level, ``targets`` per level),
+    clamped strictly inside the bracket of the highest failing and the lowest passing grid points;
+    when ``start`` fails, ``hi`` is probed next (the target is unreachable when it fails). Ends when
+    the bracket is one grid step wide (the passing end is returned), when the lowest grid point
+    passes, when ``hi`` fails (None) or when ``give_up(probe)`` is true for a failing probe (None:
+    the caller needs no pass above it). After ``MODEL_STEPS`` predictions the bracket is bisected."""
+    n_steps = max(1, int(math.ceil((hi - lo) / tol - 1e-9)))
+
+    def xk(k: int) -> float:
+        return hi if k >= n_steps else lo + k * tol
+
+    seen: dict = {}
+
+    def at(k: int) -> bool:
+        if k not in seen:
+            p = run(xk(k))
+            seen[k] = (ok(p), p)
+        return seen[k][0]
+
+    k = min(n_steps, max(0, int(round((min(hi, max(lo, start)) - lo) / tol))))
+    predictions = 0
+    while True:
+        passed = at(k)
+        if not passed and give_up is not None and give_up(seen[k][1]):
+            return None
+        kp = min((j for j, (v, _) in seen.items() if v), default=None)
+        kf = max((j for j, (v, _) in seen.items() if not v and (kp is None or j < kp)), default=None)
+        if kp == 0:
+            return xk(0)
+        if kp is None and kf is not None and kf >= n_steps:
+            return None
+        if kp is not None and kf is not None and kp - kf <= 1:
+            return xk(kp)
+        if kp is None and n_steps not in seen:  # the start failed: is the target reachable at all?
+            k = n_steps
+            continue
+        low, high = (0 if kf is None else kf + 1), (n_steps if kp is None else kp - 1)
+        if predictions < MODEL_STEPS:
+            predictions += 1
+            x_star = _predict([(xk(j), psnrs(p)) for j, (_, p) in seen.items()], targets)
+            k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else low
+        else:
+            k_star = (low + high) // 2
+        k = min(high, max(low, k_star))
+
+
+def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
+             statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
+             run_reduced) -> dict:
+    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
+    "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
+    probes there. While the gate misses the target: one move toward the anchor (the default
+    cook's knobs, or the choice's where it is stricter) as far as the model needs, then the anchor,
+    then (only when the anchor is stricter than the default) steps stricter on both knobs, at most
+    ``CONFIRM_STEPS`` probes on the gate in all. The passing probe with the least memory is kept."""
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
     probed: dict = {}
-    # no float-render cache here: at 20 views x 1280x720 it would hold ~1 GB (7 levels); the float
-    # renders are redone per probe instead
-    with Harness(scene, resolution, cache_float=False) as h:
+    # the float renders are cached (cropped to the object's box, capped): a second probe renders CAP only
+    with Harness(scene, resolution, cache_float=True) as h:
         def run(c):
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=levels, views=views, viewing=viewing,
@@ -195,25 +294,47 @@ def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, t
         def ok(c) -> bool:
             return _passes(run(c), target_psnr, statistic)
 
-        cur = (x, e)
-        chosen = cur if ok(cur) else None
-        for _ in range(CONFIRM_STEPS):
-            if chosen is not None:
-                break
-            edge_step = edges and cur[1] + 1 <= EDGE_RANGE
-            moves = ([(cur[0], cur[1] + 1)] if edge_step else []) + ([(min(hi, cur[0] + tolerance), cur[1])]
-                                                                    if cur[0] < hi else [])
-            if not moves:
-                break
-            passing = [m for m in moves if ok(m)]
-            if passing:
-                chosen = min(passing, key=lambda m: (sum(run(m)["cap_percent"]), m[0]))
-                break
-            cur = (min(hi, cur[0] + tolerance), cur[1] + (1 if edge_step else 0))
-            if ok(cur):
-                chosen = cur
+        def snap_x(v: float) -> float:  # whole tolerance steps above x, at most hi
+            return min(hi, x + tolerance * math.ceil((v - x) / tolerance - 1e-9)) if v > x else x
+
+        c0 = (x, e)
+        if not ok(c0):
+            anchor = (snap_x(max(x, 0.0)), max(e, 0.0) if edges else e)
+            moves = []
+            if anchor != c0:
+                # per level: how much the gate misses what the reduced harness saw at the choice, and
+                # how far toward the anchor the reduced harness's PSNR rises by that much
+                red0 = _level_psnrs(curve[c0], statistic)
+                red1 = _level_psnrs(run_reduced(*anchor), statistic)
+                gate0 = _level_psnrs(run(c0), statistic)
+                t = 0.0
+                for r0, r1, g0 in zip(red0, red1, gate0):
+                    if g0 >= target_psnr + CONFIRM_MARGIN_DB:
+                        continue
+                    gain = r1 - r0
+                    t = max(t, 1.0 if gain <= 0 else (target_psnr + CONFIRM_MARGIN_DB - g0) / gain)
+                t = min(1.0, t)
+                mid = (snap_x(x + t * (anchor[0] - x)), e + math.ceil(t * (anchor[1] - e) - 1e-9))
+                moves = [m for m in (mid, anchor) if m != c0]
+                moves = list(dict.fromkeys(moves))
+            # past the anchor only when it is stricter than the default cook (the choice was)
+            stricter = anchor[0] > 0.0 or (edges and anchor[1] > 0.0)
+            cur = anchor
+            while stricter and len(moves) < CONFIRM_STEPS - 1:
+                nxt = (min(hi, cur[0] + tolerance), min(float(EDGE_RANGE), cur[1] + 1.0) if edges else cur[1])
+                if nxt == cur:
+                    break
+                moves.append(nxt)
+                cur = nxt
+            for m in moves[:CONFIRM_STEPS - 1]:
+                if ok(m):
+                    break
+        passing = [c for c in probed if _passes(probed[c], target_psnr, statistic)]
+        chosen = min(passing, key=lambda c: (sum(probed[c]["cap_percent"]), c)) if passing else None
         out["passed"] = chosen is not None
-        out["chosen"] = run(chosen if chosen is not None else cur)
+        out["chosen"] = probed[chosen] if chosen is not None else max(
+            probed.values(), key=lambda p: min(_level_psnrs(p, statistic)))
+        out["chosen_knobs"] = chosen
     return out
 
 
@@ -227,21 +348,21 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
     ``target_psnr`` dB, ``levels`` (per-buffer levels, default 6..12), ``views`` (int or indices),
     ``resolution`` (w, h), ``viewing`` (recorded in each probe container: its field of view and pixel
-    error set the camera distances), ``log2_range`` (lo, hi) of log2 sigma, ``tolerance`` (bracket
-    width in log2 sigma), ``options``/``ingest_options`` (recorded in the probe containers),
-    ``progress(probe_dict)`` called after each probe, ``statistic`` ("min" or "mean" over views),
-    ``search`` ("kf" or "kf+edge", module doc; default "kf+edge" when ``settings.edges``, else "kf"),
-    ``confirm`` ((views, (w, h)) of the gate's harness, default 20 views at 1280 x 720; None: no
-    confirmation; skipped when it equals the search harness).
+    error set the camera distances), ``log2_range`` (lo, hi) of log2 sigma, ``tolerance`` (grid step
+    of log2 sigma: the choice passes and the grid point below it fails), ``options``/``ingest_options``
+    (recorded in the probe containers), ``progress(probe_dict)`` called after each probe,
+    ``statistic`` ("min" or "mean" over views), ``search`` ("kf" or "kf+edge", module doc; default
+    "kf+edge" when ``settings.edges``, else "kf"), ``confirm`` ((views, (w, h)) of the gate's
+    harness, default 20 views at 1280 x 720; None: no confirmation; skipped when it equals the
+    search harness).
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
     ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
-    passing probe with the least sigma, then the loosest edge_eps; the largest probed sigma when
-    unreachable), ``search``, ``chosen`` (that probe), ``curve`` (every probe, sorted by sigma,
-    then edge strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per
-    level, ...), ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, and
-    ``confirmation`` (None, or ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the
-    gate's harness, in order]).
+    passing probe with the least memory; the best probe when unreachable), ``search``, ``chosen``
+    (that probe), ``curve`` (every probe on the search's harness, sorted by sigma, then edge
+    strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per level, ...),
+    ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, and ``confirmation`` (None, or
+    ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the gate's harness, in order]).
     """
     search = search or ("kf+edge" if settings.edges else "kf")
     if search not in SEARCHES:
@@ -257,6 +378,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     levels = [int(b) for b in levels]
     t0 = time.perf_counter()
     probes: dict = {}
+    targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
+    start = min(hi, max(lo, 0.0))  # the default cook's k_f
     with Harness(scene, resolution, cache_float=True) as h:
         def run(x: float, e: float = 0.0) -> dict:
             if (x, e) not in probes:
@@ -270,14 +393,26 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         def ok(x: float, e: float = 0.0) -> bool:
             return _passes(run(x, e), target_psnr, statistic)
 
-        def least_passing(f, a: float, b: float, tol: float):
-            """Smallest t in [a, b] with f(t) (f non-decreasing in t), to ``tol``; None when f(b) fails."""
+        def passes(p: dict) -> bool:
+            return _passes(p, target_psnr, statistic)
+
+        def psnrs(p: dict) -> list[float]:
+            return _level_psnrs(p, statistic)
+
+        def kf_search(e: float, a: float, x_start: float, give_up=None):
+            return model_search(lambda t: run(t, e), passes, a, hi, tolerance, x_start, psnrs, targets, give_up)
+
+        def memory(c) -> float:
+            return sum(run(*c)["cap_percent"]) / len(levels)
+
+        def least_passing(f, a: float, b: float):
+            """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
             if f(a):
                 return a
             if not f(b):
                 return None
-            while b - a > tol:  # f(a) fails, f(b) passes
-                m = 0.5 * (a + b) if tol < 1 else float(math.floor(0.5 * (a + b)))
+            while b - a > 1.0:  # f(a) fails, f(b) passes
+                m = float(math.floor(0.5 * (a + b)))
                 if m <= a:
                     break
                 if f(m):
@@ -288,36 +423,44 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
 
         # (1) k_f at the given edge_eps
         e = 0.0
-        x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+        x = kf_search(e, lo, start)
         candidates = [] if x is None else [(x, e)]
         if search == "kf+edge" and settings.edges:
             loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
             if x is not None and loosest < 0:
                 # (2a) loosen the edges while the target holds at the chosen k_f
-                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0, 1.0)
+                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
                 candidates.append((x, e1))
-                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f
-                    x1 = least_passing(lambda t: ok(t, loosest), x, hi, tolerance)
-                    if x1 is not None:
-                        candidates.append((x1, loosest))
+                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
+                    best = min(memory(c) for c in candidates)
+                    if memory((x, loosest)) < best:
+                        x1 = kf_search(loosest, x, x + tolerance,
+                                       give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best)
+                        if x1 is not None:
+                            candidates.append((x1, loosest))
             elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
-                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE), 1.0)
+                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE))
                 if e_found is not None:
                     e = e_found
-                    x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+                    x = kf_search(e, lo, hi)
                     candidates = [(x, e)]
         reached = bool(candidates)
         if reached:  # the least position memory, averaged over the levels (ties: less k_f)
-            x, e = min(candidates, key=lambda c: (sum(run(*c)["cap_percent"]) / len(levels), c[0]))
-        chosen = run(x, e) if reached else run(hi, e)
-    confirmation = None
-    same = confirm is not None and _same_harness(confirm, views, resolution)
-    if reached and confirm is not None and not same:
-        confirmation = _confirm(scene, settings, x, e, hi, tolerance, target_psnr, statistic, confirm,
-                                edges=search == "kf+edge" and bool(settings.edges), levels=levels, viewing=viewing,
-                                options=options, ingest_options=ingest_options, progress=progress)
-        reached = confirmation["passed"]
-        chosen = confirmation.pop("chosen")
+            x, e = min(candidates, key=lambda c: (memory(c), c[0]))
+            chosen = run(x, e)
+        else:
+            x = hi
+            chosen = run(x, e)
+        confirmation = None
+        same = confirm is not None and _same_harness(confirm, views, resolution)
+        if reached and confirm is not None and not same:
+            confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
+                                    edges=search == "kf+edge" and bool(settings.edges), levels=levels,
+                                    viewing=viewing, options=options, ingest_options=ingest_options,
+                                    progress=progress, run_reduced=run)
+            reached = confirmation["passed"]
+            chosen = confirmation.pop("chosen")
+            confirmation.pop("chosen_knobs")
     curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
     return {
         "target_psnr": float(target_psnr),
@@ -408,7 +551,8 @@ def format_calibration(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE", "probe", "calibrate",
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
+           "SLOPE_DB", "MODEL_STEPS", "probe", "model_search", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
 
 
