@@ -93,6 +93,8 @@ SLOPE_DB = 10.0 * math.log10(4.0)
 SLOPE_MIN, SLOPE_MAX = 0.75, 12.0
 #: predictions of the model per k_f search before it bisects what is left of the bracket
 MODEL_STEPS = 4
+#: at most this many probes for k_f at the loosest edges (step 2c), an optional saving
+EDGE_KF_PROBES = 2
 #: the model aims this far above the target (dB): the predicted grid point should pass
 MODEL_MARGIN_DB = 0.1
 #: the confirmation's move toward the default aims this far above the target on the gate (dB)
@@ -216,15 +218,18 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
     return need
 
 
-def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs, targets, give_up=None):
+def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs, targets, give_up=None,
+                 max_probes: int | None = None, reach_check: bool = True):
     """Least x on the grid ``lo + k * tol`` (``hi`` the last point) with ``ok(run(x))``, assuming
     ``ok`` is non-decreasing in x: probe ``start``, then the grid point the model predicts
     (``_predict`` over every probe made so far, ``psnrs(probe)`` per level, ``targets`` per level),
     clamped strictly inside the bracket of the highest failing and the lowest passing grid points;
-    when ``start`` fails, ``hi`` is probed next (the target is unreachable when it fails). Ends when
-    the bracket is one grid step wide (the passing end is returned), when the lowest grid point
-    passes, when ``hi`` fails (None) or when ``give_up(probe)`` is true for a failing probe (None:
-    the caller needs no pass above it). After ``MODEL_STEPS`` predictions the bracket is bisected."""
+    when ``start`` fails, ``hi`` is probed next (with ``reach_check``; the target is unreachable
+    when it fails). Ends when the bracket is one grid step wide (the passing end is returned), when
+    the lowest grid point passes, when ``hi`` fails (None), when ``give_up(probe)`` is true for a
+    failing probe (None: the caller needs no pass above it) or after ``max_probes`` probes (the
+    least passing point so far, or None). A prediction that does not halve the bracket is followed
+    by a bisection (as in Dekker's method); after ``MODEL_STEPS`` predictions only bisections."""
     n_steps = max(1, int(math.ceil((hi - lo) / tol - 1e-9)))
 
     def xk(k: int) -> float:
@@ -240,6 +245,7 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
     k = min(n_steps, max(0, int(round((min(hi, max(lo, start)) - lo) / tol))))
     predictions = 0
+    width_before = None  # unprobed grid points inside the bracket before the last prediction
     while True:
         passed = at(k)
         if not passed and give_up is not None and give_up(seen[k][1]):
@@ -252,15 +258,21 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
             return None
         if kp is not None and kf is not None and kp - kf <= 1:
             return xk(kp)
-        if kp is None and n_steps not in seen:  # the start failed: is the target reachable at all?
+        if max_probes is not None and len(seen) >= max_probes:
+            return None if kp is None else xk(kp)
+        if reach_check and kp is None and n_steps not in seen:  # the start failed: is the target reachable?
             k = n_steps
             continue
         low, high = (0 if kf is None else kf + 1), (n_steps if kp is None else kp - 1)
-        if predictions < MODEL_STEPS:
+        width = high - low + 1
+        bisect = predictions >= MODEL_STEPS or (width_before is not None and 2 * width > width_before)
+        if not bisect:
             predictions += 1
+            width_before = width
             x_star = _predict([(xk(j), psnrs(p)) for j, (_, p) in seen.items()], targets)
             k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else low
         else:
+            width_before = None
             k_star = (low + high) // 2
         k = min(high, max(low, k_star))
 
@@ -434,8 +446,9 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
                 if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
                     best = min(memory(c) for c in candidates)
                     if memory((x, loosest)) < best:
-                        x1 = kf_search(loosest, x, x + tolerance,
-                                       give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best)
+                        x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, x + tolerance,
+                                          psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
+                                          give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best)
                         if x1 is not None:
                             candidates.append((x1, loosest))
             elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
