@@ -17,27 +17,40 @@ settings unchanged (depth constraints included; they do not depend on sigma). Re
 attribute unit; ``kf_normal`` = sigma * ks * n, the paper's Phong k_f, when the scene has normals).
 
 Memory grows with sigma (every minimum level is a non-decreasing function of it), and the PSNR
-nearly always does too. The search: probe sigma = 2^lo and 2^hi (defaults 2^-8 and 2^8); if 2^lo
-already passes it is chosen, if 2^hi fails the target is unreachable (``reached`` False: the coverage
-error of vertices whose attributes do not vary, e.g. flat faces, does not depend on k_f); otherwise
-bisect on log2 sigma until the bracket is ``tolerance`` wide (default 0.25: sigma within 19%) and
-choose the passing end. A probe passes when, at every level, the CAP PSNR statistic is >= the
+nearly always does too. A probe passes when, at every level, the CAP PSNR statistic is >= the
 target: ``statistic="min"`` (default) the minimum over views (every view must reach it; a view
 identical to the float render counts as infinite), ``"mean"`` the PSNR of the view-averaged MSE
-(Purnomo et al. average the per-view errors; one view with few object pixels weighs less). The
-chosen sigma passed when probed; if the PSNR is not monotonic in sigma somewhere inside the bracket,
-a smaller passing sigma may exist (the curve shows it).
+(Purnomo et al. average the per-view errors; one view with few object pixels weighs less).
+
+The model (``model_search``). The search runs on the grid ``lo + k * tolerance`` of log2 sigma
+(defaults [-8, 8] and 0.25: sigma within 19%) and returns its least passing point whose grid
+neighbour below fails (or ``lo`` when it passes; None when ``hi`` fails: the target is unreachable,
+e.g. the coverage error of vertices whose attributes do not vary, flat faces, does not depend on
+k_f). Shading error is a quantization error: MSE falls about 4x per doubling of the k_f scale (per
+level of the bits it buys), so per level PSNR is modelled as linear in log2 sigma, 6.02 dB per
+doubling from one probe, the secant through the two probes nearest the crossing from two (its slope
+clipped to [0.75, 12] dB). The first probe is the default cook's k_f (sigma 1, the anchor of the
+confirmation); each next probe is the grid point where the model predicts every level reaches the
+target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes; a
+prediction that does not halve the bracket is followed by a bisection, and after ``MODEL_STEPS``
+predictions only bisections are made. When the first probe fails, ``hi`` is probed next. Typical
+cost: 3-6 probes per search instead of the bisection's 8. The chosen sigma passed when probed; if
+the PSNR is not monotonic in sigma somewhere inside the bracket, a smaller passing sigma may exist
+(the curve shows it).
 
 The second knob: ``edge_eps`` of the discontinuity constraint (``lopcook.analyse.discontinuity``;
 hard edges, sub-pixel folds, open boundaries and seams need m >= B_v + ceil(log2(0.5 J / edge_eps)),
 which k_f cannot set: on flat-shaded assets the coverage error along edges does not depend on k_f).
 It is searched as a strictness ``x_e`` (``edge_eps = settings.edge_eps / 2^x_e``, at most 1, in whole
 steps: with J = 1 one step is one bit on every edge vertex). ``search="kf+edge"`` (the default when
-the settings have ``edges`` on) is a coordinate search: (1) the k_f bisection above at x_e = 0; (2a)
+the settings have ``edges`` on) is a coordinate search: (1) the k_f search above at x_e = 0; (2a)
 if it reached the target, the loosest x_e in [-log2(1 / edge_eps), 0] that still passes at the chosen
-sigma (less memory on edge vertices); (2b) if it did not, the least x_e in (0, EDGE_RANGE] passing at
-the largest sigma, then the k_f bisection again at that x_e; (2c) after (2a), if the edges could
-not be loosened all the way, the k_f bisection (above the sigma of (1)) with the loosest edges.
+sigma (less memory on edge vertices; bisection on whole steps, the loosest probed first); (2b) if it
+did not, the least x_e in (0, EDGE_RANGE] passing at the largest sigma, then the k_f search again at
+that x_e; (2c) after (2a), if the edges could not be loosened all the way and the loosest edges at
+the sigma of (1) cost less memory than the best choice so far, the k_f search above that sigma with
+the loosest edges, at most ``EDGE_KF_PROBES`` probes and stopped by a failing probe that already
+costs as much memory as the best choice.
 Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
 chosen (which wins on which kind of asset: docs/tune.md). Every choice
 passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
@@ -48,20 +61,24 @@ Cost and the reduced harness. Each probe = analyse + build + CAP renders at ever
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
 covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
-directions more coarsely. Check the chosen k_f with ``lopcook verify OUT.lop --source SOURCE`` at
-the full 20 views and 1280 x 720.
+directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 
-The reduced harness is not the gate (fewer views can miss the worst one, and a small object is
-sensitive to its sub-pixel placement; docs/tune.md has the measured misses). So the choice is
-**confirmed** with the gate's
-harness (``confirm``, default ``lopcook verify``'s 20 views at 1280 x 720): while it misses the
-target there, one step stricter on the edges (edge strictness + 1) and on k_f (log2 sigma +
-``tolerance``) are tried and the passing one with less memory kept, else both steps are taken (at
-most ``CONFIRM_STEPS`` times); ``reached`` is then the confirmed result, and the confirmation
-probes are recorded (``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips
-it. With the paper's CAP alone (``edges`` off) hard-surface assets cannot reach 40 dB at any k_f:
-their residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
-(docs/analyse.md, section 2b).
+Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
+object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
+choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
+views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only). A
+search never ends below the default cook's quality: when the gate misses the target, the
+confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
+choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
+shortfall at the choice against the PSNR the reduced harness gains between the choice and the
+anchor, aiming 0.25 dB above the target; whole grid steps), then to the anchor itself; only when
+the anchor is stricter than the default cook does it step further (log2 sigma + ``tolerance`` and
+x_e + 1) -- at most ``CONFIRM_STEPS`` probes on the gate in all. The passing gate probe with the
+least memory is the choice; ``reached`` is False (exit 1 in ``cook``) only when every gate probe
+missed, i.e. when even the anchor -- the default cook, for a choice looser than it -- fails the
+gate. ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the paper's CAP alone
+(``edges`` off) hard-surface assets cannot reach 40 dB at any k_f: their residual error is coverage
+along hard edges and sub-pixel folds whose vertices have E_v = 0 (docs/analyse.md, section 2b).
 """
 
 from __future__ import annotations
@@ -81,7 +98,7 @@ CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
 #: the gate's harness (``lopcook verify --source`` defaults): the calibration's choice is confirmed there
 CONFIRM = (VIEW_COUNT, RESOLUTION)
-#: at most this many raises of log2 sigma by ``tolerance`` while the confirmation misses the target
+#: at most this many probes on the gate's harness (the choice, then moves toward the default cook)
 CONFIRM_STEPS = 4
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
