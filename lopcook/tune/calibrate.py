@@ -29,7 +29,7 @@ e.g. the coverage error of vertices whose attributes do not vary, flat faces, do
 k_f). Shading error is a quantization error: MSE falls about 4x per doubling of the k_f scale (per
 level of the bits it buys), so per level PSNR is modelled as linear in log2 sigma, 6.02 dB per
 doubling from one probe, the secant through the two probes nearest the crossing from two (its slope
-clipped to [0.75, 12] dB). The first probe is the default cook's k_f (sigma 1, the anchor of the
+clipped to [0.2, 12] dB: a flat curve, e.g. edge-limited, sends the next probe to the range's end). The first probe is the default cook's k_f (sigma 1, the anchor of the
 confirmation); each next probe is the grid point where the model predicts every level reaches the
 target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes; a
 prediction that does not halve the bracket is followed by a bisection, and after ``MODEL_STEPS``
@@ -107,7 +107,7 @@ SEARCHES = ("kf", "kf+edge")
 EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (edge_eps / 2^8 at most)
 #: the model's slope of PSNR per doubling of sigma with one probe (MSE / 4: 10 log10 4 dB) and its clip
 SLOPE_DB = 10.0 * math.log10(4.0)
-SLOPE_MIN, SLOPE_MAX = 0.75, 12.0
+SLOPE_MIN, SLOPE_MAX = 0.2, 12.0
 #: predictions of the model per k_f search before it bisects what is left of the bracket
 MODEL_STEPS = 4
 #: at most this many probes for k_f at the loosest edges (step 2c), an optional saving
@@ -191,6 +191,27 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     }
 
 
+def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cache: dict | None = None) -> float:
+    """Mean over ``levels`` of the CAP memory (% of float32 positions) of the cook at log2 sigma ``x``
+    and edge strictness ``e``: what ``probe`` reports as ``cap_percent``, from the analysis and the
+    build alone (no render). ``cache`` (a dict) keeps results by (x, e)."""
+    from ..analyse import analyse
+    from ..emit import build
+    from ..emit.container import from_bytes
+    from ..verify.buffers import position_bytes
+
+    if cache is not None and (x, e) in cache:
+        return cache[(x, e)]
+    s = replace(settings, eps=settings.eps / 2.0**x, edge_eps=_edge_eps(settings, e))
+    c = from_bytes(build(scene, analyse(scene, s), options={"analyse": s.to_record()}), None)
+    f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
+    lods = [0] * len(c.manifest["parts"])
+    out = sum(100.0 * position_bytes(c, lods, int(b))["cap"] / max(f32, 1) for b in levels) / len(levels)
+    if cache is not None:
+        cache[(x, e)] = out
+    return out
+
+
 def _passes(p: dict, target: float, statistic: str = "min") -> bool:
     v = p[f"psnr_{statistic}"]
     return v is None or v >= target
@@ -214,7 +235,7 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
 
     Per level: PSNR is taken as linear in log2 sigma through the two probes nearest the level's
     crossing (the highest failing and the lowest passing one when both exist), its slope clipped
-    to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling; with one probe the slope is ``SLOPE_DB``
+    to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling (a flat curve sends the next probe far: to the range's end); with one probe the slope is ``SLOPE_DB``
     (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB)."""
     pts = sorted(points, key=lambda t: t[0])
     need = -math.inf
@@ -236,7 +257,7 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
 
 
 def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs, targets, give_up=None,
-                 max_probes: int | None = None, reach_check: bool = True):
+                 max_probes: int | None = None, reach_check: bool = True, before=None):
     """Least x on the grid ``lo + k * tol`` (``hi`` the last point) with ``ok(run(x))``, assuming
     ``ok`` is non-decreasing in x: probe ``start``, then the grid point the model predicts
     (``_predict`` over every probe made so far, ``psnrs(probe)`` per level, ``targets`` per level),
@@ -244,8 +265,9 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
     when ``start`` fails, ``hi`` is probed next (with ``reach_check``; the target is unreachable
     when it fails). Ends when the bracket is one grid step wide (the passing end is returned), when
     the lowest grid point passes, when ``hi`` fails (None), when ``give_up(probe)`` is true for a
-    failing probe (None: the caller needs no pass above it) or after ``max_probes`` probes (the
-    least passing point so far, or None). A prediction that does not halve the bracket is followed
+    failing probe (None: the caller needs no pass above it), when ``before(x)`` is true for the
+    next point (None, nothing probed there: e.g. its memory, known without rendering, is already too
+    much) or after ``max_probes`` probes (the least passing point so far, or None). A prediction that does not halve the bracket is followed
     by a bisection (as in Dekker's method); after ``MODEL_STEPS`` predictions only bisections."""
     n_steps = max(1, int(math.ceil((hi - lo) / tol - 1e-9)))
 
@@ -254,8 +276,10 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
     seen: dict = {}
 
-    def at(k: int) -> bool:
+    def at(k: int) -> bool | None:
         if k not in seen:
+            if before is not None and before(xk(k)):
+                return None
             p = run(xk(k))
             seen[k] = (ok(p), p)
         return seen[k][0]
@@ -265,6 +289,9 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
     width_before = None  # unprobed grid points inside the bracket before the last prediction
     while True:
         passed = at(k)
+        if passed is None:
+            kp = min((j for j, (v, _) in seen.items() if v), default=None)
+            return None if kp is None or kp > k else xk(kp)
         if not passed and give_up is not None and give_up(seen[k][1]):
             return None
         kp = min((j for j, (v, _) in seen.items() if v), default=None)
@@ -296,13 +323,15 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
 def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
              statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
-             run_reduced) -> dict:
+             run_reduced, dry) -> dict:
     """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
     "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
-    probes there. While the gate misses the target: one move toward the anchor (the default
-    cook's knobs, or the choice's where it is stricter) as far as the model needs, then the anchor,
-    then (only when the anchor is stricter than the default) steps stricter on both knobs, at most
-    ``CONFIRM_STEPS`` probes on the gate in all. The passing probe with the least memory is kept."""
+    probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
+    the target: the moves that cost less memory than the anchor (the default cook's knobs, or the
+    choice's where it is stricter) -- toward the anchor as far as the model needs, and one step
+    stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
+    than the default) steps stricter on both knobs, at most ``CONFIRM_STEPS`` probes on the gate in
+    all. The passing probe with the least memory is kept."""
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
@@ -344,8 +373,16 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
                     t = max(t, 1.0 if gain <= 0 else (target_psnr + CONFIRM_MARGIN_DB - g0) / gain)
                 t = min(1.0, t)
                 mid = (snap_x(x + t * (anchor[0] - x)), e + math.ceil(t * (anchor[1] - e) - 1e-9))
-                moves = [m for m in (mid, anchor) if m != c0]
-                moves = list(dict.fromkeys(moves))
+                moves.append(mid)
+            if edges and e + 1.0 <= EDGE_RANGE:  # coverage along edges does not depend on k_f
+                moves.append((x, e + 1.0))
+            # the cheaper move first (memory is known without rendering), only moves cheaper than the
+            # anchor, then the anchor
+            limit = dry(*anchor) if anchor != c0 else math.inf
+            moves = sorted((m for m in dict.fromkeys(moves) if m != c0 and m != anchor and dry(*m) < limit),
+                           key=lambda m: (dry(*m), m))
+            if anchor != c0:
+                moves.append(anchor)
             # past the anchor only when it is stricter than the default cook (the choice was)
             stricter = anchor[0] > 0.0 or (edges and anchor[1] > 0.0)
             cur = anchor
@@ -407,6 +444,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     levels = [int(b) for b in levels]
     t0 = time.perf_counter()
     probes: dict = {}
+    dry_cache: dict = {}
     targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
     start = min(hi, max(lo, 0.0))  # the default cook's k_f
     with Harness(scene, resolution, cache_float=True) as h:
@@ -433,6 +471,11 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
 
         def memory(c) -> float:
             return sum(run(*c)["cap_percent"]) / len(levels)
+
+        def dry(x: float, e: float) -> float:  # the memory of a probe, without rendering it
+            if (x, e) in probes:
+                return memory((x, e))
+            return cap_memory(scene, settings, x, e, levels, dry_cache)
 
         def least_passing(f, a: float, b: float):
             """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
@@ -463,9 +506,12 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
                 if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
                     best = min(memory(c) for c in candidates)
                     if memory((x, loosest)) < best:
-                        x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, x + tolerance,
+                        guess = _predict([(x, psnrs(run(x, loosest)))], targets)
+                        guess = x + tolerance * max(1, math.ceil((guess - x) / tolerance - 1e-9))
+                        x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, guess,
                                           psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
-                                          give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best)
+                                          give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best,
+                                          before=lambda t: dry(t, loosest) >= best)
                         if x1 is not None:
                             candidates.append((x1, loosest))
             elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
@@ -487,7 +533,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,
-                                    progress=progress, run_reduced=run)
+                                    progress=progress, run_reduced=run, dry=dry)
             reached = confirmation["passed"]
             chosen = confirmation.pop("chosen")
             confirmation.pop("chosen_knobs")
