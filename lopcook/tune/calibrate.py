@@ -328,8 +328,8 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
     "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
     probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
     the target: the moves that cost less memory than the anchor (the default cook's knobs, or the
-    choice's where it is stricter) -- toward the anchor as far as the model needs, and one step
-    stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
+    choice's where it is stricter) and not the same as the choice -- toward the anchor as far as
+    the model needs, and one step stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
     than the default) steps stricter on both knobs, at most ``CONFIRM_STEPS`` probes on the gate in
     all. The passing probe with the least memory is kept."""
     views, resolution = confirm
@@ -378,8 +378,10 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
                 moves.append((x, e + 1.0))
             # the cheaper move first (memory is known without rendering), only moves cheaper than the
             # anchor, then the anchor
+            # (a move whose memory equals the choice's changes no bit that matters: skipped)
             limit = dry(*anchor) if anchor != c0 else math.inf
-            moves = sorted((m for m in dict.fromkeys(moves) if m != c0 and m != anchor and dry(*m) < limit),
+            moves = sorted((m for m in dict.fromkeys(moves)
+                            if m != c0 and m != anchor and dry(*c0) != dry(*m) < limit),
                            key=lambda m: (dry(*m), m))
             if anchor != c0:
                 moves.append(anchor)
