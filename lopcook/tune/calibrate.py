@@ -532,6 +532,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         confirmation = None
         same = confirm is not None and _same_harness(confirm, views, resolution)
         if reached and confirm is not None and not same:
+            h.float_cache, h.cached_bytes = {}, 0  # the gate's harness caches its own
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,
