@@ -146,3 +146,18 @@ def test_bad_arguments_are_usage_errors(scene, kw, match):
     with pytest.raises(LopcookError, match=match) as exc:
         C.calibrate(scene, AnalyseSettings(), **kw)
     assert exc.value.exit_code == EXIT_BAD_INPUT
+
+
+def test_a_gate_probe_stops_at_its_first_failing_level(gl, scene, probes):
+    """``stop_below``: renders end after the first level that misses the target (the probe fails
+    anyway); a target every level reaches renders everything, with the same numbers."""
+    full = probes[0.0]
+    with C.Harness(scene, RES, cache_float=True) as h:
+        high = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing(),
+                       stop_below=(max(full["psnr_min_per_level"]) + 1.0, "min"))
+        low = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing(),
+                      stop_below=(min(full["psnr_min_per_level"]) - 1.0, "min"))
+    assert high["complete"] is False and high["psnr_min_per_level"] == full["psnr_min_per_level"][:1]
+    assert not C._passes(high, max(full["psnr_min_per_level"]) + 1.0)
+    assert low["complete"] is True and low["psnr_min_per_level"] == full["psnr_min_per_level"]
+    assert low["cap_bytes"] == full["cap_bytes"]

@@ -66,7 +66,8 @@ directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
 object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
 choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
-views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only). A
+views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only; a
+gate probe stops rendering at its first level that misses the target). A
 search never ends below the default cook's quality: when the gate misses the target, the
 confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
 choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
@@ -145,14 +146,18 @@ def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
 
 def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
           viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
-          edge_scale: float = 0.0) -> dict:
+          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None) -> dict:
     """Cook ``scene`` with every k_f scaled by ``sigma`` (and edge_eps divided by 2^``edge_scale``)
     and render its CAP buffers.
 
     Returns ``{"sigma", "log2_sigma", "eps", "edge_scale", "edge_eps", "edges", "kf", "kf_normal",
     "psnr_min" (min over levels of the min over views, dB; None = identical), "psnr_mean" (min over
     levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
-    "cap_bytes" [per level], "depth_order_errors" (summed), "seconds"}``."""
+    "cap_bytes" [per level], "depth_order_errors" (summed), "seconds", "complete"}``.
+
+    ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
+    misses the target (the probe fails whatever the other levels give); the per-level lists then
+    hold the levels rendered and ``complete`` is False."""
     from ..analyse import analyse
     from ..emit import build
     from ..emit.container import from_bytes
@@ -165,7 +170,19 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     if ingest_options is not None:
         opts["ingest"] = ingest_options
     c = from_bytes(build(scene, analysis, options=opts, viewing=viewing), None)
-    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",))
+    stop = None
+    if stop_below is not None:
+        from ..verify import metrics as M
+
+        target, statistic = float(stop_below[0]), stop_below[1]
+
+        def stop(per_view) -> bool:
+            if statistic == "mean":
+                v = M.mean_mse_psnr([m["mse"] for m in per_view])
+            else:
+                v = min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
+            return v is not None and v < target
+    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
     per_level = [r["cap"]["psnr_min"] for r in res["levels"]]
     per_level_mean = [r["cap"]["psnr_mean"] for r in res["levels"]]
     finite = [p for p in per_level if p is not None]
@@ -188,6 +205,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
         "cap_bytes": [r["cap"]["bytes"] for r in res["levels"]],
         "depth_order_errors": int(sum(r["cap"]["depth_order_errors"] for r in res["levels"])),
         "seconds": round(time.perf_counter() - t0, 3),
+        "complete": len(res["levels"]) == len(list(levels)),
     }
 
 
@@ -341,7 +359,8 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
         def run(c):
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=levels, views=views, viewing=viewing,
-                          options=options, ingest_options=ingest_options, edge_scale=c[1])
+                          options=options, ingest_options=ingest_options, edge_scale=c[1],
+                          stop_below=(target_psnr, statistic))
                 p["confirm"] = True
                 probed[c] = p
                 out["probes"].append(p)
