@@ -31,8 +31,8 @@ level of the bits it buys), so per level PSNR is modelled as linear in log2 sigm
 doubling from one probe, the secant through the two probes nearest the crossing from two (its slope
 clipped to [0.2, 12] dB: a flat curve, e.g. edge-limited, sends the next probe to the range's end). The first probe is the default cook's k_f (sigma 1, the anchor of the
 confirmation); each next probe is the grid point where the model predicts every level reaches the
-target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes; a
-prediction that does not halve the bracket is followed by a bisection, and after ``MODEL_STEPS``
+target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes;
+when two predictions in a row have not halved the bracket a bisection follows, and after ``MODEL_STEPS``
 predictions only bisections are made. When the first probe fails, ``hi`` is probed next. Typical
 cost: 3-6 probes per search instead of the bisection's 8. The chosen sigma passed when probed; if
 the PSNR is not monotonic in sigma somewhere inside the bracket, a smaller passing sigma may exist
@@ -49,8 +49,9 @@ sigma (less memory on edge vertices; bisection on whole steps, the loosest probe
 did not, the least x_e in (0, EDGE_RANGE] passing at the largest sigma, then the k_f search again at
 that x_e; (2c) after (2a), if the edges could not be loosened all the way and the loosest edges at
 the sigma of (1) cost less memory than the best choice so far, the k_f search above that sigma with
-the loosest edges, at most ``EDGE_KF_PROBES`` probes and stopped by a failing probe that already
-costs as much memory as the best choice.
+the loosest edges, at most ``EDGE_KF_PROBES`` probes, over the grid points whose memory (known
+without rendering) is below the best choice's, and stopped by a failing probe that already costs as
+much.
 Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
 chosen (which wins on which kind of asset: docs/tune.md). Every choice
 passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
@@ -112,7 +113,7 @@ SLOPE_MIN, SLOPE_MAX = 0.2, 12.0
 #: predictions of the model per k_f search before it bisects what is left of the bracket
 MODEL_STEPS = 4
 #: at most this many probes for k_f at the loosest edges (step 2c), an optional saving
-EDGE_KF_PROBES = 2
+EDGE_KF_PROBES = 4
 #: the model aims this far above the target (dB): the predicted grid point should pass
 MODEL_MARGIN_DB = 0.1
 #: the confirmation's move toward the default aims this far above the target on the gate (dB)
@@ -283,10 +284,12 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
     when ``start`` fails, ``hi`` is probed next (with ``reach_check``; the target is unreachable
     when it fails). Ends when the bracket is one grid step wide (the passing end is returned), when
     the lowest grid point passes, when ``hi`` fails (None), when ``give_up(probe)`` is true for a
-    failing probe (None: the caller needs no pass above it), when ``before(x)`` is true for the
-    next point (None, nothing probed there: e.g. its memory, known without rendering, is already too
-    much) or after ``max_probes`` probes (the least passing point so far, or None). A prediction that does not halve the bracket is followed
-    by a bisection (as in Dekker's method); after ``MODEL_STEPS`` predictions only bisections."""
+    failing probe (None: the caller needs no pass above it) or after ``max_probes`` probes (the
+    least passing point so far, or None). ``before(x)`` true for the next point (nothing probed
+    there: e.g. its memory, known without rendering, is already too much) removes it and every
+    point above it from the search, which goes on below it. When two predictions in a row have not
+    halved the bracket a bisection follows (as in Dekker's method); after ``MODEL_STEPS``
+    predictions only bisections."""
     n_steps = max(1, int(math.ceil((hi - lo) / tol - 1e-9)))
 
     def xk(k: int) -> float:
@@ -304,16 +307,21 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
     k = min(n_steps, max(0, int(round((min(hi, max(lo, start)) - lo) / tol))))
     predictions = 0
-    width_before = None  # unprobed grid points inside the bracket before the last prediction
+    widths: list = []  # unprobed grid points inside the bracket at each prediction since a bisection
+    ceiling = n_steps  # grid points above it are of no use (``before``)
     while True:
         passed = at(k)
-        if passed is None:
-            kp = min((j for j, (v, _) in seen.items() if v), default=None)
-            return None if kp is None or kp > k else xk(kp)
-        if not passed and give_up is not None and give_up(seen[k][1]):
-            return None
         kp = min((j for j, (v, _) in seen.items() if v), default=None)
         kf = max((j for j, (v, _) in seen.items() if not v and (kp is None or j < kp)), default=None)
+        if passed is None:  # nothing at or above k is of use: search below it
+            ceiling = min(ceiling, k - 1)
+            low = 0 if kf is None else kf + 1
+            if ceiling < low:
+                return None if kp is None or kp > k else xk(kp)
+            k = (low + ceiling + 1) // 2
+            continue
+        if not passed and give_up is not None and give_up(seen[k][1]):
+            return None
         if kp == 0:
             return xk(0)
         if kp is None and kf is not None and kf >= n_steps:
@@ -325,16 +333,19 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
         if reach_check and kp is None and n_steps not in seen:  # the start failed: is the target reachable?
             k = n_steps
             continue
-        low, high = (0 if kf is None else kf + 1), (n_steps if kp is None else kp - 1)
+        low, high = (0 if kf is None else kf + 1), min(ceiling, n_steps if kp is None else kp - 1)
+        if high < low:
+            return None if kp is None else xk(kp)
         width = high - low + 1
-        bisect = predictions >= MODEL_STEPS or (width_before is not None and 2 * width > width_before)
+        # two predictions in a row that did not halve the bracket: bisect once
+        bisect = predictions >= MODEL_STEPS or (len(widths) >= 2 and 2 * width > widths[-2])
         if not bisect:
             predictions += 1
-            width_before = width
+            widths.append(width)
             x_star = _predict([(xk(j), psnrs(p)) for j, (_, p) in seen.items()], targets)
             k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else low
         else:
-            width_before = None
+            widths = []
             k_star = (low + high) // 2
         k = min(high, max(low, k_star))
 
