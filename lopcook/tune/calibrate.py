@@ -75,7 +75,8 @@ choice's on a knob where it is stricter -- first as far as the model needs (per 
 shortfall at the choice against the PSNR the reduced harness gains between the choice and the
 anchor, aiming 0.25 dB above the target; whole grid steps), then to the anchor itself; only when
 the anchor is stricter than the default cook does it step further (log2 sigma + ``tolerance`` and
-x_e + 1) -- at most ``CONFIRM_STEPS`` probes on the gate in all. The passing gate probe with the
+x_e + 1); after a pass on the k_f line it tries the point the gate's own secant (failed choice,
+pass) predicts -- at most ``CONFIRM_STEPS`` probes on the gate in all. The passing gate probe with the
 least memory is the choice; ``reached`` is False (exit 1 in ``cook``) only when every gate probe
 missed, i.e. when even the anchor -- the default cook, for a choice looser than it -- fails the
 gate. ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the paper's CAP alone
@@ -359,8 +360,9 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
     the target: the moves that cost less memory than the anchor (the default cook's knobs, or the
     choice's where it is stricter) and not the same as the choice -- toward the anchor as far as
     the model needs, and one step stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
-    than the default) steps stricter on both knobs, at most ``CONFIRM_STEPS`` probes on the gate in
-    all. The passing probe with the least memory is kept."""
+    than the default) steps stricter on both knobs; after a pass on the k_f line, the point the
+    gate's own secant (failed choice, pass) predicts; at most ``CONFIRM_STEPS`` probes on the gate
+    in all. The passing probe with the least memory is kept."""
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
@@ -426,6 +428,15 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
                 cur = nxt
             for m in moves[:CONFIRM_STEPS - 1]:
                 if ok(m):
+                    # a pass on the k_f line: the gate's own secant between the failed choice and
+                    # the pass may find less memory that passes (one more probe, if the budget has it)
+                    if m[1] == e and m[0] > x and len(probed) < CONFIRM_STEPS:
+                        g0, g1 = _level_psnrs(probed[c0], statistic), _level_psnrs(probed[m], statistic)
+                        n = min(len(g0), len(g1))
+                        guess = _predict([(x, g0[:n]), (m[0], g1[:n])], [target_psnr + CONFIRM_MARGIN_DB] * n)
+                        between = (snap_x(guess), e)
+                        if x < between[0] < m[0]:
+                            ok(between)
                     break
         passing = [c for c in probed if _passes(probed[c], target_psnr, statistic)]
         chosen = min(passing, key=lambda c: (sum(probed[c]["cap_percent"]), c)) if passing else None
