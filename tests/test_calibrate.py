@@ -161,3 +161,14 @@ def test_a_gate_probe_stops_at_its_first_failing_level(gl, scene, probes):
     assert not C._passes(high, max(full["psnr_min_per_level"]) + 1.0)
     assert low["complete"] is True and low["psnr_min_per_level"] == full["psnr_min_per_level"]
     assert low["cap_bytes"] == full["cap_bytes"]
+
+
+def test_probes_with_the_same_minimum_levels_share_their_renders(gl, scene, probes):
+    """Two probes whose analyses give the same minimum levels (here: the same sigma, and a sigma a
+    hair away) render once (``Harness.memo``) and report the same numbers as a fresh probe."""
+    with C.Harness(scene, RES, cache_float=True) as h:
+        a = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing())
+        b = C.probe(scene, AnalyseSettings(), 1.0 + 1e-12, h, levels=LEVELS, views=VIEWS, viewing=Viewing())
+        assert len(h.memo) == 1
+    assert a["psnr_min_per_level"] == b["psnr_min_per_level"] == probes[0.0]["psnr_min_per_level"]
+    assert a["cap_bytes"] == b["cap_bytes"] == probes[0.0]["cap_bytes"]

@@ -346,6 +346,9 @@ class Harness:
         self.float_cache: dict = {}
         self.cache_bytes = FLOAT_CACHE_BYTES if cache_bytes is None else int(cache_bytes)
         self.cached_bytes = 0
+        #: results callers keep by what they rendered (the calibration: probes whose containers have
+        #: the same minimum levels, so the same decoded positions, render the same)
+        self.memo: dict = {}
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
