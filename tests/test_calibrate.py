@@ -74,7 +74,11 @@ def test_search_returns_the_least_passing_sigma_within_tolerance(searched, targe
     assert r["sigma"] == chosen["sigma"] and r["eps"] == chosen["eps"]
     curve = r["curve"]
     assert [p["log2_sigma"] for p in curve] == sorted(p["log2_sigma"] for p in curve)
-    assert curve[0]["log2_sigma"] == -4.0 and curve[-1]["log2_sigma"] == 4.0  # both ends probed
+    assert 0.0 in [p["log2_sigma"] for p in curve]  # the search starts at the default cook's k_f
+    # the model needs fewer probes than a bisection of the range to the same grid (2 ends + 4 halvings)
+    assert len(curve) < 2 + 4
+    grid = [(p["log2_sigma"] + 4.0) / 0.5 for p in curve]
+    assert all(g == round(g) for g in grid)  # every probe on the grid lo + k * tolerance
     # bisection: a failing probe lies within the tolerance below the choice
     below = [p for p in curve if r["log2_sigma"] - 0.5 <= p["log2_sigma"] < r["log2_sigma"]]
     assert below and all(p["psnr_min"] is not None and p["psnr_min"] < target for p in below)
@@ -91,8 +95,13 @@ def test_calibrated_settings_reproduce_the_chosen_probe(gl, scene, searched):
 
 
 def test_an_easy_target_takes_the_lower_end(gl, scene, probes):
-    r = C.calibrate(scene, AnalyseSettings(), target_psnr=probes[-4.0]["psnr_min"] - 1.0, **KW)
-    assert r["reached"] and r["log2_sigma"] == -4.0 and len(r["curve"]) == 1
+    # the default's k_f passes by a margin the model (6 dB per doubling) reads as room past the
+    # range's end: the lower end is probed next, and passes
+    easy = probes[-4.0]["psnr_min"] - 10.0
+    assert (probes[0.0]["psnr_min"] - easy) / C.SLOPE_DB > 4.0
+    r = C.calibrate(scene, AnalyseSettings(), target_psnr=easy, **KW)
+    assert r["reached"] and r["log2_sigma"] == -4.0
+    assert [p["log2_sigma"] for p in r["curve"]] == [-4.0, 0.0]
     C.require_reached(r)  # reached: no error
 
 
@@ -137,3 +146,29 @@ def test_bad_arguments_are_usage_errors(scene, kw, match):
     with pytest.raises(LopcookError, match=match) as exc:
         C.calibrate(scene, AnalyseSettings(), **kw)
     assert exc.value.exit_code == EXIT_BAD_INPUT
+
+
+def test_a_gate_probe_stops_at_its_first_failing_level(gl, scene, probes):
+    """``stop_below``: renders end after the first level that misses the target (the probe fails
+    anyway); a target every level reaches renders everything, with the same numbers."""
+    full = probes[0.0]
+    with C.Harness(scene, RES, cache_float=True) as h:
+        high = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing(),
+                       stop_below=(max(full["psnr_min_per_level"]) + 1.0, "min"))
+        low = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing(),
+                      stop_below=(min(full["psnr_min_per_level"]) - 1.0, "min"))
+    assert high["complete"] is False and high["psnr_min_per_level"] == full["psnr_min_per_level"][:1]
+    assert not C._passes(high, max(full["psnr_min_per_level"]) + 1.0)
+    assert low["complete"] is True and low["psnr_min_per_level"] == full["psnr_min_per_level"]
+    assert low["cap_bytes"] == full["cap_bytes"]
+
+
+def test_probes_with_the_same_minimum_levels_share_their_renders(gl, scene, probes):
+    """Two probes whose analyses give the same minimum levels (here: the same sigma, and a sigma a
+    hair away) render once (``Harness.memo``) and report the same numbers as a fresh probe."""
+    with C.Harness(scene, RES, cache_float=True) as h:
+        a = C.probe(scene, AnalyseSettings(), 1.0, h, levels=LEVELS, views=VIEWS, viewing=Viewing())
+        b = C.probe(scene, AnalyseSettings(), 1.0 + 1e-12, h, levels=LEVELS, views=VIEWS, viewing=Viewing())
+        assert len(h.memo) == 1
+    assert a["psnr_min_per_level"] == b["psnr_min_per_level"] == probes[0.0]["psnr_min_per_level"]
+    assert a["cap_bytes"] == b["cap_bytes"] == probes[0.0]["cap_bytes"]

@@ -17,27 +17,41 @@ settings unchanged (depth constraints included; they do not depend on sigma). Re
 attribute unit; ``kf_normal`` = sigma * ks * n, the paper's Phong k_f, when the scene has normals).
 
 Memory grows with sigma (every minimum level is a non-decreasing function of it), and the PSNR
-nearly always does too. The search: probe sigma = 2^lo and 2^hi (defaults 2^-8 and 2^8); if 2^lo
-already passes it is chosen, if 2^hi fails the target is unreachable (``reached`` False: the coverage
-error of vertices whose attributes do not vary, e.g. flat faces, does not depend on k_f); otherwise
-bisect on log2 sigma until the bracket is ``tolerance`` wide (default 0.25: sigma within 19%) and
-choose the passing end. A probe passes when, at every level, the CAP PSNR statistic is >= the
+nearly always does too. A probe passes when, at every level, the CAP PSNR statistic is >= the
 target: ``statistic="min"`` (default) the minimum over views (every view must reach it; a view
 identical to the float render counts as infinite), ``"mean"`` the PSNR of the view-averaged MSE
-(Purnomo et al. average the per-view errors; one view with few object pixels weighs less). The
-chosen sigma passed when probed; if the PSNR is not monotonic in sigma somewhere inside the bracket,
-a smaller passing sigma may exist (the curve shows it).
+(Purnomo et al. average the per-view errors; one view with few object pixels weighs less).
+
+The model (``model_search``). The search runs on the grid ``lo + k * tolerance`` of log2 sigma
+(defaults [-8, 8] and 0.25: sigma within 19%) and returns its least passing point whose grid
+neighbour below fails (or ``lo`` when it passes; None when ``hi`` fails: the target is unreachable,
+e.g. the coverage error of vertices whose attributes do not vary, flat faces, does not depend on
+k_f). Shading error is a quantization error: MSE falls about 4x per doubling of the k_f scale (per
+level of the bits it buys), so per level PSNR is modelled as linear in log2 sigma, 6.02 dB per
+doubling from one probe, the secant through the two probes nearest the crossing from two (its slope
+clipped to [0.2, 12] dB: a flat curve, e.g. edge-limited, sends the next probe to the range's end). The first probe is the default cook's k_f (sigma 1, the anchor of the
+confirmation); each next probe is the grid point where the model predicts every level reaches the
+target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes;
+when two predictions in a row have not halved the bracket a bisection follows, and after ``MODEL_STEPS``
+predictions only bisections are made. When the first probe fails, ``hi`` is probed next. Typical
+cost: 3-6 probes per search instead of the bisection's 8. The chosen sigma passed when probed; if
+the PSNR is not monotonic in sigma somewhere inside the bracket, a smaller passing sigma may exist
+(the curve shows it).
 
 The second knob: ``edge_eps`` of the discontinuity constraint (``lopcook.analyse.discontinuity``;
 hard edges, sub-pixel folds, open boundaries and seams need m >= B_v + ceil(log2(0.5 J / edge_eps)),
 which k_f cannot set: on flat-shaded assets the coverage error along edges does not depend on k_f).
 It is searched as a strictness ``x_e`` (``edge_eps = settings.edge_eps / 2^x_e``, at most 1, in whole
 steps: with J = 1 one step is one bit on every edge vertex). ``search="kf+edge"`` (the default when
-the settings have ``edges`` on) is a coordinate search: (1) the k_f bisection above at x_e = 0; (2a)
+the settings have ``edges`` on) is a coordinate search: (1) the k_f search above at x_e = 0; (2a)
 if it reached the target, the loosest x_e in [-log2(1 / edge_eps), 0] that still passes at the chosen
-sigma (less memory on edge vertices); (2b) if it did not, the least x_e in (0, EDGE_RANGE] passing at
-the largest sigma, then the k_f bisection again at that x_e; (2c) after (2a), if the edges could
-not be loosened all the way, the k_f bisection (above the sigma of (1)) with the loosest edges.
+sigma (less memory on edge vertices; bisection on whole steps, the loosest probed first); (2b) if it
+did not, the least x_e in (0, EDGE_RANGE] passing at the largest sigma, then the k_f search again at
+that x_e; (2c) after (2a), if the edges could not be loosened all the way and the loosest edges at
+the sigma of (1) cost less memory than the best choice so far, the k_f search above that sigma with
+the loosest edges, at most ``EDGE_KF_PROBES`` probes, over the grid points whose memory (known
+without rendering) is below the best choice's, and stopped by a failing probe that already costs as
+much.
 Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
 chosen (which wins on which kind of asset: docs/tune.md). Every choice
 passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
@@ -48,27 +62,36 @@ Cost and the reduced harness. Each probe = analyse + build + CAP renders at ever
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
 covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
-directions more coarsely. Check the chosen k_f with ``lopcook verify OUT.lop --source SOURCE`` at
-the full 20 views and 1280 x 720.
+directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 
-The reduced harness is not the gate (fewer views can miss the worst one, and a small object is
-sensitive to its sub-pixel placement; docs/tune.md has the measured misses). So the choice is
-**confirmed** with the gate's
-harness (``confirm``, default ``lopcook verify``'s 20 views at 1280 x 720): while it misses the
-target there, one step stricter on the edges (edge strictness + 1) and on k_f (log2 sigma +
-``tolerance``) are tried and the passing one with less memory kept, else both steps are taken (at
-most ``CONFIRM_STEPS`` times); ``reached`` is then the confirmed result, and the confirmation
-probes are recorded (``confirmation``). ``confirm=None`` (CLI ``--no-calibration-confirm``) skips
-it. With the paper's CAP alone (``edges`` off) hard-surface assets cannot reach 40 dB at any k_f:
-their residual error is coverage along hard edges and sub-pixel folds whose vertices have E_v = 0
-(docs/analyse.md, section 2b).
+Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
+object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
+choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
+views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only; a
+gate probe stops rendering at its first level that misses the target). A
+search never ends below the default cook's quality: when the gate misses the target, the
+confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
+choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
+shortfall at the choice against the PSNR the reduced harness gains between the choice and the
+anchor, aiming 0.25 dB above the target; whole grid steps), then to the anchor itself; only when
+the anchor is stricter than the default cook does it step further (log2 sigma + ``tolerance`` and
+x_e + 1); after a pass on the k_f line it tries the point the gate's own secant (failed choice,
+pass) predicts -- at most ``CONFIRM_STEPS`` probes on the gate in all. The passing gate probe with the
+least memory is the choice; ``reached`` is False (exit 1 in ``cook``) only when every gate probe
+missed, i.e. when even the anchor -- the default cook, for a choice looser than it -- fails the
+gate. ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the paper's CAP alone
+(``edges`` off) hard-surface assets cannot reach 40 dB at any k_f: their residual error is coverage
+along hard edges and sub-pixel folds whose vertices have E_v = 0 (docs/analyse.md, section 2b).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from dataclasses import replace
+
+import numpy as np
 
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
@@ -81,13 +104,26 @@ CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
 #: the gate's harness (``lopcook verify --source`` defaults): the calibration's choice is confirmed there
 CONFIRM = (VIEW_COUNT, RESOLUTION)
-#: at most this many raises of log2 sigma by ``tolerance`` while the confirmation misses the target
-CONFIRM_STEPS = 8
+#: at most this many probes on the gate's harness (the choice, then moves toward the default cook)
+CONFIRM_STEPS = 4
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
 STATISTICS = ("min", "mean")
 SEARCHES = ("kf", "kf+edge")
 EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (edge_eps / 2^8 at most)
+#: the model's slope of PSNR per doubling of sigma with one probe (MSE / 4: 10 log10 4 dB) and its clip
+SLOPE_DB = 10.0 * math.log10(4.0)
+SLOPE_MIN, SLOPE_MAX = 0.2, 12.0
+#: predictions of the model per k_f search before it bisects what is left of the bracket
+MODEL_STEPS = 4
+#: at most this many probes for k_f at the loosest edges (step 2c), an optional saving
+EDGE_KF_PROBES = 4
+#: the model aims this far above the target (dB): the predicted grid point should pass
+MODEL_MARGIN_DB = 0.1
+#: the confirmation's move toward the default aims this far above the target on the gate (dB)
+CONFIRM_MARGIN_DB = 0.25
+#: an identical render (PSNR None, infinite) in the model's arithmetic, dB
+INF_DB = 200.0
 
 
 def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
@@ -101,6 +137,13 @@ def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
     return out
 
 
+def _log2(sigma: float) -> float:
+    """log2 sigma, exact for the searched grid (multiples of 2^-10, where 2^x round-trips)."""
+    lg = math.log2(float(sigma))
+    r = round(lg * 1024.0) / 1024.0
+    return r if 2.0**r == float(sigma) else lg
+
+
 def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
     """edge_eps at strictness ``edge_scale`` (x_e): settings.edge_eps / 2^x_e, at most 1."""
     return min(1.0, float(settings.edge_eps) / 2.0**float(edge_scale))
@@ -108,14 +151,20 @@ def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
 
 def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
           viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
-          edge_scale: float = 0.0) -> dict:
+          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None) -> dict:
     """Cook ``scene`` with every k_f scaled by ``sigma`` (and edge_eps divided by 2^``edge_scale``)
     and render its CAP buffers.
 
     Returns ``{"sigma", "log2_sigma", "eps", "edge_scale", "edge_eps", "edges", "kf", "kf_normal",
     "psnr_min" (min over levels of the min over views, dB; None = identical), "psnr_mean" (min over
     levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
-    "cap_bytes" [per level], "depth_order_errors" (summed), "seconds"}``."""
+    "cap_bytes" [per level], "depth_order_errors" (summed), "seconds", "complete"}``.
+
+    ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
+    misses the target (the probe fails whatever the other levels give); the per-level lists then
+    hold the levels rendered and ``complete`` is False. A probe whose minimum levels equal an earlier
+    one's on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart)
+    reuses its renders (``Harness.memo``): identical minimum levels give identical buffers."""
     from ..analyse import analyse
     from ..emit import build
     from ..emit.container import from_bytes
@@ -128,7 +177,26 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     if ingest_options is not None:
         opts["ingest"] = ingest_options
     c = from_bytes(build(scene, analysis, options=opts, viewing=viewing), None)
-    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",))
+    stop = None
+    if stop_below is not None:
+        from ..verify import metrics as M
+
+        target, statistic = float(stop_below[0]), stop_below[1]
+
+        def stop(per_view) -> bool:
+            if statistic == "mean":
+                v = M.mean_mse_psnr([m["mse"] for m in per_view])
+            else:
+                v = min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
+            return v is not None and v < target
+    # the same minimum levels give the same binned buffers and the same renders: reuse them
+    key = (hashlib.sha256(b"".join(np.ascontiguousarray(pa.min_level).tobytes() for pa in analysis.parts)).digest(),
+           tuple(int(b) for b in levels), repr(views))
+    res = harness.memo.get(key)
+    if res is None:
+        res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
+        if len(res["levels"]) == len(list(levels)):
+            harness.memo[key] = res
     per_level = [r["cap"]["psnr_min"] for r in res["levels"]]
     per_level_mean = [r["cap"]["psnr_mean"] for r in res["levels"]]
     finite = [p for p in per_level if p is not None]
@@ -136,7 +204,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     kf = _kf_dict(scene, settings, sigma)
     return {
         "sigma": float(sigma),
-        "log2_sigma": math.log2(sigma),
+        "log2_sigma": _log2(sigma),
         "eps": float(s.eps),
         "edge_scale": float(edge_scale),
         "edge_eps": float(s.edge_eps),
@@ -151,7 +219,29 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
         "cap_bytes": [r["cap"]["bytes"] for r in res["levels"]],
         "depth_order_errors": int(sum(r["cap"]["depth_order_errors"] for r in res["levels"])),
         "seconds": round(time.perf_counter() - t0, 3),
+        "complete": len(res["levels"]) == len(list(levels)),
     }
+
+
+def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cache: dict | None = None) -> float:
+    """Mean over ``levels`` of the CAP memory (% of float32 positions) of the cook at log2 sigma ``x``
+    and edge strictness ``e``: what ``probe`` reports as ``cap_percent``, from the analysis and the
+    build alone (no render). ``cache`` (a dict) keeps results by (x, e)."""
+    from ..analyse import analyse
+    from ..emit import build
+    from ..emit.container import from_bytes
+    from ..verify.buffers import position_bytes
+
+    if cache is not None and (x, e) in cache:
+        return cache[(x, e)]
+    s = replace(settings, eps=settings.eps / 2.0**x, edge_eps=_edge_eps(settings, e))
+    c = from_bytes(build(scene, analyse(scene, s), options={"analyse": s.to_record()}), None)
+    f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
+    lods = [0] * len(c.manifest["parts"])
+    out = sum(100.0 * position_bytes(c, lods, int(b))["cap"] / max(f32, 1) for b in levels) / len(levels)
+    if cache is not None:
+        cache[(x, e)] = out
+    return out
 
 
 def _passes(p: dict, target: float, statistic: str = "min") -> bool:
@@ -166,25 +256,136 @@ def _same_harness(confirm, views, resolution) -> bool:
     return select_views(cv) == select_views(views) and tuple(cr) == tuple(resolution)
 
 
-def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, target_psnr: float, statistic: str,
-             confirm, *, edges: bool, levels, viewing, options, ingest_options, progress) -> dict:
-    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness; while it
-    fails, try one step stricter on each knob -- the edges (``e + 1``: one more bit on edge
-    vertices, when the search used them) and k_f (``x + tolerance``) -- and keep the passing one with
-    the least memory; when neither passes, take both steps (at most ``CONFIRM_STEPS`` times, x never
-    beyond ``hi``, e never beyond ``EDGE_RANGE``). Coverage error along edges does not depend on
-    k_f and shading error does not depend on the edges, so both are tried."""
+def _level_psnrs(p: dict, statistic: str) -> list[float]:
+    """Per level, the probe's PSNR statistic in dB (an identical render, None, counts as ``INF_DB``)."""
+    return [INF_DB if v is None else float(v) for v in p[f"psnr_{statistic}_per_level"]]
+
+
+def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> float:
+    """The least log2 sigma at which every level is predicted to reach its target (dB), from probes
+    ``points`` = [(log2 sigma, PSNR per level)] of one edge strictness (module doc, "The model").
+
+    Per level: PSNR is taken as linear in log2 sigma through the two probes nearest the level's
+    crossing (the highest failing and the lowest passing one when both exist), its slope clipped
+    to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling (a flat curve sends the next probe far: to the range's end); with one probe the slope is ``SLOPE_DB``
+    (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB)."""
+    pts = sorted(points, key=lambda t: t[0])
+    need = -math.inf
+    for li, target in enumerate(targets):
+        below = [(x, ps[li]) for x, ps in pts if ps[li] < target]
+        above = [(x, ps[li]) for x, ps in pts if ps[li] >= target]
+        if below and above and max(b[0] for b in below) < min(a[0] for a in above):
+            (xa, pa), (xb, pb) = max(below), min(above)
+        elif len(pts) >= 2:
+            near = sorted(pts, key=lambda t: abs(t[1][li] - target))[:2]
+            (xa, pa), (xb, pb) = sorted((x, ps[li]) for x, ps in near)
+        else:
+            (xa, pa) = (xb, pb) = (pts[0][0], pts[0][1][li])
+        slope = (pb - pa) / (xb - xa) if xb > xa else SLOPE_DB
+        slope = min(SLOPE_MAX, max(SLOPE_MIN, slope))
+        ref_x, ref_p = (xa, pa) if abs(pa - target) <= abs(pb - target) else (xb, pb)
+        need = max(need, ref_x + (target - ref_p) / slope)
+    return need
+
+
+def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs, targets, give_up=None,
+                 max_probes: int | None = None, reach_check: bool = True, before=None):
+    """Least x on the grid ``lo + k * tol`` (``hi`` the last point) with ``ok(run(x))``, assuming
+    ``ok`` is non-decreasing in x: probe ``start``, then the grid point the model predicts
+    (``_predict`` over every probe made so far, ``psnrs(probe)`` per level, ``targets`` per level),
+    clamped strictly inside the bracket of the highest failing and the lowest passing grid points;
+    when ``start`` fails, ``hi`` is probed next (with ``reach_check``; the target is unreachable
+    when it fails). Ends when the bracket is one grid step wide (the passing end is returned), when
+    the lowest grid point passes, when ``hi`` fails (None), when ``give_up(probe)`` is true for a
+    failing probe (None: the caller needs no pass above it) or after ``max_probes`` probes (the
+    least passing point so far, or None). ``before(x)`` true for the next point (nothing probed
+    there: e.g. its memory, known without rendering, is already too much) removes it and every
+    point above it from the search, which goes on below it. When two predictions in a row have not
+    halved the bracket a bisection follows (as in Dekker's method); after ``MODEL_STEPS``
+    predictions only bisections."""
+    n_steps = max(1, int(math.ceil((hi - lo) / tol - 1e-9)))
+
+    def xk(k: int) -> float:
+        return hi if k >= n_steps else lo + k * tol
+
+    seen: dict = {}
+
+    def at(k: int) -> bool | None:
+        if k not in seen:
+            if before is not None and before(xk(k)):
+                return None
+            p = run(xk(k))
+            seen[k] = (ok(p), p)
+        return seen[k][0]
+
+    k = min(n_steps, max(0, int(round((min(hi, max(lo, start)) - lo) / tol))))
+    predictions = 0
+    widths: list = []  # unprobed grid points inside the bracket at each prediction since a bisection
+    ceiling = n_steps  # grid points above it are of no use (``before``)
+    while True:
+        passed = at(k)
+        kp = min((j for j, (v, _) in seen.items() if v), default=None)
+        kf = max((j for j, (v, _) in seen.items() if not v and (kp is None or j < kp)), default=None)
+        if passed is None:  # nothing at or above k is of use: search below it
+            ceiling = min(ceiling, k - 1)
+            low = 0 if kf is None else kf + 1
+            if ceiling < low:
+                return None if kp is None or kp > k else xk(kp)
+            k = (low + ceiling + 1) // 2
+            continue
+        if not passed and give_up is not None and give_up(seen[k][1]):
+            return None
+        if kp == 0:
+            return xk(0)
+        if kp is None and kf is not None and kf >= n_steps:
+            return None
+        if kp is not None and kf is not None and kp - kf <= 1:
+            return xk(kp)
+        if max_probes is not None and len(seen) >= max_probes:
+            return None if kp is None else xk(kp)
+        if reach_check and kp is None and n_steps not in seen:  # the start failed: is the target reachable?
+            k = n_steps
+            continue
+        low, high = (0 if kf is None else kf + 1), min(ceiling, n_steps if kp is None else kp - 1)
+        if high < low:
+            return None if kp is None else xk(kp)
+        width = high - low + 1
+        # two predictions in a row that did not halve the bracket: bisect once
+        bisect = predictions >= MODEL_STEPS or (len(widths) >= 2 and 2 * width > widths[-2])
+        if not bisect:
+            predictions += 1
+            widths.append(width)
+            x_star = _predict([(xk(j), psnrs(p)) for j, (_, p) in seen.items()], targets)
+            k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else low
+        else:
+            widths = []
+            k_star = (low + high) // 2
+        k = min(high, max(low, k_star))
+
+
+def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
+             statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
+             run_reduced, dry) -> dict:
+    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
+    "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
+    probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
+    the target: the moves that cost less memory than the anchor (the default cook's knobs, or the
+    choice's where it is stricter) and not the same as the choice -- toward the anchor as far as
+    the model needs, and one step stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
+    than the default) steps stricter on both knobs; after a pass on the k_f line, the point the
+    gate's own secant (failed choice, pass) predicts; at most ``CONFIRM_STEPS`` probes on the gate
+    in all. The passing probe with the least memory is kept."""
     views, resolution = confirm
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
     probed: dict = {}
-    # no float-render cache here: at 20 views x 1280x720 it would hold ~1 GB (7 levels); the float
-    # renders are redone per probe instead
-    with Harness(scene, resolution, cache_float=False) as h:
+    # the float renders are cached (cropped to the object's box, capped): a second probe renders CAP only
+    with Harness(scene, resolution, cache_float=True) as h:
         def run(c):
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=levels, views=views, viewing=viewing,
-                          options=options, ingest_options=ingest_options, edge_scale=c[1])
+                          options=options, ingest_options=ingest_options, edge_scale=c[1],
+                          stop_below=(target_psnr, statistic))
                 p["confirm"] = True
                 probed[c] = p
                 out["probes"].append(p)
@@ -195,25 +396,66 @@ def _confirm(scene, settings, x: float, e: float, hi: float, tolerance: float, t
         def ok(c) -> bool:
             return _passes(run(c), target_psnr, statistic)
 
-        cur = (x, e)
-        chosen = cur if ok(cur) else None
-        for _ in range(CONFIRM_STEPS):
-            if chosen is not None:
-                break
-            edge_step = edges and cur[1] + 1 <= EDGE_RANGE
-            moves = ([(cur[0], cur[1] + 1)] if edge_step else []) + ([(min(hi, cur[0] + tolerance), cur[1])]
-                                                                    if cur[0] < hi else [])
-            if not moves:
-                break
-            passing = [m for m in moves if ok(m)]
-            if passing:
-                chosen = min(passing, key=lambda m: (sum(run(m)["cap_percent"]), m[0]))
-                break
-            cur = (min(hi, cur[0] + tolerance), cur[1] + (1 if edge_step else 0))
-            if ok(cur):
-                chosen = cur
+        def snap_x(v: float) -> float:  # whole tolerance steps above x, at most hi
+            return min(hi, x + tolerance * math.ceil((v - x) / tolerance - 1e-9)) if v > x else x
+
+        c0 = (x, e)
+        if not ok(c0):
+            anchor = (snap_x(max(x, 0.0)), max(e, 0.0) if edges else e)
+            moves = []
+            if anchor != c0:
+                # per level: how much the gate misses what the reduced harness saw at the choice, and
+                # how far toward the anchor the reduced harness's PSNR rises by that much
+                red0 = _level_psnrs(curve[c0], statistic)
+                red1 = _level_psnrs(run_reduced(*anchor), statistic)
+                gate0 = _level_psnrs(run(c0), statistic)
+                t = 0.0
+                for r0, r1, g0 in zip(red0, red1, gate0):
+                    if g0 >= target_psnr + CONFIRM_MARGIN_DB:
+                        continue
+                    gain = r1 - r0
+                    t = max(t, 1.0 if gain <= 0 else (target_psnr + CONFIRM_MARGIN_DB - g0) / gain)
+                t = min(1.0, t)
+                mid = (snap_x(x + t * (anchor[0] - x)), e + math.ceil(t * (anchor[1] - e) - 1e-9))
+                moves.append(mid)
+            if edges and e + 1.0 <= EDGE_RANGE:  # coverage along edges does not depend on k_f
+                moves.append((x, e + 1.0))
+            # the cheaper move first (memory is known without rendering), only moves cheaper than the
+            # anchor, then the anchor
+            # (a move whose memory equals the choice's changes no bit that matters: skipped)
+            limit = dry(*anchor) if anchor != c0 else math.inf
+            moves = sorted((m for m in dict.fromkeys(moves)
+                            if m != c0 and m != anchor and dry(*c0) != dry(*m) < limit),
+                           key=lambda m: (dry(*m), m))
+            if anchor != c0:
+                moves.append(anchor)
+            # past the anchor only when it is stricter than the default cook (the choice was)
+            stricter = anchor[0] > 0.0 or (edges and anchor[1] > 0.0)
+            cur = anchor
+            while stricter and len(moves) < CONFIRM_STEPS - 1:
+                nxt = (min(hi, cur[0] + tolerance), min(float(EDGE_RANGE), cur[1] + 1.0) if edges else cur[1])
+                if nxt == cur:
+                    break
+                moves.append(nxt)
+                cur = nxt
+            for m in moves[:CONFIRM_STEPS - 1]:
+                if ok(m):
+                    # a pass on the k_f line: the gate's own secant between the failed choice and
+                    # the pass may find less memory that passes (one more probe, if the budget has it)
+                    if m[1] == e and m[0] > x and len(probed) < CONFIRM_STEPS:
+                        g0, g1 = _level_psnrs(probed[c0], statistic), _level_psnrs(probed[m], statistic)
+                        n = min(len(g0), len(g1))
+                        guess = _predict([(x, g0[:n]), (m[0], g1[:n])], [target_psnr + CONFIRM_MARGIN_DB] * n)
+                        between = (snap_x(guess), e)
+                        if x < between[0] < m[0]:
+                            ok(between)
+                    break
+        passing = [c for c in probed if _passes(probed[c], target_psnr, statistic)]
+        chosen = min(passing, key=lambda c: (sum(probed[c]["cap_percent"]), c)) if passing else None
         out["passed"] = chosen is not None
-        out["chosen"] = run(chosen if chosen is not None else cur)
+        out["chosen"] = probed[chosen] if chosen is not None else max(
+            probed.values(), key=lambda p: min(_level_psnrs(p, statistic)))
+        out["chosen_knobs"] = chosen
     return out
 
 
@@ -227,21 +469,21 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
     ``target_psnr`` dB, ``levels`` (per-buffer levels, default 6..12), ``views`` (int or indices),
     ``resolution`` (w, h), ``viewing`` (recorded in each probe container: its field of view and pixel
-    error set the camera distances), ``log2_range`` (lo, hi) of log2 sigma, ``tolerance`` (bracket
-    width in log2 sigma), ``options``/``ingest_options`` (recorded in the probe containers),
-    ``progress(probe_dict)`` called after each probe, ``statistic`` ("min" or "mean" over views),
-    ``search`` ("kf" or "kf+edge", module doc; default "kf+edge" when ``settings.edges``, else "kf"),
-    ``confirm`` ((views, (w, h)) of the gate's harness, default 20 views at 1280 x 720; None: no
-    confirmation; skipped when it equals the search harness).
+    error set the camera distances), ``log2_range`` (lo, hi) of log2 sigma, ``tolerance`` (grid step
+    of log2 sigma: the choice passes and the grid point below it fails), ``options``/``ingest_options``
+    (recorded in the probe containers), ``progress(probe_dict)`` called after each probe,
+    ``statistic`` ("min" or "mean" over views), ``search`` ("kf" or "kf+edge", module doc; default
+    "kf+edge" when ``settings.edges``, else "kf"), ``confirm`` ((views, (w, h)) of the gate's
+    harness, default 20 views at 1280 x 720; None: no confirmation; skipped when it equals the
+    search harness).
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
     ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
-    passing probe with the least sigma, then the loosest edge_eps; the largest probed sigma when
-    unreachable), ``search``, ``chosen`` (that probe), ``curve`` (every probe, sorted by sigma,
-    then edge strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per
-    level, ...), ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, and
-    ``confirmation`` (None, or ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the
-    gate's harness, in order]).
+    passing probe with the least memory; the best probe when unreachable), ``search``, ``chosen``
+    (that probe), ``curve`` (every probe on the search's harness, sorted by sigma, then edge
+    strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per level, ...),
+    ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, and ``confirmation`` (None, or
+    ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the gate's harness, in order]).
     """
     search = search or ("kf+edge" if settings.edges else "kf")
     if search not in SEARCHES:
@@ -257,6 +499,9 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     levels = [int(b) for b in levels]
     t0 = time.perf_counter()
     probes: dict = {}
+    dry_cache: dict = {}
+    targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
+    start = min(hi, max(lo, 0.0))  # the default cook's k_f
     with Harness(scene, resolution, cache_float=True) as h:
         def run(x: float, e: float = 0.0) -> dict:
             if (x, e) not in probes:
@@ -270,14 +515,31 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         def ok(x: float, e: float = 0.0) -> bool:
             return _passes(run(x, e), target_psnr, statistic)
 
-        def least_passing(f, a: float, b: float, tol: float):
-            """Smallest t in [a, b] with f(t) (f non-decreasing in t), to ``tol``; None when f(b) fails."""
+        def passes(p: dict) -> bool:
+            return _passes(p, target_psnr, statistic)
+
+        def psnrs(p: dict) -> list[float]:
+            return _level_psnrs(p, statistic)
+
+        def kf_search(e: float, a: float, x_start: float, give_up=None):
+            return model_search(lambda t: run(t, e), passes, a, hi, tolerance, x_start, psnrs, targets, give_up)
+
+        def memory(c) -> float:
+            return sum(run(*c)["cap_percent"]) / len(levels)
+
+        def dry(x: float, e: float) -> float:  # the memory of a probe, without rendering it
+            if (x, e) in probes:
+                return memory((x, e))
+            return cap_memory(scene, settings, x, e, levels, dry_cache)
+
+        def least_passing(f, a: float, b: float):
+            """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
             if f(a):
                 return a
             if not f(b):
                 return None
-            while b - a > tol:  # f(a) fails, f(b) passes
-                m = 0.5 * (a + b) if tol < 1 else float(math.floor(0.5 * (a + b)))
+            while b - a > 1.0:  # f(a) fails, f(b) passes
+                m = float(math.floor(0.5 * (a + b)))
                 if m <= a:
                     break
                 if f(m):
@@ -288,36 +550,49 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
 
         # (1) k_f at the given edge_eps
         e = 0.0
-        x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+        x = kf_search(e, lo, start)
         candidates = [] if x is None else [(x, e)]
         if search == "kf+edge" and settings.edges:
             loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
             if x is not None and loosest < 0:
                 # (2a) loosen the edges while the target holds at the chosen k_f
-                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0, 1.0)
+                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
                 candidates.append((x, e1))
-                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f
-                    x1 = least_passing(lambda t: ok(t, loosest), x, hi, tolerance)
-                    if x1 is not None:
-                        candidates.append((x1, loosest))
+                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
+                    best = min(memory(c) for c in candidates)
+                    if memory((x, loosest)) < best:
+                        guess = _predict([(x, psnrs(run(x, loosest)))], targets)
+                        guess = x + tolerance * max(1, math.ceil((guess - x) / tolerance - 1e-9))
+                        x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, guess,
+                                          psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
+                                          give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best,
+                                          before=lambda t: dry(t, loosest) >= best)
+                        if x1 is not None:
+                            candidates.append((x1, loosest))
             elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
-                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE), 1.0)
+                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE))
                 if e_found is not None:
                     e = e_found
-                    x = least_passing(lambda t: ok(t, e), lo, hi, tolerance)
+                    x = kf_search(e, lo, hi)
                     candidates = [(x, e)]
         reached = bool(candidates)
         if reached:  # the least position memory, averaged over the levels (ties: less k_f)
-            x, e = min(candidates, key=lambda c: (sum(run(*c)["cap_percent"]) / len(levels), c[0]))
-        chosen = run(x, e) if reached else run(hi, e)
-    confirmation = None
-    same = confirm is not None and _same_harness(confirm, views, resolution)
-    if reached and confirm is not None and not same:
-        confirmation = _confirm(scene, settings, x, e, hi, tolerance, target_psnr, statistic, confirm,
-                                edges=search == "kf+edge" and bool(settings.edges), levels=levels, viewing=viewing,
-                                options=options, ingest_options=ingest_options, progress=progress)
-        reached = confirmation["passed"]
-        chosen = confirmation.pop("chosen")
+            x, e = min(candidates, key=lambda c: (memory(c), c[0]))
+            chosen = run(x, e)
+        else:
+            x = hi
+            chosen = run(x, e)
+        confirmation = None
+        same = confirm is not None and _same_harness(confirm, views, resolution)
+        if reached and confirm is not None and not same:
+            h.float_cache, h.cached_bytes = {}, 0  # the gate's harness caches its own
+            confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
+                                    edges=search == "kf+edge" and bool(settings.edges), levels=levels,
+                                    viewing=viewing, options=options, ingest_options=ingest_options,
+                                    progress=progress, run_reduced=run, dry=dry)
+            reached = confirmation["passed"]
+            chosen = confirmation.pop("chosen")
+            confirmation.pop("chosen_knobs")
     curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
     return {
         "target_psnr": float(target_psnr),
@@ -408,7 +683,8 @@ def format_calibration(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE", "probe", "calibrate",
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
+           "SLOPE_DB", "MODEL_STEPS", "probe", "model_search", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
 
 

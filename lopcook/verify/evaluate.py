@@ -29,7 +29,8 @@ scene's bounding box where the half-pixel criterion selects B (``camera_distance
 level-8 distance: the harness sanity check), ``distance_m`` fixes one distance for every row.
 
 Metrics: ``lopcook.verify.metrics`` (PSNR over object pixels, max error, share > 1/255, depth-order
-errors from the part-ID images).
+errors from the part-ID images), computed per view by ``metrics.view_metrics`` in one pass over the
+pixels where the test render differs from the float one.
 
 Cost: every (level, view) renders float, AP and CAP once (the float render is reused when the
 harness caches it); GPU buffers are uploaded once per level and reused across views. ``views`` and
@@ -121,11 +122,13 @@ def camera_rows(lv, cl, distance_m, extent, viewing) -> list[tuple[int, int, flo
 
 
 def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, variants, keep_images,
-                 image_view, seconds) -> tuple[list, dict | None]:
+                 image_view, seconds, stop=None) -> tuple[list, dict | None]:
     """The per-level render loop shared by ``evaluate`` and ``evaluate_scene``.
 
     plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned GL
-    objects released after the level). Returns (rows without the variants' bytes: per variant
+    objects released after the level); stop(per_view) -> bool, called after each level with the
+    first variant's per-view ``metrics.image_metrics`` dicts: True ends the loop there (the rows
+    rendered so far are returned). Returns (rows without the variants' bytes: per variant
     ``(per_view metrics, depth metrics)`` under ``"_raw"``, images or None)."""
     rows = []
     images = None
@@ -150,8 +153,9 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                 t0 = time.perf_counter()
                 float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
                 for v in variants:
-                    per_view[v].append(M.image_metrics(ref_rgba, outs[v][0]))
-                    depth[v].append(M.depth_order_errors(ref_ids, outs[v][1]))
+                    colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1])
+                    per_view[v].append(colour)
+                    depth[v].append(order)
                 seconds["metrics"] += time.perf_counter() - t0
                 if keep_images and level == coarsest:
                     score = per_view[variants[0]][-1]["sum_sq"]
@@ -176,6 +180,8 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
             "float_object_pixels": float_pixels,
             "_raw": {v: (per_view[v], depth[v]) for v in variants},
         })
+        if stop is not None and stop(per_view[variants[0]]):
+            break
     return rows, images
 
 
@@ -205,8 +211,9 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None) -> dict:
-    """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result."""
+                     image_view, lod=LOD, distance_m=None, stop=None) -> dict:
+    """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
+    ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order)."""
     t_start = time.perf_counter()
     scene = h.scene
     variants = tuple(variants)
@@ -251,7 +258,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     try:
         rows, images = render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
                                     shading=shading, draws=draws, variants=variants, keep_images=keep_images,
-                                    image_view=image_view, seconds=seconds)
+                                    image_view=image_view, seconds=seconds, stop=stop)
     finally:
         for entry in attr_cache.values():
             for b in entry[2]:

@@ -31,6 +31,7 @@ documented convention. Images are returned top row first.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +53,38 @@ AMBIENT = 0.15
 DIFFUSE = 0.65
 #: base colour of a part with neither texture nor vertex colours (linear grey)
 BASE_GREY = 0.8
+#: pixels added on every side of the projected box a draw is limited to (``Renderer.screen_rect``)
+RECT_MARGIN = 2
+#: the most bytes a harness's float-render cache holds (cropped renders, ``Harness``)
+FLOAT_CACHE_BYTES = 384 << 20
+
+
+def _crop(rgba: np.ndarray, ids: np.ndarray):
+    """(box, rgba crop, ids crop) of a render: the box of its non-background pixels (alpha > 0 or a
+    part ID), None when there are none; IDs as uint16 when they fit."""
+    occupied = (rgba[..., 3] != 0) | (ids != 0)
+    rows = np.flatnonzero(occupied.any(axis=1))
+    if rows.size == 0:
+        return None, np.zeros((0, 0, 4), np.uint8), np.zeros((0, 0), np.uint16)
+    cols = np.flatnonzero(occupied.any(axis=0))
+    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    if np.any(rgba[~occupied]):
+        box = (0, rgba.shape[0], 0, rgba.shape[1])  # background not the clear colour: keep it all
+    crop = ids[box[0]:box[1], box[2]:box[3]]
+    crop = crop.astype(np.uint16) if int(ids.max(initial=0)) < 65536 else crop.copy()
+    return box, rgba[box[0]:box[1], box[2]:box[3]].copy(), crop
+
+
+def _expand(entry, size) -> tuple[np.ndarray, np.ndarray]:
+    """The full (rgba, ids) render of a ``_crop`` entry at ``size`` (w, h)."""
+    box, rgba_c, ids_c = entry
+    w, h = size
+    rgba = np.zeros((h, w, 4), np.uint8)
+    ids = np.zeros((h, w), np.uint32)
+    if box is not None:
+        rgba[box[0]:box[1], box[2]:box[3]] = rgba_c
+        ids[box[0]:box[1], box[2]:box[3]] = ids_c
+    return rgba, ids
 
 
 @dataclass(frozen=True)
@@ -126,19 +159,53 @@ class Renderer:
             if name in program:
                 program[name].value = value
 
+    def screen_rect(self, camera: Camera, items):
+        """(x, y, w, h) pixels (GL convention, origin bottom left) holding every fragment of
+        ``items``: the projection of the union of their boxes (each item's ``box`` = (lo, hi) world
+        metres bounding every position it can draw) widened by ``RECT_MARGIN`` pixels and clipped
+        to the viewport; None (the whole viewport) when an item has no box or a box corner is not
+        in front of the eye."""
+        boxes = [it.get("box") for it in items]
+        w, h = self.size
+        if not boxes or any(b is None for b in boxes):
+            return None
+        lo = np.min([b[0] for b in boxes], axis=0).astype(np.float64)
+        hi = np.max([b[1] for b in boxes], axis=0).astype(np.float64)
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        clip = corners @ np.asarray(camera.mvp, np.float64).T
+        if not np.all(clip[:, 3] > 1e-6 * np.abs(clip[:, :3]).max(initial=1.0)) or not np.all(np.isfinite(clip)):
+            return None
+        px = (clip[:, 0] / clip[:, 3] + 1.0) * 0.5 * w
+        py = (clip[:, 1] / clip[:, 3] + 1.0) * 0.5 * h
+        x0 = max(0, int(math.floor(px.min())) - RECT_MARGIN)
+        x1 = min(w, int(math.ceil(px.max())) + RECT_MARGIN)
+        y0 = max(0, int(math.floor(py.min())) - RECT_MARGIN)
+        y1 = min(h, int(math.ceil(py.max())) + RECT_MARGIN)
+        if x1 <= x0 or y1 <= y0:
+            return (0, 0, 1, 1)
+        return (x0, y0, x1 - x0, y1 - y0)
+
     def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
         """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
-        ``ssbo`` / ``ubo`` when ``decoded``) from ``camera`` with ``shading``, depth test on, no
-        culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first: the
-        MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
-        (part index + 1, 0 = background). Leaves the context's default 1x1 framebuffer bound."""
+        ``ssbo`` / ``ubo`` when ``decoded``; optional ``box``) from ``camera`` with ``shading``, depth
+        test on, no culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first:
+        the MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
+        (part index + 1, 0 = background). Clear, draw, resolve and read-back are limited to
+        ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
+        whole-viewport render would give, filled in on the CPU). Leaves the context's default 1x1
+        framebuffer bound."""
         import moderngl
 
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
         self._uniforms(program, camera, shading)
+        rect = self.screen_rect(camera, items)
+        full = (0, 0, self.size[0], self.size[1])
+        region = full if rect is None else rect
+        for fbo in (self.fbo_ms, self.fbo_ms_colour, self.fbo_colour, self.fbo_ids):
+            fbo.scissor = None if rect is None else rect
         self.fbo_ms.use()
-        self.fbo_ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.fbo_ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=None if rect is None else rect)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for it in items:
@@ -153,6 +220,7 @@ class Renderer:
                 it["texture"].use(location=0)
             it["vao"].render(moderngl.TRIANGLES)
         # resolve: colour by a blit (average of samples), part IDs by sample 0
+        self.fbo_colour.use()
         ctx.copy_framebuffer(self.fbo_colour, self.fbo_ms_colour)
         self.fbo_ids.use()
         ctx.disable(moderngl.DEPTH_TEST)
@@ -160,8 +228,15 @@ class Renderer:
         self.resolve_program["u_ids"].value = 1
         self.resolve_vao.render(moderngl.TRIANGLES, vertices=3)
         w, h = self.size
-        rgba = np.frombuffer(self.fbo_colour.read(components=4, dtype="f1"), np.uint8).reshape(h, w, 4)[::-1].copy()
-        ids = np.frombuffer(self._ids.read(), "<u4").reshape(h, w)[::-1].copy()
+        x0, y0, rw, rh = region
+        rgba = np.zeros((h, w, 4), np.uint8)
+        ids = np.zeros((h, w), np.uint32)
+        got = np.frombuffer(self.fbo_colour.read(viewport=region, components=4, dtype="f1"), np.uint8)
+        rgba[h - y0 - rh:h - y0, x0:x0 + rw] = got.reshape(rh, rw, 4)[::-1]
+        got = np.frombuffer(self.fbo_ids.read(viewport=region, components=1, dtype="u4"), "<u4")
+        ids[h - y0 - rh:h - y0, x0:x0 + rw] = got.reshape(rh, rw)[::-1]
+        for fbo in (self.fbo_ms, self.fbo_ms_colour, self.fbo_colour, self.fbo_ids):
+            fbo.scissor = None
         from . import gpu
 
         gpu.use_default_framebuffer()  # leave the context as gpu.py expects it (1x1 default target)
@@ -241,8 +316,12 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
         vao = ctx.vertex_array(program, [(pos, "3f", "in_position"), *specs], index_buffer=ibo,
                                index_element_size=4)
         owned += [pos, ibo, *bufs, vao]
+        box = None
+        if p.positions.size:
+            f = np.asarray(p.positions, np.float32).astype(np.float64)
+            box = (f.min(axis=0), f.max(axis=0))
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
-                      "has_color": p.colors is not None, "texture": textures.get(p.texture)})
+                      "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box})
     return items, owned
 
 
@@ -250,9 +329,14 @@ class Harness:
     """GPU state for one source scene at one resolution: the renderer, float-position draws of the
     source parts, textures, and an optional cache of float renders (``cache_float=True``: keyed by
     the camera matrix, eye and shading, reused across containers of the same scene, e.g. by the k_f
-    calibration or the byte-budget fit; about 8 bytes per pixel per cached view)."""
+    calibration or the byte-budget fit). A cached render keeps only the box of its object pixels
+    (outside it the image is background: RGBA 0 and part ID 0, exactly what the renderer clears to),
+    at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; renders past
+    ``cache_bytes`` (default ``FLOAT_CACHE_BYTES``) are not cached. A hit returns the same arrays a
+    fresh render would (re-expanded to the full size)."""
 
-    def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False):
+    def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False,
+                 cache_bytes: int | None = None):
         from . import gpu
 
         self.ctx = gpu.context()
@@ -261,6 +345,11 @@ class Harness:
         self.textures = Textures(self.ctx)
         self.cache_float = cache_float
         self.float_cache: dict = {}
+        self.cache_bytes = FLOAT_CACHE_BYTES if cache_bytes is None else int(cache_bytes)
+        self.cached_bytes = 0
+        #: results callers keep by what they rendered (the calibration: probes whose containers have
+        #: the same minimum levels, so the same decoded positions, render the same)
+        self.memo: dict = {}
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
@@ -273,6 +362,7 @@ class Harness:
         self.textures.release()
         self.renderer.release()
         self.float_cache = {}
+        self.cached_bytes = 0
 
     def __enter__(self):
         return self
@@ -284,22 +374,28 @@ class Harness:
         """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
         (hashable: camera matrix, eye and shading) the result is computed once and reused."""
         if self.cache_float and key is not None and key in self.float_cache:
-            return self.float_cache[key]
+            return _expand(self.float_cache[key], self.renderer.size)
         out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
         if self.cache_float and key is not None:
-            self.float_cache[key] = out
+            entry = _crop(*out)
+            size = entry[1].nbytes + entry[2].nbytes
+            if self.cached_bytes + size <= self.cache_bytes:
+                self.float_cache[key] = entry
+                self.cached_bytes += size
         return out
 
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
                  keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
-                 distance_m: float | None = None) -> dict:
-        """See ``lopcook.verify.evaluate.evaluate``."""
+                 distance_m: float | None = None, stop=None) -> dict:
+        """See ``lopcook.verify.evaluate.evaluate``; ``stop(per_view) -> bool`` after each level ends
+        the render early (``lopcook.verify.evaluate.render_rows``: only the levels rendered are in
+        the result)."""
         from .evaluate import harness_evaluate
 
         return harness_evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
                          variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
-                         image_view=image_view, lod=lod, distance_m=distance_m)
+                         image_view=image_view, lod=lod, distance_m=distance_m, stop=stop)
 
     def evaluate_scene(self, test_scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                        distance_m: float | None = None, extent: float | None = None,
@@ -352,6 +448,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     from .gpu import decode_block
 
     items, owned = [], []
+    # every decoded position lies in the grid's cube (24-bit integers, at most 2^24 - 1, plus half a cell)
+    lo = np.asarray(origin, np.float64)
+    grid_box = (lo, lo + float(half_cell) * 2.0 * float(1 << 24))
     for i, p in enumerate(scene.parts):
         k = lods[i]
         if i not in attr_cache:
@@ -373,9 +472,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
-                      "has_color": has_color, "texture": texture})
+                      "has_color": has_color, "texture": texture, "box": grid_box})
     return items, owned
 
 
-__all__ = ["RESOLUTION", "SAMPLES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
