@@ -9,8 +9,9 @@ import io
 import numpy as np
 import pytest
 
+from lopcook.verify.metrics import depth_error_mask
 from lopcook.report.images import (CROP_MARGIN_PX, CROP_TARGET_PX, ZOOM_TARGET_PX, apply_crop, crop_box,
-                                   depth_error_mask, depth_overlay, png_data_uri, squared_error, worst_window)
+                                   depth_overlay, png_data_uri, squared_error, worst_window)
 
 
 def test_crop_box_rules():

@@ -25,7 +25,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..atomic import write_atomic
-from .images import apply_crop, crop_box, depth_error_mask, depth_overlay, png_data_uri
+from ..verify.metrics import depth_error_mask
+from .images import apply_crop, crop_box, depth_overlay, png_data_uri
 from .model import report_json_bytes
 from .svg import budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
 from .text import escape, fmt_pct, fmt_psnr, warning_groups

@@ -117,20 +117,6 @@ def worst_window(error: np.ndarray, crop: dict) -> dict | None:
             "sum_sq": best, "share": min(1.0, best / total)}
 
 
-def depth_error_mask(reference_ids: np.ndarray, test_ids: np.ndarray) -> np.ndarray:
-    """(h, w) bool: the depth-order error pixels of ``lopcook.verify.metrics.depth_order_errors`` (both
-    renders cover the pixel, with different parts, and the reference's 3x3 neighbourhood, clipped at
-    the border, holds one part only), so ``mask.sum()`` equals its ``depth_order_errors``."""
-    ref, tst = np.asarray(reference_ids), np.asarray(test_ids)
-    p = np.pad(ref, 1, mode="edge")
-    h, w = ref.shape
-    uniform = np.ones((h, w), dtype=bool)
-    for dy in (0, 1, 2):
-        for dx in (0, 1, 2):
-            uniform &= p[dy:dy + h, dx:dx + w] == ref
-    return (ref != 0) & (tst != 0) & (ref != tst) & uniform
-
-
 def depth_overlay(rgba: np.ndarray, mask: np.ndarray, colour=(255, 0, 255)) -> np.ndarray:
     """(h, w, 3) uint8: ``rgba`` (the float render) greyed and darkened, on white where it is background,
     with the ``mask`` pixels in ``colour`` (magenta): where the depth-order errors are."""
@@ -159,5 +145,5 @@ def png_data_uri(a: np.ndarray) -> str:
 
 
 __all__ = ["CROP_MARGIN_PX", "CROP_MARGIN_FRACTION", "CROP_TARGET_PX", "CROP_MAX_SCALE", "ZOOM_SIDE_PX",
-           "ZOOM_TARGET_PX", "crop_box", "apply_crop", "squared_error", "worst_window", "depth_error_mask",
+           "ZOOM_TARGET_PX", "crop_box", "apply_crop", "squared_error", "worst_window",
            "depth_overlay", "png_data_uri"]

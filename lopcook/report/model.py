@@ -34,7 +34,8 @@ import numpy as np
 
 from ..version import __version__
 from ..verify.baselines import UNIFORM16_BYTES_PER_VERTEX
-from .images import crop_box, depth_error_mask, squared_error, worst_window
+from ..verify.metrics import depth_error_mask
+from .images import crop_box, squared_error, worst_window
 
 #: bytes per vertex of float32 positions (3 x 4)
 FLOAT32_BYTES_PER_VERTEX = 12
@@ -114,7 +115,7 @@ def level_image_record(images: dict) -> dict:
 def depth_record(depth: dict | None) -> dict | None:
     """The record of the depth-order view (``render.depth_target``): ``level``, ``view``, ``variant``,
     ``errors`` (pixels, as the accuracy table counts them), ``pixels`` (the mask's count, the same
-    number: ``images.depth_error_mask``) and ``crop`` (around the object and the error pixels)."""
+    number: ``lopcook.verify.metrics.depth_error_mask``) and ``crop`` (around the object and the error pixels)."""
     if not depth:
         return None
     im = depth["images"]
@@ -140,8 +141,9 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
     the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
     (``options.lods.reports[i].notes``), else empty."""
-    sizes = {s["name"]: int(s["length"]) for s in manifest["sections"]}
-    max_level = int(manifest["positions"].get("max_level", 24))
+    from ..emit.manifest import Manifest
+
+    typed = Manifest.of(manifest)
     if not reports:
         reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
     out = []
@@ -151,11 +153,9 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
         for k, e in enumerate(part["lods"]):
             lo = starts[k] if starts[k] is not None else 0.0
             later = [s for s in starts if s is not None and s > lo]
-            vid = e["vertex_id"]
-            index_bytes = sizes.get(e["indices"], 0)
-            attribute_bytes = sum(sizes.get(e.get(key) or "", 0) for key in ("normals", "uvs", "colors"))
-            mandatory = 4 * int(e["mandatory_words"][1])
-            planes = sum((3 * int(vid[p - 1]) + 7) // 8 for p in range(2, max_level + 1))
+            t = typed.parts[i].lods[k]
+            index_bytes, attribute_bytes = t.index_bytes, t.attribute_bytes
+            mandatory, planes = t.mandatory_bytes, t.plane_bytes(typed.max_level)
             rows.append({"lod": k, "triangles": int(e["triangles"]), "vertices": int(e["vertices"]),
                          "geometric_error_m": float(e.get("geometric_error_m", 0.0)),
                          "min_distance_m": float(lo), "max_distance_m": min(later) if later else None,

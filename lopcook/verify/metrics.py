@@ -124,7 +124,7 @@ def _bbox(mask: np.ndarray):
     return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
 
 
-def _uniform_neighbourhood(ids: np.ndarray) -> np.ndarray:
+def uniform_neighbourhood(ids: np.ndarray) -> np.ndarray:
     """(h, w) bool: the 3x3 neighbourhood (clipped at the border) holds one value only."""
     ids = np.asarray(ids)
     pad = np.pad(ids, 1, mode="edge")
@@ -152,10 +152,18 @@ def depth_order_errors(reference_ids, test_ids) -> dict:
     ref, tst = ref[box], tst[box]
     both = (ref != 0) & (tst != 0)
     differ = both & (ref != tst)
-    interior = _uniform_neighbourhood(ref)
+    interior = uniform_neighbourhood(ref)
     return {"depth_order_errors": int(np.count_nonzero(differ & interior)),
             "part_mismatch": int(np.count_nonzero(differ)),
             "covered_both": int(np.count_nonzero(both))}
+
+
+def depth_error_mask(reference_ids, test_ids) -> np.ndarray:
+    """(h, w) bool: the pixels ``depth_order_errors`` counts (both renders cover the pixel, with
+    different parts, and the reference's 3x3 neighbourhood, clipped at the border, holds one part
+    only), so ``mask.sum()`` equals its ``depth_order_errors``."""
+    ref, tst = np.asarray(reference_ids), np.asarray(test_ids)
+    return (ref != 0) & (tst != 0) & (ref != tst) & uniform_neighbourhood(ref)
 
 
 def pooled_psnr(sum_sq: float, object_pixels: int) -> float | None:
