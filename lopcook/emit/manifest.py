@@ -227,7 +227,7 @@ class Manifest:
             lods = tuple(LodEntry(vertices=int(e["vertices"]), triangles=int(e["triangles"]),
                                   vertex_id=tuple(int(v) for v in e["vertex_id"]),
                                   geometric_error_m=float(e.get("geometric_error_m", 0.0)),
-                                  min_distance_m=e.get("min_distance_m"), index_width=int(e["index_width"]),
+                                  min_distance_m=e.get("min_distance_m"), index_width=int(e.get("index_width") or 0),
                                   section_bytes={k: sizes.get(e.get(k) or "", 0)
                                                  for k in ("indices", "normals", "uvs", "colors")})
                          for e in p["lods"])
