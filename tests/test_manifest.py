@@ -82,3 +82,10 @@ def test_manifest_of_reads_back(sphere_lods):
     _, result = sphere_lods
     again = from_bytes(result.container.data)
     assert Manifest.of(again.manifest) == result.container.entries
+
+
+def test_mandatory_bytes_are_the_packed_buffer_at_level_1(sphere_lods):
+    _, result = sphere_lods
+    for p in result.container.entries.parts:
+        for e in p.lods:
+            assert e.mandatory_bytes == e.cap_bytes(1) > 0

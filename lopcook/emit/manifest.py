@@ -160,6 +160,7 @@ class LodEntry:
     min_distance_m: float | None
     index_width: int
     section_bytes: dict
+    mandatory_words: int = 0
 
     def cap_bytes(self, level: int) -> int:
         """GPU-resident bytes of the binned (CAP) position buffer at per-buffer level B: every
@@ -180,8 +181,9 @@ class LodEntry:
 
     @property
     def mandatory_bytes(self) -> int:
-        """Stored bytes of its mandatory bits (the packed buffer at level 1)."""
-        return self.cap_bytes(1)
+        """Stored bytes of its mandatory bits (the packed buffer at level 1: ``cap_bytes(1)`` for
+        every container the reader accepts)."""
+        return 4 * self.mandatory_words
 
     def plane_bytes(self, max_level: int) -> int:
         """Stored bits of its refinement planes 2..max_level, in bytes rounded up per plane (the
@@ -229,7 +231,8 @@ class Manifest:
                                   geometric_error_m=float(e.get("geometric_error_m", 0.0)),
                                   min_distance_m=e.get("min_distance_m"), index_width=int(e.get("index_width") or 0),
                                   section_bytes={k: sizes.get(e.get(k) or "", 0)
-                                                 for k in ("indices", "normals", "uvs", "colors")})
+                                                 for k in ("indices", "normals", "uvs", "colors")},
+                                  mandatory_words=int((e.get("mandatory_words") or [0, 0])[1]))
                          for e in p["lods"])
             parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods))
         return cls(parts=tuple(parts), max_level=int(m["positions"]["max_level"]))
