@@ -187,13 +187,37 @@ class Scene:
         return np.stack([lo, hi])
 
     def validate(self) -> "Scene":
-        """Check every part (see MeshPart.validate) and that the scene is not empty; return self."""
+        """Check every part (see MeshPart.validate), that the scene is not empty and that it is
+        within ingest's limits (``lopcook.ingest.build``): at most ``MAX_PARTS`` parts and
+        ``MAX_TRIANGLES`` triangles over all placements, every coordinate within
+        ``MAX_COORDINATE`` metres of the origin, and the scene's distance from the origin at most
+        ``FLOAT32_RESOLUTION`` times its extent (1 m for a scene of one point), so float32 decoders
+        can resolve it; return self."""
+        from .ingest.build import FLOAT32_RESOLUTION, MAX_COORDINATE, MAX_PARTS, MAX_TRIANGLES
+
         if not self.parts:
             raise LopcookError("ingest", self.source, "the scene has no triangle meshes",
                                hint="export at least one mesh with triangles or polygons")
+        if len(self.parts) > MAX_PARTS:
+            raise LopcookError("ingest", self.source, f"the scene has {len(self.parts):,} parts, more than "
+                               f"the {MAX_PARTS:,} lopcook accepts", hint="merge parts or split the scene")
+        if self.n_triangles > MAX_TRIANGLES:
+            raise LopcookError("ingest", self.source, f"the scene has {self.n_triangles:,} triangles, more "
+                               f"than the {MAX_TRIANGLES:,} lopcook accepts", hint="simplify or split the scene")
         names = [p.name for p in self.parts]
         if len(set(names)) != len(names):
             raise LopcookError("ingest", self.source, "part names are not unique")
         for part in self.parts:
             part.validate(self.source)
+        lo, hi = self.bounds()
+        far = float(np.max(np.abs(np.stack([lo, hi]))))
+        if far > MAX_COORDINATE:
+            raise LopcookError("ingest", self.source, f"a position is {far:.3g} m from the origin, beyond the "
+                               f"{MAX_COORDINATE:.3g} m lopcook accepts (the decoders compute in float32)",
+                               hint="check the units and transforms, or move the scene near the origin")
+        extent = float(np.max(hi - lo))
+        if far > FLOAT32_RESOLUTION * (extent if extent > 0 else 1.0):
+            raise LopcookError("ingest", self.source, f"the scene spans {extent:.3g} m at {far:.3g} m from the "
+                               "origin: float32, which the decoders compute in, cannot tell its positions apart",
+                               hint="move the scene near the origin (or check the units and transforms)")
         return self

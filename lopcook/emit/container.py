@@ -143,7 +143,9 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
                               parse_constant=_no_constants)
     except (UnicodeDecodeError, ValueError) as exc:
-        fail(f"manifest is not valid JSON ({exc})")
+        fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
+    except RecursionError:
+        fail("manifest JSON is nested too deeply")
     from .manifest import validate_manifest
 
     validate_manifest(manifest, path)

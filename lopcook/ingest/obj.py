@@ -79,7 +79,7 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
-from .build import make_part, unique_names
+from .build import checked_texture, make_part, unique_names
 from .polygons import triangulate
 
 # byte classes -------------------------------------------------------------------------------
@@ -89,6 +89,9 @@ _BLANK = np.zeros(256, dtype=bool)        # indentation (no newline)
 _BLANK[[9, 11, 12, 13, 32]] = True
 _FACE_OK = _WS.copy()                     # bytes allowed in the corner list of an f line
 _FACE_OK[[ord(c) for c in "0123456789+-/"]] = True
+
+_NUMBER_BYTE = np.zeros(256, dtype=bool)  # bytes a number token is made of
+_NUMBER_BYTE[[ord(c) for c in "0123456789.eE+-"]] = True
 
 _V, _VT, _VN, _F = 1, 2, 3, 4
 
@@ -177,6 +180,16 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
     if b"\\\n" in data:
         raw = np.frombuffer(data, dtype=np.uint8)
         ctx.cont_pos = np.flatnonzero((raw[:-1] == 92) & (raw[1:] == 10))
+        # "1\\<newline>.5" would silently read as two numbers "1 .5": refuse a continuation
+        # between two characters of a number
+        cp = ctx.cont_pos
+        inside = cp[(cp > 0) & (cp + 2 < raw.size)]
+        inside = inside[_NUMBER_BYTE[raw[inside - 1]] & _NUMBER_BYTE[raw[inside + 2]]]
+        if inside.size:
+            at = int(inside[0])
+            line = int(np.count_nonzero(raw[:at] == 10)) + 1
+            raise LopcookError("ingest", ctx.path, f"line {line}: a line continuation (backslash at the end of "
+                               "the line) splits a number", hint="join the number on one line")
         data = data.replace(b"\\\n", b"  ")
     if not data.endswith(b"\n"):
         data = data + b"\n"
@@ -779,7 +792,8 @@ def _texture_for(ctx, mat, materials, cache, have_lib) -> Texture | None:
     else:
         try:
             with open(target, "rb") as fh:
-                tex = Texture(name=os.path.basename(target), data=fh.read())
+                tex = checked_texture(os.path.basename(target), fh.read(), ctx.warnings.append,
+                                      f"texture {os.path.basename(target)!r} of material {mat!r}")
         except OSError as exc:
             ctx.warnings.append(f"texture {os.path.basename(fpath)!r} unreadable ({exc.strerror}); no texture")
     cache[fpath] = tex
