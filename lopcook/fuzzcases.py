@@ -80,12 +80,19 @@ class Case:
     expect: str = "clean"
     slow: bool = False
 
+    @property
+    def run_directory(self) -> str:
+        """Working directory of the run (one per command, so runs over one input never share
+        outputs); the input is ``../source`` from there."""
+        return os.path.join(self.directory, f"run-{self.command}")
+
     def argv(self) -> list[str]:
+        src = os.path.join("..", self.source)
         if self.command == "cook":
-            return ["cook", self.source, "-o", "out.lop", "--depfile", "out.d", "--json"]
+            return ["cook", src, "-o", "out.lop", "--depfile", "out.d", "--json"]
         if self.command == "decode":
-            return ["decode", self.source, "--level", "24", "-o", "out.glb", "-q"]
-        return ["inspect", self.source]
+            return ["decode", src, "--level", "24", "-o", "out.glb", "-q"]
+        return ["inspect", src]
 
     def outputs(self) -> list[str]:
         return {"cook": ["out.lop", "out.d"], "decode": ["out.glb"]}.get(self.command, [])
@@ -768,7 +775,7 @@ def _usd_cases(w: _Writer, rng) -> None:
                                                    '@a.usda@) {')}, "a.usda", "clean")
     usd("reference_dev_zero", {"a.usda": plain.replace('def Xform "R" {', 'def Xform "R" (references = '
                                                        '@/dev/zero@) {')}, "a.usda", "refuse")
-    usd("sublayer_fifo", {"a.usda": plain.replace("upAxis = \"Y\"", "upAxis = \"Y\"\n subLayers = [@f.usda@]")},
+    usd("sublayer_missing", {"a.usda": plain.replace("upAxis = \"Y\"", "upAxis = \"Y\"\n subLayers = [@f.usda@]")},
         "a.usda", "clean")
     usd("not_usda", {"a.usda": "#usda 1.0\nthis is not usd {{{\n"}, "a.usda", "refuse")
     usd("usda_binary_junk", {"a.usda": b"#usda 1.0\n" + bytes(range(256)) * 4}, "a.usda", "refuse")
@@ -1003,9 +1010,13 @@ def _limit_resources() -> None:  # pragma: no cover - runs in the child
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
 
 
-def _snapshot(directory: str) -> dict[str, bytes | None]:
+def _snapshot(directory: str, run: str) -> dict[str, bytes | None]:
+    """name -> bytes of every regular file of the input directory (run directories excluded) and
+    of the run directory (``run/name``); None for links, FIFOs and directories."""
     out = {}
-    for name in sorted(os.listdir(directory)):
+    names = [n for n in os.listdir(directory) if not n.startswith("run-")]
+    names += [os.path.join(os.path.basename(run), n) for n in os.listdir(run)]
+    for name in sorted(names):
         p = os.path.join(directory, name)
         if os.path.islink(p) or not os.path.isfile(p):
             out[name] = None
@@ -1019,23 +1030,30 @@ def run_case(case: Case, *, python: str = sys.executable, env: dict | None = Non
     """Run one case through the CLI in a subprocess and classify it."""
     import time
 
-    d = case.directory
+    import shutil
+
+    d, run = case.directory, case.run_directory
+    shutil.rmtree(run, ignore_errors=True)
+    os.makedirs(run)
     for out in case.outputs():
-        with open(os.path.join(d, out), "wb") as fh:
+        with open(os.path.join(run, out), "wb") as fh:
             fh.write(SENTINEL)
-    before = _snapshot(d)
+    before = _snapshot(d, run)
     env = dict(os.environ if env is None else env)
     env.setdefault("PYTHONHASHSEED", "0")
     t0 = time.monotonic()
     try:
-        proc = subprocess.run([python, "-m", "lopcook", *case.argv()], cwd=d, env=env, capture_output=True,
+        proc = subprocess.run([python, "-m", "lopcook", *case.argv()], cwd=run, env=env, capture_output=True,
                               timeout=TIMEOUT_S, preexec_fn=_limit_resources, stdin=subprocess.DEVNULL)
         rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr.decode("utf-8", "replace")
     except subprocess.TimeoutExpired as exc:
         rc, stdout = None, exc.stdout or b""
         stderr = (exc.stderr or b"").decode("utf-8", "replace")
     seconds = time.monotonic() - t0
-    after = _snapshot(d)
+    after = _snapshot(d, run)
+    rel = os.path.basename(run)
+    before = {(k[len(rel) + 1:] if k.startswith(rel + os.sep) else k): v for k, v in before.items()}
+    after = {(k[len(rel) + 1:] if k.startswith(rel + os.sep) else k): v for k, v in after.items()}
     return classify(case, rc, stdout, stderr, before, after, seconds)
 
 
@@ -1047,7 +1065,8 @@ def classify(case: Case, rc, stdout: bytes, stderr: str, before: dict, after: di
         return result("timeout")
     if "Traceback (most recent call last)" in stderr:
         return result("traceback")
-    if re.search(r"MemoryError|out of memory|bad_alloc|Cannot allocate memory", stderr):
+    if re.search(r"MemoryError|out of memory|more memory than is available|Cannot allocate memory", stderr) \
+            or (rc != 2 and "bad_alloc" in stderr):
         return result("memory")
     if rc < 0:
         return result("signal", f"signal {-rc}")
@@ -1066,7 +1085,7 @@ def classify(case: Case, rc, stdout: bytes, stderr: str, before: dict, after: di
         lines = [ln for ln in stderr.splitlines() if ln.strip()]
         if len(lines) != 1:
             return result("multiline", f"{len(lines)} lines")
-        if case.source not in lines[0] or _EXC_NAMES.search(lines[0]):
+        if os.path.basename(case.source) not in lines[0] or _EXC_NAMES.search(lines[0]):
             return result("unnamed")
         return result("refused" if case.expect == "ok" else "clean")
     if rc == 0:

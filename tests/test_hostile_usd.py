@@ -28,7 +28,7 @@ def _write(tmp_path, text, name="a.usda"):
 def test_a_600_deep_hierarchy_loads(tmp_path):
     scene = load(_write(tmp_path, fz._deep_xform(600)))
     assert len(scene.parts) == 1 and scene.n_triangles == 12
-    assert scene.parts[0].source.count("/") == 603  # /R/x0/.../x599/m
+    assert scene.parts[0].source.count("/") == 602  # /R/x0/.../x599/m
 
 
 def test_a_20000_deep_hierarchy_loads_or_is_refused_cleanly(tmp_path):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from ..analyse.grid import MIN_EXTENT
 from ..errors import LopcookError
 
 FORMAT = "lopcook.lop"
@@ -135,6 +136,9 @@ def validate_manifest(m, path: str | None) -> None:
     extent = need(grid, "extent", float, "grid")
     if not extent > 0 or need(grid, "bits", int, "grid") != LEVELS:
         fail("grid.extent must be > 0 and grid.bits 24")
+    if extent < MIN_EXTENT:
+        fail(f"grid.extent {extent:g} is below the {MIN_EXTENT:g} m floor lopcook cooks with (its cells "
+             "would decode to subnormal float32 values)")
     if max(abs(v) for v in origin) + extent > F32_MAX:
         fail(f"grid origin {origin} + extent {extent:g} is beyond the float32 range")
 

@@ -8,6 +8,9 @@ GLB bytes), calls the loader from ``LOADERS`` and validates the result.
 from __future__ import annotations
 
 import os
+import warnings
+
+import numpy as np
 
 from ..errors import LopcookError
 from ..memory import release_free_memory
@@ -117,7 +120,9 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
     path = os.fspath(path)
     fmt = sniff(path)
     try:
-        scene = LOADERS[fmt](path, fmt, settings)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc.: reported as errors instead
+            scene = LOADERS[fmt](path, fmt, settings)
     except LopcookError:
         raise
     except MemoryError:
@@ -136,7 +141,28 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
             raise LopcookError("ingest", path, f"refers to a file whose name contains a line break or NUL "
                                f"({dep!r})", hint="rename the file and the reference: such a name cannot "
                                "be listed in a depfile")
-    return scene.validate()
+    with np.errstate(all="ignore"):
+        scene.validate()
+    _refuse_all_degenerate(scene)
+    return scene
+
+
+def _refuse_all_degenerate(scene: Scene) -> None:
+    """Refuse a scene none of whose triangles spans two cells of its 24-bit grid (every corner
+    of every triangle falls in one cell: all indices equal, all positions identical, a polygon
+    with no area...): there is no surface to cook and no edge to analyse. One such triangle among
+    good ones is cooked as usual (``inspect`` counts degenerate triangles)."""
+    from ..analyse.grid import Grid
+
+    grid = Grid.fit([p.positions for p in scene.parts])
+    for part in scene.parts:
+        q = grid.quantize(part.positions)[part.indices]  # (m, 3 corners, 3) grid integers
+        spans = np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)
+        if spans.any():
+            return
+    raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: the corners "
+                       "of each fall in one cell of the 24-bit grid (coincident positions or indices)",
+                       hint="export a mesh whose triangles have area")
 
 
 __all__ = ["load", "sniff", "LOADERS", "EXTENSIONS", "MAX_TRIANGLES", "MAX_PARTS", "MAX_TEXTURE_PIXELS"]

@@ -79,7 +79,7 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
-from .build import checked_texture, make_part, unique_names
+from .build import MAX_PARTS, checked_texture, make_part, unique_names
 from .polygons import triangulate
 
 # byte classes -------------------------------------------------------------------------------
@@ -344,6 +344,9 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         seg_to_part[sg] = key_to_part[key]
     face_part = seg_to_part[seg]
     keys = list(key_to_part)
+    if len(keys) > MAX_PARTS:  # counted before any part is built
+        ctx.fail(f"the file has {len(keys):,} objects/groups with faces, more than the {MAX_PARTS:,} parts "
+                 "lopcook accepts", hint="merge groups or split the file")
     stem = os.path.splitext(os.path.basename(path))[0] or "obj"
     names = unique_names([_part_name(k, stem) for k in keys])
 

@@ -284,6 +284,7 @@ class _Loader:
         self.earliest_xf: dict[str, bool] = {}
         self.placed_triangles = 0  # over all placements so far (MAX_TRIANGLES)
         self.proto_meshes: dict[str, int] = {}
+        self.active_instancers: set[str] = set()  # instancers being expanded (cycle check)
 
     # ------------------------------------------------------------------ dependencies
     def add_dependency(self, file: str) -> None:
@@ -505,6 +506,9 @@ class _Loader:
 
         pi = UsdGeom.PointInstancer(prim)
         where = str(prim.GetPath())
+        if where in self.active_instancers:
+            self.fail(f"PointInstancer {where} places itself (a prototype contains the instancer)",
+                      hint="point the prototypes relationship at prims outside the instancer's own path")
         protos = [self.stage.GetPrimAtPath(p) for p in pi.GetPrototypesRel().GetForwardedTargets()]
         attr = pi.GetPositionsAttr() if pi.GetPositionsAttr().HasAuthoredValue() else pi.GetProtoIndicesAttr()
         t = self.time_of(attr)
@@ -556,7 +560,11 @@ class _Loader:
                 proto_label = f"{label}[{k}]/{proto.GetName()}"
             sub = _Context(root=proto, matrix=xforms[k] @ base, label=proto_label,
                            instance=f"{ctx.instance} [instance {k}]")
-            self.walk(proto, pred, purpose, sub)
+            self.active_instancers.add(where)
+            try:
+                self.walk(proto, pred, purpose, sub)
+            finally:
+                self.active_instancers.discard(where)
 
     # ------------------------------------------------------------------ mesh data
     def read_mesh(self, prim, key: str) -> _LocalMesh | None:
