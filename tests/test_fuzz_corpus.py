@@ -1,6 +1,6 @@
 """The hostile-input corpus of ``lopcook.fuzzcases`` through the CLI (issue 17).
 
-Over 650 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
+Over 500 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
 lengths and counts with checksums recomputed, degenerate geometry, hostile textures, depth and
 instancing bombs, FIFOs and device symlinks) run as ``python -m lopcook cook|inspect|decode`` in
 subprocesses under a 60 s limit and a 4 GB address-space limit. Every run must be classified
@@ -15,6 +15,7 @@ two at a time.
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
@@ -63,6 +64,7 @@ def test_corpus_chunk_is_clean(corpus, chunk):
     k = int(chunk[5:])
     cases = [c for i, c in enumerate(corpus) if i % CHUNKS == k]
     results = fuzzcases.run_all(cases, workers=2, env=_env())
+    print(f"{chunk}: {len(results)} runs {json.dumps(fuzzcases.counts(results))}")  # shown with -s
     bad = [r for r in results if r.klass not in ("ok", "clean")]
     lines = [f"{r.klass} {r.case.name} {r.detail}: {' | '.join(r.stderr.strip().splitlines()[-3:])[:400]}"
              for r in bad]

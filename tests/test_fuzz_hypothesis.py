@@ -49,13 +49,18 @@ def _paths(obj, prefix=()):
 
 
 def _replace(doc, path, value):
+    """``doc`` with the value at ``path`` replaced (unchanged when an earlier mutation removed
+    the path)."""
     doc = copy.deepcopy(doc)
     if not path:
         return value
     node = doc
-    for key in path[:-1]:
-        node = node[key]
-    node[path[-1]] = value
+    try:
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = value
+    except (KeyError, IndexError, TypeError):
+        pass
     return doc
 
 
@@ -186,7 +191,7 @@ def test_obj_statements(tmp_path_factory, lines):
         assert all(part.texture is None for part in scene.parts)
 
 
-@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+@settings(max_examples=8, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(values=st.lists(number, min_size=1, max_size=6), counts=st.lists(st.integers(-2, 9), min_size=1, max_size=7))
 def test_usda_numbers(tmp_path_factory, values, counts):

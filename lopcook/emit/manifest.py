@@ -18,6 +18,9 @@ LEVELS = 24
 
 #: largest finite float32: every float the decoders compute with must stay below it
 F32_MAX = 3.4028234663852886e38
+#: |origin| + extent of any grid lopcook writes: its positions lie within
+#: ``ingest.build.MAX_COORDINATE`` (2^100 m) of the origin, so the grid reaches at most twice that
+MAX_GRID_REACH = 2.0 ** 102
 
 
 def validate_manifest(m, path: str | None) -> None:
@@ -28,7 +31,9 @@ def validate_manifest(m, path: str | None) -> None:
     Schema level: every field a reader uses (the decoding fields, and the informative ``source``,
     ``generator``, ``viewing``, ``options``, ``stats`` and ``savings`` that ``inspect`` shows) has
     its JSON type; integers are not booleans or floats. Semantic level: grid origin and extent
-    finite and representable in float32 (``|origin| + extent <= F32_MAX``, extent > 0), bits 24;
+    finite, extent at least ``MIN_EXTENT`` and ``|origin| + extent <= MAX_GRID_REACH`` (2^102 m,
+    far inside float32), bits 24; index values below each LOD's vertex count (checked on the
+    payload by ``container.from_bytes``);
     sections back to back in manifest order (offsets are the running sum of lengths), names
     unique, lengths multiples of 4; the position sections last, mandatory then planes in level
     order; every section name a LOD or ``positions`` refers to exists; each LOD's ``vertex_id``
@@ -139,8 +144,9 @@ def validate_manifest(m, path: str | None) -> None:
     if extent < MIN_EXTENT:
         fail(f"grid.extent {extent:g} is below the {MIN_EXTENT:g} m floor lopcook cooks with (its cells "
              "would decode to subnormal float32 values)")
-    if max(abs(v) for v in origin) + extent > F32_MAX:
-        fail(f"grid origin {origin} + extent {extent:g} is beyond the float32 range")
+    if max(abs(v) for v in origin) + extent > MAX_GRID_REACH:
+        fail(f"grid origin {origin} + extent {extent:g} reaches beyond {MAX_GRID_REACH:g} m (lopcook cooks "
+             "positions within 2^100 m of the origin, so that float32 decoding stays finite)")
 
     pos = need(m, "positions", dict, "manifest")
     max_level = need(pos, "max_level", int, "positions")

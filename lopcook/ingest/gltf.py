@@ -46,6 +46,21 @@ What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.
 * 3.12 Extensions: any ``extensionsRequired`` entry that is not supported (e.g.
   KHR_draco_mesh_compression, EXT_meshopt_compression) is rejected. ``KHR_materials_*``
   extensions are accepted: they change shading only, not geometry or the base-colour texture.
+  A Draco primitive or a meshopt-compressed bufferView / buffer that is used but not required is
+  rejected too: its "fallback" is all lopcook could read, and files in the wild point it at the
+  compressed bytes, which would be read as plain data.
+
+Hostile input (issue 17): integers (``byteLength`` >= 1, ``byteOffset`` >= 0, ``byteStride`` a
+multiple of 4 in [4, 252], ``count`` >= 1) are JSON integers, not floats or booleans; every
+accessor's bytes are checked against its view before anything is allocated, and an accessor
+without a bufferView may declare at most as many elements as the file and its buffers have bytes
+(``ZERO_ACCESSOR_MIN`` at least); the scene graph's placements are counted before decoding
+(``build.MAX_PARTS``, ``build.MAX_TRIANGLES``); identical primitives are decoded once. URIs are
+relative paths: absolute paths, devices, FIFOs and directories are refused (an image: a warning;
+a buffer: an error) and never opened; a name with a line break or NUL is an error. Images are
+decoded once at ingest (``build.checked_texture``): one that does not decode is a warning and
+its parts cook untextured. Deeply nested JSON and integers of thousands of digits are invalid
+JSON.
 
 Units: glTF is metres with +Y up (3.4 coordinate system and units), so ``unit_scale`` is 1.0 and
 ``up_axis`` "Y". Positions are transformed in float64; normals by the inverse transpose of the
