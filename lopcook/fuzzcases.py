@@ -47,7 +47,7 @@ import subprocess
 import sys
 import zlib
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -497,7 +497,8 @@ def _gltf_cases(w: _Writer, rng) -> None:
     w.case("gltf/source_directory", {"a.gltf/x": b""}, "a.gltf", expect="refuse")
     # GLB container lies, truncations and byte flips
     glb = _glb(doc, blob)
-    emit_raw = lambda name, data, expect="clean": w.case(f"glb/{name}", {"a.glb": data}, "a.glb", expect=expect)  # noqa: E731
+    def emit_raw(name, data, expect="clean"):
+        w.case(f"glb/{name}", {"a.glb": data}, "a.glb", expect=expect)
     emit_raw("header_length_short", glb[:8] + struct.pack("<I", 16) + glb[12:], "refuse")
     emit_raw("header_length_long", glb[:8] + struct.pack("<I", len(glb) + 100) + glb[12:], "refuse")
     emit_raw("version_1", glb[:4] + struct.pack("<I", 1) + glb[8:], "refuse")

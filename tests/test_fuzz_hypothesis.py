@@ -198,7 +198,8 @@ def test_usda_numbers(tmp_path_factory, values, counts):
     pytest.importorskip("pxr")
     points = ", ".join(f"({v}, 0, 1)" for v in values)
     text = (fz._USDA_HEAD + 'def Xform "R" {\ndef Mesh "m" {\nint[] faceVertexCounts = [' + ", ".join(map(str, counts))
-            + "]\nint[] faceVertexIndices = [" + ", ".join(str(i % 7 - 1) for i in range(sum(max(c, 0) for c in counts)))
+            + "]\nint[] faceVertexIndices = ["
+            + ", ".join(str(i % 7 - 1) for i in range(sum(max(c, 0) for c in counts)))
             + "]\npoint3f[] points = [" + points + "]\n}\n}\n")
     p = tmp_path_factory.mktemp("u") / "a.usda"
     p.write_text(text)

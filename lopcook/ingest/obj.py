@@ -155,8 +155,8 @@ def load(path: str, *, fmt: str = "obj", settings: IngestSettings) -> Scene:
     except LopcookError:
         raise
     except (ValueError, IndexError, OverflowError, TypeError) as exc:  # safety net: no tracebacks
-        raise LopcookError("ingest", path, f"malformed OBJ ({type(exc).__name__}: {exc})",
-                           hint="fix or re-export the OBJ file") from None
+        detail = " ".join(str(exc).split())[:160] or "unreadable data"
+        raise LopcookError("ingest", path, f"malformed OBJ ({detail})", hint="fix or re-export the OBJ file") from None
 
 
 def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> Scene:

@@ -181,7 +181,7 @@ def _tf_text(exc) -> str:
             text = "(a USD diagnostic with undecodable bytes)"
         if str(text).strip():
             texts.append(str(text).strip())
-    return "; ".join(texts) or type(exc).__name__
+    return "; ".join(texts) or "no diagnostic text"
 
 
 def _one_line(text: str, path: str) -> str:
@@ -252,7 +252,7 @@ class _Loader:
                 error = _tf_text(exc)
                 stage = None
             except Exception as exc:  # pxr raises a few plain exceptions (e.g. undecodable text)
-                error = f"{type(exc).__name__}: {exc}"
+                error = " ".join(str(exc).split()) or "unreadable data"
                 stage = None
         if stage is None:
             detail = error or "; ".join(_diagnostic_text(ln) for ln in lines) or "unknown error"
