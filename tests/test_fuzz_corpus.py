@@ -1,6 +1,6 @@
 """The hostile-input corpus of ``lopcook.fuzzcases`` through the CLI (issue 17).
 
-Over 500 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
+Over 450 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
 lengths and counts with checksums recomputed, degenerate geometry, hostile textures, depth and
 instancing bombs, FIFOs and device symlinks) run as ``python -m lopcook cook|inspect|decode`` in
 subprocesses under a 60 s limit and a 4 GB address-space limit. Every run must be classified
