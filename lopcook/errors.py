@@ -10,6 +10,8 @@ Exit codes (see ``lopcook.cli``): 0 ok, 1 verification failed, 2 bad input or us
 
 from __future__ import annotations
 
+import re
+
 EXIT_OK = 0
 EXIT_VERIFY_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -31,6 +33,9 @@ class LopcookError(Exception):
         What the user can do about it.
     exit_code : int
         Process exit code the CLI uses: 2 (bad input/usage) by default, 1 for a failed verification.
+
+    ``str(error)`` is always one line (``one_line``): line breaks inside a message, a hint or a
+    quoted name become spaces.
     """
 
     def __init__(self, stage: str, path: str | None, message: str, *, hint: str | None = None,
@@ -42,9 +47,27 @@ class LopcookError(Exception):
         self.exit_code = exit_code
         super().__init__(self.__str__())
 
+    def __reduce__(self):
+        # pickles with its fields (an error raised in a forked child is re-raised in the parent)
+        return (_rebuild, (self.stage, self.path, self.message, self.hint, self.exit_code))
+
     def __str__(self) -> str:
         where = f"{self.path}: " if self.path else ""
         text = f"{self.stage}: {where}{self.message}"
         if self.hint:
             text += f" ({self.hint})"
-        return text
+        return one_line(text)
+
+
+def _rebuild(stage, path, message, hint, exit_code) -> LopcookError:
+    return LopcookError(stage, path, message, hint=hint, exit_code=exit_code)
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: every run of whitespace that holds a line break (or any other
+    control character) becomes one space, so a message from a parser or a file name quoted in a
+    message never spreads over several lines of stderr."""
+    return _BREAKS.sub(" ", str(text)).strip()
+
+
+_BREAKS = re.compile(r"\s*[\x00-\x08\x0a-\x1f\x7f\x85\u2028\u2029]+\s*")

@@ -34,6 +34,8 @@ import numpy as np
 
 BITS = 24
 CELLS = 1 << BITS
+#: smallest grid extent, metres (see ``Grid.fit``): keeps every decoded float32 value normal
+MIN_EXTENT = 2.0 ** -75
 
 
 def dx(level, extent: float) -> np.ndarray:
@@ -57,12 +59,17 @@ class Grid:
     def fit(cls, position_arrays) -> "Grid":
         """Smallest axis-aligned cube (min corner, largest side) holding every (n_i, 3) array given.
 
-        A scene whose points all coincide gets extent 1 m (any step works for it)."""
+        A scene whose points all coincide gets extent 1 m (any step works for it). The extent is
+        at least ``MIN_EXTENT`` (2^-75 m), so that no float32 value a decoder computes from the grid
+        (origin + (q + 1/2) * cell, and its partial sums) is subnormal: half a cell is then at least
+        2^-100, a sum near zero is exact (Sterbenz) and so either 0 or at least 2^-124, and GPUs
+        that flush subnormals to zero agree with the CPU reference bit for bit."""
         lo = np.min([np.asarray(p, dtype=np.float64).min(axis=0) for p in position_arrays], axis=0)
         hi = np.max([np.asarray(p, dtype=np.float64).max(axis=0) for p in position_arrays], axis=0)
         extent = float(np.max(hi - lo))
         if not extent > 0.0:
             extent = 1.0
+        extent = max(extent, MIN_EXTENT)
         return cls(origin=tuple(float(v) for v in lo), extent=extent)
 
     @property

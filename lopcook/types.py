@@ -21,6 +21,29 @@ import numpy as np
 from .errors import LopcookError
 
 
+#: Largest scene ingest accepts, in triangles over all placements (instances counted once per
+#: placement). Importers count before they expand (glTF node placements, USD PointInstancer
+#: placements) and refuse past it with exit 2. A module constant until the CLI passes
+#: ``--max-triangles``; 50 M triangles need about 3 GB in the later stages.
+MAX_TRIANGLES = 50_000_000
+
+#: Largest number of parts (mesh placements) ingest accepts: every part costs Python objects and
+#: per-part work in every later stage (a cook of 20,000 one-cube parts took 68 s), so a file with
+#: more placements is refused before it is expanded. The corpus's largest scene has 21 parts.
+MAX_PARTS = 10_000
+
+#: Largest distance from the origin of any position, metres (2^100, about 1.3e30 m): beyond it the
+#: grid's origin + extent cannot be represented in float32 (which tops out at 3.4e38) with room
+#: for the decoders' arithmetic. Float32 max, 1e300 scales and similar corruption are refused.
+MAX_COORDINATE = 2.0 ** 100
+
+#: A scene may lie at most this many times its own extent from the origin (2^24): at distance D
+#: the float32 spacing is about D * 2^-24, so beyond 2^24 extents it exceeds the whole scene and
+#: float32 (what the decoders compute in) cannot tell any two of its positions apart. Example: a
+#: 1 m part 1e20 m from the origin is refused.
+FLOAT32_RESOLUTION = float(1 << 24)
+
+
 @dataclass(frozen=True, eq=False)
 class Texture:
     """An encoded image (PNG/JPEG bytes) used as the base-colour texture of some parts.
@@ -187,13 +210,35 @@ class Scene:
         return np.stack([lo, hi])
 
     def validate(self) -> "Scene":
-        """Check every part (see MeshPart.validate) and that the scene is not empty; return self."""
+        """Check every part (see MeshPart.validate), that the scene is not empty and that it is
+        within ingest's limits (the module constants below): at most ``MAX_PARTS`` parts and
+        ``MAX_TRIANGLES`` triangles over all placements, every coordinate within
+        ``MAX_COORDINATE`` metres of the origin, and the scene's distance from the origin at most
+        ``FLOAT32_RESOLUTION`` times its extent (1 m for a scene of one point), so float32 decoders
+        can resolve it; return self."""
         if not self.parts:
             raise LopcookError("ingest", self.source, "the scene has no triangle meshes",
                                hint="export at least one mesh with triangles or polygons")
+        if len(self.parts) > MAX_PARTS:
+            raise LopcookError("ingest", self.source, f"the scene has {len(self.parts):,} parts, more than "
+                               f"the {MAX_PARTS:,} lopcook accepts", hint="merge parts or split the scene")
+        if self.n_triangles > MAX_TRIANGLES:
+            raise LopcookError("ingest", self.source, f"the scene has {self.n_triangles:,} triangles, more "
+                               f"than the {MAX_TRIANGLES:,} lopcook accepts", hint="simplify or split the scene")
         names = [p.name for p in self.parts]
         if len(set(names)) != len(names):
             raise LopcookError("ingest", self.source, "part names are not unique")
         for part in self.parts:
             part.validate(self.source)
+        lo, hi = self.bounds()
+        far = float(np.max(np.abs(np.stack([lo, hi]))))
+        if far > MAX_COORDINATE:
+            raise LopcookError("ingest", self.source, f"a position is {far:.3g} m from the origin, beyond the "
+                               f"{MAX_COORDINATE:.3g} m lopcook accepts (the decoders compute in float32)",
+                               hint="check the units and transforms, or move the scene near the origin")
+        extent = float(np.max(hi - lo))
+        if far > FLOAT32_RESOLUTION * (extent if extent > 0 else 1.0):
+            raise LopcookError("ingest", self.source, f"the scene spans {extent:.3g} m at {far:.3g} m from the "
+                               "origin: float32, which the decoders compute in, cannot tell its positions apart",
+                               hint="move the scene near the origin (or check the units and transforms)")
         return self

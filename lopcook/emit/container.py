@@ -185,7 +185,9 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
                               parse_constant=_no_constants)
     except (UnicodeDecodeError, ValueError) as exc:
-        fail(f"manifest is not valid JSON ({exc})")
+        fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
+    except RecursionError:
+        fail("manifest JSON is nested too deeply")
     from .manifest import validate_manifest
 
     validate_manifest(manifest, path)
@@ -208,11 +210,29 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         sections[entry["name"]] = payload
     if not truncated and expected_end != total:
         fail(f"sections end at byte {expected_end}, file size says {total}")
+    _check_index_values(manifest, sections, fail)
     container = Container(manifest=manifest, sections=sections, path=path, data=data)
     container.available_level = _available_level(manifest, sections)
     if container.available_level < 1:
         fail("the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
     return container
+
+
+def _check_index_values(manifest: dict, sections: dict, fail) -> None:
+    """Every index of every LOD present is below its vertex count (a semantic check on the
+    payload: the manifest validator has already checked the section sizes). O(indices), one
+    vectorised max per LOD."""
+    import numpy as np
+
+    for i, part in enumerate(manifest["parts"]):
+        for k, lod in enumerate(part["lods"]):
+            data = sections.get(lod["indices"])
+            if data is None:
+                continue
+            dtype = "<u2" if lod["index_width"] == 2 else "<u4"
+            idx = np.frombuffer(data, dtype=dtype, count=3 * lod["triangles"])
+            if idx.size and int(idx.max()) >= lod["vertices"]:
+                fail(f"part {i} LOD {k}: index {int(idx.max())} is out of range for {lod['vertices']} vertices")
 
 
 def _available_level(manifest: dict, sections: dict) -> int:

@@ -7,53 +7,150 @@ uses, so a manifest that passes its CRC but is inconsistent still gives one clea
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..grid import MIN_EXTENT
 from ..errors import LopcookError
 
 FORMAT = "lopcook.lop"
 LEVELS = 24
 
 
+#: largest finite float32: every float the decoders compute with must stay below it
+F32_MAX = 3.4028234663852886e38
+#: |origin| + extent of any grid lopcook writes: its positions lie within
+#: ``ingest.build.MAX_COORDINATE`` (2^100 m) of the origin, so the grid reaches at most twice that
+MAX_GRID_REACH = 2.0 ** 102
+
+
 def validate_manifest(m, path: str | None) -> None:
-    """Raise LopcookError("emit", path, ...) unless the manifest is structurally sound."""
+    """Raise LopcookError("emit", path, ...) unless the manifest is sound; the one check every read
+    of a container runs (``container.from_bytes``), so that decode, inspect and verify may index
+    it without further checks.
+
+    Schema level: every field a reader uses (the decoding fields, and the informative ``source``,
+    ``generator``, ``viewing``, ``options``, ``stats`` and ``savings`` that ``inspect`` shows) has
+    its JSON type; integers are not booleans or floats. Semantic level: grid origin and extent
+    finite, extent at least ``MIN_EXTENT`` and ``|origin| + extent <= MAX_GRID_REACH`` (2^102 m,
+    far inside float32), bits 24; index values below each LOD's vertex count (checked on the
+    payload by ``container.from_bytes``);
+    sections back to back in manifest order (offsets are the running sum of lengths), names
+    unique, lengths multiples of 4; the position sections last, mandatory then planes in level
+    order; every section name a LOD or ``positions`` refers to exists; each LOD's ``vertex_id``
+    25 non-decreasing counts, ``mandatory_words`` matching its bins, index width matching its
+    vertex count, every section long enough for what it is said to hold; ``uv_range`` finite
+    float32 with lo <= hi. This module is strict rather than the readers tolerant: a manifest
+    that lacks an informative field the schema requires is refused, with one message naming it.
+    """
 
     def fail(msg: str) -> None:
         raise LopcookError("emit", path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
+
+    def is_int(v) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    def is_num(v, limit: float = F32_MAX) -> bool:
+        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                and abs(v) <= limit)
 
     def need(obj, key, kind, where):
         if not isinstance(obj, dict) or key not in obj:
             fail(f"{where}: missing {key!r}")
         val = obj[key]
-        if kind is int and (isinstance(val, bool) or not isinstance(val, int)):
+        if kind is int and not is_int(val):
             fail(f"{where}.{key} must be an integer")
-        if kind is not int and not isinstance(val, kind):
+        if kind is float and not is_num(val):
+            fail(f"{where}.{key} must be a finite number within the float32 range")
+        if kind not in (int, float) and (not isinstance(val, kind) or isinstance(val, bool)):
             fail(f"{where}.{key} has the wrong type")
+        return val
+
+    def count(obj, key, where, minimum=0):
+        val = need(obj, key, int, where)
+        if val < minimum:
+            fail(f"{where}.{key} is {val}, expected at least {minimum}")
+        return val
+
+    def optional_name(obj, key, where):
+        val = obj.get(key)
+        if val is not None and not isinstance(val, str):
+            fail(f"{where}.{key} must be a section name or null")
         return val
 
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         fail(f"format is not {FORMAT!r}")
+    # informative fields (shown by inspect)
+    need(m, "generator", str, "manifest")
+    src = need(m, "source", dict, "manifest")
+    need(src, "file", str, "source")
+    need(src, "format", str, "source")
+    viewing = need(m, "viewing", dict, "manifest")
+    vp = need(viewing, "viewport", list, "viewing")
+    if len(vp) != 2 or not all(is_int(v) and v > 0 for v in vp):
+        fail("viewing.viewport must be two positive integers")
+    fov = need(viewing, "fov_y_deg", float, "viewing")
+    if not 0 < fov < 180:
+        fail("viewing.fov_y_deg must be in (0, 180)")
+    if not need(viewing, "pixel_error", float, "viewing") > 0:
+        fail("viewing.pixel_error must be > 0")
+    nearest = viewing.get("nearest_m")
+    if nearest is not None and not (is_num(nearest) and nearest > 0):
+        fail("viewing.nearest_m must be a positive number or null")
+    options = need(m, "options", dict, "manifest")
+    for key in ("analyse", "ingest"):
+        if key in options and not isinstance(options[key], dict):
+            fail(f"options.{key} must be an object")
+    stats = need(m, "stats", dict, "manifest")
+    for key in ("vertices", "triangles", "float32_position_bytes"):
+        count(stats, key, "stats")
+    hist = need(stats, "histogram", list, "stats")
+    if len(hist) != LEVELS + 1 or not all(is_int(v) and v >= 0 for v in hist):
+        fail("stats.histogram must be 25 counts")
+    savings = m.get("savings")
+    if savings is not None:
+        if not isinstance(savings, dict):
+            fail("savings must be an object or null")
+        count(savings, "bytes_saved", "savings")
+        need(savings, "planes_dropped", list, "savings")
+        count(savings, "lods_dropped", "savings")
+
+    # sections: back to back in manifest order
     sections = need(m, "sections", list, "manifest")
     names = set()
+    offset = 0
     for i, s in enumerate(sections):
         name = need(s, "name", str, f"sections[{i}]")
         for key in ("offset", "length", "crc32"):
-            if need(s, key, int, f"sections[{i}]") < 0:
-                fail(f"sections[{i}].{key} is negative")
+            count(s, key, f"sections[{i}]")
         if s["length"] % 4:
             fail(f"section {name!r} length is not a multiple of 4")
+        if s["offset"] != offset:
+            fail(f"section {name!r} starts at {s['offset']}, not where the previous one ends ({offset})")
+        if s["crc32"] > 0xFFFFFFFF:
+            fail(f"section {name!r} crc32 is not a 32-bit value")
+        offset += s["length"]
         if name in names:
             fail(f"section {name!r} appears twice")
         names.add(name)
+
+    # grid: finite, representable in float32
     grid = need(m, "grid", dict, "manifest")
     origin = need(grid, "origin", list, "grid")
-    if len(origin) != 3 or not all(isinstance(v, (int, float)) for v in origin):
-        fail("grid.origin must be 3 numbers")
-    extent = need(grid, "extent", (int, float), "grid")
+    if len(origin) != 3 or not all(is_num(v) for v in origin):
+        fail("grid.origin must be 3 finite numbers within the float32 range")
+    extent = need(grid, "extent", float, "grid")
     if not extent > 0 or need(grid, "bits", int, "grid") != LEVELS:
         fail("grid.extent must be > 0 and grid.bits 24")
+    if extent < MIN_EXTENT:
+        fail(f"grid.extent {extent:g} is below the {MIN_EXTENT:g} m floor lopcook cooks with (its cells "
+             "would decode to subnormal float32 values)")
+    if max(abs(v) for v in origin) + extent > MAX_GRID_REACH:
+        fail(f"grid origin {origin} + extent {extent:g} reaches beyond {MAX_GRID_REACH:g} m (lopcook cooks "
+             "positions within 2^100 m of the origin, so that float32 decoding stays finite)")
+
     pos = need(m, "positions", dict, "manifest")
     max_level = need(pos, "max_level", int, "positions")
     if not 1 <= max_level <= LEVELS:
@@ -62,7 +159,7 @@ def validate_manifest(m, path: str | None) -> None:
         fail("positions.mandatory names no section")
     planes = need(pos, "planes", dict, "positions")
     for p in range(2, max_level + 1):
-        if planes.get(str(p)) not in names:
+        if not isinstance(planes.get(str(p)), str) or planes[str(p)] not in names:
             fail(f"positions.planes[{p}] names no section")
     # position sections come last, mandatory first, then planes in ascending order (prefix property)
     order = [s["name"] for s in sections]
@@ -85,29 +182,37 @@ def validate_manifest(m, path: str | None) -> None:
                         "representative_bits"):
                 if need(hier, key, int, f"parts[{i}].hierarchy") < 0:
                     fail(f"parts[{i}].hierarchy.{key} is negative")
+        need(part, "source", str, f"parts[{i}]")
         lods = need(part, "lods", list, f"parts[{i}]")
         if not lods:
             fail(f"parts[{i}] has no LODs")
         for k, lod in enumerate(lods):
             where = f"parts[{i}].lods[{k}]"
+            if not isinstance(lod, dict):
+                fail(f"{where} is not an object")
             n = need(lod, "vertices", int, where)
             tri = need(lod, "triangles", int, where)
-            vid = need(lod, "vertex_id", list, where)
-            if len(vid) != LEVELS + 1 or vid[0] != 0 or vid[-1] != n or any(
-                    not isinstance(a, int) or a > b for a, b in zip(vid, vid[1:])):
-                fail(f"{where}.vertex_id is not 25 non-decreasing counts from 0 to {n}")
             if n < 1 or tri < 1:
                 fail(f"{where} is empty")
+            if n > 0xFFFFFFFF or tri > 0xFFFFFFFF:
+                fail(f"{where} has more than 2^32 vertices or triangles")
+            err = need(lod, "geometric_error_m", float, where)
+            if err < 0:
+                fail(f"{where}.geometric_error_m is negative")
+            vid = need(lod, "vertex_id", list, where)
+            if len(vid) != LEVELS + 1 or not all(is_int(a) for a in vid) or vid[0] != 0 or vid[-1] != n \
+                    or any(a > b for a, b in zip(vid, vid[1:])):
+                fail(f"{where}.vertex_id is not 25 non-decreasing counts from 0 to {n}")
             if need(lod, "index_width", int, where) not in (2, 4):
                 fail(f"{where}.index_width must be 2 or 4")
             if need(lod, "indices", str, where) not in names:
                 fail(f"{where}.indices names no section")
             for key in ("normals", "uvs", "colors"):
-                val = lod.get(key)
+                val = optional_name(lod, key, where)
                 if val is not None and val not in names:
                     fail(f"{where}.{key} names no section")
             mw = need(lod, "mandatory_words", list, where)
-            if len(mw) != 2 or not all(isinstance(v, int) and v >= 0 for v in mw):
+            if len(mw) != 2 or not all(is_int(v) and v >= 0 for v in mw):
                 fail(f"{where}.mandatory_words must be [offset, count]")
             # the buffer at level 1 holds sum_k 3 * k * |bin k| bits, buffers back to back
             bits = sum(3 * k * (vid[k] - vid[k - 1]) for k in range(1, LEVELS + 1))
@@ -126,8 +231,11 @@ def validate_manifest(m, path: str | None) -> None:
                     fail(f"{where}: {key} section is shorter than {n} vertices")
             if lod.get("uvs") is not None:
                 rng = need(lod, "uv_range", list, where)
-                if len(rng) != 2 or not all(isinstance(r, list) and len(r) == 2 for r in rng):
-                    fail(f"{where}.uv_range must be [[lo_u, lo_v], [hi_u, hi_v]]")
+                if len(rng) != 2 or not all(isinstance(r, list) and len(r) == 2 and all(is_num(v) for v in r)
+                                            for r in rng):
+                    fail(f"{where}.uv_range must be [[lo_u, lo_v], [hi_u, hi_v]] of finite float32 numbers")
+                if not (rng[0][0] <= rng[1][0] and rng[0][1] <= rng[1][1]):
+                    fail(f"{where}.uv_range has lo above hi")
     if length[pos["mandatory"]] < 4 * words_next:
         fail("positions.mandatory is shorter than the buffers it holds")
     for p, bits in plane_bits.items():

@@ -8,11 +8,15 @@ GLB bytes), calls the loader from ``LOADERS`` and validates the result.
 from __future__ import annotations
 
 import os
+import warnings
+
+import numpy as np
 
 from ..errors import LopcookError
 from ..memory import release_free_memory
 from ..settings import DEFAULT_INGEST, IngestSettings
 from ..types import Scene
+from .build import MAX_PARTS, MAX_TEXTURE_PIXELS, MAX_TRIANGLES, bad_path_characters, regular_file_problem
 
 #: extension -> formats that extension may hold
 EXTENSIONS = {
@@ -58,19 +62,31 @@ LOADERS = {
 def sniff(path: str) -> str:
     """Return the format of ``path`` from its extension and first bytes.
 
-    Raises LopcookError (exit 2) for a missing file, a directory, an unknown extension, an empty
-    file, or content that matches none of the formats the extension allows.
+    Raises LopcookError (exit 2) for a missing file, a directory, a file that is not regular (a
+    device, FIFO or socket, also through a symlink: never opened, so a FIFO cannot block), a name
+    with a line break or NUL, an unknown extension, an empty file, or content that matches none of
+    the formats the extension allows.
     """
     ext = os.path.splitext(path)[1].lower()
     if ext not in EXTENSIONS:
         raise LopcookError("ingest", path, f"unknown extension {ext or '(none)'!r}",
                            hint="expected one of " + ", ".join(sorted(EXTENSIONS)))
-    if not os.path.exists(path):
+    if bad_path_characters(path):
+        raise LopcookError("ingest", repr(path), "the file name contains a line break or NUL",
+                           hint="rename the file (such a name cannot be listed in a depfile)")
+    problem = regular_file_problem(path)
+    if problem == "not found":
         raise LopcookError("ingest", path, "file not found", hint="check the path")
-    if os.path.isdir(path):
+    if problem == "is a directory":
         raise LopcookError("ingest", path, "is a directory, not a file", hint="give the path of a scene file")
-    with open(path, "rb") as fh:
-        head = fh.read(64)
+    if problem is not None:
+        raise LopcookError("ingest", path, problem, hint="give the path of a scene file on disk")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+    except OSError as exc:
+        raise LopcookError("ingest", path, f"cannot read the file ({exc.strerror or 'error'})",
+                           hint="check the path and permissions") from None
     if not head:
         raise LopcookError("ingest", path, "file is empty (0 bytes)", hint="re-export the asset")
     allowed = EXTENSIONS[ext]
@@ -87,28 +103,66 @@ def sniff(path: str) -> str:
     else:
         found = "obj" if "obj" in allowed else None
     if found not in allowed:
-        what = found or "unrecognised content"
-        raise LopcookError("ingest", path, f"content is {what}, which a {ext} file cannot hold",
+        what = f"content is {found}" if found else "content is not glTF, GLB, OBJ or USD"
+        raise LopcookError("ingest", path, f"{what}, which a {ext} file cannot hold",
                            hint="the file is corrupt or has the wrong extension")
     return found
 
 
 def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> Scene:
-    """Load a glTF/GLB, OBJ or USD(A/C/Z) file into a validated Scene (metres, +Y up, CCW)."""
+    """Load a glTF/GLB, OBJ or USD(A/C/Z) file into a validated Scene (metres, +Y up, CCW).
+
+    Hostile input gives one ``LopcookError`` (exit 2), never a traceback: besides the loaders' own
+    checks, a dependency whose name holds a line break or NUL is refused (before anything is
+    written), and scenes over ``MAX_TRIANGLES`` triangles or ``MAX_PARTS`` parts are refused
+    (``Scene.validate``; the loaders count placements before expanding them).
+    """
     path = os.fspath(path)
     fmt = sniff(path)
     try:
-        scene = LOADERS[fmt](path, fmt, settings)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc.: reported as errors instead
+            scene = LOADERS[fmt](path, fmt, settings)
     except LopcookError:
         raise
     except MemoryError:
-        raise LopcookError("ingest", path, "out of memory while reading the file",
+        raise LopcookError("ingest", path, "the file needs more memory than is available",
                            hint="split the scene or use a machine with more memory") from None
+    except RecursionError:
+        raise LopcookError("ingest", path, f"the {fmt} file is nested too deeply to read",
+                           hint="flatten the hierarchy or re-export the file") from None
     except Exception as exc:  # a parser failure we did not anticipate: still one clear line
-        raise LopcookError("ingest", path, f"cannot read {fmt} file: {type(exc).__name__}: {exc}",
+        detail = " ".join(str(exc).split())[:200] or "malformed data"
+        raise LopcookError("ingest", path, f"cannot read the {fmt} file ({detail})",
                            hint="the file is malformed; re-export it (run with --debug for details)") from exc
     release_free_memory()  # the parsers' and normal computation's temporaries
-    return scene.validate()
+    for dep in scene.dependencies:
+        if bad_path_characters(dep):
+            raise LopcookError("ingest", path, f"refers to a file whose name contains a line break or NUL "
+                               f"({dep!r})", hint="rename the file and the reference: such a name cannot "
+                               "be listed in a depfile")
+    with np.errstate(all="ignore"):
+        scene.validate()
+    _refuse_all_degenerate(scene)
+    return scene
 
 
-__all__ = ["load", "sniff", "LOADERS", "EXTENSIONS"]
+def _refuse_all_degenerate(scene: Scene) -> None:
+    """Refuse a scene none of whose triangles spans two cells of its 24-bit grid (every corner
+    of every triangle falls in one cell: all indices equal, all positions identical, a polygon
+    with no area...): there is no surface to cook and no edge to analyse. One such triangle among
+    good ones is cooked as usual (``inspect`` counts degenerate triangles)."""
+    from ..grid import Grid
+
+    grid = Grid.fit([p.positions for p in scene.parts])
+    for part in scene.parts:
+        q = grid.quantize(part.positions)[part.indices]  # (m, 3 corners, 3) grid integers
+        spans = np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)
+        if spans.any():
+            return
+    raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: the corners "
+                       "of each fall in one cell of the 24-bit grid (coincident positions or indices)",
+                       hint="export a mesh whose triangles have area")
+
+
+__all__ = ["load", "sniff", "LOADERS", "EXTENSIONS", "MAX_TRIANGLES", "MAX_PARTS", "MAX_TEXTURE_PIXELS"]

@@ -3,6 +3,8 @@ normals where the source has none, and per-vertex attributes kept in step with v
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from ..settings import IngestSettings
@@ -79,3 +81,96 @@ def unique_names(names: list[str]) -> list[str]:
             seen[n] = 1
             out.append(n)
     return out
+
+
+# ---------------------------------------------------------------------------- hostile-input limits
+
+from ..types import FLOAT32_RESOLUTION, MAX_COORDINATE, MAX_PARTS, MAX_TRIANGLES  # noqa: E402,F401 (re-exported)
+
+#: Largest base-colour texture decoded, in pixels (8192 x 8192). Pillow's ``MAX_IMAGE_PIXELS`` is
+#: set to this value, so a decompression bomb fails in every later decode too; ingest checks the
+#: declared size before decoding and treats a larger image as unreadable (a warning; the parts
+#: cook untextured).
+MAX_TEXTURE_PIXELS = 8192 * 8192
+
+
+def _set_pillow_limit() -> None:
+    from PIL import Image
+
+    Image.MAX_IMAGE_PIXELS = MAX_TEXTURE_PIXELS
+
+
+_set_pillow_limit()
+
+
+def texture_problem(data: bytes) -> str | None:
+    """Why the encoded image ``data`` cannot be used as a base-colour texture, or None when it
+    decodes (fully: truncated files, bad chunk CRCs and corrupt compressed data are found) to an
+    image of at most ``MAX_TEXTURE_PIXELS`` pixels that converts to RGBA. The reason is worded in
+    the image's own terms (no Python exception names)."""
+    import io
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    if not data:
+        return "the image is empty (0 bytes)"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            img = Image.open(io.BytesIO(data))
+            w, h = img.size
+            if w < 1 or h < 1:
+                return f"the image declares {w} x {h} pixels"
+            if w * h > MAX_TEXTURE_PIXELS:
+                return (f"the image declares {w} x {h} pixels, more than the {MAX_TEXTURE_PIXELS:,} "
+                        "lopcook decodes")
+            img.load()
+            img.crop((0, 0, 1, 1)).convert("RGBA")
+    except UnidentifiedImageError:
+        return "the image cannot be identified (a corrupt header, or not a PNG, JPEG or other format Pillow reads)"
+    except Image.DecompressionBombError:
+        return f"the image is larger than the {MAX_TEXTURE_PIXELS:,} pixels lopcook decodes"
+    except MemoryError:
+        return "the image is too large to decode"
+    except Exception as exc:  # noqa: BLE001 - Pillow raises many kinds for corrupt data
+        text = " ".join(str(exc).split()) or "corrupt data"
+        return f"the image is truncated or corrupt ({text[:120]})"
+    return None
+
+
+def checked_texture(name: str, data: bytes | None, warn, what: str) -> Texture | None:
+    """``Texture(name, data)`` when ``data`` decodes (see ``texture_problem``); otherwise call
+    ``warn`` with one line naming ``what`` and the reason, and return None (the parts using it
+    cook untextured)."""
+    if data is None:
+        return None
+    problem = texture_problem(data)
+    if problem is not None:
+        warn(f"{what}: {problem}; the parts using it have no texture")
+        return None
+    return Texture(name=name, data=data)
+
+
+def regular_file_problem(path: str) -> str | None:
+    """Why ``path`` must not be read as a sidecar file (missing, a directory, a device, a FIFO or a
+    socket; symlinks are followed), or None for a regular file."""
+    import stat
+
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return "not found"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or 'error'})"
+    if stat.S_ISDIR(st.st_mode):
+        return "is a directory"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file (a device, FIFO or socket)"
+    return None
+
+
+def bad_path_characters(path: str) -> bool:
+    """True when ``path`` holds a line break or a NUL: such a name cannot be written in a depfile
+    (``lopcook.depfile.escape``), so ingest refuses it before anything is written."""
+    return any(c in path for c in "\n\r\x00")

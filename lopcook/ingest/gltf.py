@@ -45,6 +45,21 @@ What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.
 * 3.12 Extensions: any ``extensionsRequired`` entry that is not supported (e.g.
   KHR_draco_mesh_compression, EXT_meshopt_compression) is rejected. ``KHR_materials_*``
   extensions are accepted: they change shading only, not geometry or the base-colour texture.
+  A Draco primitive or a meshopt-compressed bufferView / buffer that is used but not required is
+  rejected too: its "fallback" is all lopcook could read, and files in the wild point it at the
+  compressed bytes, which would be read as plain data.
+
+Hostile input (issue 17): integers (``byteLength`` >= 1, ``byteOffset`` >= 0, ``byteStride`` a
+multiple of 4 in [4, 252], ``count`` >= 1) are JSON integers, not floats or booleans; every
+accessor's bytes are checked against its view before anything is allocated, and an accessor
+without a bufferView may declare at most as many elements as the file and its buffers have bytes
+(``ZERO_ACCESSOR_MIN`` at least); the scene graph's placements are counted before decoding
+(``build.MAX_PARTS``, ``build.MAX_TRIANGLES``); identical primitives are decoded once. URIs are
+relative paths: absolute paths, devices, FIFOs and directories are refused (an image: a warning;
+a buffer: an error) and never opened; a name with a line break or NUL is an error. Images are
+decoded once at ingest (``build.checked_texture``): one that does not decode is a warning and
+its parts cook untextured. Deeply nested JSON and integers of thousands of digits are invalid
+JSON.
 
 Units: glTF is metres with +Y up (3.4 coordinate system and units), so ``unit_scale`` is 1.0 and
 ``up_axis`` "Y". Positions are transformed in float64; normals by the inverse transpose of the
@@ -72,7 +87,8 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
-from .build import make_part, unique_names
+from .build import (MAX_PARTS, MAX_TRIANGLES, bad_path_characters, checked_texture, make_part,
+                    regular_file_problem, unique_names)
 
 GLB_MAGIC = b"glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -104,6 +120,10 @@ ATTR_COMPONENTS = {
     "TEXCOORD": (5126, 5120, 5121, 5122, 5123),
     "COLOR": (5126, 5121, 5123),
 }
+
+#: an accessor without a bufferView (all zeros) may declare at most this many elements, or as many
+#: as the file and its external buffers have bytes, whichever is larger
+ZERO_ACCESSOR_MIN = 1 << 16
 
 DECOMPRESS_HINT = ("decompress the file first (e.g. with gltf-transform, or re-export without "
                    "Draco/meshopt compression)")
@@ -154,9 +174,15 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
         where = reader.where or "file"
         if isinstance(exc, KeyError) and exc.args:
             message = f"malformed glTF: {where} lacks the required property {exc.args[0]!r}"
+        elif isinstance(exc, RecursionError):
+            message = f"malformed glTF: {where} is nested too deeply"
+        elif isinstance(exc, (TypeError, AttributeError)):
+            message = f"malformed glTF: a property of {where} has the wrong JSON type"
+        elif isinstance(exc, IndexError):
+            message = f"malformed glTF: {where} refers to an element that does not exist"
         else:
-            what = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
-            message = f"malformed glTF in {where} ({what})"
+            detail = " ".join(str(exc).split())[:160] or "malformed value"
+            message = f"malformed glTF in {where} ({detail})"
         raise LopcookError("ingest", path, message,
                            hint="the file does not follow the glTF 2.0 specification; "
                                 "check it with the Khronos glTF validator") from None
@@ -182,13 +208,23 @@ class _GltfReader:
         self._views: dict[int, memoryview] = {}
         self._accessors: dict[int, tuple[np.ndarray, bool, int]] = {}
         self._textures: dict[int, Texture | None] = {}
-        self._geometry: dict[tuple[int, int], dict | None] = {}
+        self._geometry: dict = {}  # primitive JSON -> decoded local geometry
 
     # ------------------------------------------------------------------ helpers
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
             self.warnings.append(message)
+
+    def uint(self, obj: dict, key: str, default: int | None = None, minimum: int = 0) -> int:
+        """``obj[key]`` as a JSON integer >= ``minimum`` (``default`` when absent and not None)."""
+        if key not in obj and default is not None:
+            return default
+        val = obj[key]
+        if isinstance(val, bool) or not isinstance(val, int) or val < minimum:
+            raise _Malformed(f"{self.where or 'file'}: {key} {val!r} is not an integer >= {minimum}",
+                             "the file is corrupt or was written by a broken exporter")
+        return val
 
     def item(self, collection: str, index, what: str | None = None) -> dict:
         """``gltf[collection][index]`` with a clear error for a bad reference."""
@@ -209,6 +245,7 @@ class _GltfReader:
     def read(self) -> Scene:
         with open(self.path, "rb") as fh:
             data = fh.read()
+        self.data_bytes = len(data)
         json_bytes = self._split_glb(data) if self.fmt == "glb" else data
         self._parse_json(json_bytes)
         self._check_extensions()
@@ -272,9 +309,15 @@ class _GltfReader:
         except UnicodeDecodeError as exc:
             raise _Malformed(f"JSON is not valid UTF-8 (byte {exc.start})", "the file is corrupt") from None
         try:
-            gltf = json.loads(text)
+            gltf = json.loads(text, parse_constant=_no_constant)
         except json.JSONDecodeError as exc:
             raise _Malformed(f"invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}",
+                             "the file is corrupt or not glTF; re-export it") from None
+        except RecursionError:
+            raise _Malformed("JSON is nested too deeply to read",
+                             "the file is corrupt or hostile; re-export it") from None
+        except ValueError as exc:  # e.g. an integer with thousands of digits, NaN / Infinity
+            raise _Malformed(f"invalid JSON ({' '.join(str(exc).split())[:120]})",
                              "the file is corrupt or not glTF; re-export it") from None
         if not isinstance(gltf, dict):
             raise _Malformed("JSON top level is not an object", "the file is not glTF")
@@ -285,6 +328,10 @@ class _GltfReader:
                              "convert the file to glTF 2.0 (e.g. with gltf-pipeline)")
         self.gltf = gltf
         self.where = ""
+
+    def _refuse_compressed(self, what: str, ext: str) -> None:
+        raise _Malformed(f"{what} uses {ext}, which lopcook cannot decode; reading its fallback as plain "
+                         "data would give wrong geometry", DECOMPRESS_HINT)
 
     def _check_extensions(self) -> None:
         required = self.gltf.get("extensionsRequired") or []
@@ -306,7 +353,10 @@ class _GltfReader:
             return self._buffers[index]
         buf = self.item("buffers", index)
         self.where = f"buffer {index}"
-        declared = buf["byteLength"]
+        declared = self.uint(buf, "byteLength", minimum=1)
+        if "EXT_meshopt_compression" in (buf.get("extensions") or {}) or \
+                "KHR_meshopt_compression" in (buf.get("extensions") or {}):
+            self._refuse_compressed(f"buffer {index}", "meshopt compression")
         uri = buf.get("uri")
         if uri is None:
             if self.fmt != "glb" or index != 0:
@@ -348,10 +398,19 @@ class _GltfReader:
             raise _Malformed(f"{what}: uri {uri!r} is not a relative file path",
                              "download the resource and refer to it by a relative path")
         rel = urllib.parse.unquote(uri)
+        if bad_path_characters(rel):
+            raise LopcookError("ingest", self.path, f"{what}: uri {uri!r} names a file with a line break or NUL",
+                               hint="rename the file and the uri: such a name cannot be listed in a depfile")
+        if os.path.isabs(rel) or rel.startswith("\\") or (len(scheme) == 1 and os.name == "nt"):
+            raise _Malformed(f"{what}: uri {uri!r} is an absolute path; glTF uris are relative to the file",
+                             "copy the file next to the glTF and refer to it by a relative path")
         full = os.path.join(self.base_dir, rel)
         self.deps.add(rel)  # listed even when missing: a build must rerun when it appears
-        if not os.path.isfile(full):
+        problem = regular_file_problem(full)
+        if problem == "not found":
             return None, rel
+        if problem is not None:
+            raise _Malformed(f"{what}: {rel!r} {problem}", "refer to a regular file next to the glTF")
         with open(full, "rb") as fh:
             return fh.read(), rel
 
@@ -360,11 +419,19 @@ class _GltfReader:
             return self._views[index]
         v = self.item("bufferViews", index, "bufferView")
         where, self.where = self.where, f"bufferView {index}"
+        for ext in ("EXT_meshopt_compression", "KHR_meshopt_compression"):
+            if ext in (v.get("extensions") or {}):
+                self._refuse_compressed(f"bufferView {index}", ext)
+        off = self.uint(v, "byteOffset", 0)
+        length = self.uint(v, "byteLength", minimum=1)
+        if "byteStride" in v:
+            stride = self.uint(v, "byteStride", minimum=4)
+            if stride > 252 or stride % 4:
+                raise _Malformed(f"bufferView {index}: byteStride {stride} is not a multiple of 4 in [4, 252]",
+                                 "the file is corrupt or was written by a broken exporter")
         data = self.buffer(v["buffer"])
         self.where = f"bufferView {index}"
-        off = int(v.get("byteOffset", 0))
-        length = int(v["byteLength"])
-        if off < 0 or length < 0 or off + length > len(data):
+        if off + length > len(data):
             raise _Malformed(f"bufferView {index} (bytes {off}..{off + length}) runs past the end of "
                              f"buffer {v['buffer']} ({len(data)} bytes)",
                              "the file is truncated or corrupt; re-export it")
@@ -403,7 +470,7 @@ class _GltfReader:
             mv = self.view(bv)
             self.where = f"accessor {index}"
             stride = int(self.gltf["bufferViews"][bv].get("byteStride") or elem)
-            off = int(a.get("byteOffset", 0))
+            off = self.uint(a, "byteOffset", 0)
             if stride < elem:
                 raise _Malformed(f"accessor {index}: byteStride {stride} of bufferView {bv} is smaller "
                                  f"than one element ({elem} bytes)")
@@ -414,6 +481,13 @@ class _GltfReader:
             arr = np.ndarray((count, width), dtype=dtype, buffer=mv, offset=off,
                              strides=(stride, dtype.itemsize)).copy()
         else:
+            # all zeros (spec 3.6.2.4): bound the count by the bytes the file has, so a lying count
+            # cannot allocate gigabytes from a few bytes of JSON
+            limit = max(ZERO_ACCESSOR_MIN, self.data_bytes + self._external_bytes())
+            if count > limit:
+                raise _Malformed(f"accessor {index} declares {count:,} elements without a bufferView; lopcook "
+                                 f"accepts at most {limit:,} (the bytes in the file and its buffers)",
+                                 "the count is corrupt; re-export the file")
             arr = np.zeros((count, width), dtype=dtype)
         sparse = a.get("sparse")
         if sparse is not None:
@@ -422,6 +496,20 @@ class _GltfReader:
         self._accessors[index] = result
         self.where = ""
         return result
+
+    def _external_bytes(self) -> int:
+        """Total size of the external buffer files that exist (for the zero-accessor bound)."""
+        total = 0
+        for buf in self.gltf.get("buffers") or []:
+            uri = buf.get("uri") if isinstance(buf, dict) else None
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                try:
+                    total += os.path.getsize(os.path.join(self.base_dir, urllib.parse.unquote(uri)))
+                except (OSError, ValueError):
+                    pass
+            elif isinstance(uri, str):
+                total += len(uri)
+        return total
 
     def _apply_sparse(self, index: int, arr: np.ndarray, sparse: dict, dtype: np.dtype,
                       width: int) -> np.ndarray:
@@ -447,7 +535,7 @@ class _GltfReader:
         bv = ref["bufferView"]
         mv = self.view(bv)
         self.where = f"accessor {index}"
-        off = int(ref.get("byteOffset", 0))
+        off = self.uint(ref, "byteOffset", 0)
         need = off + count * width * dtype.itemsize
         if off < 0 or need > len(mv):
             raise _Malformed(f"accessor {index}: {what} read past the end of bufferView {bv}: needs {need} "
@@ -519,13 +607,15 @@ class _GltfReader:
                 self.where = where
                 return None
             name = f"<embedded {index}>" if origin == "data URI" else os.path.basename(origin)
+            what = f"image {index} ({origin})"
         elif "bufferView" in img:
             data = bytes(self.view(img["bufferView"]))
             name = f"<embedded {index}>"
+            what = f"image {index} (bufferView {img['bufferView']})"
         else:
             raise _Malformed(f"image {index} has neither uri nor bufferView")
         self.where = where
-        return Texture(name=name, data=data)
+        return checked_texture(name, data, self.warn, what)
 
     # ------------------------------------------------------------------ scene graph
 
@@ -541,6 +631,9 @@ class _GltfReader:
             roots = [i for i in range(len(nodes)) if i not in children]
         parts: list[MeshPart] = []
         visited: set[int] = set()
+        if not isinstance(roots, list) or not isinstance(nodes, list):
+            raise _Malformed("scene nodes or nodes is not a JSON array")
+        self._count_placements(nodes, roots)
         stack = [(r, np.eye(4)) for r in reversed(list(roots))]
         while stack:
             ni, parent = stack.pop()
@@ -558,6 +651,52 @@ class _GltfReader:
                 stack.append((c, world))
         self.where = ""
         return parts
+
+    def _count_placements(self, nodes: list, roots: list) -> None:
+        """Refuse, before anything is decoded, a scene graph that places more than ``MAX_PARTS``
+        primitives or more than ``MAX_TRIANGLES`` triangles (declared index or vertex counts)."""
+        reached, stack, seen = 0, list(roots), set()
+        triangles = 0
+        while stack:
+            ni = stack.pop()
+            if isinstance(ni, bool) or not isinstance(ni, int) or not 0 <= ni < len(nodes) or ni in seen:
+                continue  # reported with its context by the walk
+            seen.add(ni)
+            node = nodes[ni]
+            if not isinstance(node, dict):
+                continue
+            children = node.get("children") or []
+            if isinstance(children, list):
+                stack.extend(children)
+            mi = node.get("mesh")
+            meshes = self.gltf.get("meshes") or []
+            if isinstance(mi, int) and not isinstance(mi, bool) and isinstance(meshes, list) \
+                    and 0 <= mi < len(meshes) and isinstance(meshes[mi], dict):
+                prims = meshes[mi].get("primitives") or []
+                if isinstance(prims, list):
+                    reached += len(prims)
+                    triangles += sum(self._declared_triangles(p) for p in prims)
+            if reached > MAX_PARTS:
+                raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x primitives); "
+                                 f"lopcook accepts at most {MAX_PARTS:,} parts", "merge meshes or split the scene")
+            if triangles > MAX_TRIANGLES:
+                raise _Malformed(f"the scene places more than {MAX_TRIANGLES:,} triangles (declared counts); "
+                                 f"lopcook accepts at most {MAX_TRIANGLES:,}", "simplify or split the scene")
+
+    def _declared_triangles(self, prim) -> int:
+        """Triangles a primitive declares (from its index or POSITION count), 0 when unknown."""
+        if not isinstance(prim, dict):
+            return 0
+        acc = prim.get("indices", (prim.get("attributes") or {}).get("POSITION") if isinstance(
+            prim.get("attributes"), dict) else None)
+        accessors = self.gltf.get("accessors") or []
+        if isinstance(acc, bool) or not isinstance(acc, int) or not isinstance(accessors, list) \
+                or not 0 <= acc < len(accessors) or not isinstance(accessors[acc], dict):
+            return 0
+        count = accessors[acc].get("count")
+        if isinstance(count, bool) or not isinstance(count, int):
+            return 0
+        return count // 3 if prim.get("mode", 4) == 4 else max(count - 2, 0)
 
     def _node_parts(self, ni: int, node: dict, world: np.ndarray) -> list[MeshPart]:
         mi = node["mesh"]
@@ -611,7 +750,8 @@ class _GltfReader:
         float64, triangles (m, 3) int64 CCW, normals (n, 3) float64 | None, uvs (n, 2) | None,
         colors (n, 3|4) in [0, 1] | None, texture.
         """
-        key = (mi, k)
+        # identical primitives (same accessors, mode and material) are decoded once
+        key = json.dumps(prim, sort_keys=True, default=str) if isinstance(prim, dict) else (mi, k)
         if key in self._geometry:
             return self._geometry[key]
         what = f"mesh {mi} primitive {k}"
@@ -623,6 +763,10 @@ class _GltfReader:
         if mode not in MODE_NAMES:
             raise _Malformed(f"{what}: invalid mode {mode!r}", "glTF 2.0 modes are 0..6")
         attrs = prim.get("attributes") or {}
+        if not isinstance(attrs, dict):
+            raise _Malformed(f"{what}: attributes is not a JSON object")
+        if "KHR_draco_mesh_compression" in (prim.get("extensions") or {}):
+            self._refuse_compressed(what, "Draco compression (KHR_draco_mesh_compression)")
         if mode < 4:
             self.warn(f"{what}: mode {mode} ({MODE_NAMES[mode]}) skipped; only triangle primitives are cooked")
         elif "POSITION" not in attrs:
@@ -738,6 +882,10 @@ def _local_matrix(node: dict, index: int) -> np.ndarray:
         raise _Malformed(f"node {index}: transform contains NaN or Inf",
                          "fix the node transform in the authoring tool")
     return out
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def _rename(part: MeshPart, name: str) -> MeshPart:

@@ -73,7 +73,7 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
-from .build import make_part, unique_names
+from .build import MAX_PARTS, checked_texture, make_part, unique_names
 from .polygons import triangulate
 
 # byte classes -------------------------------------------------------------------------------
@@ -83,6 +83,9 @@ _BLANK = np.zeros(256, dtype=bool)        # indentation (no newline)
 _BLANK[[9, 11, 12, 13, 32]] = True
 _FACE_OK = _WS.copy()                     # bytes allowed in the corner list of an f line
 _FACE_OK[[ord(c) for c in "0123456789+-/"]] = True
+
+_NUMBER_BYTE = np.zeros(256, dtype=bool)  # bytes a number token is made of
+_NUMBER_BYTE[[ord(c) for c in "0123456789.eE+-"]] = True
 
 _V, _VT, _VN, _F = 1, 2, 3, 4
 
@@ -146,8 +149,8 @@ def load(path: str, *, fmt: str = "obj", settings: IngestSettings) -> Scene:
     except LopcookError:
         raise
     except (ValueError, IndexError, OverflowError, TypeError) as exc:  # safety net: no tracebacks
-        raise LopcookError("ingest", path, f"malformed OBJ ({type(exc).__name__}: {exc})",
-                           hint="fix or re-export the OBJ file") from None
+        detail = " ".join(str(exc).split())[:160] or "unreadable data"
+        raise LopcookError("ingest", path, f"malformed OBJ ({detail})", hint="fix or re-export the OBJ file") from None
 
 
 def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> Scene:
@@ -171,6 +174,16 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
     if b"\\\n" in data:
         raw = np.frombuffer(data, dtype=np.uint8)
         ctx.cont_pos = np.flatnonzero((raw[:-1] == 92) & (raw[1:] == 10))
+        # "1\\<newline>.5" would silently read as two numbers "1 .5": refuse a continuation
+        # between two characters of a number
+        cp = ctx.cont_pos
+        inside = cp[(cp > 0) & (cp + 2 < raw.size)]
+        inside = inside[_NUMBER_BYTE[raw[inside - 1]] & _NUMBER_BYTE[raw[inside + 2]]]
+        if inside.size:
+            at = int(inside[0])
+            line = int(np.count_nonzero(raw[:at] == 10)) + 1
+            raise LopcookError("ingest", ctx.path, f"line {line}: a line continuation (backslash at the end of "
+                               "the line) splits a number", hint="join the number on one line")
         data = data.replace(b"\\\n", b"  ")
     if not data.endswith(b"\n"):
         data = data + b"\n"
@@ -325,6 +338,9 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         seg_to_part[sg] = key_to_part[key]
     face_part = seg_to_part[seg]
     keys = list(key_to_part)
+    if len(keys) > MAX_PARTS:  # counted before any part is built
+        ctx.fail(f"the file has {len(keys):,} objects/groups with faces, more than the {MAX_PARTS:,} parts "
+                 "lopcook accepts", hint="merge groups or split the file")
     stem = os.path.splitext(os.path.basename(path))[0] or "obj"
     names = unique_names([_part_name(k, stem) for k in keys])
 
@@ -773,7 +789,8 @@ def _texture_for(ctx, mat, materials, cache, have_lib) -> Texture | None:
     else:
         try:
             with open(target, "rb") as fh:
-                tex = Texture(name=os.path.basename(target), data=fh.read())
+                tex = checked_texture(os.path.basename(target), fh.read(), ctx.warnings.append,
+                                      f"texture {os.path.basename(target)!r} of material {mat!r}")
         except OSError as exc:
             ctx.warnings.append(f"texture {os.path.basename(fpath)!r} unreadable ({exc.strerror}); no texture")
     cache[fpath] = tex

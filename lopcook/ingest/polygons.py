@@ -13,6 +13,16 @@ from __future__ import annotations
 import numpy as np
 
 
+#: largest concave polygon ear-clipped (worst case quadratic to cubic in the corners); convex and
+#: zero-area polygons of any size are fanned in O(k)
+MAX_CONCAVE_CORNERS = 512
+
+
+class PolygonTooComplex(ValueError):
+    """A concave polygon with more than ``MAX_CONCAVE_CORNERS`` corners (the loaders turn it into
+    one LopcookError naming the file)."""
+
+
 def _newell(pts: np.ndarray) -> np.ndarray:
     """(k, 3) polygon -> (3,) Newell normal (length = 2 * projected area)."""
     nxt = np.roll(pts, -1, axis=0)
@@ -40,7 +50,9 @@ def ear_clip(pts3: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    (k - 2, 3) int64 local corner indices, same turning direction as the input.
+    (k - 2, 3) int64 local corner indices, same turning direction as the input. A polygon without
+    area (coincident or collinear corners) and a convex one are fanned from corner 0 in O(k); a
+    concave one with more than ``MAX_CONCAVE_CORNERS`` corners raises ``PolygonTooComplex``.
     """
     k = pts3.shape[0]
     normal = _newell(pts3)
@@ -49,6 +61,17 @@ def ear_clip(pts3: np.ndarray) -> np.ndarray:
     pts = pts3[:, keep].astype(np.float64)
     if normal[axis] < 0:  # make the 2-D projection counter-clockwise
         pts = pts[:, ::-1]
+    fan = np.stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)], axis=1)
+    size = float(np.max(np.ptp(pts3, axis=0))) if k else 0.0
+    if not np.abs(normal).max() > 1e-12 * size * size:
+        return fan  # no area (all corners coincide or are collinear): any triangulation is as good
+    nxt, prv = np.roll(pts, -1, axis=0), np.roll(pts, 1, axis=0)
+    turns = (pts[:, 0] - prv[:, 0]) * (nxt[:, 1] - prv[:, 1]) - (pts[:, 1] - prv[:, 1]) * (nxt[:, 0] - prv[:, 0])
+    if np.all(turns > 0):
+        return fan  # convex (every corner turns left): the fan is exact, O(k)
+    if k > MAX_CONCAVE_CORNERS:
+        raise PolygonTooComplex(f"a concave polygon has {k:,} corners; lopcook triangulates concave polygons of "
+                                f"at most {MAX_CONCAVE_CORNERS:,} (convex and zero-area ones of any size)")
     ring = list(range(k))
     tris: list[tuple[int, int, int]] = []
     guard = 0

@@ -87,7 +87,8 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
-from .build import make_part, unique_names
+from .build import (MAX_PARTS, MAX_TRIANGLES, bad_path_characters, checked_texture, make_part,
+                    regular_file_problem, unique_names)
 from .polygons import triangulate
 from ..mesh import unique_rows
 
@@ -180,7 +181,7 @@ def _tf_text(exc) -> str:
             text = "(a USD diagnostic with undecodable bytes)"
         if str(text).strip():
             texts.append(str(text).strip())
-    return "; ".join(texts) or type(exc).__name__
+    return "; ".join(texts) or "no diagnostic text"
 
 
 def _one_line(text: str, path: str) -> str:
@@ -251,7 +252,7 @@ class _Loader:
                 error = _tf_text(exc)
                 stage = None
             except Exception as exc:  # pxr raises a few plain exceptions (e.g. undecodable text)
-                error = f"{type(exc).__name__}: {exc}"
+                error = " ".join(str(exc).split()) or "unreadable data"
                 stage = None
         if stage is None:
             detail = error or "; ".join(_diagnostic_text(ln) for ln in lines) or "unknown error"
@@ -281,6 +282,9 @@ class _Loader:
         self.stage_matrix = stage_m
         self.xf_cache = {}
         self.earliest_xf: dict[str, bool] = {}
+        self.placed_triangles = 0  # over all placements so far (MAX_TRIANGLES)
+        self.proto_meshes: dict[str, int] = {}
+        self.active_instancers: set[str] = set()  # instancers being expanded (cycle check)
 
     # ------------------------------------------------------------------ dependencies
     def add_dependency(self, file: str) -> None:
@@ -388,20 +392,24 @@ class _Loader:
         return self.xf_cache[key]
 
     def _needs_earliest(self, prim) -> bool:
+        """Whether an xformOp of ``prim`` or of an ancestor has time samples and no default
+        (walked iteratively up the ancestors, so any depth of hierarchy works)."""
         from pxr import Usd, UsdGeom
 
-        path = str(prim.GetPath())
-        if path in self.earliest_xf:
-            return self.earliest_xf[path]
-        parent = prim.GetParent()
-        result = bool(parent) and not parent.IsPseudoRoot() and self._needs_earliest(parent)
-        if not result and prim.IsA(UsdGeom.Xformable):
-            for op in UsdGeom.Xformable(prim).GetOrderedXformOps():
-                attr = op.GetAttr()
-                if attr.GetNumTimeSamples() > 0 and attr.Get(Usd.TimeCode.Default()) is None:
-                    result = True
-                    break
-        self.earliest_xf[path] = result
+        chain = []  # prim, parent, ... up to the first one already known (or the root)
+        p = prim
+        while p and not p.IsPseudoRoot() and str(p.GetPath()) not in self.earliest_xf:
+            chain.append(p)
+            p = p.GetParent()
+        result = bool(p) and not p.IsPseudoRoot() and self.earliest_xf[str(p.GetPath())]
+        for q in reversed(chain):
+            if not result and q.IsA(UsdGeom.Xformable):
+                for op in UsdGeom.Xformable(q).GetOrderedXformOps():
+                    attr = op.GetAttr()
+                    if attr.GetNumTimeSamples() > 0 and attr.Get(Usd.TimeCode.Default()) is None:
+                        result = True
+                        break
+            self.earliest_xf[str(q.GetPath())] = result
         return result
 
     def matrix(self, prim, ctx: _Context) -> np.ndarray:
@@ -426,23 +434,28 @@ class _Loader:
             self.walk(child, pred, "default", _Context())
 
     def walk(self, prim, pred, purpose: str, ctx: _Context) -> None:
+        """Draw ``prim`` and its subtree in depth-first pre-order (an explicit stack: any depth of
+        hierarchy works; only nested PointInstancers recurse, once per nesting level)."""
         from pxr import UsdGeom
 
-        if prim.IsA(UsdGeom.Imageable):
-            img = UsdGeom.Imageable(prim)
-            if self.get(img.GetVisibilityAttr()) == UsdGeom.Tokens.invisible:
-                return  # visibility is inherited: nothing beneath is drawn
-            attr = img.GetPurposeAttr()
-            if attr and attr.HasAuthoredValue():
-                purpose = str(self.get(attr) or purpose)
-            if prim.IsA(UsdGeom.PointInstancer):
-                if purpose not in _SKIPPED_PURPOSES:
-                    self.instancer(prim, purpose, ctx)
-                return  # prototypes are drawn only through the instancer
-            if prim.IsA(UsdGeom.Mesh) and purpose not in _SKIPPED_PURPOSES:
-                self.mesh(prim, ctx)
-        for child in prim.GetFilteredChildren(pred):
-            self.walk(child, pred, purpose, ctx)
+        stack = [(prim, purpose)]
+        while stack:
+            prim, purpose = stack.pop()
+            if prim.IsA(UsdGeom.Imageable):
+                img = UsdGeom.Imageable(prim)
+                if self.get(img.GetVisibilityAttr()) == UsdGeom.Tokens.invisible:
+                    continue  # visibility is inherited: nothing beneath is drawn
+                attr = img.GetPurposeAttr()
+                if attr and attr.HasAuthoredValue():
+                    purpose = str(self.get(attr) or purpose)
+                if prim.IsA(UsdGeom.PointInstancer):
+                    if purpose not in _SKIPPED_PURPOSES:
+                        self.instancer(prim, purpose, ctx)
+                    continue  # prototypes are drawn only through the instancer
+                if prim.IsA(UsdGeom.Mesh) and purpose not in _SKIPPED_PURPOSES:
+                    self.mesh(prim, ctx)
+            children = list(prim.GetFilteredChildren(pred))
+            stack.extend((child, purpose) for child in reversed(children))
 
     def name_of(self, prim, ctx: _Context) -> str:
         path = str(prim.GetPath())
@@ -458,14 +471,44 @@ class _Loader:
         local = self.meshes[key]
         if local is None:
             return
+        self.placed_triangles += int(local.tris.shape[0])
+        if len(self.parts) >= MAX_PARTS or self.placed_triangles > MAX_TRIANGLES:
+            self._refuse_size(len(self.parts) + 1, self.placed_triangles)
         source = str(prim.GetPath()) + ctx.instance
         self.parts.append((self.name_of(prim, ctx), source, local, self.matrix(prim, ctx)))
+
+    def _refuse_size(self, parts: int, triangles: int, where: str = "") -> None:
+        at = f" ({where})" if where else ""
+        self.fail(f"the stage places at least {parts:,} meshes with {triangles:,} triangles{at}; lopcook accepts "
+                  f"at most {MAX_PARTS:,} parts and {MAX_TRIANGLES:,} triangles",
+                  hint="reduce the instancing or split the stage")
+
+    def _meshes_below(self, proto) -> int:
+        """How many drawable meshes one placement of ``proto`` places at least (meshes under it;
+        a nested PointInstancer counts as one): the multiplier for counting before expanding."""
+        from pxr import Usd, UsdGeom
+
+        key = str(proto.GetPath())
+        if key not in self.proto_meshes:
+            n = 0
+            it = iter(Usd.PrimRange(proto, Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)))
+            for p in it:
+                if p.IsA(UsdGeom.PointInstancer):
+                    n += 1
+                    it.PruneChildren()
+                elif p.IsA(UsdGeom.Mesh):
+                    n += 1
+            self.proto_meshes[key] = n
+        return self.proto_meshes[key]
 
     def instancer(self, prim, purpose: str, ctx: _Context) -> None:
         from pxr import Tf, Usd, UsdGeom
 
         pi = UsdGeom.PointInstancer(prim)
         where = str(prim.GetPath())
+        if where in self.active_instancers:
+            self.fail(f"PointInstancer {where} places itself (a prototype contains the instancer)",
+                      hint="point the prototypes relationship at prims outside the instancer's own path")
         protos = [self.stage.GetPrimAtPath(p) for p in pi.GetPrototypesRel().GetForwardedTargets()]
         attr = pi.GetPositionsAttr() if pi.GetPositionsAttr().HasAuthoredValue() else pi.GetProtoIndicesAttr()
         t = self.time_of(attr)
@@ -489,6 +532,12 @@ class _Loader:
                       f"{proto_indices.size} protoIndices (positions/orientations/scales lengths differ?)",
                       hint="give every per-instance array one entry per protoIndices entry")
         mask = list(pi.ComputeMaskAtTime(t))
+        # count the placements before expanding them (a small file can describe millions)
+        visible = np.ones(proto_indices.size, bool) if not mask else np.asarray(mask, bool)
+        per_proto = np.array([self._meshes_below(p) if p else 0 for p in protos], dtype=np.int64)
+        placing = int(per_proto[proto_indices[visible]].sum()) if protos else 0
+        if len(self.parts) + placing > MAX_PARTS:
+            self._refuse_size(len(self.parts) + placing, self.placed_triangles, f"PointInstancer {where}")
         if ctx.root is None:
             base = np.array(self.xform_cache(prim).GetLocalToWorldTransform(prim), dtype=np.float64)
         else:
@@ -511,7 +560,11 @@ class _Loader:
                 proto_label = f"{label}[{k}]/{proto.GetName()}"
             sub = _Context(root=proto, matrix=xforms[k] @ base, label=proto_label,
                            instance=f"{ctx.instance} [instance {k}]")
-            self.walk(proto, pred, purpose, sub)
+            self.active_instancers.add(where)
+            try:
+                self.walk(proto, pred, purpose, sub)
+            finally:
+                self.active_instancers.discard(where)
 
     # ------------------------------------------------------------------ mesh data
     def read_mesh(self, prim, key: str) -> _LocalMesh | None:
@@ -705,15 +758,24 @@ class _Loader:
                     continue
                 resolved = asset.resolvedPath
                 self.add_asset_dependency(src.GetInput("file").GetAttr(), asset.path, resolved)
+                if bad_path_characters(asset.path):
+                    self.fail(f"{mkey}: texture @{asset.path!r}@ names a file with a line break or NUL",
+                              hint="rename the file and the asset path: such a name cannot be listed in a depfile")
                 data = None
-                if resolved:
+                problem = None
+                if resolved and not Ar.IsPackageRelativePath(resolved):
+                    problem = regular_file_problem(resolved)  # never open a FIFO or a device
+                if resolved and problem is None:
                     try:
                         handle = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
                         data = bytes(handle.GetBuffer()) if handle else None
                     except Exception:  # noqa: BLE001 - unreadable texture: warn below
                         data = None
                 if data:
-                    tex = Texture(name=os.path.basename(asset.path), data=data)
+                    tex = checked_texture(os.path.basename(asset.path), data, self.warnings.append,
+                                          f"{mkey}: texture @{asset.path}@")
+                elif problem is not None and problem != "not found":
+                    self.warnings.append(f"{mkey}: texture @{asset.path}@ {problem}, ignored")
                 else:
                     self.warnings.append(f"{mkey}: texture @{asset.path}@ not found or unreadable, ignored")
                 break
@@ -791,6 +853,34 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
     LopcookError for an unreadable file, composition errors, inconsistent topology, out-of-range
     indices, NaN/Inf points and primvars whose length does not match their interpolation.
     """
+    from .. import isolate
+
+    if not isolate._available():
+        return _load_here(path, fmt, settings)
+    try:  # USD's native parsers in a child: a crash (e.g. a stack overflow) becomes one clear error
+        return isolate.call(_load_in_child, path, fmt, settings, "pxr" in sys.modules, faces=isolate.MIN_FACES)
+    except isolate.ChildFailed as exc:
+        why = str(exc).rsplit("(", 1)[-1].rstrip(")")
+        raise LopcookError("ingest", path, f"USD crashed while reading the file ({why}); the file is corrupt "
+                           "or nests its hierarchy too deeply for the USD library",
+                           hint="check the file with usdchecker, or flatten and re-export it") from None
+
+
+def _load_in_child(path: str, fmt: str, settings: IngestSettings, pxr_loaded: bool) -> Scene:
+    """In the forked child: USD's thread pool does not survive a fork, so when the parent had
+    already started it, the child runs USD's parallel work serially."""
+    if pxr_loaded:
+        try:
+            from pxr import Work
+
+            Work.SetConcurrencyLimit(1)
+        except Exception:  # noqa: BLE001 - an older usd-core: keep its default
+            pass
+    return _load_here(path, fmt, settings)
+
+
+def _load_here(path: str, fmt: str, settings: IngestSettings) -> Scene:
+    """``load`` in this process."""
     try:
         from pxr import Tf, Usd  # noqa: F401
     except ImportError as exc:  # pragma: no cover - usd-core is a dependency
