@@ -327,8 +327,8 @@ def _grid_usdc(path: Path, n: int = 100) -> None:
 
 
 def test_a_worker_crash_fails_only_its_asset(tmp_path):
-    """A real crash: under a 1 GB address-space cap, usd-core (0.26) dies with SIGSEGV opening
-    this crate file, while the small GLB beside it cooks."""
+    """A real failure: under a 1 GB address-space cap usd-core (0.26) dies opening this crate file,
+    while the small GLB beside it cooks."""
     root = tmp_path / "a"
     root.mkdir()
     _grid_usdc(root / "grid.usdc")
@@ -341,8 +341,13 @@ def test_a_worker_crash_fails_only_its_asset(tmp_path):
     assert (out / "cube.lop").read_bytes() == cook_reference(root / "cube.glb", tmp_path / "ref.lop")
     crash = s["grid.usdc"]
     assert crash["status"] == "failed" and not (out / "grid.lop").exists()
-    assert crash.get("signal") in ("SIGSEGV", "SIGBUS", "SIGABRT", "SIGKILL"), crash
-    assert crash["error"].startswith("worker crashed: killed by SIG") and "--worker-memory" in crash["error"]
+    # usd-core dies under the cap: in lopcook's forked USD reader (a clean ingest error) or, where
+    # that child is not used, in the worker itself (the worker's crash, by signal)
+    if crash.get("signal") is not None:
+        assert crash["signal"] in ("SIGSEGV", "SIGBUS", "SIGABRT", "SIGKILL"), crash
+        assert crash["error"].startswith("worker crashed: killed by SIG") and "--worker-memory" in crash["error"]
+    else:
+        assert crash["error"].startswith("ingest: ") and "\n" not in crash["error"], crash
     # with room to work the same asset cooks, to what lopcook cook writes
     proc = batch(root, "-o", out, "--worker-memory", "4GB", "--json")
     assert proc.returncode == 0 and statuses(proc)["grid.usdc"]["status"] == "cooked"
