@@ -25,6 +25,10 @@ def _add_crease_angle(p: argparse.ArgumentParser) -> None:
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="dihedral angle above which computed normals split, degrees in [0, 180] "
                         f"(default {D.ingest.crease_angle_deg:g}; 180 = smooth)")
+    p.add_argument("--max-triangles", type=int, default=D.ingest.max_triangles, metavar="N",
+                   help="refuse (exit 2) a source placing more triangles than this over all its instances, "
+                        f"counted before anything is expanded, in [1, {D.ingest.max_triangles:,}] "
+                        f"(default {D.ingest.max_triangles:,})")
 
 
 def _levels_text(levels) -> str:
@@ -325,7 +329,12 @@ def _ingest_settings(args):
         if not 0.0 <= args.crease_angle <= 180.0:
             raise LopcookError("usage", None, f"--crease-angle {args.crease_angle} is outside [0, 180] degrees")
         kw["crease_angle_deg"] = args.crease_angle
-    return IngestSettings(**kw)
+    if getattr(args, "max_triangles", None) is not None:
+        kw["max_triangles"] = args.max_triangles
+    try:
+        return IngestSettings(**kw)
+    except ValueError as exc:
+        raise LopcookError("usage", None, _flag_message(str(exc))) from None
 
 
 def _analyse_settings(args):

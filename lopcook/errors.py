@@ -23,7 +23,8 @@ class LopcookError(Exception):
     Parameters
     ----------
     stage : str
-        Pipeline stage that failed: ``"ingest"``, ``"analyse"``, ``"emit"``, ``"verify"``,
+        Pipeline stage that failed: ``"ingest"``, ``"analyse"``, ``"emit"``, ``"container"`` (reading a
+        .lop file), ``"verify"``,
         ``"report"``, ``"usage"``.
     path : str | None
         The file concerned (as the user gave it), or None when no file is involved.

@@ -17,6 +17,7 @@ from fractions import Fraction
 
 from .errors import LopcookError
 from .grid import BITS
+from .types import MAX_TRIANGLES
 from .viewing import Viewing
 
 __all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
@@ -171,14 +172,20 @@ class IngestSettings:
     usd_time : str
         Time code USD attributes are read at: ``"default"`` (Usd.TimeCode.Default(), falling back
         to the earliest time sample when no default is authored) or a number.
+    max_triangles : int in [1, ``lopcook.types.MAX_TRIANGLES``]
+        Largest scene accepted, in triangles over all placements; importers count before they
+        expand and refuse past it (exit 2). Default ``MAX_TRIANGLES`` (50 M).
     """
 
     crease_angle_deg: float = 60.0
     usd_time: str = "default"
+    max_triangles: int = MAX_TRIANGLES
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.crease_angle_deg <= 180.0):
             raise ValueError(f"crease_angle_deg must be in [0, 180], got {self.crease_angle_deg}")
+        if isinstance(self.max_triangles, bool) or not 1 <= int(self.max_triangles) <= MAX_TRIANGLES:
+            raise ValueError(f"max_triangles must be in [1, {MAX_TRIANGLES:,}], got {self.max_triangles}")
 
 
 @dataclass(frozen=True)
@@ -407,7 +414,7 @@ class Settings:
     @classmethod
     def from_manifest(cls, manifest: dict, path: str | None = None) -> "Settings":
         """The settings a container was cooked with (its ``options`` and ``viewing`` records;
-        render and tune sections at their defaults). Raises LopcookError("emit") when a record
+        render and tune sections at their defaults). Raises LopcookError("container") when a record
         is missing or does not parse."""
         try:
             options = manifest["options"]
@@ -429,7 +436,7 @@ class Settings:
         except (KeyError, TypeError, ValueError, IndexError, LopcookError) as exc:
             what = exc.message if isinstance(exc, LopcookError) else (
                 f"missing {exc}" if isinstance(exc, KeyError) else str(exc))
-            raise LopcookError("emit", path, f"the recorded cook options do not parse ({what})",
+            raise LopcookError("container", path, f"the recorded cook options do not parse ({what})",
                                hint="cook the source again with this lopcook version") from None
         return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing)
 

@@ -209,7 +209,7 @@ class Scene:
         hi = np.max([p.positions.max(axis=0) for p in self.parts], axis=0)
         return np.stack([lo, hi])
 
-    def validate(self) -> "Scene":
+    def validate(self, max_triangles: int = MAX_TRIANGLES) -> "Scene":
         """Check every part (see MeshPart.validate), that the scene is not empty and that it is
         within ingest's limits (the module constants below): at most ``MAX_PARTS`` parts and
         ``MAX_TRIANGLES`` triangles over all placements, every coordinate within
@@ -222,9 +222,10 @@ class Scene:
         if len(self.parts) > MAX_PARTS:
             raise LopcookError("ingest", self.source, f"the scene has {len(self.parts):,} parts, more than "
                                f"the {MAX_PARTS:,} lopcook accepts", hint="merge parts or split the scene")
-        if self.n_triangles > MAX_TRIANGLES:
+        if self.n_triangles > max_triangles:
             raise LopcookError("ingest", self.source, f"the scene has {self.n_triangles:,} triangles, more "
-                               f"than the {MAX_TRIANGLES:,} lopcook accepts", hint="simplify or split the scene")
+                               f"than the {max_triangles:,} lopcook accepts",
+                               hint="simplify or split the scene, or raise --max-triangles")
         names = [p.name for p in self.parts]
         if len(set(names)) != len(names):
             raise LopcookError("ingest", self.source, "part names are not unique")

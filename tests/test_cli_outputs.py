@@ -129,3 +129,22 @@ def test_progress_plain_prints_one_line_per_stage(work):
     silent = subprocess.run([sys.executable, "-m", "lopcook", "cook", "two_plates.glb", "-o", "q.lop"],
                             capture_output=True, text=True, cwd=work, env={"PYTHONPATH": str(REPO), "PATH": ""})
     assert silent.returncode == 0 and silent.stderr == ""  # off a terminal: no progress by default
+
+
+@pytest.mark.parametrize("src", ["two_plates.glb", "point_instancer.usda", "unit_sphere.obj"])
+def test_max_triangles_is_a_flag(work, capsys, src):
+    """``--max-triangles`` bounds a source in every format, counted before it is expanded."""
+    path = FIXTURES / src
+    assert main(["cook", str(path), "-o", "m.lop", "--max-triangles", "10"]) == 2
+    err = _err(capsys)
+    assert "--max-triangles" in err and not (work / "m.lop").exists()
+    assert main(["-q", "cook", str(path), "-o", "m.lop"]) == 0
+    assert main(["cook", str(path), "-o", "n.lop", "--max-triangles", "0"]) == 2
+    assert "--max-triangles must be in [1, " in _err(capsys)
+
+
+def test_container_read_errors_are_not_emit_errors(work, capsys):
+    (work / "junk.lop").write_bytes(b"LOPC" + b"\0" * 40)
+    assert main(["inspect", "junk.lop"]) == 2
+    err = _err(capsys)
+    assert "emit:" not in err and err.startswith("lopcook: error: container: junk.lop: ")

@@ -78,7 +78,7 @@ class Container:
     def write(self, path) -> None:
         """Write the container's bytes to ``path`` atomically (a temp file, then a rename)."""
         if self.data is None:
-            raise LopcookError("emit", self.path, "this container holds no bytes to write",
+            raise LopcookError("container", self.path, "this container holds no bytes to write",
                                hint="read it with lopcook.read or cook it with lopcook.cook")
         write_atomic(str(path), self.data)
 
@@ -86,7 +86,7 @@ class Container:
         try:
             return self.sections[name]
         except KeyError:
-            raise LopcookError("emit", self.path, f"section {name!r} is missing from the container "
+            raise LopcookError("container", self.path, f"section {name!r} is missing from the container "
                                f"(the file holds levels up to {self.available_level})") from None
 
 
@@ -155,7 +155,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     """
 
     def fail(msg: str, hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
-        raise LopcookError("emit", path, msg, hint=hint)
+        raise LopcookError("container", path, msg, hint=hint)
 
     data = bytes(data)
     if len(data) < HEADER_SIZE:
@@ -256,7 +256,7 @@ def read(path: str, *, allow_prefix: bool = False) -> Container:
         with open(path, "rb") as fh:
             data = fh.read()
     except FileNotFoundError:
-        raise LopcookError("emit", path, "file not found", hint="check the path") from None
+        raise LopcookError("container", path, "file not found", hint="check the path") from None
     except IsADirectoryError:
-        raise LopcookError("emit", path, "is a directory, not a .lop file") from None
+        raise LopcookError("container", path, "is a directory, not a .lop file") from None
     return from_bytes(data, path, allow_prefix=allow_prefix)

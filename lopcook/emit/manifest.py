@@ -27,7 +27,7 @@ MAX_GRID_REACH = 2.0 ** 102
 
 
 def validate_manifest(m, path: str | None) -> None:
-    """Raise LopcookError("emit", path, ...) unless the manifest is sound; the one check every read
+    """Raise LopcookError("container", path, ...) unless the manifest is sound; the one check every read
     of a container runs (``container.from_bytes``), so that decode, inspect and verify may index
     it without further checks.
 
@@ -47,7 +47,7 @@ def validate_manifest(m, path: str | None) -> None:
     """
 
     def fail(msg: str) -> None:
-        raise LopcookError("emit", path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
+        raise LopcookError("container", path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
 
     def is_int(v) -> bool:
         return isinstance(v, int) and not isinstance(v, bool)

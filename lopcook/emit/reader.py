@@ -80,7 +80,7 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     off, count = e["mandatory_words"]
     mandatory = np.frombuffer(c.section(c.manifest["positions"]["mandatory"]), dtype="<u4")
     if off + count > mandatory.size:
-        raise LopcookError("emit", c.path, "mandatory position words out of range")
+        raise LopcookError("container", c.path, "mandatory position words out of range")
     words = mandatory[off:off + count]
     values, widths = decode(words, vid, table_bit_id(vid, 1), 1)
     values = values.astype(np.uint32)
@@ -91,7 +91,7 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
         stream = _plane_bits(c, p)
         start = _plane_offsets(c, p)[(part, lod)]
         if start + 3 * g > stream.size:
-            raise LopcookError("emit", c.path, f"plane {p} is shorter than its buffers")
+            raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
         bits = stream[start:start + 3 * g].reshape(g, 3).astype(np.uint32)
         values[:g] = (values[:g] << np.uint32(1)) | bits
     return values, vertex_widths(vid, level)
@@ -123,7 +123,7 @@ def lod_attributes(c: Container, part: int, lod: int) -> dict:
     dtype = "<u2" if e["index_width"] == 2 else "<u4"
     raw = np.frombuffer(c.section(e["indices"]), dtype)
     if raw.size < 3 * e["triangles"]:
-        raise LopcookError("emit", c.path, f"part {part} LOD {lod}: index section is too short")
+        raise LopcookError("container", c.path, f"part {part} LOD {lod}: index section is too short")
     out = {"indices": attr.decode_indices(raw[: 3 * e["triangles"]], e["index_width"], e["triangles"])}
     n = e["vertices"]
     out["normals"] = None if e.get("normals") is None else attr.decode_normals(
@@ -133,5 +133,5 @@ def lod_attributes(c: Container, part: int, lod: int) -> dict:
     out["colors"] = None if e.get("colors") is None else attr.decode_colors(
         np.frombuffer(c.section(e["colors"]), np.uint8)[: 4 * n])
     if int(out["indices"].max(initial=0)) >= n:
-        raise LopcookError("emit", c.path, f"part {part} LOD {lod}: index out of range")
+        raise LopcookError("container", c.path, f"part {part} LOD {lod}: index out of range")
     return out

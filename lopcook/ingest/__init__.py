@@ -142,7 +142,7 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
                                f"({dep!r})", hint="rename the file and the reference: such a name cannot "
                                "be listed in a depfile")
     with np.errstate(all="ignore"):
-        scene.validate()
+        scene.validate(settings.max_triangles)
     _refuse_all_degenerate(scene)
     return scene
 

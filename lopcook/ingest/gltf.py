@@ -679,9 +679,11 @@ class _GltfReader:
             if reached > MAX_PARTS:
                 raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x primitives); "
                                  f"lopcook accepts at most {MAX_PARTS:,} parts", "merge meshes or split the scene")
-            if triangles > MAX_TRIANGLES:
-                raise _Malformed(f"the scene places more than {MAX_TRIANGLES:,} triangles (declared counts); "
-                                 f"lopcook accepts at most {MAX_TRIANGLES:,}", "simplify or split the scene")
+            if triangles > self.settings.max_triangles:
+                cap = self.settings.max_triangles
+                raise _Malformed(f"the scene places more than {cap:,} triangles (declared counts); "
+                                 f"lopcook accepts at most {cap:,}", "simplify or split the scene, or raise "
+                                 "--max-triangles")
 
     def _declared_triangles(self, prim) -> int:
         """Triangles a primitive declares (from its index or POSITION count), 0 when unknown."""

@@ -472,7 +472,7 @@ class _Loader:
         if local is None:
             return
         self.placed_triangles += int(local.tris.shape[0])
-        if len(self.parts) >= MAX_PARTS or self.placed_triangles > MAX_TRIANGLES:
+        if len(self.parts) >= MAX_PARTS or self.placed_triangles > self.settings.max_triangles:
             self._refuse_size(len(self.parts) + 1, self.placed_triangles)
         source = str(prim.GetPath()) + ctx.instance
         self.parts.append((self.name_of(prim, ctx), source, local, self.matrix(prim, ctx)))
@@ -480,7 +480,7 @@ class _Loader:
     def _refuse_size(self, parts: int, triangles: int, where: str = "") -> None:
         at = f" ({where})" if where else ""
         self.fail(f"the stage places at least {parts:,} meshes with {triangles:,} triangles{at}; lopcook accepts "
-                  f"at most {MAX_PARTS:,} parts and {MAX_TRIANGLES:,} triangles",
+                  f"at most {MAX_PARTS:,} parts and {self.settings.max_triangles:,} triangles (--max-triangles)",
                   hint="reduce the instancing or split the stage")
 
     def _meshes_below(self, proto) -> int:
