@@ -54,9 +54,6 @@ def budget_target(text: str, float_size: int | None = None) -> int | None:
 def calibration(scene: Scene, settings: Settings, progress: Progress = NONE) -> dict:
     """``lopcook calibrate``: the k_f search of ``settings.tune`` (``lopcook.tune.calibrate``);
     its result says whether the target was reached."""
-    from .tune.calibrate import calibrate
-
-    t = settings.tune
     with progress.stage("calibrate (probes)") as st:
         def on_probe(p):
             st.advance()

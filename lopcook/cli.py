@@ -619,7 +619,6 @@ def cmd_decode(args) -> int:
     from .emit.container import read
     from .emit.gltf_writer import write_gltf
     from .emit.reader import decode_positions, lod_attributes
-    from .outputs import check_output
 
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
@@ -688,7 +687,6 @@ def cmd_refine(args) -> int:
     from .emit.container import read
     from .emit.gltf_writer import write_gltf
     from .hierarchy.container import refine
-    from .outputs import check_output
 
     camera, target = _xyz(args.camera, "--camera"), _xyz(args.target, "--target")
     viewport = _resolution(args.viewport, "--viewport")

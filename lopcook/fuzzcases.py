@@ -881,7 +881,6 @@ def _lop_cases(w: _Writer, rng) -> None:
         lop(name, _lop_with(m, payload if pay is None else pay), expect, commands)
 
     lop("ok", data, "ok")
-    secs = manifest["sections"]
     part0 = manifest["parts"][0]["lods"][0]
     # grid lies
     for label, val in (("1e39", 1e39), ("inf", float("inf")), ("nan", float("nan")), ("zero", 0.0),

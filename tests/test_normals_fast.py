@@ -19,7 +19,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from lopcook.ingest import load
-from lopcook.ingest.normals import compute_normals, face_normals
+from lopcook.ingest.normals import compute_normals
+from lopcook.mesh import face_normals
 from lopcook import mesh as mesh_module
 from lopcook.mesh import weld_exact
 

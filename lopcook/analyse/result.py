@@ -6,7 +6,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ..grid import BITS, Grid
+
+if TYPE_CHECKING:
+    from ..settings import AnalyseSettings
 
 #: why a vertex has its minimum level (uint8 codes in PartAnalysis.reason)
 REASONS = ("none", "normal", "uv", "color", "depth", "depth-capped", "co-located", "edge")

@@ -87,7 +87,7 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
-from .build import (MAX_PARTS, MAX_TRIANGLES, bad_path_characters, checked_texture, make_part,
+from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
                     regular_file_problem, unique_names)
 
 GLB_MAGIC = b"glTF"

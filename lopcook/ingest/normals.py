@@ -29,7 +29,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..mesh import face_normals, weld_exact, weld_labels
+from ..mesh import weld_labels
 
 
 @dataclass(frozen=True)

@@ -12,5 +12,6 @@ from .chain import MIN_SIMPLIFY_TRIANGLES, SEAM_MODES, Lod, LodReport, chain_war
 from .error import hausdorff
 from .topology import SeamStats, mesh_defects, seam_stats
 
-__all__ = ["BACKENDS", "SEAM_MODES", "MIN_SIMPLIFY_TRIANGLES", "Lod", "LodReport", "lod_chain", "parametrise",
+__all__ = ["BACKENDS", "SEAM_MODES", "MIN_SIMPLIFY_TRIANGLES", "Lod", "LodReport", "chain_warnings", "lod_chain",
+           "parametrise",
            "simplify", "hausdorff", "SeamStats", "mesh_defects", "seam_stats"]

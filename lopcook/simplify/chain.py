@@ -101,6 +101,8 @@ Copies of one mesh in a scene are simplified once (``lopcook.simplify.instances`
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time
 from dataclasses import dataclass, field, replace
 
@@ -110,10 +112,13 @@ from .. import isolate
 from ..memory import release_free_memory
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
-from .backends import BACKENDS, SELECTABLE, TARGET_FAIL_FACTOR, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
+from .backends import BACKENDS, SELECTABLE, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, measure_ref_to_lod
 from .topology import mesh_defects, seam_stats
 from .transfer import Reference, transfer_attributes
+
+if TYPE_CHECKING:
+    from .topology import SeamStats
 
 
 SEAM_MODES = ("lock", "simplify", "ignore", "xatlas")

@@ -8,10 +8,15 @@ peak inside a face); what the recorded error guarantees is stated in docs/lod.md
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..mesh import used_ids
 from ..types import MeshPart
+
+if TYPE_CHECKING:
+    from .transfer import Reference
 
 
 def point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):

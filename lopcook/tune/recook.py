@@ -29,7 +29,6 @@ container bytes).
 from __future__ import annotations
 
 import time
-from dataclasses import fields
 from pathlib import Path
 
 from ..errors import LopcookError
