@@ -160,6 +160,16 @@ def duplicated_positions(positions: np.ndarray) -> int:
     return int(positions.shape[0] - n_groups)
 
 
+def canonical_triangles(tri) -> np.ndarray:
+    """(m, 3) int64: triangles rotated to start at their smallest index, then sorted: equal for two
+    index buffers that hold the same oriented triangles in any order and rotation."""
+    t = np.asarray(tri, np.int64).reshape(-1, 3)
+    k = np.argmin(t, axis=1)
+    r = np.arange(t.shape[0])
+    c = np.stack([t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]], axis=1)
+    return c[np.lexsort(c.T[::-1])] if c.shape[0] else c
+
+
 def degenerate_triangles(positions: np.ndarray, indices: np.ndarray, rel_tol: float = 1e-12) -> int:
     """Number of degenerate triangles: ``degenerate_mask(positions, indices, rel_tol).sum()``."""
     return int(np.count_nonzero(degenerate_mask(positions, np.asarray(indices).astype(np.int64), rel_tol)))

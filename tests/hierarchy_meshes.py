@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lopcook.mesh import canonical_triangles as canonical  # noqa: F401 (re-exported for the tests)
+
 
 def icosphere(subdivisions: int = 2):
     import trimesh
@@ -43,15 +45,6 @@ def grid(n: int = 12):
     a = (i[:, None] * n + i[None, :]).ravel()
     t = np.concatenate([np.stack([a, a + 1, a + n + 1], 1), np.stack([a, a + n + 1, a + n], 1)])
     return p, t.astype(np.int64)
-
-
-def canonical(tri) -> np.ndarray:
-    """Triangles rotated to start at their smallest index and sorted: an oriented multiset."""
-    t = np.asarray(tri, np.int64).reshape(-1, 3)
-    k = np.argmin(t, axis=1)
-    r = np.arange(t.shape[0])
-    c = np.stack([t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]], axis=1)
-    return c[np.lexsort(c.T[::-1])] if c.shape[0] else c
 
 
 def net_edges(tri) -> dict:

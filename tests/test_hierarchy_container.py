@@ -22,6 +22,7 @@ from lopcook.emit.summary import describe_container
 from lopcook.errors import LopcookError
 from lopcook.hierarchy.container import VARIANT_NAME, read_part, refine
 from lopcook.hierarchy.select import select_cut
+from lopcook.mesh import canonical_triangles as canonical
 from lopcook.settings import DEFAULTS, Settings, SimplifySettings, parse_lods
 
 HIER = Settings(simplify=SimplifySettings(hierarchy=True))
@@ -34,14 +35,6 @@ RES = (320, 180)
 #: (docs/hierarchy.md, section 7)
 CAMERA_LEVELS = (6, 8, 10)
 CUT_PIXEL_ERROR = 0.1
-
-
-def canonical(t):
-    t = np.asarray(t, np.int64)
-    k = np.argmin(t, axis=1)
-    r = np.arange(t.shape[0])
-    c = np.stack([t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]], axis=1)
-    return c[np.lexsort(c.T[::-1])]
 
 
 def chain(tri) -> dict:

@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..mesh import canonical_triangles
+
 REPO = Path(__file__).resolve().parents[2]
 
 ASSETS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/DamagedHelmet.gltf",
@@ -152,14 +154,6 @@ def run_asset(path, variants):
     return acc, ref, trees
 
 
-def _canonical(t):
-    t = np.asarray(t, np.int64)
-    k = np.argmin(t, axis=1)
-    r = np.arange(t.shape[0])
-    c = np.stack([t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]], axis=1)
-    return c[np.lexsort(c.T[::-1])]
-
-
 def throughput(trees):
     from lopcook.hierarchy import PROPOSED, PROPOSED_PLUS, decode_hierarchy, encode_hierarchy
 
@@ -169,7 +163,7 @@ def throughput(trees):
         te, blobs = best_of(lambda: [encode_hierarchy(T, variant=v) for T, _ in trees], 2, "enc")
         td, dec = best_of(lambda: [decode_hierarchy(b).triangles() for b in blobs], 2, "dec")
         for (T, _), tri in zip(trees, dec):  # exact round trip (oriented multiset of triangles)
-            if not np.array_equal(_canonical(tri), _canonical(T.triangles)):
+            if not np.array_equal(canonical_triangles(tri), canonical_triangles(T.triangles)):
                 raise SystemExit(f"round trip failed ({name})")
         out[name] = {"encode_tri_per_s": m / te, "decode_tri_per_s": m / td, "decode_s": td,
                      "decode_cpu_s": CPU["dec"], "encode_cpu_s": CPU["enc"],

@@ -61,6 +61,22 @@ def describe_scene(scene: Scene) -> dict:
     }
 
 
+def attribute_labels(q: dict, texture: str = "tex={}") -> list[str]:
+    """Short labels of a part's attributes in ``describe_scene``'s record: ``N`` (``N*`` when
+    lopcook computed the normals), ``UV``, ``C`` (colours) and the texture (``texture`` formats its
+    name)."""
+    attrs = []
+    if q["normals"]:
+        attrs.append("N*" if q["normals"] == "computed" else "N")
+    if q["uvs"]:
+        attrs.append("UV")
+    if q["colors"]:
+        attrs.append("C")
+    if q["texture"]:
+        attrs.append(texture.format(q["texture"]))
+    return attrs
+
+
 def format_scene(d: dict, max_parts: int = 40) -> str:
     """Human-readable table of ``describe_scene`` output."""
     t = d["totals"]
@@ -75,15 +91,7 @@ def format_scene(d: dict, max_parts: int = 40) -> str:
         f"  {'part':<40} {'vertices':>10} {'triangles':>10}  attributes",
     ]
     for q in d["parts"][:max_parts]:
-        attrs = []
-        if q["normals"]:
-            attrs.append("N" + ("*" if q["normals"] == "computed" else ""))
-        if q["uvs"]:
-            attrs.append("UV")
-        if q["colors"]:
-            attrs.append("C")
-        if q["texture"]:
-            attrs.append(f"tex={q['texture']}")
+        attrs = attribute_labels(q)
         name = q["name"] if len(q["name"]) <= 40 else "…" + q["name"][-39:]
         lines.append(f"  {name:<40} {q['vertices']:>10,} {q['triangles']:>10,}  {' '.join(attrs)}")
     if len(d["parts"]) > max_parts:
@@ -95,4 +103,4 @@ def format_scene(d: dict, max_parts: int = 40) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["describe_scene", "format_scene"]
+__all__ = ["describe_scene", "format_scene", "attribute_labels"]

@@ -25,6 +25,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..atomic import write_atomic
+from ..ingest.summary import attribute_labels
 from ..verify.metrics import depth_error_mask
 from .images import apply_crop, crop_box, depth_overlay, png_data_uri
 from .model import report_json_bytes
@@ -210,15 +211,7 @@ def parts_html(rep: dict) -> str:
         return ""
     rows = []
     for q in parts:
-        attrs = []
-        if q["normals"]:
-            attrs.append("N*" if q["normals"] == "computed" else "N")
-        if q["uvs"]:
-            attrs.append("UV")
-        if q["colors"]:
-            attrs.append("C")
-        if q["texture"]:
-            attrs.append(f"texture {q['texture']}")
+        attrs = attribute_labels(q, texture="texture {}")
         rows.append(f'<tr><td class="name">{e(q["name"])}</td><td>{q["vertices"]:,}</td><td>{q["triangles"]:,}</td>'
                     f'<td class="name">{e(" ".join(attrs) or "-")}</td></tr>')
     table = ('<div class="scroll"><table id="parts"><thead><tr><th>part</th><th>vertices</th><th>triangles</th>'
