@@ -195,7 +195,6 @@ def test_obj_statements(tmp_path_factory, lines):
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(values=st.lists(number, min_size=1, max_size=6), counts=st.lists(st.integers(-2, 9), min_size=1, max_size=7))
 def test_usda_numbers(tmp_path_factory, values, counts):
-    pytest.importorskip("pxr")
     points = ", ".join(f"({v}, 0, 1)" for v in values)
     text = (fz._USDA_HEAD + 'def Xform "R" {\ndef Mesh "m" {\nint[] faceVertexCounts = [' + ", ".join(map(str, counts))
             + "]\nint[] faceVertexIndices = ["

@@ -9,9 +9,7 @@ import re
 
 import pytest
 
-pytest.importorskip("pxr")
-
-from lopcook import fuzzcases as fz  # noqa: E402
+from lopcook import fuzzcases as fz
 from lopcook.errors import LopcookError  # noqa: E402
 from lopcook.ingest import load, usd  # noqa: E402
 from lopcook.ingest.build import MAX_PARTS  # noqa: E402
