@@ -424,3 +424,12 @@ def test_progress_bar_on_a_terminal(tmp_path):
     assert "\rlopcook batch: 100%|" in text and "1/1" in text     # the tqdm bar, redrawn in place
     assert "[1/1] cooked" not in text                            # not the log lines
     assert "lopcook batch: 1 asset: 1 cooked" in text
+
+
+def test_an_output_folder_that_cannot_be_made_fails_before_any_cook(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    src = tmp_path / "cube.glb"
+    shutil.copy(FIXTURES / "seamed_cube.glb", src)
+    proc = batch(src, "-o", tmp_path / "afile" / "out")
+    assert proc.returncode == 2 and "cannot create the output folder" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr

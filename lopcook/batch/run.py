@@ -19,6 +19,7 @@ import os
 import time
 from dataclasses import dataclass
 
+from ..errors import LopcookError
 from ..version import __version__
 from . import SCRATCH_DIR
 from .config import BatchConfig, load_config, resolve
@@ -67,8 +68,6 @@ def _input_bytes(p: Planned, state: State) -> int:
 def _lock(outdir: str):
     """An exclusive ``flock`` on ``OUTDIR/.lopcook-batch.lock`` (released when the returned file
     closes): two batches writing one OUTDIR at once would lose each other's state entries."""
-    from ..errors import LopcookError
-
     fh = open(os.path.join(outdir, ".lopcook-batch.lock"), "a+b")
     try:
         import fcntl
@@ -96,7 +95,13 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     config = config if config is not None else load_config(default_config_path())
     outdir = os.path.abspath(outdir)
     planned = plan(sources, outdir, config)
-    os.makedirs(outdir, exist_ok=True)
+    try:
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise LopcookError("usage", outdir, f"cannot create the output folder ({exc.strerror or exc})",
+                           hint="give -o a folder whose parent exists and is writable") from None
+    if not os.access(outdir, os.W_OK | os.X_OK):
+        raise LopcookError("usage", outdir, "the output folder is not writable")
     lock = _lock(outdir)
     state = State.load(outdir)
     records: dict[str, dict] = {}
