@@ -433,3 +433,13 @@ def test_an_output_folder_that_cannot_be_made_fails_before_any_cook(tmp_path):
     proc = batch(src, "-o", tmp_path / "afile" / "out")
     assert proc.returncode == 2 and "cannot create the output folder" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+
+
+def test_emit_ninja_never_overwrites_an_input(tmp_path):
+    src = tmp_path / "cube.glb"
+    shutil.copy(FIXTURES / "seamed_cube.glb", src)
+    before = src.read_bytes()
+    for target, words in ((src, "ends in '.glb'"), (tmp_path / "missing" / "b.ninja", "does not exist")):
+        proc = batch(src, "-o", tmp_path / "out", "--emit-ninja", target)
+        assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert src.read_bytes() == before

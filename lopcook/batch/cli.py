@@ -93,7 +93,12 @@ def _emit_ninja(args, config) -> int:
     from .ninja import write_ninja
     from .run import plan
 
+    from ..outputs import OTHER_OUTPUTS, SOURCE_EXTENSIONS, check_output
+
     planned = plan(args.sources, args.output, config)
+    inputs = tuple(args.sources) + tuple(p.asset.source for p in planned) + ((args.config,) if args.config else ())
+    check_output(args.emit_ninja, "--emit-ninja", extensions=(".ninja",), what="a Ninja build file", inputs=inputs,
+                 forbidden=SOURCE_EXTENSIONS + OTHER_OUTPUTS + (".lop", ".toml"), required=False)
     write_ninja(args.emit_ninja, [(p.asset.source, p.asset.output, p.options) for p in planned])
     if args.json:
         print(json.dumps({"ninja": os.path.abspath(args.emit_ninja), "assets": len(planned),
