@@ -291,3 +291,26 @@ def test_obj_huge_face_line_is_bounded(tmp_path):
 def test_error_messages_are_one_line():
     err = LopcookError("ingest", "a\nb.obj", "first\nsecond\r\n  third", hint="do\nthis")
     assert str(err) == "ingest: a b.obj: first second third (do this)"
+
+
+def _obj(path, verts, faces):
+    path.write_text("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in verts)
+                    + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    return path
+
+
+@pytest.mark.parametrize("good_at", [0, 4095, 4096, 9999])
+def test_one_spanning_triangle_anywhere_is_enough(tmp_path, good_at):
+    """The degeneracy check samples the first triangles before a full pass: a lone good triangle
+    inside the sample, at its edge or after it is found either way (10,000 triangles)."""
+    verts = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
+    faces = [(0, 0, 0)] * 10_000
+    faces[good_at] = (0, 1, 2)
+    scene = load(str(_obj(tmp_path / "mostly_degenerate.obj", verts, faces)))
+    assert scene.n_triangles >= 1
+
+
+def test_only_degenerate_triangles_beyond_the_sample_are_refused(tmp_path):
+    verts = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
+    with pytest.raises(LopcookError, match="degenerate"):
+        load(str(_obj(tmp_path / "all_degenerate.obj", verts, [(0, 0, 0), (1, 1, 1)] * 5_000)))

@@ -147,6 +147,10 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
     return scene
 
 
+#: triangles per part checked before the full pass of _refuse_all_degenerate
+_DEGENERATE_SAMPLE = 4096
+
+
 def _refuse_all_degenerate(scene: Scene) -> None:
     """Refuse a scene none of whose triangles spans two cells of its 24-bit grid (every corner
     of every triangle falls in one cell: all indices equal, all positions identical, a polygon
@@ -155,10 +159,18 @@ def _refuse_all_degenerate(scene: Scene) -> None:
     from ..grid import Grid
 
     grid = Grid.fit([p.positions for p in scene.parts])
+
+    def spans(q: np.ndarray) -> bool:  # q: (k, 3 corners, 3) grid integers
+        return bool((np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)).any())
+
+    # a sample of each part's first triangles settles every ordinary scene without quantising it
+    # whole; only a scene whose sampled triangles all collapse pays for the full pass
     for part in scene.parts:
-        q = grid.quantize(part.positions)[part.indices]  # (m, 3 corners, 3) grid integers
-        spans = np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)
-        if spans.any():
+        tris = part.indices[:_DEGENERATE_SAMPLE]
+        if spans(grid.quantize(part.positions[tris.ravel()]).reshape(-1, 3, 3)):
+            return
+    for part in scene.parts:
+        if spans(grid.quantize(part.positions)[part.indices]):
             return
     raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: the corners "
                        "of each fall in one cell of the 24-bit grid (coincident positions or indices)",
