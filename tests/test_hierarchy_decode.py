@@ -204,3 +204,50 @@ def test_level_decoder_refuses_bad_node_sets():
         with pytest.raises(LopcookError, match=what):
             decode_records_scalar(h, nodes)
     assert not supported(RELATIVE_ID)
+
+
+def test_vectorised_shape_and_index_parsing_match_the_node_by_node_ones(rng):
+    """The blob's tree shape (preorder bits) and record index (varints) are parsed with numpy;
+    on random forests, valid or with one bit flipped, the shape arrays and the errors equal the
+    stack-based parser's, and the varints equal ``get_varint``'s."""
+    from lopcook.hierarchy.format import _shape_arrays, _shape_arrays_scalar
+    from lopcook.hierarchy.huffman import get_varint, get_varints, put_varint
+
+    def tree_bits(n):
+        if n == 1:
+            return [0]
+        k = int(rng.integers(1, n))
+        return [1] + tree_bits(k) + tree_bits(n - k)
+
+    valid = invalid = 0
+    for it in range(200):
+        roots = int(rng.integers(1, 5))
+        bits = np.array(sum((tree_bits(int(rng.integers(1, 40))) for _ in range(roots)), []), np.uint8)
+        if it % 2:
+            bits[int(rng.integers(0, bits.shape[0]))] ^= 1
+        for n_roots in (roots, roots + 1):
+            out = []
+            for parse in (_shape_arrays, _shape_arrays_scalar):
+                try:
+                    out.append(parse(bits, n_roots))
+                except LopcookError as exc:
+                    assert exc.stage == "decode"
+                    out.append(None)
+            assert (out[0] is None) == (out[1] is None)
+            if out[0] is None:
+                invalid += 1
+            else:
+                valid += 1
+                assert all(np.array_equal(a, b) for a, b in zip(*out))
+    assert valid >= 100 and invalid >= 100
+    vals = rng.integers(0, 1 << 40, 500).tolist() + [0, 127, 128, (1 << 62) + 5]
+    buf = bytearray(b"ab")
+    for v in vals:
+        put_varint(buf, v)
+    got, end = get_varints(bytes(buf), 2, len(vals))
+    assert got.tolist() == vals and end == len(buf)
+    assert get_varint(bytes(buf), 2)[0] == vals[0]
+    with pytest.raises(LopcookError, match="truncated"):
+        get_varints(bytes(buf[:-1]), 2, len(vals))
+    with pytest.raises(LopcookError, match="longer than 63 bits"):
+        get_varints(b"\xff" * 9 + b"\x01", 0, 1)

@@ -20,13 +20,15 @@ import numpy as np
 from ..errors import LopcookError
 from . import coding as C
 from .decode import decode_records
-from .huffman import Table, get_varint, put_varint
+from .huffman import Table, get_varint, get_varints, put_varint
 from .tree import VertexTree, build_tree
 
 MAGIC = b"LOPH"
 VERSION = 1
 _HINT = "the hierarchy data is corrupt or truncated; re-encode it"
 _TABLE_NAMES = ["H", "E", "I", "D", "N", "C"] + [C.context_table(k) for k in range(C.H_CONTEXTS)]
+_LIST_FIELDS = frozenset(f + "_l" for f in ("left", "right", "parent", "depth", "size", "lo", "rank",
+                                            "record_starts"))
 
 
 def _fail(msg: str):
@@ -102,15 +104,14 @@ class Hierarchy:
     reach: np.ndarray | None = None
     open_leaf: np.ndarray | None = None
 
-    def __post_init__(self):
-        self.left_l = self.left.tolist()
-        self.parent_l = self.parent.tolist()
-        self.right_l = self.right.tolist()
-        self.depth_l = self.depth.tolist()
-        self.size_l = self.size.tolist()
-        self.lo_l = self.lo.tolist()
-        self.rank_l = self.rank.tolist()
-        self.record_starts_l = self.record_starts.tolist()
+    def __getattr__(self, name):
+        # ``left_l`` ... ``record_starts_l``: Python lists of those arrays for the per-node
+        # decoder, made on first use
+        if name in _LIST_FIELDS:
+            v = getattr(self, name[:-2]).tolist()
+            object.__setattr__(self, name, v)
+            return v
+        raise AttributeError(name)
 
     @property
     def internal_nodes(self) -> np.ndarray:
@@ -251,7 +252,60 @@ def _unpack_selection(body, p, N):
 
 
 def _shape_arrays(isint: np.ndarray, n_roots: int):
-    """Preorder internal/leaf bits -> left, right, parent, depth, size (validated)."""
+    """Preorder internal/leaf bits -> left, right, parent, depth, size, lo (validated).
+
+    Vectorised with the preorder excess ``S(k) = sum_{j<k} (2 isint_j - 1)``: a full binary
+    subtree starting at ``k`` nets -1, so it ends right before the first ``j > k`` with
+    ``S(j) = S(k) - 1``, an internal node's left child is ``u + 1`` and its right child the
+    first ``j > u`` with ``S(j) = S(u)``; a tree of the forest starts wherever ``S`` reaches a
+    new minimum. Same result as :func:`_shape_arrays_scalar`."""
+    b = np.asarray(isint).astype(bool)
+    N = b.shape[0]
+    if N == 0:
+        _fail("tree structure bits do not describe a full binary forest")
+    S = np.r_[0, np.cumsum(np.where(b, 1, -1))].astype(np.int64)  # (N + 1,)
+    pre_min = np.minimum.accumulate(S[:N])
+    is_root = np.r_[True, S[1:N] < pre_min[:-1]]
+    if not S[N] < pre_min[-1] or int(is_root.sum()) != n_roots:
+        _fail("tree structure bits do not describe a full binary forest")
+    # sorted (S value, position) keys: the next position after k holding a given S value
+    off = -int(S.min())
+    key = (S + off) * (N + 1) + np.arange(N + 1)
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+
+    def next_at(value, after):
+        i = np.searchsorted(skey, (value + off) * (N + 1) + after)
+        return order[np.minimum(i, N)]
+
+    k = np.arange(N)
+    end = next_at(S[:N] - 1, k + 1)  # one past each subtree
+    inner = np.flatnonzero(b)
+    left = np.full(N, -1, np.int64)
+    right = np.full(N, -1, np.int64)
+    left[inner] = inner + 1
+    right[inner] = next_at(S[inner], inner + 1)
+    parent = np.full(N, -1, np.int64)
+    parent[left[inner]] = inner
+    parent[right[inner]] = inner
+    size = (end - k + 1) // 2
+    # depth by pointer jumping: O(N log depth)
+    depth = (parent >= 0).astype(np.int64)
+    anc = parent.copy()
+    while True:
+        go = anc >= 0
+        if not go.any():
+            break
+        a = anc[go]
+        depth[go] += depth[a]
+        anc[go] = anc[a]
+    leaves = np.flatnonzero(~b)
+    lo = np.searchsorted(leaves, k).astype(np.int64)
+    return left, right, parent, depth, size, lo
+
+
+def _shape_arrays_scalar(isint: np.ndarray, n_roots: int):
+    """:func:`_shape_arrays` with a stack, node by node (the reference for the tests)."""
     N = isint.shape[0]
     flags = isint.tolist()
     left = [-1] * N
@@ -512,9 +566,7 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         needed.add("C")
     if not needed <= set(tables):
         _fail(f"missing tables {sorted(needed - set(tables))}")
-    rb = np.zeros(I, np.int64)
-    for i in range(I):
-        rb[i], p = get_varint(body, p, "hierarchy record index")
+    rb, p = get_varints(body, p, I, "hierarchy record index")
     nbytes, p = get_varint(body, p, "hierarchy")
     if p + nbytes != len(body):
         _fail(f"connectivity is {len(body) - p} bytes, the index announces {nbytes}")
