@@ -2,11 +2,11 @@
 
 Not a test. Builds the bunny's tree once, encodes it with ``PROPOSED_PLUS`` (as ``cook
 --hierarchy`` does) and times, best of ``--repeat`` runs, ``decode_hierarchy`` + ``triangles()``
-and ``select_cut`` for a near, middle and far camera (1024x768, 60 degrees, 1 px), as wall clock
-and as this process's CPU time, with the load average. ``--profile`` prints a cProfile of the
+and ``select_cut`` for a near, middle and far camera (1024x768, 60 degrees, 1 px): wall clock
+(best / median / worst of the runs) and this process's CPU time (best), with the load average. ``--profile`` prints a cProfile of the
 middle cut. Usage::
 
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_cut_speed.py [--corpus DIR] [--repeat 5] [--profile]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_cut_speed.py [--corpus DIR] [--repeat 11] [--profile]
 """
 
 from __future__ import annotations
@@ -23,13 +23,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def best_of(fn, repeat):
-    wall, cpu, out = np.inf, np.inf, None
+    """(wall "best / median / worst" text, best CPU seconds, result) of ``repeat`` runs."""
+    walls, cpu, out = [], np.inf, None
     for _ in range(repeat):
         t, c = time.perf_counter(), time.process_time()
         out = fn()
-        wall = min(wall, time.perf_counter() - t)
+        walls.append(time.perf_counter() - t)
         cpu = min(cpu, time.process_time() - c)
-    return wall, cpu, out
+    w = np.sort(walls)
+    return f"{w[0]:.3f} / {np.median(w):.3f} / {w[-1]:.3f}", cpu, out
 
 
 def main(argv=None):
@@ -39,7 +41,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--corpus", default=os.environ.get("LOPCOOK_CORPUS", str(Path(__file__).resolve().parents[2] / "shared" / "corpus")))
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=11)
     ap.add_argument("--profile", action="store_true")
     a = ap.parse_args(argv)
     part = lopcook.load(Path(a.corpus) / "stanford-bunny.obj").parts[0]
@@ -48,9 +50,9 @@ def main(argv=None):
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} (2 cores)")
     w, c, tri = best_of(lambda: decode_hierarchy(blob).triangles(), a.repeat)
     print(f"full decode (decode_hierarchy + triangles, {tri.shape[0]} triangles): "
-          f"wall {w:.3f} s, CPU {c:.3f} s")
+          f"wall {w} s, CPU {c:.3f} s")
     w, c, h = best_of(lambda: decode_hierarchy(blob), a.repeat)
-    print(f"decode_hierarchy alone (parse, no records): wall {w:.3f} s, CPU {c:.3f} s")
+    print(f"decode_hierarchy alone (parse, no records): wall {w} s, CPU {c:.3f} s")
     p = h.origin + (h.positions.astype(np.float64) + 0.5) * h.step
     ctr = p.mean(axis=0)
     ext = float(np.ptp(p, axis=0).max())
@@ -58,12 +60,12 @@ def main(argv=None):
             for name, k in (("near", 0.8), ("middle", 3.0), ("far", 30.0))}
     w, c, _ = best_of(lambda: select_cut(decode_hierarchy(blob), cams["middle"], ctr, fov=60,
                                          viewport=(1024, 768), pixel_error=1.0), a.repeat)
-    print(f"decode_hierarchy + first middle cut (per-hierarchy tables built): wall {w:.3f} s, CPU {c:.3f} s")
+    print(f"decode_hierarchy + first middle cut (per-hierarchy tables built): wall {w} s, CPU {c:.3f} s")
     for name, cam in cams.items():
         run = lambda: select_cut(h, cam, ctr, fov=60, viewport=(1024, 768), pixel_error=1.0)  # noqa: E731
         w, c, cut = best_of(run, a.repeat)
         print(f"cut {name:6s}: {cut.triangles.shape[0]:6d} triangles, {cut.split.shape[0]:6d} split "
-              f"nodes: wall {w:.4f} s, CPU {c:.4f} s")
+              f"nodes: wall {w} s, CPU {c:.4f} s")
         if a.profile and name == "middle":
             import cProfile
             import pstats

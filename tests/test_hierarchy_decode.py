@@ -251,3 +251,17 @@ def test_vectorised_shape_and_index_parsing_match_the_node_by_node_ones(rng):
         get_varints(bytes(buf[:-1]), 2, len(vals))
     with pytest.raises(LopcookError, match="longer than 63 bits"):
         get_varints(b"\xff" * 9 + b"\x01", 0, 1)
+
+
+def test_numpy_lookup_tables_equal_the_table_lut():
+    from lopcook.hierarchy.decode_vec import _Lut
+
+    p, t = icosphere(3)
+    h = decode_hierarchy(encode_hierarchy(p, t, variant=PROPOSED_PLUS))
+    assert len(h.tables) >= 3
+    for table in h.tables.values():
+        sym, ln, L = table.lut()
+        lut = _Lut(table)
+        assert int(lut.L) == L and lut.ln.tolist() == ln
+        assert lut.esc.tolist() == [s is None for s in sym]
+        assert [int(v) for v, e in zip(lut.sym, lut.esc) if not e] == [s for s in sym if s is not None]

@@ -50,10 +50,26 @@ class _Lut:
     __slots__ = ("sym", "esc", "ln", "L")
 
     def __init__(self, table):
-        s, ln, L = table.lut()
-        self.esc = np.array([v is None for v in s], bool)
-        self.sym = np.array([0 if v is None else v for v in s], np.int64)
-        self.ln = np.asarray(ln, np.int64)
+        # the same lookup as ``Table.lut()``, filled with numpy: code c of length l covers the
+        # entries [c << (L - l), (c + 1) << (L - l)); entries no code covers keep length 0
+        L = int(table.maxlen)
+        vals = table.values.astype(np.int64)
+        codes = table.codes.astype(np.int64)
+        lens = table.lengths.astype(np.int64)
+        esc = np.zeros(vals.shape[0], bool)
+        if table.esc_len:
+            vals = np.r_[vals, 0]
+            codes = np.r_[codes, table.esc_code]
+            lens = np.r_[lens, table.esc_len]
+            esc = np.r_[esc, True]
+        span = np.int64(1) << (L - lens)
+        at = np.repeat(codes << (L - lens), span) + (np.arange(int(span.sum())) - np.repeat(np.cumsum(span) - span, span))
+        self.sym = np.zeros(1 << L, np.int64)
+        self.ln = np.zeros(1 << L, np.int64)
+        self.esc = np.zeros(1 << L, bool)
+        self.sym[at] = np.repeat(vals, span)
+        self.ln[at] = np.repeat(lens, span)
+        self.esc[at] = np.repeat(esc, span)
         self.L = np.uint64(L)
 
 
