@@ -22,6 +22,7 @@ from lopcook.emit.summary import describe_container
 from lopcook.errors import LopcookError
 from lopcook.hierarchy.container import VARIANT_NAME, read_part, refine
 from lopcook.hierarchy.select import select_cut
+from lopcook.hierarchy.tree import boundary_vertices
 from lopcook.mesh import canonical_triangles as canonical
 from lopcook.settings import DEFAULTS, Settings, SimplifySettings, parse_lods
 
@@ -97,6 +98,8 @@ def test_corpus_triangles_round_trip_through_the_container(cooked, name):
         assert rec["triangles"] == tri.shape[0] and rec["leaves"] == p["lods"][0]["vertices"]
         assert np.array_equal(canonical(h.triangles()), canonical(tri))
         assert rec["connectivity_bits"] == h.bits["connectivity"]
+        # the boundary bits of the back-face rule are those of LOD 0's triangles
+        assert np.array_equal(h.open_leaf, boundary_vertices(tri, h.n_leaves)[h.vertex_of_leaf])
     names = [s["name"] for s in c.manifest["sections"]]
     first_position = names.index("positions/mandatory")
     assert all(names.index(p["hierarchy"]["section"]) < first_position for p in c.manifest["parts"])
