@@ -222,7 +222,7 @@ def test_vectorised_shape_and_index_parsing_match_the_node_by_node_ones(rng):
     valid = invalid = 0
     for it in range(200):
         roots = int(rng.integers(1, 5))
-        bits = np.array(sum((tree_bits(int(rng.integers(1, 40))) for _ in range(roots)), []), np.uint8)
+        bits = np.array([b for _ in range(roots) for b in tree_bits(int(rng.integers(1, 40)))], np.uint8)
         if it % 2:
             bits[int(rng.integers(0, bits.shape[0]))] ^= 1
         for n_roots in (roots, roots + 1):

@@ -47,7 +47,7 @@ def supported(variant) -> bool:
 class _Lut:
     """One Huffman table as numpy lookups indexed by the next ``L`` bits."""
 
-    __slots__ = ("sym", "esc", "ln", "L")
+    __slots__ = ("L", "esc", "ln", "sym")
 
     def __init__(self, table):
         # the same lookup as ``Table.lut()``, filled with numpy: code c of length l covers the
