@@ -155,9 +155,10 @@ types:
       written with positions kept outside). Its leaves are that buffer's vertices; every node
       sits on the position of one of them, so node positions are the buffer's LOP bit-plane
       positions (a node's minimum level is its vertex's). The body's fields are varint-coded
-      and described field by field in docs/hierarchy.md, section 4; flag byte of the body = 7
-      (vertex order stored, positions outside, reach radii stored; the vertex order is packed
-      at bitlen(leaves - 1) bits per leaf, least significant bit first).
+      and described field by field in docs/hierarchy.md, section 4; flag byte of the body = 15
+      (vertex order stored, positions outside, reach radii stored, boundary bits stored: one
+      bit per leaf, most significant bit first; the vertex order is packed at
+      bitlen(leaves - 1) bits per leaf, least significant bit first).
     seq:
       - id: magic
         contents: LOPH

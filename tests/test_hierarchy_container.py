@@ -22,6 +22,7 @@ from lopcook.emit.summary import describe_container
 from lopcook.errors import LopcookError
 from lopcook.hierarchy.container import VARIANT_NAME, read_part, refine
 from lopcook.hierarchy.select import select_cut
+from lopcook.hierarchy.tree import boundary_vertices
 from lopcook.mesh import canonical_triangles as canonical
 from lopcook.settings import DEFAULTS, Settings, SimplifySettings, parse_lods
 
@@ -97,6 +98,8 @@ def test_corpus_triangles_round_trip_through_the_container(cooked, name):
         assert rec["triangles"] == tri.shape[0] and rec["leaves"] == p["lods"][0]["vertices"]
         assert np.array_equal(canonical(h.triangles()), canonical(tri))
         assert rec["connectivity_bits"] == h.bits["connectivity"]
+        # the boundary bits of the back-face rule are those of LOD 0's triangles
+        assert np.array_equal(h.open_leaf, boundary_vertices(tri, h.n_leaves)[h.vertex_of_leaf])
     names = [s["name"] for s in c.manifest["sections"]]
     first_position = names.index("positions/mandatory")
     assert all(names.index(p["hierarchy"]["section"]) < first_position for p in c.manifest["parts"])
@@ -213,23 +216,28 @@ def test_cut_has_no_holes(cooked, name):
 
 
 @pytest.mark.parametrize("backface", [False, True])
-@pytest.mark.parametrize("name", ["stanford-bunny.obj", "fandisk.obj"])
+@pytest.mark.parametrize("name", ["stanford-bunny.obj", "fandisk.obj", "CesiumMilkTruck.glb"])
 def test_cut_renders_within_40_db_of_float(gl, cooked, name, backface):
     """refine's meshes for a far, a middle and a near camera render at >= 40 dB against the
-    float source at that camera (the harness's shading and metrics), with and without Hoppe's
-    back-face test; with it (refine's default) the far cut has under 70 % of LOD 0's triangles
-    (measured: 61 % on the bunny, 51 % on fandisk)."""
+    float source at that camera (the harness's shading and metrics; UVs, colours and textures
+    kept), with and without Hoppe's back-face test; with it (refine's default) the far cut has
+    fewer triangles than LOD 0, and under 70 % of them on the closed bunny and fandisk
+    (measured: 62 % and 61 %). The truck's parts are open along their UV seams almost
+    everywhere, where the back-face test does not apply (its far camera gave 35.9 dB when it
+    did: docs/hierarchy.md, section 5)."""
     from lopcook.types import MeshPart, Scene
     from lopcook.verify.evaluate import evaluate_scene
 
     scene, c = cooked(name)
     extent = float(c.manifest["grid"]["extent"])
+    textures = {p.name: p.texture for p in scene.parts}
     counts = []
     for level, cam in _cameras(scene, c):
         meshes = refine(c, cam.eye, cam.centre, fov=60.0, viewport=RES, pixel_error=CUT_PIXEL_ERROR,
                         backface=backface)
         test = Scene(tuple(MeshPart(m["name"], m["positions"].astype(np.float64), m["indices"].astype(np.uint32),
-                                    m["normals"]) for m in meshes), "cut", "glb")
+                                    normals=m["normals"], uvs=m["uvs"], colors=m["colors"],
+                                    texture=textures.get(m["name"])) for m in meshes), "cut", "glb")
         r = evaluate_scene(test, scene, levels=[level], views=[0], resolution=RES, extent=extent)
         psnr = r["levels"][0]["scene"]["psnr_min"]
         assert psnr is None or psnr >= 40.0, (level, psnr)
@@ -238,7 +246,9 @@ def test_cut_renders_within_40_db_of_float(gl, cooked, name, backface):
     lod0 = sum(p["lods"][0]["triangles"] for p in c.manifest["parts"])
     assert counts[0] <= lod0
     if backface:  # without it, 0.1 px at this far camera keeps (nearly) every triangle
-        assert counts[0] < 0.7 * lod0, (counts, lod0)
+        assert counts[0] < lod0, (counts, lod0)
+        if name != "CesiumMilkTruck.glb":
+            assert counts[0] < 0.7 * lod0, (counts, lod0)
 
 
 def test_cli_cook_inspect_refine(tmp_path, gltf_validator, capsys):

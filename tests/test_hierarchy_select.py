@@ -131,3 +131,62 @@ def test_bunny_cuts(corpus):
         assert np.array_equal(canonical(cut.triangles), canonical(img))
         counts.append(cut.triangles.shape[0])
     assert counts[2] < counts[1] and counts[2] < tri0.shape[0] // 4
+
+
+def _seam_split_sphere(subdivisions=4):
+    """An icosphere whose lower half has its own copies of the vertices it shares with the
+    upper half (a UV seam, as loaded parts have): topologically two open caps, geometrically
+    one closed sphere."""
+    p, t = icosphere(subdivisions)
+    n = p.shape[0]
+    low = p[t].mean(axis=1)[:, 2] < 0
+    t = t.copy()
+    t[low] += n
+    return np.concatenate([p, p]), t
+
+
+def _welded_chain(h, cut):
+    """Oriented boundary chain of the cut with co-located cut vertices merged (cracks show)."""
+    _, weld = np.unique(h.node_positions[cut.nodes], axis=0, return_inverse=True)
+    return net_edges(weld.reshape(-1)[cut.triangles])
+
+
+def test_boundary_vertices_mark_open_edges_seams_and_flips():
+    from lopcook.hierarchy.tree import boundary_vertices
+
+    p, t = icosphere(2)
+    assert not boundary_vertices(t, p.shape[0]).any()  # closed and consistently oriented
+    g, tg = grid(5)
+    on = boundary_vertices(tg, g.shape[0])
+    rim = (g[:, 0] == 0) | (g[:, 0] == 4) | (g[:, 1] == 0) | (g[:, 1] == 4)
+    assert np.array_equal(on, rim)
+    ps, ts = _seam_split_sphere(2)
+    on = boundary_vertices(ts, ps.shape[0])
+    n = p.shape[0]
+    seam = np.isin(np.arange(n), ts[ts < n]) & np.isin(np.arange(n), ts[ts >= n] - n)
+    assert seam.sum() > 0
+    assert np.array_equal(on[:n], seam) and np.array_equal(on[n:], seam)  # both sides, nothing else
+    flipped = t.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert np.array_equal(np.flatnonzero(boundary_vertices(flipped, p.shape[0])), np.sort(t[0]))
+
+
+@pytest.mark.parametrize("store_open", [True, False])
+def test_backface_coarsening_does_not_open_seams(store_open):
+    """The truck's failure mode on a procedural case. A back-facing region coarsened by Hoppe's
+    test moves its seam vertices away from the other side of the seam, and the crack shows at
+    the silhouette. With the boundary bits (as the container stores them) nodes above a seam
+    vertex are left to the screen-space error, so at a vanishing pixel tolerance the cut is
+    closed once co-located vertices are merged; without them it is not."""
+    p, t = _seam_split_sphere(4)
+    h = decode_hierarchy(encode_hierarchy(p, t, variant=PROPOSED_PLUS, store_reach=True, store_open=store_open))
+    assert (h.open_leaf is not None) == store_open
+    welded_input = {}
+    cracks = 0
+    for eye in ([0.0, 0.0, 4.0], [0.0, 3.0, 1.5], [2.0, -2.0, 2.0]):
+        cut = select_cut(h, eye, [0.0, 0.0, 0.0], pixel_error=1e-9, viewport=(512, 512))
+        assert cut.triangles.shape[0] < t.shape[0]  # back-facing regions are still coarsened
+        chain = _welded_chain(h, cut)
+        assert chain == welded_input or not store_open
+        cracks += len(chain)
+    assert (cracks == 0) == store_open

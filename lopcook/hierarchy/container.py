@@ -54,7 +54,8 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
     ``degenerate_triangles``), ``connectivity_bits`` (the records, the paper's measure),
     ``structure_bits`` (one per node: the preorder shape), ``record_index_bits``, ``table_bits``
     (Huffman tables), ``vertex_map_bits`` and ``representative_bits`` (what places the nodes on
-    LOD 0's vertices), ``selection_bits`` (error, normal cone and reach radius, 112 per node)."""
+    LOD 0's vertices), ``selection_bits`` (error, normal cone and reach radius, 112 per node,
+    and one boundary bit per leaf, padded to bytes)."""
     e = encoded.entry
     raw = dict(encoded.attributes)["indices"]
     width = int(e["index_width"])
@@ -63,7 +64,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
     kept = drop_degenerate(tri)
     step = float(grid.extent) / float(1 << BITS)
     tree = build_tree(encoded.q, kept, grid=(np.asarray(grid.origin, np.float64), step))
-    blob = encode_hierarchy(tree, variant=VARIANT, store_positions=False, store_reach=True)
+    blob = encode_hierarchy(tree, variant=VARIANT, store_positions=False, store_reach=True, store_open=True)
     h = decode_hierarchy(blob, positions=encoded.q)
     n, N = h.n_leaves, h.n_nodes
     internal = n - int(h.roots.shape[0])
@@ -74,7 +75,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
               "degenerate_triangles": int(m - kept.shape[0]), "connectivity_bits": int(h.bits["connectivity"]),
               "structure_bits": int(N), "record_index_bits": int(rec_index), "table_bits": int(tables),
               "vertex_map_bits": int(n * index_width(n)), "representative_bits": int(internal),
-              "selection_bits": int(112 * N)}
+              "selection_bits": int(112 * N + 8 * ((n + 7) // 8))}
     return blob, record
 
 

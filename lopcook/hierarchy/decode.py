@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import LopcookError
 from .coding import H_CONTEXTS, NONE, NONMANIFOLD, context_table
+from .decode_vec import decode_records_vec, supported
 
 _HINT = "the hierarchy data is corrupt or truncated; re-encode it"
 
@@ -27,6 +28,11 @@ def _fail(msg: str):
 
 def decode_records(h, nodes):
     """Decode the records of ``nodes`` (internal nodes in preorder, each one's ancestors included).
+
+    Control-bit variants (the paper's section 5, ``PROPOSED``, ``PROPOSED_PLUS``) are decoded
+    level by level with numpy (``decode_vec.decode_records_vec``); the others (relative ID, VDS
+    numbering) node by node (:func:`decode_records_scalar`). Both give the same result and raise
+    on the same bad data.
 
     Parameters
     ----------
@@ -39,7 +45,16 @@ def decode_records(h, nodes):
     owner : (t,) int64 node owning each decoded subtri
     corners : (t, 3) int64 corners in input orientation; a value ``>= 0`` is a leaf ID, a value
         ``< 0`` is ``-(node + 1)``: the corner lies below that node, whose record was not decoded.
+        Rows are ordered by owner node, then by the subtri's place in its record.
     """
+    if supported(h.variant):
+        return decode_records_vec(h, nodes)
+    return decode_records_scalar(h, nodes)
+
+
+def decode_records_scalar(h, nodes):
+    """:func:`decode_records` node by node, for every decodable variant (the reference decoder)."""
+    nodes = np.asarray(nodes, np.int64).reshape(-1).tolist()
     var = h.variant
     compact = var.numbering == "compact"
     explicit = var.internal == "explicit"

@@ -20,13 +20,15 @@ import numpy as np
 from ..errors import LopcookError
 from . import coding as C
 from .decode import decode_records
-from .huffman import Table, get_varint, put_varint
+from .huffman import Table, get_varint, get_varints, put_varint
 from .tree import VertexTree, build_tree
 
 MAGIC = b"LOPH"
 VERSION = 1
 _HINT = "the hierarchy data is corrupt or truncated; re-encode it"
 _TABLE_NAMES = ["H", "E", "I", "D", "N", "C"] + [C.context_table(k) for k in range(C.H_CONTEXTS)]
+_LIST_FIELDS = frozenset(f + "_l" for f in ("left", "right", "parent", "depth", "size", "lo", "rank",
+                                            "record_starts"))
 
 
 def _fail(msg: str):
@@ -70,6 +72,9 @@ class Hierarchy:
     origin (3,), step : grid coordinate ``q`` lies at ``origin + (q + 0.5) * step`` (world units)
     reach : (N,) float32 or None: radius (grid cells) of the triangles each node's refinement
         affects (``tree.VertexTree.reach``), when the blob stores it
+    open_leaf : (n,) bool or None: leaves on the oriented boundary chain
+        (``tree.VertexTree.open_vertex``), when the blob stores them; ``node_open`` lifts them
+        to every node
     tables : dict name -> Table; data : bytes; record_starts : (I + 1,) int64 bit offsets
     """
 
@@ -97,16 +102,16 @@ class Hierarchy:
     origin: np.ndarray
     step: float
     reach: np.ndarray | None = None
+    open_leaf: np.ndarray | None = None
 
-    def __post_init__(self):
-        self.left_l = self.left.tolist()
-        self.parent_l = self.parent.tolist()
-        self.right_l = self.right.tolist()
-        self.depth_l = self.depth.tolist()
-        self.size_l = self.size.tolist()
-        self.lo_l = self.lo.tolist()
-        self.rank_l = self.rank.tolist()
-        self.record_starts_l = self.record_starts.tolist()
+    def __getattr__(self, name):
+        # ``left_l`` ... ``record_starts_l``: Python lists of those arrays for the per-node
+        # decoder, made on first use
+        if name in _LIST_FIELDS:
+            v = getattr(self, name[:-2]).tolist()
+            object.__setattr__(self, name, v)
+            return v
+        raise AttributeError(name)
 
     @property
     def internal_nodes(self) -> np.ndarray:
@@ -118,6 +123,19 @@ class Hierarchy:
         if getattr(self, "_node_positions", None) is None:
             self._node_positions = self.positions[self.node_leaf]
         return self._node_positions
+
+    @property
+    def node_open(self) -> np.ndarray | None:
+        """(N,) bool: the node's subtree holds a leaf of ``open_leaf`` (None when not stored;
+        computed once)."""
+        if self.open_leaf is None:
+            return None
+        c = getattr(self, "_node_open", None)
+        if c is None or c[0] is not self.open_leaf:
+            cs = np.r_[0, np.cumsum(self.open_leaf, dtype=np.int64)]
+            c = (self.open_leaf, cs[self.lo + self.size] - cs[self.lo] > 0)
+            self._node_open = c
+        return c[1]
 
     @property
     def roots(self) -> np.ndarray:
@@ -234,7 +252,60 @@ def _unpack_selection(body, p, N):
 
 
 def _shape_arrays(isint: np.ndarray, n_roots: int):
-    """Preorder internal/leaf bits -> left, right, parent, depth, size (validated)."""
+    """Preorder internal/leaf bits -> left, right, parent, depth, size, lo (validated).
+
+    Vectorised with the preorder excess ``S(k) = sum_{j<k} (2 isint_j - 1)``: a full binary
+    subtree starting at ``k`` nets -1, so it ends right before the first ``j > k`` with
+    ``S(j) = S(k) - 1``, an internal node's left child is ``u + 1`` and its right child the
+    first ``j > u`` with ``S(j) = S(u)``; a tree of the forest starts wherever ``S`` reaches a
+    new minimum. Same result as :func:`_shape_arrays_scalar`."""
+    b = np.asarray(isint).astype(bool)
+    N = b.shape[0]
+    if N == 0:
+        _fail("tree structure bits do not describe a full binary forest")
+    S = np.r_[0, np.cumsum(np.where(b, 1, -1))].astype(np.int64)  # (N + 1,)
+    pre_min = np.minimum.accumulate(S[:N])
+    is_root = np.r_[True, S[1:N] < pre_min[:-1]]
+    if not S[N] < pre_min[-1] or int(is_root.sum()) != n_roots:
+        _fail("tree structure bits do not describe a full binary forest")
+    # sorted (S value, position) keys: the next position after k holding a given S value
+    off = -int(S.min())
+    key = (S + off) * (N + 1) + np.arange(N + 1)
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+
+    def next_at(value, after):
+        i = np.searchsorted(skey, (value + off) * (N + 1) + after)
+        return order[np.minimum(i, N)]
+
+    k = np.arange(N)
+    end = next_at(S[:N] - 1, k + 1)  # one past each subtree
+    inner = np.flatnonzero(b)
+    left = np.full(N, -1, np.int64)
+    right = np.full(N, -1, np.int64)
+    left[inner] = inner + 1
+    right[inner] = next_at(S[inner], inner + 1)
+    parent = np.full(N, -1, np.int64)
+    parent[left[inner]] = inner
+    parent[right[inner]] = inner
+    size = (end - k + 1) // 2
+    # depth by pointer jumping: O(N log depth)
+    depth = (parent >= 0).astype(np.int64)
+    anc = parent.copy()
+    while True:
+        go = anc >= 0
+        if not go.any():
+            break
+        a = anc[go]
+        depth[go] += depth[a]
+        anc[go] = anc[a]
+    leaves = np.flatnonzero(~b)
+    lo = np.searchsorted(leaves, k).astype(np.int64)
+    return left, right, parent, depth, size, lo
+
+
+def _shape_arrays_scalar(isint: np.ndarray, n_roots: int):
+    """:func:`_shape_arrays` with a stack, node by node (the reference for the tests)."""
     N = isint.shape[0]
     flags = isint.tolist()
     left = [-1] * N
@@ -295,7 +366,7 @@ def index_width(n: int) -> int:
 
 def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.PROPOSED,
                      keep_vertex_order: bool = True, store_positions: bool = True,
-                     store_reach: bool = False) -> bytes:
+                     store_reach: bool = False, store_open: bool = False) -> bytes:
     """Serialise a part's vertex hierarchy with coded connectivity.
 
     Parameters
@@ -311,6 +382,9 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
         at ``index_width(n)`` bits per leaf.
     store_reach : also store each node's ``reach`` (flag bit 2; f32 grid cells rounded up), the
         radius of the triangles its refinement affects, for the frustum and back-face tests.
+    store_open : also store one bit per leaf (flag bit 3): the leaf lies on the oriented
+        boundary chain (``VertexTree.open_vertex``), so the back-face test leaves the nodes
+        above it to the screen-space error.
 
     Returns
     -------
@@ -339,7 +413,10 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     keep_vertex_order = keep_vertex_order or external
     if store_reach and tree.reach is None:
         raise LopcookError("usage", None, "store_reach: this tree has no reach radii", hint="build it with build_tree")
-    body.append((1 if keep_vertex_order else 0) | (2 if external else 0) | (4 if store_reach else 0))
+    if store_open and tree.open_vertex is None:
+        raise LopcookError("usage", None, "store_open: this tree has no boundary vertices", hint="build it with build_tree")
+    body.append((1 if keep_vertex_order else 0) | (2 if external else 0) | (4 if store_reach else 0)
+                | (8 if store_open else 0))
     body += struct.pack("<4d", *[float(x) for x in tree.origin], float(tree.step))
     body += np.packbits(isint).tobytes()
     body += np.packbits(repside).tobytes()
@@ -348,6 +425,8 @@ def encode_hierarchy(tree_or_positions, triangles=None, variant: C.Variant = C.P
     body += _pack_selection(tree.error[order], tree.cone_axis[order], tree.cone_angle[order])
     if store_reach:
         body += _round_up_f32(tree.reach[order]).astype("<f4").tobytes()
+    if store_open:
+        body += np.packbits(tree.open_vertex[lay.leaf_vertex].astype(np.uint8)).tobytes()
     if external:
         body += _pack_uint(lay.leaf_vertex, index_width(n))
     elif keep_vertex_order:
@@ -407,14 +486,14 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     if p >= len(body):
         _fail("truncated before the node data")
     flag = body[p]
-    keep_order, external, has_reach = flag & 1, flag >> 1 & 1, flag >> 2 & 1
+    keep_order, external, has_reach, has_open = flag & 1, flag >> 1 & 1, flag >> 2 & 1, flag >> 3 & 1
     need = 33 + (N + 7) // 8 + (n - n_roots + 7) // 8 + (0 if external else 12 * n) + 10 * N
     if p + need > len(body):
         _fail("truncated before the node data")
     p += 1
     ox, oy, oz, step = struct.unpack_from("<4d", body, p)
     p += 32
-    if flag > 7 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
+    if flag > 15 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
         _fail("invalid header (vertex order flag or grid placement)")
     if external and positions is None:
         raise LopcookError("usage", None, "hierarchy: this blob keeps its positions outside; pass positions=",
@@ -438,6 +517,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         p += 4 * N
         if not np.isfinite(reach).all() or (reach < 0).any():
             _fail("node reach radii are not finite and non-negative")
+    open_leaf = None
+    if has_open:
+        if p + (n + 7) // 8 > len(body):
+            _fail("truncated boundary bits")
+        open_leaf = np.unpackbits(np.frombuffer(body, np.uint8, (n + 7) // 8, p))[:n].astype(bool)
+        p += (n + 7) // 8
     vol = None
     if external:
         w = index_width(n)
@@ -481,9 +566,7 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         needed.add("C")
     if not needed <= set(tables):
         _fail(f"missing tables {sorted(needed - set(tables))}")
-    rb = np.zeros(I, np.int64)
-    for i in range(I):
-        rb[i], p = get_varint(body, p, "hierarchy record index")
+    rb, p = get_varints(body, p, I, "hierarchy record index")
     nbytes, p = get_varint(body, p, "hierarchy")
     if p + nbytes != len(body):
         _fail(f"connectivity is {len(body) - p} bytes, the index announces {nbytes}")
@@ -508,4 +591,4 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
                      node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
                      vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
                      rank=rank, bits={"connectivity": int(starts[-1])},
-                     origin=np.array([ox, oy, oz]), step=step, reach=reach)
+                     origin=np.array([ox, oy, oz]), step=step, reach=reach, open_leaf=open_leaf)

@@ -266,3 +266,27 @@ def pack_bits(codes: np.ndarray, nbits: np.ndarray) -> tuple[bytes, int]:
     shift = (nbits[idx] - 1 - j).astype(np.uint64)
     bits = ((codes[idx] >> shift) & np.uint64(1)).astype(np.uint8)
     return np.packbits(bits).tobytes(), total
+
+
+def get_varints(buf, pos: int, count: int, what: str = "data"):
+    """``count`` consecutive varints from ``pos`` (as :func:`get_varint`, vectorised):
+    ((count,) int64 values, position after the last). A varint of more than 9 bytes (a value
+    of 2**63 or more) or one that runs past the end raises ``LopcookError``."""
+    if count <= 0:
+        return np.zeros(0, np.int64), pos
+    a = np.frombuffer(buf, np.uint8, min(len(buf) - pos, 10 * count), pos) if pos < len(buf) \
+        else np.zeros(0, np.uint8)
+    term = np.flatnonzero(a < 0x80)
+    if term.shape[0] < count:
+        raise LopcookError("decode", None, f"{what}: truncated (varint runs past the end)",
+                           hint="the data is truncated; re-encode it")
+    term = term[:count]
+    first = np.r_[0, term[:-1] + 1]
+    nbytes = term - first + 1
+    if nbytes.max() > 9:
+        raise LopcookError("decode", None, f"{what}: varint longer than 63 bits",
+                           hint="the data is corrupt; re-encode it")
+    seg = a[:term[-1] + 1].astype(np.int64)
+    k = np.arange(seg.shape[0]) - np.repeat(first, nbytes)
+    vals = np.add.reduceat((seg & 0x7F) << (7 * k), first)
+    return vals.astype(np.int64), pos + int(term[-1]) + 1

@@ -48,7 +48,11 @@ def _vec3(x, name):
 
 def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pixel_error, backface=True):
     """(k,) bool: Hoppe's refinement test for ``nodes`` (frustum, back-face unless
-    ``backface=False``, screen error)."""
+    ``backface=False``, screen error). The back-face test skips nodes whose subtree holds a
+    leaf on the part's oriented boundary chain (``Hierarchy.node_open``, when the blob stores
+    it): Hoppe's test assumes a closed, consistently oriented surface, whose back-facing regions
+    its front hides; at an open edge or a seam a coarsened back-facing region pulls the edge
+    away from the surface that continues it, and the gap shows at silhouettes."""
     c = h.origin + (h.node_positions[nodes].astype(np.float64) + 0.5) * h.step
     # the sphere of the region the node's refinement affects (its leaves' incident triangles)
     # when the blob has it, else of its leaves
@@ -74,6 +78,11 @@ def refine_mask(h, nodes, eye, forward, right, up, fov_y, aspect, viewport_h, pi
     s = np.einsum("ij,ij->i", d, n)
     has = np.linalg.norm(n, axis=1) > 0.5
     back = has & (alpha < np.pi / 2) & (s > r) & ((s - r) ** 2 > dist ** 2 * np.sin(alpha) ** 2) & bool(backface)
+    # only where the back-facing region is hidden by the part's own front: not above a leaf on
+    # the oriented boundary chain (open edges, seams, orientation flips)
+    node_open = getattr(h, "node_open", None)
+    if node_open is not None:
+        back &= ~node_open[nodes]
     # screen-space error in pixels
     near = np.maximum(dist - r, 1e-9)
     px = h.error[nodes].astype(np.float64) * h.step / near * (viewport_h / (2 * ty))

@@ -83,6 +83,10 @@ class VertexTree:
         World placement of the grid: a grid coordinate ``q`` lies at ``origin + (q + 0.5) * step``
         (metres when built from float positions; the identity-like (0, 1) for grid input unless
         ``grid=`` is given).
+    open_vertex : (n,) bool
+        Leaves on the part's oriented boundary chain (``boundary_vertices``): open edges, UV
+        seams (where the part's own vertices are split) and orientation flips. Hoppe's back-face
+        test is not applied to a node whose subtree holds one (``lopcook.hierarchy.select``).
     """
 
     n_leaves: int
@@ -101,6 +105,7 @@ class VertexTree:
     origin: np.ndarray
     step: float
     reach: np.ndarray | None = None
+    open_vertex: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -319,7 +324,35 @@ def build_tree(positions: np.ndarray, triangles: np.ndarray, grid=None) -> Verte
     axis, angle = _normal_cones(parent, L, R, pos, tri, n)
     return VertexTree(n_leaves=n, left=L, right=R, parent=parent, roots=roots, rep=repa,
                       positions=pos, triangles=tri, owner=owner, error=error, radius=radius,
-                      cone_axis=axis, cone_angle=angle, origin=origin, step=step, reach=reach)
+                      cone_axis=axis, cone_angle=angle, origin=origin, step=step, reach=reach,
+                      open_vertex=boundary_vertices(tri, n))
+
+
+def boundary_vertices(triangles: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool: the vertices of every edge on the oriented boundary chain of ``triangles``.
+
+    An undirected edge is on the chain when its two directions occur a different number of
+    times: an open edge (one triangle), a seam where the part's vertices are split (each side is
+    an open edge of its own), or an edge between two triangles of opposite orientation. Elsewhere
+    every edge is shared by oppositely oriented triangles, as on a closed, consistently oriented
+    surface. Hoppe's back-face test (1997, section 4.2) assumes such a surface: there a region
+    that faces away is hidden behind the part's front. Where the chain runs, coarsening a
+    back-facing region moves the chain away from the surface that continues it, which opens
+    cracks and shows at silhouettes."""
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    out = np.zeros(int(n), bool)
+    if not t.size:
+        return out
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    sign = np.where(e[:, 0] < e[:, 1], 1, -1)
+    key = lo * np.int64(n) + hi
+    u, inv = np.unique(key, return_inverse=True)
+    net = np.bincount(inv.reshape(-1), weights=sign, minlength=u.shape[0])
+    on = u[net != 0]
+    out[on // n] = True
+    out[on % n] = True
+    return out
 
 
 class Lifting:
