@@ -66,16 +66,23 @@ UV seams (``seams=``)
 Error
 -----
 ``Lod.hausdorff_m`` is the symmetric Hausdorff distance between the LOD and LOD 0 in metres,
-*measured*: libigl point-to-mesh distances (AABB tree) from the vertices and face centroids of
-each mesh to the other mesh, max over both directions. Sampled at vertices and centroids it is a
-lower bound of the continuous Hausdorff distance (the distance to the other surface may peak
-anywhere inside a face; centroids catch faces that bridge a concavity or cut a corner, which
-vertices alone miss). The LOD 0 -> LOD direction needs only the maximum, so it queries LOD 0's
-vertices first and then only the centroids whose Lipschitz bound (vertex distance + distance to
-that vertex) could reach it: the same value, about a third of the queries on a dense mesh
-(``lopcook.simplify.error.measure_ref_to_lod``). ``Lod.error_m`` is the monotone envelope along the chain,
-``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
-construction (the LOD is kept and a note says when the measured value dropped). Chains simplify
+*measured* with libigl point-to-mesh distances (AABB trees), at a cost that follows the LOD's size:
+
+* LOD -> LOD 0: every vertex and face centroid of the LOD (the queries the attribute transfer
+  makes anyway). Centroids catch faces that bridge a concavity or cut a corner, which vertices
+  alone miss.
+* LOD 0 -> LOD: a deterministic sample of LOD 0's vertices, spread evenly over LOD 0 (coarse to
+  fine in Morton order), as many as the LOD has vertices and at least 16,384 (all of them on
+  smaller meshes), plus the vertices next to the samples that are at least half the sampled
+  maximum away (``lopcook.simplify.error.sampled_ref_to_lod``).
+
+Sampled, it is a lower bound of the continuous Hausdorff distance (the distance may peak inside a
+face or at a vertex not sampled). ``Lod.error_bound_m`` bounds what the sample can miss: every
+LOD 0 vertex is at most that far from the LOD (1-Lipschitz distance from its sampled neighbour),
+and every LOD vertex and centroid from LOD 0. ``Lod.error_m`` is the monotone envelope along the
+chain, ``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
+construction (the LOD is kept and a note says when the measured value dropped). How close the
+sample comes to querying every vertex and centroid: docs/lod.md. Chains simplify
 each LOD from the previous one (``chain="previous"``, default) or from LOD 0 (``chain="source"``);
 error is always measured against LOD 0. A chained LOD that misses its target by more than 5% is
 redone from LOD 0 and the closer one kept (why ``"previous"`` is the default: docs/lod.md).
@@ -113,7 +120,7 @@ from ..memory import release_free_memory
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
 from .backends import BACKENDS, SELECTABLE, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
-from .error import hausdorff, measure_ref_to_lod
+from .error import hausdorff, sampled_ref_to_lod
 from .topology import mesh_defects, seam_stats
 from .transfer import Reference, transfer_attributes
 
@@ -153,8 +160,9 @@ class Lod:
     target_ratio : float  requested fraction of LOD 0's triangles
     target_triangles : int  ``round(target_ratio * n0)``
     triangles : int  triangles actually produced
-    hausdorff_m : float  measured symmetric Hausdorff distance to LOD 0, metres (a lower bound of
-        the continuous distance; see the module doc)
+    hausdorff_m : float  measured symmetric Hausdorff distance to LOD 0, metres: the LOD's vertices
+        and centroids against LOD 0, and a deterministic sample of LOD 0's vertices against the
+        LOD (a lower bound of the continuous distance; see the module doc)
     error_m : float  monotone envelope along the chain (``max`` with the previous LOD's error_m)
     backend : str  ``"pymeshlab"``, ``"fast"``, ``"source"`` (LOD 0 / not simplified) or ``"none"``
         (every backend failed)
@@ -166,6 +174,9 @@ class Lod:
     flipped : int  faces facing away from LOD 0's nearby faces (kept when under the threshold)
     failed : bool  no backend produced this LOD; ``part`` is then the input it started from
     seam_stats : SeamStats or None  UV seams of the result (None without UVs)
+    error_bound_m : float  an upper bound of the distance from every LOD vertex and centroid and
+        every LOD 0 vertex to the other mesh (what the sample of LOD 0 can miss is at most
+        ``error_bound_m - hausdorff_m``; ``lopcook.simplify.error.sampled_ref_to_lod``)
     """
 
     part: MeshPart
@@ -182,6 +193,7 @@ class Lod:
     flipped: int = 0
     failed: bool = False
     seam_stats: "SeamStats | None" = None
+    error_bound_m: float = 0.0
 
     def summary(self) -> dict:
         """JSON-friendly description (no arrays)."""
@@ -189,7 +201,7 @@ class Lod:
             "target_ratio": self.target_ratio, "target_triangles": self.target_triangles,
             "triangles": self.triangles, "vertices": self.part.n_vertices,
             "hausdorff_m": self.hausdorff_m, "error_m": self.error_m,
-            "one_sided_m": list(self.one_sided_m), "backend": self.backend, "seams": self.seams,
+            "one_sided_m": list(self.one_sided_m), "error_bound_m": self.error_bound_m, "backend": self.backend, "seams": self.seams,
             "seconds": round(self.seconds, 6), "flipped": self.flipped, "failed": self.failed,
             "seam_stats": None if self.seam_stats is None else self.seam_stats.as_dict(),
             "notes": list(self.notes),
@@ -243,7 +255,7 @@ def _unchanged(part: MeshPart, ref: Reference, ratio: float, target: int, t0: fl
     mode = "-" if part.uvs is None else seams
     return Lod(part=part, target_ratio=ratio, target_triangles=target, triangles=part.n_triangles,
                hausdorff_m=h[0], error_m=h[0], backend=backend, seams=mode, seconds=time.perf_counter() - t0,
-               notes=notes, one_sided_m=(h[1], h[2]), failed=failed,
+               notes=notes, one_sided_m=(h[1], h[2]), failed=failed, error_bound_m=h[0],
                seam_stats=seam_stats(part) if part.uvs is not None else None)
 
 
@@ -315,7 +327,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
         if info["flipped"]:
             notes.append(f"{info['flipped']} faces face against the source surface (under the "
                          f"{max_flipped_fraction:.0%} threshold; kept)")
-        ref_to_lod = measure_ref_to_lod(ref, lod_part)
+        ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part)
         release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
         tri = lod_part.n_triangles
@@ -326,7 +338,8 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             notes.append(f"UV seams changed ({mode}): {ref.seams.as_dict()} -> {stats.as_dict()}")
         lod = Lod(part=lod_part, target_ratio=ratio, target_triangles=target, triangles=tri, hausdorff_m=h,
                   error_m=h, backend=name, seams=mode, seconds=time.perf_counter() - t0, notes=notes,
-                  one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats)
+                  one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats,
+                  error_bound_m=max(info["lod_to_ref"], ref_to_lod_bound))
         short = int(round(tri * _SHORT_OF_WALL))
         if mode == "lock" and tri > (1 + TARGET_TOLERANCE) * target and short < part.n_triangles and not _retry:
             # the locked seams stopped the backend: its last collapses were forced ones. Stop short of
