@@ -147,11 +147,13 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
     from .simplify.instances import copies, placed_chain
 
     ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
+    seams = settings.simplify.seams.value
     out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
     groups = copies(scene.parts)
     with progress.stage("LOD chains", total=len(groups)) as st:
         for lead, members in groups:
-            lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, max_error_m=max_error_m)
+            lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, seams=seams,
+                                     max_error_m=max_error_m)
             out[lead], reports[lead] = lods, report
             for i, a, t in members:
                 out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)

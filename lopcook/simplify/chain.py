@@ -20,7 +20,16 @@ Backends
     ``preserve_boundary=True`` (the default): boundary vertices keep their exact positions, so
     parts that share a boundary do not crack apart at any LOD.
 
-Both run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
+``"meshopt"``
+    meshoptimizer's attribute-aware edge collapse (``lopcook.simplify.meshopt``): output vertices
+    are input vertices; seams collapse along themselves.
+``"auto"``
+    meshoptimizer; for a LOD whose input has at most ``AUTO_BOTH_TRIANGLES`` triangles pymeshlab
+    as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
+    lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
+    sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md).
+
+All run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
 never tear the surface. Normals, colours (and UVs where the backend does not supply them) are
 carried over by *closest-point transfer* from LOD 0: each LOD vertex takes the barycentric
 interpolation of LOD 0's attributes at its closest point on LOD 0. This is more accurate than
@@ -50,6 +59,13 @@ UV seams (``seams=``)
     The texture-aware quadric on the position-welded mesh with per-wedge UVs: seams are simplified
     along with the mesh (fewer seam edges; islands may merge, vanish or split); the UVs are
     MeshLab's. Reaches targets where ``"lock"`` cannot. With ``fast`` it means ``"ignore"``.
+``"auto"``
+    ``"simplify"`` for every LOD that reaches its target that way; a LOD that misses it by more
+    than ``TARGET_TOLERANCE`` (meshoptimizer keeps seam vertices it classes as complex: three or
+    more UV copies, or seam sides that do not pair up) is also made as with ``"ignore"`` and the
+    result nearer its target (then the lower error) kept, with a note. Seams never stop the chain,
+    and co-located seam vertices keep one position in both modes; a LOD made the ``"ignore"`` way
+    may smear the texture along the seams its faces straddle.
 ``"ignore"``
     Geometry ignores UVs; UVs come from the closest-point transfer. Triangles that straddle a
     source seam get UVs from two islands and smear the texture along the seam (the loss is
@@ -72,7 +88,7 @@ Error
   makes anyway). Centroids catch faces that bridge a concavity or cut a corner, which vertices
   alone miss.
 * LOD 0 -> LOD: a deterministic sample of LOD 0's vertices, spread evenly over LOD 0 (coarse to
-  fine in Morton order), as many as the LOD has vertices and at least 16,384 (all of them on
+  fine in Morton order), as many as the LOD has vertices and at least 65,536 (all of them on
   smaller meshes), plus the vertices next to the samples that are at least half the sampled
   maximum away (``lopcook.simplify.error.sampled_ref_to_lod``).
 
@@ -128,7 +144,7 @@ if TYPE_CHECKING:
     from .topology import SeamStats
 
 
-SEAM_MODES = ("lock", "simplify", "ignore", "xatlas")
+SEAM_MODES = ("lock", "simplify", "ignore", "xatlas", "auto")
 
 
 #: a LOD whose triangle count is off its target by more than this fraction gets a note
@@ -149,6 +165,11 @@ MIN_SIMPLIFY_TRIANGLES = 4
 MAX_FLIPPED_FRACTION = 0.02
 
 
+#: ``backend="auto"`` runs pymeshlab as well as meshoptimizer on inputs of at most this many
+#: triangles (where pymeshlab costs well under a second and can measure lower: docs/lod.md)
+AUTO_BOTH_TRIANGLES = 100_000
+
+
 
 
 @dataclass
@@ -164,7 +185,7 @@ class Lod:
         and centroids against LOD 0, and a deterministic sample of LOD 0's vertices against the
         LOD (a lower bound of the continuous distance; see the module doc)
     error_m : float  monotone envelope along the chain (``max`` with the previous LOD's error_m)
-    backend : str  ``"pymeshlab"``, ``"fast"``, ``"source"`` (LOD 0 / not simplified) or ``"none"``
+    backend : str  ``"pymeshlab"``, ``"fast"``, ``"meshopt"``, ``"source"`` (LOD 0 / not simplified) or ``"none"``
         (every backend failed)
     seams : str  the seam mode actually used (``"lock"``, ``"simplify"``, ``"ignore"``,
         ``"xatlas"``; ``"-"`` without UVs)
@@ -259,6 +280,60 @@ def _unchanged(part: MeshPart, ref: Reference, ratio: float, target: int, t0: fl
                seam_stats=seam_stats(part) if part.uvs is not None else None)
 
 
+def _better(a: Lod, b: Lod) -> bool:
+    """Whether LOD ``a`` is better than ``b`` for the same target: one produced, then one within
+    ``TARGET_TOLERANCE`` of it, then the lower measured error (``b`` on ties)."""
+    if a.failed != b.failed:
+        return not a.failed
+    near_a = abs(a.triangles - a.target_triangles) <= TARGET_TOLERANCE * a.target_triangles
+    near_b = abs(b.triangles - b.target_triangles) <= TARGET_TOLERANCE * b.target_triangles
+    if near_a != near_b:
+        return near_a
+    return a.hausdorff_m < b.hausdorff_m
+
+
+def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: Reference,
+                   preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+    """``backend="auto"``: meshoptimizer; on inputs of at most ``AUTO_BOTH_TRIANGLES`` triangles
+    pymeshlab too, keeping the better (``_better``) with a note giving both errors."""
+    t0 = time.perf_counter()
+    lod, used = _simplify(part, ratio, target, "meshopt", seams, ref, preserve_boundary, fallback,
+                          max_flipped_fraction)
+    if part.n_triangles > AUTO_BOTH_TRIANGLES or lod.backend == "source":
+        return lod, used
+    other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, False,
+                             max_flipped_fraction)
+    keep, drop = (other, lod) if _better(other, lod) else (lod, other)
+    what = "failed" if drop.failed else f"{drop.triangles} triangles, {drop.hausdorff_m:.3g} m"
+    keep.notes.append(f"auto: {keep.backend} kept ({keep.triangles} triangles, {keep.hausdorff_m:.3g} m); "
+                      f"{'meshopt' if keep is other else 'pymeshlab'} {what}")
+    keep.seconds = time.perf_counter() - t0
+    return keep, used + (used2 if keep is other else 0)
+
+
+def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Reference,
+                preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+    """``seams="auto"``: ``"simplify"``; where that misses its target by more than
+    ``TARGET_TOLERANCE`` (seam vertices the backend will not collapse) also ``"ignore"``, keeping
+    the better (``_better``) with a note."""
+    t0 = time.perf_counter()
+    lod, used = _simplify(part, ratio, target, backend, "simplify", ref, preserve_boundary, fallback,
+                          max_flipped_fraction)
+    if part.uvs is None or lod.backend == "source" or (
+            not lod.failed and abs(lod.triangles - target) <= TARGET_TOLERANCE * target):
+        return lod, used
+    other, used2 = _simplify(part, ratio, target, backend, "ignore", ref, preserve_boundary, fallback,
+                             max_flipped_fraction)
+    if not _better(other, lod):
+        return lod, used
+    what = "failed" if lod.failed else f"stopped at {lod.triangles} triangles ({lod.hausdorff_m:.3g} m)"
+    other.notes = [n for n in other.notes if not n.startswith("UV seams changed")] + [
+        f"seams: simplify {what}; the mesh welded by position reached {other.triangles} triangles "
+        f"({other.hausdorff_m:.3g} m), its UVs transferred from LOD 0 (kept)"]
+    other.seconds = time.perf_counter() - t0
+    return other, used + used2
+
+
 def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: str, ref: Reference,
               preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
               _retry: bool = False) -> tuple[Lod, int]:
@@ -267,6 +342,10 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
     notes: list = []
     if backend not in SELECTABLE:
         raise ValueError(f"backend must be one of {SELECTABLE}, got {backend!r}")
+    if backend == "auto":
+        return _simplify_auto(part, ratio, target, seams, ref, preserve_boundary, fallback, max_flipped_fraction)
+    if seams == "auto":
+        return _seams_auto(part, ratio, target, backend, ref, preserve_boundary, fallback, max_flipped_fraction)
     if seams not in SEAM_MODES:
         raise ValueError(f"seams must be one of {SEAM_MODES}, got {seams!r}")
     if part.n_triangles < MIN_SIMPLIFY_TRIANGLES:

@@ -88,7 +88,7 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
 
 #: the sampled LOD 0 -> LOD direction queries at least this many of LOD 0's vertices (all of them
 #: on smaller meshes) ...
-MIN_SAMPLES = 16384
+MIN_SAMPLES = 1 << 16
 
 #: ... and otherwise this many per vertex of the LOD: the cost follows the LOD's size, like the
 #: transfer's queries of the LOD's own vertices and centroids
