@@ -295,18 +295,20 @@ def _better(a: Lod, b: Lod) -> bool:
 def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: Reference,
                    preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
     """``backend="auto"``: meshoptimizer; on inputs of at most ``AUTO_BOTH_TRIANGLES`` triangles
-    pymeshlab too, keeping the better (``_better``) with a note giving both errors."""
+    pymeshlab too (falling back to fast as usual when ``fallback``), keeping the better
+    (``_better``) with a note giving both errors."""
     t0 = time.perf_counter()
     lod, used = _simplify(part, ratio, target, "meshopt", seams, ref, preserve_boundary, fallback,
                           max_flipped_fraction)
     if part.n_triangles > AUTO_BOTH_TRIANGLES or lod.backend == "source":
         return lod, used
-    other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, False,
+    # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
+    other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
                              max_flipped_fraction)
     keep, drop = (other, lod) if _better(other, lod) else (lod, other)
     what = "failed" if drop.failed else f"{drop.triangles} triangles, {drop.hausdorff_m:.3g} m"
     keep.notes.append(f"auto: {keep.backend} kept ({keep.triangles} triangles, {keep.hausdorff_m:.3g} m); "
-                      f"{'meshopt' if keep is other else 'pymeshlab'} {what}")
+                      f"{drop.backend if not drop.failed else ('meshopt' if keep is other else 'pymeshlab')} {what}")
     keep.seconds = time.perf_counter() - t0
     return keep, used + (used2 if keep is other else 0)
 
