@@ -15,7 +15,7 @@ from .batch.cli import add_batch_parser, cmd_batch
 from .errors import EXIT_OK, LopcookError
 from .progress import MODES
 from .settings import DEFAULTS as D
-from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs
+from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs, SeamMode
 from .version import __version__
 
 EXIT_INTERNAL = 3
@@ -81,9 +81,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "what the farthest view can show, given --nearest, or its target falls under 4 triangles) "
                         "or these fractions of the triangles, e.g. 1/2,1/4,1/8 (default: LOD 0 only)")
     p.add_argument("--lod-backend", default=D.simplify.backend.value, choices=[b.value for b in LodBackend],
-                   help="simplifier: pymeshlab quadric collapse (seam-aware), fast-simplification, or "
-                        "meshoptimizer's attribute-aware collapse (docs/performance.md) "
+                   help="simplifier: pymeshlab quadric collapse (seam-aware), fast-simplification, "
+                        "meshoptimizer's attribute-aware collapse, or auto: meshoptimizer, and pymeshlab as well "
+                        "on inputs of up to 100,000 triangles, the lower measured error kept (docs/lod.md) "
                         f"(default {D.simplify.backend.value})")
+    p.add_argument("--lod-seams", default=D.simplify.seams.value, choices=[m.value for m in SeamMode],
+                   help="UV seams in LODs: lock (kept exactly; stops early on densely seamed meshes), simplify "
+                        "(collapsed along themselves), ignore, xatlas, or auto: simplify, and where that stops "
+                        "short the mesh welded by position (docs/lod.md) "
+                        f"(default {D.simplify.seams.value})")
     p.add_argument("--hierarchy", action="store_true",
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
                         "lopcook refine; docs/hierarchy.md)")
@@ -418,7 +424,8 @@ def settings_from_args(args):
 
     simplify = DEFAULTS.simplify
     if getattr(args, "lods", None) is not None:
-        simplify = SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend)
+        simplify = SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend,
+                                    seams=getattr(args, "lod_seams", DEFAULTS.simplify.seams.value))
     if getattr(args, "hierarchy", False):
         simplify = replace(simplify, hierarchy=True)
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),

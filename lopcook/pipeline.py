@@ -142,20 +142,25 @@ class CookResult:
 def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress: Progress = NONE):
     """LOD chain and report of every part, in part order. Copies of one mesh
     (``lopcook.simplify.instances.copies``: same triangles and attributes, positions related by one
-    affine map) are simplified once and the chain placed on every copy. Serial: pymeshlab is not
-    thread-safe, and fast-simplification and libigl hold the GIL."""
+    affine map) are simplified once and the chain placed on every copy. Distinct meshes run in
+    worker processes (``lopcook.simplify.parallel``; threads would not help: pymeshlab is not
+    thread-safe, and fast-simplification and libigl hold the GIL); the result is the serial one."""
     from .simplify.instances import copies, placed_chain
+    from .simplify.parallel import run_chains
 
     ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
+    seams = settings.simplify.seams.value
     out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
     groups = copies(scene.parts)
     with progress.stage("LOD chains", total=len(groups)) as st:
-        for lead, members in groups:
-            lods, report = lod_chain(scene.parts[lead], ratios=list(ratios), backend=backend, max_error_m=max_error_m)
+        # distinct meshes in parallel worker processes (lopcook.simplify.parallel: the serial result)
+        done = run_chains([scene.parts[lead] for lead, _ in groups], progress=st.advance, chain=lod_chain,
+                          ratios=list(ratios),
+                          backend=backend, seams=seams, max_error_m=max_error_m)
+        for (lead, members), (lods, report) in zip(groups, done):
             out[lead], reports[lead] = lods, report
             for i, a, t in members:
                 out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
-            st.advance()
     return out, reports
 
 

@@ -50,6 +50,7 @@ class LodBackend(str, Enum):
     PYMESHLAB = "pymeshlab"
     FAST = "fast"
     MESHOPT = "meshopt"
+    AUTO = "auto"
 
 
 class SeamMode(str, Enum):
@@ -59,6 +60,7 @@ class SeamMode(str, Enum):
     SIMPLIFY = "simplify"
     IGNORE = "ignore"
     XATLAS = "xatlas"
+    AUTO = "auto"
 
 
 class PsnrStat(str, Enum):
@@ -193,15 +195,17 @@ class SimplifySettings:
     """Options of the simplify stage (LOD chains, ``lopcook.simplify``).
 
     lods : LodSpec or None  the chain to build; None = LOD 0 only (default)
-    backend : LodBackend  the simplifier (default pymeshlab)
-    seams : SeamMode  what happens to UV seams (default lock)
+    backend : LodBackend  the simplifier (default auto: meshoptimizer, and pymeshlab too on small
+        inputs; chosen by measurement, docs/lod.md)
+    seams : SeamMode  what happens to UV seams (default auto: collapsed along themselves, and the
+        mesh welded by position where that stops short; docs/lod.md)
     hierarchy : bool  also write each part's view-dependent vertex hierarchy, built from LOD 0's
         full collapse sequence (``lopcook.hierarchy.container``; default False)
     """
 
     lods: LodSpec | None = None
-    backend: LodBackend = LodBackend.PYMESHLAB
-    seams: SeamMode = SeamMode.LOCK
+    backend: LodBackend = LodBackend.AUTO
+    seams: SeamMode = SeamMode.AUTO
     hierarchy: bool = False
 
     def __post_init__(self) -> None:
@@ -406,7 +410,8 @@ class Settings:
         (true) only with ``simplify.hierarchy``: default containers keep their bytes."""
         options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
         if self.simplify.lods is not None:
-            options["lods"] = {"ratios": self.simplify.lods.text, "backend": self.simplify.backend.value}
+            options["lods"] = {"ratios": self.simplify.lods.text, "backend": self.simplify.backend.value,
+                               "seams": self.simplify.seams.value}
         if self.simplify.hierarchy:
             options["hierarchy"] = True
         return {"options": options, "viewing": self.viewing.as_dict()}
@@ -423,7 +428,9 @@ class Settings:
             simplify = SimplifySettings()
             if options.get("lods") is not None:
                 lods = options["lods"]
-                simplify = SimplifySettings(lods=parse_lods(str(lods["ratios"])), backend=LodBackend(lods["backend"]))
+                # containers written before options.lods.seams were cooked with locked seams
+                simplify = SimplifySettings(lods=parse_lods(str(lods["ratios"])), backend=LodBackend(lods["backend"]),
+                                            seams=SeamMode(lods.get("seams", "lock")))
             if options.get("hierarchy", False) is not False:
                 if options["hierarchy"] is not True:
                     raise ValueError(f"options.hierarchy must be true when present, got {options['hierarchy']!r}")

@@ -122,9 +122,13 @@ def test_error_is_measured_and_monotone(bunny, bunny_chains, backend):
     for lod in lods[1:]:
         assert lod.error_m >= lod.hausdorff_m > 0
         assert lod.hausdorff_m == max(lod.one_sided_m)
-        # measured, not estimated: at least libigl's own (vertex-based) Hausdorff distance
-        h_igl = igl.hausdorff(bunny.positions, ref_f, lod.part.positions, lod.part.indices.astype(np.int64))
-        assert lod.hausdorff_m >= h_igl - 1e-12
+        # measured, not estimated: the LOD -> LOD 0 direction at every LOD vertex, and the bound
+        # at least libigl's own (vertex-based) symmetric Hausdorff distance
+        lod_f = lod.part.indices.astype(np.int64)
+        assert lod.hausdorff_m >= np.sqrt(E.point_mesh(lod.part.positions, bunny.positions, ref_f)[0].max()) - 1e-12
+        h_igl = igl.hausdorff(bunny.positions, ref_f, lod.part.positions, lod_f)
+        assert lod.hausdorff_m <= lod.error_bound_m and h_igl <= lod.error_bound_m + 1e-12
+        assert lod.hausdorff_m >= 0.8 * h_igl  # the sample finds the maximum's neighbourhood
         assert lod.hausdorff_m < 0.01  # 1 cm on a 15 cm bunny down to 1/16
     # a translated copy is exactly that far away
     moved = _part(bunny.positions + [0.0, 0.002, 0.0], bunny.indices)
@@ -135,9 +139,15 @@ def test_error_is_measured_and_monotone(bunny, bunny_chains, backend):
 
 def test_chain_envelope_when_measured_error_drops(ico, monkeypatch):
     """error_m stays monotone even when a coarser LOD measures closer than the previous one."""
-    real = E.measure_ref_to_lod
+    real = E.sampled_ref_to_lod
     calls = iter([0.05, 0.001, 0.001, 0.001])
-    monkeypatch.setattr(L, "measure_ref_to_lod", lambda ref, part: max(real(ref, part), next(calls)))
+
+    def raised(ref, part):
+        m, bound, n = real(ref, part)
+        extra = next(calls)
+        return max(m, extra), max(bound, extra), n
+
+    monkeypatch.setattr(L, "sampled_ref_to_lod", raised)
     lods, _ = L.lod_chain(ico, ratios=[0.5, 0.25], backend="fast")
     assert lods[1].hausdorff_m >= 0.05
     assert lods[2].hausdorff_m < lods[1].hausdorff_m

@@ -131,9 +131,9 @@ def test_cook_lods_auto_is_the_default_chain(tmp_path):
     out = tmp_path / "auto.lop"
     assert main(["-q", "cook", str(src), "-o", str(out), "--lods", "auto", "--lod-backend", "fast"]) == 0
     m = read(str(out)).manifest
-    assert m["options"]["lods"] == {"ratios": "auto", "backend": "fast"}
+    assert m["options"]["lods"] == {"ratios": "auto", "backend": "fast", "seams": "auto"}
     part = load(str(src)).parts[0]
-    lods, report = lod_chain(part, ratios=None, backend="fast")
+    lods, report = lod_chain(part, ratios=None, backend="fast", seams="auto")
     ranges = selection_ranges([lod.error_m for lod in lods], [lod.triangles for lod in lods], Viewing())
     expected = [(lod.triangles, lod.error_m) for k, lod in enumerate(lods) if k == 0 or ranges[k] is not None]
     got = [(e["triangles"], e["geometric_error_m"]) for e in m["parts"][0]["lods"]]

@@ -108,3 +108,65 @@ def test_ref_to_lod_finds_a_maximum_at_a_centroid():
     lod = _part(v, [[0, 1, 3], [1, 2, 3]])
     d = E.measure_ref_to_lod(ref, lod)
     assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)
+
+
+# ------------------------------------------------------------ the sampled LOD 0 -> LOD direction
+
+
+def _brute_vertex_max(ref, part):
+    pts = ref.positions[ref.sample_vertices]
+    return float(np.sqrt(E.point_mesh(pts, part.positions, part.indices.astype(np.int64))[0].max()))
+
+
+def test_sample_order_takes_one_vertex_of_every_cell_of_the_complete_levels(corpus):
+    pts = load(corpus / "stanford-bunny.obj").parts[0].positions
+    order = E.SampleOrder(pts)
+    assert np.array_equal(np.sort(order.order), np.arange(pts.shape[0]))
+    lo, ext = pts.min(0), (pts.max(0) - pts.min(0)).max()
+    for count in (1, 100, 5000, 20000, pts.shape[0] + 5):
+        pick = order.take(count)
+        assert pick.sum() == min(count, pts.shape[0])
+        full = int(order.level[pick].max()) - (0 if pick.all() else 1)
+        if full < 1 or pick.all():
+            continue
+        # every occupied cell of level `full` (8**full cells over the box) holds a sampled vertex
+        cell = np.floor((pts - lo) / ext * ((1 << 21) - 1)).astype(np.int64) >> (21 - full)
+        key = (cell[:, 0] << 42) | (cell[:, 1] << 21) | cell[:, 2]
+        occupied = np.unique(key)
+        sampled = np.unique(key[order.order[pick]])
+        assert np.array_equal(occupied, sampled), (count, full)
+    np.testing.assert_array_equal(E.SampleOrder(pts).take(777), order.take(777))  # deterministic
+
+
+def test_sampled_ref_to_lod_brackets_the_vertex_maximum(corpus):
+    bunny = load(corpus / "stanford-bunny.obj").parts[0]
+    ref = X.Reference(bunny)
+    for ratio in (1 / 2, 1 / 8, 1 / 32):
+        lod = L.simplify(bunny, ratio, backend="fast").part
+        exact = _brute_vertex_max(ref, lod)
+        for count in (500, 4000):
+            measured, bound, queried = E.sampled_ref_to_lod(ref, lod, count)
+            assert count <= queried < ref.sample_vertices.size
+            assert measured <= exact <= bound
+        # every vertex queried: the vertex maximum itself
+        assert E.sampled_ref_to_lod(ref, lod, 10**9)[:2] == (exact, exact)
+
+
+def test_sampled_bound_covers_a_spike_the_sample_misses():
+    # LOD 0: a 65 x 65 grid in z = 0 with one vertex raised by 0.2; the LOD: the flat square
+    n = 65
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+    pos = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+    spike = 37 * n + 23
+    pos[spike, 2] = 0.2
+    i = np.arange(n - 1)
+    a = (i[:, None] * n + i[None, :]).ravel()
+    faces = np.concatenate([np.stack([a, a + n, a + 1], 1), np.stack([a + 1, a + n, a + n + 1], 1)])
+    ref = X.Reference(_part(pos, faces))
+    flat = _part([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    order = ref.sample_order
+    count = 16  # levels 0-2 of the sample order; the spike is first in its cell at level 3
+    assert not order.take(count)[np.flatnonzero(order.order == spike)[0]]  # the sample misses it
+    measured, bound, _ = E.sampled_ref_to_lod(ref, flat, count)
+    assert measured == 0.0 and bound >= 0.2
+    assert E.sampled_ref_to_lod(ref, flat, n * n)[:2] == (0.2, 0.2)

@@ -10,7 +10,7 @@ import pytest
 from lopcook.cli import build_parser
 from lopcook.errors import LopcookError
 from lopcook.settings import (DEFAULTS, AnalyseSettings, DepthMode, IngestSettings, LodBackend, LodSpec, Settings,
-                              SimplifySettings, TextureSlope, halvings, parse_lods)
+                              SeamMode, SimplifySettings, TextureSlope, halvings, parse_lods)
 from lopcook.viewing import Viewing
 
 
@@ -19,7 +19,17 @@ def test_defaults_are_frozen_data():
     with pytest.raises(dataclasses.FrozenInstanceError):
         DEFAULTS.analyse.eps = 0.5  # type: ignore[misc]
     assert DEFAULTS.analyse.depth is DepthMode.AUTO and DEFAULTS.analyse.texture_kf is TextureSlope.IMAGE
-    assert DEFAULTS.simplify.backend is LodBackend.PYMESHLAB and DEFAULTS.simplify.lods is None
+    # chosen by measurement (docs/lod.md): meshoptimizer with pymeshlab on small inputs, seams
+    # collapsed along themselves with the position-welded mesh where that stops short
+    assert DEFAULTS.simplify.backend is LodBackend.AUTO and DEFAULTS.simplify.lods is None
+    assert DEFAULTS.simplify.seams is SeamMode.AUTO
+
+
+def test_containers_without_a_seam_record_were_cooked_with_locked_seams():
+    record = Settings(simplify=SimplifySettings(lods=LodSpec(), backend="meshopt", seams="simplify")).to_manifest()
+    assert record["options"]["lods"] == {"ratios": "auto", "backend": "meshopt", "seams": "simplify"}
+    del record["options"]["lods"]["seams"]
+    assert Settings.from_manifest(record).simplify.seams is SeamMode.LOCK
 
 
 @pytest.mark.parametrize("settings", [

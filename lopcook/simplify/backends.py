@@ -20,8 +20,9 @@ from ..types import MeshPart
 TARGET_FAIL_FACTOR = 2.0
 
 BACKENDS = ("pymeshlab", "fast")
-#: every backend a chain can be asked for; a failed one falls back through ``BACKENDS`` in order
-SELECTABLE = BACKENDS + ("meshopt",)
+#: every backend a chain can be asked for; a failed one falls back through ``BACKENDS`` in order.
+#: ``"auto"`` is meshoptimizer, and pymeshlab as well on small inputs (``lopcook.simplify.chain``)
+SELECTABLE = BACKENDS + ("meshopt", "auto")
 
 
 @dataclass

@@ -20,7 +20,16 @@ Backends
     ``preserve_boundary=True`` (the default): boundary vertices keep their exact positions, so
     parts that share a boundary do not crack apart at any LOD.
 
-Both run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
+``"meshopt"``
+    meshoptimizer's attribute-aware edge collapse (``lopcook.simplify.meshopt``): output vertices
+    are input vertices; seams collapse along themselves.
+``"auto"``
+    meshoptimizer; for a LOD whose input has at most ``AUTO_BOTH_TRIANGLES`` triangles pymeshlab
+    as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
+    lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
+    sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md).
+
+All run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
 never tear the surface. Normals, colours (and UVs where the backend does not supply them) are
 carried over by *closest-point transfer* from LOD 0: each LOD vertex takes the barycentric
 interpolation of LOD 0's attributes at its closest point on LOD 0. This is more accurate than
@@ -50,6 +59,13 @@ UV seams (``seams=``)
     The texture-aware quadric on the position-welded mesh with per-wedge UVs: seams are simplified
     along with the mesh (fewer seam edges; islands may merge, vanish or split); the UVs are
     MeshLab's. Reaches targets where ``"lock"`` cannot. With ``fast`` it means ``"ignore"``.
+``"auto"``
+    ``"simplify"`` for every LOD that reaches its target that way; a LOD that misses it by more
+    than ``TARGET_TOLERANCE`` (meshoptimizer keeps seam vertices it classes as complex: three or
+    more UV copies, or seam sides that do not pair up) is also made as with ``"ignore"`` and the
+    result nearer its target (then the lower error) kept, with a note. Seams never stop the chain,
+    and co-located seam vertices keep one position in both modes; a LOD made the ``"ignore"`` way
+    may smear the texture along the seams its faces straddle.
 ``"ignore"``
     Geometry ignores UVs; UVs come from the closest-point transfer. Triangles that straddle a
     source seam get UVs from two islands and smear the texture along the seam (the loss is
@@ -66,16 +82,23 @@ UV seams (``seams=``)
 Error
 -----
 ``Lod.hausdorff_m`` is the symmetric Hausdorff distance between the LOD and LOD 0 in metres,
-*measured*: libigl point-to-mesh distances (AABB tree) from the vertices and face centroids of
-each mesh to the other mesh, max over both directions. Sampled at vertices and centroids it is a
-lower bound of the continuous Hausdorff distance (the distance to the other surface may peak
-anywhere inside a face; centroids catch faces that bridge a concavity or cut a corner, which
-vertices alone miss). The LOD 0 -> LOD direction needs only the maximum, so it queries LOD 0's
-vertices first and then only the centroids whose Lipschitz bound (vertex distance + distance to
-that vertex) could reach it: the same value, about a third of the queries on a dense mesh
-(``lopcook.simplify.error.measure_ref_to_lod``). ``Lod.error_m`` is the monotone envelope along the chain,
-``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
-construction (the LOD is kept and a note says when the measured value dropped). Chains simplify
+*measured* with libigl point-to-mesh distances (AABB trees), at a cost that follows the LOD's size:
+
+* LOD -> LOD 0: every vertex and face centroid of the LOD (the queries the attribute transfer
+  makes anyway). Centroids catch faces that bridge a concavity or cut a corner, which vertices
+  alone miss.
+* LOD 0 -> LOD: a deterministic sample of LOD 0's vertices, spread evenly over LOD 0 (coarse to
+  fine in Morton order), as many as the LOD has vertices and at least 65,536 (all of them on
+  smaller meshes), plus the vertices next to the samples that are at least half the sampled
+  maximum away (``lopcook.simplify.error.sampled_ref_to_lod``).
+
+Sampled, it is a lower bound of the continuous Hausdorff distance (the distance may peak inside a
+face or at a vertex not sampled). ``Lod.error_bound_m`` bounds what the sample can miss: every
+LOD 0 vertex is at most that far from the LOD (1-Lipschitz distance from its sampled neighbour),
+and every LOD vertex and centroid from LOD 0. ``Lod.error_m`` is the monotone envelope along the
+chain, ``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
+construction (the LOD is kept and a note says when the measured value dropped). How close the
+sample comes to querying every vertex and centroid: docs/lod.md. Chains simplify
 each LOD from the previous one (``chain="previous"``, default) or from LOD 0 (``chain="source"``);
 error is always measured against LOD 0. A chained LOD that misses its target by more than 5% is
 redone from LOD 0 and the closer one kept (why ``"previous"`` is the default: docs/lod.md).
@@ -113,7 +136,7 @@ from ..memory import release_free_memory
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
 from .backends import BACKENDS, SELECTABLE, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
-from .error import hausdorff, measure_ref_to_lod
+from .error import hausdorff, sampled_ref_to_lod
 from .topology import mesh_defects, seam_stats
 from .transfer import Reference, transfer_attributes
 
@@ -121,7 +144,7 @@ if TYPE_CHECKING:
     from .topology import SeamStats
 
 
-SEAM_MODES = ("lock", "simplify", "ignore", "xatlas")
+SEAM_MODES = ("lock", "simplify", "ignore", "xatlas", "auto")
 
 
 #: a LOD whose triangle count is off its target by more than this fraction gets a note
@@ -142,6 +165,11 @@ MIN_SIMPLIFY_TRIANGLES = 4
 MAX_FLIPPED_FRACTION = 0.02
 
 
+#: ``backend="auto"`` runs pymeshlab as well as meshoptimizer on inputs of at most this many
+#: triangles (where pymeshlab costs well under a second and can measure lower: docs/lod.md)
+AUTO_BOTH_TRIANGLES = 100_000
+
+
 
 
 @dataclass
@@ -153,10 +181,11 @@ class Lod:
     target_ratio : float  requested fraction of LOD 0's triangles
     target_triangles : int  ``round(target_ratio * n0)``
     triangles : int  triangles actually produced
-    hausdorff_m : float  measured symmetric Hausdorff distance to LOD 0, metres (a lower bound of
-        the continuous distance; see the module doc)
+    hausdorff_m : float  measured symmetric Hausdorff distance to LOD 0, metres: the LOD's vertices
+        and centroids against LOD 0, and a deterministic sample of LOD 0's vertices against the
+        LOD (a lower bound of the continuous distance; see the module doc)
     error_m : float  monotone envelope along the chain (``max`` with the previous LOD's error_m)
-    backend : str  ``"pymeshlab"``, ``"fast"``, ``"source"`` (LOD 0 / not simplified) or ``"none"``
+    backend : str  ``"pymeshlab"``, ``"fast"``, ``"meshopt"``, ``"source"`` (LOD 0 / not simplified) or ``"none"``
         (every backend failed)
     seams : str  the seam mode actually used (``"lock"``, ``"simplify"``, ``"ignore"``,
         ``"xatlas"``; ``"-"`` without UVs)
@@ -166,6 +195,9 @@ class Lod:
     flipped : int  faces facing away from LOD 0's nearby faces (kept when under the threshold)
     failed : bool  no backend produced this LOD; ``part`` is then the input it started from
     seam_stats : SeamStats or None  UV seams of the result (None without UVs)
+    error_bound_m : float  an upper bound of the distance from every LOD vertex and centroid and
+        every LOD 0 vertex to the other mesh (what the sample of LOD 0 can miss is at most
+        ``error_bound_m - hausdorff_m``; ``lopcook.simplify.error.sampled_ref_to_lod``)
     """
 
     part: MeshPart
@@ -182,6 +214,7 @@ class Lod:
     flipped: int = 0
     failed: bool = False
     seam_stats: "SeamStats | None" = None
+    error_bound_m: float = 0.0
 
     def summary(self) -> dict:
         """JSON-friendly description (no arrays)."""
@@ -189,7 +222,7 @@ class Lod:
             "target_ratio": self.target_ratio, "target_triangles": self.target_triangles,
             "triangles": self.triangles, "vertices": self.part.n_vertices,
             "hausdorff_m": self.hausdorff_m, "error_m": self.error_m,
-            "one_sided_m": list(self.one_sided_m), "backend": self.backend, "seams": self.seams,
+            "one_sided_m": list(self.one_sided_m), "error_bound_m": self.error_bound_m, "backend": self.backend, "seams": self.seams,
             "seconds": round(self.seconds, 6), "flipped": self.flipped, "failed": self.failed,
             "seam_stats": None if self.seam_stats is None else self.seam_stats.as_dict(),
             "notes": list(self.notes),
@@ -243,8 +276,64 @@ def _unchanged(part: MeshPart, ref: Reference, ratio: float, target: int, t0: fl
     mode = "-" if part.uvs is None else seams
     return Lod(part=part, target_ratio=ratio, target_triangles=target, triangles=part.n_triangles,
                hausdorff_m=h[0], error_m=h[0], backend=backend, seams=mode, seconds=time.perf_counter() - t0,
-               notes=notes, one_sided_m=(h[1], h[2]), failed=failed,
+               notes=notes, one_sided_m=(h[1], h[2]), failed=failed, error_bound_m=h[0],
                seam_stats=seam_stats(part) if part.uvs is not None else None)
+
+
+def _better(a: Lod, b: Lod) -> bool:
+    """Whether LOD ``a`` is better than ``b`` for the same target: one produced, then one within
+    ``TARGET_TOLERANCE`` of it, then the lower measured error (``b`` on ties)."""
+    if a.failed != b.failed:
+        return not a.failed
+    near_a = abs(a.triangles - a.target_triangles) <= TARGET_TOLERANCE * a.target_triangles
+    near_b = abs(b.triangles - b.target_triangles) <= TARGET_TOLERANCE * b.target_triangles
+    if near_a != near_b:
+        return near_a
+    return a.hausdorff_m < b.hausdorff_m
+
+
+def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: Reference,
+                   preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+    """``backend="auto"``: meshoptimizer; on inputs of at most ``AUTO_BOTH_TRIANGLES`` triangles
+    pymeshlab too (falling back to fast as usual when ``fallback``), keeping the better
+    (``_better``) with a note giving both errors."""
+    t0 = time.perf_counter()
+    lod, used = _simplify(part, ratio, target, "meshopt", seams, ref, preserve_boundary, fallback,
+                          max_flipped_fraction)
+    if part.n_triangles > AUTO_BOTH_TRIANGLES or lod.backend == "source":
+        return lod, used
+    # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
+    other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
+                             max_flipped_fraction)
+    keep, drop = (other, lod) if _better(other, lod) else (lod, other)
+    what = "failed" if drop.failed else f"{drop.triangles} triangles, {drop.hausdorff_m:.3g} m"
+    keep.notes.append(f"auto: {keep.backend} kept ({keep.triangles} triangles, {keep.hausdorff_m:.3g} m); "
+                      f"{drop.backend if not drop.failed else ('meshopt' if keep is other else 'pymeshlab')} {what}")
+    keep.seconds = time.perf_counter() - t0
+    return keep, used + (used2 if keep is other else 0)
+
+
+def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Reference,
+                preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+    """``seams="auto"``: ``"simplify"``; where that misses its target by more than
+    ``TARGET_TOLERANCE`` (seam vertices the backend will not collapse) also ``"ignore"``, keeping
+    the better (``_better``) with a note."""
+    t0 = time.perf_counter()
+    lod, used = _simplify(part, ratio, target, backend, "simplify", ref, preserve_boundary, fallback,
+                          max_flipped_fraction)
+    if part.uvs is None or lod.backend == "source" or (
+            not lod.failed and abs(lod.triangles - target) <= TARGET_TOLERANCE * target):
+        return lod, used
+    other, used2 = _simplify(part, ratio, target, backend, "ignore", ref, preserve_boundary, fallback,
+                             max_flipped_fraction)
+    if not _better(other, lod):
+        return lod, used
+    what = "failed" if lod.failed else f"stopped at {lod.triangles} triangles ({lod.hausdorff_m:.3g} m)"
+    other.notes = [n for n in other.notes if not n.startswith("UV seams changed")] + [
+        f"seams: simplify {what}; the mesh welded by position reached {other.triangles} triangles "
+        f"({other.hausdorff_m:.3g} m), its UVs transferred from LOD 0 (kept)"]
+    other.seconds = time.perf_counter() - t0
+    return other, used + used2
 
 
 def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: str, ref: Reference,
@@ -255,6 +344,10 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
     notes: list = []
     if backend not in SELECTABLE:
         raise ValueError(f"backend must be one of {SELECTABLE}, got {backend!r}")
+    if backend == "auto":
+        return _simplify_auto(part, ratio, target, seams, ref, preserve_boundary, fallback, max_flipped_fraction)
+    if seams == "auto":
+        return _seams_auto(part, ratio, target, backend, ref, preserve_boundary, fallback, max_flipped_fraction)
     if seams not in SEAM_MODES:
         raise ValueError(f"seams must be one of {SEAM_MODES}, got {seams!r}")
     if part.n_triangles < MIN_SIMPLIFY_TRIANGLES:
@@ -315,7 +408,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
         if info["flipped"]:
             notes.append(f"{info['flipped']} faces face against the source surface (under the "
                          f"{max_flipped_fraction:.0%} threshold; kept)")
-        ref_to_lod = measure_ref_to_lod(ref, lod_part)
+        ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part)
         release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
         tri = lod_part.n_triangles
@@ -326,7 +419,8 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             notes.append(f"UV seams changed ({mode}): {ref.seams.as_dict()} -> {stats.as_dict()}")
         lod = Lod(part=lod_part, target_ratio=ratio, target_triangles=target, triangles=tri, hausdorff_m=h,
                   error_m=h, backend=name, seams=mode, seconds=time.perf_counter() - t0, notes=notes,
-                  one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats)
+                  one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats,
+                  error_bound_m=max(info["lod_to_ref"], ref_to_lod_bound))
         short = int(round(tri * _SHORT_OF_WALL))
         if mode == "lock" and tri > (1 + TARGET_TOLERANCE) * target and short < part.n_triangles and not _retry:
             # the locked seams stopped the backend: its last collapses were forced ones. Stop short of

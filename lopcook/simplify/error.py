@@ -84,3 +84,134 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
         d2c = np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(centroids[need]))[0])
         best = max(best, float(d2c.max()))
     return float(np.sqrt(best))
+
+
+#: the sampled LOD 0 -> LOD direction queries at least this many of LOD 0's vertices (all of them
+#: on smaller meshes) ...
+MIN_SAMPLES = 1 << 16
+
+#: ... and otherwise this many per vertex of the LOD: the cost follows the LOD's size, like the
+#: transfer's queries of the LOD's own vertices and centroids
+SAMPLES_PER_LOD_VERTEX = 1.0
+
+#: unsampled vertices next to a sample (after it in the order) whose distance is at least this
+#: fraction of the sampled maximum are queried too
+REFINE_FRACTION = 0.5
+
+_MORTON_BITS = 21
+
+
+def _spread3(v: np.ndarray) -> np.ndarray:
+    """21-bit integers with two zero bits inserted after every bit (Morton interleave helper)."""
+    x = v.astype(np.uint64) & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+    return x
+
+
+def _high_bit(x: np.ndarray) -> np.ndarray:
+    """Index of the highest set bit of each uint64 (0 for 0)."""
+    x = x.copy()
+    hb = np.zeros(x.shape, dtype=np.int64)
+    for s in (32, 16, 8, 4, 2, 1):
+        big = x >= (np.uint64(1) << np.uint64(s))
+        hb += s * big
+        x = np.where(big, x >> np.uint64(s), x)
+    return hb
+
+
+class SampleOrder:
+    """LOD 0's vertices in a coarse-to-fine spatial order, for deterministic, evenly spread samples.
+
+    The vertices are sorted by Morton code (21 bits per axis over their bounding box, ties by
+    index). Level L cuts the box into 8**L cells; a vertex's ``level`` is the first L at which it
+    is the first sorted vertex of its cell (level 0: the first vertex; co-located repeats: 22, never
+    a cell's first). Taking every vertex of level <= L therefore takes one vertex of every occupied
+    level-L cell. Computed once per LOD 0 (one sort)."""
+
+    def __init__(self, points: np.ndarray):
+        p = np.asarray(points, dtype=np.float64)
+        self.points = p
+        self.n = p.shape[0]
+        if self.n == 0:
+            self.order = np.zeros(0, dtype=np.int64)
+            self.level = np.zeros(0, dtype=np.int64)
+            return
+        lo = p.min(axis=0)
+        ext = float((p.max(axis=0) - lo).max())
+        scale = ((1 << _MORTON_BITS) - 1) / ext if ext > 0 else 0.0
+        q = np.clip(np.floor((p - lo) * scale), 0, (1 << _MORTON_BITS) - 1).astype(np.uint64)
+        code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
+        self.order = np.argsort(code, kind="stable")
+        c = code[self.order]
+        level = np.empty(self.n, dtype=np.int64)
+        level[0] = 0
+        diff = c[1:] ^ c[:-1]
+        # first in its level-L cell iff the codes differ in their top 3L bits (of 63)
+        level[1:] = np.where(diff == 0, _MORTON_BITS + 1, (62 - _high_bit(diff)) // 3 + 1)
+        self.level = level
+
+    def take(self, count: int) -> np.ndarray:
+        """(n,) bool over the sorted order: about ``count`` vertices, every vertex of the complete
+        levels and an evenly spaced part of the next one (all when ``count >= n``)."""
+        pick = np.zeros(self.n, dtype=bool)
+        if count >= self.n:
+            pick[:] = True
+            return pick
+        per = np.bincount(self.level, minlength=_MORTON_BITS + 2)
+        total = np.cumsum(per)
+        full = int(np.searchsorted(total, count, side="right")) - 1  # last level wholly taken
+        pick |= self.level <= full
+        rest = count - (int(total[full]) if full >= 0 else 0)
+        if rest > 0:
+            nxt = np.flatnonzero(self.level == full + 1)
+            pick[nxt[np.linspace(0, nxt.size - 1, rest).round().astype(np.int64)]] = True
+        return pick
+
+
+def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) -> tuple[float, float, int]:
+    """LOD 0 -> LOD distance measured at a deterministic sample of LOD 0's vertices, metres:
+    ``(measured, bound, samples)``.
+
+    ``count`` vertices (default ``max(MIN_SAMPLES, SAMPLES_PER_LOD_VERTEX * lod vertices)``; every
+    vertex when LOD 0 has no more) are taken coarse to fine from ``ref.sample_order``, so they
+    cover LOD 0 evenly, and queried against one libigl AABB tree over the LOD. ``measured`` is
+    their largest distance: a lower bound of the largest distance of any LOD 0 vertex. ``bound``
+    is an upper bound of it: the distance to a surface is 1-Lipschitz, so a vertex v that was not
+    queried is at most ``d(s) + |v - s|`` from the LOD, s being the sampled vertex before it in
+    the order (in v's cell of the finest complete level); ``bound`` is the largest such value,
+    computed for every vertex (no query). With every vertex queried, both equal the vertex
+    maximum. What sampling can miss is at most ``bound - measured`` (docs/lod.md)."""
+    import igl
+
+    order = ref.sample_order
+    pts = order.points
+    if count is None:
+        count = max(MIN_SAMPLES, int(SAMPLES_PER_LOD_VERTEX * lod.n_vertices))
+    pick = order.take(int(count))
+    sel = order.order[pick]
+    pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
+    fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
+    tree = igl.AABB()
+    tree.init(pos, fac)
+    d = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[sel]))[0]))
+    measured = float(d.max()) if d.size else 0.0
+    if sel.size == order.n:
+        return measured, measured, int(sel.size)
+    dist = np.zeros(order.n)
+    dist[pick] = d  # in sorted order
+    owner = np.maximum.accumulate(np.where(pick, np.arange(order.n), 0))  # sampled vertex at or before
+    # errors are spatially coherent: also query the vertices next to the samples of large distance
+    near = np.flatnonzero(~pick & (dist[owner] >= REFINE_FRACTION * measured) & (dist[owner] > 0))
+    queried = int(sel.size)
+    if near.size:
+        d2 = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[order.order[near]]))[0]))
+        measured = max(measured, float(d2.max()))
+        queried += int(near.size)
+    gap = pts[order.order] - pts[order.order[owner]]
+    bound = dist[owner] + np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    if near.size:
+        bound[near] = d2  # measured
+    bound[pick] = d
+    return measured, max(float(bound.max()), measured), queried

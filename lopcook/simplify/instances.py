@@ -141,14 +141,15 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
         part = place(lod.part, a, t, copy)
         if s is not None:
             h, one = lod.hausdorff_m * s, (lod.one_sided_m[0] * s, lod.one_sided_m[1] * s)
+            bound = lod.error_bound_m * s
         else:
             h, ab, ba = hausdorff(part, copy)
-            one = (ab, ba)
+            one, bound = (ab, ba), h
         err = max(h, out[-1].error_m)
         if max_error_m is not None and err > max_error_m:
             stop = f"LOD {lod.target_ratio:g} error {err:.3g} m exceeds max_error_m {max_error_m:.3g} m; dropped"
             break
-        out.append(replace(lod, part=part, hausdorff_m=h, error_m=err, one_sided_m=one, seconds=0.0,
+        out.append(replace(lod, part=part, hausdorff_m=h, error_m=err, one_sided_m=one, error_bound_m=bound, seconds=0.0,
                            notes=list(lod.notes)))
     rep = replace(report, part=copy.name, max_error_m=max_error_m, notes=[note] + list(report.notes),
                   stop_reason=stop or report.stop_reason, lods=[lod.summary() for lod in out],

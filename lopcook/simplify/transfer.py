@@ -66,6 +66,7 @@ class Reference:
         self.region = components(self.faces.shape[0], self.faces, part.n_vertices)
         self._samples = None
         self._sample_vertices = None
+        self._sample_order = None
         self._tree = None
         self._defects = None
         self._seams = None
@@ -96,6 +97,15 @@ class Reference:
         if self._sample_vertices is None:
             self._sample_vertices = used_ids(self.faces, self.positions.shape[0])
         return self._sample_vertices
+
+    @property
+    def sample_order(self):
+        """``error.SampleOrder`` of the referenced vertices (``sample_vertices``), built once."""
+        if self._sample_order is None:
+            from .error import SampleOrder
+
+            self._sample_order = SampleOrder(self.positions[self.sample_vertices])
+        return self._sample_order
 
     @property
     def defects(self) -> dict:

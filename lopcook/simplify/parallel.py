@@ -1,0 +1,106 @@
+"""LOD chains of independent parts in parallel worker processes, with the serial result.
+
+``run_chains(parts, workers, **kwargs)`` returns ``[lod_chain(p, **kwargs) for p in parts]``,
+exactly (every chain is deterministic and computed whole in one process; results are placed by
+part index, whatever order the workers finish in). With ``workers > 1`` on Linux the chains run
+in a pool of forked processes, largest part first; the parts reach the workers through the fork
+(copy on write, not pickled) and each chain comes back pickled, with texture references that are
+the input's own restored in the parent (a texture is not sent back per LOD). Elsewhere, with one
+worker, one part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
+
+``workers()`` is ``$LOPCOOK_LOD_WORKERS`` when set (1 = serial), else the CPUs this process may
+use, at most ``MAX_WORKERS``. Measurements: docs/lod.md.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from .chain import lod_chain
+
+#: below this many triangles in all, the fork and pickling cost more than they save
+MIN_TRIANGLES = 20_000
+
+#: at most this many worker processes by default
+MAX_WORKERS = 2
+
+_JOBS: list = []
+
+
+def workers() -> int:
+    """Worker processes for the LOD stage (see the module doc)."""
+    env = os.environ.get("LOPCOOK_LOD_WORKERS", "").strip()
+    if env:
+        try:
+            return max(1, int(env))
+        except ValueError:
+            return 1
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    return max(1, min(MAX_WORKERS, cpus))
+
+
+def _one(i: int):
+    part, chain, kwargs = _JOBS[i]
+    lods, report = chain(part, **kwargs)
+    own = []
+    for lod in lods:  # the input part (LOD 0) and its texture stay in the parent
+        if lod.part is part:
+            own.append("input")
+            lod.part = None
+        elif lod.part.texture is not None and lod.part.texture is part.texture:
+            own.append("texture")
+            lod.part = _without_texture(lod.part)
+        else:
+            own.append("")
+    return i, lods, report, own
+
+
+def _without_texture(part):
+    from dataclasses import replace
+
+    return replace(part, texture=None)
+
+
+def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_chain, **kwargs) -> list:
+    """``[chain(p, **kwargs) for p in parts]`` (``chain``: ``lod_chain`` or a function of its
+    signature, reaching the workers through the fork; see the module doc); ``progress()`` is
+    called once per finished chain."""
+    from dataclasses import replace
+
+    n = len(parts)
+    k = workers() if n_workers is None else max(1, int(n_workers))
+    total = sum(p.n_triangles for p in parts)
+    if k <= 1 or n <= 1 or total < MIN_TRIANGLES or not (hasattr(os, "fork") and sys.platform.startswith("linux")):
+        out = []
+        for p in parts:
+            out.append(chain(p, **kwargs))
+            if progress:
+                progress()
+        return out
+    import multiprocessing
+
+    global _JOBS
+    _JOBS = [(p, chain, kwargs) for p in parts]
+    order = sorted(range(n), key=lambda i: -parts[i].n_triangles)
+    out: list = [None] * n
+    try:
+        with multiprocessing.get_context("fork").Pool(min(k, n)) as pool:
+            for i, lods, report, own in pool.imap_unordered(_one, order, chunksize=1):
+                for lod, o in zip(lods, own):
+                    if o == "input":
+                        lod.part = parts[i]
+                    elif o == "texture":
+                        lod.part = replace(lod.part, texture=parts[i].texture)
+                out[i] = (lods, report)
+                if progress:
+                    progress()
+    finally:
+        _JOBS = []
+    return out
+
+
+__all__ = ["run_chains", "workers", "MIN_TRIANGLES", "MAX_WORKERS"]
