@@ -444,7 +444,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
-    file). Attribute VBOs and index buffers come from ``attr_cache``."""
+    file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
     from .gpu import decode_block
 
     items, owned = [], []
@@ -454,7 +454,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     for i, p in enumerate(scene.parts):
         k = lods[i]
         if i not in attr_cache:
-            a = lod_attributes(c, i, k)
+            # unit normals, as a vertex shader normalises the octahedral decode before the
+            # interpolation (an unnormalised one would weight the vertices by its length)
+            a = lod_attributes(c, i, k, unit_normals=True)
             ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
             if orders[i] is not None:
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
