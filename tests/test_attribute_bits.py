@@ -87,6 +87,9 @@ def test_cook_flags_set_the_bits_and_inspect_reports_them(tmp_path, capsys):
             assert vb["total"][level] == vb["positions"][level] + 40
     assert d["vertex_bits"]["normals"] == 18 and d["vertex_bits"]["total"]["11"] == \
         sum(p["vertex_bits"]["total"]["11"] for p in d["parts"]) / 2  # two equal plates
+    # 81 vertices x 40 bits = 3240 bits = 102 words: 24 bits of the last word hold no field;
+    # word-aligned records of 9, 9, 11, 11 bits: 11+11+9 = 31 and 9 in two words, 24 bits wasted
+    assert d["parts"][0]["attribute_waste"] == {"buffer_bits": [32 * 102 - 81 * 40], "aligned_bits_per_vertex": 24}
     # the same flags give the same bytes
     rc2, out2 = _cook(tmp_path, "b.lop", "--normal-bits", "9", "--uv-bits", "11", "--color-bits", "5")
     assert rc2 == 0 and out2.read_bytes() == out.read_bytes()
