@@ -16,10 +16,11 @@ What is rendered (``evaluate``), for every per-buffer level B and every view:
 * **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
   vertices of bin k > B keep k bits.
 
-Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the source's normals,
-UVs, colours and textures (``lopcook.verify.renderer``): only positions differ. That is LOD 0;
-``evaluate(..., lod=k)`` renders the container's LOD k against the same float LOD-0 source, with the
-LOD's own index buffer and decoded attributes (``lopcook.emit.reader.lod_attributes``).
+Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the container's own
+decoded normals, UVs and colours (``lopcook.emit.reader.lod_attributes``: the packed attribute
+record, normals normalised per vertex) and the source's textures (``lopcook.verify.renderer``):
+the error counts positions and attribute quantisation. ``evaluate(..., lod=k)`` renders the
+container's LOD k against the same float LOD-0 source, with the LOD's own index buffer.
 ``evaluate_scene`` renders any float-position scene (e.g. a simplified mesh: "simplify only")
 against the source with the same cameras and metrics.
 

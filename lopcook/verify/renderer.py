@@ -8,9 +8,8 @@ vertices).
 
 Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
 ``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
-CPU. Float, AP and CAP use the same normals, UVs, colours and textures (the source's, permuted to the
-binned order for LOD 0 of a container cooked from that source; the container's decoded ones for any
-other LOD), so only positions differ.
+CPU. Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
+packed attribute record, normals normalised per vertex), all with the source's textures.
 
 Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
 direction = from the box centre to the eye); ambient 0.15, diffuse 0.65, ks and shininess from the
