@@ -999,8 +999,14 @@ def _lop_cases(w: _Writer, rng) -> None:
     # header lies
     lop("total_size_small", _lop_pack(mbytes, payload, total=100), "refuse")
     lop("total_size_huge", _lop_pack(mbytes, payload, total=1 << 60), "refuse")
-    lop("header_major_2", data[:4] + struct.pack("<H", 2) + data[6:28] + struct.pack(
-        "<I", zlib.crc32(data[:4] + struct.pack("<H", 2) + data[6:28])) + data[32:], "refuse")
+    from .emit.container import VERSION
+
+    future = struct.pack("<H", VERSION[0] + 1)
+    lop("header_major_next", data[:4] + future + data[6:28] + struct.pack(
+        "<I", zlib.crc32(data[:4] + future + data[6:28])) + data[32:], "refuse")
+    past = struct.pack("<H", VERSION[0] - 1)  # format 1.0: fixed normals/uvs/colors sections
+    lop("header_major_previous", data[:4] + past + data[6:28] + struct.pack(
+        "<I", zlib.crc32(data[:4] + past + data[6:28])) + data[32:], "refuse")
     for k, cut in enumerate(sorted(set(rng.integers(1, len(data), 10).tolist()) | {4, 31, 32, 33})):
         lop(f"truncated_{cut}", data[:cut], "clean", ("decode",))  # refused by the read both commands share
     for k in range(12):

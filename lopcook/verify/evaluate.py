@@ -51,7 +51,7 @@ from ..emit.reader import gpu_buffer, lod_entry
 from ..errors import LopcookError
 from ..viewing import Viewing, required_level
 from . import metrics as M
-from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod_indices, position_bytes
+from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
@@ -233,6 +233,8 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     # every decoded variant draws the container's own attributes (lod_attributes: normals, UVs,
     # colours at their packed bits), so its PSNR includes their quantisation (issue 15)
     orders = [None] * len(lods)
+    if lod0_is_source(c) and any(k == 0 for k in lods):
+        source_order(c, scene)  # the container must have been cooked from this source (LopcookError)
     shading = Shading.from_manifest(c.manifest, ks, shininess)
     viewing = render_viewing(c.manifest, h.renderer.size)
     g = c.manifest["grid"]
