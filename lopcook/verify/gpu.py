@@ -17,6 +17,11 @@ Mesa), ``glslang-tools`` and ``spirv-cross`` (HLSL only). Missing ones raise Lop
 
 Buffers are numpy arrays in and out: packed words ``(w,) uint32``, tables ``(25,) int`` (VertexId,
 BitId), grid integers ``(n, 3) uint32``, positions ``(n, 3) float32`` metres.
+
+``AttributeDecoder`` runs ``shaders/decode_attributes.*`` (Purnomo et al. 2005, sections 3-5: the
+packed per-vertex record of octahedral normals, UVs and colours) the same way: words in, float32
+``normals (n, 3)`` (unnormalised), ``uvs (n, 2)``, ``colors (n, 4)`` out, as
+``lopcook.emit.attributes.decode_record`` returns them.
 """
 
 from __future__ import annotations
