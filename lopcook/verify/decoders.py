@@ -339,16 +339,19 @@ ATTRIBUTE_OUTPUTS = (("normals", "normal_mismatches"), ("uvs", "uv_mismatches"),
 
 def attribute_record(c, part: int, lod: int):
     """``(words, n, bits, uv_range, uv_step)`` of buffer (part, lod)'s packed attribute record as a
-    renderer uploads it (the section's uint32 words, the manifest's ``attribute_bits``, ``uv_range``
-    and ``uv_step``), or None when the LOD has no attribute record."""
-    e = c.manifest["parts"][part]["lods"][lod]
+    renderer uploads it: the section's uint32 words, the vertex count, the manifest's
+    ``attribute_bits`` as ``lopcook.emit.attributes.AttributeBits``, ``uv_range`` and ``uv_step``
+    (None when the LOD has no UVs): the arguments of ``decode_record``. None when the LOD has no
+    attribute record."""
+    from ..emit.attributes import AttributeBits
+    from ..emit.reader import lod_entry
+
+    e = lod_entry(c, part, lod)
     if e.get("attributes") is None:
         return None
     words = np.frombuffer(c.section(e["attributes"]), dtype="<u4")
-    bits = e.get("attribute_bits") or {}
-    uv_range = e.get("uv_range") or [[0.0, 0.0], [0.0, 0.0]]
-    uv_step = e.get("uv_step") or [0.0, 0.0]
-    return words, int(e["vertices"]), bits, uv_range, uv_step
+    bits = AttributeBits.of(e.get("attribute_bits") or {})
+    return words, int(e["vertices"]), bits, e.get("uv_range"), e.get("uv_step")
 
 
 def _verify_attributes(c, part, lod, languages, stats, examples, max_examples) -> int:
@@ -365,7 +368,7 @@ def _verify_attributes(c, part, lod, languages, stats, examples, max_examples) -
     for lang in languages:
         s = stats[lang]
         t0 = time.perf_counter()
-        got = gpu.attribute_decoder(lang).decode(words, n, bits, uv_range[0], uv_step)
+        got = gpu.attribute_decoder(lang).decode(words, n, bits, uv_range, uv_step)
         s["attribute_seconds"] += time.perf_counter() - t0
         s["attribute_vertices"] += n
         for name, key in ATTRIBUTE_OUTPUTS:

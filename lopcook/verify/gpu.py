@@ -439,10 +439,13 @@ def attribute_shader_source(language: str) -> str:
 
 def attribute_bits(bits) -> tuple[int, int, int]:
     """(b_n, b_u, b_c) with 0 for an absent attribute, from the manifest's ``attribute_bits``
-    mapping (``{"normals": b | None, "uvs": ..., "colors": ...}``) or a 3-sequence in that order.
-    Raises ValueError for bits outside the spec's ranges (normals 4..16, UVs 6..16, colours 4..8)."""
+    mapping (``{"normals": b | None, "uvs": ..., "colors": ...}``), an object with those three
+    attributes (``lopcook.emit.attributes.AttributeBits``) or a 3-sequence in that order. Raises
+    ValueError for bits outside the spec's ranges (normals 4..16, UVs 6..16, colours 4..8)."""
     if isinstance(bits, dict):
         bits = [bits.get(name) for name, _ in ATTRIBUTE_FIELDS]
+    elif all(hasattr(bits, name) for name, _ in ATTRIBUTE_FIELDS):
+        bits = [getattr(bits, name) for name, _ in ATTRIBUTE_FIELDS]
     out = []
     for (name, (lo, hi)), b in zip(ATTRIBUTE_FIELDS, bits, strict=True):
         b = 0 if b is None else int(b)
@@ -474,10 +477,11 @@ def attribute_block(bits, uv_lo, uv_step, words: int) -> bytes:
 class AttributeDecoder:
     """``shaders/decode_attributes.*`` of one language, run through transform feedback.
 
-    ``decode(words, n, bits, uv_lo, uv_step)`` decodes the packed records of vertices
+    ``decode(words, n, bits, uv_range, uv_step)`` (the arguments of
+    ``lopcook.emit.attributes.decode_record``; ``uv_range`` ``[[lo_u, lo_v], [hi_u, hi_v]]``, only
+    ``lo`` is used, and ``uv_step`` may be None without UVs) decodes the packed records of vertices
     ``j = gl_VertexID`` in ``[0, n)`` and returns ``{"normals": (n, 3), "uvs": (n, 2), "colors":
-    (n, 4)}`` float32 (None for an absent attribute), the shape of
-    ``lopcook.emit.attributes.decode_record``'s result.
+    (n, 4)}`` float32 (None for an absent attribute), the shape of ``decode_record``'s result.
     """
 
     def __init__(self, language: str, source: str | None = None):
@@ -487,10 +491,14 @@ class AttributeDecoder:
         self.program = self.ctx.program(vertex_shader=self.source, varyings=ATTRIBUTE_VARYINGS)
         self.vao = self.ctx.vertex_array(self.program, [])
 
-    def decode(self, words, n: int, bits, uv_lo=(0.0, 0.0), uv_step=(0.0, 0.0)) -> dict:
+    def decode(self, words, n: int, bits, uv_range=None, uv_step=None) -> dict:
         import moderngl
 
         present = attribute_bits(bits)
+        if present[1] and (uv_range is None or uv_step is None):
+            raise ValueError("UVs need their uv_range and uv_step")
+        uv_lo = (0.0, 0.0) if uv_range is None else uv_range[0]
+        uv_step = (0.0, 0.0) if uv_step is None else uv_step
         n = int(n)
         words = np.ascontiguousarray(words, dtype="<u4")
         record = 2 * present[0] + 2 * present[1] + 4 * present[2]
