@@ -143,10 +143,16 @@ def _cook(scene):
     return from_bytes(build(scene, analyse(scene)), scene.source)
 
 
+@pytest.mark.parametrize("bits", [(None, None), (11, 13)])
 @pytest.mark.parametrize("name", ["Duck.glb", "DamagedHelmet/DamagedHelmet.gltf"])
-def test_corpus_attributes_both_languages(both_languages, corpus, name):
-    """Every part/LOD's attribute record of a cooked corpus asset (normals and UVs), both languages."""
-    c = _cook(load(corpus / name))
+def test_corpus_attributes_both_languages(both_languages, corpus, name, bits):
+    """Every part/LOD's attribute record of a cooked corpus asset (normals and UVs, LOD chain
+    included), both languages: at the default bits and at 11 + 13 bits (a 48-bit record, many
+    fields crossing a word)."""
+    from lopcook.api import cook
+    from lopcook.settings import AttributeSettings, Settings
+
+    c = cook(load(corpus / name), Settings(attributes=AttributeSettings(normal_bits=bits[0], uv_bits=bits[1])))
     report = verify_decoders(c, [c.available_level], both_languages, adapt=False)
     n = sum(e["vertices"] for p in c.manifest["parts"] for e in p["lods"])
     assert report["attribute_buffers"] == report["buffers"] >= 1
@@ -155,8 +161,10 @@ def test_corpus_attributes_both_languages(both_languages, corpus, name):
         assert s["attribute_vertices"] == n
         assert (s["normal_mismatches"], s["uv_mismatches"], s["color_mismatches"], s["attribute_max_ulp"]) == (0, 0, 0, 0)
     assert report["ok"] and report["examples"] == []
-    words, count, bits, _, _ = attribute_record(c, 0, 0)
-    assert bits.normals and bits.uvs and words.size == -(-count * bits.record_bits // 32)
+    words, count, got_bits, _, _ = attribute_record(c, 0, 0)
+    assert got_bits.normals and got_bits.uvs and words.size == -(-count * got_bits.record_bits // 32)
+    if bits[0]:
+        assert (got_bits.normals, got_bits.uvs, got_bits.record_bits) == (11, 13, 48)
 
 
 @pytest.mark.parametrize("bits", [(None, None, None), (5, 7, 4), (16, 16, 8)])
