@@ -306,7 +306,7 @@ def test_worked_example_matches_format_md(worked_example):
     assert not stale, "docs/format.md is out of date; rerun docs/worked_example.py and paste its output: " + \
         "; ".join(f"{k}: shown {shown[k]!r}, now {ran[k]!r}" for k in stale)
     # the key numbers, spelled out
-    assert ran["header.bytes[0:12]"] == "4c 4f 50 43 01 00 00 00 20 00 00 00"
+    assert ran["header.bytes[0:12]"] == "4c 4f 50 43 02 00 00 00 20 00 00 00"
     assert ran["VertexId"] == "[0] * 11 + [81] * 14"
     assert ran["BitId(B=11)"] == "[0] * 11 + [2673] * 14"
     assert ran["BitId(B=12)"] == "[0] * 11 + [2916] * 14"

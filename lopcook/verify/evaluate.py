@@ -16,10 +16,11 @@ What is rendered (``evaluate``), for every per-buffer level B and every view:
 * **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
   vertices of bin k > B keep k bits.
 
-Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the source's normals,
-UVs, colours and textures (``lopcook.verify.renderer``): only positions differ. That is LOD 0;
-``evaluate(..., lod=k)`` renders the container's LOD k against the same float LOD-0 source, with the
-LOD's own index buffer and decoded attributes (``lopcook.emit.reader.lod_attributes``).
+Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the container's own
+decoded normals, UVs and colours (``lopcook.emit.reader.lod_attributes``: the packed attribute
+record, normals normalised per vertex) and the source's textures (``lopcook.verify.renderer``):
+the error counts positions and attribute quantisation. ``evaluate(..., lod=k)`` renders the
+container's LOD k against the same float LOD-0 source, with the LOD's own index buffer.
 ``evaluate_scene`` renders any float-position scene (e.g. a simplified mesh: "simplify only")
 against the source with the same cameras and metrics.
 
@@ -50,7 +51,7 @@ from ..emit.reader import gpu_buffer, lod_entry
 from ..errors import LopcookError
 from ..viewing import Viewing, required_level
 from . import metrics as M
-from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
+from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod_indices, position_bytes
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
@@ -229,10 +230,9 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         raise LopcookError("verify", c.path, f"the container has {len(c.manifest['parts'])} parts, the source "
                            f"{scene.source!r} has {len(scene.parts)}",
                            hint="give the source the container was cooked from")
-    # source attributes where the container's buffer is the source mesh (LOD 0), its own elsewhere
-    use_source = lod0_is_source(c) and any(k == 0 for k in lods)
-    src_orders = source_order(c, scene) if use_source else [None] * len(lods)
-    orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
+    # every decoded variant draws the container's own attributes (lod_attributes: normals, UVs,
+    # colours at their packed bits), so its PSNR includes their quantisation (issue 15)
+    orders = [None] * len(lods)
     shading = Shading.from_manifest(c.manifest, ks, shininess)
     viewing = render_viewing(c.manifest, h.renderer.size)
     g = c.manifest["grid"]
@@ -345,11 +345,10 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     image_view : the view kept with ``keep_images`` (default: the view with the largest AP error,
         or CAP when AP is not rendered).
     lod : the container's LOD to render (default 0), always against the float **source** (LOD 0).
-        A part with fewer LODs renders its last one (``lod_indices``). LOD 0 of a container cooked
-        from this source is drawn with the source's normals, UVs and colours (permuted to the binned
-        order, ``source_order``: only positions differ); any other LOD with the container's own
-        decoded attributes and index buffer (``lopcook.emit.reader.lod_attributes``), and the
-        source part's texture. Part IDs are part indices, so depth-order errors work at every LOD.
+        A part with fewer LODs renders its last one (``lod_indices``). Every LOD is drawn with the
+        container's own decoded attributes (normals, UVs, colours at their packed bits) and index
+        buffer (``lopcook.emit.reader.lod_attributes``), and the source part's texture, so the
+        PSNR counts attribute quantisation as well as positions'. Part IDs are part indices, so depth-order errors work at every LOD.
     distance_m : None (camera at each level's distance, see the module doc), or one camera
         distance in metres (eye to the nearest point of the source's bounding box) for every row;
         each row's ``camera_level`` is then the level the half-pixel criterion selects there.

@@ -8,9 +8,8 @@ vertices).
 
 Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
 ``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
-CPU. Float, AP and CAP use the same normals, UVs, colours and textures (the source's, permuted to the
-binned order for LOD 0 of a container cooked from that source; the container's decoded ones for any
-other LOD), so only positions differ.
+CPU. Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
+packed attribute record, normals normalised per vertex), all with the source's textures.
 
 Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
 direction = from the box centre to the eye); ambient 0.15, diffuse 0.65, ks and shininess from the
@@ -444,7 +443,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
-    file). Attribute VBOs and index buffers come from ``attr_cache``."""
+    file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
     from .gpu import decode_block
 
     items, owned = [], []
@@ -454,7 +453,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     for i, p in enumerate(scene.parts):
         k = lods[i]
         if i not in attr_cache:
-            a = lod_attributes(c, i, k)
+            # unit normals, as a vertex shader normalises the octahedral decode before the
+            # interpolation (an unnormalised one would weight the vertices by its length)
+            a = lod_attributes(c, i, k, unit_normals=True)
             ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
             if orders[i] is not None:
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
