@@ -145,8 +145,9 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("checks (give at least one)")
     g.add_argument("--decoders", action="store_true",
                    help="decode every part/LOD with the GLSL and HLSL shaders of shaders/ (moderngl through EGL; "
-                        "HLSL via glslang + spirv-cross) and walk the adaption kernels through the levels; every "
-                        "integer, float bit and packed word must equal the CPU reference")
+                        "HLSL via glslang + spirv-cross), decode its packed attribute record (normals, UVs, colours) "
+                        "and walk the adaption kernels through the levels; every integer, float bit and packed word "
+                        "must equal the CPU reference")
     g.add_argument("--source", metavar="SOURCE", default=None,
                    help="render the float SOURCE, AP and CAP (positions decoded by the shipped GLSL decoder) from "
                         "icosahedron views at the distance where each level is selected; print a Table-1-like "

@@ -45,9 +45,20 @@ def test_every_shared_decoder_function_is_compared():
     assert all(len(t) > 10 for t in g.values())
 
 
+def test_every_shared_attribute_decoder_function_is_compared():
+    assert T.TOKEN_TWINS[1] == ("decode_attributes.glsl", "decode_attributes.hlsl")
+    g = T.functions((SHADERS / "decode_attributes.glsl").read_text())
+    h = T.functions((SHADERS / "decode_attributes.hlsl").read_text(), hlsl=True)
+    assert set(g) == set(h) == {"lop_attr_read_field", "lop_attr_record", "lop_attr_sgn", "lop_decode_normal",
+                                "lop_decode_uv", "lop_decode_color"}
+    assert g == h
+
+
 @pytest.mark.parametrize("name, old, new", [
     ("decode_bitplanes.glsl", "((v << 1u) | 1u)", "(v << 1u)"),  # GLSL decoder changed alone
     ("decode_bitplanes.hlsl", "max(bin_level, lop_params.x)", "min(bin_level, lop_params.x)"),  # HLSL alone
+    ("decode_attributes.glsl", "if (z < 0.0)", "if (z <= 0.0)"),  # attribute decoder, GLSL alone
+    ("decode_attributes.hlsl", "lop_attr_bits.x + 2u * lop_attr_bits.y", "lop_attr_bits.y + 2u * lop_attr_bits.x"),
 ])
 def test_one_sided_decoder_change_fails_both_checks(copy, name, old, new):
     _edit(copy / name, old, new)

@@ -13,6 +13,12 @@ the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror 
 compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
 BitId must equal the CPU's packing of each level from scratch, byte for byte.
 
+The packed vertex attribute record of every part/LOD (section ``part{i}/lod{k}/attributes``:
+octahedral normals, UVs, colours at the manifest's ``attribute_bits``; Purnomo et al. 2005,
+sections 3-5) is decoded by ``shaders/decode_attributes.*`` in each language and compared with
+``lopcook.emit.attributes.decode_record``: float32 bits of the unnormalised normal, UV and colour
+must be equal (0 ulp).
+
 It also holds the CPU mirror of the shaders' crack-free per-vertex level (``view_tables``,
 ``buffer_level``, ``vertex_levels``): the rule of ``lopcook.viewing.per_vertex_level``,
 ``max(min(own, B), bin level)``, with ``own`` computed in float32 from a distance bound that every
@@ -199,7 +205,8 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
 
     Returns a report dict (JSON-ready, sorted keys when dumped): ``ok``, per-language counts under
     ``languages`` (vertices decoded, grid / float / level mismatches, max float distance in ulp,
-    adaption steps and mismatches), the first ``max_examples`` mismatches under ``examples``, the
+    adaption steps and mismatches, attribute records decoded and their normal / UV / colour
+    mismatches and max ulp; ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
     context (``device``) and tool versions. Raises LopcookError when GL or the HLSL tools are missing
     or a level is not in the file.
     """
@@ -225,10 +232,13 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     half = np.float32(cell / 2.0)
     stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
-                    "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0} for lang in languages}
+                    "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
+                    "normal_mismatches": 0, "uv_mismatches": 0, "color_mismatches": 0, "attribute_max_ulp": 0,
+                    "attribute_seconds": 0.0} for lang in languages}
     examples: list[dict] = []
     buffers = list(_buffers(c))
     vertices = 0
+    attribute_buffers = 0
     for part, lod in buffers:
         for level in levels:
             buf = gpu_buffer(c, part, lod, level)
@@ -263,15 +273,19 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                                    max_examples)
         if adapt and levels:
             _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+        attribute_buffers += _verify_attributes(c, part, lod, languages, stats, examples, max_examples)
     ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
-             and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 for s in stats.values())
+             and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 and s["normal_mismatches"] == 0
+             and s["uv_mismatches"] == 0 and s["color_mismatches"] == 0 for s in stats.values())
     for s in stats.values():
         s["decode_seconds"] = round(s["decode_seconds"], 4)
         s["adapt_seconds"] = round(s["adapt_seconds"], 4)
+        s["attribute_seconds"] = round(s["attribute_seconds"], 4)
     return {
         "container": None if c.path is None else str(c.path),
         "levels": levels,
         "buffers": len(buffers),
+        "attribute_buffers": attribute_buffers,
         "vertices": vertices,
         "float_ulp_tolerance": 0,
         "languages": stats,
@@ -318,6 +332,61 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
                                  "expected_level": int(ref_level[j]), "got_level": int(got.level[j]),
                                  "expected_position": [float(v) for v in ref_pos[j]],
                                  "got_position": [float(v) for v in got.position[j]]})
+
+
+ATTRIBUTE_OUTPUTS = (("normals", "normal_mismatches"), ("uvs", "uv_mismatches"), ("colors", "color_mismatches"))
+
+
+def attribute_record(c, part: int, lod: int):
+    """``(words, n, bits, uv_range, uv_step)`` of buffer (part, lod)'s packed attribute record as a
+    renderer uploads it: the section's uint32 words, the vertex count, the manifest's
+    ``attribute_bits`` as ``lopcook.emit.attributes.AttributeBits``, ``uv_range`` and ``uv_step``
+    (None when the LOD has no UVs): the arguments of ``decode_record``. None when the LOD has no
+    attribute record."""
+    from ..emit.attributes import AttributeBits
+    from ..emit.reader import lod_entry
+
+    e = lod_entry(c, part, lod)
+    if e.get("attributes") is None:
+        return None
+    words = np.frombuffer(c.section(e["attributes"]), dtype="<u4")
+    bits = AttributeBits.of(e.get("attribute_bits") or {})
+    return words, int(e["vertices"]), bits, e.get("uv_range"), e.get("uv_step")
+
+
+def _verify_attributes(c, part, lod, languages, stats, examples, max_examples) -> int:
+    """``shaders/decode_attributes.*`` against ``decode_record`` for one buffer: float32 bits of every
+    present attribute (0 ulp). Returns 1 when the buffer has an attribute record, else 0."""
+    rec = attribute_record(c, part, lod)
+    if rec is None:
+        return 0
+    from ..emit.attributes import decode_record
+    from . import gpu
+
+    words, n, bits, uv_range, uv_step = rec
+    ref = decode_record(words, n, bits, uv_range, uv_step)
+    for lang in languages:
+        s = stats[lang]
+        t0 = time.perf_counter()
+        got = gpu.attribute_decoder(lang).decode(words, n, bits, uv_range, uv_step)
+        s["attribute_seconds"] += time.perf_counter() - t0
+        s["attribute_vertices"] += n
+        for name, key in ATTRIBUTE_OUTPUTS:
+            want = ref.get(name)
+            if want is None or got[name] is None:
+                if (want is None) != (got[name] is None):
+                    s[key] += n
+                continue
+            want = np.ascontiguousarray(want, dtype=np.float32)
+            bad = np.any(got[name].view(np.uint32) != want.view(np.uint32), axis=1)
+            s[key] += int(bad.sum())
+            if n:
+                s["attribute_max_ulp"] = max(s["attribute_max_ulp"], int(_ulp_distance(got[name], want).max()))
+            for j in np.flatnonzero(bad)[: max(0, max_examples - len(examples))]:
+                examples.append({"language": lang, "kind": "attributes", "attribute": name, "part": part,
+                                 "lod": lod, "vertex": int(j), "expected": [float(v) for v in want[j]],
+                                 "got": [float(v) for v in got[name][j]]})
+    return 1
 
 
 def _manifest_viewing(c) -> Viewing:
@@ -381,6 +450,10 @@ def format_report(report: dict) -> str:
                      f"max {s['max_float_ulp']} ulp) in {s['decode_seconds']:.2f} s; crack-free: "
                      f"{s['crack_free_vertices']:,} decodes, {s['crack_free_mismatches']} mismatches; adaption: {s['adapt_steps']} "
                      f"plane steps, {s['adapt_mismatches']} mismatches in {s['adapt_seconds']:.2f} s")
+        attr_bad = s["normal_mismatches"] + s["uv_mismatches"] + s["color_mismatches"]
+        lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
+                     f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
+                     f"{s['color_mismatches']}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
     for e in report["examples"]:
         lines.append(f"  mismatch: {e}")
     lines.append("  ok: decoders are bit-exact" if report["ok"] else "  FAILED: decoders differ from the CPU reference")
@@ -402,4 +475,4 @@ def _levels_text(levels: list[int]) -> str:
 
 
 __all__ = ["parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
-           "verify_decoders", "adapt_walk", "format_report"]
+           "attribute_record", "verify_decoders", "adapt_walk", "format_report"]

@@ -12,12 +12,12 @@ and 6), so a change to one side without the other is an error:
   (``python -m lopcook.verify.twins --update``) rewrites the record, and refuses when only one side
   of a pair changed, unless ``force`` (``--force``: a language-specific change whose twin really
   needs none, e.g. an HLSL attribute).
-* ``function_differences`` compares the bodies of the functions both files of the decoder pair
-  define, token by token, after mapping the few spelling differences of the two languages
-  (``HLSL_TO_GLSL``: ``uint3`` -> ``uvec3``, ``float3`` -> ``vec3``, ..., float literal suffix ``f``
-  dropped, loop attributes ``[loop]`` / ``[unroll]`` dropped). The compute kernels differ in their
-  buffer access (``ByteAddressBuffer.Load`` against SSBO arrays), so only the digest record covers
-  them.
+* ``function_differences`` compares the bodies of the functions both files of each vertex-decoder
+  pair (``TOKEN_TWINS``: positions and attributes) define, token by token, after mapping the few
+  spelling differences of the two languages (``HLSL_TO_GLSL``: ``uint3`` -> ``uvec3``, ``float3`` ->
+  ``vec3``, ..., float literal suffix ``f`` dropped, loop attributes ``[loop]`` / ``[unroll]``
+  dropped). The compute kernels differ in their buffer access (``ByteAddressBuffer.Load`` against
+  SSBO arrays), so only the digest record covers them.
 
 Bad input (a missing file, a record that does not parse or lacks a pair, a one-sided update):
 ``LopcookError`` (exit 2) naming the file and what to do.
@@ -35,9 +35,12 @@ from ..errors import LopcookError
 
 #: (GLSL file, HLSL file) pairs of ``shaders/`` that implement the same algorithm
 TWINS = (("decode_bitplanes.glsl", "decode_bitplanes.hlsl"),
-         ("adapt_bitplanes.comp.glsl", "adapt_bitplanes.comp.hlsl"))
-#: the pair whose function bodies are compared token by token
-TOKEN_TWIN = TWINS[0]
+         ("adapt_bitplanes.comp.glsl", "adapt_bitplanes.comp.hlsl"),
+         ("decode_attributes.glsl", "decode_attributes.hlsl"))
+#: the vertex-decoder pairs whose function bodies are compared token by token
+TOKEN_TWINS = (TWINS[0], TWINS[2])
+#: the positions' decoder pair (the first of ``TOKEN_TWINS``)
+TOKEN_TWIN = TOKEN_TWINS[0]
 #: the record's file name inside ``shaders/``
 RECORD = "twins.json"
 #: HLSL spellings and their GLSL equivalents (types only; everything else must match as written)
@@ -148,8 +151,8 @@ def read_record(folder: Path) -> dict:
 
 def check(folder: Path | None = None) -> list[str]:
     """Problems of the twins in ``folder`` (default ``lopcook.verify.gpu.shader_dir()``): pairs
-    changed since the record (naming the side that changed, or both), function bodies of
-    ``TOKEN_TWIN`` that differ. Empty when both agree and match the record."""
+    changed since the record (naming the side that changed, or both), function bodies of a
+    ``TOKEN_TWINS`` pair that differ. Empty when both agree and match the record."""
     folder = Path(folder) if folder is not None else _shader_dir()
     record = read_record(folder)
     out = []
@@ -166,14 +169,14 @@ def check(folder: Path | None = None) -> list[str]:
                        "--update")
         elif changed:
             out.append(f"{' and '.join(changed)} changed: record them with python -m lopcook.verify.twins --update")
-    g, h = TOKEN_TWIN
-    out += [f"{g} / {h}: {d}" for d in function_differences(_read(folder, g), _read(folder, h))]
+    for g, h in TOKEN_TWINS:
+        out += [f"{g} / {h}: {d}" for d in function_differences(_read(folder, g), _read(folder, h))]
     return out
 
 
 def update(folder: Path | None = None, force: bool = False) -> dict:
     """Write ``folder / RECORD`` with the current digests and return it. Raises LopcookError (exit
-    2) when a pair has only one side changed since the record (unless ``force``) or the decoder
+    2) when a pair has only one side changed since the record (unless ``force``) or a decoder
     pair's function bodies differ; nothing is written then."""
     folder = Path(folder) if folder is not None else _shader_dir()
     path = folder / RECORD
@@ -186,11 +189,11 @@ def update(folder: Path | None = None, force: bool = False) -> dict:
                 raise LopcookError("verify", str(folder / changed[0]), "changed without its twin "
                                    f"{next(x for x in d if x != changed[0])}",
                                    hint="change both files (or pass --force for a language-specific change)")
-    g, h = TOKEN_TWIN
-    diffs = function_differences(_read(folder, g), _read(folder, h))
-    if diffs:
-        raise LopcookError("verify", str(folder / h), f"the decoder twins differ: {diffs[0]}",
-                           hint=f"make the function bodies of {g} and {h} agree")
+    for g, h in TOKEN_TWINS:
+        diffs = function_differences(_read(folder, g), _read(folder, h))
+        if diffs:
+            raise LopcookError("verify", str(folder / h), f"the decoder twins differ: {diffs[0]}",
+                               hint=f"make the function bodies of {g} and {h} agree")
     data = {"note": "sha256 of each shader's code without comments (lopcook.verify.twins); "
                     "update with python -m lopcook.verify.twins --update", "pairs": now}
     path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
@@ -229,7 +232,7 @@ def main(argv=None) -> int:
     return EXIT_VERIFY_FAILED if problems else 0
 
 
-__all__ = ["TWINS", "TOKEN_TWIN", "RECORD", "HLSL_TO_GLSL", "code_text", "code_digest", "tokens", "functions",
+__all__ = ["TWINS", "TOKEN_TWINS", "TOKEN_TWIN", "RECORD", "HLSL_TO_GLSL", "code_text", "code_digest", "tokens", "functions",
            "function_differences", "digests", "read_record", "check", "update", "main"]
 
 if __name__ == "__main__":
