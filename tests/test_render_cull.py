@@ -63,3 +63,27 @@ def test_a_box_is_outside_only_beyond_a_clip_plane(gl):
         eye = np.asarray(cam.eye, float)
         behind = eye + 10.0 * (eye - np.asarray(cam.centre, float)) / np.linalg.norm(eye - cam.centre)
         assert Renderer.outside(cam, (behind - 0.1, behind + 0.1))  # behind the eye
+
+
+def test_float_cache_crop_keeps_everything_that_is_not_background(rng):
+    """The cropped float render re-expands to the same bits: a pixel with colour but alpha 0 outside
+    the object (not the clear colour) keeps the whole frame, an ID without coverage counts as object."""
+    from lopcook.verify import renderer as RR
+
+    rgba = np.zeros((40, 70, 4), np.uint8)
+    ids = np.zeros((40, 70), np.uint32)
+    rgba[10:20, 30:50] = rng.integers(1, 256, size=(10, 20, 4), dtype=np.uint8)
+    ids[25, 5] = 3  # an ID with alpha 0
+    entry = RR._crop(rgba, ids)
+    assert entry[0] == (10, 26, 5, 50)
+    for a, b in zip(RR._expand(entry, (70, 40)), (rgba, ids)):
+        assert np.array_equal(a, b)
+    rgba[35, 65, 0] = 7  # colour with alpha 0, no ID: not the clear colour
+    entry = RR._crop(rgba, ids)
+    assert entry[0] == (0, 40, 0, 70)
+    for a, b in zip(RR._expand(entry, (70, 40)), (rgba, ids)):
+        assert np.array_equal(a, b)
+    only_bg = np.zeros_like(rgba)
+    only_bg[0, 0, 1] = 9
+    entry = RR._crop(only_bg, np.zeros_like(ids))
+    assert np.array_equal(RR._expand(entry, (70, 40))[0], only_bg)

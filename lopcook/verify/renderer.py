@@ -64,14 +64,18 @@ CULL_MARGIN = 1e-4
 def _crop(rgba: np.ndarray, ids: np.ndarray):
     """(box, rgba crop, ids crop) of a render: the box of its non-background pixels (alpha > 0 or a
     part ID), None when there are none; IDs as uint16 when they fit."""
-    occupied = (rgba[..., 3] != 0) | (ids != 0)
+    # one 32-bit word per pixel (R, G, B, A bytes): elementwise passes, no gathers
+    px = np.ascontiguousarray(rgba).view(np.uint32).reshape(rgba.shape[:2])
+    alpha = px & np.uint32(0xFF << 24) if np.little_endian else px & np.uint32(0xFF)
+    occupied = (alpha != 0) | (ids != 0)
     rows = np.flatnonzero(occupied.any(axis=1))
-    if rows.size == 0:
+    if rows.size == 0 and not px.any():
         return None, np.zeros((0, 0, 4), np.uint8), np.zeros((0, 0), np.uint16)
-    cols = np.flatnonzero(occupied.any(axis=0))
-    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
-    if np.any(rgba[~occupied]):
+    if rows.size == 0 or np.any((px != 0) & ~occupied):
         box = (0, rgba.shape[0], 0, rgba.shape[1])  # background not the clear colour: keep it all
+    else:
+        cols = np.flatnonzero(occupied.any(axis=0))
+        box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
     crop = ids[box[0]:box[1], box[2]:box[3]]
     crop = crop.astype(np.uint16) if int(ids.max(initial=0)) < 65536 else crop.copy()
     return box, rgba[box[0]:box[1], box[2]:box[3]].copy(), crop
