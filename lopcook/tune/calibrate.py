@@ -58,7 +58,10 @@ passed when probed; a joint optimum of the two knobs is not guaranteed (the curv
 probe). ``search="kf"`` keeps edge_eps as given.
 
 Cost and the reduced harness. Each probe = analyse + build + CAP renders at every level and view
-(AP is not rendered; float renders are computed once and reused, they do not depend on sigma).
+(AP is not rendered; float renders are computed once and reused, they do not depend on sigma). The
+analysis is split (``lopcook.analyse.prepared.PreparedAnalysis``, one per search): the grid, E_v,
+the discontinuities' fold levels and seam jumps and the depth distances are computed once, a probe
+pays only the per-threshold levels (the same minimum levels as a fresh ``analyse``).
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
 covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
@@ -67,8 +70,9 @@ directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
 object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
 choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
-views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only; a
-gate probe stops rendering at its first level that misses the target). A
+views at 1280 x 720, at the levels of ``confirm_levels``, default ``CONFIRM_LEVELS`` = 6..11, those of
+the gate ``lopcook verify --levels 6-11``; float renders cached, cropped, so a further probe there
+renders CAP only; a gate probe stops rendering at its first level that misses the target). A
 search never ends below the default cook's quality: when the gate misses the target, the
 confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
 choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
