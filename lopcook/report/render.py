@@ -8,7 +8,9 @@
   (``choose_view``).
 * **Depth order**: the (level, view) with the most depth-order errors (CAP, else AP) is rendered
   again with its part-ID images when it is not the images' view, so the page can show where they are.
-* **Uniform 16-bit** baseline at the same cameras, one level at a time.
+* **Uniform 16-bit** baseline at the same cameras, one level at a time, right after the container's
+  evaluation at that level: both (and the view choice's part count) use that level's float renders
+  once (``Harness`` float cache, emptied after each level: at most one level's views are held).
 * **Minimum levels** (Meyer et al. 2011, Fig. 7): the source coloured by each vertex's minimum level,
   rendered from the images' view at the distance where the object fills the frame (image kind
   ``levels``, cropped on its own); the histogram bars use the same colours.
@@ -88,7 +90,21 @@ def render_for_report(container, scene, *, levels, views, resolution,
     m = container.manifest
     order = sorted(int(b) for b in levels)
     view_ids = select_views(views)
-    with Harness(scene, resolution) as h, progress.stage("render", total=2 * len(order) + 2) as st:
+    viewing = render_viewing(m, resolution)
+    shading = Shading.from_manifest(m)
+    extent = float(m["grid"]["extent"])
+    u16_scene = uniform_quantized_scene(scene)
+    u16_parts = []
+    # one level at a time: the container and the uniform 16-bit baseline share that level's float
+    # renders (the same cameras and shading: the cache gives the same arrays a fresh render would),
+    # and the cache holds one level's views only
+    with Harness(scene, resolution, cache_float=True) as h, progress.stage("render", total=2 * len(order) + 2) as st:
+        def baseline(b: int) -> None:
+            u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
+                                              shading=shading))
+            h.float_cache, h.cached_bytes = {}, 0
+            st.advance()
+
         first = h.evaluate(container, levels=[order[0]], views=views, keep_images=True)
         parts = [first]
         imgs = first.get("images")
@@ -102,8 +118,9 @@ def render_for_report(container, scene, *, levels, views, resolution,
             row = first["levels"][0]
             viewing0 = render_viewing(m, resolution)
             shading0 = Shading.from_manifest(m)
-            visible = [int(np.unique(h.render_float(make_camera(v, h.lo, h.hi, row["camera_distance_m"], viewing0),
-                                                    shading0)[1]).size) for v in view_ids]
+            cams = [make_camera(v, h.lo, h.hi, row["camera_distance_m"], viewing0) for v in view_ids]
+            visible = [int(np.unique(h.render_float(cam, shading0, key=(cam.mvp.tobytes(), cam.eye.tobytes(),
+                                                                         shading0))[1]).size) for cam in cams]
             pick = view_ids[choose_view(visible, row["ap"]["psnr_views"] if "ap" in row else [None] * len(view_ids),
                                         view_ids.index(image_view))]
             if pick != image_view:
@@ -113,22 +130,15 @@ def render_for_report(container, scene, *, levels, views, resolution,
                 first = dict(first, images=imgs)
                 parts = [first]
         st.advance()
+        baseline(order[0])
         per_level = {order[0]: imgs}
         for b in order[1:]:
             e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
             per_level[b] = e.get("images")
             parts.append(e)
             st.advance()
+            baseline(b)
         ev = _merge(parts, levels)
-        viewing = render_viewing(m, resolution)
-        shading = Shading.from_manifest(m)
-        extent = float(m["grid"]["extent"])
-        u16_scene = uniform_quantized_scene(scene)
-        u16_parts = []
-        for b in order:
-            u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
-                                              shading=shading))
-            st.advance()
         u16 = _merge(u16_parts, levels)
         level_range = None
         if imgs:

@@ -58,7 +58,10 @@ passed when probed; a joint optimum of the two knobs is not guaranteed (the curv
 probe). ``search="kf"`` keeps edge_eps as given.
 
 Cost and the reduced harness. Each probe = analyse + build + CAP renders at every level and view
-(AP is not rendered; float renders are computed once and reused, they do not depend on sigma).
+(AP is not rendered; float renders are computed once and reused, they do not depend on sigma). The
+analysis is split (``lopcook.analyse.prepared.PreparedAnalysis``, one per search): the grid, E_v,
+the discontinuities' fold levels and seam jumps and the depth distances are computed once, a probe
+pays only the per-threshold levels (the same minimum levels as a fresh ``analyse``).
 Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
 covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
@@ -67,8 +70,9 @@ directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
 object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
 choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
-views at 1280 x 720; float renders cached, cropped, so a further probe there renders CAP only; a
-gate probe stops rendering at its first level that misses the target). A
+views at 1280 x 720, at the levels of ``confirm_levels``, default ``CONFIRM_LEVELS`` = 6..11, those of
+the gate ``lopcook verify --levels 6-11``; float renders cached, cropped, so a further probe there
+renders CAP only; a gate probe stops rendering at its first level that misses the target). A
 search never ends below the default cook's quality: when the gate misses the target, the
 confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
 choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
@@ -106,6 +110,9 @@ CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
 CONFIRM = (VIEW_COUNT, RESOLUTION)
 #: at most this many probes on the gate's harness (the choice, then moves toward the default cook)
 CONFIRM_STEPS = 4
+#: the levels confirmed on the gate's harness: those of ``lopcook verify --levels 6-11`` (the paper's
+#: Table 1 levels); the reduced harness searches every calibration level
+CONFIRM_LEVELS = tuple(range(6, 12))
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
 STATISTICS = ("min", "mean")
@@ -151,7 +158,7 @@ def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
 
 def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
           viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
-          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None) -> dict:
+          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None, prepared=None) -> dict:
     """Cook ``scene`` with every k_f scaled by ``sigma`` (and edge_eps divided by 2^``edge_scale``)
     and render its CAP buffers.
 
@@ -164,14 +171,17 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     misses the target (the probe fails whatever the other levels give); the per-level lists then
     hold the levels rendered and ``complete`` is False. A probe whose minimum levels equal an earlier
     one's on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart)
-    reuses its renders (``Harness.memo``): identical minimum levels give identical buffers."""
+    reuses its renders (``Harness.memo``): identical minimum levels give identical buffers.
+    ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and ``settings``
+    (the same minimum levels as ``analyse``, without recomputing what does not depend on eps and
+    edge_eps); None analyses from scratch."""
     from ..analyse import analyse
     from ..emit import build
     from ..emit.container import from_bytes
 
     t0 = time.perf_counter()
     s = replace(settings, eps=settings.eps / float(sigma), edge_eps=_edge_eps(settings, edge_scale))
-    analysis = analyse(scene, s)
+    analysis = analyse(scene, s) if prepared is None else prepared.analyse(s.eps, s.edge_eps)
     opts = dict(options or {})
     opts["analyse"] = s.to_record()
     if ingest_options is not None:
@@ -223,10 +233,11 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     }
 
 
-def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cache: dict | None = None) -> float:
+def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cache: dict | None = None,
+               prepared=None) -> float:
     """Mean over ``levels`` of the CAP memory (% of float32 positions) of the cook at log2 sigma ``x``
     and edge strictness ``e``: what ``probe`` reports as ``cap_percent``, from the analysis and the
-    build alone (no render). ``cache`` (a dict) keeps results by (x, e)."""
+    build alone (no render). ``cache`` (a dict) keeps results by (x, e); ``prepared`` as in ``probe``."""
     from ..analyse import analyse
     from ..emit import build
     from ..emit.container import from_bytes
@@ -235,7 +246,8 @@ def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cac
     if cache is not None and (x, e) in cache:
         return cache[(x, e)]
     s = replace(settings, eps=settings.eps / 2.0**x, edge_eps=_edge_eps(settings, e))
-    c = from_bytes(build(scene, analyse(scene, s), options={"analyse": s.to_record()}), None)
+    analysis = analyse(scene, s) if prepared is None else prepared.analyse(s.eps, s.edge_eps)
+    c = from_bytes(build(scene, analysis, options={"analyse": s.to_record()}), None)
     f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
     lods = [0] * len(c.manifest["parts"])
     out = sum(100.0 * position_bytes(c, lods, int(b))["cap"] / max(f32, 1) for b in levels) / len(levels)
@@ -365,7 +377,7 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
 def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
              statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
-             run_reduced, dry) -> dict:
+             run_reduced, dry, prepared=None, confirm_levels=None) -> dict:
     """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
     "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
     probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
@@ -374,8 +386,12 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
     the model needs, and one step stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
     than the default) steps stricter on both knobs; after a pass on the k_f line, the point the
     gate's own secant (failed choice, pass) predicts; at most ``CONFIRM_STEPS`` probes on the gate
-    in all. The passing probe with the least memory is kept."""
+    in all. The passing probe with the least memory is kept. ``confirm_levels``: the levels of
+    ``levels`` rendered on the gate (None: all; ``calibrate`` passes those of ``CONFIRM_LEVELS``);
+    ``prepared`` as in ``probe``."""
     views, resolution = confirm
+    clevels = [b for b in levels if confirm_levels is None or b in set(int(v) for v in confirm_levels)] or list(levels)
+    at = [levels.index(b) for b in clevels]  # the gate's levels among the reduced harness's
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
     probed: dict = {}
@@ -383,9 +399,9 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
     with Harness(scene, resolution, cache_float=True) as h:
         def run(c):
             if c not in probed:
-                p = probe(scene, settings, 2.0**c[0], h, levels=levels, views=views, viewing=viewing,
+                p = probe(scene, settings, 2.0**c[0], h, levels=clevels, views=views, viewing=viewing,
                           options=options, ingest_options=ingest_options, edge_scale=c[1],
-                          stop_below=(target_psnr, statistic))
+                          stop_below=(target_psnr, statistic), prepared=prepared)
                 p["confirm"] = True
                 probed[c] = p
                 out["probes"].append(p)
@@ -406,8 +422,8 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
             if anchor != c0:
                 # per level: how much the gate misses what the reduced harness saw at the choice, and
                 # how far toward the anchor the reduced harness's PSNR rises by that much
-                red0 = _level_psnrs(curve[c0], statistic)
-                red1 = _level_psnrs(run_reduced(*anchor), statistic)
+                red0 = [_level_psnrs(curve[c0], statistic)[i] for i in at]
+                red1 = [_level_psnrs(run_reduced(*anchor), statistic)[i] for i in at]
                 gate0 = _level_psnrs(run(c0), statistic)
                 t = 0.0
                 for r0, r1, g0 in zip(red0, red1, gate0):
@@ -463,7 +479,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
               levels=DEFAULT_LEVELS, views=CAL_VIEWS, resolution=CAL_RESOLUTION, viewing: Viewing | None = None,
               log2_range=LOG2_RANGE, tolerance: float = TOLERANCE, options: dict | None = None,
               ingest_options: dict | None = None, progress=None, statistic: str = "min",
-              search: str | None = None, confirm=CONFIRM) -> dict:
+              search: str | None = None, confirm=CONFIRM, confirm_levels=CONFIRM_LEVELS) -> dict:
     """Search the smallest k_f scale sigma whose CAP renders reach ``target_psnr`` dB (module doc).
 
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
@@ -475,7 +491,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     ``statistic`` ("min" or "mean" over views), ``search`` ("kf" or "kf+edge", module doc; default
     "kf+edge" when ``settings.edges``, else "kf"), ``confirm`` ((views, (w, h)) of the gate's
     harness, default 20 views at 1280 x 720; None: no confirmation; skipped when it equals the
-    search harness).
+    search harness), ``confirm_levels`` (the levels of ``levels`` confirmed there, default
+    ``CONFIRM_LEVELS`` = 6..11, the gate's ``verify --levels 6-11``; None: every level).
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
     ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
@@ -502,11 +519,14 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     dry_cache: dict = {}
     targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
     start = min(hi, max(lo, 0.0))  # the default cook's k_f
+    from ..analyse.prepared import PreparedAnalysis
+
+    prepared = PreparedAnalysis(scene, settings)  # what no probe changes, computed once
     with Harness(scene, resolution, cache_float=True) as h:
         def run(x: float, e: float = 0.0) -> dict:
             if (x, e) not in probes:
                 p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
-                          ingest_options=ingest_options, edge_scale=e)
+                          ingest_options=ingest_options, edge_scale=e, prepared=prepared)
                 probes[(x, e)] = p
                 if progress is not None:
                     progress(p)
@@ -530,7 +550,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         def dry(x: float, e: float) -> float:  # the memory of a probe, without rendering it
             if (x, e) in probes:
                 return memory((x, e))
-            return cap_memory(scene, settings, x, e, levels, dry_cache)
+            return cap_memory(scene, settings, x, e, levels, dry_cache, prepared=prepared)
 
         def least_passing(f, a: float, b: float):
             """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
@@ -589,7 +609,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,
-                                    progress=progress, run_reduced=run, dry=dry)
+                                    progress=progress, run_reduced=run, dry=dry, prepared=prepared,
+                                    confirm_levels=confirm_levels)
             reached = confirmation["passed"]
             chosen = confirmation.pop("chosen")
             confirmation.pop("chosen_knobs")
@@ -683,7 +704,7 @@ def format_calibration(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_LEVELS", "cap_memory", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
            "SLOPE_DB", "MODEL_STEPS", "probe", "model_search", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
 

@@ -56,19 +56,25 @@ BASE_GREY = 0.8
 RECT_MARGIN = 2
 #: the most bytes a harness's float-render cache holds (cropped renders, ``Harness``)
 FLOAT_CACHE_BYTES = 384 << 20
+#: a draw item is culled only when its box is beyond a clip plane by this share of |w| (float32 slack)
+CULL_MARGIN = 1e-4
 
 
 def _crop(rgba: np.ndarray, ids: np.ndarray):
     """(box, rgba crop, ids crop) of a render: the box of its non-background pixels (alpha > 0 or a
     part ID), None when there are none; IDs as uint16 when they fit."""
-    occupied = (rgba[..., 3] != 0) | (ids != 0)
+    # one 32-bit word per pixel (R, G, B, A bytes): elementwise passes, no gathers
+    px = np.ascontiguousarray(rgba).view(np.uint32).reshape(rgba.shape[:2])
+    alpha = px & np.uint32(0xFF << 24) if np.little_endian else px & np.uint32(0xFF)
+    occupied = (alpha != 0) | (ids != 0)
     rows = np.flatnonzero(occupied.any(axis=1))
-    if rows.size == 0:
+    if rows.size == 0 and not px.any():
         return None, np.zeros((0, 0, 4), np.uint8), np.zeros((0, 0), np.uint16)
-    cols = np.flatnonzero(occupied.any(axis=0))
-    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
-    if np.any(rgba[~occupied]):
+    if rows.size == 0 or np.any((px != 0) & ~occupied):
         box = (0, rgba.shape[0], 0, rgba.shape[1])  # background not the clear colour: keep it all
+    else:
+        cols = np.flatnonzero(occupied.any(axis=0))
+        box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
     crop = ids[box[0]:box[1], box[2]:box[3]]
     crop = crop.astype(np.uint16) if int(ids.max(initial=0)) < 65536 else crop.copy()
     return box, rgba[box[0]:box[1], box[2]:box[3]].copy(), crop
@@ -184,6 +190,26 @@ class Renderer:
             return (0, 0, 1, 1)
         return (x0, y0, x1 - x0, y1 - y0)
 
+    @staticmethod
+    def outside(camera: Camera, box) -> bool:
+        """Whether no point of ``box`` = (lo, hi) world metres can be inside ``camera``'s clip volume:
+        all 8 corners lie beyond one clip plane (-w <= x, y, z <= w) by more than ``CULL_MARGIN`` of
+        their |w| (the box is convex, so every point of it, and every triangle drawn inside it, is
+        clipped away whole: a draw that skips it gives the same pixels). False for no box."""
+        if box is None:
+            return False
+        lo, hi = (np.asarray(b, np.float64) for b in box)
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        clip = corners @ np.asarray(camera.mvp, np.float64).T
+        if not np.all(np.isfinite(clip)):
+            return False
+        w = clip[:, 3]
+        slack = CULL_MARGIN * np.abs(w) + 1e-12
+        for k in range(3):
+            if np.all(clip[:, k] - w > slack) or np.all(-clip[:, k] - w > slack):
+                return True
+        return False
+
     def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
         """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
         ``ssbo`` / ``ubo`` when ``decoded``; optional ``box``) from ``camera`` with ``shading``, depth
@@ -191,7 +217,9 @@ class Renderer:
         the MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
         (part index + 1, 0 = background). Clear, draw, resolve and read-back are limited to
         ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
-        whole-viewport render would give, filled in on the CPU). Leaves the context's default 1x1
+        whole-viewport render would give, filled in on the CPU). An item whose ``cull_box`` (world
+        metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
+        not drawn (it could not put a fragment in the image). Leaves the context's default 1x1
         framebuffer bound."""
         import moderngl
 
@@ -208,6 +236,8 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for it in items:
+            if self.outside(camera, it.get("cull_box", it.get("box"))):
+                continue
             if decoded:
                 it["ssbo"].bind_to_storage_buffer(0)
                 it["ubo"].bind_to_uniform_block(0)
@@ -464,8 +494,18 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 specs, bufs = attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
-            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags)
-        ibo, specs, _, (has_normal, has_color, texture) = attr_cache[i]
+            src_box = None
+            if orders[i] is not None and p.positions.size:  # the source's positions, in binned order
+                f = np.asarray(p.positions, np.float64)
+                src_box = (f.min(axis=0), f.max(axis=0))
+            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box)
+        ibo, specs, _, (has_normal, has_color, texture), src_box = attr_cache[i]
+        cull_box = None
+        if src_box is not None:
+            # decoded with >= level bits: within half a level-B cell of the 24-bit grid point, itself
+            # within half a 24-bit cell of the source position; widened by two level-B cells
+            pad = 2.0 * float(half_cell) * 2.0 * float(1 << (24 - int(level))) + 4.0 * float(half_cell)
+            cull_box = (src_box[0] - pad, src_box[1] + pad)
         buf = buffers_of(c, i, k, level)
         words = np.ascontiguousarray(buf.words, dtype="<u4")
         ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
@@ -473,9 +513,10 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
-                      "has_color": has_color, "texture": texture, "box": grid_box})
+                      "has_color": has_color, "texture": texture,
+                      "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box})
     return items, owned
 
 
-__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
