@@ -904,6 +904,13 @@ def _add_bench_parser(sub) -> None:
     p.add_argument("--repeat", type=int, default=1, metavar="N", help="scaling runs per input, best wall time (default 1)")
     p.add_argument("--calibrated", action="store_true",
                    help="also cook with --target-psnr 40 (slow on the chess set)")
+    p.add_argument("--attributes", action="store_true",
+                   help="instead: total GPU bytes per vertex (positions + normals + UVs + colours) against PSNR, "
+                        "every output rendered with its own decoded attributes (gltfpack -vn/-vt, glTF-Transform "
+                        "quantize, Draco -qn/-qt sweeps and lopcook; attributes.json/.csv/.png; default assets: "
+                        "bunny, DamagedHelmet, Duck)")
+    p.add_argument("--attributes-target", type=float, default=None, metavar="DB",
+                   help="with --attributes: also cook --target-psnr DB")
     p.add_argument("--connectivity", action="store_true",
                    help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
                         "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "

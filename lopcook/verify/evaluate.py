@@ -54,6 +54,9 @@ from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, l
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
+#: where LOD 0's normals, UVs and colours come from in a render: the source's, or the container's own
+ATTRIBUTE_SOURCES = ("source", "container")
+
 
 def parse_levels(levels, camera_levels, available: int, path) -> tuple[list[int], list[int]]:
     """(decode levels, camera levels), one of each per row: ``levels`` ints in [1, 24] and at most
@@ -211,9 +214,11 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None, stop=None) -> dict:
+                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "source") -> dict:
     """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
     ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order)."""
+    if attributes not in ATTRIBUTE_SOURCES:
+        raise LopcookError("usage", c.path, f"attributes={attributes!r}: expected one of {ATTRIBUTE_SOURCES}")
     t_start = time.perf_counter()
     scene = h.scene
     variants = tuple(variants)
@@ -230,7 +235,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
                            f"{scene.source!r} has {len(scene.parts)}",
                            hint="give the source the container was cooked from")
     # source attributes where the container's buffer is the source mesh (LOD 0), its own elsewhere
-    use_source = lod0_is_source(c) and any(k == 0 for k in lods)
+    use_source = attributes == "source" and lod0_is_source(c) and any(k == 0 for k in lods)
     src_orders = source_order(c, scene) if use_source else [None] * len(lods)
     orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
     shading = Shading.from_manifest(c.manifest, ks, shininess)
@@ -329,7 +334,7 @@ def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, di
 def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
              keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
              ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
-             lod: int = LOD, distance_m: float | None = None) -> dict:
+             lod: int = LOD, distance_m: float | None = None, attributes: str = "source") -> dict:
     """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
     (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
 
@@ -353,6 +358,9 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     distance_m : None (camera at each level's distance, see the module doc), or one camera
         distance in metres (eye to the nearest point of the source's bounding box) for every row;
         each row's ``camera_level`` is then the level the half-pixel criterion selects there.
+    attributes : "source" (default: LOD 0 drawn with the source's attributes, as above) or
+        "container": every LOD drawn with the container's own decoded normals, UVs and colours
+        (their quantization rendered too: the attribute search, ``lopcook.tune.attributes``).
 
     Returns a JSON-ready dict (``images`` excepted):
 
@@ -395,7 +403,7 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     with Harness(scene, resolution, samples) as h:
         return h.evaluate(container, levels=levels, views=views, camera_levels=camera_levels, variants=variants,
                           ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view, lod=lod,
-                          distance_m=distance_m)
+                          distance_m=distance_m, attributes=attributes)
 
 
 def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
