@@ -7,6 +7,7 @@ unless ``--debug``), 3 internal error (a bug: please report it with the ``--debu
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import sys
 from pathlib import Path
@@ -91,8 +92,19 @@ def build_parser() -> argparse.ArgumentParser:
     add_viewing_options(p)
     _add_crease_angle(p)
     add_calibration_options(p, cook=True)
+    add_attribute_search_options(p)
     add_budget_options(p)
     _add_common(p)
+
+
+def add_attribute_search_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("attribute bits search (renders everything quantized; see lopcook.tune.attributes)")
+    g.add_argument("--vertex-bits", type=float, default=None, metavar="N",
+                   help="choose every part's normal, UV and colour bits and the positions' k_f scale for the least "
+                        "image error with at most N bits per vertex at level 11 (positions' CAP bits included; "
+                        "Purnomo et al. 2005's greedy search)")
+    g.add_argument("--no-attribute-search", dest="attribute_search", action="store_false",
+                   help="with --target-psnr: search k_f only, keep the default attribute bits")
 
     p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
@@ -402,6 +414,16 @@ def _tune_settings(args):
         kw = dict(target_bytes=args.target_bytes, budget_scope=args.budget_scope, budget_levels=args.budget_levels,
                   budget=RenderSettings(views=_views(args.budget_views, "--budget-views"),
                                         resolution=_resolution(args.budget_resolution, "--budget-resolution")))
+    vb = getattr(args, "vertex_bits", None)
+    if vb is not None:
+        if not (math.isfinite(vb) and vb > 0):
+            raise LopcookError("usage", None, f"--vertex-bits {vb:g}: expected a positive number of bits per vertex")
+        if args.target_psnr is not None or kw:
+            raise LopcookError("usage", None, "--vertex-bits is a goal of its own: give it without --target-psnr "
+                               "and --target-bytes")
+        kw["vertex_bits"] = float(vb)
+    if hasattr(args, "attribute_search"):
+        kw["attribute_search"] = bool(args.attribute_search)
     try:
         return TuneSettings(target_psnr=args.target_psnr, psnr_stat=args.psnr_stat, search=args.search,
                             calibration=calibration, confirm=RenderSettings() if args.calibration_confirm else None,
@@ -546,10 +568,11 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
     result = container.result
     an = result.analysis
     timings = {"ingest": ingest_s}
-    if "calibrate" in result.timings_s:
-        timings["calibrate"] = result.timings_s["calibrate"]
+    for k in ("calibrate", "attribute_search"):
+        if k in result.timings_s:
+            timings[k] = result.timings_s[k]
     timings.update({f"analyse.{k}": v for k, v in an.timings.items()})
-    timings.update({k: v for k, v in result.timings_s.items() if k != "calibrate"})
+    timings.update({k: v for k, v in result.timings_s.items() if k not in ("calibrate", "attribute_search")})
     timings["write"] = write_s
     desc = describe_container(container, file_bytes=len(container.data))
     from .simplify import chain_warnings
@@ -561,6 +584,8 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
         desc["calibration"] = result.calibration
     if result.budget is not None:
         desc["budget"] = result.budget
+    if result.attribute_search is not None:
+        desc["attribute_search"] = result.attribute_search
     return desc
 
 
@@ -580,6 +605,10 @@ def _print_cook(args, desc: dict, result) -> None:
         from .tune.budget import format_budget
 
         print(format_budget(result.budget))
+    if result.attribute_search is not None:
+        from .tune.attributes import format_search
+
+        print(format_search(result.attribute_search))
     print(format_container(dict(desc, lod_warnings=[]), timings=desc["timings_s"]))  # warnings went to stderr
     an = result.analysis
     if an.touching or an.intersecting:
