@@ -96,16 +96,6 @@ def build_parser() -> argparse.ArgumentParser:
     add_budget_options(p)
     _add_common(p)
 
-
-def add_attribute_search_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("attribute bits search (renders everything quantized; see lopcook.tune.attributes)")
-    g.add_argument("--vertex-bits", type=float, default=None, metavar="N",
-                   help="choose every part's normal, UV and colour bits and the positions' k_f scale for the least "
-                        "image error with at most N bits per vertex at level 11 (positions' CAP bits included; "
-                        "Purnomo et al. 2005's greedy search)")
-    g.add_argument("--no-attribute-search", dest="attribute_search", action="store_false",
-                   help="with --target-psnr: search k_f only, keep the default attribute bits")
-
     p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
     p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
     add_analyse_options(p)
@@ -214,6 +204,17 @@ def add_viewing_options(p: argparse.ArgumentParser) -> None:
                    help="closest camera distance to the scene, metres > 0 (e.g. 0.5 or 0.5m; default unknown)")
     g.add_argument("--pixel-error", type=float, default=v.pixel_error, metavar="PX",
                    help=f"allowed screen-space error, pixels > 0 (default {v.pixel_error:g}, the paper's half pixel)")
+
+
+def add_attribute_search_options(p: argparse.ArgumentParser) -> None:
+    """cook's --vertex-bits and --no-attribute-search (``lopcook.tune.attributes``)."""
+    g = p.add_argument_group("attribute bits search (renders everything quantized; see lopcook.tune.attributes)")
+    g.add_argument("--vertex-bits", type=float, default=None, metavar="N",
+                   help="choose every part's normal, UV and colour bits and the positions' k_f scale for the least "
+                        "image error with at most N bits per vertex at level 11 (positions' CAP bits included; "
+                        "Purnomo et al. 2005's greedy search)")
+    g.add_argument("--no-attribute-search", dest="attribute_search", action="store_false",
+                   help="with --target-psnr: search k_f only, keep the default attribute bits")
 
 
 def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
