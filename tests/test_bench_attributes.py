@@ -56,6 +56,9 @@ def test_configs_sweep_one_attribute_at_a_time_around_each_default():
     gp = A.peer_argv(cfgs[0], avail, "in.glb", "in.npz", "out.glb")
     assert gp[:1] == ["gp"] and gp[gp.index("-vn") + 1] == "8" and gp[gp.index("-vt") + 1] == "12"
     assert A.attribute_configs({}) == []
+    plain = A.attribute_configs(avail, normals=True, uvs=False)  # no UVs: no UV sweep
+    assert all(c["bits"]["vt"] == c0["bits"]["vt"] for c in plain for c0 in plain if c0["tool"] == c["tool"])
+    assert len(plain) < len(cfgs)
 
 
 def test_container_bytes_per_vertex_adds_the_attribute_sections(tmp_path):

@@ -63,29 +63,32 @@ TABLE_COLUMNS = ("asset", "tool", "config", "kind", "vertices", "bytes_per_verte
                  "psnr_mean_db", "normal_bits", "uv_bits", "color_bits", "position_bits", "wall_s", "error")
 
 
-def _sweep(defaults: dict, least: int = 1) -> list[tuple[str, dict]]:
+def _sweep(defaults: dict, least: int = 1, normals: bool = True, uvs: bool = True) -> list[tuple[str, dict]]:
     """[(kind, bits)]: the defaults, then each normal and UV bit count of the sweeps (others at
-    default) from ``least`` bits up (glTF-Transform refuses fewer than 8)."""
+    default) from ``least`` bits up (glTF-Transform refuses fewer than 8); a sweep only for an
+    attribute the scene has."""
     out = [("default", dict(defaults))]
-    out += [("sweep", dict(defaults, vn=b)) for b in NORMAL_SWEEP if b != defaults["vn"] and b >= least]
-    out += [("sweep", dict(defaults, vt=b)) for b in UV_SWEEP if b != defaults["vt"] and b >= least]
+    out += [("sweep", dict(defaults, vn=b)) for b in NORMAL_SWEEP if normals and b != defaults["vn"] and b >= least]
+    out += [("sweep", dict(defaults, vt=b)) for b in UV_SWEEP if uvs and b != defaults["vt"] and b >= least]
     return out
 
 
-def attribute_configs(avail: dict) -> list[dict]:
+def attribute_configs(avail: dict, normals: bool = True, uvs: bool = True) -> list[dict]:
     """Every peer run of the attribute chart: {"tool", "config" (the flags as text), "kind"
-    ("default" or "sweep"), "bits" {"vp", "vn", "vt"[, "vc"]}}, in a fixed order."""
+    ("default" or "sweep"), "bits" {"vp", "vn", "vt"[, "vc"]}}, in a fixed order; ``normals`` /
+    ``uvs``: whether the scene has them (no sweep of an attribute it lacks)."""
     out = []
+    kw = {"normals": normals, "uvs": uvs}
     if avail.get("gltfpack"):
-        for kind, b in _sweep(GLTFPACK_DEFAULTS):
+        for kind, b in _sweep(GLTFPACK_DEFAULTS, **kw):
             out.append({"tool": "gltfpack", "kind": kind, "bits": b,
                         "config": f"-vp {b['vp']} -vn {b['vn']} -vt {b['vt']} -vc {b['vc']}"})
     if avail.get("gltf-transform"):
-        for kind, b in _sweep(GLTF_TRANSFORM_DEFAULTS, least=8):
+        for kind, b in _sweep(GLTF_TRANSFORM_DEFAULTS, least=8, **kw):
             out.append({"tool": "gltf-transform", "kind": kind, "bits": b,
                         "config": f"--quantize-normal {b['vn']} --quantize-texcoord {b['vt']}"})
     if avail.get("draco"):
-        for kind, b in _sweep(DRACO_DEFAULTS):
+        for kind, b in _sweep(DRACO_DEFAULTS, **kw):
             out.append({"tool": "draco", "kind": kind, "bits": b, "config": f"-qp {b['vp']} -qn {b['vn']} -qt {b['vt']}"})
     return out
 
@@ -290,15 +293,17 @@ def container_bytes_per_vertex(c, level: int) -> dict:
     return {"positions": cap / v, "attributes": attr / v, "total": (cap + attr) / v, "vertices": verts}
 
 
-def lopcook_configs(cook_has_bits: bool, target_psnr: float | None) -> list[dict]:
+def lopcook_configs(cook_has_bits: bool, target_psnr: float | None, normals: bool = True,
+                    uvs: bool = True) -> list[dict]:
     """lopcook's runs: the default cook; with the packed-attribute cook the normal and UV sweeps
-    (``--normal-bits N`` / ``--uv-bits N``); and ``--target-psnr DB`` when given."""
+    (``--normal-bits N`` / ``--uv-bits N``, for the attributes the scene has); and ``--target-psnr
+    DB`` when given."""
     out = [{"tool": "lopcook", "kind": "default", "config": "cook", "extra": []}]
     if cook_has_bits:
         out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --normal-bits {b}", "extra": ["--normal-bits", str(b)]}
-                for b in NORMAL_SWEEP]
+                for b in NORMAL_SWEEP if normals]
         out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --uv-bits {b}", "extra": ["--uv-bits", str(b)]}
-                for b in UV_SWEEP]
+                for b in UV_SWEEP if uvs]
     if target_psnr is not None:
         out.append({"tool": "lopcook", "kind": "searched", "config": f"cook --target-psnr {target_psnr:g}",
                     "extra": ["--target-psnr", f"{target_psnr:g}"]})
@@ -345,7 +350,9 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
     glb, npz = write_inputs(src.scene, adir)
     level = max(opts.levels)
     rows, variants = [], []
-    for cfg in attribute_configs(avail):
+    has = {"normals": any(p.normals is not None for p in src.scene.parts),
+           "uvs": any(p.uvs is not None for p in src.scene.parts)}
+    for cfg in attribute_configs(avail, **has):
         tag = re.sub(r"[^A-Za-z0-9]+", "_", f"{cfg['tool']}_{cfg['config']}").strip("_")
         out = adir / (tag + (".npz" if cfg["tool"] == "draco" else ".glb"))
         if out.exists():
@@ -372,7 +379,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
             if g:
                 r["psnr_min_db"] = _min_db([v["psnr_min"] for v in g.values()])
                 r["psnr_mean_db"] = _min_db([v["psnr_mean"] for v in g.values()])
-    for cfg in lopcook_configs(cook_has_attribute_bits(), getattr(opts, "attributes_target", None)):
+    for cfg in lopcook_configs(cook_has_attribute_bits(), getattr(opts, "attributes_target", None), **has):
         lop = adir / (re.sub(r"[^A-Za-z0-9]+", "_", cfg["config"]).strip("_") + ".lop")
         _log(opts, f"{asset}: lopcook {cfg['config']}")
         m, desc = run_cook(path, lop, cfg["extra"])
