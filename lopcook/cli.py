@@ -675,7 +675,7 @@ def cmd_decode(args) -> int:
         if lod != args.lod:
             coarsest.append(part["name"])
         _, _, pos = decode_positions(c, i, lod, args.level)
-        a = lod_attributes(c, i, lod)
+        a = lod_attributes(c, i, lod, unit_normals=True)
         meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"], "normals": a["normals"],
                        "uvs": a["uvs"], "colors": a["colors"]})
     if coarsest and not args.quiet and not args.json:

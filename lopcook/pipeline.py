@@ -37,6 +37,7 @@ import numpy as np
 from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
+from .emit.attributes import part_bits
 from .emit.container import Container, built, file_size, section_table
 from .grid import BITS, Grid
 from .hierarchy.container import add_hierarchy
@@ -207,7 +208,8 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
     timings["analyse"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
-                            uvs=p.uvs, colors=p.colors)] for p, pa in zip(scene.parts, analysis.parts)]
+                            uvs=p.uvs, colors=p.colors, attribute_bits=part_bits(settings, i, p, pa))]
+               for i, (p, pa) in enumerate(zip(scene.parts, analysis.parts))]
     encoded = [[encode_buffer(b) for b in bufs] for bufs in buffers]
     manifest, sections = assemble(scene, analysis.grid, encoded, max_level=BITS, options=options,
                                   viewing=settings.viewing)
@@ -252,11 +254,13 @@ def _select(parts_chain, errors, analyses, levels, settings: Settings):
             quantized[i][k] = pa.quantized
     with_lods = settings.simplify.lods is not None
     all_buffers, rows = [], []
+    first = {i: pa for i, pa in zip([i for i, c in enumerate(parts_chain) if c], analyses[0].parts)}
     for i, chain in enumerate(parts_chain):
         ranges = selection_ranges(errors[i], [p.n_triangles for p in chain], settings.viewing)
         ranges[0] = 0.0
+        bits = part_bits(settings, i, chain[0], first.get(i))  # one allocation for all LODs of a part
         all_buffers.append([BufferInput(quantized=quantized[i][k], min_level=levels[i][k], indices=p.indices,
-                                        normals=p.normals, uvs=p.uvs, colors=p.colors,
+                                        normals=p.normals, uvs=p.uvs, colors=p.colors, attribute_bits=bits,
                                         geometric_error_m=errors[i][k],
                                         min_distance_m=ranges[k] if with_lods else None)
                             for k, p in enumerate(chain)])

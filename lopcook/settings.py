@@ -1,7 +1,7 @@
 """Every knob lopcook has, with its unit, default and valid range: one frozen ``Settings``.
 
 ``Settings`` has one section per stage (``ingest``, ``simplify``, ``analyse``, ``viewing``,
-``render``, ``tune``); ``DEFAULTS`` is the instance with every default, and the CLI formats its
+``render``, ``tune``, ``attributes``); ``DEFAULTS`` is the instance with every default, and the CLI formats its
 help texts from it. Choices are enums, never strings or tuples. ``Settings.to_manifest()`` gives
 the container's ``options`` and ``viewing`` records and ``Settings.from_manifest()`` reads them
 back (exactly: ``from_manifest(s.to_manifest()) == s`` for the recorded sections); a record that
@@ -21,7 +21,7 @@ from .types import MAX_TRIANGLES
 from .viewing import Viewing
 
 __all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
-           "LodSpec", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
+           "LodSpec", "AttributeSettings", "NORMAL_BITS_RANGE", "UV_BITS_RANGE", "COLOR_BITS_RANGE", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
            "TuneSettings", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
            "parse_lods"]
 
@@ -388,6 +388,80 @@ class TuneSettings:
             raise ValueError(f"vertex bits must be a positive finite number, got {self.vertex_bits}")
 
 
+#: Allowed bits per component of each packed vertex attribute (inclusive; issue 15).
+NORMAL_BITS_RANGE = (4, 16)
+UV_BITS_RANGE = (6, 16)
+COLOR_BITS_RANGE = (4, 8)
+
+
+def _bits_ok(v, lohi: tuple[int, int], what: str) -> None:
+    if v is None:
+        return
+    if isinstance(v, bool) or not isinstance(v, int) or not lohi[0] <= v <= lohi[1]:
+        raise ValueError(f"{what} bits must be an integer in [{lohi[0]}, {lohi[1]}], got {v!r}")
+
+
+@dataclass(frozen=True)
+class AttributeSettings:
+    """Bits per component of the packed vertex attributes (``lopcook.emit.attributes``).
+
+    normal_bits : int in [4, 16] or None, octahedral bits per component of normals.
+    uv_bits : int in [6, 16] or None, bits per UV component over each buffer's range.
+    color_bits : int in [4, 8] or None, bits per RGBA channel.
+    ``None`` is the bound-based default (``lopcook.emit.attributes.default_bits``).
+    parts : per scene part (in part order) ``(normal, uv, color)`` bits overriding the above for
+        that part (each int or None); empty: no per-part override. Used by the attribute search.
+    """
+
+    normal_bits: int | None = None
+    uv_bits: int | None = None
+    color_bits: int | None = None
+    parts: tuple[tuple[int | None, int | None, int | None], ...] = ()
+
+    def __post_init__(self) -> None:
+        _bits_ok(self.normal_bits, NORMAL_BITS_RANGE, "normal")
+        _bits_ok(self.uv_bits, UV_BITS_RANGE, "uv")
+        _bits_ok(self.color_bits, COLOR_BITS_RANGE, "color")
+        parts = tuple(tuple(p) for p in self.parts)
+        for p in parts:
+            if len(p) != 3:
+                raise ValueError(f"each per-part attribute entry must be (normal, uv, color) bits, got {p!r}")
+            _bits_ok(p[0], NORMAL_BITS_RANGE, "normal")
+            _bits_ok(p[1], UV_BITS_RANGE, "uv")
+            _bits_ok(p[2], COLOR_BITS_RANGE, "color")
+        object.__setattr__(self, "parts", parts)
+
+    def requested(self, part: int) -> tuple[int | None, int | None, int | None]:
+        """The (normal, uv, color) bits asked for part ``part`` (None: the bound-based default)."""
+        if self.parts:
+            if not 0 <= part < len(self.parts):
+                raise ValueError(f"attribute bits are given for {len(self.parts)} parts, not for part {part}")
+            pn, pu, pc = self.parts[part]
+        else:
+            pn = pu = pc = None
+        return (pn if pn is not None else self.normal_bits, pu if pu is not None else self.uv_bits,
+                pc if pc is not None else self.color_bits)
+
+    @property
+    def is_default(self) -> bool:
+        return self == AttributeSettings()
+
+    def to_record(self) -> dict:
+        """The manifest's ``options.attributes`` record."""
+        return {"normal_bits": self.normal_bits, "uv_bits": self.uv_bits, "color_bits": self.color_bits,
+                "parts": [list(p) for p in self.parts]}
+
+    @classmethod
+    def from_record(cls, rec: dict) -> "AttributeSettings":
+        """Inverse of ``to_record``; ValueError/TypeError/KeyError on a record that does not parse."""
+        if not isinstance(rec, dict) or set(rec) != {"normal_bits", "uv_bits", "color_bits", "parts"}:
+            raise ValueError(f"options.attributes must hold normal_bits, uv_bits, color_bits, parts, got {rec!r}")
+        if not isinstance(rec["parts"], list) or not all(isinstance(p, list) for p in rec["parts"]):
+            raise ValueError("options.attributes.parts must be a list of [normal, uv, color] lists")
+        return cls(normal_bits=rec["normal_bits"], uv_bits=rec["uv_bits"], color_bits=rec["color_bits"],
+                   parts=tuple(tuple(p) for p in rec["parts"]))
+
+
 @dataclass(frozen=True)
 class Settings:
     """Every section of a cook, frozen. ``Settings()`` is ``DEFAULTS``."""
@@ -398,6 +472,7 @@ class Settings:
     viewing: Viewing = field(default_factory=Viewing)
     render: RenderSettings = field(default_factory=RenderSettings)
     tune: TuneSettings = field(default_factory=TuneSettings)
+    attributes: AttributeSettings = field(default_factory=AttributeSettings)
 
     def with_(self, **sections) -> "Settings":
         """A copy with whole sections or fields of sections replaced: ``with_(analyse=...)`` or
@@ -410,12 +485,15 @@ class Settings:
     def to_manifest(self) -> dict:
         """``{"options": ..., "viewing": ...}`` as the container records them (JSON types only).
         ``options.lods`` is present only when a LOD chain is asked for, ``options.hierarchy``
-        (true) only with ``simplify.hierarchy``: default containers keep their bytes."""
+        (true) only with ``simplify.hierarchy``, ``options.attributes`` only when attribute bits
+        are asked for: default containers keep their options record."""
         options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
         if self.simplify.lods is not None:
             options["lods"] = {"ratios": self.simplify.lods.text, "backend": self.simplify.backend.value}
         if self.simplify.hierarchy:
             options["hierarchy"] = True
+        if not self.attributes.is_default:
+            options["attributes"] = self.attributes.to_record()
         return {"options": options, "viewing": self.viewing.as_dict()}
 
     @classmethod
@@ -435,6 +513,9 @@ class Settings:
                 if options["hierarchy"] is not True:
                     raise ValueError(f"options.hierarchy must be true when present, got {options['hierarchy']!r}")
                 simplify = replace(simplify, hierarchy=True)
+            attributes = AttributeSettings()
+            if options.get("attributes") is not None:
+                attributes = AttributeSettings.from_record(options["attributes"])
             v = manifest["viewing"]
             viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
                               fov_y_deg=float(v["fov_y_deg"]),
@@ -445,7 +526,7 @@ class Settings:
                 f"missing {exc}" if isinstance(exc, KeyError) else str(exc))
             raise LopcookError("container", path, f"the recorded cook options do not parse ({what})",
                                hint="cook the source again with this lopcook version") from None
-        return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing)
+        return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing, attributes=attributes)
 
 
 DEFAULTS = Settings()

@@ -13,6 +13,8 @@ import pytest
 
 from lopcook.analyse import analyse
 from lopcook.emit import BufferInput, build
+from lopcook.emit.attributes import (DEFAULT_BITS, AttributeBits, color_error_bound, encode_record,
+                                     normal_error_deg, uv_error_bound)
 from lopcook.emit.container import from_bytes
 from lopcook.emit.reader import decode_positions, gpu_buffer, lod_attributes, top_values
 from lopcook.errors import LopcookError
@@ -22,7 +24,7 @@ LEVELS = [2, 1, 4, 2, 3]
 ORDER = [1, 0, 3, 4, 2]  # binned position -> input vertex (levels 1, 2, 2, 3, 4)
 
 
-def _example(rng, *, n_extra: int = 0):
+def _example(rng, *, n_extra: int = 0, bits=None):
     """A part with the Fig. 9/10 levels (plus ``n_extra`` random-level vertices), random 24-bit
     grid integers, normals, UVs and colours; returns (part, buffer input, container)."""
     n = 5 + n_extra
@@ -38,7 +40,8 @@ def _example(rng, *, n_extra: int = 0):
     scene = Scene(parts=(part,), source="test", format="obj").validate()
     an = analyse(scene)
     q = rng.integers(0, 1 << 24, (n, 3), dtype=np.uint32)
-    buf = BufferInput(quantized=q, min_level=levels, indices=idx, normals=nrm, uvs=uvs, colors=cols)
+    buf = BufferInput(quantized=q, min_level=levels, indices=idx, normals=nrm, uvs=uvs, colors=cols,
+                      attribute_bits=bits)
     c = from_bytes(build(scene, an, lods=[[buf]]))
     return part, buf, c
 
@@ -109,27 +112,37 @@ def test_every_level_decodes_the_top_bits(rng):
     np.testing.assert_array_equal(decode_positions(c, 0, 0, 24)[0], q)
 
 
-def test_lod_attributes_round_trip(rng):
-    part, buf, c = _example(rng, n_extra=200)
+@pytest.mark.parametrize("bits", [None, AttributeBits(7, 9, 5), AttributeBits(16, 6, 4), AttributeBits(4, 16, 8)])
+def test_lod_attributes_round_trip(rng, bits):
+    part, buf, c = _example(rng, n_extra=200, bits=bits)
     order = np.argsort(buf.min_level, kind="stable")
     a = lod_attributes(c, 0, 0)
     # indices: exact, into the binned order
     assert a["indices"].shape == part.indices.shape
     np.testing.assert_array_equal(order[a["indices"]], part.indices)
-    enc = c.manifest["encodings"]
-    # normals: oct32P, angle below the stated bound (degrees; atan2 of cross and dot, which a
-    # float32 length off 1 by an ulp does not disturb as arccos of the dot would)
+    e = c.manifest["parts"][0]["lods"][0]
+    want = bits or AttributeBits(*DEFAULT_BITS)
+    assert e["attribute_bits"] == want.as_dict() == c.manifest["parts"][0]["attribute_bits"]
+    assert e["record_bits"] == want.record_bits and e["attributes"] == "part0/lod0/attributes"
+    n = e["vertices"]
+    assert c.entries.parts[0].lods[0].attribute_bytes == 4 * ((n * want.record_bits + 31) // 32)
+    # the decode is exactly the codec's, in binned order
+    ref_words, meta = encode_record(part.normals[order], part.uvs[order], part.colors[order], want)
+    assert c.section(e["attributes"]) == ref_words.tobytes()
+    assert e["uv_range"] == meta["uv_range"] and e["uv_step"] == meta["uv_step"]
+    # normals: unnormalised float32, angle below the bound (atan2 of cross and dot)
+    assert a["normals"].dtype == np.float32
     dn, sn = a["normals"].astype(np.float64), part.normals[order].astype(np.float64)
     angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(dn, sn), axis=1), np.einsum("ij,ij->i", dn, sn)))
-    assert angle.max() <= enc["normals"]["max_error"]
-    # UVs: unorm16 over the buffer range, within max_error of the range per component
-    lo, hi = (np.asarray(v, np.float64) for v in c.manifest["parts"][0]["lods"][0]["uv_range"])
+    assert angle.max() <= normal_error_deg(want.normals)
+    # UVs: over the buffer range, within the bound per component
+    lo, hi = (np.asarray(v, np.float64) for v in e["uv_range"])
     np.testing.assert_array_equal(lo, part.uvs.min(axis=0))
     np.testing.assert_array_equal(hi, part.uvs.max(axis=0))
-    err = np.abs(a["uvs"].astype(np.float64) - part.uvs[order]) / (hi - lo)
-    assert err.max() <= enc["uvs"]["max_error"] + 1e-7
-    # colours: unorm8, half a step
-    assert np.abs(a["colors"] - part.colors[order]).max() <= enc["colors"]["max_error"] + 1e-7
+    err = np.abs(a["uvs"].astype(np.float64) - part.uvs[order])
+    assert (err <= uv_error_bound(lo, hi, want.uvs)).all()
+    # colours: half a step
+    assert np.abs(a["colors"] - part.colors[order]).max() <= color_error_bound(want.colors)
 
 
 def test_parts_without_attributes_decode_to_none(rng):

@@ -9,7 +9,7 @@ import pytest
 
 from lopcook.cli import build_parser
 from lopcook.errors import LopcookError
-from lopcook.settings import (DEFAULTS, AnalyseSettings, DepthMode, IngestSettings, LodBackend, LodSpec, Settings,
+from lopcook.settings import (DEFAULTS, AnalyseSettings, AttributeSettings, DepthMode, IngestSettings, LodBackend, LodSpec, Settings,
                               SimplifySettings, TextureSlope, halvings, parse_lods)
 from lopcook.viewing import Viewing
 
@@ -30,6 +30,8 @@ def test_defaults_are_frozen_data():
              simplify=SimplifySettings(lods=LodSpec(auto=False, ratios=(0.5, 0.25)), backend="fast"),
              viewing=Viewing(viewport=(640, 480), fov_y_deg=45.0, nearest_m=0.5, pixel_error=1.0)),
     Settings(simplify=SimplifySettings(lods=LodSpec()), analyse=AnalyseSettings(depth="off", texture_kf="off")),
+    Settings(attributes=AttributeSettings(normal_bits=9, uv_bits=None, color_bits=4)),
+    Settings(attributes=AttributeSettings(uv_bits=12, parts=((8, None, 5), (None, 16, None), (16, 6, 8)))),
 ])
 def test_manifest_round_trip_is_exact(settings):
     record = settings.to_manifest()
@@ -53,6 +55,11 @@ def test_record_matches_the_cli_spelling():
     (lambda m: m["options"]["analyse"].update(colour="red"), "unknown analyse options"),
     (lambda m: m["options"].update(lods={"ratios": "1/2,2", "backend": "fast"}), "do not parse"),
     (lambda m: m["viewing"].update(fov_y_deg="wide"), "do not parse"),
+    (lambda m: m["options"].update(attributes={"normal_bits": 3, "uv_bits": None, "color_bits": None, "parts": []}),
+     "normal bits"),
+    (lambda m: m["options"].update(attributes={"normal_bits": 8}), "do not parse"),
+    (lambda m: m["options"].update(attributes={"normal_bits": None, "uv_bits": None, "color_bits": None,
+                                               "parts": [[8, 8]]}), "do not parse"),
 ])
 def test_a_record_that_does_not_parse_is_one_clear_error(mutate, match):
     m = Settings().to_manifest()
@@ -89,3 +96,20 @@ def test_cli_help_shows_the_defaults():
                   f"default {DEFAULTS.analyse.depth_ceiling}", f"default {DEFAULTS.simplify.backend.value}",
                   f"{DEFAULTS.viewing.viewport[0]}x{DEFAULTS.viewing.viewport[1]}"):
         assert shown in " ".join(text.split()), shown
+
+
+@pytest.mark.parametrize("bad", [dict(normal_bits=3), dict(normal_bits=17), dict(uv_bits=5), dict(uv_bits=17),
+                                 dict(color_bits=3), dict(color_bits=9), dict(normal_bits=8.0), dict(uv_bits=True),
+                                 dict(parts=((8, 8),)), dict(parts=((8, 5, None),))])
+def test_out_of_range_attribute_bits_are_refused(bad):
+    with pytest.raises(ValueError):
+        AttributeSettings(**bad)
+
+
+def test_attribute_requests_per_part():
+    a = AttributeSettings(normal_bits=10, color_bits=6, parts=((8, None, None), (None, 12, 4)))
+    assert a.requested(0) == (8, None, 6) and a.requested(1) == (10, 12, 4)
+    assert AttributeSettings().requested(5) == (None, None, None)
+    with pytest.raises(ValueError):
+        a.requested(2)
+    assert "attributes" not in Settings().to_manifest()["options"]  # default containers keep their options

@@ -3,7 +3,7 @@
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 5.3 and 6 (binned adaptive precision buffers). Steps: (1) one buffer per part and LOD,
 vertices binned by minimum level and indices remapped, (2) attribute sections (indices, normals,
-UVs, colours; ``attributes.py``), (3) position sections: every buffer's mandatory bits (its packed
+and one packed attribute record per vertex: normals, UVs, colours at their chosen bits; ``attributes.py``), (3) position sections: every buffer's mandatory bits (its packed
 buffer at level 1), then refinement planes 2..max_level, (4) manifest + header (``container.py``).
 Layout and order: docs/format.md.
 """
@@ -41,6 +41,15 @@ class BufferInput:
     colors: np.ndarray | None = None
     geometric_error_m: float = 0.0
     min_distance_m: float | None = None
+    attribute_bits: attr.AttributeBits | None = None
+
+    def bits(self) -> attr.AttributeBits:
+        """The attribute bits this buffer is packed with: ``attribute_bits`` when given (it must
+        match which attributes are present), else :data:`attributes.DEFAULT_BITS` for each
+        present attribute."""
+        if self.attribute_bits is not None:
+            return self.attribute_bits
+        return attr.bits_for(self.normals is not None, self.uvs is not None, self.colors is not None)
 
 
 def _sha256_file(path: str) -> str | None:
@@ -91,14 +100,21 @@ def encode_buffer(buf: BufferInput, max_level: int = LEVELS) -> EncodedBuffer:
     data, width = attr.encode_indices(indices, n)
     attributes = [("indices", data.tobytes())]
     entry["index_width"] = int(width)
-    if buf.normals is not None:
-        attributes.append(("normals", attr.encode_normals(np.asarray(buf.normals)[bins.order]).tobytes()))
-    if buf.uvs is not None:
-        codes, lo, hi = attr.encode_uvs(np.asarray(buf.uvs)[bins.order])
-        attributes.append(("uvs", codes.tobytes()))
-        entry["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
-    if buf.colors is not None:
-        attributes.append(("colors", attr.encode_colors(np.asarray(buf.colors)[bins.order]).tobytes()))
+    bits = buf.bits()
+    entry["attributes"] = None
+    entry["attribute_bits"] = bits.as_dict()
+    entry["record_bits"] = bits.record_bits
+    if bits.record_bits:
+        order = bins.order
+
+        def pick(a):
+            return None if a is None else np.asarray(a)[order]
+
+        words, meta = attr.encode_record(pick(buf.normals), pick(buf.uvs), pick(buf.colors), bits)
+        attributes.append(("attributes", words.tobytes()))
+        if meta["uv_range"] is not None:
+            entry["uv_range"] = meta["uv_range"]
+            entry["uv_step"] = meta["uv_step"]
     words = pack(top_bits(q, vertex_widths(bins.vertex_id, 1)), bins.vertex_id, 1)
     return EncodedBuffer(entry=entry, attributes=attributes, mandatory=words, vertex_id=bins.vertex_id, q=q,
                          counts=bins.counts(), clamped=clamped)
@@ -124,7 +140,6 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
         for k, e in enumerate(encoded):
             prefix = f"part{i}/lod{k}"
             entry = dict(e.entry)
-            entry["normals"] = entry["uvs"] = entry["colors"] = None
             for kind, payload in e.attributes:
                 sections.append((f"{prefix}/{kind}", payload))
                 entry[kind] = f"{prefix}/{kind}"
@@ -136,7 +151,8 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
         parts_manifest.append({
             "name": part.name, "source": part.source, "mesh_key": part.mesh_key,
             "texture": None if part.texture is None else {"name": part.texture.name, "sha256": part.texture.digest},
-            "normals_computed": bool(part.normals_computed), "lods": lod_entries,
+            "normals_computed": bool(part.normals_computed),
+            "attribute_bits": lod_entries[0]["attribute_bits"] if lod_entries else None, "lods": lod_entries,
         })
     flat = [e for encoded in parts for e in encoded]
     sections.append(("positions/mandatory", np.concatenate([e.mandatory for e in flat]).astype("<u4").tobytes()))

@@ -1,74 +1,81 @@
-"""Compact encodings of the non-position vertex data stored in a .lop container.
+"""Variable-bit encodings of the non-position vertex data of a .lop container, packed into one
+record per vertex (issue 15; Purnomo, Bilodeau, Cohen, Kumar, "Hardware-Compatible Vertex
+Compression Using Quantization and Simplification", Graphics Hardware 2005, sections 3-5).
 
-Every encoder is vectorised numpy, deterministic (the same input gives the same bytes on every
-platform: only IEEE-exact operations -- add, multiply, divide, sqrt, floor, rint -- in a fixed
-order, in float64) and writes explicit little-endian dtypes, so ``codes.tobytes()`` is the
-section payload. Every decoder is exact with respect to its encoder's byte layout and is the
-*reference* decode (shaders may evaluate the same formula in float32 and differ by a few ulp).
-The bounds below are also available as data from :func:`attribute_specs` (for the manifest).
+Every encoder is vectorised numpy and deterministic (the same input gives the same bytes on every
+platform: only IEEE-exact operations in a fixed order). Every **decode is defined as float32
+operations** (numpy float32 arrays, each operation rounded once, no float64, no fused multiply-add),
+so a shader evaluating the same expressions with ``precise`` reproduces it bit for bit. The
+decoders here are the reference. The formulas are also data: :func:`attribute_specs` (the
+manifest's ``encodings``).
 
-Normals -- octahedral, 2 x 16 bits (``"<u2"``), 4 bytes per vertex
------------------------------------------------------------------------
+Normals -- octahedral, ``b_n`` bits per component, 4 <= b_n <= 16
+-------------------------------------------------------------------
 Cigolle, Donow, Evangelakos, Mara, McGuire, Meyer, "A Survey of Efficient Representations for
-Independent Unit Vectors", JCGT 3(2), 2014, precise variant (32 bits per normal: "oct32P" in
-the paper's naming, i.e. 16 bits per component).
+Independent Unit Vectors", JCGT 3(2), 2014, *precise* variant. ``h = 2^(b_n - 1)``, ``m = h - 1``;
+the signed value ``s`` is in [-m, m] and **code = s + h** (in [1, 2^b_n - 1]; code 0 reads as
+s = -h and is clamped to -1).
 
-Layout: per vertex ``[u, v]``, each ``<u2``; ``s = code - 32768`` is the snorm16 value (the code
-is the int16 two's-complement value with its sign bit flipped, ``s = int16(code ^ 0x8000)``).
+Decode (float32; ``R = float32(1 / m)``, rounded once)::
 
-Encode (direction d, any non-zero length)::
+    p  = max(float32(code - h) * R, -1.0)                     # per component
+    z  = (1 - |p.x|) - |p.y|
+    if z < 0: (x, y) = ((1 - |p.y|) * sgn(p.x), (1 - |p.x|) * sgn(p.y))   else (x, y) = p
+    n  = (x, y, z)                                             # UNNORMALISED float32
 
-    p  = (d.x, d.y) / (|d.x| + |d.y| + |d.z|)                       # onto the octahedron
+``sgn(x)`` is +1 for x >= 0 (including -0.0), -1 otherwise. The unnormalised vector is the
+bit-exact result; the renderer (fragment shader) normalises it.
+
+Encode (direction d, any non-zero length; float64)::
+
+    p  = (d.x, d.y) / (|d.x| + |d.y| + |d.z|)                        # onto the octahedron
     if d.z < 0: p = ((1 - |p.y|) * sgn(p.x), (1 - |p.x|) * sgn(p.y))  # fold the lower half
-    s  = floor(p * 32767) + {0, 1} per component (4 candidates, clamped to [-32767, 32767]);
-         keep the candidate whose decoded normal (float64, before rounding to float32) has
-         the largest dot product with d
-         (first of equals in the order (0,0), (1,0), (0,1), (1,1))
-    code = s + 32768                                                # in [1, 65535]
+    s  = clip(floor(p * m) + {0, 1}, -m, m) per component: of the 4 candidates keep the one
+         whose normalised decode (the float32 decode above, normalised in float64) has the
+         largest dot product with d (first of equals in the order (0,0), (1,0), (0,1), (1,1))
 
-``sgn(x)`` is +1 for x >= 0 (including -0.0) and -1 otherwise, so -0.0 encodes like +0.0.
+Error: the worst-case angle is bounded by :func:`normal_error_deg` ``(b) = 2.7 * 2^(6 - b)``
+degrees for b >= 6 (11.65 at 4 bits, 5.45 at 5): the largest angle measured over random
+directions, the centres of the code cells (the worst case of rounding), the fold z = 0 and the
+face centres is ``161-167 * 2^-b`` degrees for b >= 6, which matches Cigolle et al.'s maxima
+(2.6, 0.64, 0.16, 0.039, 0.0025 degrees at 6, 8, 10, 12, 16 bits; :data:`CIGOLLE_MAX_ERROR_DEG`)
+to their two printed digits; the bound adds a 3 % margin. ``tests/test_attributes.py`` checks
+the codec against that table on dense direction sets.
 
-Decode::
+UVs -- ``b_u`` bits per component over the buffer's range, 6 <= b_u <= 16
+---------------------------------------------------------------------------
+``lo``, ``hi``: float32 per component (the buffer's min/max); ``N = 2^b_u - 1``;
+``step = float32((hi - lo) / N)`` (computed in float64 from the float32 lo, hi, rounded once;
+the manifest's ``uv_step``)::
 
-    p = clamp((code - 32768) / 32767, -1, 1)                        # code 0 reads as -1
-    n = (p.x, p.y, 1 - |p.x| - |p.y|)
-    if n.z < 0: (n.x, n.y) = ((1 - |p.y|) * sgn(p.x), (1 - |p.x|) * sgn(p.y))
-    n = n / |n|  (float64, then rounded to float32)
+    q  = clip(rint((u - lo) / step), 0, N), then the best of q - 1, q, q + 1 (clipped) by decoded
+         error, first of equals the lowest q                                      (float64)
+    u' = lo + float32(q) * step                      (float32: one rounded product, one rounded sum)
 
-Error: the axis directions +-X, +-Y, +-Z are represented exactly (s in {-32767, 0, 32767}) and
-decode to exactly (0, 0, +-1) etc. The worst-case angle between d and the decoded normal is
-**at most 0.0038 degrees** (:data:`NORMAL_MAX_ERROR_DEG`), by this argument: the kept code is at
-least as close as plain rounding, whose error in p is at most |dp| = (sqrt(2)/2) / 32767; the
-map from p to the octahedron surface is piecewise linear with Lipschitz constant sqrt(3); every
-point of the octahedron |x|+|y|+|z| = 1 is at distance >= 1/sqrt(3) from the origin, so the angle
-is <= 3 |dp| = 6.474e-5 rad = 0.003709 degrees, plus < 1e-5 degrees for rounding the result to
-float32. The candidate search keeps the error well under that: the empirical bound
-**0.00248 degrees** (:data:`NORMAL_MEASURED_MAX_ERROR_DEG`) holds over the test sets of
-``docs/measurements.md`` (random directions, face centres and diagonals, the fold z = 0, cell
-centres) and is checked by ``tests/test_attributes.py``.
+A degenerate range (hi == lo) gives step 0, all codes 0, and decodes to lo exactly. Error per
+component: :func:`uv_error_bound` ``= step / 2 + (hi - lo) * 2^-24 + ulp32(max(|lo|, |hi|))``
+(half a step, the rounding of ``step`` accumulated over N steps, the float32 rounding of the
+result).
 
-UVs -- unorm16 over the buffer's range, 2 x 16 bits (``"<u2"``), 4 bytes per vertex + 16 bytes
---------------------------------------------------------------------------------------------------
-Layout: per vertex ``[qu, qv]`` each ``<u2``; per buffer ``lo`` and ``hi``, each ``(2,) <f4``
-(stored by the caller; by default ``lo``/``hi`` are the per-component min/max of the buffer).
+Colours -- RGBA linear, ``b_c`` bits per channel, 4 <= b_c <= 8
+-----------------------------------------------------------------
+``N = 2^b_c - 1``: ``q = rint(clip(c, 0, 1) * N)`` (float64, half to even);
+decode ``c' = float32(q) * float32(1 / N)`` (float32). Values outside [0, 1] are clamped first.
+Error per channel for inputs in [0, 1]: ``1 / (2 N)`` plus float32 rounding (:func:`color_error_bound`).
 
-    q = rint((u - lo) / (hi - lo) * 65535)          (float64; round half to even)
-    u' = float32(lo * (1 - q / 65535) + hi * (q / 65535))      (float64, then float32)
-
-so q = 0 decodes to ``lo`` and q = 65535 to ``hi`` exactly. Error per component:
-``|u' - u| <= (hi - lo) / 131070`` (half a step of (hi - lo) / 65535) plus half a float32 ulp of
-the result (``<= ulp32(max(|lo|, |hi|)) / 2``) -- e.g. 7.6e-6 for a [0, 1] range. A degenerate
-range (hi == lo, e.g. one vertex or a constant coordinate) gives all codes 0 and decodes to
-``lo`` exactly.
-
-Colors -- RGBA unorm8 (``"u1"``), 4 bytes per vertex
--------------------------------------------------------
-Layout: per vertex ``[r, g, b, a]``, each ``u1``, linear (no sRGB transfer).
-
-    q = rint(clamp(c, 0, 1) * 255)          c' = float32(q / 255)
-
-Values outside [0, 1] are clamped first (a linear colour above 1 becomes 1). Error per channel
-for inputs in [0, 1]: ``|c' - c| <= 1/510`` (+ half a float32 ulp, < 3e-8).
+The record -- one per vertex, packed LSB first
+-----------------------------------------------
+Fields, each present attribute only, in this order: ``normal.u, normal.v`` (b_n bits each),
+``uv.u, uv.v`` (b_u each), ``color.r, g, b, a`` (b_c each). Record bits
+``S = 2 b_n + 2 b_u + 4 b_c`` (<= 96). Vertex j's record starts at bit ``j * S`` of the section,
+its fields consecutive, least significant bit first (bit i of the section is bit ``i & 31`` of
+word ``i >> 5``), so a field may span two 32-bit words: the decoder reads word ``w = o >> 5`` and
+word ``min(w + 1, words - 1)`` like the positions' ``lop_read_field``. This lifts Purnomo's
+no-crossing rule (section 4: components packed into whole 32-bit words by first-fit bins) at the
+cost of a second word read. The section holds ``ceil(n S / 32)`` little-endian uint32 words (no
+padding word): at most 31 bits are wasted per buffer (:func:`record_waste`), against
+``32 ceil(S/32) - S`` per vertex for word-aligned records (:func:`aligned_waste`, first-fit
+decreasing bins of whole components).
 
 Indices -- uint16 or uint32 (``"<u2"`` / ``"<u4"``), 6 or 12 bytes per triangle
 -------------------------------------------------------------------------------------
@@ -76,125 +83,131 @@ Layout: the triangles' corners in order, ``i0 i1 i2 i0 i1 i2 ...``. The width is
 ``n_vertices <= 65535`` (every index <= 65534: the uint16 primitive-restart value 65535, always on
 in WebGL 2 and Metal, never appears) and 4 bytes otherwise. Exact.
 
-Non-finite input (and zero-length normals) raises ``LopcookError("emit", ...)``.
+Non-finite input (and zero-length normals) raises ``LopcookError("emit", ...)``; bit counts out
+of range raise ``LopcookError("usage", ...)``.
 """
 
 from __future__ import annotations
 
 import copy
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import LopcookError
+from ..settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
 
 __all__ = [
-    "NORMAL_MAX_ERROR_DEG",
-    "NORMAL_MEASURED_MAX_ERROR_DEG",
-    "UV_MAX_ERROR_FRACTION",
-    "COLOR_MAX_ERROR",
-    "UV_RANGE_BYTES",
-    "BYTES_PER_VERTEX",
-    "encode_normals",
-    "decode_normals",
-    "encode_uvs",
-    "decode_uvs",
-    "encode_colors",
-    "decode_colors",
-    "encode_indices",
-    "decode_indices",
-    "index_width",
-    "encoded_nbytes",
-    "attribute_specs",
+    "NORMAL_BITS", "UV_BITS", "COLOR_BITS", "DEFAULT_BITS", "CIGOLLE_MAX_ERROR_DEG",
+    "AttributeBits", "bits_for", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
+    "encode_normals", "decode_normals", "encode_uvs", "uv_step", "decode_uvs",
+    "encode_colors", "decode_colors", "encode_record", "decode_record", "record_fields",
+    "record_waste", "aligned_waste", "record_words",
+    "encode_indices", "decode_indices", "index_width", "attribute_specs",
 ]
 
-#: Guaranteed worst-case angle (degrees) between a normal and its decoded normal (see above).
-NORMAL_MAX_ERROR_DEG = 0.0038
-#: Largest angle (degrees) measured over the test sets of docs/measurements.md (an empirical bound).
-NORMAL_MEASURED_MAX_ERROR_DEG = 0.00248
-#: UV error per component as a fraction of the buffer's range (hi - lo), before float32 rounding.
-UV_MAX_ERROR_FRACTION = 1.0 / 131070.0
-#: Colour error per channel (linear [0, 1] units) for inputs in [0, 1], before float32 rounding.
-COLOR_MAX_ERROR = 1.0 / 510.0
-#: Bytes per buffer for the UV range: lo (2 x <f4) then hi (2 x <f4).
-UV_RANGE_BYTES = 16
-#: Encoded bytes per vertex of each per-vertex attribute.
-BYTES_PER_VERTEX = {"normals": 4, "uvs": 4, "colors": 4}
+#: Allowed bits per component (inclusive ranges).
+NORMAL_BITS = NORMAL_BITS_RANGE
+UV_BITS = UV_BITS_RANGE
+COLOR_BITS = COLOR_BITS_RANGE
+#: Bits used when nothing chooses them (the precision of format 1: oct 2x16, unorm16 UVs, RGBA8).
+DEFAULT_BITS = (16, 16, 8)
+#: Cigolle et al. 2014, precise octahedral encoding: maximum angle (degrees) at b bits per component.
+CIGOLLE_MAX_ERROR_DEG = {6: 2.6, 8: 0.64, 10: 0.16, 12: 0.039, 16: 0.0025}
 
-_SNORM16 = 32767
-_OFFSET16 = 32768
-_UNORM16 = 65535
-_UNORM8 = 255
+_F4 = np.dtype("<f4")
 _U2 = np.dtype("<u2")
 _U4 = np.dtype("<u4")
-_U1 = np.dtype("u1")
-_F4 = np.dtype("<f4")
-
-_SPECS = {
-    "normals": {
-        "encoding": "oct32P: octahedral, snorm16 per component stored as uint16 (code = s + 32768), "
-                    "precise (best of 4 neighbouring codes); Cigolle et al. 2014",
-        "dtype": "<u2", "components": 2, "bits": 16, "bytes_per": 4, "per": "vertex",
-        "max_error": NORMAL_MAX_ERROR_DEG, "measured_max_error": NORMAL_MEASURED_MAX_ERROR_DEG,
-        "unit": "degrees",
-    },
-    "uvs": {
-        "encoding": "unorm16 over the buffer range: u = float32(lo * (1 - q / 65535) + hi * (q / 65535)) "
-                    "computed in float64; lo, hi are float32 values kept beside the codes (in a .lop "
-                    "file: the manifest's uv_range)",
-        "dtype": "<u2", "components": 2, "bits": 16, "bytes_per": 4, "per": "vertex",
-        "range_bytes": UV_RANGE_BYTES,
-        "max_error": UV_MAX_ERROR_FRACTION,
-        "unit": "fraction of the buffer's range (hi - lo) per component, plus float32 rounding",
-    },
-    "colors": {
-        "encoding": "RGBA unorm8, linear, inputs clamped to [0, 1]: c = q / 255",
-        "dtype": "u1", "components": 4, "bits": 8, "bytes_per": 4, "per": "vertex",
-        "max_error": COLOR_MAX_ERROR,
-        "unit": "linear [0, 1] per channel, plus float32 rounding",
-    },
-    "indices": {
-        "encoding": "uint16 when n_vertices <= 65535 (so 65535, the primitive-restart value, never appears), else uint32; i0 i1 i2 per triangle",
-        "dtype": "<u2 or <u4", "components": 3, "bits": 16, "bits_large": 32,
-        "bytes_per": 6, "bytes_per_large": 12, "per": "triangle",
-        "max_error": 0, "unit": "exact",
-    },
-}
+_F32 = np.float32
 
 
-def attribute_specs() -> dict:
-    """Encodings and documented worst-case errors as JSON-ready data (a fresh copy).
-
-    ``name -> {"bits", "max_error", "unit", "encoding", "dtype", "components", "bytes_per",
-    "per", ...}`` for ``"normals"``, ``"uvs"``, ``"colors"``, ``"indices"``. ``bits`` is per
-    component; ``bytes_per`` is per ``per`` ("vertex" or "triangle"); indices also give
-    ``bits_large``/``bytes_per_large`` for the uint32 case and uvs ``range_bytes`` per buffer.
-    """
-    return copy.deepcopy(_SPECS)
+def _check_bits(b, lohi: tuple[int, int], what: str) -> int:
+    if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or not lohi[0] <= int(b) <= lohi[1]:
+        raise LopcookError("usage", None, f"{what} bits must be an integer in [{lohi[0]}, {lohi[1]}], got {b!r}")
+    return int(b)
 
 
-def index_width(n_vertices: int) -> int:
-    """Bytes per index: 2 when ``n_vertices <= 65535`` (indices <= 65534, never the uint16
-    primitive-restart value 65535), else 4."""
-    if n_vertices < 0:
-        raise LopcookError("emit", None, f"n_vertices must be >= 0, got {n_vertices}")
-    return 2 if n_vertices <= 65535 else 4
+@dataclass(frozen=True)
+class AttributeBits:
+    """Bits per component of one buffer's attributes; None where the attribute is absent.
+
+    normals in [4, 16] (per octahedral component), uvs in [6, 16] (per UV component), colors in
+    [4, 8] (per RGBA channel). ``record_bits`` is ``S = 2 b_n + 2 b_u + 4 b_c``."""
+
+    normals: int | None = None
+    uvs: int | None = None
+    colors: int | None = None
+
+    def __post_init__(self) -> None:
+        for name, lohi in (("normals", NORMAL_BITS), ("uvs", UV_BITS), ("colors", COLOR_BITS)):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, _check_bits(v, lohi, name[:-1] if name != "colors" else "color"))
+
+    @property
+    def record_bits(self) -> int:
+        return 2 * (self.normals or 0) + 2 * (self.uvs or 0) + 4 * (self.colors or 0)
+
+    def as_dict(self) -> dict:
+        return {"normals": self.normals, "uvs": self.uvs, "colors": self.colors}
+
+    @classmethod
+    def of(cls, d: dict) -> "AttributeBits":
+        return cls(normals=d.get("normals"), uvs=d.get("uvs"), colors=d.get("colors"))
 
 
-def encoded_nbytes(n_vertices: int, n_triangles: int, *, normals: bool = True, uvs: bool = True,
-                   colors: bool = False) -> dict[str, int]:
-    """Encoded payload bytes of each section present: ``{"normals", "uvs", "colors", "indices"}``.
+def bits_for(normals: bool, uvs: bool, colors: bool, requested=(None, None, None)) -> AttributeBits:
+    """The bits of a buffer with the given attributes present: ``requested`` (normal, uv, color)
+    where not None, else :data:`DEFAULT_BITS`; absent attributes get None."""
+    rn, ru, rc = requested
+    dn, du, dc = DEFAULT_BITS
+    return AttributeBits(normals=(dn if rn is None else rn) if normals else None,
+                         uvs=(du if ru is None else ru) if uvs else None,
+                         colors=(dc if rc is None else rc) if colors else None)
 
-    uvs include the 16-byte range (lo, hi); indices use :func:`index_width`.
-    """
-    out: dict[str, int] = {}
-    if normals:
-        out["normals"] = BYTES_PER_VERTEX["normals"] * n_vertices
-    if uvs:
-        out["uvs"] = BYTES_PER_VERTEX["uvs"] * n_vertices + UV_RANGE_BYTES
-    if colors:
-        out["colors"] = BYTES_PER_VERTEX["colors"] * n_vertices
-    out["indices"] = 3 * n_triangles * index_width(n_vertices)
-    return out
+
+def part_bits(settings, index: int, part, part_analysis=None) -> AttributeBits:
+    """The attribute bits of scene part ``index`` (a MeshPart) under ``settings`` (a Settings):
+    its ``settings.attributes.requested(index)`` where given, else the default for each present
+    attribute. ``part_analysis``: the part's PartAnalysis (for the bound-based default)."""
+    try:
+        req = settings.attributes.requested(index)
+    except ValueError as exc:
+        raise LopcookError("usage", None, str(exc), hint="give one (normal, uv, color) entry per part") from None
+    return bits_for(part.normals is not None, part.uvs is not None, part.colors is not None, req)
+
+
+def normal_error_deg(bits: int) -> float:
+    """Worst-case angle (degrees) of the precise octahedral encoding at ``bits`` per component:
+    ``2.7 * 2^(6 - bits)`` for bits >= 6 (11.65 at 4 bits, 5.45 at 5), 3 % above the largest
+    angle measured on the test sets and above Cigolle et al. 2014's maxima
+    (:data:`CIGOLLE_MAX_ERROR_DEG`); the error halves per added bit."""
+    b = _check_bits(bits, NORMAL_BITS, "normal")
+    return _SMALL_NORMAL_ERROR_DEG.get(b, 2.7 * 2.0 ** (6 - b))
+
+
+#: below 6 bits the error grows faster than 2^-b: measured maxima 11.42 and 5.34 degrees over the
+#: test sets (random directions, code-cell centres, the fold, face centres), with a 2 % margin
+_SMALL_NORMAL_ERROR_DEG = {4: 11.65, 5: 5.45}
+
+
+def uv_error_bound(lo, hi, bits: int) -> np.ndarray:
+    """Per-component bound on ``|u' - u|`` (UV units) for values in [lo, hi]:
+    ``step / 2 + (hi - lo) * 2^-24 + ulp32(max(|lo|, |hi|))`` (float64, shape (2,))."""
+    b = _check_bits(bits, UV_BITS, "uv")
+    lo64 = np.asarray(lo, dtype=_F4).astype(np.float64)
+    hi64 = np.asarray(hi, dtype=_F4).astype(np.float64)
+    step = uv_step(lo64, hi64, b).astype(np.float64)
+    big = np.maximum(np.abs(lo64), np.abs(hi64)).astype(_F4)
+    return step / 2.0 + (hi64 - lo64) * 2.0 ** -24 + np.spacing(big).astype(np.float64)
+
+
+def color_error_bound(bits: int) -> float:
+    """Bound on ``|c' - c|`` per channel for c in [0, 1]: ``1 / (2 (2^b - 1))`` plus 2^-24
+    (float32 rounding of the decode)."""
+    b = _check_bits(bits, COLOR_BITS, "color")
+    return 1.0 / (2.0 * ((1 << b) - 1)) + 2.0 ** -24
 
 
 # ---------------------------------------------------------------------------------------------
@@ -214,58 +227,56 @@ def _float_input(a, width: int, name: str) -> np.ndarray:
     return arr
 
 
-def _codes_input(codes, dtype: np.dtype, width: int, name: str) -> np.ndarray:
-    """(n, width) int64 codes from an integer array ((n, width) or flat (n * width,)) of code
-    values, or from bytes-like data (bytes, bytearray, memoryview, flat uint8 array) in ``dtype``."""
-    if isinstance(codes, np.ndarray) and not (codes.ndim == 1 and codes.dtype == np.uint8
-                                                and dtype.itemsize != 1):
-        if codes.dtype.kind not in "iu":
-            raise LopcookError("emit", None, f"{name} codes must be integers, got {codes.dtype}")
-        if codes.ndim == 2 and codes.shape[1] != width or codes.ndim not in (1, 2) or codes.size % width:
-            raise LopcookError("emit", None, f"{name} codes must be (n, {width}), got {codes.shape}")
-        if codes.size and (int(codes.min()) < 0 or int(codes.max()) > np.iinfo(dtype).max):
-            raise LopcookError("emit", None, f"{name} codes must be {dtype} values")
-        return codes.reshape(-1, width).astype(np.int64)
-    raw = np.ascontiguousarray(codes).view(np.uint8) if isinstance(codes, np.ndarray) else memoryview(codes).cast("B")
-    if raw.nbytes % dtype.itemsize:
-        raise LopcookError("emit", None, f"{name} data is {raw.nbytes} bytes, not a multiple of {dtype.itemsize}")
-    flat = np.frombuffer(raw, dtype=dtype)
-    if flat.size % width:
-        raise LopcookError("emit", None, f"{name} data holds {flat.size} values, not a multiple of {width}")
-    return flat.reshape(-1, width).astype(np.int64)
+def _codes_input(codes, width: int, bits: int, name: str) -> np.ndarray:
+    """(n, width) int64 codes from an integer array ((n, width) or flat) of values < 2^bits."""
+    c = np.asarray(codes)
+    if c.dtype.kind not in "iu":
+        raise LopcookError("emit", None, f"{name} codes must be integers, got {c.dtype}")
+    if c.ndim not in (1, 2) or (c.ndim == 2 and c.shape[1] != width) or c.size % width:
+        raise LopcookError("emit", None, f"{name} codes must be (n, {width}), got {c.shape}")
+    c = c.reshape(-1, width).astype(np.int64)
+    if c.size and (int(c.min()) < 0 or int(c.max()) >= (1 << bits)):
+        raise LopcookError("emit", None, f"{name} codes must be {bits}-bit values")
+    return c
 
 
-def _sgn(x: np.ndarray) -> np.ndarray:
-    """+1 for x >= 0 (including -0.0), -1 otherwise."""
+def _sgn64(x: np.ndarray) -> np.ndarray:
     return np.where(x >= 0.0, 1.0, -1.0)
+
+
+def _sgn32(x: np.ndarray) -> np.ndarray:
+    return np.where(x >= _F32(0.0), _F32(1.0), _F32(-1.0)).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------------------
 # normals
 
-def _oct_decode64(sx: np.ndarray, sy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """snorm16 values (int, any range) -> unit vector components, float64."""
-    px = np.clip(sx / float(_SNORM16), -1.0, 1.0)
-    py = np.clip(sy / float(_SNORM16), -1.0, 1.0)
+def _oct_decode32(cx: np.ndarray, cy: np.ndarray, bits: int) -> np.ndarray:
+    """float32 decode of integer codes (any shape) -> (..., 3) unnormalised float32."""
+    h = 1 << (bits - 1)
+    r = _F32(1.0 / (h - 1))
+    one = _F32(1.0)
+    px = np.maximum((cx - h).astype(np.float32) * r, _F32(-1.0))
+    py = np.maximum((cy - h).astype(np.float32) * r, _F32(-1.0))
     ax, ay = np.abs(px), np.abs(py)
-    z = 1.0 - ax - ay
-    neg = z < 0.0
-    x = np.where(neg, (1.0 - ay) * _sgn(px), px)
-    y = np.where(neg, (1.0 - ax) * _sgn(py), py)
-    inv = 1.0 / np.sqrt(x * x + y * y + z * z)
-    return x * inv, y * inv, z * inv
+    z = (one - ax) - ay
+    neg = z < _F32(0.0)
+    x = np.where(neg, (one - ay) * _sgn32(px), px).astype(np.float32)
+    y = np.where(neg, (one - ax) * _sgn32(py), py).astype(np.float32)
+    return np.stack([x, y, z.astype(np.float32)], axis=-1)
 
 
-def encode_normals(normals) -> np.ndarray:
-    """Octahedral oct32P codes ``(n, 2) "<u2"`` of ``(n, 3)`` normals (direction only).
-
-    Angular error <= :data:`NORMAL_MAX_ERROR_DEG` (0.0038 degrees); axis directions are exact.
-    Raises LopcookError for NaN/Inf or zero-length vectors.
-    """
+def encode_normals(normals, bits: int = 16) -> np.ndarray:
+    """Precise octahedral codes ``(n, 2) uint16`` (values in [1, 2^bits - 1]) of ``(n, 3)``
+    directions (any non-zero length). Angle to the decoded normal <= :func:`normal_error_deg`.
+    Raises LopcookError for NaN/Inf or zero-length vectors, or bits outside [4, 16]."""
+    b = _check_bits(bits, NORMAL_BITS, "normal")
+    h = 1 << (b - 1)
+    m = h - 1
     d = _float_input(normals, 3, "normals")
     n = d.shape[0]
     if n == 0:
-        return np.zeros((0, 2), dtype=_U2)
+        return np.zeros((0, 2), dtype=np.uint16)
     dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
     l1 = np.abs(dx) + np.abs(dy) + np.abs(dz)
     if not (l1 > 0.0).all():
@@ -273,16 +284,16 @@ def encode_normals(normals) -> np.ndarray:
                            hint="recompute normals for degenerate vertices before emitting")
     px, py = dx / l1, dy / l1
     neg = dz < 0.0
-    px, py = (np.where(neg, (1.0 - np.abs(py)) * _sgn(px), px),
-              np.where(neg, (1.0 - np.abs(px)) * _sgn(py), py))
-    fx = np.floor(px * _SNORM16)
-    fy = np.floor(py * _SNORM16)
+    px, py = (np.where(neg, (1.0 - np.abs(py)) * _sgn64(px), px),
+              np.where(neg, (1.0 - np.abs(px)) * _sgn64(py), py))
+    fx = np.floor(px * m).astype(np.int64)
+    fy = np.floor(py * m).astype(np.int64)
     best_x = best_y = best_dot = None
-    for ox, oy in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)):
-        cx = np.clip(fx + ox, -_SNORM16, _SNORM16)
-        cy = np.clip(fy + oy, -_SNORM16, _SNORM16)
-        x, y, z = _oct_decode64(cx, cy)
-        dot = x * dx + y * dy + z * dz
+    for ox, oy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        cx = np.clip(fx + ox, -m, m) + h
+        cy = np.clip(fy + oy, -m, m) + h
+        v = _oct_decode32(cx, cy, b).astype(np.float64)
+        dot = (v[:, 0] * dx + v[:, 1] * dy + v[:, 2] * dz) / np.sqrt((v * v).sum(axis=1))
         if best_dot is None:
             best_x, best_y, best_dot = cx, cy, dot
         else:
@@ -290,74 +301,306 @@ def encode_normals(normals) -> np.ndarray:
             best_x = np.where(better, cx, best_x)
             best_y = np.where(better, cy, best_y)
             best_dot = np.where(better, dot, best_dot)
-    out = np.empty((n, 2), dtype=_U2)
-    out[:, 0] = (best_x + _OFFSET16).astype(np.int64)
-    out[:, 1] = (best_y + _OFFSET16).astype(np.int64)
-    return out
+    return np.stack([best_x, best_y], axis=1).astype(np.uint16)
 
 
-def decode_normals(codes) -> np.ndarray:
-    """Unit normals ``(n, 3) float32`` from oct32P codes (an ``(n, 2)`` array or ``<u2`` bytes)."""
-    c = _codes_input(codes, _U2, 2, "normals")
-    x, y, z = _oct_decode64(c[:, 0] - _OFFSET16, c[:, 1] - _OFFSET16)
-    return np.stack([x, y, z], axis=1).astype(np.float32)
+def decode_normals(codes, bits: int = 16) -> np.ndarray:
+    """``(n, 3) float32`` UNNORMALISED octahedral normals (the float32 decode of the module doc)
+    from ``(n, 2)`` integer codes of ``bits`` bits; normalise where a unit vector is needed."""
+    b = _check_bits(bits, NORMAL_BITS, "normal")
+    c = _codes_input(codes, 2, b, "normals")
+    return _oct_decode32(c[:, 0], c[:, 1], b).reshape(-1, 3)
 
 
 # ---------------------------------------------------------------------------------------------
 # uvs
 
-def encode_uvs(uvs, lo=None, hi=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """unorm16 codes over the buffer's range: ``(codes (n, 2) "<u2", lo (2,) "<f4", hi (2,) "<f4")``.
+def uv_step(lo, hi, bits: int) -> np.ndarray:
+    """``float32((hi - lo) / (2^bits - 1))`` per component, computed in float64 from the float32
+    ``lo``, ``hi`` and rounded once; (2,) float32."""
+    b = _check_bits(bits, UV_BITS, "uv")
+    lo64 = np.asarray(lo, dtype=_F4).astype(np.float64).reshape(-1)
+    hi64 = np.asarray(hi, dtype=_F4).astype(np.float64).reshape(-1)
+    return ((hi64 - lo64) / float((1 << b) - 1)).astype(np.float32)
 
-    ``lo``/``hi`` default to the per-component min/max of ``uvs`` (zeros for an empty buffer);
-    when given (e.g. to share one range across buffers) they must be finite, ``lo <= hi``, and
-    contain every value. Error per component <= (hi - lo) / 131070 + float32 rounding.
-    """
+
+def _uv_decode32(q: np.ndarray, lo32: np.ndarray, step32: np.ndarray) -> np.ndarray:
+    return (lo32 + q.astype(np.float32) * step32).astype(np.float32)
+
+
+def encode_uvs(uvs, bits: int = 16, lo=None, hi=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Codes over the buffer's range: ``(codes (n, 2) uint16, lo (2,) float32, hi (2,) float32,
+    step (2,) float32)``.
+
+    ``lo``/``hi`` default to the per-component min/max of ``uvs`` (rounded outwards to float32;
+    zeros for an empty buffer);
+    when given they must be finite, ``lo <= hi``, and contain every value. Error per component
+    <= :func:`uv_error_bound`."""
+    b = _check_bits(bits, UV_BITS, "uv")
+    top = (1 << b) - 1
     u = _float_input(uvs, 2, "uvs")
-    if lo is None:
-        lo32 = u.min(axis=0).astype(_F4) if u.shape[0] else np.zeros(2, dtype=_F4)
+    if lo is None:  # the float32 at or below the minimum (float64 input may lie between float32s)
+        lo32 = np.zeros(2, dtype=_F4)
+        if u.shape[0]:
+            m = u.min(axis=0)
+            lo32 = m.astype(_F4)
+            lo32 = np.where(lo32.astype(np.float64) > m, np.nextafter(lo32, _F32(-np.inf)), lo32).astype(_F4)
     else:
         lo32 = np.asarray(lo, dtype=_F4).reshape(2)
-    if hi is None:
-        hi32 = u.max(axis=0).astype(_F4) if u.shape[0] else np.zeros(2, dtype=_F4)
+    if hi is None:  # the float32 at or above the maximum
+        hi32 = np.zeros(2, dtype=_F4)
+        if u.shape[0]:
+            m = u.max(axis=0)
+            hi32 = m.astype(_F4)
+            hi32 = np.where(hi32.astype(np.float64) < m, np.nextafter(hi32, _F32(np.inf)), hi32).astype(_F4)
     else:
         hi32 = np.asarray(hi, dtype=_F4).reshape(2)
-    lo32, hi32 = lo32 + _F4.type(0), hi32 + _F4.type(0)  # -0.0 -> +0.0: same bytes for +-0 input
+    lo32, hi32 = (lo32 + _F32(0)).astype(np.float32), (hi32 + _F32(0)).astype(np.float32)  # -0.0 -> +0.0
     lo64, hi64 = lo32.astype(np.float64), hi32.astype(np.float64)
     if not (np.isfinite(lo64).all() and np.isfinite(hi64).all() and (lo64 <= hi64).all()):
         raise LopcookError("emit", None, f"uv range must be finite with lo <= hi, got lo={lo64}, hi={hi64}")
     if u.shape[0] and ((u < lo64).any() or (u > hi64).any()):
         raise LopcookError("emit", None, f"uvs fall outside the given range lo={lo64}, hi={hi64}",
                            hint="omit lo/hi to use the buffer's own range")
-    span = hi64 - lo64
-    safe = np.where(span > 0.0, span, 1.0)
-    q = np.rint((u - lo64) / safe * _UNORM16)
-    q = np.where(span > 0.0, np.clip(q, 0, _UNORM16), 0.0)
-    return q.astype(_U2), lo32, hi32
+    step32 = uv_step(lo32, hi32, b)
+    step64 = step32.astype(np.float64)
+    safe = np.where(step64 > 0.0, step64, 1.0)
+    q0 = np.where(step64 > 0.0, np.clip(np.rint((u - lo64) / safe), 0, top), 0.0).astype(np.int64)
+    best_q, best_err = None, None
+    for off in (-1, 0, 1):
+        q = np.where(step64 > 0.0, np.clip(q0 + off, 0, top), 0)
+        err = np.abs(_uv_decode32(q, lo32, step32).astype(np.float64) - u)
+        if best_q is None:
+            best_q, best_err = q, err
+        else:
+            better = err < best_err
+            best_q = np.where(better, q, best_q)
+            best_err = np.where(better, err, best_err)
+    return best_q.astype(np.uint16), lo32, hi32, step32
 
 
-def decode_uvs(codes, lo, hi) -> np.ndarray:
-    """``(n, 2) float32`` uvs: ``lo * (1 - q/65535) + hi * (q/65535)`` in float64, rounded to float32."""
-    c = _codes_input(codes, _U2, 2, "uvs")
-    lo64 = np.asarray(lo, dtype=_F4).reshape(2).astype(np.float64)
-    hi64 = np.asarray(hi, dtype=_F4).reshape(2).astype(np.float64)
-    t = c / float(_UNORM16)
-    return (lo64 * (1.0 - t) + hi64 * t).astype(np.float32)
+def decode_uvs(codes, lo, step, bits: int = 16) -> np.ndarray:
+    """``(n, 2) float32`` uvs ``lo + float32(q) * step`` (float32) from ``(n, 2)`` integer codes."""
+    b = _check_bits(bits, UV_BITS, "uv")
+    c = _codes_input(codes, 2, b, "uvs")
+    lo32 = np.asarray(lo, dtype=_F4).reshape(2).astype(np.float32)
+    step32 = np.asarray(step, dtype=_F4).reshape(2).astype(np.float32)
+    return _uv_decode32(c, lo32, step32)
 
 
 # ---------------------------------------------------------------------------------------------
 # colors
 
-def encode_colors(colors) -> np.ndarray:
-    """RGBA unorm8 codes ``(n, 4) "u1"``; inputs clamped to [0, 1]; error <= 1/510 per channel."""
+def encode_colors(colors, bits: int = 8) -> np.ndarray:
+    """RGBA codes ``(n, 4) uint16`` in [0, 2^bits - 1]; inputs clamped to [0, 1]; error <=
+    :func:`color_error_bound`."""
+    b = _check_bits(bits, COLOR_BITS, "color")
     c = _float_input(colors, 4, "colors")
-    return np.rint(np.clip(c, 0.0, 1.0) * _UNORM8).astype(_U1)
+    return np.rint(np.clip(c, 0.0, 1.0) * float((1 << b) - 1)).astype(np.uint16)
 
 
-def decode_colors(codes) -> np.ndarray:
-    """``(n, 4) float32`` linear RGBA ``q / 255`` from unorm8 codes (an array or bytes)."""
-    c = _codes_input(codes, _U1, 4, "colors")
-    return (c / float(_UNORM8)).astype(np.float32)
+def decode_colors(codes, bits: int = 8) -> np.ndarray:
+    """``(n, 4) float32`` linear RGBA ``float32(q) * float32(1 / (2^bits - 1))``."""
+    b = _check_bits(bits, COLOR_BITS, "color")
+    c = _codes_input(codes, 4, b, "colors")
+    return (c.astype(np.float32) * _F32(1.0 / ((1 << b) - 1))).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------
+# the record
+
+def record_fields(bits: AttributeBits) -> list[tuple[str, int, int, int]]:
+    """``(attribute, component, bit offset in the record, width)`` of every field, in record order."""
+    out, off = [], 0
+    for name, k, b in (("normals", 2, bits.normals), ("uvs", 2, bits.uvs), ("colors", 4, bits.colors)):
+        if b is None:
+            continue
+        for c in range(k):
+            out.append((name, c, off, int(b)))
+            off += int(b)
+    return out
+
+
+def record_words(n: int, bits: AttributeBits) -> int:
+    """uint32 words of a buffer's attributes section: ``ceil(n S / 32)``."""
+    return (int(n) * bits.record_bits + 31) // 32
+
+
+def record_waste(n: int, bits: AttributeBits) -> int:
+    """Bits of the section not holding a field: ``32 words - n S`` (< 32 per buffer)."""
+    return 32 * record_words(n, bits) - int(n) * bits.record_bits
+
+
+def aligned_waste(bits: AttributeBits) -> int:
+    """Wasted bits per vertex when no component may cross a 32-bit word (Purnomo 2005, section 4):
+    the components packed first-fit decreasing into 32-bit bins, ``32 * bins - S``."""
+    widths = sorted((w for _, _, _, w in record_fields(bits)), reverse=True)
+    bins: list[int] = []
+    for w in widths:
+        for i, used in enumerate(bins):
+            if used + w <= 32:
+                bins[i] += w
+                break
+        else:
+            bins.append(w)
+    return 32 * len(bins) - bits.record_bits
+
+
+def encode_record(normals, uvs, colors, bits: AttributeBits) -> tuple[np.ndarray, dict]:
+    """Pack one buffer's attributes (binned order) into its record section.
+
+    normals (n, 3), uvs (n, 2), colors (n, 4) or None each, matching which of ``bits``'s fields
+    are set (an attribute given with bits None, or bits given without the attribute, is an
+    error). Returns ``(words (ceil(n S / 32),) "<u4", meta)`` with meta ``{"record_bits": S,
+    "uv_range": [[lo_u, lo_v], [hi_u, hi_v]] | None, "uv_step": [su, sv] | None, "wasted_bits"}``
+    (JSON floats of the float32 values). ``words.tobytes()`` is the section payload."""
+    arrays = {"normals": normals, "uvs": uvs, "colors": colors}
+    n = None
+    for name, a in arrays.items():
+        have_bits = getattr(bits, name) is not None
+        if (a is None) == have_bits:
+            raise LopcookError("emit", None, f"{name}: attribute {'absent' if a is None else 'present'} but "
+                               f"bits {getattr(bits, name)!r}")
+        if a is not None:
+            k = np.asarray(a).shape[0]
+            if n is not None and k != n:
+                raise LopcookError("emit", None, f"attribute lengths differ ({n} and {k} vertices)")
+            n = k
+    n = n or 0
+    codes = {}
+    meta = {"record_bits": bits.record_bits, "uv_range": None, "uv_step": None}
+    if normals is not None:
+        codes["normals"] = encode_normals(normals, bits.normals)
+    if uvs is not None:
+        q, lo, hi, step = encode_uvs(uvs, bits.uvs)
+        codes["uvs"] = q
+        meta["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
+        meta["uv_step"] = [float(step[0]), float(step[1])]
+    if colors is not None:
+        codes["colors"] = encode_colors(colors, bits.colors)
+    words = pack_record({k: v.astype(np.int64) for k, v in codes.items()}, n, bits)
+    meta["wasted_bits"] = record_waste(n, bits)
+    return words, meta
+
+
+def pack_record(codes: dict, n: int, bits: AttributeBits) -> np.ndarray:
+    """Pack integer codes (``{"normals": (n, 2), "uvs": (n, 2), "colors": (n, 4)}``, each field
+    below 2^width) into ``ceil(n S / 32)`` uint32 words, LSB first, vertex j at bit j S."""
+    s = bits.record_bits
+    nwords = record_words(n, bits)
+    if nwords == 0:
+        return np.zeros(0, dtype=_U4)
+    base = np.arange(n, dtype=np.int64) * s
+    idx, val = [], []
+    for name, c, off, w in record_fields(bits):
+        v = np.asarray(codes[name])[:, c].astype(np.int64)
+        if v.size and (int(v.min()) < 0 or int(v.max()) >= (1 << w)):
+            raise LopcookError("emit", None, f"{name} codes exceed {w} bits")
+        pos = base + off
+        wi, sh = pos >> 5, pos & 31
+        idx.append(wi)
+        val.append((v << sh) & 0xFFFFFFFF)
+        cross = sh + w > 32
+        idx.append(wi[cross] + 1)
+        val.append(v[cross] >> (32 - sh[cross]))
+    # the fields' bits are disjoint, so the sum per word is their OR (exact in float64: < 2^32)
+    total = np.bincount(np.concatenate(idx), weights=np.concatenate(val).astype(np.float64), minlength=nwords)
+    return total.astype(np.uint64).astype(_U4)
+
+
+def unpack_record(words, n: int, bits: AttributeBits) -> dict:
+    """Integer codes ``{"normals": (n, 2), ...}`` (int64, present attributes only) of a record
+    section: the word reads of ``lop_read_field`` (second word index clamped to the last)."""
+    w = np.asarray(words)
+    if w.dtype.kind not in "iu" or w.ndim != 1:
+        raise LopcookError("emit", None, f"attribute words must be a 1-D integer array, got {w.dtype} {w.shape}")
+    need = record_words(n, bits)
+    if w.size < need:
+        raise LopcookError("emit", None, f"attribute section holds {w.size} words, {n} vertices need {need}")
+    w = w.astype(np.uint64)
+    last = max(w.size - 1, 0)
+    base = np.arange(n, dtype=np.int64) * bits.record_bits
+    out: dict = {}
+    for name, c, off, width in record_fields(bits):
+        pos = base + off
+        wi, sh = pos >> 5, (pos & 31).astype(np.uint64)
+        lo = w[wi] >> sh
+        hi = ((w[np.minimum(wi + 1, last)] << np.uint64(1)) << (np.uint64(31) - sh)) & np.uint64(0xFFFFFFFF)
+        v = ((lo | hi) & np.uint64((1 << width) - 1)).astype(np.int64)
+        out.setdefault(name, [None] * (2 if name != "colors" else 4))[c] = v
+    return {k: np.stack(v, axis=1) for k, v in out.items()}
+
+
+def decode_record(words, n: int, bits: AttributeBits, uv_range=None, uv_step=None) -> dict:
+    """``{"normals", "uvs", "colors"}``: float32 decodes (normals unnormalised; None for an absent
+    attribute) of a record section of ``n`` vertices. ``uv_range`` ``[[lo_u, lo_v], [hi_u, hi_v]]``
+    and ``uv_step`` ``[su, sv]`` are needed when ``bits.uvs`` is set."""
+    codes = unpack_record(words, n, bits)
+    out = {"normals": None, "uvs": None, "colors": None}
+    if bits.normals is not None:
+        out["normals"] = _oct_decode32(codes["normals"][:, 0], codes["normals"][:, 1], bits.normals).reshape(-1, 3)
+    if bits.uvs is not None:
+        if uv_range is None or uv_step is None:
+            raise LopcookError("emit", None, "uv codes need their uv_range and uv_step")
+        out["uvs"] = decode_uvs(codes["uvs"], np.asarray(uv_range[0], _F4), np.asarray(uv_step, _F4), bits.uvs)
+    if bits.colors is not None:
+        out["colors"] = decode_colors(codes["colors"], bits.colors)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# specs
+
+_SPECS = {
+    "normals": {
+        "encoding": "octahedral, precise (best of 4 neighbouring codes; Cigolle et al. 2014), b bits per "
+                    "component: h = 2^(b-1), m = h - 1, code = s + h; decode float32: "
+                    "p = max(float32(code - h) * float32(1/m), -1); z = (1 - |p.x|) - |p.y|; "
+                    "if z < 0: (x, y) = ((1 - |p.y|) sgn(p.x), (1 - |p.x|) sgn(p.y)); (x, y, z) unnormalised",
+        "components": 2, "bits": list(NORMAL_BITS), "per": "vertex", "record": "attributes",
+        "max_error": "2.7 * 2^(6 - b) (b >= 6); 11.65 (b = 4); 5.45 (b = 5)", "unit": "degrees",
+    },
+    "uvs": {
+        "encoding": "b bits per component over the buffer range (uv_range): step = float32((hi - lo) / (2^b - 1)) "
+                    "(uv_step); decode float32: u = lo + float32(q) * step",
+        "components": 2, "bits": list(UV_BITS), "per": "vertex", "record": "attributes",
+        "max_error": "step / 2 + (hi - lo) * 2^-24 + ulp32(max(|lo|, |hi|))",
+        "unit": "UV units per component",
+    },
+    "colors": {
+        "encoding": "RGBA linear, b bits per channel, inputs clamped to [0, 1]: q = rint(c (2^b - 1)); "
+                    "decode float32: c = float32(q) * float32(1 / (2^b - 1))",
+        "components": 4, "bits": list(COLOR_BITS), "per": "vertex", "record": "attributes",
+        "max_error": "1 / (2 (2^b - 1)) + 2^-24", "unit": "linear [0, 1] per channel",
+    },
+    "attributes": {
+        "encoding": "one record per vertex (binned order) of the present fields normal.u, normal.v, uv.u, uv.v, "
+                    "color.r, g, b, a; S = 2 b_n + 2 b_u + 4 b_c bits; vertex j at bit j S; fields "
+                    "consecutive, least significant bit first, a field may span two 32-bit words",
+        "dtype": "<u4", "per": "buffer", "words": "ceil(n S / 32)",
+    },
+    "indices": {
+        "encoding": "uint16 when n_vertices <= 65535 (so 65535, the primitive-restart value, never appears), else uint32; i0 i1 i2 per triangle",
+        "dtype": "<u2 or <u4", "components": 3, "bits": 16, "bits_large": 32,
+        "bytes_per": 6, "bytes_per_large": 12, "per": "triangle",
+        "max_error": 0, "unit": "exact",
+    },
+}
+
+
+def attribute_specs() -> dict:
+    """Encodings and their worst-case errors as JSON-ready data (a fresh copy): ``"normals"``,
+    ``"uvs"``, ``"colors"`` (``bits`` the allowed [min, max] per component, ``max_error`` the
+    bound as a formula of b), ``"attributes"`` (the record layout) and ``"indices"``."""
+    return copy.deepcopy(_SPECS)
+
+
+def index_width(n_vertices: int) -> int:
+    """Bytes per index: 2 when ``n_vertices <= 65535`` (indices <= 65534, never the uint16
+    primitive-restart value 65535), else 4."""
+    if n_vertices < 0:
+        raise LopcookError("emit", None, f"n_vertices must be >= 0, got {n_vertices}")
+    return 2 if n_vertices <= 65535 else 4
 
 
 # ---------------------------------------------------------------------------------------------

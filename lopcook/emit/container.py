@@ -39,7 +39,7 @@ from ..atomic import write_atomic  # noqa: F401  (re-exported: the writer of .lo
 from ..errors import LopcookError
 
 MAGIC = b"LOPC"
-VERSION = (1, 0)
+VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
 HEADER_SIZE = 32
 _HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
 

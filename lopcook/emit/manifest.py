@@ -14,6 +14,7 @@ import numpy as np
 
 from ..grid import MIN_EXTENT
 from ..errors import LopcookError
+from ..settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
 
 FORMAT = "lopcook.lop"
 LEVELS = 24
@@ -41,8 +42,10 @@ def validate_manifest(m, path: str | None) -> None:
     unique, lengths multiples of 4; the position sections last, mandatory then planes in level
     order; every section name a LOD or ``positions`` refers to exists; each LOD's ``vertex_id``
     25 non-decreasing counts, ``mandatory_words`` matching its bins, index width matching its
-    vertex count, every section long enough for what it is said to hold; ``uv_range`` finite
-    float32 with lo <= hi. This module is strict rather than the readers tolerant: a manifest
+    vertex count, every section long enough for what it is said to hold; ``attribute_bits``
+    within their ranges, ``record_bits`` their record size, shared by a part's LODs (the part's
+    ``attribute_bits``), ``attributes`` naming a section of ``ceil(n S / 32)`` words when S > 0;
+    ``uv_range`` finite float32 with lo <= hi and ``uv_step`` its float32 step at b_u bits. This module is strict rather than the readers tolerant: a manifest
     that lacks an informative field the schema requires is refused, with one message naming it.
     """
 
@@ -74,11 +77,17 @@ def validate_manifest(m, path: str | None) -> None:
             fail(f"{where}.{key} is {val}, expected at least {minimum}")
         return val
 
-    def optional_name(obj, key, where):
-        val = obj.get(key)
-        if val is not None and not isinstance(val, str):
-            fail(f"{where}.{key} must be a section name or null")
-        return val
+    def check_bits(lod, where):
+        from .attributes import AttributeBits
+
+        ab = need(lod, "attribute_bits", dict, where)
+        if set(ab) != {"normals", "uvs", "colors"}:
+            fail(f"{where}.attribute_bits must hold exactly normals, uvs, colors")
+        for key, (lo, hi) in (("normals", NORMAL_BITS_RANGE), ("uvs", UV_BITS_RANGE), ("colors", COLOR_BITS_RANGE)):
+            v = ab[key]
+            if v is not None and not (is_int(v) and lo <= v <= hi):
+                fail(f"{where}.attribute_bits.{key} must be null or an integer in [{lo}, {hi}]")
+        return AttributeBits.of(ab)
 
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         fail(f"format is not {FORMAT!r}")
@@ -186,6 +195,7 @@ def validate_manifest(m, path: str | None) -> None:
         lods = need(part, "lods", list, f"parts[{i}]")
         if not lods:
             fail(f"parts[{i}] has no LODs")
+        i_bits = None
         for k, lod in enumerate(lods):
             where = f"parts[{i}].lods[{k}]"
             if not isinstance(lod, dict):
@@ -207,10 +217,16 @@ def validate_manifest(m, path: str | None) -> None:
                 fail(f"{where}.index_width must be 2 or 4")
             if need(lod, "indices", str, where) not in names:
                 fail(f"{where}.indices names no section")
-            for key in ("normals", "uvs", "colors"):
-                val = optional_name(lod, key, where)
-                if val is not None and val not in names:
-                    fail(f"{where}.{key} names no section")
+            abits = check_bits(lod, where)
+            if i_bits is None:
+                i_bits = abits
+            rec = lod.get("attributes")
+            if rec is not None and (not isinstance(rec, str) or rec not in names):
+                fail(f"{where}.attributes names no section")
+            if (rec is None) != (abits.record_bits == 0):
+                fail(f"{where}.attributes must name a section exactly when record_bits > 0")
+            if need(lod, "record_bits", int, where) != abits.record_bits:
+                fail(f"{where}.record_bits is not 2 b_n + 2 b_u + 4 b_c of its attribute_bits")
             mw = need(lod, "mandatory_words", list, where)
             if len(mw) != 2 or not all(is_int(v) and v >= 0 for v in mw):
                 fail(f"{where}.mandatory_words must be [offset, count]")
@@ -226,16 +242,25 @@ def validate_manifest(m, path: str | None) -> None:
                 fail(f"{where}.index_width {width} does not match {n} vertices")
             if length[lod["indices"]] < 3 * tri * width:
                 fail(f"{where}: index section is shorter than {tri} triangles")
-            for key, nbytes in (("normals", 4), ("uvs", 4), ("colors", 4)):
-                if lod.get(key) is not None and length[lod[key]] < nbytes * n:
-                    fail(f"{where}: {key} section is shorter than {n} vertices")
-            if lod.get("uvs") is not None:
+            if rec is not None and length[rec] < 4 * ((n * abits.record_bits + 31) // 32):
+                fail(f"{where}: attributes section is shorter than {n} records of {abits.record_bits} bits")
+            if abits.uvs is not None:
                 rng = need(lod, "uv_range", list, where)
                 if len(rng) != 2 or not all(isinstance(r, list) and len(r) == 2 and all(is_num(v) for v in r)
                                             for r in rng):
                     fail(f"{where}.uv_range must be [[lo_u, lo_v], [hi_u, hi_v]] of finite float32 numbers")
                 if not (rng[0][0] <= rng[1][0] and rng[0][1] <= rng[1][1]):
                     fail(f"{where}.uv_range has lo above hi")
+                step = need(lod, "uv_step", list, where)
+                if len(step) != 2 or not all(is_num(v) for v in step):
+                    fail(f"{where}.uv_step must be [step_u, step_v] of finite float32 numbers")
+                want = ((np.asarray(rng[1], np.float32).astype(np.float64) - np.asarray(rng[0], np.float32))
+                        / float((1 << abits.uvs) - 1)).astype(np.float32)
+                if not np.array_equal(np.asarray(step, np.float64), want.astype(np.float64)):
+                    fail(f"{where}.uv_step is not float32((hi - lo) / (2^b_u - 1)) of its uv_range")
+        pb = need(part, "attribute_bits", dict, f"parts[{i}]")
+        if pb != i_bits.as_dict():
+            fail(f"parts[{i}].attribute_bits is not the attribute_bits its LODs share")
     if length[pos["mandatory"]] < 4 * words_next:
         fail("positions.mandatory is shorter than the buffers it holds")
     for p, bits in plane_bits.items():
@@ -257,8 +282,9 @@ class LodEntry:
     vertices, triangles : counts; vertex_id : (25,) the VertexId table (vertex_id[k] = vertices
     with minimum level < k+1 ... see docs/format.md); geometric_error_m : metres from LOD 0;
     min_distance_m : camera distance (metres) from which a runtime selects it, or None;
-    index_width : 2 or 4 bytes; section_bytes : stored bytes (padding included) of its
-    ``indices``, ``normals``, ``uvs`` and ``colors`` sections (0 when absent).
+    index_width : 2 or 4 bytes; section_bytes : stored bytes of its ``indices`` and
+    ``attributes`` sections (0 when absent); attribute_bits : ``{"normals", "uvs", "colors"}``
+    bits per component (None when absent); record_bits : S, bits per vertex of its attributes.
     """
 
     vertices: int
@@ -269,6 +295,8 @@ class LodEntry:
     index_width: int
     section_bytes: dict
     mandatory_words: int = 0
+    attribute_bits: dict | None = None
+    record_bits: int = 0
 
     def cap_bytes(self, level: int) -> int:
         """GPU-resident bytes of the binned (CAP) position buffer at per-buffer level B: every
@@ -305,8 +333,9 @@ class LodEntry:
 
     @property
     def attribute_bytes(self) -> int:
-        """Stored bytes of its vertex attributes (normals, UVs, colours); indices not included."""
-        return sum(int(self.section_bytes.get(k, 0)) for k in ("normals", "uvs", "colors"))
+        """Stored bytes of its vertex attributes (the packed normal/UV/colour record section,
+        ``4 ceil(n S / 32)``); indices not included."""
+        return int(self.section_bytes.get("attributes", 0))
 
 
 @dataclass(frozen=True)
@@ -338,9 +367,9 @@ class Manifest:
                                   vertex_id=tuple(int(v) for v in e["vertex_id"]),
                                   geometric_error_m=float(e.get("geometric_error_m", 0.0)),
                                   min_distance_m=e.get("min_distance_m"), index_width=int(e.get("index_width") or 0),
-                                  section_bytes={k: sizes.get(e.get(k) or "", 0)
-                                                 for k in ("indices", "normals", "uvs", "colors")},
-                                  mandatory_words=int((e.get("mandatory_words") or [0, 0])[1]))
+                                  section_bytes={k: sizes.get(e.get(k) or "", 0) for k in ("indices", "attributes")},
+                                  mandatory_words=int((e.get("mandatory_words") or [0, 0])[1]),
+                                  attribute_bits=e.get("attribute_bits"), record_bits=int(e.get("record_bits") or 0))
                          for e in p["lods"])
             parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods))
         return cls(parts=tuple(parts), max_level=int(m["positions"]["max_level"]))

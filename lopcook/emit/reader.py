@@ -117,8 +117,12 @@ def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: 
     return to_grid(values, widths), widths, recon(values, widths, g["origin"], cell)
 
 
-def lod_attributes(c: Container, part: int, lod: int) -> dict:
-    """Decoded indices (m, 3) uint32 and normals / uvs / colors (float32 or None), binned order."""
+def lod_attributes(c: Container, part: int, lod: int, *, unit_normals: bool = False) -> dict:
+    """Decoded indices (m, 3) uint32 and normals / uvs / colors (float32 or None), binned order,
+    from the LOD's index section and its packed attribute record (``attributes.decode_record``):
+    normals are the UNNORMALISED float32 octahedral decode (normalise where a unit vector is
+    needed, or pass ``unit_normals=True``: float32 of the float64 normalisation), uvs and colours
+    the float32 decodes, exactly as the shaders compute them."""
     e = lod_entry(c, part, lod)
     dtype = "<u2" if e["index_width"] == 2 else "<u4"
     raw = np.frombuffer(c.section(e["indices"]), dtype)
@@ -126,12 +130,14 @@ def lod_attributes(c: Container, part: int, lod: int) -> dict:
         raise LopcookError("container", c.path, f"part {part} LOD {lod}: index section is too short")
     out = {"indices": attr.decode_indices(raw[: 3 * e["triangles"]], e["index_width"], e["triangles"])}
     n = e["vertices"]
-    out["normals"] = None if e.get("normals") is None else attr.decode_normals(
-        np.frombuffer(c.section(e["normals"]), "<u2")[: 2 * n])
-    out["uvs"] = None if e.get("uvs") is None else attr.decode_uvs(
-        np.frombuffer(c.section(e["uvs"]), "<u2")[: 2 * n], np.float32(e["uv_range"][0]), np.float32(e["uv_range"][1]))
-    out["colors"] = None if e.get("colors") is None else attr.decode_colors(
-        np.frombuffer(c.section(e["colors"]), np.uint8)[: 4 * n])
+    bits = attr.AttributeBits.of(e.get("attribute_bits") or {})
+    out.update({"normals": None, "uvs": None, "colors": None})
+    if e.get("attributes") is not None:
+        words = np.frombuffer(c.section(e["attributes"]), "<u4")
+        out.update(attr.decode_record(words, n, bits, e.get("uv_range"), e.get("uv_step")))
+        if unit_normals and out["normals"] is not None:
+            v = out["normals"].astype(np.float64)
+            out["normals"] = (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32)
     if int(out["indices"].max(initial=0)) >= n:
         raise LopcookError("container", c.path, f"part {part} LOD {lod}: index out of range")
     return out

@@ -62,6 +62,48 @@ def hierarchy_stats(c: Container, part: int) -> dict | None:
             "triangles": int(rec["triangles"])}
 
 
+ATTRIBUTE_COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
+
+
+def _attribute_vertex_bits(bits: dict | None) -> dict:
+    b = bits or {}
+    return {k: (0 if b.get(k) is None else k_n * int(b[k])) for k, k_n in ATTRIBUTE_COMPONENTS.items()}
+
+
+def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
+    """Bits per vertex of a container, per part and in total (``inspect``'s ``vertex_bits``).
+
+    ``{"parts": [per part: {"positions": {"6": ..}, "normals", "uvs", "colors", "total": {"6": ..}}],
+    "total": {same keys}}``. Per part: ``positions[L]`` = 8 x the CAP bytes (whole uint32 words,
+    ``LodEntry.cap_bytes``) of its LOD 0 at per-buffer level L per vertex; ``normals`` = 2 b_n,
+    ``uvs`` = 2 b_u, ``colors`` = 4 b_c (0 when absent); ``total[L]`` their sum. The total is
+    vertex-weighted over every buffer of the file (all parts, all LODs)."""
+    levels = [int(L) for L in levels if 1 <= int(L) <= c.manifest["positions"]["max_level"]]
+    entries = c.entries
+    parts = []
+    tot_v = 0
+    tot_pos = {L: 0 for L in levels}
+    tot_attr = {k: 0 for k in ATTRIBUTE_COMPONENTS}
+    for p in entries.parts:
+        e0 = p.lods[0]
+        attr = _attribute_vertex_bits(e0.attribute_bits)
+        pos = {str(L): 8.0 * e0.cap_bytes(L) / max(e0.vertices, 1) for L in levels}
+        a_sum = sum(attr.values())
+        parts.append({"positions": pos, **attr, "total": {k: v + a_sum for k, v in pos.items()}})
+        for e in p.lods:
+            tot_v += e.vertices
+            for L in levels:
+                tot_pos[L] += 8 * e.cap_bytes(L)
+            for k, v in _attribute_vertex_bits(e.attribute_bits).items():
+                tot_attr[k] += v * e.vertices
+    n = max(tot_v, 1)
+    attr_total = {k: v / n for k, v in tot_attr.items()}
+    pos_total = {str(L): tot_pos[L] / n for L in levels}
+    a_sum = sum(attr_total.values())
+    total = {"positions": pos_total, **attr_total, "total": {k: v + a_sum for k, v in pos_total.items()}}
+    return {"parts": parts, "total": total}
+
+
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
     m = c.manifest
@@ -72,11 +114,15 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         kind = "planes" if kind.startswith("plane") else kind
         by_kind[kind] = by_kind.get(kind, 0) + s["length"]
     parts = []
+    vb = vertex_bits(c)
     for p in m["parts"]:
         lods = [{"vertices": e["vertices"], "triangles": e["triangles"], "geometric_error_m": e["geometric_error_m"],
                  "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
-                 "attributes": [k for k in ("normals", "uvs", "colors") if e.get(k)]} for e in p["lods"]]
-        parts.append({"name": p["name"], "source": p["source"], "lods": lods})
+                 "attributes": [k for k in ("normals", "uvs", "colors") if (e.get("attribute_bits") or {}).get(k)],
+                 "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0)}
+                for e in p["lods"]]
+        parts.append({"name": p["name"], "source": p["source"], "lods": lods,
+                      "attribute_bits": p.get("attribute_bits"), "vertex_bits": vb["parts"][len(parts)]})
         if p.get("hierarchy") is not None:
             parts[-1]["hierarchy"] = hierarchy_stats(c, len(parts) - 1)
     return {
@@ -100,6 +146,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "sections": sections,
         "memory": memory_rows(c),
         "savings": m.get("savings"),
+        "vertex_bits": vb["total"],
         "parts": parts,
         "lod_warnings": lod_shortfalls(c),
     }

@@ -175,7 +175,7 @@ def refine(c, camera, target, *, fov: float = 60.0, viewport=(1920, 1080), pixel
         cut = select_cut(h, camera, target, fov=fov, viewport=viewport, pixel_error=pixel_error, up=up,
                          backface=backface)
         vert = h.vertex_of_leaf[h.node_leaf[cut.nodes]]
-        a = lod_attributes(c, i, 0)
+        a = lod_attributes(c, i, 0, unit_normals=True)
         meshes.append({"name": parts[i]["name"], "positions": pos[vert], "indices": cut.triangles,
                        "normals": None if a["normals"] is None else a["normals"][vert],
                        "uvs": None if a["uvs"] is None else a["uvs"][vert],

@@ -91,7 +91,7 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
         level = min(24, int(c.available_level))
         for i in range(len(c.manifest["parts"])):
             _, _, pos = decode_positions(c, i, 0, level, float32=False)
-            a = lod_attributes(c, i, 0)
+            a = lod_attributes(c, i, 0, unit_normals=True)
             geometry.append((np.asarray(pos, np.float64), a["indices"], a["normals"]))
             per_part.append(container_levels(c, i))
     allv = np.concatenate(per_part)
