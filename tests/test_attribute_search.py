@@ -102,3 +102,106 @@ def test_knobs_and_steps_respect_the_ranges():
     many = TA.Allocation(0.0, tuple((10, 10, None) for _ in range(TA.MAX_PART_KNOBS + 1)))
     shared = [k for k in TA.knobs(many) if k.attribute == "normals"]
     assert len(shared) == 1 and TA.step(many, shared[0], +1).parts[-1] == (11, 10, None)
+
+
+# ---- the real search on a small fixture (cook --vertex-bits, report) -----------------------------
+
+HARNESS = ["--calibration-views", "2", "--calibration-resolution", "160x90", "--calibration-levels", "7,11",
+           "--no-calibration-confirm"]
+
+
+def _cook(src, out, *extra) -> int:
+    from lopcook.cli import main
+
+    return main(["-q", "cook", str(src), "-o", str(out), *HARNESS, *extra])
+
+
+@pytest.fixture(scope="module")
+def budget_cooks(gl, tmp_path_factory):
+    """unit_sphere cooked by default and twice with --vertex-bits N, N 12 bits under the default's."""
+    from conftest import FIXTURES
+    from lopcook.emit.container import read
+
+    d = tmp_path_factory.mktemp("vbits")
+    src = FIXTURES / "unit_sphere.glb"
+    assert _cook(src, d / "default.lop") == 0
+    default = TA.vertex_bits(read(d / "default.lop"))["total"]
+    n = math.floor(default) - 12
+    assert _cook(src, d / "a.lop", "--vertex-bits", str(n)) == 0
+    assert _cook(src, d / "b.lop", "--vertex-bits", str(n)) == 0
+    return src, d, n, default
+
+
+def test_vertex_bits_result_fits_and_is_recorded(budget_cooks):
+    from lopcook.emit.container import read
+
+    src, d, n, default = budget_cooks
+    c = read(d / "a.lop")
+    got = TA.vertex_bits(c)["total"]
+    assert got <= n < default
+    rec = c.manifest["options"]["attribute_search"]
+    assert rec["mode"] == "budget" and rec["goal"] == n and rec["bits_per_vertex"] == pytest.approx(got, abs=1e-3)
+    # the recorded choice is what the container holds, part by part
+    assert TA.container_allocation(c, rec["choice"]["log2_kf_scale"]).record() == rec["choice"]
+    assert all(p["bits_per_vertex"] > 0 for p in rec["probes"]) and rec["probes"][0]["step"] == "start"
+
+
+def test_vertex_bits_is_deterministic(budget_cooks):
+    _, d, _, _ = budget_cooks
+    assert (d / "a.lop").read_bytes() == (d / "b.lop").read_bytes()
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "nan", "inf"])
+def test_bad_vertex_bits_exit_2(tmp_path, capsys, value):
+    from conftest import FIXTURES
+
+    assert _cook(FIXTURES / "unit_sphere.glb", tmp_path / "x.lop", "--vertex-bits", value) == 2
+    assert "--vertex-bits" in capsys.readouterr().err
+    assert not (tmp_path / "x.lop").exists()
+
+
+def test_vertex_bits_with_another_goal_or_unreachable_exits_2(gl, tmp_path, capsys):
+    from conftest import FIXTURES
+
+    src = FIXTURES / "unit_sphere.glb"
+    assert _cook(src, tmp_path / "x.lop", "--vertex-bits", "64", "--target-psnr", "40") == 2
+    assert _cook(src, tmp_path / "y.lop", "--vertex-bits", "1") == 2
+    err = capsys.readouterr().err
+    assert "the least this scene can take" in err and "Traceback" not in err
+    assert not (tmp_path / "y.lop").exists()
+
+
+def test_report_shows_the_allocation_and_the_curve(budget_cooks):
+    import json
+
+    from lopcook.cli import main
+
+    src, d, n, _ = budget_cooks
+    out = d / "report.html"
+    assert main(["-q", "report", str(d / "a.lop"), "--source", str(src), "-o", str(out), "--levels", "6-7",
+                 "--views", "2", "--resolution", "160x90"]) == 0
+    rep = json.loads(out.with_suffix(".json").read_text())
+    a = rep["attributes"]
+    from lopcook.emit.container import read
+
+    c = read(d / "a.lop")
+    assert [p["bits"] for p in a["parts"]] == c.manifest["options"]["attribute_search"]["choice"]["parts"]
+    assert a["search"]["mode"] == "budget" and a["vertex_bits"]["total"] <= n
+    assert a["errors"][0]["normal_deg_max"] >= 0.0
+    text = out.read_text()
+    assert 'id="attribute-search"' in text and "attribute search: image error against bits per vertex" in text
+    assert text.count('class="probe"') == len(a["search"]["probes"])
+
+
+def test_target_psnr_chooses_attribute_bits_that_pass(gl, tmp_path):
+    from conftest import FIXTURES
+    from lopcook.emit.container import read
+
+    out = tmp_path / "t.lop"
+    assert _cook(FIXTURES / "unit_sphere.glb", out, "--target-psnr", "35") == 0
+    rec = read(out).manifest["options"]["attribute_search"]
+    assert rec["mode"] == "target" and rec["reached"] and rec["objective_db"] >= 35.0
+    start = rec["probes"][0]
+    if start["objective_db"] >= 35.0:  # the default bits pass: the search never costs more
+        assert rec["bits_per_vertex"] <= start["bits_per_vertex"]
+    assert TA.vertex_bits(read(out))["total"] == pytest.approx(rec["bits_per_vertex"], abs=1e-3)

@@ -325,7 +325,7 @@ def search_budget(search: Search, start: Allocation, budget: float) -> Allocatio
         if got is not None and got[0] > q_cur:
             cur = got[1]
             continue
-        red = _best(search, _moves(cur, -1), "reduce")
+        red = _best(search, [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)], "reduce")
         if red is None:
             break
         swaps = [(k, a) for k, a in _moves(red[1], +1, exclude=red[2]) if search.cost(a) <= budget]
