@@ -39,8 +39,9 @@ The searches. ``budget`` (``cook --vertex-bits N``): from the start allocation (
 bound-based bits and k_f), Purnomo's bit-reduce operator (every knob one step down, rendered; the
 least error wins; ties: the lower cost, then the knob order) until the cost is <= N; then rounds of
 (a) bit-increase while it fits (the least error among the steps up that keep cost <= N, taken when
-it lowers the error), else (b) Purnomo's swap: the bit-reduce winner followed by the best
-bit-increase of another knob that fits, taken when it lowers the error; at most ``MAX_ROUNDS``
+it lowers the error), else (b) Purnomo's swap: the bit-reduce winner (among the steps down that
+save bits) followed by the best bit-increase of another knob that fits, taken when it lowers the
+error; at most ``MAX_ROUNDS``
 rounds. The result fits N by construction (its cost is computed from its own container).
 ``target`` (``cook --target-psnr DB``): from the start (the k_f calibration's choice with the
 default attribute bits, the **anchor**): while it misses, the bit-increase winner (least error)

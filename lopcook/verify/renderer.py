@@ -284,6 +284,19 @@ class Textures:
         self.cache = {}
 
 
+def unit_normals(normals):
+    """(n, 3) float32 unit vectors of the container's decoded normals (the octahedral decode is
+    unnormalised, ``lopcook.emit.attributes``: its length varies from 1/sqrt(3) to 1 with the
+    direction, and interpolating such vectors across a triangle skews the shading; a decoder
+    normalises per vertex, as here, before the rasteriser interpolates). None stays None; a zero
+    vector stays zero (the fragment shader then uses the face normal)."""
+    if normals is None:
+        return None
+    n = np.asarray(normals, np.float32)
+    length = np.sqrt(np.sum(n * n, axis=1, dtype=np.float32), dtype=np.float32)
+    return np.where(length[:, None] > 0, n / np.where(length > 0, length, np.float32(1))[:, None], n).astype(np.float32)
+
+
 def attribute_vbos(ctx, normals, uvs, colors, order=None) -> tuple[list, list]:
     """VBO specs (buffer, format, name) of normals (n, 3) / uvs (n, 2) / colours (n, 4) float32 (each
     optional; permuted by ``order`` when given) and the list of buffers to release."""
@@ -445,7 +458,8 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
-    file). Attribute VBOs and index buffers come from ``attr_cache``."""
+    file; normals made unit per vertex, ``unit_normals``). Attribute VBOs and index buffers come from
+    ``attr_cache``."""
     from .gpu import decode_block
 
     items, owned = [], []
@@ -461,7 +475,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
                 flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
             else:
-                specs, bufs = attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
+                specs, bufs = attribute_vbos(ctx, unit_normals(a["normals"]), a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
             attr_cache[i] = (ibo, specs, [ibo, *bufs], flags)
@@ -478,4 +492,4 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
 
 __all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
-           "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
+           "unit_normals", "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
