@@ -49,9 +49,9 @@ until it reaches the target; then while it passes, the bit-reduce winner (least 
 steps down that lower the cost) while it still passes, and when it does not, the swap of that
 winner with the bit-increase of another knob that passes and still costs less than the current
 choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
-20 views at 1280 x 720): when the choice misses there, the anchor is confirmed instead; ``reached``
-is False (exit 1 in ``cook``) only when the anchor misses too, so the search never ends below the
-default cook's quality.
+20 views at 1280 x 720): when the choice misses there, the passing choice halfway along the path
+the search took is confirmed, then the anchor; ``reached`` is False (exit 1 in ``cook``) only when
+the anchor misses too, so the search never ends below the default cook's quality.
 
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
 renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
@@ -218,6 +218,7 @@ class Search:
         self.costs: dict = {}
         self.quality_memo: dict = {}
         self.probes: list = []
+        self.path: list = []
         self._last = (None, None)
 
     def close(self) -> None:
@@ -349,6 +350,7 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         q, cur = got[0], got[1]
     if q < target:
         return cur, False
+    search.path = [cur]  # the passing choices in the order taken (the confirmation walks back along them)
     while not search.full():
         down = [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)]
         got = _best(search, down, "reduce") if down else None
@@ -356,6 +358,7 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
             break
         if got[0] >= target:
             cur = got[1]
+            search.path.append(cur)
             continue
         swaps = [(k, a) for k, a in _moves(got[1], +1, exclude=got[2]) if search.cost(a) < search.cost(cur)]
         passing = []
@@ -367,6 +370,7 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         if not passing:
             break
         cur = min(passing)[2]
+        search.path.append(cur)
     return cur, True
 
 
@@ -447,6 +451,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
     base = run(scene, settings, options=settings.to_manifest()["options"]).container
     start = container_allocation(base, 0.0)
     search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress)
+    conf = []
     try:
         if mode == "budget":
             choice = search_budget(search, start, float(goal))
@@ -457,23 +462,26 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
                 choice = start
         objective = search.quality(choice)
         c = search.cook(choice)
+        if confirm is not None:
+            levels = harness[2]
+            g = gate_quality(scene, c, confirm, levels, statistic)
+            conf.append(dict(g, allocation=choice.record(), role="choice"))
+            if mode == "target":
+                reached = g["objective_db"] >= float(goal)
+                # walk back toward the anchor: the passing choice halfway along the path, then the anchor
+                path = search.path
+                fallbacks = ([path[len(path) // 2]] if len(path) > 2 else []) + [start]
+                for role, a in zip(("halfway", "anchor")[-len(fallbacks):], fallbacks):
+                    if reached or a == choice:
+                        continue
+                    ca = search.cook(a)
+                    ga = gate_quality(scene, ca, confirm, levels, statistic)
+                    conf.append(dict(ga, allocation=a.record(), role=role))
+                    if ga["objective_db"] >= float(goal) or role == "anchor":
+                        choice, c, objective = a, ca, search.quality(a)
+                        reached = ga["objective_db"] >= float(goal)
     finally:
         search.close()
-    conf = []
-    if confirm is not None:
-        levels = harness[2]
-        g = gate_quality(scene, c, confirm, levels, statistic)
-        conf.append(dict(g, allocation=choice.record(), role="choice"))
-        if mode == "target":
-            if g["objective_db"] >= float(goal):
-                reached = True
-            elif choice != start:
-                ga = gate_quality(scene, base, confirm, levels, statistic)
-                conf.append(dict(ga, allocation=start.record(), role="anchor"))
-                choice, c = start, base
-                reached = ga["objective_db"] >= float(goal)
-            else:
-                reached = False
     vb = vertex_bits(c)
     return {"mode": mode, "goal": float(goal), "statistic": statistic,
             "harness": {"views": harness[0], "resolution": list(harness[1]), "levels": list(harness[2])},
