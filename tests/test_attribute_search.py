@@ -205,3 +205,16 @@ def test_target_psnr_chooses_attribute_bits_that_pass(gl, tmp_path):
     if start["objective_db"] >= 35.0:  # the default bits pass: the search never costs more
         assert rec["bits_per_vertex"] <= start["bits_per_vertex"]
     assert TA.vertex_bits(read(out))["total"] == pytest.approx(rec["bits_per_vertex"], abs=1e-3)
+
+
+def test_fallbacks_walk_back_to_the_anchor():
+    start = TA.Allocation(0.0, ((16, 12, None), (None, None, 8)))
+    choice = TA.Allocation(-1.0, ((8, 7, None), (None, None, 5)))
+    got = TA.fallbacks(choice, start)
+    assert [r for r, _ in got] == ["anchor positions", "halfway", "anchor"]
+    assert got[0][1] == TA.Allocation(0.0, choice.parts)
+    assert got[1][1] == TA.Allocation(0.0, ((12, 10, None), (None, None, 7)))  # halfway, rounded up
+    assert got[2][1] == start
+    # a choice at the anchor's k_f skips the first step; the anchor itself has nothing to fall back to
+    assert [r for r, _ in TA.fallbacks(TA.Allocation(0.0, choice.parts), start)] == ["halfway", "anchor"]
+    assert TA.fallbacks(start, start) == []

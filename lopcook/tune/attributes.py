@@ -49,9 +49,10 @@ until it reaches the target; then while it passes, the bit-reduce winner (least 
 steps down that lower the cost) while it still passes, and when it does not, the swap of that
 winner with the bit-increase of another knob that passes and still costs less than the current
 choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
-20 views at 1280 x 720): when the choice misses there, the passing choice halfway along the path
-the search took is confirmed, then the anchor; ``reached`` is False (exit 1 in ``cook``) only when
-the anchor misses too, so the search never ends below the default cook's quality.
+20 views at 1280 x 720): when the choice misses there, ``fallbacks`` walk back toward the anchor
+(the choice's bits at the anchor's k_f, then halfway to the anchor's bits, then the anchor), the
+first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
+misses too, so the search never ends below the default cook's quality.
 
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
 renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
@@ -350,7 +351,7 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         q, cur = got[0], got[1]
     if q < target:
         return cur, False
-    search.path = [cur]  # the passing choices in the order taken (the confirmation walks back along them)
+    search.path = [cur]  # the passing choices in the order taken
     while not search.full():
         down = [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)]
         got = _best(search, down, "reduce") if down else None
@@ -372,6 +373,23 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         cur = min(passing)[2]
         search.path.append(cur)
     return cur, True
+
+
+def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocation]]:
+    """The allocations a target search confirms on the gate, in order, after its choice missed
+    there: (1) "anchor positions": the choice's attribute bits with the anchor's k_f scale (the
+    k_f calibration already chose it on the gate; the reduced harness flatters position error
+    most), (2) "halfway": that with every attribute's bits halfway back to the anchor's (rounded
+    up), (3) "anchor". Duplicates and the choice itself are left out."""
+    pos = replace(choice, x=start.x)
+    half = replace(pos, parts=tuple(tuple(None if c is None else (c + s + 1) // 2 for c, s in zip(pc, ps))
+                                     for pc, ps in zip(choice.parts, start.parts)))
+    out, seen = [], {choice.key()}
+    for role, a in (("anchor positions", pos), ("halfway", half), ("anchor", start)):
+        if a.key() not in seen:
+            seen.add(a.key())
+            out.append((role, a))
+    return out
 
 
 def gate_quality(scene, c, confirm, levels, statistic: str) -> dict:
@@ -468,17 +486,15 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             conf.append(dict(g, allocation=choice.record(), role="choice"))
             if mode == "target":
                 reached = g["objective_db"] >= float(goal)
-                # walk back toward the anchor: the passing choice halfway along the path, then the anchor
-                path = search.path
-                fallbacks = ([path[len(path) // 2]] if len(path) > 2 else []) + [start]
-                for role, a in zip(("halfway", "anchor")[-len(fallbacks):], fallbacks):
-                    if reached or a == choice:
-                        continue
+                # walk back toward the anchor (``fallbacks``)
+                for role, a in fallbacks(choice, start):
+                    if reached:
+                        break
                     ca = search.cook(a)
                     ga = gate_quality(scene, ca, confirm, levels, statistic)
                     conf.append(dict(ga, allocation=a.record(), role=role))
                     if ga["objective_db"] >= float(goal) or role == "anchor":
-                        choice, c, objective = a, ca, search.quality(a)
+                        choice, c, objective = a, ca, search.quality(a, f"confirm {role}")
                         reached = ga["objective_db"] >= float(goal)
     finally:
         search.close()
@@ -545,5 +561,5 @@ def format_search(result: dict) -> str:
 
 __all__ = ["NORMAL_BITS", "UV_BITS", "COLOR_BITS", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
            "Allocation", "Knob", "knobs", "step", "vertex_bits", "container_allocation", "cook_settings", "Search",
-           "search_budget", "search_target", "gate_quality", "attribute_errors", "allocate", "search_record",
+           "search_budget", "search_target", "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
            "require_reached", "format_search", "format_probe"]
