@@ -86,6 +86,7 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", default="6-11")
     ap.add_argument("--out", default="/tmp/bench_attribute_search")
     ap.add_argument("--cook-args", default="", help="extra cook arguments, e.g. '--calibration-views 4'")
+    ap.add_argument("--skip-default", action="store_true", help="no default cooks")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -93,10 +94,10 @@ def main(argv=None) -> int:
     levels = parse_levels(a.levels)
     extra = a.cook_args.split()
     rows = []
-    runs = [(name, "default", []) for name in a.assets.split(",")]
+    runs = [] if a.skip_default else [(name, "default", []) for name in a.assets.split(",")]
     runs += [(name, f"target {a.target:g}", ["--target-psnr", f"{a.target:g}"]) for name in a.assets.split(",")]
-    runs += [(name, f"vertex-bits {a.vertex_bits:g}", ["--vertex-bits", f"{a.vertex_bits:g}"])
-             for name in a.budget_assets.split(",") if name]
+    runs = [(name, f"vertex-bits {a.vertex_bits:g}", ["--vertex-bits", f"{a.vertex_bits:g}"])
+            for name in a.budget_assets.split(",") if name] + runs
     scenes = {}
     for name, kind, args in runs:
         src = Path(a.corpus) / name

@@ -290,24 +290,38 @@ def main() -> int:
     isec = sec[e["indices"]]
     tri = struct.unpack_from("<3H" if e["index_width"] == 2 else "<3I", data, base + isec["offset"])
     out("indices.triangle0", f"section {e['indices']}, {e['index_width']} bytes per index: {tri}")
-    nsec = sec[e["normals"]]
-    cu, cv = struct.unpack_from("<2H", data, base + nsec["offset"] + 4 * j)
-    px = min(max((cu - 32768) / 32767.0, -1.0), 1.0)
-    py = min(max((cv - 32768) / 32767.0, -1.0), 1.0)
-    nz = 1.0 - abs(px) - abs(py)
-    nx, ny = (px, py) if nz >= 0 else ((1.0 - abs(py)) * (1.0 if px >= 0 else -1.0),
-                                        (1.0 - abs(px)) * (1.0 if py >= 0 else -1.0))
-    norm = (nx * nx + ny * ny + nz * nz) ** 0.5
-    normal = [float(np.float32(v / norm)) for v in (nx, ny, nz)]
-    out("normal", f"bytes {4 * j}..{4 * j + 3} of {e['normals']}: codes ({cu}, {cv}) -> s = ({cu - 32768}, "
-                  f"{cv - 32768}) -> p = ({px!r}, {py!r}) -> n = ({', '.join(map(repr, normal))})")
-    usec = sec[e["uvs"]]
-    qu, qv = struct.unpack_from("<2H", data, base + usec["offset"] + 4 * j)
-    (lo_u, lo_v), (hi_u, hi_v) = e["uv_range"]
-    uv = [float(np.float32(lo * (1.0 - q / 65535.0) + hi * (q / 65535.0)))
-          for q, lo, hi in ((qu, lo_u, hi_u), (qv, lo_v, hi_v))]
-    out("uv", f"bytes {4 * j}..{4 * j + 3} of {e['uvs']}: codes ({qu}, {qv}), uv_range {e['uv_range']} -> "
-              f"({uv[0]!r}, {uv[1]!r})")
+    # the attribute record: fields normal.u, normal.v (b_n bits), uv.u, uv.v (b_u bits), LSB first,
+    # vertex j at bit j * S; a field may span two words
+    ab = e["attribute_bits"]
+    bn, bu, S = ab["normals"], ab["uvs"], e["record_bits"]
+    asec = sec[e["attributes"]]
+    words = struct.unpack_from(f"<{asec['length'] // 4}I", data, base + asec["offset"])
+
+    def field(o, b):
+        w, s = o >> 5, o & 31
+        lo = words[w] >> s
+        hi = (words[min(w + 1, len(words) - 1)] << 1 << (31 - s)) & 0xFFFFFFFF
+        return (lo | hi) & ((1 << b) - 1)
+
+    o = j * S
+    cu, cv = field(o, bn), field(o + bn, bn)
+    f32 = np.float32
+    h = 1 << (bn - 1)
+    r = f32(1.0 / (h - 1))
+    px, py = max(f32(cu - h) * r, f32(-1.0)), max(f32(cv - h) * r, f32(-1.0))
+    nz = (f32(1) - abs(px)) - abs(py)
+    nx, ny = (px, py) if nz >= 0 else ((f32(1) - abs(py)) * (f32(1) if px >= 0 else f32(-1)),
+                                        (f32(1) - abs(px)) * (f32(1) if py >= 0 else f32(-1)))
+    normal = [float(v) for v in (nx, ny, nz)]
+    out("normal", f"bits {o}..{o + 2 * bn - 1} of {e['attributes']} (S = {S}): codes ({cu}, {cv}) -> s = "
+                  f"({cu - h}, {cv - h}) -> p = ({float(px)!r}, {float(py)!r}) -> n = ({', '.join(map(repr, normal))})"
+                  " (unnormalised)")
+    qu, qv = field(o + 2 * bn, bu), field(o + 2 * bn + bu, bu)
+    (lo_u, lo_v), _ = e["uv_range"]
+    su, sv = e["uv_step"]
+    uv = [float(f32(lo) + f32(q) * f32(st)) for q, lo, st in ((qu, lo_u, su), (qv, lo_v, sv))]
+    out("uv", f"bits {o + 2 * bn}..{o + 2 * bn + 2 * bu - 1}: codes ({qu}, {qv}), uv_range {e['uv_range']}, "
+              f"uv_step {e['uv_step']} -> ({uv[0]!r}, {uv[1]!r})")
 
     # ---- cross-check against lopcook's own reader ---------------------------------------------
     from lopcook.emit.container import from_bytes

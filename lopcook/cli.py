@@ -89,6 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
                         "lopcook refine; docs/hierarchy.md)")
     add_analyse_options(p)
+    add_attribute_options(p)
     add_viewing_options(p)
     _add_crease_angle(p)
     add_calibration_options(p, cook=True)
@@ -299,6 +300,31 @@ def _viewing(args):
         raise LopcookError("usage", None, f"{flag}: {exc}") from None
 
 
+def add_attribute_options(p: argparse.ArgumentParser) -> None:
+    """``--normal-bits``, ``--uv-bits``, ``--color-bits`` (lopcook.settings.AttributeSettings)."""
+    from .settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
+
+    g = p.add_argument_group("vertex attributes (docs/format.md section 7.2; Purnomo et al. 2005)")
+    for flag, (lo, hi), what in (("--normal-bits", NORMAL_BITS_RANGE, "octahedral bits per normal component"),
+                                 ("--uv-bits", UV_BITS_RANGE, "bits per UV component over each buffer's range"),
+                                 ("--color-bits", COLOR_BITS_RANGE, "bits per vertex-colour channel")):
+        g.add_argument(flag, type=int, default=None, metavar="B",
+                       help=f"{what}, {lo}..{hi} (default: the bound-based choice per part: the fewest bits "
+                            "whose error keeps the shading change within --eps)")
+
+
+def _attribute_settings(args):
+    """``--normal-bits/--uv-bits/--color-bits`` -> AttributeSettings; out of range: usage error."""
+    from .settings import AttributeSettings
+
+    try:
+        return AttributeSettings(normal_bits=getattr(args, "normal_bits", None), uv_bits=getattr(args, "uv_bits", None),
+                                 color_bits=getattr(args, "color_bits", None))
+    except ValueError as exc:
+        flag = {"normal": "--normal-bits", "uv": "--uv-bits", "color": "--color-bits"}[str(exc).split(" ", 1)[0]]
+        raise LopcookError("usage", None, f"{flag}: {exc}") from None
+
+
 def add_analyse_options(p: argparse.ArgumentParser) -> None:
     d = D.analyse
 
@@ -446,7 +472,8 @@ def settings_from_args(args):
         simplify = replace(simplify, hierarchy=True)
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
-                    tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune)
+                    tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune,
+                    attributes=_attribute_settings(args))
 
 
 def cmd_analyse(args) -> int:

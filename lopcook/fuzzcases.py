@@ -854,7 +854,9 @@ def _lop_split(data: bytes) -> tuple[dict, bytes, bytes]:
 def _lop_pack(mbytes: bytes, payload: bytes, *, total: int | None = None) -> bytes:
     """A container with this manifest and payload, every CRC and size recomputed (the lie passes)."""
     total = 32 + len(mbytes) + len(payload) if total is None else total
-    head = struct.pack("<4sHHIIIQ", b"LOPC", 1, 0, 32, len(mbytes), zlib.crc32(mbytes), total)
+    from .emit.container import VERSION
+
+    head = struct.pack("<4sHHIIIQ", b"LOPC", VERSION[0], VERSION[1], 32, len(mbytes), zlib.crc32(mbytes), total)
     return head + struct.pack("<I", zlib.crc32(head)) + mbytes + payload
 
 
@@ -938,14 +940,22 @@ def _lop_cases(w: _Writer, rng) -> None:
         vertex_id=[float(v) for v in m["parts"][0]["lods"][0]["vertex_id"]]))
     lie("lod_mandatory_words_bad", lambda m: m["parts"][0]["lods"][0].update(mandatory_words=[1 << 40, 3]))
     lie("lod_mandatory_words_str", lambda m: m["parts"][0]["lods"][0].update(mandatory_words="0,3"))
-    if part0.get("uvs") is not None:
+    if (part0.get("attribute_bits") or {}).get("uvs") is not None:
         lie("lod_uv_range_bools", lambda m: m["parts"][0]["lods"][0].update(uv_range=[[True, False], [True, True]]))
         lie("lod_uv_range_nan", lambda m: m["parts"][0]["lods"][0].update(
             uv_range=[[float("nan"), 0.0], [1.0, 1.0]]))
         lie("lod_uv_range_1e39", lambda m: m["parts"][0]["lods"][0].update(uv_range=[[-1e39, 0.0], [1e39, 1.0]]))
         lie("lod_uv_range_strings", lambda m: m["parts"][0]["lods"][0].update(uv_range=[["0", "0"], ["1", "1"]]))
         lie("lod_uv_range_reversed", lambda m: m["parts"][0]["lods"][0].update(uv_range=[[1.0, 1.0], [0.0, 0.0]]))
-    lie("lod_normals_int", lambda m: m["parts"][0]["lods"][0].update(normals=3))
+        lie("lod_uv_step_wrong", lambda m: m["parts"][0]["lods"][0].update(uv_step=[1.0, 1.0]))
+        lie("lod_uv_step_missing", lambda m: m["parts"][0]["lods"][0].pop("uv_step"))
+    lie("lod_attributes_int", lambda m: m["parts"][0]["lods"][0].update(attributes=3))
+    lie("lod_attribute_bits_17", lambda m: m["parts"][0]["lods"][0]["attribute_bits"].update(normals=17))
+    lie("lod_attribute_bits_float", lambda m: m["parts"][0]["lods"][0]["attribute_bits"].update(normals=8.0))
+    lie("lod_record_bits_wrong", lambda m: m["parts"][0]["lods"][0].update(
+        record_bits=m["parts"][0]["lods"][0]["record_bits"] + 1))
+    lie("part_attribute_bits_differ", lambda m: m["parts"][0].update(
+        attribute_bits={"normals": 5, "uvs": None, "colors": None}))
     lie("lod_not_object", lambda m: m["parts"][0]["lods"].__setitem__(0, "lod"))
     # informative fields missing or of the wrong type: inspect must not crash
     for key in ("source", "generator", "viewing", "options", "instances", "lod_notes", "analysis", "format"):
@@ -989,8 +999,14 @@ def _lop_cases(w: _Writer, rng) -> None:
     # header lies
     lop("total_size_small", _lop_pack(mbytes, payload, total=100), "refuse")
     lop("total_size_huge", _lop_pack(mbytes, payload, total=1 << 60), "refuse")
-    lop("header_major_2", data[:4] + struct.pack("<H", 2) + data[6:28] + struct.pack(
-        "<I", zlib.crc32(data[:4] + struct.pack("<H", 2) + data[6:28])) + data[32:], "refuse")
+    from .emit.container import VERSION
+
+    future = struct.pack("<H", VERSION[0] + 1)
+    lop("header_major_next", data[:4] + future + data[6:28] + struct.pack(
+        "<I", zlib.crc32(data[:4] + future + data[6:28])) + data[32:], "refuse")
+    past = struct.pack("<H", VERSION[0] - 1)  # format 1.0: fixed normals/uvs/colors sections
+    lop("header_major_previous", data[:4] + past + data[6:28] + struct.pack(
+        "<I", zlib.crc32(data[:4] + past + data[6:28])) + data[32:], "refuse")
     for k, cut in enumerate(sorted(set(rng.integers(1, len(data), 10).tolist()) | {4, 31, 32, 33})):
         lop(f"truncated_{cut}", data[:cut], "clean", ("decode",))  # refused by the read both commands share
     for k in range(12):

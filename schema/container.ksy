@@ -1,6 +1,6 @@
 meta:
   id: lopcook_lop
-  title: lopcook level-of-precision container (.lop), version 1.0
+  title: lopcook level-of-precision container (.lop), version 2.0
   application: lopcook (offline asset cooker, Meyer et al. 2011 adaptive level-of-precision)
   file-extension: lop
   license: MIT
@@ -12,8 +12,9 @@ doc: |
   A .lop file holds the vertex data of a scene as binned adaptive precision buffers
   (Meyer, Sussner, Greiner, Stamminger, "Adaptive Level-of-Precision for GPU-Rendering",
   VMV 2011, sections 4-6): positions quantized on one 24-bit grid, split into the mandatory
-  bits of every vertex and 23 refinement bit planes, plus compact attributes (indices,
-  octahedral normals, unorm16 UVs, unorm8 colours).
+  bits of every vertex and 23 refinement bit planes, plus compact attributes (indices, and
+  one packed record per vertex of octahedral normals, UVs and colours at per-part bit counts;
+  Purnomo et al. 2005, sections 3-5).
 
   Layout: a 32-byte header, a JSON manifest, then sections back to back. Every integer is
   little-endian. The JSON manifest (schema/container.schema.json) says what each section
@@ -62,15 +63,15 @@ seq:
       allowed: a refinement plane no vertex of any buffer needs.
 
       Order and names: for each part i (manifest order), for each LOD k:
-      "part{i}/lod{k}/indices", then "part{i}/lod{k}/normals", "part{i}/lod{k}/uvs",
-      "part{i}/lod{k}/colors" when present; then, in containers cooked with --hierarchy,
+      "part{i}/lod{k}/indices", then "part{i}/lod{k}/attributes" when the buffer has normals,
+      UVs or colours; then, in containers cooked with --hierarchy,
       "part{i}/lod0/hierarchy" for every part i (manifest parts[i].hierarchy.section); then
       "positions/mandatory"; then
       "positions/plane02" .. "positions/planeNN" (two-digit plane number, NN =
       manifest.positions.max_level).
 
-      Interpret a section with: indices_section, normals_section, uvs_section,
-      colors_section (attributes of one buffer), hierarchy_section (a part's vertex
+      Interpret a section with: indices_section, attributes_section (normals, UVs, colours
+      of one buffer; attribute_record reads vertex j's), hierarchy_section (a part's vertex
       hierarchy), mandatory_section (positions/mandatory),
       refinement_plane (positions/planePP); a buffer's packed positions at a level are
       described by packed_position_buffer. To cut the area into its sections, parse it as
@@ -89,7 +90,7 @@ types:
         doc: 'Offset 0, 4 bytes: the ASCII bytes "LOPC" (4c 4f 50 43).'
       - id: version_major
         type: u2
-        valid: 1
+        valid: 2
         doc: |
           Offset 4, uint16: format major version, 1 for this description. A reader refuses a
           major version it does not know (an incompatible change of layout or meaning).
@@ -216,48 +217,130 @@ types:
         size-eos: true
         doc: 0 or 2 zero bytes up to a multiple of 4.
 
-  normals_section:
+  attributes_section:
     doc: |
-      Section "part{i}/lod{k}/normals": one octahedral unit normal per vertex (binned order),
-      2 x uint16 (oct32P, Cigolle et al. 2014, JCGT 3(2)). Worst-case angular error 0.0038
-      degrees (measured maximum 0.00248 degrees); the six axis directions are exact.
-      Length 4 * vertices (already a multiple of 4).
+      Section "part{i}/lod{k}/attributes": one record of S = 2 b_n + 2 b_u + 4 b_c bits per
+      vertex (binned order), S = manifest lod.record_bits, the bits b_n, b_u, b_c from
+      lod.attribute_bits (an absent attribute: null, counted 0 here). Vertex j's record starts
+      at bit j * S of the section; its fields, each present attribute only, follow in the order
+      normal.u, normal.v (b_n bits each), uv.u, uv.v (b_u), color.r, g, b, a (b_c), least
+      significant bit first (bit i of the section is bit i & 31 of word i >> 5). A field may
+      span two words (unlike Purnomo's word-aligned bins); read it with bit_field. Length
+      4 * ceil(vertices * S / 32) bytes, no padding word.
     params:
       - id: num_vertices
         type: u4
         doc: manifest lod.vertices.
-    seq:
-      - id: normals
-        type: oct_normal
-        repeat: expr
-        repeat-expr: num_vertices
-        doc: Normal of vertex j = normals[j].
-
-  oct_normal:
-    doc: |
-      Decode (float64, then round the unit vector to float32):
-        s = code - 32768 (the snorm16 value; code 0 reads as -1 after the clamp)
-        p = clamp(s / 32767, -1, 1) per component
-        n = (p.x, p.y, 1 - |p.x| - |p.y|)
-        if n.z < 0: (n.x, n.y) = ((1 - |p.y|) * sgn(p.x), (1 - |p.x|) * sgn(p.y)),
-          sgn(t) = +1 for t >= 0, else -1
-        n = n / |n|
-      Kaitai expressions have no square root: oct_x, oct_y, oct_z below are n before the
-      normalisation.
-    seq:
-      - id: code_u
-        type: u2
-        doc: First octahedral coordinate, code = snorm16 value + 32768 (1..65535 when written by lopcook).
-      - id: code_v
-        type: u2
-        doc: Second octahedral coordinate, same encoding.
+      - id: bits_normal
+        type: u1
+        doc: lod.attribute_bits.normals (4..16), 0 when null.
+      - id: bits_uv
+        type: u1
+        doc: lod.attribute_bits.uvs (6..16), 0 when null.
+      - id: bits_color
+        type: u1
+        doc: lod.attribute_bits.colors (4..8), 0 when null.
+      - id: lo_u
+        type: f8
+        doc: lod.uv_range[0][0] (a float32 value); 0 without UVs.
+      - id: lo_v
+        type: f8
+        doc: lod.uv_range[0][1].
+      - id: step_u
+        type: f8
+        doc: lod.uv_step[0] = float32((hi_u - lo_u) / (2^b_u - 1)) (a float32 value).
+      - id: step_v
+        type: f8
+        doc: lod.uv_step[1].
     instances:
+      record_bits:
+        value: 2 * bits_normal + 2 * bits_uv + 4 * bits_color
+        doc: S, bits per vertex.
+      ofs_uv:
+        value: 2 * bits_normal
+        doc: Bit offset of uv.u inside a record.
+      ofs_color:
+        value: 2 * bits_normal + 2 * bits_uv
+        doc: Bit offset of color.r inside a record.
+    seq:
+      - id: words
+        type: u4
+        repeat: expr
+        repeat-expr: (num_vertices * record_bits + 31) / 32
+        doc: The packed records, little-endian uint32 words.
+
+  attribute_record:
+    doc: |
+      Vertex j's record in an attributes_section (its _parent), decoded. Every decode instance
+      is a float32 value: evaluate each operation in float32, rounding once per operation,
+      with no fused multiply-add (a shader: `precise`); the decode is bit-exact with
+      lopcook.emit.attributes.decode_record.
+      Normal (Cigolle et al. 2014, precise octahedral, b_n bits): h = 2^(b_n - 1),
+      R = float32(1 / (h - 1)); p = max(float32(code - h) * R, -1) per component;
+      z = (1 - |p.x|) - |p.y|; if z < 0: (x, y) = ((1 - |p.y|) sgn(p.x), (1 - |p.x|) sgn(p.y)),
+      sgn(t) = +1 for t >= 0 else -1; the normal is (x, y, z), unnormalised (normalise it).
+      UV: u = lo_u + float32(q_u) * step_u (one rounded product, one rounded sum); likewise v.
+      Colour: c = float32(q) * float32(1 / (2^b_c - 1)) per channel, linear.
+    params:
+      - id: j
+        type: u4
+        doc: Vertex index in binned order.
+    instances:
+      ofs_bit:
+        value: j * _parent.record_bits
+        doc: Bit offset of the record.
+      normal_u:
+        pos: 0
+        type: bit_field(ofs_bit, _parent.bits_normal)
+        if: _parent.bits_normal > 0
+        doc: Octahedral code of u, 1 .. 2^b_n - 1 (0 reads as -1).
+      normal_v:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.bits_normal, _parent.bits_normal)
+        if: _parent.bits_normal > 0
+        doc: Octahedral code of v.
+      uv_u:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_uv, _parent.bits_uv)
+        if: _parent.bits_uv > 0
+        doc: Code q_u, 0 .. 2^b_u - 1.
+      uv_v:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_uv + _parent.bits_uv, _parent.bits_uv)
+        if: _parent.bits_uv > 0
+        doc: Code q_v.
+      color_r:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_color, _parent.bits_color)
+        if: _parent.bits_color > 0
+        doc: Red code, 0 .. 2^b_c - 1.
+      color_g:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_color + _parent.bits_color, _parent.bits_color)
+        if: _parent.bits_color > 0
+        doc: Green code.
+      color_b:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_color + 2 * _parent.bits_color, _parent.bits_color)
+        if: _parent.bits_color > 0
+        doc: Blue code.
+      color_a:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_color + 3 * _parent.bits_color, _parent.bits_color)
+        if: _parent.bits_color > 0
+        doc: Alpha code.
+      half_n:
+        value: 1 << (_parent.bits_normal - 1)
+        doc: h = 2^(b_n - 1) (an integer).
+      inv_n:
+        value: 1.0 / (half_n - 1)
+        doc: R = float32(1 / (h - 1)), rounded once.
       p_x:
-        value: '(code_u - 32768) / 32767.0 < -1.0 ? -1.0 : (code_u - 32768) / 32767.0'
-        doc: p.x = clamp((code_u - 32768) / 32767, -1, 1).
+        value: '(normal_u.value - half_n) * inv_n < -1.0 ? -1.0 : (normal_u.value - half_n) * inv_n'
+        doc: p.x = max(float32(code_u - h) * R, -1).
       p_y:
-        value: '(code_v - 32768) / 32767.0 < -1.0 ? -1.0 : (code_v - 32768) / 32767.0'
-        doc: p.y = clamp((code_v - 32768) / 32767, -1, 1).
+        value: '(normal_v.value - half_n) * inv_n < -1.0 ? -1.0 : (normal_v.value - half_n) * inv_n'
+        doc: p.y = max(float32(code_v - h) * R, -1).
       abs_p_x:
         value: 'p_x < 0 ? -p_x : p_x'
         doc: '|p.x|.'
@@ -265,107 +348,34 @@ types:
         value: 'p_y < 0 ? -p_y : p_y'
         doc: '|p.y|.'
       oct_z:
-        value: 1.0 - abs_p_x - abs_p_y
-        doc: Unnormalised z (negative on the folded lower half).
+        value: (1.0 - abs_p_x) - abs_p_y
+        doc: z (negative on the folded lower half).
       oct_x:
         value: 'oct_z < 0 ? (1.0 - abs_p_y) * (p_x >= 0 ? 1.0 : -1.0) : p_x'
-        doc: Unnormalised x.
+        doc: x.
       oct_y:
         value: 'oct_z < 0 ? (1.0 - abs_p_x) * (p_y >= 0 ? 1.0 : -1.0) : p_y'
-        doc: Unnormalised y. The normal is (oct_x, oct_y, oct_z) / |(oct_x, oct_y, oct_z)|.
-
-  uvs_section:
-    doc: |
-      Section "part{i}/lod{k}/uvs": one (u, v) per vertex (binned order), 2 x unorm16 over the
-      buffer's range manifest lod.uv_range = [[lo_u, lo_v], [hi_u, hi_v]] (float32 values
-      written as JSON numbers; the range is in the manifest, not in this section). UVs use
-      the glTF convention (origin top-left). Error per component <= (hi - lo) / 131070 plus
-      half a float32 ulp of the result. Length 4 * vertices.
-    params:
-      - id: lo_u
-        type: f8
-        doc: uv_range[0][0] (a float32 value).
-      - id: lo_v
-        type: f8
-        doc: uv_range[0][1].
-      - id: hi_u
-        type: f8
-        doc: uv_range[1][0], >= lo_u.
-      - id: hi_v
-        type: f8
-        doc: uv_range[1][1], >= lo_v.
-      - id: num_vertices
-        type: u4
-        doc: manifest lod.vertices.
-    seq:
-      - id: uvs
-        type: unorm16_uv
-        repeat: expr
-        repeat-expr: num_vertices
-        doc: UV of vertex j = uvs[j].
-
-  unorm16_uv:
-    doc: |
-      u = lo_u * (1 - q_u / 65535) + hi_u * (q_u / 65535) in float64, then rounded to float32
-      (q = 0 gives lo exactly, q = 65535 gives hi exactly); likewise v.
-    seq:
-      - id: q_u
-        type: u2
-        doc: Code of u, 0..65535.
-      - id: q_v
-        type: u2
-        doc: Code of v, 0..65535.
-    instances:
+        doc: y. The normal is (oct_x, oct_y, oct_z), unnormalised.
       u:
-        value: _parent.lo_u * (1.0 - q_u / 65535.0) + _parent.hi_u * (q_u / 65535.0)
-        doc: Decoded u (float64; round to float32).
+        value: _parent.lo_u + uv_u.value * _parent.step_u
+        doc: Decoded u (float32 product, then float32 sum).
       v:
-        value: _parent.lo_v * (1.0 - q_v / 65535.0) + _parent.hi_v * (q_v / 65535.0)
-        doc: Decoded v (float64; round to float32).
-
-  colors_section:
-    doc: |
-      Section "part{i}/lod{k}/colors": linear RGBA (no sRGB transfer) per vertex (binned
-      order), 4 x unorm8. c = q / 255; error <= 1/510 per channel for inputs in [0, 1]
-      (inputs outside [0, 1] were clamped). Length 4 * vertices.
-    params:
-      - id: num_vertices
-        type: u4
-        doc: manifest lod.vertices.
-    seq:
-      - id: colors
-        type: unorm8_rgba
-        repeat: expr
-        repeat-expr: num_vertices
-        doc: Colour of vertex j = colors[j].
-
-  unorm8_rgba:
-    doc: One linear RGBA colour, 4 bytes.
-    seq:
-      - id: r
-        type: u1
-        doc: Red code; value r / 255.
-      - id: g
-        type: u1
-        doc: Green code; value g / 255.
-      - id: b
-        type: u1
-        doc: Blue code; value b / 255.
-      - id: a
-        type: u1
-        doc: Alpha code; value a / 255.
-    instances:
+        value: _parent.lo_v + uv_v.value * _parent.step_v
+        doc: Decoded v.
+      inv_c:
+        value: 1.0 / ((1 << _parent.bits_color) - 1)
+        doc: float32(1 / (2^b_c - 1)), rounded once.
       r_f:
-        value: r / 255.0
+        value: color_r.value * inv_c
         doc: Red in [0, 1].
       g_f:
-        value: g / 255.0
+        value: color_g.value * inv_c
         doc: Green in [0, 1].
       b_f:
-        value: b / 255.0
+        value: color_b.value * inv_c
         doc: Blue in [0, 1].
       a_f:
-        value: a / 255.0
+        value: color_a.value * inv_c
         doc: Alpha in [0, 1].
 
   mandatory_section:

@@ -105,7 +105,8 @@ def test_api_manifest_with_lods_colours_and_max_level_validates(validator):
     assert m["options"] == {} and m["positions"]["max_level"] == 9 and c.available_level == 9
     assert sorted(m["positions"]["planes"], key=int) == [str(p) for p in range(2, 10)]
     lod = m["parts"][0]["lods"][1]
-    assert lod["uvs"] is None and "uv_range" not in lod and lod["colors"] == "part0/lod1/colors"
+    assert lod["attribute_bits"] == {"normals": None, "uvs": None, "colors": 8} and "uv_range" not in lod
+    assert lod["attributes"] == "part0/lod1/attributes" and lod["record_bits"] == 32
     assert errors(validator, m) == []
 
 
@@ -133,8 +134,14 @@ MUTATIONS = {
     "index_width 4 for 81 vertices": lambda m: _lod(m).update(index_width=4),
     "index_width 2 for 70000 vertices": lambda m: _lod(m).update(vertices=70000),
     "uvs without uv_range": lambda m: _lod(m).pop("uv_range"),
-    "uv_range without uvs": lambda m: _lod(m).update(uvs=None),
-    "normals section misnamed": lambda m: _lod(m).update(normals="part1/lod0/normal"),
+    "uv_range without uvs": lambda m: _lod(m)["attribute_bits"].update(uvs=None),
+    "uvs without uv_step": lambda m: _lod(m).pop("uv_step"),
+    "attributes section misnamed": lambda m: _lod(m).update(attributes="part1/lod0/attribute"),
+    "normal bits 17": lambda m: _lod(m)["attribute_bits"].update(normals=17),
+    "colour bits 3": lambda m: _lod(m)["attribute_bits"].update(colors=3),
+    "record_bits 97": lambda m: _lod(m).update(record_bits=97),
+    "attribute_bits without colours": lambda m: _lod(m)["attribute_bits"].pop("colors"),
+    "part without attribute_bits": lambda m: m["parts"][1].pop("attribute_bits"),
     "mandatory_words of one number": lambda m: _lod(m).update(mandatory_words=[84]),
     "negative triangle count": lambda m: _lod(m).update(triangles=-1),
     "max_level 25": lambda m: m["positions"].update(max_level=25),
@@ -299,7 +306,7 @@ def test_worked_example_matches_format_md(worked_example):
     assert not stale, "docs/format.md is out of date; rerun docs/worked_example.py and paste its output: " + \
         "; ".join(f"{k}: shown {shown[k]!r}, now {ran[k]!r}" for k in stale)
     # the key numbers, spelled out
-    assert ran["header.bytes[0:12]"] == "4c 4f 50 43 01 00 00 00 20 00 00 00"
+    assert ran["header.bytes[0:12]"] == "4c 4f 50 43 02 00 00 00 20 00 00 00"
     assert ran["VertexId"] == "[0] * 11 + [81] * 14"
     assert ran["BitId(B=11)"] == "[0] * 11 + [2673] * 14"
     assert ran["BitId(B=12)"] == "[0] * 11 + [2916] * 14"
@@ -395,31 +402,60 @@ def test_ksy_random_access_agrees_with_the_decoder(ksy, rng):
 
 
 def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
+    """The attribute_record's field offsets are the codec's record layout, and its decode
+    instances, evaluated in float32 one operation at a time, are bit-exact with decode_record."""
     from types import SimpleNamespace
 
-    from lopcook.emit.attributes import decode_colors, decode_normals, decode_uvs
+    from lopcook.emit.attributes import AttributeBits, decode_record, pack_record, record_fields, unpack_record
 
-    def compiled(tname):
-        return {name: compile(ks_expr_to_python(" ".join(str(inst["value"]).split())), name, "eval")
-                for name, inst in ksy["types"][tname]["instances"].items() if "value" in inst}
+    inst = ksy["types"]["attribute_record"]["instances"]
+    sec = ksy["types"]["attributes_section"]["instances"]
+    py = {name: compile(ks_expr_to_python(" ".join(str(i["value"]).split())), name, "eval")
+          for name, i in inst.items() if "value" in i}
+    sec_py = {name: compile(ks_expr_to_python(" ".join(str(i["value"]).split())), name, "eval")
+              for name, i in sec.items() if "value" in i}
+    call = {name: re.fullmatch(r"bit_field\((.*), (.*)\)", i["type"]).groups() for name, i in inst.items()
+            if "type" in i}
+    fields = {("normals", 0): "normal_u", ("normals", 1): "normal_v", ("uvs", 0): "uv_u", ("uvs", 1): "uv_v",
+              ("colors", 0): "color_r", ("colors", 1): "color_g", ("colors", 2): "color_b", ("colors", 3): "color_a"}
+    f32 = np.float32
+    for bits in (AttributeBits(4, 6, 4), AttributeBits(11, 9, 5), AttributeBits(16, 16, 8), AttributeBits(7, None, 6)):
+        n = 60
+        codes = {k: rng.integers(0, 1 << getattr(bits, k), size=(n, c)) for k, c in
+                 (("normals", 2), ("uvs", 2), ("colors", 4)) if getattr(bits, k) is not None}
+        codes["normals"][:3] = [[0, 0], [1, (1 << bits.normals) - 1], [1 << (bits.normals - 1)] * 2]
+        words = pack_record(codes, n, bits)
+        lo, step = [f32(-0.25), f32(0.5)], [f32(1.75 / 65535), f32(0.001)]
+        ref = decode_record(words, n, bits, [[float(lo[0]), float(lo[1])], [0.0, 0.0]], [float(v) for v in step])
+        unpacked = unpack_record(words, n, bits)
+        parent = SimpleNamespace(bits_normal=bits.normals or 0, bits_uv=bits.uvs or 0, bits_color=bits.colors or 0,
+                                 lo_u=lo[0], lo_v=lo[1], step_u=step[0], step_v=step[1])
+        for name in ("record_bits", "ofs_uv", "ofs_color"):
+            setattr(parent, name, eval(sec_py[name], {**vars(parent)}))
+        assert parent.record_bits == bits.record_bits
+        for j in range(n):
+            ns = {"j": j, "_parent": parent}
+            ns["ofs_bit"] = eval(py["ofs_bit"], ns)
+            for attr_name, c, off, width in record_fields(bits):
+                fname = fields[(attr_name, c)]
+                o, w = (eval(e, dict(ns)) for e in call[fname])
+                assert (o, w) == (j * bits.record_bits + off, width), fname
+                ns[fname] = SimpleNamespace(value=int(unpacked[attr_name][j, c]))
+            out = {}
+            for name in ("half_n", "inv_n", "p_x", "p_y", "abs_p_x", "abs_p_y", "oct_z", "oct_x", "oct_y",
+                         "u", "v", "inv_c", "r_f", "g_f", "b_f", "a_f"):
+                group = {"half_n": "normals", "inv_n": "normals", "u": "uvs", "v": "uvs", "inv_c": "colors",
+                         "r_f": "colors", "g_f": "colors", "b_f": "colors", "a_f": "colors"}.get(name, "normals")
+                if getattr(bits, group) is None:
+                    continue
+                val = eval(py[name], ns)
+                ns[name] = out[name] = val if name == "half_n" else f32(val)
+            if bits.normals:
+                want = ref["normals"][j]
+                assert [out["oct_x"], out["oct_y"], out["oct_z"]] == want.tolist() or np.array_equal(
+                    np.array([out["oct_x"], out["oct_y"], out["oct_z"]], f32).view(np.uint32), want.view(np.uint32))
+            if bits.uvs:
+                assert np.array_equal(np.array([out["u"], out["v"]], f32), ref["uvs"][j])
+            if bits.colors:
+                assert np.array_equal(np.array([out[f"{c}_f"] for c in "rgba"], f32), ref["colors"][j])
 
-    oct_py, uv_py, rgba_py = compiled("oct_normal"), compiled("unorm16_uv"), compiled("unorm8_rgba")
-    codes = np.concatenate([rng.integers(0, 65536, size=(500, 2)),
-                            [[0, 0], [1, 65535], [32768, 32768], [65535, 32768], [32768, 1]]]).astype(np.uint16)
-    ref = decode_normals(codes)
-    for (cu, cv), want in zip(codes.tolist(), ref):
-        ns = {"code_u": cu, "code_v": cv}
-        for name in ("p_x", "p_y", "abs_p_x", "abs_p_y", "oct_z", "oct_x", "oct_y"):
-            ns[name] = eval(oct_py[name], ns)
-        x, y, z = ns["oct_x"], ns["oct_y"], ns["oct_z"]
-        inv = 1.0 / float(np.sqrt(x * x + y * y + z * z))  # the reference decoder's order
-        assert [np.float32(x * inv), np.float32(y * inv), np.float32(z * inv)] == want.tolist()
-    lo, hi = np.float32([-0.25, 0.0]), np.float32([1.5, 0.75])
-    parent = SimpleNamespace(lo_u=float(lo[0]), lo_v=float(lo[1]), hi_u=float(hi[0]), hi_v=float(hi[1]))
-    for (qu, qv), want in zip(codes.tolist(), decode_uvs(codes, lo, hi)):
-        ns = {"q_u": qu, "q_v": qv, "_parent": parent}
-        assert [np.float32(eval(uv_py[c], ns)) for c in "uv"] == want.tolist()
-    rgba = rng.integers(0, 256, size=(50, 4)).astype(np.uint8)
-    for row, want in zip(rgba.tolist(), decode_colors(rgba)):
-        ns = dict(zip("rgba", row))
-        assert [np.float32(eval(rgba_py[f"{c}_f"], ns)) for c in "rgba"] == want.tolist()

@@ -107,9 +107,14 @@ def test_section_entry_lies(lop, key, value):
 @pytest.mark.parametrize("key,value", [("vertices", 1 << 40), ("vertices", 1.5), ("triangles", 1 << 40),
                                        ("triangles", -3), ("index_width", 3), ("indices", "nope"),
                                        ("indices", ["x"]), ("vertex_id", [False] * 25), ("vertex_id", [0, 1]),
-                                       ("mandatory_words", [1 << 40, 3]), ("normals", 3),
+                                       ("mandatory_words", [1 << 40, 3]), ("attributes", 3),
+                                       ("attributes", "part0/lod0/nope"), ("attributes", None), ("record_bits", 7),
+                                       ("attribute_bits", {"normals": 17, "uvs": None, "colors": None}),
+                                       ("attribute_bits", {"normals": 8.0, "uvs": None, "colors": None}),
+                                       ("attribute_bits", {"normals": 8}), ("attribute_bits", None),
                                        ("geometric_error_m", -1.0), ("uv_range", [[True, 0], [1, 1]]),
-                                       ("uv_range", [[1.0, 1.0], [0.0, 0.0]]), ("uv_range", [[-1e39, 0], [1, 1]])])
+                                       ("uv_range", [[1.0, 1.0], [0.0, 0.0]]), ("uv_range", [[-1e39, 0], [1, 1]]),
+                                       ("uv_step", [1.0, 1.0]), ("uv_step", None)])
 def test_lod_lies(lop, key, value):
     refused(lie(lop, lambda m: m["parts"][0]["lods"][0].update({key: value})), "parts[0].lods[0]")
 

@@ -48,7 +48,10 @@ def test_section_bytes_sum_to_the_file(sphere_lods):
     mandatory = sum(e.mandatory_bytes for p in m.parts for e in p.lods)
     assert by_name["positions/mandatory"] == mandatory
     for e in (e for p in m.parts for e in p.lods):
-        assert e.attribute_bytes == 4 * e.vertices  # the sphere has normals only: 4 B octahedral
+        # the sphere has normals only: one record of 2 b_n bits per vertex, whole words
+        assert e.attribute_bits["uvs"] is None and e.attribute_bits["colors"] is None
+        assert e.record_bits == 2 * e.attribute_bits["normals"]
+        assert e.attribute_bytes == 4 * -(-e.vertices * e.record_bits // 32)
         assert e.index_bytes >= 3 * e.triangles * e.index_width
 
 

@@ -345,7 +345,7 @@ def test_lod_table(lod_report):
         assert b["triangles"] < a["triangles"] and b["geometric_error_m"] >= a["geometric_error_m"]
     # bytes: index and attribute sections exactly; mandatory words share the mandatory section
     sizes = {s["name"]: s["length"] for s in m["sections"]}
-    lod_sections = sum(v for k, v in sizes.items() if k.rsplit("/", 1)[-1] in ("indices", "normals", "uvs", "colors"))
+    lod_sections = sum(v for k, v in sizes.items() if k.rsplit("/", 1)[-1] in ("indices", "attributes"))
     assert sum(r["index_bytes"] + r["attribute_bytes"] for r in rows) == lod_sections
     assert sum(r["mandatory_position_bytes"] for r in rows) == sizes[m["positions"]["mandatory"]]
     assert all(r["bytes"] == r["index_bytes"] + r["attribute_bytes"] + r["mandatory_position_bytes"]

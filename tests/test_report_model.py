@@ -16,11 +16,12 @@ from lopcook.types import MeshPart, Scene
 def _manifest():
     vid = [0] + [2] * 3 + [5] * 21  # 2 vertices at level <= 3, 5 in all
     return {
-        "sections": [{"name": "p/0/indices", "length": 36}, {"name": "p/0/normals", "length": 60},
+        "sections": [{"name": "p/0/indices", "length": 36}, {"name": "p/0/attributes", "length": 60},
                      {"name": "p/1/indices", "length": 12}],
         "positions": {"max_level": 4},
         "parts": [{"name": "p", "lods": [
-            {"vertex_id": vid, "indices": "p/0/indices", "normals": "p/0/normals", "mandatory_words": [0, 3],
+            {"vertex_id": vid, "indices": "p/0/indices", "attributes": "p/0/attributes",
+             "attribute_bits": {"normals": 16, "uvs": 16, "colors": 8}, "record_bits": 96, "mandatory_words": [0, 3],
              "triangles": 3, "vertices": 5, "geometric_error_m": 0.0, "min_distance_m": None},
             {"vertex_id": [0] + [3] * 24, "indices": "p/1/indices", "mandatory_words": [3, 2],
              "triangles": 1, "vertices": 3, "geometric_error_m": 0.01, "min_distance_m": 2.5}]}],

@@ -186,9 +186,13 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
 
 
 def default_buffers(scene, analysis) -> list[list[BufferInput]]:
-    """LOD 0 of every part as its only buffer, from the scene and its analysis."""
+    """LOD 0 of every part as its only buffer, from the scene and its analysis; attribute bits the
+    bound-based default of each part (``attributes.part_default_bits`` with the analysis's
+    settings and k_f), as ``lopcook.pipeline`` chooses them without attribute settings."""
     return [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
-                         uvs=p.uvs, colors=p.colors)] for p, pa in zip(scene.parts, analysis.parts)]
+                         uvs=p.uvs, colors=p.colors,
+                         attribute_bits=attr.part_default_bits(p, analysis.settings, pa.kf))]
+            for p, pa in zip(scene.parts, analysis.parts)]
 
 
 def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,

@@ -77,6 +77,35 @@ padding word): at most 31 bits are wasted per buffer (:func:`record_waste`), aga
 ``32 ceil(S/32) - S`` per vertex for word-aligned records (:func:`aligned_waste`, first-fit
 decreasing bins of whole components).
 
+Bound-based defaults (:func:`default_bits`, issue 15 item 3)
+-------------------------------------------------------------
+Without an image search (``lopcook.tune``), each part's bits come from the same kind of bound
+as the positions' (Meyer et al. 2011, section 5.1: ``k_f * E_v * dx(b) <= eps``): the change of
+the shaded colour an attribute's quantisation error can cause, its error times the shader's
+slope ``k_f`` with respect to that attribute, must stay within ``eps`` (AnalyseSettings.eps,
+colour units; default 1/255). The k_f are the analysis's (``lopcook.analyse.attribute_kf``):
+
+* normals: the angle between a normal and its decode is at most ``theta(b) = normal_error_deg(b)``,
+  so the normal moves by at most ``theta`` (radians, a unit-vector change); with Phong k_f =
+  ks * n (colour per unit normal change; 16 by default), ``b_n`` is the smallest b in [4, 16]
+  with ``k_f * theta(b) <= eps``. Default: 16 * theta <= 1/255 needs theta <= 0.0140 degrees:
+  2.7 * 2^(6 - b) <= 0.0140 at b = 14 (0.0105 degrees), not at 13 (0.021).
+* UVs: each component's error is at most ``e(b) = uv_error_bound(lo, hi, b)`` (half a step of
+  the part's range plus rounding), so the UV moves by at most ``|e(b)|`` UV units, i.e.
+  ``|e(b)| * resolution`` texels, and the texture's colour by at most ``k_f * |e(b)|`` with
+  k_f the texture's maximum slope (colour per UV unit: the largest texel-to-texel difference
+  times the resolution, ``TextureSlope.IMAGE``); ``b_u`` is the smallest b in [6, 16] with
+  ``k_f * |e(b)| <= eps``. A part without a texture has k_f = 0 (``untextured_uv_kf``) and gets
+  6 bits; a detailed texture (DamagedHelmet: slope 2896 per UV unit, 2048 texels) needs
+  |e| <= 1.35e-6 UV units = 0.0028 texels, more than 16 bits give: it gets 16.
+* colours: the error per channel is at most ``1 / (2 (2^b - 1))`` (+ 2^-24) and k_f = color_kf
+  (1), so ``b_c`` is the smallest b in [4, 8] with ``k_f / (2 (2^b - 1)) <= eps``: 8 for 1/255.
+
+Where no b in the range satisfies the bound, the largest is used. The bound is a worst case
+(every vertex at its largest error, at the steepest point of the shading), so an image search
+at a PSNR target can go lower; the bits chosen are recorded per part and per LOD in the
+manifest (``attribute_bits``). ``docs/attributes.md`` has the measured image errors.
+
 Indices -- uint16 or uint32 (``"<u2"`` / ``"<u4"``), 6 or 12 bytes per triangle
 -------------------------------------------------------------------------------------
 Layout: the triangles' corners in order, ``i0 i1 i2 i0 i1 i2 ...``. The width is 2 bytes when
@@ -100,7 +129,7 @@ from ..settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
 
 __all__ = [
     "NORMAL_BITS", "UV_BITS", "COLOR_BITS", "DEFAULT_BITS", "CIGOLLE_MAX_ERROR_DEG",
-    "AttributeBits", "bits_for", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
+    "AttributeBits", "bits_for", "default_bits", "part_default_bits", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
     "encode_normals", "decode_normals", "encode_uvs", "uv_step", "decode_uvs",
     "encode_colors", "decode_colors", "encode_record", "decode_record", "record_fields",
     "record_waste", "aligned_waste", "record_words",
@@ -167,14 +196,64 @@ def bits_for(normals: bool, uvs: bool, colors: bool, requested=(None, None, None
                          colors=(dc if rc is None else rc) if colors else None)
 
 
+def default_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_kf: float = 0.0,
+                 uv_kf: float = 0.0, color_kf: float = 0.0) -> AttributeBits:
+    """The bound-based bits of one part (issue 15 item 3; derivation in the module doc, section
+    "Bound-based defaults"): the fewest bits whose worst-case attribute error changes the shaded
+    colour by at most ``eps`` (colour units), with the shading slopes k_f of the analysis.
+
+    normals : bool, the part has normals; smallest b_n in [4, 16] with
+        ``normal_kf * radians(normal_error_deg(b_n)) <= eps`` (normal_kf: colour per unit normal).
+    uvs : None or the part's (n, 2) UVs; smallest b_u in [6, 16] with
+        ``uv_kf * |uv_error_bound(lo, hi, b_u)| <= eps`` (uv_kf: colour per UV unit, the texture's
+        slope; the error vector's length over the part's range).
+    colors : bool; smallest b_c in [4, 8] with ``color_kf * color_error_bound(b_c) <= eps``.
+    Each is the largest allowed when none satisfies the bound."""
+    if not (math.isfinite(eps) and eps > 0):
+        raise LopcookError("usage", None, f"eps must be a finite number > 0, got {eps}")
+    bn = bu = bc = None
+    if normals:
+        bn = next((b for b in range(NORMAL_BITS[0], NORMAL_BITS[1] + 1)
+                   if float(normal_kf) * math.radians(normal_error_deg(b)) <= eps), NORMAL_BITS[1])
+    if uvs is not None:
+        u = _float_input(uvs, 2, "uvs")
+        lo = u.min(axis=0) if u.shape[0] else np.zeros(2)
+        hi = u.max(axis=0) if u.shape[0] else np.zeros(2)
+        bu = next((b for b in range(UV_BITS[0], UV_BITS[1] + 1)
+                   if float(uv_kf) * float(np.linalg.norm(uv_error_bound(lo, hi, b))) <= eps), UV_BITS[1])
+    if colors:
+        bc = next((b for b in range(COLOR_BITS[0], COLOR_BITS[1] + 1)
+                   if float(color_kf) * color_error_bound(b) <= eps), COLOR_BITS[1])
+    return AttributeBits(normals=bn, uvs=bu, colors=bc)
+
+
+def part_default_bits(part, analyse_settings, kf: dict | None = None) -> AttributeBits:
+    """:func:`default_bits` of a MeshPart under AnalyseSettings: eps and the k_f of the analysis
+    (``kf``: a PartAnalysis's ``kf``, else ``lopcook.analyse.attribute_kf``). UVs whose k_f the
+    analysis leaves out (``texture_kf off``) use the texture's slope when the part has a texture."""
+    from ..analyse import attribute_kf
+    from ..analyse.bitlevel import texture_slope
+
+    kf = attribute_kf(part, analyse_settings) if kf is None else kf
+    uv_kf = kf.get("uv")
+    if uv_kf is None:
+        uv_kf = texture_slope(part.texture) if (part.uvs is not None and part.texture is not None) else 0.0
+    return default_bits(normals=part.normals is not None, uvs=part.uvs, colors=part.colors is not None,
+                        eps=float(analyse_settings.eps), normal_kf=float(kf.get("normal", 0.0)),
+                        uv_kf=float(uv_kf), color_kf=float(kf.get("color", 0.0)))
+
+
 def part_bits(settings, index: int, part, part_analysis=None) -> AttributeBits:
     """The attribute bits of scene part ``index`` (a MeshPart) under ``settings`` (a Settings):
-    its ``settings.attributes.requested(index)`` where given, else the default for each present
-    attribute. ``part_analysis``: the part's PartAnalysis (for the bound-based default)."""
+    ``settings.attributes.requested(index)`` where given, else :func:`part_default_bits` (with
+    the k_f of ``part_analysis``, its PartAnalysis, when given)."""
     try:
         req = settings.attributes.requested(index)
     except ValueError as exc:
         raise LopcookError("usage", None, str(exc), hint="give one (normal, uv, color) entry per part") from None
+    if any(r is None for r, present in zip(req, (part.normals, part.uvs, part.colors)) if present is not None):
+        d = part_default_bits(part, settings.analyse, None if part_analysis is None else part_analysis.kf)
+        req = tuple(d_ if r is None else r for r, d_ in zip(req, (d.normals, d.uvs, d.colors)))
     return bits_for(part.normals is not None, part.uvs is not None, part.colors is not None, req)
 
 

@@ -104,6 +104,18 @@ def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
     return {"parts": parts, "total": total}
 
 
+def attribute_waste(part: dict) -> dict:
+    """Bits of a part's attribute records that hold no field: ``buffer_bits`` per LOD (the
+    section's tail, < 32: fields may cross words) and ``aligned_bits_per_vertex``, what records
+    of whole components packed first-fit decreasing into 32-bit words (Purnomo 2005, section 4)
+    would waste per vertex."""
+    from .attributes import AttributeBits, aligned_waste, record_waste
+
+    bits = AttributeBits.of(part.get("attribute_bits") or {})
+    return {"buffer_bits": [record_waste(int(e["vertices"]), bits) for e in part["lods"]],
+            "aligned_bits_per_vertex": aligned_waste(bits)}
+
+
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
     m = c.manifest
@@ -122,7 +134,8 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
                  "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0)}
                 for e in p["lods"]]
         parts.append({"name": p["name"], "source": p["source"], "lods": lods,
-                      "attribute_bits": p.get("attribute_bits"), "vertex_bits": vb["parts"][len(parts)]})
+                      "attribute_bits": p.get("attribute_bits"), "vertex_bits": vb["parts"][len(parts)],
+                      "attribute_waste": attribute_waste(p)})
         if p.get("hierarchy") is not None:
             parts[-1]["hierarchy"] = hierarchy_stats(c, len(parts) - 1)
     return {
@@ -194,6 +207,11 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
             lines.append(f"  hierarchy {p['name'][-32:]}: {hs['nodes']:,} nodes, {hs['bits_per_triangle']:.2f} bits/triangle "
                          f"connectivity + {hs['structure_bits_per_triangle']:.2f} structure, "
                          f"{hs['position_bits_per_vertex']:.1f} position bits/vertex, {hs['section_bytes']:,} B")
+    vb = d.get("vertex_bits")
+    if vb and vb["positions"]:
+        top = max(vb["positions"], key=int)
+        lines.append(f"  bits per vertex at level {top}: positions {vb['positions'][top]:.1f} + normals "
+                     f"{vb['normals']:.1f} + UVs {vb['uvs']:.1f} + colours {vb['colors']:.1f} = {vb['total'][top]:.1f}")
     for w in d.get("lod_warnings") or []:
         lines.append(f"  LOD warning: {w}")
     if timings:

@@ -23,8 +23,9 @@ Steps of ``fit``:
      whole 32-bit words per buffer (``lopcook.emit.summary.memory_rows``'s ``ap_bytes``, which is
      the ``cap_bytes`` of the written container). Float size: 12 bytes per LOD-0 vertex
      (``memory_rows``'s ``float32_bytes``).
-   * ``"vertices"``: plus the normals, UVs and colours as stored in the container (4 bytes per
-     vertex each: octahedral 2x16, unorm 2x16, RGBA8; the section lengths). Float size: plus float32
+   * ``"vertices"``: plus the normals, UVs and colours as stored in the container (the packed
+     attribute record, ``4 ceil(n S / 32)`` bytes per buffer for S = 2 b_n + 2 b_u + 4 b_c
+     bits per vertex at the part's attribute bits; the section lengths). Float size: plus float32
      normals (12), UVs (8) and colours (16) per LOD-0 vertex where the part has them. This is
      Purnomo's "number of vertices times bits per vertex".
    * ``"all"``: plus the index buffer as stored (16-bit indices for buffers of at most 65,535

@@ -16,10 +16,11 @@ What is rendered (``evaluate``), for every per-buffer level B and every view:
 * **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
   vertices of bin k > B keep k bits.
 
-Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the source's normals,
-UVs, colours and textures (``lopcook.verify.renderer``): only positions differ. That is LOD 0;
-``evaluate(..., lod=k)`` renders the container's LOD k against the same float LOD-0 source, with the
-LOD's own index buffer and decoded attributes (``lopcook.emit.reader.lod_attributes``).
+Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the container's own
+decoded normals, UVs and colours (``lopcook.emit.reader.lod_attributes``: the packed attribute
+record, normals normalised per vertex) and the source's textures (``lopcook.verify.renderer``):
+the error counts positions and attribute quantisation. ``evaluate(..., lod=k)`` renders the
+container's LOD k against the same float LOD-0 source, with the LOD's own index buffer.
 ``evaluate_scene`` renders any float-position scene (e.g. a simplified mesh: "simplify only")
 against the source with the same cameras and metrics.
 
@@ -54,8 +55,8 @@ from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, l
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
-#: where LOD 0's normals, UVs and colours come from in a render: the source's, or the container's own
-ATTRIBUTE_SOURCES = ("source", "container")
+#: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
+ATTRIBUTE_SOURCES = ("container", "source")
 
 
 def parse_levels(levels, camera_levels, available: int, path) -> tuple[list[int], list[int]]:
@@ -214,7 +215,7 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "source") -> dict:
+                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container") -> dict:
     """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
     ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order)."""
     if attributes not in ATTRIBUTE_SOURCES:
@@ -234,10 +235,14 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         raise LopcookError("verify", c.path, f"the container has {len(c.manifest['parts'])} parts, the source "
                            f"{scene.source!r} has {len(scene.parts)}",
                            hint="give the source the container was cooked from")
-    # source attributes where the container's buffer is the source mesh (LOD 0), its own elsewhere
-    use_source = attributes == "source" and lod0_is_source(c) and any(k == 0 for k in lods)
-    src_orders = source_order(c, scene) if use_source else [None] * len(lods)
-    orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
+    # every decoded variant draws the container's own attributes (lod_attributes: normals, UVs,
+    # colours at their packed bits), so its PSNR includes their quantisation (issue 15);
+    # attributes="source": LOD 0 with the source's (only positions differ)
+    orders = [None] * len(lods)
+    if lod0_is_source(c) and any(k == 0 for k in lods):
+        src_orders = source_order(c, scene)  # the container must have been cooked from this source (LopcookError)
+        if attributes == "source":
+            orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
     shading = Shading.from_manifest(c.manifest, ks, shininess)
     viewing = render_viewing(c.manifest, h.renderer.size)
     g = c.manifest["grid"]
@@ -334,7 +339,7 @@ def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, di
 def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
              keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
              ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
-             lod: int = LOD, distance_m: float | None = None, attributes: str = "source") -> dict:
+             lod: int = LOD, distance_m: float | None = None, attributes: str = "container") -> dict:
     """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
     (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
 
@@ -350,17 +355,16 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     image_view : the view kept with ``keep_images`` (default: the view with the largest AP error,
         or CAP when AP is not rendered).
     lod : the container's LOD to render (default 0), always against the float **source** (LOD 0).
-        A part with fewer LODs renders its last one (``lod_indices``). LOD 0 of a container cooked
-        from this source is drawn with the source's normals, UVs and colours (permuted to the binned
-        order, ``source_order``: only positions differ); any other LOD with the container's own
-        decoded attributes and index buffer (``lopcook.emit.reader.lod_attributes``), and the
-        source part's texture. Part IDs are part indices, so depth-order errors work at every LOD.
+        A part with fewer LODs renders its last one (``lod_indices``). Every LOD is drawn with the
+        container's own decoded attributes (normals, UVs, colours at their packed bits) and index
+        buffer (``lopcook.emit.reader.lod_attributes``), and the source part's texture, so the
+        PSNR counts attribute quantisation as well as positions'. Part IDs are part indices, so depth-order errors work at every LOD.
     distance_m : None (camera at each level's distance, see the module doc), or one camera
         distance in metres (eye to the nearest point of the source's bounding box) for every row;
         each row's ``camera_level`` is then the level the half-pixel criterion selects there.
-    attributes : "source" (default: LOD 0 drawn with the source's attributes, as above) or
-        "container": every LOD drawn with the container's own decoded normals, UVs and colours
-        (their quantization rendered too: the attribute search, ``lopcook.tune.attributes``).
+    attributes : "container" (default: every LOD drawn with the container's own decoded normals,
+        UVs and colours, as above) or "source": LOD 0 drawn with the source's attributes (permuted
+        to the binned order, ``source_order``), so that only positions differ.
 
     Returns a JSON-ready dict (``images`` excepted):
 

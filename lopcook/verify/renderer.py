@@ -8,9 +8,8 @@ vertices).
 
 Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
 ``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
-CPU. Float, AP and CAP use the same normals, UVs, colours and textures (the source's, permuted to the
-binned order for LOD 0 of a container cooked from that source; the container's decoded ones for any
-other LOD), so only positions differ.
+CPU. Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
+packed attribute record, normals normalised per vertex), all with the source's textures.
 
 Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
 direction = from the box centre to the eye); ambient 0.15, diffuse 0.65, ks and shininess from the
@@ -284,19 +283,6 @@ class Textures:
         self.cache = {}
 
 
-def unit_normals(normals):
-    """(n, 3) float32 unit vectors of the container's decoded normals (the octahedral decode is
-    unnormalised, ``lopcook.emit.attributes``: its length varies from 1/sqrt(3) to 1 with the
-    direction, and interpolating such vectors across a triangle skews the shading; a decoder
-    normalises per vertex, as here, before the rasteriser interpolates). None stays None; a zero
-    vector stays zero (the fragment shader then uses the face normal)."""
-    if normals is None:
-        return None
-    n = np.asarray(normals, np.float32)
-    length = np.sqrt(np.sum(n * n, axis=1, dtype=np.float32), dtype=np.float32)
-    return np.where(length[:, None] > 0, n / np.where(length > 0, length, np.float32(1))[:, None], n).astype(np.float32)
-
-
 def attribute_vbos(ctx, normals, uvs, colors, order=None) -> tuple[list, list]:
     """VBO specs (buffer, format, name) of normals (n, 3) / uvs (n, 2) / colours (n, 4) float32 (each
     optional; permuted by ``order`` when given) and the list of buffers to release."""
@@ -400,10 +386,10 @@ class Harness:
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
                  keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
-                 distance_m: float | None = None, stop=None, attributes: str = "source") -> dict:
+                 distance_m: float | None = None, stop=None, attributes: str = "container") -> dict:
         """See ``lopcook.verify.evaluate.evaluate``; ``stop(per_view) -> bool`` after each level ends
         the render early (``lopcook.verify.evaluate.render_rows``: only the levels rendered are in
-        the result); ``attributes`` "container" draws the container's own decoded attributes."""
+        the result); ``attributes`` "source" draws LOD 0 with the source's attributes."""
         from .evaluate import harness_evaluate
 
         return harness_evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
@@ -458,8 +444,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
-    file; normals made unit per vertex, ``unit_normals``). Attribute VBOs and index buffers come from
-    ``attr_cache``."""
+    file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
     from .gpu import decode_block
 
     items, owned = [], []
@@ -469,13 +454,15 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     for i, p in enumerate(scene.parts):
         k = lods[i]
         if i not in attr_cache:
-            a = lod_attributes(c, i, k)
+            # unit normals, as a vertex shader normalises the octahedral decode before the
+            # interpolation (an unnormalised one would weight the vertices by its length)
+            a = lod_attributes(c, i, k, unit_normals=True)
             ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
             if orders[i] is not None:
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
                 flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
             else:
-                specs, bufs = attribute_vbos(ctx, unit_normals(a["normals"]), a["uvs"], a["colors"])
+                specs, bufs = attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
             attr_cache[i] = (ibo, specs, [ibo, *bufs], flags)
@@ -492,4 +479,4 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
 
 __all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
-           "unit_normals", "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
+           "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
