@@ -43,10 +43,15 @@ def gltfpack_default_bpv(scene) -> float:
 def cook(src: Path, out: Path, extra: list) -> dict:
     argv = [sys.executable, "-m", "lopcook", "cook", str(src), "-o", str(out), "--json", *extra]
     t0 = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    stdout, stderr = proc.stdout.read().decode(), proc.stderr.read().decode()
+    import tempfile
+
+    with tempfile.TemporaryFile() as out_f, tempfile.TemporaryFile() as err_f:  # files: no pipe to fill
+        proc = subprocess.Popen(argv, stdout=out_f, stderr=err_f, env=dict(os.environ, PYTHONPATH=str(REPO)))
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        out_f.seek(0)
+        err_f.seek(0)
+        stdout, stderr = out_f.read().decode(), err_f.read().decode()
     rc = os.waitstatus_to_exitcode(status)
     desc = json.loads(stdout) if rc == 0 else None
     return {"argv": " ".join(["lopcook", "cook", src.name, *extra]), "rc": rc, "wall_s": round(wall, 1),
