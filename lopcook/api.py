@@ -101,6 +101,30 @@ def _budget(scene: Scene, settings: Settings, options: dict, say):
     return data, info
 
 
+def _attribute_search(scene: Scene, settings: Settings, progress):
+    """``tune.vertex_bits`` (a bit budget) or ``tune.target_psnr`` with ``tune.attribute_search``:
+    Purnomo's greedy search over every attribute's bits (``lopcook.tune.attributes``). Returns
+    (the record for ``cook --json``, the manifest record, the chosen Settings); LopcookError (exit
+    1) when a target is missed even at the default bits, (exit 2) when the budget is unreachable."""
+    from .tune.attributes import allocate, format_probe, require_reached, search_record
+
+    t = settings.tune
+    budget = t.vertex_bits is not None
+    confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
+    harness = (t.calibration.views, t.calibration.resolution, tuple(t.calibration.levels))
+    with progress.stage("attribute search (probes)") as st:
+        def on_probe(p):
+            st.advance()
+            progress(format_probe(p))
+
+        res = allocate(scene, settings, mode="budget" if budget else "target",
+                       goal=t.vertex_bits if budget else t.target_psnr, harness=harness, confirm=confirm,
+                       statistic="mean" if budget else t.psnr_stat.value, progress=on_probe)
+    chosen = res.pop("_settings")
+    require_reached(res, scene.source)
+    return res, search_record(res), chosen
+
+
 def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
     """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
     (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes."""
@@ -114,9 +138,17 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
         t0 = time.perf_counter()
         calibration, record, settings = _calibrate(scene, settings, progress)
         timings["calibrate"] = time.perf_counter() - t0
+    search = search_rec = None
+    if settings.tune.vertex_bits is not None or (settings.tune.target_psnr is not None
+                                                 and settings.tune.attribute_search):
+        t0 = time.perf_counter()
+        search, search_rec, settings = _attribute_search(scene, settings, progress)
+        timings["attribute_search"] = time.perf_counter() - t0
     options = settings.to_manifest()["options"]
     if record is not None:
         options["calibration"] = record
+    if search_rec is not None:
+        options["attribute_search"] = search_rec
     if settings.tune.target_bytes is not None:
         data, info = _budget(scene, settings, options, say)
         result = info["cook"]
@@ -129,6 +161,7 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
         container = result.container
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration
+    result.attribute_search = search
     result.settings = settings
     container.result = result
     return container

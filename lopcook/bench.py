@@ -745,12 +745,38 @@ def run_connectivity(opts) -> dict:
     return main(argv)
 
 
+ATTRIBUTE_ASSETS = ("stanford-bunny.obj", "DamagedHelmet/DamagedHelmet.gltf", "Duck.glb")
+
+
+def run_attributes(opts) -> dict:
+    """``lopcook bench --attributes``: ``lopcook.benchkit.attributes`` on ``opts.assets`` (default
+    ``ATTRIBUTE_ASSETS`` of the corpus) into ``opts.output`` (attributes.json, .csv, .png)."""
+    from .benchkit import attributes as A
+    from .errors import LopcookError
+
+    corpus = corpus_dir()
+    assets = [str(a) for a in opts.assets]
+    if not assets:
+        if corpus is None:
+            raise LopcookError("usage", None, "no ASSETS given and no corpus found",
+                               hint="give asset files, or set LOPCOOK_CORPUS to the shared corpus folder")
+        assets = [str(corpus / a) for a in ATTRIBUTE_ASSETS if (corpus / a).is_file()]
+    Path(opts.output).mkdir(parents=True, exist_ok=True)
+    avail = P.availability(opts.peers)
+    for peer in opts.peers:
+        if avail.get(peer) is None:
+            print(P.missing_line(peer), file=sys.stderr, flush=True)
+    return A.run(opts, assets, avail)
+
+
 def run(opts) -> dict:
     """Run the bench described by ``opts`` (the parsed ``lopcook bench`` arguments: assets, output,
     levels, views, resolution, bits, peers, scaling, scaling_max_triangles, skip_render,
     calibrated, repeat, quiet) and write everything into ``opts.output``. Returns the summary."""
     if getattr(opts, "connectivity", False):
         return run_connectivity(opts)
+    if getattr(opts, "attributes", False):
+        return run_attributes(opts)
     t0 = time.perf_counter()
     out_dir = Path(opts.output)
     out_dir.mkdir(parents=True, exist_ok=True)

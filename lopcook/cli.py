@@ -7,6 +7,7 @@ unless ``--debug``), 3 internal error (a bug: please report it with the ``--debu
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import sys
 from pathlib import Path
@@ -98,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_viewing_options(p)
     _add_crease_angle(p)
     add_calibration_options(p, cook=True)
+    add_attribute_search_options(p)
     add_budget_options(p)
     _add_common(p)
 
@@ -210,6 +212,17 @@ def add_viewing_options(p: argparse.ArgumentParser) -> None:
                    help="closest camera distance to the scene, metres > 0 (e.g. 0.5 or 0.5m; default unknown)")
     g.add_argument("--pixel-error", type=float, default=v.pixel_error, metavar="PX",
                    help=f"allowed screen-space error, pixels > 0 (default {v.pixel_error:g}, the paper's half pixel)")
+
+
+def add_attribute_search_options(p: argparse.ArgumentParser) -> None:
+    """cook's --vertex-bits and --no-attribute-search (``lopcook.tune.attributes``)."""
+    g = p.add_argument_group("attribute bits search (renders everything quantized; see lopcook.tune.attributes)")
+    g.add_argument("--vertex-bits", type=float, default=None, metavar="N",
+                   help="choose every part's normal, UV and colour bits and the positions' k_f scale for the least "
+                        "image error with at most N bits per vertex at level 11 (positions' CAP bits included; "
+                        "Purnomo et al. 2005's greedy search)")
+    g.add_argument("--no-attribute-search", dest="attribute_search", action="store_false",
+                   help="with --target-psnr: search k_f only, keep the default attribute bits")
 
 
 def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
@@ -435,6 +448,16 @@ def _tune_settings(args):
         kw = dict(target_bytes=args.target_bytes, budget_scope=args.budget_scope, budget_levels=args.budget_levels,
                   budget=RenderSettings(views=_views(args.budget_views, "--budget-views"),
                                         resolution=_resolution(args.budget_resolution, "--budget-resolution")))
+    vb = getattr(args, "vertex_bits", None)
+    if vb is not None:
+        if not (math.isfinite(vb) and vb > 0):
+            raise LopcookError("usage", None, f"--vertex-bits {vb:g}: expected a positive number of bits per vertex")
+        if args.target_psnr is not None or kw:
+            raise LopcookError("usage", None, "--vertex-bits is a goal of its own: give it without --target-psnr "
+                               "and --target-bytes")
+        kw["vertex_bits"] = float(vb)
+    if hasattr(args, "attribute_search"):
+        kw["attribute_search"] = bool(args.attribute_search)
     try:
         return TuneSettings(target_psnr=args.target_psnr, psnr_stat=args.psnr_stat, search=args.search,
                             calibration=calibration, confirm=RenderSettings() if args.calibration_confirm else None,
@@ -581,10 +604,11 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
     result = container.result
     an = result.analysis
     timings = {"ingest": ingest_s}
-    if "calibrate" in result.timings_s:
-        timings["calibrate"] = result.timings_s["calibrate"]
+    for k in ("calibrate", "attribute_search"):
+        if k in result.timings_s:
+            timings[k] = result.timings_s[k]
     timings.update({f"analyse.{k}": v for k, v in an.timings.items()})
-    timings.update({k: v for k, v in result.timings_s.items() if k != "calibrate"})
+    timings.update({k: v for k, v in result.timings_s.items() if k not in ("calibrate", "attribute_search")})
     timings["write"] = write_s
     desc = describe_container(container, file_bytes=len(container.data))
     from .simplify import chain_warnings
@@ -596,6 +620,8 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
         desc["calibration"] = result.calibration
     if result.budget is not None:
         desc["budget"] = result.budget
+    if result.attribute_search is not None:
+        desc["attribute_search"] = result.attribute_search
     return desc
 
 
@@ -615,6 +641,10 @@ def _print_cook(args, desc: dict, result) -> None:
         from .tune.budget import format_budget
 
         print(format_budget(result.budget))
+    if result.attribute_search is not None:
+        from .tune.attributes import format_search
+
+        print(format_search(result.attribute_search))
     print(format_container(dict(desc, lod_warnings=[]), timings=desc["timings_s"]))  # warnings went to stderr
     an = result.analysis
     if an.touching or an.intersecting:
@@ -939,6 +969,13 @@ def _add_bench_parser(sub) -> None:
     p.add_argument("--repeat", type=int, default=1, metavar="N", help="scaling runs per input, best wall time (default 1)")
     p.add_argument("--calibrated", action="store_true",
                    help="also cook with --target-psnr 40 (slow on the chess set)")
+    p.add_argument("--attributes", action="store_true",
+                   help="instead: total GPU bytes per vertex (positions + normals + UVs + colours) against PSNR, "
+                        "every output rendered with its own decoded attributes (gltfpack -vn/-vt, glTF-Transform "
+                        "quantize, Draco -qn/-qt sweeps and lopcook; attributes.json/.csv/.png; default assets: "
+                        "bunny, DamagedHelmet, Duck)")
+    p.add_argument("--attributes-target", type=float, default=None, metavar="DB",
+                   help="with --attributes: also cook --target-psnr DB")
     p.add_argument("--connectivity", action="store_true",
                    help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
                         "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "

@@ -121,6 +121,7 @@ class CookResult:
     buffers: list | None = None
     calibration: dict | None = None
     budget: dict | None = None
+    attribute_search: dict | None = None
     settings: Settings | None = None
 
     @property

@@ -362,6 +362,9 @@ class TuneSettings:
     target_bytes : str or None  ``--target-bytes``: N bytes or P/Q of the float size
     budget_scope, budget : BudgetScope, RenderSettings  what the bytes count, the harness
     budget_levels : int >= 1  levels rendered per LOD by the budget fit
+    vertex_bits : float or None  ``--vertex-bits``: the attribute search's bit budget per vertex at
+        level 11 (``lopcook.tune.attributes``)
+    attribute_search : bool  with ``target_psnr``, also search every attribute's bits (default on)
     """
 
     target_psnr: float | None = None
@@ -373,6 +376,8 @@ class TuneSettings:
     budget_scope: BudgetScope = BudgetScope.POSITIONS
     budget: RenderSettings = RenderSettings(views=20, resolution=(640, 360))
     budget_levels: int = 2
+    vertex_bits: float | None = None
+    attribute_search: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "psnr_stat", _enum(PsnrStat, self.psnr_stat, "PSNR statistic"))
@@ -383,6 +388,8 @@ class TuneSettings:
             raise ValueError(f"target PSNR must be a positive finite number of dB, got {self.target_psnr}")
         if int(self.budget_levels) < 1:
             raise ValueError(f"budget levels must be >= 1, got {self.budget_levels}")
+        if self.vertex_bits is not None and not (math.isfinite(self.vertex_bits) and self.vertex_bits > 0):
+            raise ValueError(f"vertex bits must be a positive finite number, got {self.vertex_bits}")
 
 
 #: Allowed bits per component of each packed vertex attribute (inclusive; issue 15).

@@ -37,7 +37,10 @@ def _passes(psnrs) -> bool:
 
 def _check(scene, levels=LEVELS):
     search, gate_h = (RenderSettings(views=h.views, resolution=h.resolution, levels=tuple(levels)) for h in (SEARCH, GATE))
-    settings = DEFAULTS.with_(tune={"target_psnr": TARGET, "calibration": search, "confirm": gate_h})
+    # the k_f calibration alone (the attribute search, lopcook.tune.attributes, is tested in
+    # test_attribute_search.py): the gate renders below use the source attributes
+    settings = DEFAULTS.with_(tune={"target_psnr": TARGET, "calibration": search, "confirm": gate_h,
+                                    "attribute_search": False})
     default = api.cook(scene, DEFAULTS)
     default_gate = _gate(default, scene, levels)
     try:

@@ -121,8 +121,11 @@ def test_cook_target_psnr_records_the_calibration(tmp_path, capsys):
     assert sigmas == sorted(sigmas)
     chosen = [p for p in cal["curve"] if p["sigma"] == cal["kf_scale"]][0]
     assert chosen["psnr_min"] is None or chosen["psnr_min"] >= 45.0
-    # the container was cooked with the calibrated eps (every k_f scaled by the chosen sigma)
-    assert read(str(out)).manifest["options"]["analyse"]["eps"] == pytest.approx(cal["eps"])
+    # the container was cooked with the calibrated eps (every k_f scaled by the chosen sigma), then
+    # scaled by the attribute search's positions knob (lopcook.tune.attributes)
+    search = read(str(out)).manifest["options"]["attribute_search"]
+    assert read(str(out)).manifest["options"]["analyse"]["eps"] == pytest.approx(
+        cal["eps"] / 2.0 ** search["choice"]["log2_kf_scale"])
     assert cal["eps"] == pytest.approx(cal["base_eps"] / cal["kf_scale"])
 
 

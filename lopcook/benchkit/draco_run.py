@@ -1,6 +1,6 @@
 """Child process of ``lopcook bench``: encode every part with Draco (DracoPy) and write the buffers.
 
-Usage: ``python -m lopcook.benchkit.draco_run PARTS.npz OUT.npz BITS``
+Usage: ``python -m lopcook.benchkit.draco_run PARTS.npz OUT.npz BITS [NORMAL_BITS UV_BITS]``
 
 PARTS.npz holds, per part k, ``positions_k`` (n, 3) float32 metres, ``indices_k`` (m, 3) uint32 and,
 when present, ``normals_k`` (n, 3) float32 and ``uvs_k`` (n, 2) float32. Each part is one Draco
@@ -22,7 +22,7 @@ UV_BITS = 12
 COMPRESSION_LEVEL = 7
 
 
-def encode_parts(parts: dict, bits: int) -> dict:
+def encode_parts(parts: dict, bits: int, normal_bits: int = NORMAL_BITS, uv_bits: int = UV_BITS) -> dict:
     import DracoPy
 
     out = {}
@@ -30,9 +30,9 @@ def encode_parts(parts: dict, bits: int) -> dict:
     while f"positions_{k}" in parts:
         kw = {}  # DracoPy 2.2 asserts float64 normals / UVs
         if f"normals_{k}" in parts:
-            kw.update(normals=parts[f"normals_{k}"].astype(np.float64), normal_quantization_bits=NORMAL_BITS)
+            kw.update(normals=parts[f"normals_{k}"].astype(np.float64), normal_quantization_bits=int(normal_bits))
         if f"uvs_{k}" in parts:
-            kw.update(tex_coord=parts[f"uvs_{k}"].astype(np.float64), tex_coord_quantization_bits=UV_BITS)
+            kw.update(tex_coord=parts[f"uvs_{k}"].astype(np.float64), tex_coord_quantization_bits=int(uv_bits))
         data = DracoPy.encode(parts[f"positions_{k}"], faces=parts[f"indices_{k}"], quantization_bits=int(bits),
                               compression_level=COMPRESSION_LEVEL, **kw)
         out[f"buffer_{k}"] = np.frombuffer(data, np.uint8)
@@ -42,9 +42,10 @@ def encode_parts(parts: dict, bits: int) -> dict:
 
 def main(argv) -> int:
     src, dst, bits = argv[0], argv[1], int(argv[2])
+    nb, ub = (int(argv[3]), int(argv[4])) if len(argv) >= 5 else (NORMAL_BITS, UV_BITS)
     with np.load(src) as z:
         parts = {name: z[name] for name in z.files}
-    np.savez(dst, **encode_parts(parts, bits))
+    np.savez(dst, **encode_parts(parts, bits, nb, ub))
     return 0
 
 

@@ -25,7 +25,9 @@ import numpy as np
 @dataclass
 class Variant:
     """One peer output ready to draw: parts of (positions (n, 3) float32 metres, indices (m, 3)
-    uint32, source part index, source vertex per output vertex (n,) int64)."""
+    uint32, source part index, source vertex per output vertex (n,) int64[, own attributes
+    {"normals", "uvs", "colors"}: (n, k) float32 or None]). The own attributes are drawn by
+    ``render_variants(..., own_attributes=True)`` (``lopcook bench --attributes``)."""
 
     key: str
     parts: list
@@ -41,21 +43,30 @@ def _global_attribute(scene, name: str, width: int):
                            for p, a in zip(scene.parts, arrays)])
 
 
-def _items(h, scene, variant: Variant):
+def _items(h, scene, variant: Variant, own_attributes: bool = False):
     """Draw items (as ``Harness.float_items``) of a variant, and the GL objects to release. Each
-    output vertex takes the attributes of its matched source vertex (any part)."""
-    from lopcook.verify.renderer import attribute_buffers
+    output vertex takes the attributes of its matched source vertex (any part); with
+    ``own_attributes`` the variant's own normals / UVs / colours where it has them (the source's,
+    matched, for an attribute the tool dropped)."""
+    from lopcook.verify.renderer import attribute_buffers, attribute_vbos
 
     ctx = h.ctx
     attrs = {n: _global_attribute(scene, n, w) for n, w in (("normals", 3), ("uvs", 2), ("colors", 4))}
     items, owned = [], []
-    for pos, idx, part, match in variant.parts:
+    for entry in variant.parts:
+        pos, idx, part, match = entry[:4]
+        own = entry[4] if len(entry) > 4 and own_attributes else {}
         src = scene.parts[part]
         # the attributes the part's source has, taken at each matched vertex
         view = SimpleNamespace(**{n: None if getattr(src, n) is None else a for n, a in attrs.items()})
         vbo = ctx.buffer(np.ascontiguousarray(pos, dtype="<f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(idx, dtype="<u4").tobytes())
-        specs, bufs = attribute_buffers(ctx, view, match)
+        if own:
+            pick = {n: own.get(n) if own.get(n) is not None else (None if a is None else a[match])
+                    for n, a in vars(view).items()}
+            specs, bufs = attribute_vbos(ctx, pick["normals"], pick["uvs"], pick["colors"])
+        else:
+            specs, bufs = attribute_buffers(ctx, view, match)
         vao = ctx.vertex_array(h.renderer.float_program, [(vbo, "3f", "in_position"), *specs],
                                index_buffer=ibo, index_element_size=4)
         owned += [vbo, ibo, *bufs, vao]
@@ -66,12 +77,12 @@ def _items(h, scene, variant: Variant):
 
 def render_variants(scene, variants: list[Variant], *, levels, views, resolution, extent: float,
                     ks: float = 0.5, shininess: float = 32.0, fov_y_deg: float = 60.0,
-                    pixel_error: float = 0.5, progress=None) -> dict:
+                    pixel_error: float = 0.5, progress=None, own_attributes: bool = False) -> dict:
     """{variant key: {level: {"psnr_min", "psnr_mean", "psnr_views", "depth_order_errors"}}}.
 
     scene : the float source (``lopcook.types.Scene``); levels : camera levels B (each selects its
     distance); views : int N or view indices; resolution : (w, h) pixels; extent : grid extent,
-    metres."""
+    metres. own_attributes : draw each variant's own attributes (``_items``)."""
     from lopcook.verify import metrics as M
     from lopcook.verify.cameras import camera_distance, make_camera, select_views
     from lopcook.verify.renderer import Harness, Shading
@@ -86,7 +97,7 @@ def render_variants(scene, variants: list[Variant], *, levels, views, resolution
         drawn, owned = {}, []
         try:
             for v in variants:
-                items, o = _items(h, scene, v)
+                items, o = _items(h, scene, v, own_attributes)
                 drawn[v.key] = items
                 owned += o
             for level in levels:

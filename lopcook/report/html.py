@@ -29,7 +29,7 @@ from ..ingest.summary import attribute_labels
 from ..verify.metrics import depth_error_mask
 from .images import apply_crop, crop_box, depth_overlay, png_data_uri
 from .model import report_json_bytes
-from .svg import budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
+from .svg import attribute_search_svg, budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
 from .text import escape, fmt_pct, fmt_psnr, warning_groups
 
 
@@ -59,6 +59,54 @@ def budget_html(b: dict) -> str:
                    f'<td>{c["bytes"]:,}</td><td>{c["bits_per_vertex"]:.1f}</td><td>{fmt_psnr(c["psnr_mean"])}</td>'
                    f'<td>{fmt_psnr(c.get("psnr_min"))}</td></tr>')
     out.append("</tbody></table></div>")
+    return "".join(out)
+
+
+def _num(v, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def attributes_html(a: dict) -> str:
+    """The "Vertex attributes" section: bits per component per part, bits per vertex, attribute-space
+    errors, and the attribute search's record and curve (``attribute_search_svg``) when it ran."""
+    e = escape
+    vb = a["vertex_bits"]
+    errs = {r["part"]: r for r in (a.get("errors") or [])}
+    out = [f'<h2>Vertex attributes</h2><p id="attributes-summary">Bits per vertex at level {a["level"]}: '
+           f'<b>{vb["total"]:.2f}</b> (positions\' CAP {vb["positions"]:.2f}, attribute records '
+           f'{vb["attributes"]:.2f}).</p>',
+           '<div class="scroll"><table id="attributes"><thead><tr><th>part</th><th>vertices</th><th>normal bits</th>'
+           "<th>UV bits</th><th>colour bits</th><th>record bits</th><th>normal error deg max / mean</th>"
+           "<th>UV error max / mean</th></tr></thead><tbody>"]
+    for p in a["parts"]:
+        b = p["bits"]
+        r = errs.get(p["part"], {})
+        nerr = ("-" if r.get("normal_deg_max") is None else
+                f'{r["normal_deg_max"]:.3g} / {r["normal_deg_mean"]:.3g}')
+        uerr = ("-" if r.get("uv_error_max") is None else
+                f'{r["uv_error_max"]:.3g} / {r["uv_error_mean"]:.3g} {e(r["uv_error_unit"])}')
+        out.append(f'<tr data-part="{p["part"]}"><td class="name">{e(p["name"] or p["part"])}</td>'
+                   f'<td>{p["vertices"]:,}</td><td>{_num(b["normals"], "d")}</td><td>{_num(b["uvs"], "d")}</td>'
+                   f'<td>{_num(b["colors"], "d")}</td><td>{_num(p["record_bits"], "d")}</td><td>{nerr}</td>'
+                   f"<td>{uerr}</td></tr>")
+    out.append('</tbody></table></div><p class="note">Bits per component: normals octahedral (2 components), UVs '
+               '(2) over the part\'s range, colours (4 channels). Errors of the decoded LOD 0 against the source: '
+               'the angle between normals, the UV difference times the texture\'s size (texels; UV units without '
+               'a texture).</p>')
+    s = a.get("search")
+    if s:
+        goal = f'{s["goal"]:g} bits per vertex' if s["mode"] == "budget" else f'{s["goal"]:g} dB'
+        out.append(f'<p id="attribute-search">Attribute search ({e(s["mode"])}: {e(goal)}): {len(s["probes"])} '
+                   f'probes on {s["harness"]["views"]} views at {s["harness"]["resolution"][0]}x'
+                   f'{s["harness"]["resolution"][1]}; chosen {s["bits_per_vertex"]:.2f} bits per vertex (the default '
+                   f'bits: {s["start_bits_per_vertex"]:.2f}), positions\' k_f scale 2^{s["choice"]["log2_kf_scale"]:g}, '
+                   f'reached: {e(s["reached"])}.</p>')
+        svg = attribute_search_svg(dict(s, level=a["level"]))
+        if svg:
+            out.append(svg)
+    else:
+        out.append('<p class="note" id="attribute-search">No attribute search (cook --vertex-bits N or '
+                   '--target-psnr DB runs one): the bound-based default bits.</p>')
     return "".join(out)
 
 
@@ -400,6 +448,8 @@ def render_html(rep: dict, images: dict | None) -> str:
                    + (svg or ""))
     if rep.get("budget"):
         out.append(budget_html(rep["budget"]))
+    if rep.get("attributes"):
+        out.append(attributes_html(rep["attributes"]))
     out.append(_SCRIPT + "</body></html>")
     return "\n".join(out)
 

@@ -265,7 +265,35 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
     budget = budget_section(m)
     if budget is not None:  # optional key: containers written by cook --target-bytes
         rep["budget"] = budget
+    rep["attributes"] = attributes_section(container, scene)
     return _plain(rep)
+
+
+def attributes_section(container, scene) -> dict:
+    """The "Vertex attributes" section (issue 15): per part the bits per component of its normals,
+    UVs and colours (LOD 0's ``attribute_bits``; None where absent or not recorded) and its record
+    bits, the container's bits per vertex at ``lopcook.tune.attributes.COST_LEVEL`` (positions' CAP
+    plus records), the attribute-space errors against the source (normal degrees max / mean, UV
+    error in texels: ``lopcook.tune.attributes.attribute_errors``; None when the scene does not match
+    the container), and the attribute search's record (manifest ``options.attribute_search``:
+    allocation, probes = the error-against-bits curve of Purnomo et al. 2005, Fig. 11) or None."""
+    from ..tune.attributes import ATTRIBUTES, COST_LEVEL, attribute_errors, vertex_bits
+
+    m = container.manifest
+    parts = []
+    for i, part in enumerate(m["parts"]):
+        lod = part["lods"][0]
+        bits = part.get("attribute_bits") or lod.get("attribute_bits") or {}
+        parts.append({"part": i, "name": part.get("name"), "vertices": int(lod["vertices"]),
+                      "bits": {a: bits.get(a) for a in ATTRIBUTES}, "record_bits": lod.get("record_bits")})
+    try:
+        errors = attribute_errors(container, scene)
+    except Exception:  # noqa: BLE001 -- a scene that is not the container's source: no attribute errors
+        errors = None
+    vb = vertex_bits(container, COST_LEVEL)
+    return {"level": COST_LEVEL, "parts": parts, "errors": errors,
+            "vertex_bits": {k: vb[k] for k in ("positions", "attributes", "total")},
+            "search": (m.get("options") or {}).get("attribute_search")}
 
 
 def budget_section(manifest: dict) -> dict | None:
@@ -283,4 +311,4 @@ def report_json_bytes(rep: dict) -> bytes:
 
 __all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "scene_parts",
            "level_image_record", "depth_record", "lod_table",
-           "uniform16_section", "build_report", "budget_section", "report_json_bytes"]
+           "uniform16_section", "build_report", "budget_section", "attributes_section", "report_json_bytes"]

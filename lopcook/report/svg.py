@@ -325,6 +325,50 @@ def calibration_svg(cal: dict) -> str | None:
     return p.svg("k_f calibration: memory vs PSNR", [("CAP over k_f scale", "#9467bd")])
 
 
+def attribute_search_svg(search: dict) -> str | None:
+    """The attribute search's probes (``options.attribute_search.probes``): image error as PSNR
+    (the search's statistic, worst level, dB) against bits per vertex at level 11, Purnomo et al.
+    2005 Fig. 11; the start (the default bits) as a square, the choice ringed, the goal dashed (a
+    vertical line for a budget, a horizontal one for a target). None without probes."""
+    probes = [q for q in (search or {}).get("probes") or [] if q.get("objective_db") is not None]
+    if not probes:
+        return None
+    ys = [min(q["objective_db"], 150.0) for q in probes]
+    xs = [q["bits_per_vertex"] for q in probes]
+    goal = float(search["goal"])
+    ylo = math.floor(min(ys) / 5) * 5 - 5
+    yhi = math.ceil(max(ys + ([goal] if search["mode"] == "target" else [])) / 5) * 5 + 5
+    xlo = max(0.0, math.floor(min(xs + ([goal] if search["mode"] == "budget" else [])) / 8) * 8 - 4)
+    xhi = max(xs + ([goal] if search["mode"] == "budget" else [])) + 6
+    p = Plot(xlo, xhi, ylo, yhi)
+    p.axes(f"bits per vertex at level {search.get('level', 11)}", f"PSNR {search['statistic']} (worst level), dB",
+           ticks(xlo, xhi, 6), ticks(ylo, yhi) + [None])
+    if search["mode"] == "budget":
+        X = p.x(goal)
+        p.parts.append(f'<line x1="{X:.1f}" y1="{p.t}" x2="{X:.1f}" y2="{p.h - p.b}" stroke="#2ca02c" '
+                       f'stroke-dasharray="4 3"><title>budget {goal:g} bits per vertex</title></line>')
+    else:
+        Y = p.y(goal)
+        p.parts.append(f'<line x1="{p.l}" y1="{Y:.1f}" x2="{p.w - p.r}" y2="{Y:.1f}" stroke="#2ca02c" '
+                       f'stroke-dasharray="4 3"><title>target {goal:g} dB</title></line>')
+    for q, x, y in zip(probes, xs, ys):
+        p.parts.append(f'<circle class="probe" cx="{p.x(x):.1f}" cy="{p.y(y):.1f}" r="{MARKER_R}" fill="#1f77b4">'
+                       f'<title>{q.get("step") or "probe"}: {x:.2f} bits/vertex, {y:.2f} dB</title></circle>')
+    start = probes[0]
+    sx, sy = p.x(start["bits_per_vertex"]), p.y(min(start["objective_db"], 150.0))
+    p.parts.append(f'<rect class="start" x="{sx - 6:.1f}" y="{sy - 6:.1f}" width="12" height="12" fill="none" '
+                   f'stroke="#d62728" stroke-width="2"><title>start: the default bits</title></rect>')
+    ch = search["choice"]
+    chosen = [q for q in probes if q["allocation"] == ch]
+    if chosen:
+        c = chosen[0]
+        p.parts.append(f'<circle class="chosen" cx="{p.x(c["bits_per_vertex"]):.1f}" '
+                       f'cy="{p.y(min(c["objective_db"], 150.0)):.1f}" r="8" fill="none" stroke="#000" '
+                       f'stroke-width="2"><title>chosen: {c["bits_per_vertex"]:.2f} bits/vertex</title></circle>')
+    return p.svg("attribute search: image error against bits per vertex",
+                 [("probes", "#1f77b4"), ("start (square)", "#d62728"), ("chosen (ring)", "#000")])
+
+
 LOD_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
 
 
@@ -384,5 +428,5 @@ def budget_svg(b: dict) -> str:
 
 
 __all__ = ["Plot", "FONT", "LABEL_FONT", "MARKER_R", "text_width", "text_box", "overlaps", "group_label", "ticks",
-           "memory_psnr_svg", "level_fill", "histogram_svg", "heatmap_scale_svg", "calibration_svg", "LOD_COLOURS",
+           "memory_psnr_svg", "level_fill", "histogram_svg", "heatmap_scale_svg", "calibration_svg", "attribute_search_svg", "LOD_COLOURS",
            "budget_svg"]

@@ -55,6 +55,9 @@ from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, l
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
+#: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
+ATTRIBUTE_SOURCES = ("container", "source")
+
 
 def parse_levels(levels, camera_levels, available: int, path) -> tuple[list[int], list[int]]:
     """(decode levels, camera levels), one of each per row: ``levels`` ints in [1, 24] and at most
@@ -212,9 +215,11 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None, stop=None) -> dict:
+                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container") -> dict:
     """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
     ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order)."""
+    if attributes not in ATTRIBUTE_SOURCES:
+        raise LopcookError("usage", c.path, f"attributes={attributes!r}: expected one of {ATTRIBUTE_SOURCES}")
     t_start = time.perf_counter()
     scene = h.scene
     variants = tuple(variants)
@@ -231,10 +236,13 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
                            f"{scene.source!r} has {len(scene.parts)}",
                            hint="give the source the container was cooked from")
     # every decoded variant draws the container's own attributes (lod_attributes: normals, UVs,
-    # colours at their packed bits), so its PSNR includes their quantisation (issue 15)
+    # colours at their packed bits), so its PSNR includes their quantisation (issue 15);
+    # attributes="source": LOD 0 with the source's (only positions differ)
     orders = [None] * len(lods)
     if lod0_is_source(c) and any(k == 0 for k in lods):
-        source_order(c, scene)  # the container must have been cooked from this source (LopcookError)
+        src_orders = source_order(c, scene)  # the container must have been cooked from this source (LopcookError)
+        if attributes == "source":
+            orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]
     shading = Shading.from_manifest(c.manifest, ks, shininess)
     viewing = render_viewing(c.manifest, h.renderer.size)
     g = c.manifest["grid"]
@@ -331,7 +339,7 @@ def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, di
 def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
              keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
              ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
-             lod: int = LOD, distance_m: float | None = None) -> dict:
+             lod: int = LOD, distance_m: float | None = None, attributes: str = "container") -> dict:
     """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
     (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
 
@@ -354,6 +362,9 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     distance_m : None (camera at each level's distance, see the module doc), or one camera
         distance in metres (eye to the nearest point of the source's bounding box) for every row;
         each row's ``camera_level`` is then the level the half-pixel criterion selects there.
+    attributes : "container" (default: every LOD drawn with the container's own decoded normals,
+        UVs and colours, as above) or "source": LOD 0 drawn with the source's attributes (permuted
+        to the binned order, ``source_order``), so that only positions differ.
 
     Returns a JSON-ready dict (``images`` excepted):
 
@@ -396,7 +407,7 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     with Harness(scene, resolution, samples) as h:
         return h.evaluate(container, levels=levels, views=views, camera_levels=camera_levels, variants=variants,
                           ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view, lod=lod,
-                          distance_m=distance_m)
+                          distance_m=distance_m, attributes=attributes)
 
 
 def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,

@@ -1,0 +1,565 @@
+"""Every attribute's bits chosen by image error: Purnomo's greedy +-1-bit search (issue 15, item 1).
+
+This work is based on: Purnomo, Bilodeau, Cohen and Kumar, "Hardware-Compatible Vertex Compression
+Using Quantization and Simplification", Graphics Hardware 2005, sections 4.1 (the image-space
+metric: renders of the quantized model against the original from the 20 faces of an icosahedron,
+error over object pixels) and 4.2 (Fig. 3: the greedy bit-reduce / bit-increase operators, ended
+when the error stops decreasing). Meyer et al. 2011 section 5.1 give the positions' knob (the k_f
+of ``k_f * E_v * dx(b) <= eps``).
+
+The allocation (``Allocation``). Per part: the bits per component of its normals (octahedral,
+precise, ``NORMAL_BITS`` = 4..16), UVs (over the part's range, ``UV_BITS`` = 6..16) and colours
+(``COLOR_BITS`` = 4..8 per channel), each None where the part has no such attribute; and one
+scale of the positions' k_f for the whole scene, ``x`` = log2 sigma on the grid of
+``POSITION_STEP`` (every attribute's k_f times sigma, as ``lopcook.tune.calibrate``: a probe cooks
+with ``eps / sigma``; the per-vertex LOP levels stay the analysis's). It is cooked through
+``Settings.attributes.parts`` (``lopcook.settings.AttributeSettings``) and the ordinary pipeline
+(``lopcook.pipeline.run``), so a probe's container is exactly what ``cook`` writes for it.
+
+The knobs (``knobs``). Each knob moves one quantity by one step: ``positions`` (x by
+``POSITION_STEP``), and per part ``normals[i]``, ``uvs[i]``, ``colors[i]`` (one bit per component).
+With more than ``MAX_PART_KNOBS`` parts carrying an attribute, one knob moves that attribute on
+every part at once (each clipped to its range): the search's cost grows with the knobs, and a
+scene of many small parts gains little from per-part bits.
+
+The cost (``vertex_bits``): bits per vertex at level ``COST_LEVEL`` (11) over every LOD-0 vertex of
+the scene: the CAP position buffer's bits at that level (``lopcook.emit.summary.memory_rows``,
+word padding included) plus each part's record bits ``S = 2 b_n + 2 b_u + 4 b_c`` times its
+vertices (``lopcook inspect``'s ``vertex_bits`` total at 11, vertex-weighted).
+
+The error (``Search.quality``). Each probe is rendered **quantized**: CAP positions decoded on the
+GPU and the container's own decoded normals, UVs and colours (``lopcook.verify.evaluate`` with
+``attributes="container"``), against the float source, on the reduced harness (the calibration's:
+``TuneSettings.calibration``, default 8 views at 640 x 360, levels 6..12). The objective is the
+worst level's PSNR statistic: ``"mean"`` (the PSNR of the view-averaged MSE over object pixels:
+Purnomo average the views' errors) for a bit budget; the tune's ``psnr_stat`` (default ``"min"``
+over views, the gate's) for a quality target. An identical render counts as ``INF_DB``.
+
+The searches. ``budget`` (``cook --vertex-bits N``): from the start allocation (the default cook's
+bound-based bits and k_f), Purnomo's bit-reduce operator (every knob one step down, rendered; the
+least error wins; ties: the lower cost, then the knob order) until the cost is <= N; then rounds of
+(a) bit-increase while it fits (the least error among the steps up that keep cost <= N, taken when
+it lowers the error), else (b) Purnomo's swap: the bit-reduce winner (among the steps down that
+save bits) followed by the best bit-increase of another knob that fits, taken when it lowers the
+error; at most ``MAX_ROUNDS``
+rounds. The result fits N by construction (its cost is computed from its own container).
+``target`` (``cook --target-psnr DB``): from the start (the k_f calibration's choice with the
+default attribute bits, the **anchor**): while it misses, the bit-increase winner (least error)
+until it reaches the target; then while it passes, the bit-reduce winner (least error among the
+steps down that lower the cost) while it still passes, and when it does not, the swap of that
+winner with the bit-increase of another knob that passes and still costs less than the current
+choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
+20 views at 1280 x 720): when the choice misses there, ``fallbacks`` walk back toward the anchor
+(the choice's bits at the anchor's k_f, then halfway to the anchor's bits, then the anchor), the
+first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
+misses too, so the search never ends below the default cook's quality.
+
+Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
+renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
+allocation and writes the same bytes. Every probe is recorded (``probes``: allocation, bits per
+vertex, PSNR per level, step), the error-against-bits curve of Purnomo's Fig. 11.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+from ..errors import EXIT_VERIFY_FAILED, LopcookError
+
+NORMAL_BITS = (4, 16)
+UV_BITS = (6, 16)
+COLOR_BITS = (4, 8)
+RANGES = {"normals": NORMAL_BITS, "uvs": UV_BITS, "colors": COLOR_BITS}
+ATTRIBUTES = ("normals", "uvs", "colors")
+#: record bits per unit of each attribute's bits: 2 components, 2 components, 4 channels
+COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
+#: the positions' knob: log2 of the k_f scale, its grid step and range (as ``lopcook.tune.calibrate``)
+POSITION_STEP = 0.5
+POSITION_RANGE = (-8.0, 8.0)
+#: the level whose bits per vertex the budget counts
+COST_LEVEL = 11
+#: at most this many parts get their own knob per attribute (more: one knob for all of them)
+MAX_PART_KNOBS = 4
+#: at most this many improvement rounds after the budget is met (each 2 x knobs probes at most)
+MAX_ROUNDS = 16
+#: at most this many probes in one search (a safety bound; the curve says when it was hit)
+MAX_PROBES = 96
+#: an identical render (PSNR None) in the objective's arithmetic, dB
+INF_DB = 200.0
+MODES = ("budget", "target")
+
+
+@dataclass(frozen=True)
+class Allocation:
+    """One point of the search: ``x`` = log2 of the positions' k_f scale, ``parts`` = per part
+    (normal bits, UV bits, colour bits), None where the part has no such attribute."""
+
+    x: float
+    parts: tuple
+
+    def key(self) -> tuple:
+        return (float(self.x), tuple(tuple(p) for p in self.parts))
+
+    def record(self) -> dict:
+        """JSON form: {"log2_kf_scale", "parts": [{"normals", "uvs", "colors"}]}."""
+        return {"log2_kf_scale": float(self.x),
+                "parts": [dict(zip(ATTRIBUTES, (None if b is None else int(b) for b in p))) for p in self.parts]}
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One searched quantity: ``attribute`` "positions" or one of ``ATTRIBUTES``; ``parts`` the part
+    indices it moves (empty for positions)."""
+
+    attribute: str
+    parts: tuple = ()
+
+    @property
+    def name(self) -> str:
+        if self.attribute == "positions":
+            return "positions"
+        return f"{self.attribute}[{','.join(map(str, self.parts)) if len(self.parts) <= MAX_PART_KNOBS else 'all'}]"
+
+
+def knobs(alloc: Allocation) -> list[Knob]:
+    """The knobs of an allocation (module doc): positions first, then per attribute its parts' knobs
+    (or one for all of them past ``MAX_PART_KNOBS``), in part order."""
+    out = [Knob("positions")]
+    for a, attr in enumerate(ATTRIBUTES):
+        have = tuple(i for i, p in enumerate(alloc.parts) if p[a] is not None)
+        if not have:
+            continue
+        if len(have) <= MAX_PART_KNOBS:
+            out += [Knob(attr, (i,)) for i in have]
+        else:
+            out.append(Knob(attr, have))
+    return out
+
+
+def step(alloc: Allocation, knob: Knob, delta: int) -> Allocation | None:
+    """``alloc`` with ``knob`` moved ``delta`` (+1 / -1) steps, or None when nothing moves (every
+    part the knob moves is at the end of its range)."""
+    if knob.attribute == "positions":
+        x = alloc.x + delta * POSITION_STEP
+        lo, hi = POSITION_RANGE
+        return None if not lo <= x <= hi else replace(alloc, x=x)
+    a = ATTRIBUTES.index(knob.attribute)
+    lo, hi = RANGES[knob.attribute]
+    parts = [list(p) for p in alloc.parts]
+    moved = False
+    for i in knob.parts:
+        b = parts[i][a]
+        nb = min(hi, max(lo, b + delta))
+        if nb != b:
+            parts[i][a] = nb
+            moved = True
+    return replace(alloc, parts=tuple(tuple(p) for p in parts)) if moved else None
+
+
+def clamp_bits(attribute: str, bits: int) -> int:
+    lo, hi = RANGES[attribute]
+    return min(hi, max(lo, int(bits)))
+
+
+def vertex_bits(c, level: int = COST_LEVEL) -> dict:
+    """Bits per vertex of container ``c`` at ``level`` over every LOD-0 vertex: {"positions" (CAP
+    buffer bits at ``level`` / vertices), "attributes" (sum of n_i * record bits / vertices),
+    "total", "vertices", "per_part" [{"vertices", "record_bits"}]}. The record bits are the
+    manifest's ``record_bits`` (the packed record, ``lopcook.emit.attributes``)."""
+    from ..emit.summary import memory_rows
+
+    verts = attr = 0
+    per_part = []
+    for part in c.manifest["parts"]:
+        lod = part["lods"][0]
+        n = int(lod["vertices"])
+        s = int(lod.get("record_bits") or 0)
+        verts += n
+        attr += n * s
+        per_part.append({"vertices": n, "record_bits": s})
+    cap = next(r["cap_bytes"] for r in memory_rows(c, levels=[int(level)]) if int(r["level"]) == int(level))
+    v = max(verts, 1)
+    return {"positions": 8.0 * cap / v, "attributes": attr / v, "total": (8.0 * cap + attr) / v, "vertices": verts,
+            "per_part": per_part}
+
+
+def container_allocation(c, x: float = 0.0) -> Allocation:
+    """The allocation a container was cooked with: per part its LOD-0 ``attribute_bits``."""
+    parts = []
+    for part in c.manifest["parts"]:
+        bits = part.get("attribute_bits") or part["lods"][0].get("attribute_bits") or {}
+        parts.append(tuple(None if bits.get(a) is None else int(bits[a]) for a in ATTRIBUTES))
+    return Allocation(x=float(x), parts=tuple(parts))
+
+
+def cook_settings(settings, alloc: Allocation):
+    """``settings`` with ``alloc`` applied: eps divided by 2^x, and ``attributes.parts`` set."""
+    from ..settings import AttributeSettings
+
+    base = getattr(settings, "attributes", None) or AttributeSettings()
+    return settings.with_(analyse={"eps": settings.analyse.eps / 2.0**float(alloc.x)},
+                          attributes=replace(base, parts=tuple(tuple(p) for p in alloc.parts)))
+
+
+class Search:
+    """Probes of one scene: cooks (``lopcook.pipeline.run``) and quantized renders, each made once
+    per allocation. ``harness`` = (views, (w, h), levels) of the reduced harness; ``statistic``
+    "min" or "mean"; ``progress(dict)`` is called with each probe."""
+
+    def __init__(self, scene, settings, *, harness, statistic: str, progress=None):
+        from ..verify.renderer import Harness
+
+        self.scene = scene
+        self.settings = settings
+        self.views, self.resolution, self.levels = harness[0], tuple(harness[1]), [int(b) for b in harness[2]]
+        self.statistic = statistic
+        self.progress = progress
+        self.h = Harness(scene, self.resolution, cache_float=True)
+        self.costs: dict = {}
+        self.quality_memo: dict = {}
+        self.probes: list = []
+        self.path: list = []
+        self._last = (None, None)
+
+    def close(self) -> None:
+        self.h.release()
+
+    def cook(self, alloc: Allocation):
+        """The container of ``alloc`` (the last one is kept)."""
+        from ..pipeline import run
+
+        if self._last[0] == alloc.key():
+            return self._last[1]
+        s = cook_settings(self.settings, alloc)
+        c = run(self.scene, s, options=s.to_manifest()["options"]).container
+        self._last = (alloc.key(), c)
+        return c
+
+    def cost(self, alloc: Allocation) -> float:
+        """Bits per vertex at ``COST_LEVEL`` (``vertex_bits``), from the cook alone (no render)."""
+        k = alloc.key()
+        if k not in self.costs:
+            self.costs[k] = vertex_bits(self.cook(alloc))["total"]
+        return self.costs[k]
+
+    def quality(self, alloc: Allocation, step_name: str = "") -> float:
+        """The objective (module doc): min over levels of the PSNR statistic, dB (``INF_DB`` for
+        identical renders). Records the probe."""
+        k = alloc.key()
+        if k in self.quality_memo:
+            return self.quality_memo[k]["objective"]
+        t0 = time.perf_counter()
+        c = self.cook(alloc)
+        cost = self.cost(alloc)
+        res = self.h.evaluate(c, levels=self.levels, views=self.views, variants=("cap",), attributes="container")
+        per = [r["cap"][f"psnr_{self.statistic}"] for r in res["levels"]]
+        obj = min(INF_DB if v is None else float(v) for v in per)
+        p = {"allocation": alloc.record(), "bits_per_vertex": round(cost, 4), "objective_db": round(obj, 4),
+             "psnr_per_level": [None if v is None else round(float(v), 4) for v in per],
+             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),
+             "psnr_mean": _min_db(r["cap"]["psnr_mean"] for r in res["levels"]),
+             "step": step_name, "seconds": round(time.perf_counter() - t0, 3)}
+        self.quality_memo[k] = dict(p, objective=obj)
+        self.probes.append(p)
+        if self.progress is not None:
+            self.progress(p)
+        return obj
+
+    def full(self) -> bool:
+        return len(self.probes) >= MAX_PROBES
+
+
+def _min_db(values):
+    vals = [v for v in values if v is not None]
+    return None if not vals else round(min(float(v) for v in vals), 4)
+
+
+def _best(search: Search, cands: list[tuple[Knob, Allocation]], name: str) -> tuple | None:
+    """(objective, cost, index, knob, alloc) of the least-error candidate (ties: lower cost, then
+    order), rendering each; None without candidates."""
+    best = None
+    for idx, (k, a) in enumerate(cands):
+        if search.full():
+            break
+        q = search.quality(a, f"{name} {k.name}")
+        key = (-q, search.cost(a), idx)
+        if best is None or key < best[0]:
+            best = (key, q, a, k)
+    return None if best is None else (best[1], best[2], best[3])
+
+
+def _moves(alloc: Allocation, delta: int, exclude: Knob | None = None) -> list[tuple[Knob, Allocation]]:
+    out = []
+    for k in knobs(alloc):
+        if exclude is not None and k == exclude:
+            continue
+        a = step(alloc, k, delta)
+        if a is not None:
+            out.append((k, a))
+    return out
+
+
+def search_budget(search: Search, start: Allocation, budget: float) -> Allocation:
+    """``cook --vertex-bits N`` (module doc): the allocation of least error with cost <= ``budget``
+    bits per vertex found by the greedy operators. Raises LopcookError (usage) when even every knob
+    at its minimum costs more than the budget."""
+    cur = start
+    search.quality(cur, "start")
+    while search.cost(cur) > budget:
+        cands = [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)]
+        if not cands:
+            raise LopcookError("usage", search.scene.source,
+                               f"--vertex-bits {budget:g}: the least this scene can take is "
+                               f"{search.cost(cur):.2f} bits per vertex at level {COST_LEVEL} (every attribute "
+                               f"at its fewest bits, the positions' k_f at 2^{cur.x:g})",
+                               hint="give a larger --vertex-bits")
+        got = _best(search, cands, "reduce")
+        if got is None:  # probe bound: take the cheapest step down
+            cur = min(cands, key=lambda t: search.cost(t[1]))[1]
+            continue
+        cur = got[1]
+    for _ in range(MAX_ROUNDS):
+        if search.full():
+            break
+        q_cur = search.quality(cur)
+        up = [(k, a) for k, a in _moves(cur, +1) if search.cost(a) <= budget]
+        got = _best(search, up, "increase") if up else None
+        if got is not None and got[0] > q_cur:
+            cur = got[1]
+            continue
+        red = _best(search, [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)], "reduce")
+        if red is None:
+            break
+        swaps = [(k, a) for k, a in _moves(red[1], +1, exclude=red[2]) if search.cost(a) <= budget]
+        got = _best(search, swaps, f"swap after {red[2].name}") if swaps else None
+        if got is not None and got[0] > q_cur:
+            cur = got[1]
+            continue
+        break
+    return cur
+
+
+def search_target(search: Search, start: Allocation, target: float) -> tuple[Allocation, bool]:
+    """``cook --target-psnr DB`` on the reduced harness (module doc): (choice, whether it passed)."""
+    cur = start
+    q = search.quality(cur, "start")
+    while q < target and not search.full():
+        got = _best(search, _moves(cur, +1), "increase")
+        if got is None:
+            return cur, False
+        q, cur = got[0], got[1]
+    if q < target:
+        return cur, False
+    search.path = [cur]  # the passing choices in the order taken
+    while not search.full():
+        down = [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)]
+        got = _best(search, down, "reduce") if down else None
+        if got is None:
+            break
+        if got[0] >= target:
+            cur = got[1]
+            search.path.append(cur)
+            continue
+        swaps = [(k, a) for k, a in _moves(got[1], +1, exclude=got[2]) if search.cost(a) < search.cost(cur)]
+        passing = []
+        for k, a in swaps:
+            if search.full():
+                break
+            if search.quality(a, f"swap after {got[2].name} {k.name}") >= target:
+                passing.append((search.cost(a), len(passing), a))
+        if not passing:
+            break
+        cur = min(passing)[2]
+        search.path.append(cur)
+    return cur, True
+
+
+def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocation]]:
+    """The allocations a target search confirms on the gate, in order, after its choice missed
+    there: (1) "anchor positions": the choice's attribute bits with the anchor's k_f scale (the
+    k_f calibration already chose it on the gate; the reduced harness flatters position error
+    most), (2) "halfway": that with every attribute's bits halfway back to the anchor's (rounded
+    up), (3) "anchor". Duplicates and the choice itself are left out."""
+    pos = replace(choice, x=start.x)
+    half = replace(pos, parts=tuple(tuple(None if c is None else (c + s + 1) // 2 for c, s in zip(pc, ps))
+                                     for pc, ps in zip(choice.parts, start.parts)))
+    out, seen = [], {choice.key()}
+    for role, a in (("anchor positions", pos), ("halfway", half), ("anchor", start)):
+        if a.key() not in seen:
+            seen.add(a.key())
+            out.append((role, a))
+    return out
+
+
+def gate_quality(scene, c, confirm, levels, statistic: str) -> dict:
+    """Render ``c`` quantized on the gate's harness ``confirm`` = (views, (w, h)): {"psnr_min",
+    "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level"}."""
+    from ..verify.evaluate import evaluate
+
+    res = evaluate(c, scene, levels=levels, views=confirm[0], resolution=tuple(confirm[1]), variants=("cap",),
+                   attributes="container")
+    per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
+    return {"views": confirm[0], "resolution": list(confirm[1]), "levels": list(levels),
+            "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),
+            "psnr_mean": _min_db(r["cap"]["psnr_mean"] for r in res["levels"]),
+            "psnr_per_level": [None if v is None else round(float(v), 4) for v in per],
+            "objective_db": round(min(INF_DB if v is None else float(v) for v in per), 4)}
+
+
+def attribute_errors(c, scene) -> list[dict]:
+    """Attribute-space errors of a container's LOD 0 against the source, per part: normals' angle
+    (degrees, max and mean over vertices, decoded normal normalised) and UVs' error in texels
+    (max over vertices of the per-component error times the texture's size; in UV units when the
+    part has no texture). Vertices matched by order (``lopcook.verify.buffers.source_order``)."""
+    import numpy as np
+
+    from ..emit.reader import lod_attributes
+    from ..verify.buffers import source_order
+
+    orders = source_order(c, scene)
+    out = []
+    for i, p in enumerate(scene.parts):
+        a = lod_attributes(c, i, 0)
+        row: dict = {"part": i, "name": p.name}
+        o = orders[i]
+        if p.normals is not None and a.get("normals") is not None:
+            d = np.asarray(a["normals"], np.float64)
+            d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+            s = np.asarray(p.normals, np.float64)[o]
+            s = s / np.maximum(np.linalg.norm(s, axis=1, keepdims=True), 1e-300)
+            ang = np.degrees(np.arccos(np.clip(np.sum(d * s, axis=1), -1.0, 1.0)))
+            row.update(normal_deg_max=float(ang.max()) if ang.size else 0.0,
+                       normal_deg_mean=float(ang.mean()) if ang.size else 0.0)
+        if p.uvs is not None and a.get("uvs") is not None:
+            err = np.abs(np.asarray(a["uvs"], np.float64) - np.asarray(p.uvs, np.float64)[o])
+            size = None
+            if p.texture is not None:
+                try:
+                    w, h = p.texture.image().size
+                    size = (w, h)
+                except Exception:  # noqa: BLE001 -- an undecodable texture: UV units
+                    size = None
+            scale = np.array(size if size else (1.0, 1.0), np.float64)
+            texels = err * scale
+            row.update(uv_error_max=float(texels.max()) if texels.size else 0.0,
+                       uv_error_mean=float(texels.mean()) if texels.size else 0.0,
+                       uv_error_unit="texels" if size else "uv", texture_size=list(size) if size else None)
+        out.append(row)
+    return out
+
+
+def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, statistic: str = "mean",
+             progress=None) -> dict:
+    """Run one search (module doc). ``mode`` "budget" (``goal`` bits per vertex) or "target"
+    (``goal`` dB); ``settings`` the cook's (for "target" the k_f calibration's choice already
+    applied); ``harness`` (views, (w, h), levels) the reduced harness; ``confirm`` (views, (w, h))
+    the gate's or None.
+
+    Returns the search record: {"mode", "goal", "statistic", "harness", "start" and "choice"
+    (allocation records), "bits_per_vertex" (choice's, at ``COST_LEVEL``), "vertex_bits" (its
+    positions / attributes split), "start_bits_per_vertex", "objective_db", "reached",
+    "confirmation" (gate renders of the choice, and of the anchor when the choice missed), "probes",
+    "seconds", "attribute_errors"} and "_settings" (the Settings to cook, popped by the caller)."""
+    if mode not in MODES:
+        raise ValueError(f"mode {mode!r}")
+    t0 = time.perf_counter()
+    from ..pipeline import run
+
+    base = run(scene, settings, options=settings.to_manifest()["options"]).container
+    start = container_allocation(base, 0.0)
+    search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress)
+    conf = []
+    try:
+        if mode == "budget":
+            choice = search_budget(search, start, float(goal))
+            reached = search.cost(choice) <= float(goal)
+        else:
+            choice, reached = search_target(search, start, float(goal))
+            if not reached:
+                choice = start
+        objective = search.quality(choice)
+        c = search.cook(choice)
+        if confirm is not None:
+            levels = harness[2]
+            g = gate_quality(scene, c, confirm, levels, statistic)
+            conf.append(dict(g, allocation=choice.record(), role="choice"))
+            if mode == "target":
+                reached = g["objective_db"] >= float(goal)
+                # walk back toward the anchor (``fallbacks``)
+                for role, a in fallbacks(choice, start):
+                    if reached:
+                        break
+                    ca = search.cook(a)
+                    ga = gate_quality(scene, ca, confirm, levels, statistic)
+                    conf.append(dict(ga, allocation=a.record(), role=role))
+                    if ga["objective_db"] >= float(goal) or role == "anchor":
+                        choice, c, objective = a, ca, search.quality(a, f"confirm {role}")
+                        reached = ga["objective_db"] >= float(goal)
+    finally:
+        search.close()
+    vb = vertex_bits(c)
+    return {"mode": mode, "goal": float(goal), "statistic": statistic,
+            "harness": {"views": harness[0], "resolution": list(harness[1]), "levels": list(harness[2])},
+            "start": start.record(), "start_bits_per_vertex": round(vertex_bits(base)["total"], 4),
+            "choice": choice.record(), "bits_per_vertex": round(vb["total"], 4),
+            "vertex_bits": {k: round(vb[k], 4) for k in ("positions", "attributes", "total")},
+            "objective_db": round(objective, 4), "reached": bool(reached), "confirmation": conf,
+            "probes": search.probes, "seconds": round(time.perf_counter() - t0, 3),
+            "attribute_errors": attribute_errors(c, scene), "_settings": cook_settings(settings, choice)}
+
+
+def search_record(result: dict) -> dict:
+    """The manifest's ``options.attribute_search``: the search record without probes' timings and
+    without anything machine-dependent (so the same command writes the same bytes)."""
+    keep = ("mode", "goal", "statistic", "harness", "start", "start_bits_per_vertex", "choice", "bits_per_vertex",
+            "vertex_bits", "objective_db", "reached", "confirmation", "attribute_errors")
+    rec = {k: result[k] for k in keep}
+    rec["probes"] = [{k: v for k, v in p.items() if k != "seconds"} for p in result["probes"]]
+    return rec
+
+
+def require_reached(result: dict, path: str | None = None) -> None:
+    """LopcookError (exit 1) when a target search missed even at the anchor."""
+    if result["mode"] == "target" and not result["reached"]:
+        conf = result["confirmation"]
+        got = conf[-1]["objective_db"] if conf else result["objective_db"]
+        raise LopcookError("verify", path, f"--target-psnr {result['goal']:g}: even the default attribute bits "
+                           f"reach only {got:.2f} dB with quantized attributes", exit_code=EXIT_VERIFY_FAILED,
+                           hint="lower --target-psnr, or cook without it")
+
+
+def _alloc_text(rec: dict) -> str:
+    parts = ["/".join("-" if p[a] is None else str(p[a]) for a in ATTRIBUTES) for p in rec["parts"]]
+    return f"k_f 2^{rec['log2_kf_scale']:g}, n/uv/c " + " ".join(parts)
+
+
+def format_probe(p: dict) -> str:
+    """One progress line per probe."""
+    return (f"attribute search {p['step'] or 'probe'}: {_alloc_text(p['allocation'])}: {p['bits_per_vertex']:.2f} "
+            f"bits/vertex, {p['objective_db']:.2f} dB ({p['seconds']:.1f} s)")
+
+
+def format_search(result: dict) -> str:
+    """Human-readable lines: the allocation per part, bits per vertex, PSNR, probes."""
+    lines = [f"attribute search ({result['mode']} {result['goal']:g}"
+             f"{' bits/vertex' if result['mode'] == 'budget' else ' dB'}): {len(result['probes'])} probes, "
+             f"{result['seconds']:.1f} s"]
+    ch = result["choice"]
+    lines.append(f"  positions k_f scale 2^{ch['log2_kf_scale']:g}; bits per vertex at level {COST_LEVEL}: "
+                 f"{result['bits_per_vertex']:.2f} (positions {result['vertex_bits']['positions']:.2f}, attributes "
+                 f"{result['vertex_bits']['attributes']:.2f}; the default cook: {result['start_bits_per_vertex']:.2f})")
+    for i, p in enumerate(ch["parts"]):
+        bits = ", ".join(f"{a} {p[a]}" for a in ATTRIBUTES if p[a] is not None) or "no attributes"
+        lines.append(f"  part {i}: {bits} bits per component")
+    lines.append(f"  reduced harness PSNR ({result['statistic']}, worst level): {result['objective_db']:.2f} dB")
+    for c in result["confirmation"]:
+        lines.append(f"  gate ({c['views']} views at {c['resolution'][0]}x{c['resolution'][1]}, {c['role']}): "
+                     f"min {c['psnr_min']} dB, mean {c['psnr_mean']} dB")
+    return "\n".join(lines)
+
+
+__all__ = ["NORMAL_BITS", "UV_BITS", "COLOR_BITS", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
+           "Allocation", "Knob", "knobs", "step", "vertex_bits", "container_allocation", "cook_settings", "Search",
+           "search_budget", "search_target", "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
+           "require_reached", "format_search", "format_probe"]
