@@ -263,21 +263,9 @@ def peer_configs(avail: dict, bits=PEER_BITS) -> list[dict]:
 def _decoded_output(cfg: dict, out_path: Path):
     """Decoded parts of a peer output: list of (positions (n, 3) float64, indices (m, 3), attr (n, 5))."""
     if cfg["tool"] == "draco":
-        import DracoPy
+        from .benchkit.draco_run import decode_buffers
 
-        parts = []
-        with np.load(out_path) as z:
-            k = 0
-            while f"buffer_{k}" in z.files:
-                mesh = DracoPy.decode(z[f"buffer_{k}"].tobytes())
-                pts = np.asarray(mesh.points, np.float64)
-                normals = getattr(mesh, "normals", None)
-                uvs = getattr(mesh, "tex_coord", None)
-                normals = None if normals is None or len(normals) != len(pts) else np.asarray(normals)
-                uvs = None if uvs is None or len(uvs) != len(pts) else np.asarray(uvs)
-                parts.append((pts, np.asarray(mesh.faces, np.uint32).reshape(-1, 3), _attr(normals, uvs, len(pts))))
-                k += 1
-        return parts
+        return [(pts, tri, _attr(nrm, uv, len(pts))) for pts, tri, nrm, uv in decode_buffers(out_path)]
     from .ingest import load
 
     scene = load(out_path)

@@ -78,6 +78,26 @@ def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
+
+def attribute_levels(e_v: dict, kf: dict, eps: float, extent: float, n: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per-vertex attribute levels of one part (Meyer et al. 2011, section 3.2): for each attribute
+    ``name`` of ``e_v`` ((n,) E_v, attribute units per metre) with ``kf[name] > 0``, the level whose
+    position error keeps ``kf * E_v * error <= eps``; the maximum over attributes, clamped to
+    [1, 24]. Returns (level (n,) int64, reason (n,) uint8 REASON_CODE of the attribute that set
+    it, "none" at level 1; count of vertices whose bound needs more than 24 bits)."""
+    level = np.ones(n, dtype=np.int64)
+    reason = np.full(n, REASON_CODE["none"], dtype=np.uint8)
+    for name in e_v:
+        if kf[name] <= 0:
+            continue
+        lv = attribute_level(e_v[name], kf[name], eps, extent)
+        reason[lv > level] = REASON_CODE[name]
+        level = np.maximum(level, lv)
+    over = int(np.count_nonzero(level > BITS))
+    level = np.minimum(level, BITS)
+    reason[level == 1] = REASON_CODE["none"]
+    return level, reason, over
+
 def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None) -> Analysis:
     """Minimum bit level m_v for every vertex of every part (see module doc and PartAnalysis)."""
     timings: dict = {}
@@ -92,8 +112,6 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
     for part in scene.parts:
         n = part.n_vertices
         kf = attribute_kf(part, settings)
-        level = np.ones(n, dtype=np.int64)
-        reason = np.full(n, REASON_CODE["none"], dtype=np.uint8)
         e_v = {}
         named = [(name, attr) for name, attr in (("normal", part.normals), ("uv", part.uvs),
                                                   ("color", part.colors)) if name in kf]
@@ -102,15 +120,8 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         deg = int(np.count_nonzero(degen))
         for (name, _), e_t in zip(named, e_ts):
             e_v[name] = vertex_max(frames.tri, e_t, n)
-            if kf[name] <= 0:
-                continue
-            lv = attribute_level(e_v[name], kf[name], settings.eps, grid.extent)
-            raise_ = lv > level
-            reason[raise_] = REASON_CODE[name]
-            level = np.maximum(level, lv)
-        unsatisfied.append(int(np.count_nonzero(level > BITS)))
-        level = np.minimum(level, BITS)
-        reason[level == 1] = REASON_CODE["none"]
+        level, reason, over = attribute_levels(e_v, kf, settings.eps, grid.extent, n)
+        unsatisfied.append(over)
         attr_level.append(level)
         attr_reason.append(reason)
         e_vs.append(e_v)

@@ -40,9 +40,8 @@ import numpy as np
 from ..grid import BITS, Grid
 from ..settings import AnalyseSettings, DepthMode
 from ..types import Scene
-from . import colocated_max, attribute_kf
+from . import attribute_kf, attribute_levels, colocated_max
 from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
-from .bitlevel import attribute_level
 from .depth import depth_levels, level_from_distance
 from .discontinuity import (base_colours, boundary_vertices, colocated_groups, fold_levels, required_level,
                             seam_jumps)
@@ -130,17 +129,8 @@ class PreparedAnalysis:
         parts = self.scene.parts
         attr_level, attr_reason, unsatisfied = [], [], []
         for part, e_v, kf in zip(parts, self.e_vs, self.kfs):
-            level = np.ones(part.n_vertices, dtype=np.int64)
-            reason = np.full(part.n_vertices, REASON_CODE["none"], dtype=np.uint8)
-            for name in e_v:
-                if kf[name] <= 0:
-                    continue
-                lv = attribute_level(e_v[name], kf[name], s.eps, self.grid.extent)
-                reason[lv > level] = REASON_CODE[name]
-                level = np.maximum(level, lv)
-            unsatisfied.append(int(np.count_nonzero(level > BITS)))
-            level = np.minimum(level, BITS)
-            reason[level == 1] = REASON_CODE["none"]
+            level, reason, over = attribute_levels(e_v, kf, s.eps, self.grid.extent, part.n_vertices)
+            unsatisfied.append(over)
             attr_level.append(level)
             attr_reason.append(reason)
         timings["attribute_error"] = time.perf_counter() - t0

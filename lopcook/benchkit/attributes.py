@@ -192,22 +192,10 @@ def _decoded_parts(cfg: dict, out: Path) -> list[dict]:
     """Decoded parts of a peer output: [{"positions" (n, 3) f64, "indices" (m, 3), "normals", "uvs",
     "colors" (or None where the tool dropped them)}]."""
     if cfg["tool"] == "draco":
-        import DracoPy
+        from .draco_run import decode_buffers
 
-        parts = []
-        with np.load(out) as z:
-            k = 0
-            while f"buffer_{k}" in z.files:
-                mesh = DracoPy.decode(z[f"buffer_{k}"].tobytes())
-                pts = np.asarray(mesh.points, np.float64)
-                normals = getattr(mesh, "normals", None)
-                uvs = getattr(mesh, "tex_coord", None)
-                normals = None if normals is None or len(normals) != len(pts) else np.asarray(normals, np.float32)
-                uvs = None if uvs is None or len(uvs) != len(pts) else np.asarray(uvs, np.float32)
-                parts.append({"positions": pts, "indices": np.asarray(mesh.faces, np.uint32).reshape(-1, 3),
-                              "normals": normals, "uvs": uvs, "colors": None})
-                k += 1
-        return parts
+        return [{"positions": pts, "indices": tri, "normals": nrm, "uvs": uv, "colors": None}
+                for pts, tri, nrm, uv in decode_buffers(out)]
     from ..bench import glb_json
     from ..ingest import load
 

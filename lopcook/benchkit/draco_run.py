@@ -40,6 +40,28 @@ def encode_parts(parts: dict, bits: int, normal_bits: int = NORMAL_BITS, uv_bits
     return out
 
 
+
+def decode_buffers(path) -> list[tuple]:
+    """The meshes of an OUT.npz written by this module, decoded (DracoPy): per buffer k,
+    (positions (n, 3) float64, indices (m, 3) uint32, normals (n, 3) float32 or None, uvs (n, 2)
+    float32 or None); an attribute the decoder returns with a count other than n is None."""
+    import DracoPy
+
+    parts = []
+    with np.load(path) as z:
+        k = 0
+        while f"buffer_{k}" in z.files:
+            mesh = DracoPy.decode(z[f"buffer_{k}"].tobytes())
+            pts = np.asarray(mesh.points, np.float64)
+            normals = getattr(mesh, "normals", None)
+            uvs = getattr(mesh, "tex_coord", None)
+            normals = None if normals is None or len(normals) != len(pts) else np.asarray(normals, np.float32)
+            uvs = None if uvs is None or len(uvs) != len(pts) else np.asarray(uvs, np.float32)
+            parts.append((pts, np.asarray(mesh.faces, np.uint32).reshape(-1, 3), normals, uvs))
+            k += 1
+    return parts
+
+
 def main(argv) -> int:
     src, dst, bits = argv[0], argv[1], int(argv[2])
     nb, ub = (int(argv[3]), int(argv[4])) if len(argv) >= 5 else (NORMAL_BITS, UV_BITS)
