@@ -105,4 +105,47 @@ def call(fn, *args, faces: int | None = None, **kwargs):
     raise value
 
 
-__all__ = ["MIN_FACES", "ChildFailed", "call"]
+def _fresh_child(conn, fn, args, kwargs) -> None:
+    """In the spawned interpreter: ``fn(*args, **kwargs)``, the result or exception sent on ``conn``."""
+    try:
+        payload = (True, fn(*args, **kwargs))
+    except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+        payload = (False, exc)
+    try:
+        conn.send(payload)
+    except Exception as exc:  # noqa: BLE001 - an exception that does not pickle
+        conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+    conn.close()
+
+
+def call_fresh(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` in a freshly started interpreter (multiprocessing "spawn"), for
+    libraries whose thread pools do not survive a fork once started (USD's TBB: a forked child
+    waits forever for workers that were not copied). ``fn`` must be importable by name; results
+    and exceptions must pickle. A child that dies without answering raises ``ChildFailed``, with
+    the signal or exit status. Costs an interpreter start and the imports (about a second)."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_fresh_child, args=(send, fn, args, kwargs), daemon=True)
+    proc.start()
+    send.close()
+    try:
+        try:
+            ok, value = recv.recv()
+        except EOFError:
+            ok, value = None, None
+    finally:
+        recv.close()
+        proc.join()
+    if ok is None:
+        code = proc.exitcode
+        why = f"killed by signal {-code}" if code is not None and code < 0 else f"exit status {code}"
+        raise ChildFailed(f"the backend process ended without a result ({why})")
+    if ok:
+        return value
+    raise value
+
+
+__all__ = ["MIN_FACES", "ChildFailed", "call", "call_fresh"]

@@ -62,6 +62,7 @@ def test_a_native_crash_becomes_one_clear_error(tmp_path, monkeypatch):
         os.kill(os.getpid(), signal.SIGSEGV)
 
     monkeypatch.setattr(usd, "_load_in_child", crash)
+    monkeypatch.setattr(usd, "_usd_started_here", lambda: False)  # the forked child sees the patch
     path = _write(tmp_path, fz._deep_xform(2))
     with pytest.raises(LopcookError) as info:
         usd.load(path, fmt="usda", settings=__import__("lopcook.settings").settings.DEFAULT_INGEST)

@@ -48,6 +48,38 @@ def test_exception_and_crash():
         isolate.call(_crash, faces=isolate.MIN_FACES)
 
 
+def test_a_fresh_interpreter_returns_raises_and_reports_a_crash():
+    """``call_fresh`` (USD once its thread pool may run here): another process, the same result,
+    the child's exception re-raised, a crash as ChildFailed with its signal."""
+    a = np.arange(1000, dtype=np.float64)
+    pid, total, doubled = isolate.call_fresh(_pid_and_sum, a)
+    assert pid != os.getpid() and total == float(a.sum()) and np.array_equal(doubled, 2 * a)
+    with pytest.raises(ValueError, match="said the child"):
+        isolate.call_fresh(_raise)
+    with pytest.raises(isolate.ChildFailed, match="signal 11"):
+        isolate.call_fresh(_crash)
+
+
+def test_usd_after_usd_ran_in_this_process_does_not_hang(tmp_path):
+    """The hang this guards against: USD used in this process (its TBB workers started), then a
+    USD load forked a child that waited forever. Both loads must finish and agree."""
+    from pxr import Usd, UsdGeom
+
+    path = str(tmp_path / "tri.usda")
+    stage = Usd.Stage.CreateNew(path)
+    mesh = UsdGeom.Mesh.Define(stage, "/m")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    stage.GetRootLayer().Save()
+    Usd.Stage.Open(path).Traverse()  # USD's parallel composition runs in this process
+    from lopcook.ingest import load
+
+    a, b = load(path), load(path)
+    assert a.n_triangles == b.n_triangles == 1
+    assert np.array_equal(a.parts[0].positions, b.parts[0].positions)
+
+
 @pytest.mark.parametrize("backend", B.BACKENDS)
 def test_a_crashing_backend_falls_back(monkeypatch, backend):
     s = unit_sphere(3)[0]

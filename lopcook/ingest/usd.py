@@ -858,7 +858,9 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
     if not isolate._available():
         return _load_here(path, fmt, settings)
     try:  # USD's native parsers in a child: a crash (e.g. a stack overflow) becomes one clear error
-        return isolate.call(_load_in_child, path, fmt, settings, "pxr" in sys.modules, faces=isolate.MIN_FACES)
+        if _usd_started_here():
+            return isolate.call_fresh(_load_in_child, path, fmt, settings)
+        return isolate.call(_load_in_child, path, fmt, settings, faces=isolate.MIN_FACES)
     except isolate.ChildFailed as exc:
         why = str(exc).rsplit("(", 1)[-1].rstrip(")")
         raise LopcookError("ingest", path, f"USD crashed while reading the file ({why}); the file is corrupt "
@@ -866,16 +868,17 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
                            hint="check the file with usdchecker, or flatten and re-export it") from None
 
 
-def _load_in_child(path: str, fmt: str, settings: IngestSettings, pxr_loaded: bool) -> Scene:
-    """In the forked child: USD's thread pool does not survive a fork, so when the parent had
-    already started it, the child runs USD's parallel work serially."""
-    if pxr_loaded:
-        try:
-            from pxr import Work
+def _usd_started_here() -> bool:
+    """Whether this process has loaded USD (``pxr``): its TBB thread pool may then be running, and
+    a forked child would wait forever for workers that were not copied (seen as a hung test run:
+    ``arena::request_workers`` in the child), even with ``Work.SetConcurrencyLimit(1)``. Such a
+    process (a library user, a test run) reads USD in a freshly spawned interpreter instead; the
+    CLI never loads USD in its own process, so it keeps the cheap fork."""
+    return "pxr" in sys.modules
 
-            Work.SetConcurrencyLimit(1)
-        except Exception:  # noqa: BLE001 - an older usd-core: keep its default
-            pass
+
+def _load_in_child(path: str, fmt: str, settings: IngestSettings) -> Scene:
+    """In the child process (forked from a process without USD, or freshly spawned): ``load`` there."""
     return _load_here(path, fmt, settings)
 
 
