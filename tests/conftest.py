@@ -82,6 +82,29 @@ def gltf_validator():
     return V
 
 
+
+def position_ids(*arrays):
+    """One id per exact position, shared by all the given (n_i, 3) arrays."""
+    allp = np.concatenate(arrays) + 0.0
+    _, inv = np.unique(allp, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    out, at = [], 0
+    for a in arrays:
+        out.append(inv[at:at + a.shape[0]])
+        at += a.shape[0]
+    return out
+
+
+def open_edges(ids, faces) -> set:
+    """Undirected edges (pairs of position ids) with exactly one face, on the mesh welded by
+    position: a crack along a seam would show up here."""
+    f = ids[np.asarray(faces, dtype=np.int64)]
+    e = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
+    e = e[e[:, 0] != e[:, 1]]
+    u, cnt = np.unique(e, axis=0, return_counts=True)
+    return {tuple(r) for r in u[cnt == 1].tolist()}
+
+
 def cook_container(scene, settings=None, viewing=None):
     """``scene`` analysed and built in memory with the analysis options recorded (as ``cook`` does,
     without LODs): a ``lopcook.emit.container.Container`` for the render tests."""

@@ -9,32 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import open_edges, position_ids
 from lopcook import pipeline
 from lopcook.emit.container import from_bytes
 from lopcook.emit.reader import decode_positions
 from lopcook.ingest import load
 from lopcook.settings import LodSpec, Settings, SimplifySettings
 from lopcook.simplify import chain as L
-
-
-def _position_ids(*arrays):
-    allp = np.concatenate(arrays) + 0.0
-    _, inv = np.unique(allp, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    out, at = [], 0
-    for a in arrays:
-        out.append(inv[at:at + a.shape[0]])
-        at += a.shape[0]
-    return out
-
-
-def _open_edges(ids, faces) -> set:
-    """Edges (pairs of position ids) with one face on the mesh welded by position."""
-    f = ids[np.asarray(faces, dtype=np.int64)]
-    e = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
-    e = e[e[:, 0] != e[:, 1]]
-    u, cnt = np.unique(e, axis=0, return_counts=True)
-    return {tuple(r) for r in u[cnt == 1].tolist()}
 
 
 def test_auto_keeps_the_lower_error_of_both_backends_on_small_inputs(corpus):
@@ -67,8 +48,8 @@ def test_seams_auto_goes_past_the_seams_that_stop_simplify(corpus):
     assert abs(lod.triangles - lod.target_triangles) <= L.TARGET_TOLERANCE * lod.target_triangles
     assert lod.seams == "ignore" and any(n.startswith("seams: simplify stopped at") for n in lod.notes)
     # no crack: the LOD welded by position has no open edge the source does not have
-    ids0, ids = _position_ids(helmet.positions, lod.part.positions)
-    assert _open_edges(ids, lod.part.indices) <= _open_edges(ids0, helmet.indices)
+    ids0, ids = position_ids(helmet.positions, lod.part.positions)
+    assert open_edges(ids, lod.part.indices) <= open_edges(ids0, helmet.indices)
     # a LOD that reaches its target with simplify keeps that mode
     assert L.simplify(helmet, 0.5, "meshopt", seams="auto").seams == "simplify"
 
@@ -83,9 +64,9 @@ def test_default_chain_reaches_an_eighth_with_growing_error(corpus, name):
     errors = [lod.error_m for lod in lods]
     assert errors[0] == 0 and all(b >= a for a, b in zip(errors, errors[1:])) and errors[-1] > 0
     assert all(lod.error_bound_m >= lod.hausdorff_m for lod in lods[1:])
-    ids = _position_ids(*[lod.part.positions for lod in lods])
+    ids = position_ids(*[lod.part.positions for lod in lods])
     for lod, i in zip(lods[1:], ids[1:]):
-        assert _open_edges(i, lod.part.indices) <= _open_edges(ids[0], part.indices), lod.target_ratio
+        assert open_edges(i, lod.part.indices) <= open_edges(ids[0], part.indices), lod.target_ratio
 
 
 @pytest.fixture(scope="module")

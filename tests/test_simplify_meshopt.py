@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import open_edges, position_ids
 from lopcook.simplify import backends as B
 from lopcook.simplify import chain as L
 from lopcook.simplify import error as E
@@ -21,28 +22,6 @@ def _part(corpus, name, index=0) -> MeshPart:
 
 def _lod_part(res: MeshPart | MeshoptResult) -> MeshPart:
     return MeshPart(name="lod", positions=res.positions, indices=res.faces.astype(np.uint32))
-
-
-def _position_ids(*arrays):
-    """One id per exact position, shared by all the given (n_i, 3) arrays."""
-    allp = np.concatenate(arrays) + 0.0
-    _, inv = np.unique(allp, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    out, at = [], 0
-    for a in arrays:
-        out.append(inv[at:at + a.shape[0]])
-        at += a.shape[0]
-    return out
-
-
-def _open_edges(ids, faces) -> set:
-    """Undirected edges (pairs of position ids) with exactly one face, on the mesh welded by
-    position: a crack along a seam would show up here."""
-    f = ids[np.asarray(faces, dtype=np.int64)]
-    e = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
-    e = e[e[:, 0] != e[:, 1]]
-    u, cnt = np.unique(e, axis=0, return_counts=True)
-    return {tuple(r) for r in u[cnt == 1].tolist()}
 
 
 @pytest.mark.parametrize("name, ratios", [("stanford-bunny.obj", RATIOS), ("fandisk.obj", RATIOS),
@@ -69,19 +48,19 @@ def test_seams_stay_closed(corpus, name):
     for r in RATIOS:
         res = simplify_meshopt(part.positions, part.indices, int(round(r * part.n_triangles)), uvs=part.uvs,
                                weld=True, normals=part.normals)
-        ids_in, ids_out = _position_ids(part.positions, res.positions)
-        assert _open_edges(ids_out, res.faces) <= _open_edges(ids_in, part.indices), r
+        ids_in, ids_out = position_ids(part.positions, res.positions)
+        assert open_edges(ids_out, res.faces) <= open_edges(ids_in, part.indices), r
         # every corner keeps the UV of the input vertex it is (no texture swimming)
         np.testing.assert_array_equal(res.wedge_uvs, part.uvs.astype(np.float64)[res.vertex_source][res.faces])
 
 
 def test_closed_seamed_mesh_stays_watertight(corpus):
     part = _part(corpus, "spot.obj")
-    ids_in, = _position_ids(part.positions)
-    assert not _open_edges(ids_in, part.indices)
+    ids_in, = position_ids(part.positions)
+    assert not open_edges(ids_in, part.indices)
     res = simplify_meshopt(part.positions, part.indices, part.n_triangles // 16, uvs=part.uvs, weld=True)
-    ids_in, ids_out = _position_ids(part.positions, res.positions)
-    assert not _open_edges(ids_out, res.faces)
+    ids_in, ids_out = position_ids(part.positions, res.positions)
+    assert not open_edges(ids_out, res.faces)
 
 
 def test_locked_seams_and_borders_survive(corpus):
@@ -176,8 +155,8 @@ def test_lod_chain_with_meshopt_keeps_seams_closed(corpus, monkeypatch):
     assert all(b >= a for a, b in zip(errors, errors[1:])) and errors[-1] > 0
     for lod in lods[1:]:
         assert abs(lod.triangles - lod.target_triangles) <= L.TARGET_TOLERANCE * lod.target_triangles
-        ids, = _position_ids(lod.part.positions)
-        assert not _open_edges(ids, lod.part.indices)  # spot is closed: no crack at any LOD
+        ids, = position_ids(lod.part.positions)
+        assert not open_edges(ids, lod.part.indices)  # spot is closed: no crack at any LOD
         assert lod.part.uvs is not None and np.isfinite(lod.part.uvs).all()
 
 
