@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .benchkit import metrics as BM
+from .benchkit.draco_run import decode_buffers, write_parts
 from .benchkit import peers as P
 
 DEFAULT_ASSETS = ("stanford-bunny.obj", "fandisk.obj", "DamagedHelmet/DamagedHelmet.gltf", "chess_set_flat.usdc")
@@ -95,7 +96,7 @@ class Source:
         self.offsets = np.cumsum([0] + [p.n_vertices for p in parts])
         self.positions = np.concatenate([p.positions for p in parts])
         self.part = np.repeat(np.arange(len(parts)), [p.n_vertices for p in parts])
-        self.attr = np.concatenate([_attr(p.normals, p.uvs, p.n_vertices) for p in parts])
+        self.attr = np.concatenate([BM.attribute_features(p.normals, p.uvs, p.n_vertices) for p in parts])
         self.classes = BM.colocation_classes(self.positions)
         lo, hi = scene.bounds()
         self.diagonal = float(np.linalg.norm(hi - lo))
@@ -106,14 +107,6 @@ class Source:
         self.vertices = int(self.positions.shape[0])
 
 
-def _attr(normals, uvs, n: int) -> np.ndarray:
-    """(n, 5) float64 matching features: normal and UV, NaN where absent (not compared)."""
-    a = np.full((n, 5), np.nan)
-    if normals is not None:
-        a[:, :3] = normals
-    if uvs is not None:
-        a[:, 3:] = uvs
-    return a
 
 
 def write_inputs(src: Source, adir: Path) -> tuple[Path, Path]:
@@ -122,16 +115,8 @@ def write_inputs(src: Source, adir: Path) -> tuple[Path, Path]:
 
     glb = adir / "input.glb"
     write_gltf(glb, src.scene.parts, generator="lopcook bench")
-    arrays = {}
-    for k, p in enumerate(src.scene.parts):
-        arrays[f"positions_{k}"] = p.positions.astype(np.float32)
-        arrays[f"indices_{k}"] = p.indices.astype(np.uint32)
-        if p.normals is not None:
-            arrays[f"normals_{k}"] = p.normals.astype(np.float32)
-        if p.uvs is not None:
-            arrays[f"uvs_{k}"] = p.uvs.astype(np.float32)
     npz = adir / "parts.npz"
-    np.savez(npz, **arrays)
+    write_parts(npz, src.scene.parts)
     return glb, npz
 
 
@@ -263,13 +248,11 @@ def peer_configs(avail: dict, bits=PEER_BITS) -> list[dict]:
 def _decoded_output(cfg: dict, out_path: Path):
     """Decoded parts of a peer output: list of (positions (n, 3) float64, indices (m, 3), attr (n, 5))."""
     if cfg["tool"] == "draco":
-        from .benchkit.draco_run import decode_buffers
-
-        return [(pts, tri, _attr(nrm, uv, len(pts))) for pts, tri, nrm, uv in decode_buffers(out_path)]
+        return [(pts, tri, BM.attribute_features(nrm, uv, len(pts))) for pts, tri, nrm, uv in decode_buffers(out_path)]
     from .ingest import load
 
     scene = load(out_path)
-    return [(p.positions, p.indices, _attr(None if p.normals_computed else p.normals, p.uvs, p.n_vertices))
+    return [(p.positions, p.indices, BM.attribute_features(None if p.normals_computed else p.normals, p.uvs, p.n_vertices))
             for p in scene.parts]
 
 

@@ -48,6 +48,7 @@ import numpy as np
 
 from . import metrics as BM
 from . import peers as P
+from .draco_run import decode_buffers, write_parts
 
 NORMAL_SWEEP = (6, 8, 10, 12, 14)
 UV_SWEEP = (8, 10, 12, 14)
@@ -136,16 +137,8 @@ def write_inputs(scene, adir: Path) -> tuple[Path, Path]:
                      "images": [{"name": "white", "mimeType": "image/png", "data": white_png()}]}
     glb = adir / "input.glb"
     write_gltf(glb, meshes, generator="lopcook bench --attributes", materials=materials)
-    arrays = {}
-    for k, p in enumerate(scene.parts):
-        arrays[f"positions_{k}"] = p.positions.astype(np.float32)
-        arrays[f"indices_{k}"] = p.indices.astype(np.uint32)
-        if p.normals is not None:
-            arrays[f"normals_{k}"] = p.normals.astype(np.float32)
-        if p.uvs is not None:
-            arrays[f"uvs_{k}"] = p.uvs.astype(np.float32)
     npz = adir / "parts.npz"
-    np.savez(npz, **arrays)
+    write_parts(npz, scene.parts)
     return glb, npz
 
 
@@ -192,8 +185,6 @@ def _decoded_parts(cfg: dict, out: Path) -> list[dict]:
     """Decoded parts of a peer output: [{"positions" (n, 3) f64, "indices" (m, 3), "normals", "uvs",
     "colors" (or None where the tool dropped them)}]."""
     if cfg["tool"] == "draco":
-        from .draco_run import decode_buffers
-
         return [{"positions": pts, "indices": tri, "normals": nrm, "uvs": uv, "colors": None}
                 for pts, tri, nrm, uv in decode_buffers(out)]
     from ..bench import glb_json
@@ -210,22 +201,13 @@ def _decoded_parts(cfg: dict, out: Path) -> list[dict]:
     return parts
 
 
-def _attr_features(normals, uvs, n: int) -> np.ndarray:
-    a = np.full((n, 5), np.nan)
-    if normals is not None:
-        a[:, :3] = normals
-    if uvs is not None:
-        a[:, 3:] = uvs
-    return a
-
-
 def peer_variant(cfg: dict, out: Path, src, asset: str):
     """(table row without PSNR, ``lopcook.benchkit.render.Variant`` with the output's own attributes)."""
     from .render import Variant
 
     parts = _decoded_parts(cfg, out)
     pos = np.concatenate([p["positions"] for p in parts])
-    feats = np.concatenate([_attr_features(p["normals"], p["uvs"], p["positions"].shape[0]) for p in parts])
+    feats = np.concatenate([BM.attribute_features(p["normals"], p["uvs"], p["positions"].shape[0]) for p in parts])
     match = BM.match_vertices(src.positions, pos, src.attr, feats)
     n = int(pos.shape[0])
     if cfg["tool"] == "draco":  # decoded to float32 on the GPU

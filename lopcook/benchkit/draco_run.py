@@ -41,6 +41,19 @@ def encode_parts(parts: dict, bits: int, normal_bits: int = NORMAL_BITS, uv_bits
 
 
 
+def write_parts(path, parts) -> None:
+    """PARTS.npz (the module doc's layout) of MeshParts ``parts``, at ``path``."""
+    arrays = {}
+    for k, p in enumerate(parts):
+        arrays[f"positions_{k}"] = p.positions.astype(np.float32)
+        arrays[f"indices_{k}"] = p.indices.astype(np.uint32)
+        if p.normals is not None:
+            arrays[f"normals_{k}"] = p.normals.astype(np.float32)
+        if p.uvs is not None:
+            arrays[f"uvs_{k}"] = p.uvs.astype(np.float32)
+    np.savez(path, **arrays)
+
+
 def decode_buffers(path) -> list[tuple]:
     """The meshes of an OUT.npz written by this module, decoded (DracoPy): per buffer k,
     (positions (n, 3) float64, indices (m, 3) uint32, normals (n, 3) float32 or None, uvs (n, 2)

@@ -151,3 +151,15 @@ def loglog_slope(x, y) -> tuple[float, float]:
 
 __all__ = ["MATCH_CANDIDATES", "colocation_classes", "match_vertices", "position_errors", "count_cracks",
            "gltf_position_bytes", "pareto_front", "loglog_slope"]
+
+
+def attribute_features(normals, uvs, n: int) -> np.ndarray:
+    """(n, 5) float64 per-vertex features compared between a peer's output and the source: normal
+    (3) and UV (2), NaN where absent (not compared)."""
+    a = np.full((n, 5), np.nan)
+    if normals is not None:
+        a[:, :3] = normals
+    if uvs is not None:
+        a[:, 3:] = uvs
+    return a
+
