@@ -94,6 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hierarchy", action="store_true",
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
                         "lopcook refine; docs/hierarchy.md)")
+    p.add_argument("--instances", action="store_true",
+                   help="store each group of copies of one mesh once, on a grid of its own, with one transform "
+                        "per placement; copies that share a vertex with another part stay on the scene grid "
+                        "(docs/format.md, Placements)")
     add_analyse_options(p)
     add_attribute_options(p)
     add_viewing_options(p)
@@ -478,6 +482,8 @@ def settings_from_args(args):
                                     seams=getattr(args, "lod_seams", DEFAULTS.simplify.seams.value))
     if getattr(args, "hierarchy", False):
         simplify = replace(simplify, hierarchy=True)
+    if getattr(args, "instances", False):
+        simplify = replace(simplify, instances=True)
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
                     tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune,

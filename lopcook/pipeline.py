@@ -39,6 +39,7 @@ from .analyse.result import REASON_CODE
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
 from .emit.attributes import part_bits
 from .emit.container import Container, built, file_size, section_table
+from .errors import LopcookError
 from .grid import BITS, Grid
 from .hierarchy.container import add_hierarchy
 from .memory import release_free_memory
@@ -336,6 +337,8 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
     is (vertices above it are clamped and counted). ``keep_buffers``: also return the kept
     BufferInputs (for the byte-budget fit). ``progress``: stage reporting (``lopcook.progress``)."""
     options = settings.to_manifest()["options"] if options is None else options
+    if settings.simplify.instances:
+        return _instanced(scene, settings, options, max_level, keep_buffers, progress)
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
         return _plain(scene, settings, options, keep_buffers, progress)
     timings: dict = {}
@@ -364,4 +367,157 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
     return result
 
 
-__all__ = ["run", "CookResult", "LodRow", "chains", "analyse_lods", "far_error_m", "view_level"]
+def placement_groups(scene: Scene, parts_chain, quantized, rows) -> list[dict]:
+    """The groups of copies ``--instances`` stores once (``lopcook.emit.placement``): per group
+    ``{"lead": i, "members": [(part, A, t), ...]}`` (part order, at least two members; the lead's
+    own entry is ``(lead, I, 0)`` when it is a member). A copy is left out (it stays on the scene
+    grid) when one of its vertices shares a 24-bit scene-grid cell with another part's
+    (``placement.touching_parts``, any LOD); members must have the same LOD chain length and the
+    same kept LODs (``rows``), so that their LOD entries can name one buffer set."""
+    from .emit.placement import touching_parts
+    from .simplify.instances import copies
+
+    flat, owner = [], []
+    for i, qs in enumerate(quantized):
+        for q in qs:
+            flat.append(q)
+            owner.append(i)
+    touching = touching_parts(flat, owner)
+    out = []
+    for lead, members in copies(scene.parts):
+        cands = [(lead, np.eye(3), np.zeros(3))] + list(members)
+        by_key: dict = {}
+        for i, a, t in cands:
+            if touching[i]:
+                continue
+            key = (len(parts_chain[i]), tuple(r.kept for r in rows[i]))
+            by_key.setdefault(key, []).append((i, a, t))
+        for key in sorted(by_key, key=lambda k: by_key[k][0][0]):
+            if len(by_key[key]) >= 2:
+                out.append({"lead": lead, "members": by_key[key]})
+    return out
+
+
+def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int | None, keep_buffers: bool,
+               progress: Progress) -> CookResult:
+    """``run`` with ``simplify.instances``: steps (1)-(4) as without it, then every group of copies
+    (``placement_groups``) encoded once on its mesh grid, its minimum levels the maximum over its
+    placements of the converted world levels (``lopcook.emit.placement`` states the bound), and
+    every placement written as a part entry naming the group's buffers. Parts not grouped are
+    encoded on the scene grid exactly as without ``--instances``. No savings record is written."""
+    from .emit.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
+                                 transform_f32)
+    from .analyse import colocated_max
+
+    if settings.simplify.hierarchy:
+        raise LopcookError("usage", scene.source, "--instances does not combine with --hierarchy",
+                           hint="cook with one of them")
+    if keep_buffers:
+        raise LopcookError("usage", scene.source, "--instances does not combine with a byte budget (--target-bytes)",
+                           hint="cook without --instances")
+    timings: dict = {}
+    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings, progress)
+    t0 = time.perf_counter()
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress)
+    timings["analyse"] = time.perf_counter() - t0
+    all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
+    t0 = time.perf_counter()
+    groups = placement_groups(scene, parts_chain, [[b.quantized for b in bufs] for bufs in all_buffers], rows)
+    placement: dict = {}  # part -> (owner, transform, shift)
+    mesh_grids: dict = {}  # owner -> Grid
+    group_buffers: dict = {}  # owner -> [BufferInput per LOD]
+    shifts_of: dict = {}  # owner -> [shift of each placement]
+    for g in groups:
+        lead = g["lead"]
+        chain = parts_chain[lead][:len(parts_chain[g["members"][0][0]])]
+        mgrid, lo = mesh_grid([p.positions for p in chain])
+        local = [mgrid.quantize(np.asarray(p.positions, np.float64) - lo) for p in chain]
+        members, mlevels = [], [np.zeros(q.shape[0], np.int64) for q in local]
+        for i, a, t in g["members"]:
+            tf = transform_f32(a, np.asarray(t, np.float64) + np.asarray(a, np.float64) @ lo)
+            s = level_shift(sigma(tf), mgrid.extent, grid.extent)
+            need = [np.asarray(levels[i][k], np.int64) + s for k in range(len(chain))]
+            if max(int(n.max()) for n in need) > BITS:
+                continue  # a vertex would need more than 24 mesh-grid bits: stays on the scene grid
+            members.append((i, tf, s))
+            mlevels = [np.maximum(m, local_level(levels[i][k], s)) for k, m in enumerate(mlevels)]
+        if len(members) < 2:
+            continue
+        shared = colocated_max(np.concatenate(local), np.concatenate(mlevels))
+        owner = members[0][0]
+        bufs, start = [], 0
+        for k, (q, lod) in enumerate(zip(local, chain)):
+            ref = all_buffers[owner][k]
+            n = q.shape[0]
+            bufs.append(replace(ref, quantized=q, min_level=shared[start:start + n].astype(np.uint8),
+                                indices=lod.indices, normals=lod.normals, uvs=lod.uvs, colors=lod.colors))
+            start += n
+        group_buffers[owner] = bufs
+        mesh_grids[owner] = mgrid
+        shifts_of[owner] = [s for _, _, s in members]
+        for i, tf, s in members:
+            placement[i] = (owner, tf, s)
+    kept = [[b for b, r in zip(bufs, rs) if r.kept] for bufs, rs in zip(all_buffers, rows)]
+    for owner, bufs in group_buffers.items():
+        kept[owner] = [b for b, r in zip(bufs, rows[owner]) if r.kept]
+    stored = [kept[i] for i in range(len(kept)) if placement.get(i, (i,))[0] == i]
+    highest_min = int(max(int(np.max(b.min_level)) for bufs in stored for b in bufs))
+    vlevel = view_level(grid.extent, settings.viewing)
+    if max_level is None:
+        if vlevel is None:
+            max_level = BITS
+        else:
+            res = [resident_level(vlevel, sh) for sh in shifts_of.values()]
+            max_level = max([vlevel, highest_min] + res)
+    max_level = int(max_level)
+    encoded = [[] if placement.get(i, (i,))[0] != i else [encode_buffer(b, max_level) for b in kept[i]]
+               for i in range(len(kept))]
+    manifest, sections = assemble(scene, grid, encoded, max_level=max_level, options=options,
+                                  viewing=settings.viewing)
+    manifest = _placement_manifest(manifest, placement, mesh_grids, kept, encoded)
+    container = built(manifest, sections)
+    timings["emit"] = time.perf_counter() - t0
+    result = CookResult(container=container, analysis=analyses[0], timings_s=timings, lods=rows,
+                        lod_reports=reports, grid_extent_m=float(grid.extent), lod_max_error_m=cap,
+                        view_level=vlevel, highest_min_level=highest_min, max_level=max_level,
+                        planes_dropped=list(range(max_level + 1, BITS + 1)),
+                        lods_dropped=int(sum(not r.kept for rs in rows for r in rs)),
+                        bytes_without_savings=len(container.data), colocated_raised_across_lods=raised)
+    _account(result)
+    return result
+
+
+#: the fields of a LOD entry that name or describe its buffer (shared by the placements of a group)
+_OWN_FIELDS = ("geometric_error_m", "min_distance_m")
+
+
+def _placement_manifest(manifest: dict, placement: dict, mesh_grids: dict, kept, encoded) -> dict:
+    """``manifest`` (assembled with empty buffer lists for placements that do not own their
+    buffers) with every placement's ``placement`` and ``grid`` records and LOD entries: the
+    owner's buffer fields, the placement's own ``geometric_error_m`` / ``min_distance_m``."""
+    if not placement:
+        return manifest
+    parts = [dict(p) for p in manifest["parts"]]
+    for i, (owner, tf, s) in sorted(placement.items()):
+        g = mesh_grids[owner]
+        part = parts[i]
+        lods = []
+        for k, e in enumerate(parts[owner]["lods"]):
+            e = dict(e)
+            b = kept[i][k]
+            e["geometric_error_m"] = float(b.geometric_error_m)
+            if b.min_distance_m is not None:
+                e["min_distance_m"] = float(b.min_distance_m)
+            lods.append(e)
+        part["lods"] = lods
+        part["attribute_bits"] = parts[owner]["attribute_bits"]
+        part["grid"] = {"origin": [float(v) for v in g.origin], "extent": float(g.extent)}
+        part["placement"] = {"of": int(owner), "transform": tf, "level_shift": int(s)}
+    stats = dict(manifest["stats"])
+    stats["placements"] = {"parts": len(placement), "groups": len(mesh_grids),
+                           "vertices_all_copies": int(sum(e["vertices"] for p in parts for e in p["lods"])),
+                           "triangles_all_copies": int(sum(e["triangles"] for p in parts for e in p["lods"]))}
+    return dict(manifest, parts=parts, stats=stats)
+
+
+__all__ = ["run", "placement_groups", "CookResult", "LodRow", "chains", "analyse_lods", "far_error_m", "view_level"]

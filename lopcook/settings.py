@@ -201,12 +201,15 @@ class SimplifySettings:
         mesh welded by position where that stops short; docs/lod.md)
     hierarchy : bool  also write each part's view-dependent vertex hierarchy, built from LOD 0's
         full collapse sequence (``lopcook.hierarchy.container``; default False)
+    instances : bool  store each group of copies of one mesh once, on a grid of its own, with one
+        transform per placement (``lopcook.emit.placement``, docs/format.md; default False)
     """
 
     lods: LodSpec | None = None
     backend: LodBackend = LodBackend.AUTO
     seams: SeamMode = SeamMode.AUTO
     hierarchy: bool = False
+    instances: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "backend", _enum(LodBackend, self.backend, "LOD backend"))
@@ -489,7 +492,8 @@ class Settings:
     def to_manifest(self) -> dict:
         """``{"options": ..., "viewing": ...}`` as the container records them (JSON types only).
         ``options.lods`` is present only when a LOD chain is asked for, ``options.hierarchy``
-        (true) only with ``simplify.hierarchy``, ``options.attributes`` only when attribute bits
+        (true) only with ``simplify.hierarchy``, ``options.instances`` (true) only with
+        ``simplify.instances``, ``options.attributes`` only when attribute bits
         are asked for: default containers keep their options record."""
         options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
         if self.simplify.lods is not None:
@@ -497,6 +501,8 @@ class Settings:
                                "seams": self.simplify.seams.value}
         if self.simplify.hierarchy:
             options["hierarchy"] = True
+        if self.simplify.instances:
+            options["instances"] = True
         if not self.attributes.is_default:
             options["attributes"] = self.attributes.to_record()
         return {"options": options, "viewing": self.viewing.as_dict()}
@@ -520,6 +526,10 @@ class Settings:
                 if options["hierarchy"] is not True:
                     raise ValueError(f"options.hierarchy must be true when present, got {options['hierarchy']!r}")
                 simplify = replace(simplify, hierarchy=True)
+            if options.get("instances", False) is not False:
+                if options["instances"] is not True:
+                    raise ValueError(f"options.instances must be true when present, got {options['instances']!r}")
+                simplify = replace(simplify, instances=True)
             attributes = AttributeSettings()
             if options.get("attributes") is not None:
                 attributes = AttributeSettings.from_record(options["attributes"])

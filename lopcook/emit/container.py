@@ -40,6 +40,10 @@ from ..errors import LopcookError
 
 MAGIC = b"LOPC"
 VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
+#: minor version of a container with placement entries (``cook --instances``, 2.1, additive: a
+#: 2.0 reader refuses it with a manifest error, as its mandatory-word check fails on the shared
+#: LOD entries; containers without placements keep 2.0 and their bytes)
+PLACEMENT_MINOR = 1
 HEADER_SIZE = 32
 _HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
 
@@ -117,7 +121,8 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> b
     manifest["sections"] = table
     mbytes = manifest_bytes(manifest)
     total = HEADER_SIZE + len(mbytes) + offset
-    head = _HEADER.pack(MAGIC, VERSION[0], VERSION[1], HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
+    minor = PLACEMENT_MINOR if any("placement" in p for p in manifest.get("parts", ())) else VERSION[1]
+    head = _HEADER.pack(MAGIC, VERSION[0], minor, HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
     head += struct.pack("<I", zlib.crc32(head))
     return b"".join([head, mbytes, *payloads])
 

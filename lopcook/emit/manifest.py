@@ -196,10 +196,24 @@ def validate_manifest(m, path: str | None) -> None:
         if not lods:
             fail(f"parts[{i}] has no LODs")
         i_bits = None
+        shared_of = _check_placement(m, parts, i, part, extent, is_num, is_int, fail)
         for k, lod in enumerate(lods):
             where = f"parts[{i}].lods[{k}]"
             if not isinstance(lod, dict):
                 fail(f"{where} is not an object")
+            if shared_of is not None:
+                ref = parts[shared_of]["lods"]
+                if len(lods) != len(ref):
+                    fail(f"parts[{i}] has {len(lods)} LODs, the buffers it places (parts[{shared_of}]) {len(ref)}")
+                a = {key: v for key, v in lod.items() if key not in SHARED_OWN_FIELDS}
+                b = {key: v for key, v in ref[k].items() if key not in SHARED_OWN_FIELDS}
+                if a != b:
+                    fail(f"{where} does not name the buffer of parts[{shared_of}].lods[{k}] it places")
+                err = need(lod, "geometric_error_m", float, where)
+                if err < 0:
+                    fail(f"{where}.geometric_error_m is negative")
+                i_bits = check_bits(lod, where) if i_bits is None else i_bits
+                continue
             n = need(lod, "vertices", int, where)
             tri = need(lod, "triangles", int, where)
             if n < 1 or tri < 1:
@@ -266,6 +280,56 @@ def validate_manifest(m, path: str | None) -> None:
     for p, bits in plane_bits.items():
         if length[planes[str(p)]] < (bits + 7) // 8:
             fail(f"refinement plane {p} is shorter than its {bits} bits")
+
+
+#: fields of a placement's LOD entry that are its own; every other field names or describes the
+#: buffer it shares with its owner and must equal the owner's
+SHARED_OWN_FIELDS = ("geometric_error_m", "min_distance_m")
+
+
+def _check_placement(m, parts, i, part, world_extent, is_num, is_int, fail) -> int | None:
+    """Checks of part ``i``'s optional ``placement`` and ``grid`` records (``cook --instances``,
+    ``lopcook.emit.placement``): ``of`` an earlier or the same part that owns its buffers (and is its
+    own owner), ``transform`` 12 finite float32 numbers with an invertible ``A``, ``level_shift`` the
+    shift ``placement.level_shift`` computes from it, ``grid`` the owner's (origin 3 numbers, extent
+    at least ``MIN_EXTENT``). Returns the owner when it is another part (the LOD entries are then
+    shared), else None."""
+    rec = part.get("placement")
+    if rec is None:
+        if part.get("grid") is not None:
+            fail(f"parts[{i}].grid is only allowed with a placement")
+        return None
+    from .placement import level_shift, sigma, split
+
+    where = f"parts[{i}].placement"
+    if not isinstance(rec, dict) or set(rec) != {"of", "transform", "level_shift"}:
+        fail(f"{where} must hold exactly of, transform, level_shift")
+    of = rec["of"]
+    if not is_int(of) or not 0 <= of <= i:
+        fail(f"{where}.of must be the index of this or an earlier part, got {of!r}")
+    tf = rec["transform"]
+    if not isinstance(tf, list) or len(tf) != 12 or not all(is_num(v) for v in tf):
+        fail(f"{where}.transform must be 12 finite float32 numbers (3 x 4, row-major)")
+    a, _ = split(tf)
+    if not abs(float(np.linalg.det(a.astype(np.float64)))) > 0:
+        fail(f"{where}.transform is singular")
+    g = part.get("grid")
+    if not isinstance(g, dict) or set(g) != {"origin", "extent"}:
+        fail(f"parts[{i}].grid must hold exactly origin and extent")
+    if not (isinstance(g["origin"], list) and len(g["origin"]) == 3 and all(is_num(v) for v in g["origin"])):
+        fail(f"parts[{i}].grid.origin must be 3 finite numbers within the float32 range")
+    if not (is_num(g["extent"]) and g["extent"] >= MIN_EXTENT
+            and max(abs(v) for v in g["origin"]) + g["extent"] <= MAX_GRID_REACH):
+        fail(f"parts[{i}].grid.extent must be at least {MIN_EXTENT:g} m and within {MAX_GRID_REACH:g} m")
+    if not is_int(rec["level_shift"]) or rec["level_shift"] != level_shift(sigma(tf), g["extent"], world_extent):
+        fail(f"{where}.level_shift is not ceil(log2(sigma E_m / E_w)) of its transform and grids")
+    owner = parts[of]
+    orec = owner.get("placement") if isinstance(owner, dict) else None
+    if not isinstance(orec, dict) or orec.get("of") != of:
+        fail(f"{where}.of names parts[{of}], which does not own its buffers")
+    if owner.get("grid") != g:
+        fail(f"parts[{i}].grid differs from the grid of the buffers it places (parts[{of}].grid)")
+    return None if of == i else of
 
 
 # --------------------------------------------------------------------------------------------
@@ -340,11 +404,15 @@ class LodEntry:
 
 @dataclass(frozen=True)
 class PartEntry:
-    """One part of a container: its name, source path and LODs (LOD 0 first)."""
+    """One part of a container: its name, source path and LODs (LOD 0 first); for a placement
+    (``cook --instances``) the part owning its buffers and its level shift (``placement_of`` None
+    for a part on the scene grid)."""
 
     name: str
     source: str
     lods: tuple
+    placement_of: int | None = None
+    level_shift: int = 0
 
     def lod(self, k: int) -> LodEntry:
         """LOD k, or the coarsest when the chain is shorter (as a renderer draws it)."""
@@ -371,21 +439,68 @@ class Manifest:
                                   mandatory_words=int((e.get("mandatory_words") or [0, 0])[1]),
                                   attribute_bits=e.get("attribute_bits"), record_bits=int(e.get("record_bits") or 0))
                          for e in p["lods"])
-            parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods))
+            pl = p.get("placement")
+            parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods,
+                                   placement_of=None if pl is None else int(pl["of"]),
+                                   level_shift=0 if pl is None else int(pl["level_shift"])))
         return cls(parts=tuple(parts), max_level=int(m["positions"]["max_level"]))
+
+    @property
+    def has_placements(self) -> bool:
+        """Whether any part is a placement of shared buffers (``cook --instances``)."""
+        return any(p.placement_of is not None for p in self.parts)
+
+    def part_level(self, i: int, level: int) -> int:
+        """The per-buffer level part ``i`` decodes its buffer at when the scene asks for ``level``:
+        ``level`` on the scene grid, ``clamp(level + level_shift, 1, 24)`` for a placement
+        (``lopcook.emit.placement.local_level``)."""
+        p = self.parts[i]
+        return int(level) if p.placement_of is None else int(min(max(int(level) + p.level_shift, 1), LEVELS))
+
+    def resident(self, level: int, lod: int = 0) -> list[tuple[LodEntry, int]]:
+        """Every distinct buffer of LOD ``lod`` once, with the level it is resident at when every
+        part asks for ``level``: a part on the scene grid at ``level``, a shared buffer at the
+        maximum ``part_level`` over its placements (``placement.resident_level``)."""
+        out, owners = [], {}
+        for i, p in enumerate(self.parts):
+            if p.placement_of is None:
+                out.append((p.lod(lod), int(level)))
+                continue
+            j = p.placement_of
+            if j not in owners:
+                owners[j] = len(out)
+                out.append((self.parts[j].lod(lod), self.part_level(i, level)))
+            else:
+                e, b = out[owners[j]]
+                out[owners[j]] = (e, max(b, self.part_level(i, level)))
+        return out
 
     def buffers(self, lod: int = 0) -> list[LodEntry]:
         """LOD ``lod`` of every part (a part's coarsest when its chain is shorter)."""
         return [p.lod(lod) for p in self.parts]
 
     def cap_bytes(self, level: int, lod: int = 0) -> int:
-        return sum(e.cap_bytes(level) for e in self.buffers(lod))
+        """GPU-resident CAP position bytes at scene level ``level``: each distinct buffer once, at
+        its resident level (``resident``; without placements every part at ``level``)."""
+        return sum(e.cap_bytes(b) for e, b in self.resident(level, lod))
 
     def ap_bytes(self, level: int, lod: int = 0) -> int:
-        return sum(e.ap_bytes(level) for e in self.buffers(lod))
+        """As ``cap_bytes`` for the uniform (AP) buffers."""
+        return sum(e.ap_bytes(b) for e, b in self.resident(level, lod))
+
+    def cap_bytes_all_copies(self, level: int, lod: int = 0) -> int:
+        """CAP bytes if every placement had a buffer of its own (each at its ``part_level``): what
+        storing each copy separately on its mesh grid would cost; equals ``cap_bytes`` without
+        placements."""
+        return sum(p.lod(lod).cap_bytes(self.part_level(i, level)) for i, p in enumerate(self.parts))
+
+    def ap_bytes_all_copies(self, level: int, lod: int = 0) -> int:
+        """As ``cap_bytes_all_copies`` for AP."""
+        return sum(p.lod(lod).ap_bytes(self.part_level(i, level)) for i, p in enumerate(self.parts))
 
     def float32_bytes(self, lod: int = 0) -> int:
-        """float32 position bytes of LOD ``lod`` of every part: the baseline its percentages use."""
+        """float32 position bytes of LOD ``lod`` of every part, every placement counted (as a
+        scene without instancing stores them): the baseline its percentages use."""
         return sum(e.float32_bytes for e in self.buffers(lod))
 
     @property

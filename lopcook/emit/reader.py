@@ -38,9 +38,32 @@ def lod_entry(c: Container, part: int, lod: int) -> dict:
     return lods[lod]
 
 
+def owner(c: Container, part: int) -> int:
+    """The part whose bytes hold part ``part``'s buffers: itself, or for a placement
+    (``cook --instances``) its ``placement.of``."""
+    pl = c.manifest["parts"][part].get("placement")
+    return part if pl is None else int(pl["of"])
+
+
+def part_grid(c: Container, part: int) -> tuple[list, float]:
+    """``(origin, extent)`` of the grid part ``part``'s buffers are quantised on: its own ``grid``
+    record for a placement (the mesh grid), else the scene grid."""
+    g = c.manifest["parts"][part].get("grid") or c.manifest["grid"]
+    return g["origin"], float(g["extent"])
+
+
+def placement_transform(c: Container, part: int) -> list | None:
+    """Part ``part``'s 3 x 4 row-major local-to-world transform, None on the scene grid."""
+    pl = c.manifest["parts"][part].get("placement")
+    return None if pl is None else pl["transform"]
+
+
 def _buffer_order(c: Container):
-    """(part, lod, entry) in manifest order: the order buffers appear inside plane sections."""
+    """(part, lod, entry) in manifest order: the order buffers appear inside plane sections (a
+    placement that shares another part's buffers holds none)."""
     for i, p in enumerate(c.manifest["parts"]):
+        if owner(c, i) != i:
+            continue
         for k, e in enumerate(p["lods"]):
             yield i, k, e
 
@@ -89,7 +112,7 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
         if g == 0:
             continue
         stream = _plane_bits(c, p)
-        start = _plane_offsets(c, p)[(part, lod)]
+        start = _plane_offsets(c, p)[(owner(c, part), lod)]
         if start + 3 * g > stream.size:
             raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
         bits = stream[start:start + 3 * g].reshape(g, 3).astype(np.uint32)
@@ -108,13 +131,30 @@ def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: 
     """Decode a buffer at level B with the reference decoder.
 
     Returns (grid (n, 3) uint32 24-bit integers with dropped bits zero, widths (n,), positions
-    (n, 3) float32 as the shaders compute them, or float64 block centres with float32=False)."""
+    (n, 3) float32 as the shaders compute them, or float64 block centres with float32=False).
+    The grid integers are on the part's grid (``part_grid``); the positions are world metres: for
+    a placement the local decode mapped by its transform (``placement.to_world``)."""
     buf = gpu_buffer(c, part, lod, level)
     values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
-    g = c.manifest["grid"]
-    cell = g["extent"] / float(1 << LEVELS)
+    origin, extent = part_grid(c, part)
+    cell = extent / float(1 << LEVELS)
     recon = reconstruct_float32 if float32 else reconstruct_float64
-    return to_grid(values, widths), widths, recon(values, widths, g["origin"], cell)
+    pos = recon(values, widths, origin, cell)
+    tf = placement_transform(c, part)
+    if tf is not None:
+        pos = _placed(pos, tf, float32)
+    return to_grid(values, widths), widths, pos
+
+
+def _placed(pos, tf, float32: bool):
+    """Local positions -> world: the float32 reference order (``placement.to_world``), or float64
+    ``A p + t`` with the same float32 values of A and t."""
+    from .placement import split, to_world
+
+    if float32:
+        return to_world(pos, tf)
+    a, t = split(tf)
+    return np.asarray(pos, np.float64) @ a.astype(np.float64).T + t.astype(np.float64)
 
 
 def lod_attributes(c: Container, part: int, lod: int, *, unit_normals: bool = False) -> dict:
