@@ -21,7 +21,8 @@ import numpy as np
 
 from ..emit.binning import LEVELS, table_bit_id
 from ..emit.bitplane import pack
-from ..emit.reader import GpuBuffer, lod_attributes, lod_entry, top_values
+from ..emit.placement import float32_slack, split
+from ..emit.reader import GpuBuffer, lod_attributes, lod_entry, part_grid, top_values
 from ..errors import LopcookError
 from ..settings import DEFAULTS
 
@@ -75,11 +76,29 @@ def source_order(c, scene, lod: int = LOD) -> list[np.ndarray]:
             raise LopcookError("verify", c.path, f"part {pm['name']!r}: the triangles differ from the source's",
                                hint="give the source the container was cooked from")
         values, widths = top_values(c, i, lod, level)
-        q = np.clip(np.floor((sp.positions[order] - origin) / cell), 0, (1 << LEVELS) - 1).astype(np.int64)
         used = np.zeros(e["vertices"], dtype=bool)
         used[idx] = True
-        top = q >> (LEVELS - widths.astype(np.int64))[:, None]
-        if not np.array_equal(top[used], values.astype(np.int64)[used]):
+        if pm.get("placement") is not None:
+            # a placement: the source positions mapped back to the mesh grid (float64 inverse of
+            # its float32 transform) lie within one cell of the decoded cell per component, plus
+            # the cells the float32 rounding of the transform can move them (placement.float32_slack)
+            a, t = split(pm["placement"]["transform"])
+            local = (sp.positions[order] - t.astype(np.float64)) @ np.linalg.inv(a.astype(np.float64)).T
+            p_origin, p_extent = part_grid(c, i)
+            p_cell = p_extent / float(1 << LEVELS)
+            q = np.clip(np.floor((local - np.asarray(p_origin, np.float64)) / p_cell), 0,
+                        (1 << LEVELS) - 1).astype(np.int64)
+            shift = (LEVELS - widths.astype(np.int64))[:, None]
+            top = q >> shift
+            slack = float(np.abs(float32_slack(pm["placement"]["transform"], p_extent)).max())
+            slack_local = slack * float(np.linalg.norm(np.linalg.inv(a.astype(np.float64)), 2))
+            allowed = 1 + np.ceil(slack_local / (p_cell * np.exp2(shift.astype(np.float64))))
+            same = bool(np.all(np.abs(top - values.astype(np.int64)) <= allowed, where=used[:, None]))
+        else:
+            q = np.clip(np.floor((sp.positions[order] - origin) / cell), 0, (1 << LEVELS) - 1).astype(np.int64)
+            top = q >> (LEVELS - widths.astype(np.int64))[:, None]
+            same = np.array_equal(top[used], values.astype(np.int64)[used])
+        if not same:
             raise LopcookError("verify", c.path, f"part {pm['name']!r}: the positions differ from the source's",
                                hint="give the source the container was cooked from")
         out.append(order)
@@ -110,11 +129,37 @@ def position_bytes(c, lods: list[int], level: int) -> dict:
     """GPU-resident position bytes at per-buffer level B over all parts (part i's LOD ``lods[i]``):
     ``cap`` (binned buffers, ``buffer_bytes``) and ``ap`` (every vertex B bits, whole words per
     buffer), as ``lopcook.emit.summary.memory_rows`` counts them for LOD 0."""
-    parts = c.entries.parts
-    cap = sum(parts[i].lods[k].cap_bytes(level) for i, k in enumerate(lods))
-    ap = sum(parts[i].lods[k].ap_bytes(level) for i, k in enumerate(lods))
-    return {"cap": int(cap), "ap": int(ap)}
+    m = c.entries
+    parts = m.parts
+    if not m.has_placements:
+        cap = sum(parts[i].lods[k].cap_bytes(level) for i, k in enumerate(lods))
+        ap = sum(parts[i].lods[k].ap_bytes(level) for i, k in enumerate(lods))
+        return {"cap": int(cap), "ap": int(ap)}
+    cap = ap = cap_all = ap_all = 0
+    for (i, k), b in resident_levels(c, lods, level).items():
+        cap += parts[i].lods[k].cap_bytes(b)
+        ap += parts[i].lods[k].ap_bytes(b)
+    for i, k in enumerate(lods):
+        b = m.part_level(i, level)
+        cap_all += parts[i].lods[k].cap_bytes(b)
+        ap_all += parts[i].lods[k].ap_bytes(b)
+    return {"cap": int(cap), "ap": int(ap), "cap_all_copies": int(cap_all), "ap_all_copies": int(ap_all)}
+
+
+def resident_levels(c, lods: list[int], level: int) -> dict:
+    """``{(owner part, lod): level}``: every distinct buffer drawn when part i draws LOD ``lods[i]``
+    at scene level ``level``, with the level it is resident at (the maximum over the placements
+    that draw it of ``Manifest.part_level``; a part on the scene grid at ``level``). Each placement
+    decodes its shared buffer at this level."""
+    from ..emit.reader import owner
+
+    m = c.entries
+    out: dict = {}
+    for i, k in enumerate(lods):
+        key = (owner(c, i), k)
+        out[key] = max(out.get(key, 0), m.part_level(i, level))
+    return out
 
 
 __all__ = ["DEFAULT_LEVELS", "VARIANTS", "LOD", "ap_buffer", "source_order", "lod_indices", "lod0_is_source",
-           "position_bytes"]
+           "position_bytes", "resident_levels"]

@@ -180,9 +180,15 @@ def _ulp_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
     offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it."""
+    from ..emit.reader import owner
+
+    part = owner(c, part)  # a placement's buffer is its owner's
+
     def plane(p: int):
         start = 0
         for i, pp in enumerate(c.manifest["parts"]):
+            if owner(c, i) != i:
+                continue  # shared buffers are stored once, with their owner
             for k, e in enumerate(pp["lods"]):
                 if (i, k) == (part, lod):
                     data = c.section(c.manifest["positions"]["planes"][str(p)])
@@ -194,7 +200,13 @@ def plane_source(c, part: int, lod: int):
 
 
 def _buffers(c):
+    """(part, lod) of every distinct buffer: a placement sharing another part's buffers
+    (``cook --instances``) is decoded once, through its owner, on the owner's mesh grid."""
+    from ..emit.reader import owner
+
     for i, p in enumerate(c.manifest["parts"]):
+        if owner(c, i) != i:
+            continue
         for k, _ in enumerate(p["lods"]):
             yield i, k
 
@@ -227,9 +239,7 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
 
     from ..emit.reader import gpu_buffer
 
-    grid = c.manifest["grid"]
-    origin, cell = grid["origin"], float(grid["extent"]) / float(1 << LEVELS)
-    half = np.float32(cell / 2.0)
+    from ..emit.reader import part_grid
     stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
                     "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
@@ -240,6 +250,9 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     vertices = 0
     attribute_buffers = 0
     for part, lod in buffers:
+        origin, extent = part_grid(c, part)  # the scene grid, or a shared buffer's mesh grid
+        cell = extent / float(1 << LEVELS)
+        half = np.float32(cell / 2.0)
         for level in levels:
             buf = gpu_buffer(c, part, lod, level)
             values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
@@ -305,8 +318,9 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
     cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest."""
     from . import gpu
 
-    g = c.manifest["grid"]
-    origin, extent = g["origin"], float(g["extent"])
+    from ..emit.reader import part_grid
+
+    origin, extent = part_grid(c, part)
     cell = extent / float(1 << LEVELS)
     viewing = _manifest_viewing(c)
     level_dist, radius = view_tables(extent, viewing, origin)

@@ -277,6 +277,8 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         raw = row.pop("_raw")
         row["float32_bytes"] = int(f32)
         mem = position_bytes(c, lods, row["level"])
+        if "cap_all_copies" in mem:  # placements (cook --instances): each copy stored separately, for comparison
+            row["all_copies_bytes"] = {v: int(mem[f"{v}_all_copies"]) for v in variants}
         for v in variants:
             row[v] = summarise(raw[v][0], raw[v][1], mem[v], f32)
     seconds["total"] = time.perf_counter() - t_start

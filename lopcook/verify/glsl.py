@@ -7,7 +7,9 @@ section 6.2 (positions decoded in the vertex shader).
 * ``vertex_shader_source(decoded=True)``: the shipped ``shaders/decode_bitplanes.glsl`` (with
   ``LOP_NO_VIEW``) followed by ``VS_MAIN``; the position is ``lop_decode(gl_VertexID)`` (index value
   = vertex), read from SSBO 0 (packed words) and UBO 0 (tables and grid,
-  ``lopcook.verify.gpu.decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
+  ``lopcook.verify.gpu.decode_block``), then mapped by the placement rows ``u_place0..2`` (the
+  3 x 4 transform of a ``cook --instances`` placement, identity otherwise) in the float32 order of
+  ``lopcook.emit.placement.to_world``. ``decoded=False``: a float32 ``in_position`` attribute.
   Both pass the source normals, UVs and colours through unchanged.
 * ``FS`` (shading): ``colour = base * (ambient + diffuse * max(N.L, 0)) + ks * max(R.V, 0)^shininess``
   (the specular term only where N.L > 0), clamped to [0, 1]; uniforms ``u_phong`` = (ambient,
@@ -24,6 +26,9 @@ from __future__ import annotations
 
 VS_MAIN = """
 uniform mat4 u_mvp;
+uniform vec4 u_place0;         // placement rows (A | t), identity on the scene grid
+uniform vec4 u_place1;
+uniform vec4 u_place2;
 in vec3 in_normal;
 in vec2 in_uv;
 in vec4 in_color;
@@ -44,6 +49,13 @@ void main()
     uvec3 grid;
     uint bits;
     lop_decode(uint(gl_VertexID), grid, p, bits);
+    // placement (cook --instances): world = ((a0 p.x + a1 p.y) + a2 p.z) + t per row, float32,
+    // no fused multiply-add (lopcook.emit.placement.to_world); the identity on the scene grid
+    precise vec3 w;
+    w.x = ((u_place0.x * p.x + u_place0.y * p.y) + u_place0.z * p.z) + u_place0.w;
+    w.y = ((u_place1.x * p.x + u_place1.y * p.y) + u_place1.z * p.z) + u_place1.w;
+    w.z = ((u_place2.x * p.x + u_place2.y * p.y) + u_place2.z * p.z) + u_place2.w;
+    p = w;
 #endif
     v_pos = p;
     v_normal = in_normal;

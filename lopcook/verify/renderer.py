@@ -118,6 +118,10 @@ class Shading:
                 "base_grey": self.base}
 
 
+#: the placement rows of a part on the scene grid (the harness vertex shader's u_place0..2)
+IDENTITY_ROWS = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+
+
 # ---- the renderer -----------------------------------------------------------------------------------
 
 class Renderer:
@@ -242,6 +246,10 @@ class Renderer:
                 it["ssbo"].bind_to_storage_buffer(0)
                 it["ubo"].bind_to_uniform_block(0)
             program["u_part"].value = int(it["part"]) + 1
+            if decoded:
+                rows = it.get("place", IDENTITY_ROWS)
+                for r in range(3):
+                    program[f"u_place{r}"].value = rows[r]
             program["u_has_normal"].value = int(it["has_normal"])
             program["u_has_texture"].value = int(it["texture"] is not None)
             program["u_has_color"].value = int(it["has_color"])
@@ -477,12 +485,18 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
     from .gpu import decode_block
 
+    from ..emit.placement import split
+    from ..emit.reader import part_grid, placement_transform
+    from .buffers import resident_levels
+
     items, owned = [], []
     # every decoded position lies in the grid's cube (24-bit integers, at most 2^24 - 1, plus half a cell)
     lo = np.asarray(origin, np.float64)
     grid_box = (lo, lo + float(half_cell) * 2.0 * float(1 << 24))
+    resident = resident_levels(c, lods, level) if c.entries.has_placements else {}
     for i, p in enumerate(scene.parts):
         k = lods[i]
+        tf = placement_transform(c, i)
         if i not in attr_cache:
             # unit normals, as a vertex shader normalises the octahedral decode before the
             # interpolation (an unnormalised one would weight the vertices by its length)
@@ -492,7 +506,12 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
                 flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
             else:
-                specs, bufs = attribute_vbos(ctx, a["normals"], a["uvs"], a["colors"])
+                nrm = a["normals"]
+                if tf is not None and nrm is not None:  # mesh-grid normals -> world: A^-T n, unit
+                    m = np.asarray(nrm, np.float64) @ np.linalg.inv(split(tf)[0].astype(np.float64))
+                    ln = np.linalg.norm(m, axis=1, keepdims=True)
+                    nrm = (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+                specs, bufs = attribute_vbos(ctx, nrm, a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
             src_box = None
@@ -507,15 +526,33 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             # within half a 24-bit cell of the source position; widened by two level-B cells
             pad = 2.0 * float(half_cell) * 2.0 * float(1 << (24 - int(level))) + 4.0 * float(half_cell)
             cull_box = (src_box[0] - pad, src_box[1] + pad)
-        buf = buffers_of(c, i, k, level)
+        extra = {}
+        p_level, p_origin, p_half = level, origin, half_cell
+        if tf is not None:
+            # a placement: its shared buffer at the resident level, on its mesh grid, mapped by
+            # its transform; the boxes are the mapped mesh-grid cube
+            from ..emit.reader import owner
+
+            p_level = resident[(owner(c, i), k)]
+            p_origin, p_extent = part_grid(c, i)
+            p_half = np.float32(p_extent / float(1 << 24) / 2.0)
+            a, t = (x.astype(np.float64) for x in split(tf))
+            o = np.asarray(p_origin, np.float64)
+            corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]) * p_extent * \
+                (1.0 + 2.0 ** -20) + o
+            world = corners @ a.T + t
+            span = float(np.abs(world).max()) * 2.0 ** -20
+            cull_box = (world.min(axis=0) - span, world.max(axis=0) + span)
+            extra["place"] = tuple(tuple(float(v) for v in np.asarray(tf, np.float64).reshape(3, 4)[r]) for r in range(3))
+        buf = buffers_of(c, i, k, p_level)
         words = np.ascontiguousarray(buf.words, dtype="<u4")
         ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
-        ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, level, origin, half_cell, words.size))
+        ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
         vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture,
-                      "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box})
+                      "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, **extra})
     return items, owned
 
 
