@@ -99,7 +99,10 @@ types:
         doc: |
           Offset 6, uint16: format minor version, 0 for this description. Minor versions only
           add (new manifest properties, new optional sections); a 1.x reader reads any 1.y
-          file, ignoring what it does not know.
+          file, ignoring what it does not know. Minor 1: the manifest has placement parts
+          (cook --instances, parts[].placement and parts[].grid): a placement's LOD entries
+          name another part's buffers, which are stored once in the sections and planes; a
+          reader without placements refuses such a file (its mandatory-word check fails).
       - id: len_header
         type: u4
         valid: 32

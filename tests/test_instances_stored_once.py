@@ -10,7 +10,6 @@ import json
 import numpy as np
 import pytest
 
-from conftest import require
 from lopcook.emit.container import VERSION, from_bytes, to_bytes
 from lopcook.emit.placement import float32_slack, level_shift, local_level, resident_level, to_world
 from lopcook.emit.reader import decode_positions, lod_attributes, owner, part_grid
@@ -258,7 +257,7 @@ def test_harness_vertex_shader_applies_the_placement_bit_exactly(cooked, gl):
     import moderngl
 
     from lopcook.emit.reader import gpu_buffer
-    from lopcook.verify.glsl import FS, vertex_shader_source
+    from lopcook.verify.glsl import vertex_shader_source
     from lopcook.verify.gpu import decode_block
 
     _, _, inst = cooked
@@ -292,7 +291,6 @@ def test_harness_vertex_shader_applies_the_placement_bit_exactly(cooked, gl):
     finally:
         vao.release()
         prog.release()
-    assert FS
 
 
 def test_decoders_check_each_distinct_buffer_on_its_own_grid(cooked, gl):
@@ -333,4 +331,16 @@ def test_chess_set_places_49_parts_over_8_distinct_meshes(chess, corpus_meta):
         order = source_order(c, i, scene.parts[i])
         pos = decode_positions(c, i, 0, 24)[2].astype(np.float64)
         assert np.abs(pos - np.asarray(scene.parts[i].positions)[order]).max() < 1e-6
-    require(None)
+
+
+def test_the_schema_accepts_the_instanced_manifest_and_rejects_a_bad_placement(cooked):
+    from jsonschema import Draft202012Validator
+
+    from conftest import REPO
+
+    _, _, inst = cooked
+    v = Draft202012Validator(json.loads((REPO / "schema" / "container.schema.json").read_text()))
+    v.validate(inst.container.manifest)
+    bad = json.loads(json.dumps(inst.container.manifest))
+    bad["parts"][1]["placement"]["transform"] = [1.0] * 11
+    assert not v.is_valid(bad)
