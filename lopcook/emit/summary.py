@@ -21,6 +21,10 @@ def memory_rows(c: Container, levels=range(1, LEVELS + 1), lod: int = 0) -> list
         cap, ap = m.cap_bytes(b, lod), m.ap_bytes(b, lod)
         rows.append({"level": int(b), "cap_bytes": int(cap), "ap_bytes": int(ap), "float32_bytes": int(f32),
                      "cap_percent": 100.0 * cap / max(f32, 1), "ap_percent": 100.0 * ap / max(f32, 1)})
+        if m.has_placements:  # cook --instances: each distinct buffer counted once; every copy for comparison
+            cap_all, ap_all = m.cap_bytes_all_copies(b, lod), m.ap_bytes_all_copies(b, lod)
+            rows[-1].update(cap_bytes_all_copies=int(cap_all), ap_bytes_all_copies=int(ap_all),
+                            cap_saved_by_sharing_bytes=int(cap_all - cap), ap_saved_by_sharing_bytes=int(ap_all - ap))
     return rows
 
 
@@ -84,12 +88,14 @@ def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
     tot_v = 0
     tot_pos = {L: 0 for L in levels}
     tot_attr = {k: 0 for k in ATTRIBUTE_COMPONENTS}
-    for p in entries.parts:
+    for i, p in enumerate(entries.parts):
         e0 = p.lods[0]
         attr = _attribute_vertex_bits(e0.attribute_bits)
-        pos = {str(L): 8.0 * e0.cap_bytes(L) / max(e0.vertices, 1) for L in levels}
+        pos = {str(L): 8.0 * e0.cap_bytes(entries.part_level(i, L)) / max(e0.vertices, 1) for L in levels}
         a_sum = sum(attr.values())
         parts.append({"positions": pos, **attr, "total": {k: v + a_sum for k, v in pos.items()}})
+        if p.placement_of not in (None, i):
+            continue  # a placement of another part's buffers: stored (and counted in the total) once
         for e in p.lods:
             tot_v += e.vertices
             for L in levels:
@@ -138,6 +144,13 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
                       "attribute_waste": attribute_waste(p)})
         if p.get("hierarchy") is not None:
             parts[-1]["hierarchy"] = hierarchy_stats(c, len(parts) - 1)
+        if p.get("placement") is not None:
+            parts[-1]["placement"] = p["placement"]
+            parts[-1]["grid"] = p["grid"]
+    totals_extra = {}
+    if m["stats"].get("placements") is not None:
+        owners = {pp["placement"]["of"] for pp in m["parts"] if pp.get("placement") is not None}
+        totals_extra["placements"] = dict(m["stats"]["placements"], buffer_owners=sorted(owners))
     return {
         "kind": "container",
         "file": c.path,
@@ -154,7 +167,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
                    "vertices": m["stats"]["vertices"], "triangles": m["stats"]["triangles"],
                    "histogram": m["stats"]["histogram"],
                    "float32_position_bytes": m["stats"]["float32_position_bytes"],
-                   "float32_position_bytes_lod0": c.entries.float32_bytes(0)},
+                   "float32_position_bytes_lod0": c.entries.float32_bytes(0), **totals_extra},
         "section_bytes": by_kind,
         "sections": sections,
         "memory": memory_rows(c),
@@ -193,6 +206,19 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]:  # not levels the file lacks
             lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
                          f"{r['ap_percent']:>5.1f}%")
+    pl = t.get("placements")
+    if pl:
+        shown = [r for r in d["memory"] if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]
+                 and "cap_bytes_all_copies" in r]
+        lines.append(f"  copies stored once: {_n(pl['parts'], 'placement')} of {pl['groups']:,} "
+                     f"{'mesh' if pl['groups'] == 1 else 'meshes'} "
+                     f"({pl['vertices_all_copies']:,} vertices placed)")
+        if shown:
+            lo, hi = shown[0], shown[-1]
+            lines.append(f"  CAP bytes at levels {lo['level']}-{hi['level']}: {lo['cap_bytes']:,}-{hi['cap_bytes']:,} "
+                         f"with each mesh once, {lo['cap_bytes_all_copies']:,}-{hi['cap_bytes_all_copies']:,} with "
+                         f"every copy: saves {100.0 * lo['cap_saved_by_sharing_bytes'] / max(lo['cap_bytes_all_copies'], 1):.1f}%"
+                         f"-{100.0 * hi['cap_saved_by_sharing_bytes'] / max(hi['cap_bytes_all_copies'], 1):.1f}%")
     if d.get("savings"):
         sv = d["savings"]
         planes = sv["planes_dropped"]
