@@ -689,7 +689,7 @@ def _check_gltf_output(args) -> None:
 def cmd_decode(args) -> int:
     from .emit.container import read
     from .emit.gltf_writer import write_gltf
-    from .emit.reader import decode_positions, lod_attributes
+    from .emit.reader import decode_positions, lod_attributes, world_normals
 
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
@@ -717,7 +717,8 @@ def cmd_decode(args) -> int:
             coarsest.append(part["name"])
         _, _, pos = decode_positions(c, i, lod, args.level)
         a = lod_attributes(c, i, lod, unit_normals=True)
-        meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"], "normals": a["normals"],
+        meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"],
+                       "normals": world_normals(c, i, a["normals"]),
                        "uvs": a["uvs"], "colors": a["colors"]})
     if coarsest and not args.quiet and not args.json:
         print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "

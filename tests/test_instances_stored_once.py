@@ -344,3 +344,15 @@ def test_the_schema_accepts_the_instanced_manifest_and_rejects_a_bad_placement(c
     bad = json.loads(json.dumps(inst.container.manifest))
     bad["parts"][1]["placement"]["transform"] = [1.0] * 11
     assert not v.is_valid(bad)
+
+
+def test_world_normals_of_placements_match_the_source(cooked):
+    from lopcook.emit.reader import world_normals
+
+    scene, _, inst = cooked
+    c = inst.container
+    for i in range(4):
+        order = source_order(c, i, scene.parts[i])
+        got = world_normals(c, i, lod_attributes(c, i, 0, unit_normals=True)["normals"])
+        want = np.asarray(scene.parts[i].normals, np.float64)[order]
+        assert np.degrees(np.arccos(np.clip((got * want).sum(axis=1), -1, 1))).max() < 1.0

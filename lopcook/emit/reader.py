@@ -58,6 +58,20 @@ def placement_transform(c: Container, part: int) -> list | None:
     return None if pl is None else pl["transform"]
 
 
+def world_normals(c: Container, part: int, normals):
+    """Part ``part``'s decoded normals (n, 3) float32 in world space: unchanged on the scene grid;
+    for a placement mapped by ``A^-T`` (float64 of its float32 ``A``) and normalised, float32.
+    None stays None."""
+    tf = placement_transform(c, part)
+    if tf is None or normals is None:
+        return normals
+    from .placement import split
+
+    m = np.asarray(normals, np.float64) @ np.linalg.inv(split(tf)[0].astype(np.float64))  # (A^-T n^T)^T
+    ln = np.linalg.norm(m, axis=1, keepdims=True)
+    return (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+
+
 def _buffer_order(c: Container):
     """(part, lod, entry) in manifest order: the order buffers appear inside plane sections (a
     placement that shares another part's buffers holds none)."""

@@ -402,6 +402,14 @@ def render_html(rep: dict, images: dict | None) -> str:
         out.append(f'<tr data-level="{e(row[0])}">' + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
     out.append(f'</tbody></table></div><p class="note">Memory: GPU-resident position bytes vs float32 '
                f'({rep["float32_bytes"]:,} B). PSNR over object pixels against the float render; inf = identical.</p>')
+    shared = [r for r in rep.get("memory") or [] if "cap_bytes_all_copies" in r and 6 <= r["level"] <= 11]
+    if shared:  # cook --instances: each distinct mesh stored once
+        lo, hi = shared[0], shared[-1]
+        out.append(f'<p class="note" id="copies">Copies stored once: GPU-resident CAP position bytes at levels '
+                   f'{lo["level"]}-{hi["level"]} count each distinct mesh once, {lo["cap_bytes"]:,}-{hi["cap_bytes"]:,} B '
+                   f'against {lo["cap_bytes_all_copies"]:,}-{hi["cap_bytes_all_copies"]:,} B with every copy stored: '
+                   f'{lo["cap_saved_by_sharing_bytes"]:,}-{hi["cap_saved_by_sharing_bytes"]:,} B saved '
+                   f'({100.0 * lo["cap_saved_by_sharing_bytes"] / max(lo["cap_bytes_all_copies"], 1):.1f} %).</p>')
     out.append("<h2>Memory vs PSNR</h2>" + memory_psnr_svg(rep))
     u = rep["baselines"]["uniform16"]
     out.append(f'<p class="note">Labels: the level of each point (points drawn on top of each other share one label, '

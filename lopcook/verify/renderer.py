@@ -486,7 +486,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     from .gpu import decode_block
 
     from ..emit.placement import split
-    from ..emit.reader import part_grid, placement_transform
+    from ..emit.reader import part_grid, placement_transform, world_normals
     from .buffers import resident_levels
 
     items, owned = [], []
@@ -506,11 +506,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 specs, bufs = attribute_buffers(ctx, p, orders[i])
                 flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
             else:
-                nrm = a["normals"]
-                if tf is not None and nrm is not None:  # mesh-grid normals -> world: A^-T n, unit
-                    m = np.asarray(nrm, np.float64) @ np.linalg.inv(split(tf)[0].astype(np.float64))
-                    ln = np.linalg.norm(m, axis=1, keepdims=True)
-                    nrm = (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+                nrm = world_normals(c, i, a["normals"])  # a placement's: A^-T n, unit
                 specs, bufs = attribute_vbos(ctx, nrm, a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
