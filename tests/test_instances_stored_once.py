@@ -356,3 +356,20 @@ def test_world_normals_of_placements_match_the_source(cooked):
         got = world_normals(c, i, lod_attributes(c, i, 0, unit_normals=True)["normals"])
         want = np.asarray(scene.parts[i].normals, np.float64)[order]
         assert np.degrees(np.arccos(np.clip((got * want).sum(axis=1), -1, 1))).max() < 1.0
+
+
+def test_cli_instances_flag_and_its_usage_error(tmp_path, capsys):
+    from conftest import FIXTURES
+    from lopcook.cli import main
+    from lopcook.emit.container import read
+
+    out = tmp_path / "t.lop"
+    assert main(["cook", str(FIXTURES / "two_plates.glb"), "--instances", "-o", str(out), "-q"]) == 0
+    c = read(str(out))
+    assert c.manifest["options"]["instances"] is True
+    assert all("placement" not in p for p in c.manifest["parts"])  # flat plates: their affine map is not determined, no copies
+    assert int.from_bytes(c.data[6:8], "little") == VERSION[1]
+    assert main(["cook", str(FIXTURES / "two_plates.glb"), "--instances", "--hierarchy", "-o",
+                 str(tmp_path / "u.lop"), "-q"]) == 2
+    assert "--instances does not combine with --hierarchy" in capsys.readouterr().err
+    assert not (tmp_path / "u.lop").exists()
