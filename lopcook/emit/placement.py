@@ -70,7 +70,7 @@ def transform_f32(a: np.ndarray, t: np.ndarray) -> list[float]:
     every value rounded to float32 (and written as the float64 of that float32)."""
     m = np.concatenate([np.asarray(a, np.float64), np.asarray(t, np.float64).reshape(3, 1)], axis=1)
     if not np.all(np.isfinite(m)) or np.abs(m).max() > 3.0e38:
-        raise LopcookError("cook", None, "a placement transform is not finite in float32",
+        raise LopcookError("emit", None, "a placement transform is not finite in float32",
                            hint="cook without --instances")
     return [float(v) for v in m.astype(np.float32).ravel()]
 
@@ -117,7 +117,7 @@ def level_shift(sig: float, mesh_extent: float, world_extent: float) -> int:
     r = float(sig) * float(mesh_extent)
     w = float(world_extent)
     if not (r > 0 and w > 0 and math.isfinite(r) and math.isfinite(w)):
-        raise LopcookError("cook", None, f"placement scale {sig!r} or extents {mesh_extent!r}, {world_extent!r} "
+        raise LopcookError("emit", None, f"placement scale {sig!r} or extents {mesh_extent!r}, {world_extent!r} "
                            "are not positive and finite", hint="cook without --instances")
     s = int(math.ceil(math.log2(r) - math.log2(w)))
     while math.ldexp(w, s - 1) >= r:
