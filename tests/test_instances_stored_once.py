@@ -42,14 +42,19 @@ PLACEMENTS = {
 }
 
 
-def procedural_scene() -> Scene:
+def procedural_scene(touching_first: bool = False) -> Scene:
     """Five copies of a 0.1 m sphere (one rotated, one scaled by 1.5, one mirrored) and a plate that
-    shares one vertex with the copy "touching"."""
+    shares one vertex with the copy "touching" (first with ``touching_first``: then the copy the
+    others are found as copies of is the one left out)."""
     sp = unit_sphere(2)[0]
     base = np.asarray(sp.positions, np.float64) * 0.1
     idx = np.asarray(sp.indices, np.uint32)
     parts = []
-    for name, (a, t) in PLACEMENTS.items():
+    names = list(PLACEMENTS)
+    if touching_first:
+        names = ["touching"] + [n for n in names if n != "touching"]
+    for name in names:
+        a, t = PLACEMENTS[name]
         n = np.asarray(sp.normals, np.float64) @ np.linalg.inv(a)
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         parts.append(MeshPart(name=name, positions=np.ascontiguousarray(base @ a.T + t), indices=idx,
@@ -67,6 +72,12 @@ def cooked():
     plain = run(scene, Settings())
     inst = run(scene, INSTANCES)
     return scene, plain, inst
+
+
+@pytest.fixture(scope="module", params=[False, True], ids=["rep-first", "touching-first"])
+def cooked_both(request):
+    scene = procedural_scene(touching_first=request.param)
+    return scene, run(scene, Settings()), run(scene, INSTANCES)
 
 
 def source_order(c, i: int, part: MeshPart) -> np.ndarray:
@@ -128,9 +139,11 @@ def decode_positions_local(c, i: int, level: int):
     return values, widths, reconstruct_float32(values, widths, origin, extent / 2.0 ** 24)
 
 
-def test_world_positions_equal_the_reference_and_keep_each_placements_guarantee(cooked):
-    scene, plain, inst = cooked
+def test_world_positions_equal_the_reference_and_keep_each_placements_guarantee(cooked_both):
+    scene, plain, inst = cooked_both
     c = inst.container
+    placed = [p["name"] for p in c.manifest["parts"] if "placement" in p]
+    assert sorted(placed) == ["mirrored", "rep", "rotated", "scaled"]
     e_w = c.manifest["grid"]["extent"]
     assert e_w == plain.container.manifest["grid"]["extent"]
     for i, p in enumerate(c.manifest["parts"]):
