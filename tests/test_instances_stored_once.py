@@ -386,3 +386,35 @@ def test_cli_instances_flag_and_its_usage_error(tmp_path, capsys):
                  str(tmp_path / "u.lop"), "-q"]) == 2
     assert "--instances does not combine with --hierarchy" in capsys.readouterr().err
     assert not (tmp_path / "u.lop").exists()
+
+
+def test_report_of_an_instanced_gltf_says_what_sharing_saves(tmp_path, gl):
+    """glTF nodes placing one mesh three times -> cook --instances -> lopcook report: the memory rows
+    count the mesh once and carry the all-copies bytes, the HTML states the saving, the JSON passes
+    the report schema."""
+    from jsonschema import Draft202012Validator
+
+    from conftest import REPO
+    from lopcook.cli import main
+    from lopcook.fixtures import write_gltf
+
+    sphere = unit_sphere(2)
+    nodes = [{"name": "a", "mesh": 0, "translation": [0.0, 0.0, 0.0]},
+             {"name": "b", "mesh": 0, "translation": [3.0, 0.0, 0.0], "rotation": [0.0, 0.6, 0.0, 0.8]},
+             {"name": "c", "mesh": 0, "translation": [0.0, 6.0, 0.0], "scale": [2.0, 2.0, 2.0]}]
+    src = tmp_path / "three.glb"
+    write_gltf(sphere, src, binary=True, nodes=nodes)
+    lop, html = tmp_path / "three.lop", tmp_path / "three.html"
+    assert main(["-q", "cook", str(src), "--instances", "-o", str(lop)]) == 0
+    from lopcook.emit.container import read
+
+    c = read(str(lop))
+    assert sum("placement" in p for p in c.manifest["parts"]) == 3
+    assert main(["-q", "report", str(lop), "--source", str(src), "-o", str(html), "--levels", "6-7", "--views", "2",
+                 "--resolution", "160x90"]) == 0
+    rep = json.loads(html.with_suffix(".json").read_text())
+    Draft202012Validator(json.loads((REPO / "schema" / "report.schema.json").read_text())).validate(rep)
+    for row in rep["memory"]:
+        assert row["cap_bytes_all_copies"] > row["cap_bytes"] and \
+            row["cap_saved_by_sharing_bytes"] == row["cap_bytes_all_copies"] - row["cap_bytes"]
+    assert 'id="copies"' in html.read_text()
