@@ -403,7 +403,8 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
     """``run`` with ``simplify.instances``: steps (1)-(4) as without it, then every group of copies
     (``placement_groups``) encoded once on its mesh grid, its minimum levels the maximum over its
     placements of the converted world levels (``lopcook.emit.placement`` states the bound), and
-    every placement written as a part entry naming the group's buffers. Parts not grouped are
+    every placement written as a part entry naming the group's buffers (attribute bits: the most
+    any placement chose, ``_max_bits``). Parts not grouped are
     encoded on the scene grid exactly as without ``--instances``. No savings record is written."""
     from .emit.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
                                  transform_f32)
@@ -445,12 +446,14 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
             continue
         shared = colocated_max(np.concatenate(local), np.concatenate(mlevels))
         owner = members[0][0]
+        bits = _max_bits([all_buffers[i][0].bits() for i, _, _ in members])
         bufs, start = [], 0
         for k, (q, lod) in enumerate(zip(local, chain)):
             ref = all_buffers[owner][k]
             n = q.shape[0]
             bufs.append(replace(ref, quantized=q, min_level=shared[start:start + n].astype(np.uint8),
-                                indices=lod.indices, normals=lod.normals, uvs=lod.uvs, colors=lod.colors))
+                                indices=lod.indices, normals=lod.normals, uvs=lod.uvs, colors=lod.colors,
+                                attribute_bits=bits))
             start += n
         group_buffers[owner] = bufs
         mesh_grids[owner] = mgrid
@@ -487,8 +490,17 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
     return result
 
 
-#: the fields of a LOD entry that name or describe its buffer (shared by the placements of a group)
-_OWN_FIELDS = ("geometric_error_m", "min_distance_m")
+def _max_bits(bits):
+    """The attribute bits a group's shared buffers are packed with: per attribute the most bits any
+    placement chose (``lopcook.emit.attributes.AttributeBits``; copies have the same attributes, so
+    None for one is None for all)."""
+    from .emit.attributes import AttributeBits
+
+    def top(key):
+        vals = [getattr(b, key) for b in bits if getattr(b, key) is not None]
+        return max(vals) if vals else None
+
+    return AttributeBits(normals=top("normals"), uvs=top("uvs"), colors=top("colors"))
 
 
 def _placement_manifest(manifest: dict, placement: dict, mesh_grids: dict, kept, encoded) -> dict:
