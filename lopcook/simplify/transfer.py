@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids
+from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids, weld_labels
 from ..types import MeshPart
 from .backends import BackendFailure, BackendResult, Work
 from .error import point_mesh, samples
@@ -173,11 +173,130 @@ def differs(a: dict, b: dict) -> np.ndarray:
     return bad
 
 
+def exact_sources(ref: Reference, points: np.ndarray):
+    """LOD 0 vertices at exactly the positions ``points`` (k, 3), or None when some point is not
+    exactly a vertex of LOD 0.
+
+    Only vertices that LOD 0's (non-degenerate) faces reference count. Returns ``(count, start,
+    order)``: point i is bit for bit the position of the ``count[i] >= 1`` LOD 0 vertices
+    ``order[start[i]:start[i] + count[i]]`` (more than one where LOD 0 has a seam or crease there:
+    co-located vertices with different attributes). meshoptimizer's output vertices are input
+    vertices, so along a chain of meshoptimizer LODs every LOD vertex is a LOD 0 vertex; positions
+    moved by pymeshlab or fast-simplification are not, and those results take the closest-point
+    transfer."""
+    used = ref.sample_vertices
+    k = points.shape[0]
+    lab, n_lab = weld_labels(np.concatenate([ref.positions[used], points]), np.int64)
+    lab_ref, lab_q = lab[:used.size], lab[used.size:]
+    count_of = np.bincount(lab_ref, minlength=n_lab)
+    count = count_of[lab_q]
+    if k and int(count.min()) == 0:
+        return None
+    order = used[np.argsort(lab_ref, kind="stable")]
+    first_of = np.zeros(n_lab, dtype=np.int64)
+    np.cumsum(count_of[:-1], out=first_of[1:])
+    return count, first_of[lab_q], order
+
+
+#: candidate scores of a co-located LOD 0 vertex: attribute distances in units of the split
+#: tolerances (a normal 30 degrees off, a UV 5e-3 off, a colour 0.02 off each score 1)
+def _attribute_distance(names: list, cand: dict, ext: dict) -> np.ndarray:
+    score = None
+    for name in names:
+        a, b = cand[name].astype(np.float64), ext[name]
+        if name == "normals":
+            d = (1.0 - np.einsum("ij,ij->i", a, b)) / (1.0 - np.cos(np.radians(SPLIT_NORMAL_DEG)))
+        else:
+            d = np.abs(a - b).max(axis=1) / (SPLIT_UV if name == "uvs" else SPLIT_COLOR)
+        score = d if score is None else score + d
+    return score
+
+
+def exact_corner_sources(ref: Reference, names: list, P: np.ndarray, F: np.ndarray, centroid: np.ndarray,
+                         found, corner_uvs: np.ndarray | None = None) -> np.ndarray:
+    """(3m,) the LOD 0 vertex whose attributes each face corner of (P, F) copies, for a result
+    whose every vertex is a LOD 0 vertex (``found = exact_sources(ref, P)``).
+
+    A vertex with one LOD 0 vertex at its position: that one, for all its corners. Where several
+    LOD 0 vertices share the position (a seam or crease of LOD 0), the corner's side is LOD 0's
+    face nearest to the point ``NUDGE`` of the way from the vertex towards the LOD face's centroid
+    (one closest-point query per such corner): a candidate that is a corner of that face, else the
+    candidate whose attributes are nearest to that face's attribute field extrapolated to the
+    vertex (ties: the lowest LOD 0 index). ``corner_uvs`` (3m, 2): the UVs the corners already
+    have (the backend's, copied from the input vertex they are): only a candidate with the same
+    UV bits is then chosen where one exists, so all of a corner's attributes come from one LOD 0
+    vertex."""
+    count, start, order = found
+    vid = F.ravel()
+    src = order[start[vid]]  # the only candidate, or the first of several
+    amb = np.flatnonzero(count[vid] > 1)
+    if amb.size == 0 or not names:
+        return src
+    face_of_corner = amb // 3
+    pv = P[vid[amb]]
+    g2 = ref.query(pv + NUDGE * (centroid[face_of_corner] - pv))[1]
+    ext = attributes_at(ref, names, g2, barycentric(pv, ref.positions[ref.faces[g2]], clamp=False),
+                        ref.face_unit[g2])
+    c = count[vid[amb]]
+    pair = np.repeat(np.arange(amb.size), c)  # (corner, candidate) pairs
+    offs = np.arange(pair.size) - np.repeat(np.cumsum(c) - c, c)
+    cand = order[start[vid[amb]][pair] + offs]
+    score = _attribute_distance(names, {n: getattr(ref.part, n)[cand] for n in names},
+                                {n: v[pair] for n, v in ext.items()})
+    incident = (ref.faces[g2[pair]] == cand[:, None]).any(axis=1)
+    score = np.where(incident, -1.0, score)
+    if corner_uvs is not None and ref.part.uvs is not None:
+        same_uv = (_bits(ref.part.uvs[cand]) == _bits(corner_uvs[amb][pair])).all(axis=1)
+        score = score + np.where(same_uv, 0.0, 1e6)
+    best = np.lexsort((cand, score, pair))  # per corner: lowest score, then lowest id
+    head = np.r_[True, pair[best][1:] != pair[best][:-1]]
+    src[amb] = cand[best[head]]
+    return src
+
+
+def _bits(values: np.ndarray) -> np.ndarray:
+    """int64 columns of float32 bit patterns (``-0.0`` as ``0.0``), the vertex keys' form."""
+    return (np.ascontiguousarray(values, dtype=np.float32) + np.float32(0.0)).view(np.int32).astype(np.int64)
+
+
+def _exact_vertex_key(vid: np.ndarray, srcv, found, corner_attr: dict, names: list):
+    """``unique_rows`` of the corners' (vertex, attribute bits) rows for an exact copy, through a
+    two-column integer key: ``(first, inverse)`` equal to the generic key's, or None when it does
+    not apply (per-corner UVs that are not a function of the vertex).
+
+    Corners of a vertex with one LOD 0 vertex at its position copy the same values; at co-located
+    vertices the copied LOD 0 vertex is replaced by the first one of the same vertex with the same
+    attribute bits, so equal rows get equal keys."""
+    if "uvs" in corner_attr and "uvs" not in names:  # the backend's per-corner UVs
+        uvb = _bits(corner_attr["uvs"])
+        per_vertex = np.zeros((int(vid.max()) + 1, 2), dtype=np.int64)
+        per_vertex[vid] = uvb
+        if not (per_vertex[vid] == uvb).all():
+            return None
+    if srcv is None:
+        return unique_rows(vid.reshape(-1, 1).astype(np.int64))
+    count = found[0]
+    canon = srcv.copy()
+    amb = np.flatnonzero(count[vid] > 1)
+    if amb.size:
+        first, inv = unique_rows(np.concatenate([vid[amb].reshape(-1, 1).astype(np.int64)]
+                                                + [_bits(corner_attr[n][amb]) for n in names], axis=1))
+        canon[amb] = srcv[amb][first][inv]
+    return unique_rows(np.stack([vid.astype(np.int64), canon], axis=1))
+
+
 def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart, work: Work, mode: str,
-              max_flipped_fraction: float) -> tuple[MeshPart, dict]:
+              max_flipped_fraction: float, exact: bool = True) -> tuple[MeshPart, dict]:
     """Attributes for the cleaned backend result; flip check; LOD -> LOD 0 distance.
 
-    Every LOD vertex takes LOD 0's attributes at its closest point. A face corner whose own side
+    **Exact copy** (``exact`` and every result vertex bit for bit a LOD 0 vertex, as with
+    meshoptimizer: ``exact_sources``): each face corner copies the normals, colours and
+    (transferred) UVs of one LOD 0 vertex at its position, bit for bit (``exact_corner_sources``
+    picks among co-located LOD 0 vertices); the LOD -> LOD 0 distance is exactly 0 at the vertices,
+    so only the face centroids are queried and ``lod_to_ref`` is their largest distance.
+
+    **Closest-point transfer** (otherwise; ``exact=False`` forces it, for comparisons): every LOD
+    vertex takes LOD 0's attributes at its closest point. A face corner whose own side
     (LOD 0's face nearest to the face centroid, refined by a query pulled ``NUDGE`` of the way from
     the corner towards the centroid) gives clearly different values at the vertex (beyond the
     ``_SPLIT_*`` tolerances: another side of a seam or crease) gets those values instead; corners
@@ -186,8 +305,14 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     m, k = F.shape[0], P.shape[0]
     tri = P[F]
     centroid = tri.mean(axis=1)
-    d2, fid, closest = ref.query(np.concatenate([P, centroid]))
-    fv, fc = fid[:k], fid[k:]
+    found = exact_sources(ref, P) if exact else None
+    if found is not None:
+        # every vertex is a LOD 0 vertex (meshoptimizer): at distance 0, attributes copied; only
+        # the face interiors (centroids) are queried
+        d2, fc, _ = ref.query(centroid)
+    else:
+        d2, fid, closest = ref.query(np.concatenate([P, centroid]))
+        fv, fc = fid[:k], fid[k:]
     lod_to_ref = float(np.sqrt(d2.max()))
 
     # flipped faces: facing away (more than 120 degrees) from LOD 0's nearest face at the centroid
@@ -218,7 +343,14 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         names.append("uvs")
     vid = F.ravel()
     corner_attr = {}
-    if names:
+    srcv = None
+    if found is not None:
+        if names:
+            wedge = (res.wedge_uvs.reshape(-1, 2).astype(np.float32) if res.wedge_uvs is not None
+                     and src.uvs is not None and not uv_from_ref and mode != "xatlas" else None)
+            srcv = exact_corner_sources(ref, names, P, F, centroid, found, wedge)
+            corner_attr = {n: np.ascontiguousarray(getattr(src, n)[srcv], dtype=np.float32) for n in names}
+    elif names:
         face_of_corner = np.repeat(np.arange(m), 3)
         bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
         at_v = attributes_at(ref, names, fv, bary_v, ref.face_unit[fv])
@@ -261,7 +393,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             if n == "normals":
                 val = val / np.linalg.norm(val, axis=1, keepdims=True)
             corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
-    per_group = bool(names)  # every attribute so far is a function of the corner's group
+    per_group = bool(names) and found is None  # every attribute so far is a function of the corner's group
     if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
         if per_group:
             corner_attr = {n: v[group] for n, v in corner_attr.items()}
@@ -279,7 +411,11 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
                             .astype(np.int64))
         return unique_rows(np.concatenate(keys, axis=1))
 
-    if per_group:
+    exact_key = _exact_vertex_key(vid, srcv, found, corner_attr, names) if found is not None else None
+    if exact_key is not None:
+        vfirst, vinv = exact_key
+        pick = vfirst
+    elif per_group:
         # corners of one group share their row, and groups are numbered by first appearance, so
         # the unique rows of the groups, numbered by first appearance, are those of the corners
         gfirst, ginv = unique_vertices(vid[first])
