@@ -158,3 +158,45 @@ def test_exact_sources_rejects_a_moved_vertex():
     assert found[0].max() == 2 and found[0].min() == 1  # crease vertices: two copies
     p[3, 0] = np.nextafter(p[3, 0], 1.0)  # one ulp off: not a LOD 0 vertex
     assert T.exact_sources(ref, p) is None
+
+
+def test_query_bounded_equals_query(corpus, monkeypatch):
+    # chunked trees give the closest distances of the one tree over all of LOD 0
+    part = load(corpus / "stanford-bunny.obj").parts[0]
+    monkeypatch.setattr(T, "CHUNK_FACES", 4096)  # 17 chunks
+    ref = T.Reference(part)
+    assert len(ref.chunks) == -(-ref.faces.shape[0] // 4096)
+    assert np.array_equal(np.sort(np.concatenate([c[0] for c in ref.chunks])), np.arange(ref.faces.shape[0]))
+    rng = np.random.default_rng(3)
+    v = rng.integers(0, part.n_vertices, 20000)
+    pts = part.positions[v] + rng.normal(0.0, 2e-3, (v.size, 3))
+    bound = ((pts - part.positions[v]) ** 2).sum(axis=1)  # the vertex is on LOD 0
+    d, f, c = ref.query_bounded(pts, bound)
+    d0, f0, c0 = ref.query(pts)
+    np.testing.assert_allclose(d, d0, rtol=1e-12, atol=1e-30)
+    np.testing.assert_allclose(c, c0, atol=1e-12)
+    # the point found lies on the face found, at the distance returned
+    tri = part.positions[ref.faces[f]]
+    bary = T.barycentric(c, tri, clamp=False)
+    assert bary.min() >= -1e-6
+    np.testing.assert_allclose(np.einsum("qk,qkd->qd", bary, tri), c, atol=1e-12)
+    np.testing.assert_allclose(((pts - c) ** 2).sum(axis=1), d, rtol=1e-9, atol=1e-30)
+    with pytest.raises(ValueError):
+        ref.query_bounded(pts[:100], np.zeros(100) - 1.0)
+
+
+def test_query_near_equals_query(corpus, monkeypatch):
+    # the faces around the vertices within reach hold the closest point: same distances
+    part = load(corpus / "stanford-bunny.obj").parts[0]
+    monkeypatch.setattr(T, "CHUNK_FACES", 4096)
+    ref = T.Reference(part)
+    rng = np.random.default_rng(5)
+    v = rng.integers(0, part.n_vertices, 3000)
+    pts = part.positions[v] + rng.normal(0.0, 1e-3, (v.size, 3))
+    bound = ((pts - part.positions[v]) ** 2).sum(axis=1)
+    d, f, c = ref.query_near(pts, bound)
+    d0, _, _ = ref.query(pts)
+    np.testing.assert_allclose(d, d0, rtol=1e-12, atol=1e-30)
+    tri = part.positions[ref.faces[f]]
+    np.testing.assert_allclose(np.einsum("qk,qkd->qd", T.barycentric(c, tri, clamp=False), tri), c, atol=1e-12)
+    assert ref._near is not None  # the KD-tree path ran (not the chunked fallback)

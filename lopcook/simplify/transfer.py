@@ -20,6 +20,11 @@ FLIP_COS = -0.5
 NUDGE = 0.25
 
 
+#: ``Reference.query_bounded`` builds libigl trees over runs of this many LOD 0 faces (a tree over
+#: 1.1M faces takes about 265 MB)
+CHUNK_FACES = 1 << 18
+
+
 #: corners per step of the transfer's side test (bounds its (k, 3, 3) temporaries)
 TRANSFER_CHUNK = 1 << 17
 
@@ -63,14 +68,24 @@ class Reference:
         fn = face_normals(part.positions, self.faces)
         ln = np.linalg.norm(fn, axis=1)
         self.face_unit = fn / np.where(ln > 0, ln, 1.0)[:, None]
-        self.region = components(self.faces.shape[0], self.faces, part.n_vertices)
+        self._region = None
         self._samples = None
         self._sample_vertices = None
         self._sample_order = None
         self._tree = None
+        self._chunks = None
+        self._near = None
         self._defects = None
         self._seams = None
         self._volume = None
+
+    @property
+    def region(self) -> np.ndarray:
+        """(faces,) connected component of each face of ``faces`` (through shared vertex ids:
+        seams and creases split LOD 0 into regions), computed on first use."""
+        if self._region is None:
+            self._region = components(self.faces.shape[0], self.faces, self.part.n_vertices)
+        return self._region
 
     def query(self, points: np.ndarray):
         """Closest points on LOD 0 (libigl AABB tree built once): (squared distance, face, point)."""
@@ -83,6 +98,110 @@ class Reference:
             self._tree.init(self._pos, self._fac)
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
+
+    def query_bounded(self, points: np.ndarray, bound2: np.ndarray):
+        """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
+        to LOD 0 is known to be at most ``bound2`` (q,), without a tree over all of LOD 0.
+
+        Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
+        in Morton order of their centroids, cut into chunks of ``CHUNK_FACES``; one libigl tree per
+        chunk is built, queried and freed in turn (memory: one chunk's tree, about 1/4 of the whole
+        one's at 1.1M faces). A point is queried in a chunk only when the chunk's bounding box is
+        within its best distance so far (the bound, then the closest found), so the chunk holding
+        its closest face is always queried: the distance is the exact closest one, as ``query``'s
+        (the face may differ where several are equally close). Costs a tree build per call."""
+        import igl
+
+        if self.faces.shape[0] <= CHUNK_FACES:
+            return self.query(points)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        # slack for rounding: a bound equal to the distance must not lose the closest face
+        best = np.asarray(bound2, dtype=np.float64) * (1.0 + 1e-9) + 1e-300
+        face = np.full(pts.shape[0], -1, dtype=np.int64)
+        near = np.zeros_like(pts)
+        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+        for ch, lo, hi in self.chunks:
+            gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
+            sel = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= best)
+            if sel.size == 0:
+                continue
+            fc = np.ascontiguousarray(self.faces[ch])
+            tree = igl.AABB()
+            tree.init(pos, fc)
+            d, i, c = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
+            del tree, fc
+            d = np.asarray(d)
+            better = d <= best[sel]
+            at = sel[better]
+            best[at] = d[better]
+            face[at] = ch[np.asarray(i, dtype=np.int64)[better]]
+            near[at] = np.asarray(c)[better]
+        if (face < 0).any():  # a bound below the true distance: not a caller of this contract
+            raise ValueError("query_bounded: a bound below the distance to LOD 0")
+        return best, face, near
+
+    def query_near(self, points: np.ndarray, bound2: np.ndarray):
+        """``query_bounded`` for a few points with small bounds: only the LOD 0 faces that can
+        hold a closest point are put in a libigl tree.
+
+        The closest point p* of q lies on a face T* whose nearest vertex to p* is at most
+        ``max_edge`` from p*, so within ``sqrt(bound2) + max_edge`` of q: the faces around the LOD 0
+        vertices in that ball (a KD-tree over the vertices, built once) hold T*, and the distance
+        is the exact closest one. Falls back to ``query_bounded`` when they are more than
+        ``CHUNK_FACES`` faces."""
+        import igl
+        from scipy.spatial import cKDTree
+
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
+            return self.query_bounded(pts, bound2)
+        if self._near is None:
+            f, p = self.faces, self.positions
+            max_edge = 0.0
+            for a, b in ((0, 1), (1, 2), (2, 0)):  # (m, 3) temporaries only
+                e = p[f[:, b]] - p[f[:, a]]
+                max_edge = max(max_edge, float(np.einsum("ij,ij->i", e, e).max()))
+            del e
+            used = self.sample_vertices
+            self._near = (cKDTree(p[used]), used, float(np.sqrt(max_edge)))
+        kd, used, max_edge = self._near
+        r = np.sqrt(np.asarray(bound2, dtype=np.float64)) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
+        hits = kd.query_ball_point(pts, r)
+        near = np.zeros(self.positions.shape[0], dtype=bool)
+        near[used[np.fromiter((i for h in hits for i in h), dtype=np.int64)]] = True
+        faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
+        del near
+        if faces.size > CHUNK_FACES or faces.size == 0:
+            return self.query_bounded(pts, bound2)
+        sub = np.ascontiguousarray(self.faces[faces])
+        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+        d, i, c = igl.point_mesh_squared_distance(pts, pos, sub)
+        return np.asarray(d), faces[np.asarray(i, dtype=np.int64)], np.asarray(c)
+
+    @property
+    def chunks(self) -> list:
+        """[(face ids, box min, box max)]: LOD 0's faces in Morton order of their centroids, cut
+        into runs of ``CHUNK_FACES`` (for ``query_bounded``), built once."""
+        if self._chunks is None:
+            from .error import _MORTON_BITS, _spread3
+
+            p, f = self.positions, self.faces
+            cen = (p[f[:, 0]] + p[f[:, 1]] + p[f[:, 2]]) / 3.0
+            lo, ext = cen.min(axis=0), float((cen.max(axis=0) - cen.min(axis=0)).max())
+            scale = ((1 << _MORTON_BITS) - 1) / ext if ext > 0 else 0.0
+            q = np.clip(np.floor((cen - lo) * scale), 0, (1 << _MORTON_BITS) - 1).astype(np.uint64)
+            del cen
+            code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
+            del q
+            order = np.argsort(code, kind="stable")
+            del code
+            n_chunks = -(-f.shape[0] // CHUNK_FACES)
+            out = []
+            for ch in np.array_split(order, n_chunks):
+                corners = p[f[ch].ravel()]
+                out.append((ch, corners.min(axis=0), corners.max(axis=0)))
+            self._chunks = out
+        return self._chunks
 
     @property
     def samples(self) -> np.ndarray:
@@ -234,7 +353,9 @@ def exact_corner_sources(ref: Reference, names: list, P: np.ndarray, F: np.ndarr
         return src
     face_of_corner = amb // 3
     pv = P[vid[amb]]
-    g2 = ref.query(pv + NUDGE * (centroid[face_of_corner] - pv))[1]
+    g2 = ref.query_near(pv + NUDGE * (centroid[face_of_corner] - pv),
+                           (NUDGE ** 2) * np.einsum("ij,ij->i", centroid[face_of_corner] - pv,
+                                                    centroid[face_of_corner] - pv))[1]
     ext = attributes_at(ref, names, g2, barycentric(pv, ref.positions[ref.faces[g2]], clamp=False),
                         ref.face_unit[g2])
     c = count[vid[amb]]
@@ -282,7 +403,10 @@ def _exact_vertex_key(vid: np.ndarray, srcv, found, corner_attr: dict, names: li
         first, inv = unique_rows(np.concatenate([vid[amb].reshape(-1, 1).astype(np.int64)]
                                                 + [_bits(corner_attr[n][amb]) for n in names], axis=1))
         canon[amb] = srcv[amb][first][inv]
-    return unique_rows(np.stack([vid.astype(np.int64), canon], axis=1))
+    key = vid.astype(np.int64)
+    key *= int(canon.max()) + 1
+    key += canon
+    return unique_rows(key.reshape(-1, 1))
 
 
 def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart, work: Work, mode: str,
@@ -303,29 +427,47 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     of one vertex that land in the same LOD 0 region share one value."""
     P, F = res.positions, res.faces
     m, k = F.shape[0], P.shape[0]
-    tri = P[F]
-    centroid = tri.mean(axis=1)
     found = exact_sources(ref, P) if exact else None
     if found is not None:
         # every vertex is a LOD 0 vertex (meshoptimizer): at distance 0, attributes copied; only
-        # the face interiors (centroids) are queried
-        d2, fc, _ = ref.query(centroid)
+        # the face interiors (centroids) are queried. Row-wise temporaries only ((m, 3), no (m, 3, 3)).
+        centroid = P[F[:, 0]] + P[F[:, 1]]
+        centroid += P[F[:, 2]]
+        centroid /= 3.0
+        # a vertex of the face lies on LOD 0: its distance bounds the centroid's
+        bound = np.full(m, np.inf)
+        for j in range(3):
+            gap = centroid - P[F[:, j]]
+            np.minimum(bound, np.einsum("ij,ij->i", gap, gap), out=bound)
+        del gap
+        d2, fc, _ = ref.query_bounded(centroid, bound)
+        del bound, _
     else:
+        tri = P[F]
+        centroid = tri.mean(axis=1)
         d2, fid, closest = ref.query(np.concatenate([P, centroid]))
         fv, fc = fid[:k], fid[k:]
+        del tri
     lod_to_ref = float(np.sqrt(d2.max()))
+    del d2
 
     # flipped faces: facing away (more than 120 degrees) from LOD 0's nearest face at the centroid
     # and at 2 of the 3 points half-way to the corners (one sample alone is fooled where a coarse
     # face cuts a sharp edge or lies between two sheets)
-    fn = face_normals(P, F)
-    fl = np.linalg.norm(fn, axis=1)
-    unit = fn / np.where(fl > 0, fl, 1.0)[:, None]
+    unit = face_normals(P, F)
+    fl = np.linalg.norm(unit, axis=1)
+    unit /= np.where(fl > 0, fl, 1.0)[:, None]
+    del fl
     cand = np.flatnonzero(np.einsum("ij,ij->i", unit, ref.face_unit[fc]) < FLIP_COS)
     flipped = 0
     if cand.size:
-        half = 0.5 * (tri[cand] + centroid[cand][:, None, :])  # (c, 3, 3)
-        fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
+        tri_c = P[F[cand]]
+        half = 0.5 * (tri_c + centroid[cand][:, None, :])  # (c, 3, 3)
+        if found is not None:  # half-way to a corner that lies on LOD 0
+            hb = 0.25 * ((tri_c - centroid[cand][:, None, :]) ** 2).sum(axis=2)
+            fh = ref.query_near(half.reshape(-1, 3), hb.reshape(-1))[1].reshape(-1, 3)
+        else:
+            fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
         votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
         flipped = int((votes >= 2).sum())
     if flipped > max_flipped_fraction * m and flipped > 0:
