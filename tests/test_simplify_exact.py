@@ -200,3 +200,14 @@ def test_query_near_equals_query(corpus, monkeypatch):
     tri = part.positions[ref.faces[f]]
     np.testing.assert_allclose(np.einsum("qk,qkd->qd", T.barycentric(c, tri, clamp=False), tri), c, atol=1e-12)
     assert ref._near is not None  # the KD-tree path ran (not the chunked fallback)
+
+
+@pytest.mark.parametrize("name", ["fandisk.obj", "DamagedHelmet/DamagedHelmet.gltf", "spot.obj"])
+def test_weld_first_equals_weld_exact(corpus, name):
+    from lopcook.mesh import weld_exact
+    from lopcook.simplify.backends import weld_first
+
+    p = load(corpus / name).parts[0].positions
+    for pos in (p, np.concatenate([p, p[::-1], -0.0 * p[:5]])):  # repeats, and -0.0 against 0.0
+        np.testing.assert_array_equal(weld_first(pos), weld_exact(pos)[0])
+    assert weld_first(np.zeros((0, 3))).size == 0
