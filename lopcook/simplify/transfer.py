@@ -20,8 +20,8 @@ FLIP_COS = -0.5
 NUDGE = 0.25
 
 
-#: ``Reference.query_bounded`` builds libigl trees over runs of this many LOD 0 faces (a tree over
-#: 1.1M faces takes about 265 MB)
+#: ``Reference.query_bounded`` builds libigl trees over chunks of at most about this many LOD 0
+#: faces (a tree over 1.1M faces takes about 265 MB)
 CHUNK_FACES = 1 << 18
 
 
@@ -99,17 +99,19 @@ class Reference:
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
 
-    def query_bounded(self, points: np.ndarray, bound2: np.ndarray):
+    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, _sweep_only: bool = False):
         """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
         to LOD 0 is known to be at most ``bound2`` (q,), without a tree over all of LOD 0.
 
         Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
-        in Morton order of their centroids, cut into chunks of ``CHUNK_FACES``; one libigl tree per
-        chunk is built, queried and freed in turn (memory: one chunk's tree, about 1/4 of the whole
-        one's at 1.1M faces). A point is queried in a chunk only when the chunk's bounding box is
-        within its best distance so far (the bound, then the closest found), so the chunk holding
-        its closest face is always queried: the distance is the exact closest one, as ``query``'s
-        (the face may differ where several are equally close). Costs a tree build per call."""
+        cut into chunks by median splits (``chunks``); one libigl tree per chunk is built, queried
+        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). Each
+        point is queried first in its *home* chunk (the cell of the splits that holds the point),
+        then in every later chunk whose bounding box is within
+        its best distance so far; the earlier chunks it could still reach are checked afterwards
+        (``query_near``: the faces within reach), so every chunk that can hold its closest face is
+        searched and the distance is the exact closest one, as ``query``'s (the face may differ
+        where several are equally close). Costs a tree build per call."""
         import igl
 
         if self.faces.shape[0] <= CHUNK_FACES:
@@ -120,27 +122,56 @@ class Reference:
         face = np.full(pts.shape[0], -1, dtype=np.int64)
         near = np.zeros_like(pts)
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
-        for ch, lo, hi in self.chunks:
+        chunks = self.chunks
+        home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
+
+        def reach(c: int) -> np.ndarray:
+            lo, hi = chunks[c][1], chunks[c][2]
             gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
-            sel = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= best)
-            if sel.size == 0:
+            return np.einsum("ij,ij->i", gap, gap) <= best
+
+        for c, (ch, _, _) in enumerate(chunks):
+            sel = np.flatnonzero((home == c) | ((home < c) & reach(c)))
+            if sel.size == 0 or ch.size == 0:
                 continue
             fc = np.ascontiguousarray(self.faces[ch])
             tree = igl.AABB()
             tree.init(pos, fc)
-            d, i, c = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
+            d, i, cp = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
             del tree, fc
             d = np.asarray(d)
             better = d <= best[sel]
             at = sel[better]
             best[at] = d[better]
             face[at] = ch[np.asarray(i, dtype=np.int64)[better]]
-            near[at] = np.asarray(c)[better]
+            near[at] = np.asarray(cp)[better]
+        if not _sweep_only:
+            # chunks before a point's home were not searched for it: where it can reach one, search
+            # the faces within its reach
+            left = np.zeros(pts.shape[0], dtype=bool)
+            for c in range(len(chunks) - 1):
+                left |= (home > c) & reach(c)
+            left = np.flatnonzero(left)
+            if left.size:
+                d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
+                better = d <= best[left]
+                at = left[better]
+                best[at], face[at], near[at] = d[better], f2[better], cp[better]
         if (face < 0).any():  # a bound below the true distance: not a caller of this contract
             raise ValueError("query_bounded: a bound below the distance to LOD 0")
         return best, face, near
 
-    def query_near(self, points: np.ndarray, bound2: np.ndarray):
+    def _home(self, pts: np.ndarray) -> np.ndarray:
+        """(q,) the chunk whose cell of the median splits (``chunks``) holds each point."""
+        splits, n_levels = self._chunk_codes
+        node = np.zeros(pts.shape[0], dtype=np.int64)
+        for _ in range(n_levels):  # descend: node k has children 2k+1, 2k+2
+            axis, value = splits[node, 0].astype(np.int64), splits[node, 1]
+            right = pts[np.arange(pts.shape[0]), axis] > value
+            node = 2 * node + 1 + right
+        return node - ((1 << n_levels) - 1)
+
+    def query_near(self, points: np.ndarray, bound2: np.ndarray, _fallback_sweep: bool = False):
         """``query_bounded`` for a few points with small bounds: only the LOD 0 faces that can
         hold a closest point are put in a libigl tree.
 
@@ -154,7 +185,7 @@ class Reference:
 
         pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
-            return self.query_bounded(pts, bound2)
+            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
         if self._near is None:
             f, p = self.faces, self.positions
             max_edge = 0.0
@@ -172,7 +203,7 @@ class Reference:
         faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
         del near
         if faces.size > CHUNK_FACES or faces.size == 0:
-            return self.query_bounded(pts, bound2)
+            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
         sub = np.ascontiguousarray(self.faces[faces])
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
         d, i, c = igl.point_mesh_squared_distance(pts, pos, sub)
@@ -180,27 +211,46 @@ class Reference:
 
     @property
     def chunks(self) -> list:
-        """[(face ids, box min, box max)]: LOD 0's faces in Morton order of their centroids, cut
-        into runs of ``CHUNK_FACES`` (for ``query_bounded``), built once."""
+        """[(face ids, box min, box max)]: LOD 0's faces cut by median splits of their centroids
+        (each along the longest side of its cell, ``2**L`` leaves of at most about ``CHUNK_FACES``
+        faces), so that neighbouring chunks' boxes overlap only by about a face's size; built once
+        (for ``query_bounded``)."""
         if self._chunks is None:
-            from .error import _MORTON_BITS, _spread3
-
             p, f = self.positions, self.faces
-            cen = (p[f[:, 0]] + p[f[:, 1]] + p[f[:, 2]]) / 3.0
-            lo, ext = cen.min(axis=0), float((cen.max(axis=0) - cen.min(axis=0)).max())
-            scale = ((1 << _MORTON_BITS) - 1) / ext if ext > 0 else 0.0
-            q = np.clip(np.floor((cen - lo) * scale), 0, (1 << _MORTON_BITS) - 1).astype(np.uint64)
+            cen = p[f[:, 0]] + p[f[:, 1]]
+            cen += p[f[:, 2]]
+            cen /= 3.0
+            n_levels = max(1, int(np.ceil(np.log2(f.shape[0] / CHUNK_FACES))))
+            splits = np.zeros(((1 << n_levels) - 1, 2), dtype=np.float64)  # (axis, value) per node
+            level = [np.arange(f.shape[0], dtype=np.int64)]
+            node = 0
+            for _ in range(n_levels):
+                nxt = []
+                for ids in level:
+                    c = cen[ids]
+                    axis = int(np.argmax(c.max(axis=0) - c.min(axis=0))) if ids.size else 0
+                    half = ids.size // 2
+                    if ids.size:
+                        part = np.argpartition(c[:, axis], half - 1 if half else 0)
+                        value = float(c[part[max(half - 1, 0)], axis])
+                        # ties at the median go to the left cell, as ``_home``'s "> value" sends points
+                        left = c[:, axis] <= value
+                    else:
+                        value, left = 0.0, np.zeros(0, dtype=bool)
+                    splits[node] = (axis, value)
+                    node += 1
+                    nxt += [ids[left], ids[~left]]
+                level = nxt
             del cen
-            code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
-            del q
-            order = np.argsort(code, kind="stable")
-            del code
-            n_chunks = -(-f.shape[0] // CHUNK_FACES)
             out = []
-            for ch in np.array_split(order, n_chunks):
-                corners = p[f[ch].ravel()]
-                out.append((ch, corners.min(axis=0), corners.max(axis=0)))
+            for ids in level:
+                if ids.size:
+                    corners = p[f[ids].ravel()]
+                    out.append((ids, corners.min(axis=0), corners.max(axis=0)))
+                else:
+                    out.append((ids, np.full(3, np.inf), np.full(3, -np.inf)))
             self._chunks = out
+            self._chunk_codes = (splits, n_levels)
         return self._chunks
 
     @property
