@@ -21,6 +21,7 @@ from fractions import Fraction
 import numpy as np
 
 from lopcook.ingest import load
+from lopcook.mesh import face_normals
 from lopcook.simplify.backends import check_result, prepare, run_backend
 from lopcook.simplify.transfer import Reference, exact_sources, transfer_attributes
 
@@ -40,7 +41,8 @@ def main() -> int:
     cur = part
     n0 = part.n_triangles
     print(f"{args.mesh}: {n0:,} triangles, {part.n_vertices:,} vertices")
-    print("ratio  triangles  exact cpu s  closest cpu s  lod_to_ref exact  closest  max normal angle deg  bitwise")
+    print("ratio  triangles  exact cpu s  closest cpu s  lod_to_ref exact  closest  max normal angle deg  "
+          "corners > 10 deg  exact nearer  bitwise")
     for r in args.ratios.split(","):
         target = int(round(float(Fraction(r)) * n0))
         mode = "simplify" if cur.uvs is not None else "ignore"
@@ -52,11 +54,17 @@ def main() -> int:
         t = time.process_time()
         b, ib = transfer_attributes(res, ref, cur, work, mode if cur.uvs is not None else "-", 0.02, exact=False)
         tb = time.process_time() - t
-        ang = float("nan")
+        ang, differ, nearer = float("nan"), 0, 0
         if a.normals is not None:
             # same corners: both keep the face order of the backend result
             na, nb = corner_values(a, "normals").astype(np.float64), corner_values(b, "normals").astype(np.float64)
-            ang = float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", na, nb), -1, 1))).max())
+            per = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", na, nb), -1, 1)))
+            ang = float(per.max())
+            fn = face_normals(a.positions, a.indices.astype(np.int64))
+            fn = np.repeat(fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300), 3, axis=0)
+            big = per > 10.0
+            differ = int(big.sum())
+            nearer = int((np.einsum("ij,ij->i", na[big], fn[big]) > np.einsum("ij,ij->i", nb[big], fn[big])).sum())
         count, start, order = exact_sources(ref, a.positions)
         ok = True
         for name in ("normals", "uvs", "colors"):
@@ -70,7 +78,7 @@ def main() -> int:
             eq = (getattr(part, name)[cand].view(np.uint32) == va[pair].view(np.uint32)).all(axis=1)
             ok &= bool(np.bincount(pair, weights=eq, minlength=a.n_vertices).min() >= 1)
         print(f"{r:5}  {a.n_triangles:9,}  {ta:11.2f}  {tb:13.2f}  {ia['lod_to_ref']:.3e}  "
-              f"{ib['lod_to_ref']:.3e}  {ang:10.4f}  {ok}")
+              f"{ib['lod_to_ref']:.3e}  {ang:10.4f}  {differ:,} of {3 * a.n_triangles:,}  {nearer:,}  {ok}")
         cur = a
     return 0
 
