@@ -125,13 +125,15 @@ class Reference:
         chunks = self.chunks
         home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
 
-        def reach(c: int) -> np.ndarray:
+        def reach(c: int, idx: np.ndarray) -> np.ndarray:
+            """The points ``idx`` whose best distance reaches chunk ``c``'s box."""
             lo, hi = chunks[c][1], chunks[c][2]
-            gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
-            return np.einsum("ij,ij->i", gap, gap) <= best
+            q = pts[idx]
+            gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
+            return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
 
         for c, (ch, _, _) in enumerate(chunks):
-            sel = np.flatnonzero((home == c) | ((home < c) & reach(c)))
+            sel = np.union1d(np.flatnonzero(home == c), reach(c, np.flatnonzero(home < c)))
             if sel.size == 0 or ch.size == 0:
                 continue
             fc = np.ascontiguousarray(self.faces[ch])
@@ -150,7 +152,7 @@ class Reference:
             # the faces within its reach
             left = np.zeros(pts.shape[0], dtype=bool)
             for c in range(len(chunks) - 1):
-                left |= (home > c) & reach(c)
+                left[reach(c, np.flatnonzero(home > c))] = True
             left = np.flatnonzero(left)
             if left.size:
                 d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
