@@ -2,7 +2,7 @@
 
 Not a test (pytest does not collect benchmarks/). Usage::
 
-    .venv/bin/python benchmarks/profile_cook.py SOURCE [--lods 1/2,1/4] [--lod-backend fast]
+    .venv/bin/python benchmarks/profile_cook.py SOURCE [--lods 1/2,1/4] [--lod-backend auto|meshopt|pymeshlab|fast]
         [--repeat 3] [--cprofile N] [--json OUT.json]
 
 Each run is a child process that does what ``lopcook cook SOURCE -o OUT --lods ...`` does (ingest,
@@ -38,7 +38,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-STAGES = ["ingest", "lod", "grid", "E_v", "depth", "co_located", "emit", "write", "total"]
+STAGES = ["ingest", "lod", "analyse", "grid", "E_v", "depth", "co_located", "emit", "write", "total"]
 
 
 def _hwm_kb() -> int:
@@ -127,8 +127,11 @@ def child(args) -> dict:
     _wrap(rec, an, "depth_levels", "depth")
     _wrap(rec, an, "colocated_max", "co_located")
     _wrap(rec, pl, "colocated_max", "co_located")
-    _wrap(rec, pl, "encode_buffer", "emit")
-    _wrap(rec, pl, "to_bytes", "emit")
+    for attr in ("encode_buffer", "to_bytes", "assemble", "built"):  # names differ between versions
+        if hasattr(pl, attr):
+            _wrap(rec, pl, attr, "emit")
+    if hasattr(pl, "analyse_lods"):
+        _wrap(rec, pl, "analyse_lods", "analyse")
     orig_analyse = an.analyse
 
     def analyse(*a, **k):  # grid = the part of analyse's own "grid" timing
@@ -169,7 +172,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("source")
     ap.add_argument("--lods", default=None, help="as lopcook cook --lods, e.g. 1/2,1/4")
-    ap.add_argument("--lod-backend", default="pymeshlab", choices=["pymeshlab", "fast"])
+    ap.add_argument("--lod-backend", default="auto", choices=["auto", "meshopt", "pymeshlab", "fast"],
+                    help="as lopcook cook --lod-backend (default auto, the CLI default)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--cprofile", type=int, default=0, metavar="N")
     ap.add_argument("--json", default=None, help="write every run's rows here")

@@ -40,6 +40,16 @@ the vertex (normals more than 30 degrees apart, UVs 5e-3, colours 0.02: another 
 or seam) takes that side's values instead, so hard edges and seams split LOD vertices again while
 smooth fields keep one vertex per position. Normals are renormalised; colours clipped to [0, 1].
 
+Where every vertex of a result is bit for bit a vertex of LOD 0 (meshoptimizer never moves a
+vertex, so this holds along a whole meshoptimizer chain), the attributes are instead *copied*:
+each face corner takes the normals, colours and transferred UVs of one LOD 0 vertex at its
+position, bit for bit (``transfer.exact_sources``, ``transfer.exact_corner_sources``: where LOD 0
+has several vertices there, the one on the corner's side, and with the backend's UVs the one with
+those UVs). The LOD -> LOD 0 distance is then exactly 0 at the vertices and only the face
+centroids are queried, against LOD 0 in chunks (``Reference.query_bounded``) rather than one
+tree over all of it. Results whose positions moved (pymeshlab, fast-simplification) keep the
+closest-point transfer.
+
 UV seams (``seams=``)
 ---------------------
 ``"lock"`` (default)
@@ -85,8 +95,8 @@ Error
 *measured* with libigl point-to-mesh distances (AABB trees), at a cost that follows the LOD's size:
 
 * LOD -> LOD 0: every vertex and face centroid of the LOD (the queries the attribute transfer
-  makes anyway). Centroids catch faces that bridge a concavity or cut a corner, which vertices
-  alone miss.
+  makes anyway; a vertex that is a LOD 0 vertex is at distance 0 and is not queried). Centroids
+  catch faces that bridge a concavity or cut a corner, which vertices alone miss.
 * LOD 0 -> LOD: a deterministic sample of LOD 0's vertices, spread evenly over LOD 0 (coarse to
   fine in Morton order), as many as the LOD has vertices and at least 65,536 (all of them on
   smaller meshes), plus the vertices next to the samples that are at least half the sampled

@@ -209,6 +209,7 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) 
         d2 = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[order.order[near]]))[0]))
         measured = max(measured, float(d2.max()))
         queried += int(near.size)
+    del tree  # (about 120 bytes per LOD face) before the bound's (n, 3) temporaries
     gap = pts[order.order] - pts[order.order[owner]]
     bound = dist[owner] + np.sqrt(np.einsum("ij,ij->i", gap, gap))
     if near.size:

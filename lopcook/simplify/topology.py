@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 import numpy as np
 
-from ..mesh import components, degenerate_mask, edge_groups, sorted_unique, unique_rows, weld_exact
+from ..mesh import components, degenerate_mask, edge_groups, sorted_unique, unique_rows, weld_exact, weld_labels
 from ..types import MeshPart
 
 
@@ -41,7 +41,7 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     ``nonmanifold_edges`` (more than two faces), ``nonmanifold_vertices`` (bow-ties: faces around
     the vertex form more than one edge-connected fan) and ``closed`` (every edge has two faces)."""
     faces = np.asarray(indices)
-    w, n = weld_exact(positions)
+    w, n = weld_labels(positions, np.int64)  # the counts below do not depend on the numbering
     if degenerate is None:
         degenerate = degenerate_mask(positions, faces.astype(np.int64))
     # int32 ids where they fit: this runs on every LOD input (memory: ~60 bytes per triangle)

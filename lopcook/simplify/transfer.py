@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids
+from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids, weld_labels
 from ..types import MeshPart
 from .backends import BackendFailure, BackendResult, Work
 from .error import point_mesh, samples
@@ -18,6 +18,11 @@ FLIP_COS = -0.5
 
 #: corners look for their side of a seam this fraction of the way towards the face centroid
 NUDGE = 0.25
+
+
+#: ``Reference.query_bounded`` builds libigl trees over chunks of at most about this many LOD 0
+#: faces (a tree over 1.1M faces takes about 265 MB)
+CHUNK_FACES = 1 << 18
 
 
 #: corners per step of the transfer's side test (bounds its (k, 3, 3) temporaries)
@@ -63,14 +68,24 @@ class Reference:
         fn = face_normals(part.positions, self.faces)
         ln = np.linalg.norm(fn, axis=1)
         self.face_unit = fn / np.where(ln > 0, ln, 1.0)[:, None]
-        self.region = components(self.faces.shape[0], self.faces, part.n_vertices)
+        self._region = None
         self._samples = None
         self._sample_vertices = None
         self._sample_order = None
         self._tree = None
+        self._chunks = None
+        self._near = None
         self._defects = None
         self._seams = None
         self._volume = None
+
+    @property
+    def region(self) -> np.ndarray:
+        """(faces,) connected component of each face of ``faces`` (through shared vertex ids:
+        seams and creases split LOD 0 into regions), computed on first use."""
+        if self._region is None:
+            self._region = components(self.faces.shape[0], self.faces, self.part.n_vertices)
+        return self._region
 
     def query(self, points: np.ndarray):
         """Closest points on LOD 0 (libigl AABB tree built once): (squared distance, face, point)."""
@@ -83,6 +98,162 @@ class Reference:
             self._tree.init(self._pos, self._fac)
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
+
+    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, _sweep_only: bool = False):
+        """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
+        to LOD 0 is known to be at most ``bound2`` (q,), without a tree over all of LOD 0.
+
+        Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
+        cut into chunks by median splits (``chunks``); one libigl tree per chunk is built, queried
+        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). Each
+        point is queried first in its *home* chunk (the cell of the splits that holds the point),
+        then in every later chunk whose bounding box is within
+        its best distance so far; the earlier chunks it could still reach are checked afterwards
+        (``query_near``: the faces within reach), so every chunk that can hold its closest face is
+        searched and the distance is the exact closest one, as ``query``'s (the face may differ
+        where several are equally close). Costs a tree build per call."""
+        import igl
+
+        if self.faces.shape[0] <= CHUNK_FACES:
+            return self.query(points)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        # slack for rounding: a bound equal to the distance must not lose the closest face
+        best = np.asarray(bound2, dtype=np.float64) * (1.0 + 1e-9) + 1e-300
+        face = np.full(pts.shape[0], -1, dtype=np.int64)
+        near = np.zeros_like(pts)
+        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+        chunks = self.chunks
+        home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
+
+        def reach(c: int, idx: np.ndarray) -> np.ndarray:
+            """The points ``idx`` whose best distance reaches chunk ``c``'s box."""
+            lo, hi = chunks[c][1], chunks[c][2]
+            q = pts[idx]
+            gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
+            return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
+
+        for c, (ch, _, _) in enumerate(chunks):
+            sel = np.union1d(np.flatnonzero(home == c), reach(c, np.flatnonzero(home < c)))
+            if sel.size == 0 or ch.size == 0:
+                continue
+            fc = np.ascontiguousarray(self.faces[ch])
+            tree = igl.AABB()
+            tree.init(pos, fc)
+            d, i, cp = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
+            del tree, fc
+            d = np.asarray(d)
+            better = d <= best[sel]
+            at = sel[better]
+            best[at] = d[better]
+            face[at] = ch[np.asarray(i, dtype=np.int64)[better]]
+            near[at] = np.asarray(cp)[better]
+        if not _sweep_only:
+            # chunks before a point's home were not searched for it: where it can reach one, search
+            # the faces within its reach
+            left = np.zeros(pts.shape[0], dtype=bool)
+            for c in range(len(chunks) - 1):
+                left[reach(c, np.flatnonzero(home > c))] = True
+            left = np.flatnonzero(left)
+            if left.size:
+                d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
+                better = d <= best[left]
+                at = left[better]
+                best[at], face[at], near[at] = d[better], f2[better], cp[better]
+        if (face < 0).any():  # a bound below the true distance: not a caller of this contract
+            raise ValueError("query_bounded: a bound below the distance to LOD 0")
+        return best, face, near
+
+    def _home(self, pts: np.ndarray) -> np.ndarray:
+        """(q,) the chunk whose cell of the median splits (``chunks``) holds each point."""
+        splits, n_levels = self._chunk_codes
+        node = np.zeros(pts.shape[0], dtype=np.int64)
+        for _ in range(n_levels):  # descend: node k has children 2k+1, 2k+2
+            axis, value = splits[node, 0].astype(np.int64), splits[node, 1]
+            right = pts[np.arange(pts.shape[0]), axis] > value
+            node = 2 * node + 1 + right
+        return node - ((1 << n_levels) - 1)
+
+    def query_near(self, points: np.ndarray, bound2: np.ndarray, _fallback_sweep: bool = False):
+        """``query_bounded`` for a few points with small bounds: only the LOD 0 faces that can
+        hold a closest point are put in a libigl tree.
+
+        The closest point p* of q lies on a face T* whose nearest vertex to p* is at most
+        ``max_edge`` from p*, so within ``sqrt(bound2) + max_edge`` of q: the faces around the LOD 0
+        vertices in that ball (a KD-tree over the vertices, built once) hold T*, and the distance
+        is the exact closest one. Falls back to ``query_bounded`` when they are more than
+        ``CHUNK_FACES`` faces."""
+        import igl
+        from scipy.spatial import cKDTree
+
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
+            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
+        if self._near is None:
+            f, p = self.faces, self.positions
+            max_edge = 0.0
+            for a, b in ((0, 1), (1, 2), (2, 0)):  # (m, 3) temporaries only
+                e = p[f[:, b]] - p[f[:, a]]
+                max_edge = max(max_edge, float(np.einsum("ij,ij->i", e, e).max()))
+            del e
+            used = self.sample_vertices
+            self._near = (cKDTree(p[used]), used, float(np.sqrt(max_edge)))
+        kd, used, max_edge = self._near
+        r = np.sqrt(np.asarray(bound2, dtype=np.float64)) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
+        hits = kd.query_ball_point(pts, r)
+        near = np.zeros(self.positions.shape[0], dtype=bool)
+        near[used[np.fromiter((i for h in hits for i in h), dtype=np.int64)]] = True
+        faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
+        del near
+        if faces.size > CHUNK_FACES or faces.size == 0:
+            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
+        sub = np.ascontiguousarray(self.faces[faces])
+        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+        d, i, c = igl.point_mesh_squared_distance(pts, pos, sub)
+        return np.asarray(d), faces[np.asarray(i, dtype=np.int64)], np.asarray(c)
+
+    @property
+    def chunks(self) -> list:
+        """[(face ids, box min, box max)]: LOD 0's faces cut by median splits of their centroids
+        (each along the longest side of its cell, ``2**L`` leaves of at most about ``CHUNK_FACES``
+        faces), so that neighbouring chunks' boxes overlap only by about a face's size; built once
+        (for ``query_bounded``)."""
+        if self._chunks is None:
+            p, f = self.positions, self.faces
+            cen = p[f[:, 0]] + p[f[:, 1]]
+            cen += p[f[:, 2]]
+            cen /= 3.0
+            n_levels = max(1, int(np.ceil(np.log2(f.shape[0] / CHUNK_FACES))))
+            splits = np.zeros(((1 << n_levels) - 1, 2), dtype=np.float64)  # (axis, value) per node
+            level = [np.arange(f.shape[0], dtype=np.int64)]
+            node = 0
+            for _ in range(n_levels):
+                nxt = []
+                for ids in level:
+                    c = cen[ids]
+                    axis = int(np.argmax(c.max(axis=0) - c.min(axis=0))) if ids.size else 0
+                    half = ids.size // 2
+                    if ids.size:
+                        part = np.argpartition(c[:, axis], half - 1 if half else 0)
+                        value = float(c[part[max(half - 1, 0)], axis])
+                        # ties at the median go to the left cell, as ``_home``'s "> value" sends points
+                        left = c[:, axis] <= value
+                    else:
+                        value, left = 0.0, np.zeros(0, dtype=bool)
+                    splits[node] = (axis, value)
+                    node += 1
+                    nxt += [ids[left], ids[~left]]
+                level = nxt
+            del cen
+            out = []
+            for ids in level:
+                if ids.size:
+                    corners = p[f[ids].ravel()]
+                    out.append((ids, corners.min(axis=0), corners.max(axis=0)))
+                else:
+                    out.append((ids, np.full(3, np.inf), np.full(3, -np.inf)))
+            self._chunks = out
+            self._chunk_codes = (splits, n_levels)
+        return self._chunks
 
     @property
     def samples(self) -> np.ndarray:
@@ -173,34 +344,182 @@ def differs(a: dict, b: dict) -> np.ndarray:
     return bad
 
 
+def exact_sources(ref: Reference, points: np.ndarray):
+    """LOD 0 vertices at exactly the positions ``points`` (k, 3), or None when some point is not
+    exactly a vertex of LOD 0.
+
+    Only vertices that LOD 0's (non-degenerate) faces reference count. Returns ``(count, start,
+    order)``: point i is bit for bit the position of the ``count[i] >= 1`` LOD 0 vertices
+    ``order[start[i]:start[i] + count[i]]`` (more than one where LOD 0 has a seam or crease there:
+    co-located vertices with different attributes). meshoptimizer's output vertices are input
+    vertices, so along a chain of meshoptimizer LODs every LOD vertex is a LOD 0 vertex; positions
+    moved by pymeshlab or fast-simplification are not, and those results take the closest-point
+    transfer."""
+    used = ref.sample_vertices
+    k = points.shape[0]
+    lab, n_lab = weld_labels(np.concatenate([ref.positions[used], points]), np.int64)
+    lab_ref, lab_q = lab[:used.size], lab[used.size:]
+    count_of = np.bincount(lab_ref, minlength=n_lab)
+    count = count_of[lab_q]
+    if k and int(count.min()) == 0:
+        return None
+    order = used[np.argsort(lab_ref, kind="stable")]
+    first_of = np.zeros(n_lab, dtype=np.int64)
+    np.cumsum(count_of[:-1], out=first_of[1:])
+    return count, first_of[lab_q], order
+
+
+#: candidate scores of a co-located LOD 0 vertex: attribute distances in units of the split
+#: tolerances (a normal 30 degrees off, a UV 5e-3 off, a colour 0.02 off each score 1)
+def _attribute_distance(names: list, cand: dict, ext: dict) -> np.ndarray:
+    score = None
+    for name in names:
+        a, b = cand[name].astype(np.float64), ext[name]
+        if name == "normals":
+            d = (1.0 - np.einsum("ij,ij->i", a, b)) / (1.0 - np.cos(np.radians(SPLIT_NORMAL_DEG)))
+        else:
+            d = np.abs(a - b).max(axis=1) / (SPLIT_UV if name == "uvs" else SPLIT_COLOR)
+        score = d if score is None else score + d
+    return score
+
+
+def exact_corner_sources(ref: Reference, names: list, P: np.ndarray, F: np.ndarray, centroid: np.ndarray,
+                         found, corner_uvs: np.ndarray | None = None) -> np.ndarray:
+    """(3m,) the LOD 0 vertex whose attributes each face corner of (P, F) copies, for a result
+    whose every vertex is a LOD 0 vertex (``found = exact_sources(ref, P)``).
+
+    A vertex with one LOD 0 vertex at its position: that one, for all its corners. Where several
+    LOD 0 vertices share the position (a seam or crease of LOD 0), the corner's side is LOD 0's
+    face nearest to the point ``NUDGE`` of the way from the vertex towards the LOD face's centroid
+    (one closest-point query per such corner): a candidate that is a corner of that face, else the
+    candidate whose attributes are nearest to that face's attribute field extrapolated to the
+    vertex (ties: the lowest LOD 0 index). ``corner_uvs`` (3m, 2): the UVs the corners already
+    have (the backend's, copied from the input vertex they are): only a candidate with the same
+    UV bits is then chosen where one exists, so all of a corner's attributes come from one LOD 0
+    vertex."""
+    count, start, order = found
+    vid = F.ravel()
+    src = order[start[vid]]  # the only candidate, or the first of several
+    amb = np.flatnonzero(count[vid] > 1)
+    if amb.size == 0 or not names:
+        return src
+    face_of_corner = amb // 3
+    pv = P[vid[amb]]
+    g2 = ref.query_near(pv + NUDGE * (centroid[face_of_corner] - pv),
+                           (NUDGE ** 2) * np.einsum("ij,ij->i", centroid[face_of_corner] - pv,
+                                                    centroid[face_of_corner] - pv))[1]
+    ext = attributes_at(ref, names, g2, barycentric(pv, ref.positions[ref.faces[g2]], clamp=False),
+                        ref.face_unit[g2])
+    c = count[vid[amb]]
+    pair = np.repeat(np.arange(amb.size), c)  # (corner, candidate) pairs
+    offs = np.arange(pair.size) - np.repeat(np.cumsum(c) - c, c)
+    cand = order[start[vid[amb]][pair] + offs]
+    score = _attribute_distance(names, {n: getattr(ref.part, n)[cand] for n in names},
+                                {n: v[pair] for n, v in ext.items()})
+    incident = (ref.faces[g2[pair]] == cand[:, None]).any(axis=1)
+    score = np.where(incident, -1.0, score)
+    if corner_uvs is not None and ref.part.uvs is not None:
+        same_uv = (_bits(ref.part.uvs[cand]) == _bits(corner_uvs[amb][pair])).all(axis=1)
+        score = score + np.where(same_uv, 0.0, 1e6)
+    best = np.lexsort((cand, score, pair))  # per corner: lowest score, then lowest id
+    head = np.r_[True, pair[best][1:] != pair[best][:-1]]
+    src[amb] = cand[best[head]]
+    return src
+
+
+def _bits(values: np.ndarray) -> np.ndarray:
+    """int64 columns of float32 bit patterns (``-0.0`` as ``0.0``), the vertex keys' form."""
+    return (np.ascontiguousarray(values, dtype=np.float32) + np.float32(0.0)).view(np.int32).astype(np.int64)
+
+
+def _exact_vertex_key(vid: np.ndarray, srcv, found, corner_attr: dict, names: list):
+    """``unique_rows`` of the corners' (vertex, attribute bits) rows for an exact copy, through a
+    two-column integer key: ``(first, inverse)`` equal to the generic key's, or None when it does
+    not apply (per-corner UVs that are not a function of the vertex).
+
+    Corners of a vertex with one LOD 0 vertex at its position copy the same values; at co-located
+    vertices the copied LOD 0 vertex is replaced by the first one of the same vertex with the same
+    attribute bits, so equal rows get equal keys."""
+    if "uvs" in corner_attr and "uvs" not in names:  # the backend's per-corner UVs
+        uvb = _bits(corner_attr["uvs"])
+        per_vertex = np.zeros((int(vid.max()) + 1, 2), dtype=np.int64)
+        per_vertex[vid] = uvb
+        if not (per_vertex[vid] == uvb).all():
+            return None
+    if srcv is None:
+        return unique_rows(vid.reshape(-1, 1).astype(np.int64))
+    count = found[0]
+    canon = srcv.copy()
+    amb = np.flatnonzero(count[vid] > 1)
+    if amb.size:
+        first, inv = unique_rows(np.concatenate([vid[amb].reshape(-1, 1).astype(np.int64)]
+                                                + [_bits(corner_attr[n][amb]) for n in names], axis=1))
+        canon[amb] = srcv[amb][first][inv]
+    key = vid.astype(np.int64)
+    key *= int(canon.max()) + 1
+    key += canon
+    return unique_rows(key.reshape(-1, 1))
+
+
 def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart, work: Work, mode: str,
-              max_flipped_fraction: float) -> tuple[MeshPart, dict]:
+              max_flipped_fraction: float, exact: bool = True) -> tuple[MeshPart, dict]:
     """Attributes for the cleaned backend result; flip check; LOD -> LOD 0 distance.
 
-    Every LOD vertex takes LOD 0's attributes at its closest point. A face corner whose own side
+    **Exact copy** (``exact`` and every result vertex bit for bit a LOD 0 vertex, as with
+    meshoptimizer: ``exact_sources``): each face corner copies the normals, colours and
+    (transferred) UVs of one LOD 0 vertex at its position, bit for bit (``exact_corner_sources``
+    picks among co-located LOD 0 vertices); the LOD -> LOD 0 distance is exactly 0 at the vertices,
+    so only the face centroids are queried and ``lod_to_ref`` is their largest distance.
+
+    **Closest-point transfer** (otherwise; ``exact=False`` forces it, for comparisons): every LOD
+    vertex takes LOD 0's attributes at its closest point. A face corner whose own side
     (LOD 0's face nearest to the face centroid, refined by a query pulled ``NUDGE`` of the way from
     the corner towards the centroid) gives clearly different values at the vertex (beyond the
     ``_SPLIT_*`` tolerances: another side of a seam or crease) gets those values instead; corners
     of one vertex that land in the same LOD 0 region share one value."""
     P, F = res.positions, res.faces
     m, k = F.shape[0], P.shape[0]
-    tri = P[F]
-    centroid = tri.mean(axis=1)
-    d2, fid, closest = ref.query(np.concatenate([P, centroid]))
-    fv, fc = fid[:k], fid[k:]
+    found = exact_sources(ref, P) if exact else None
+    if found is not None:
+        # every vertex is a LOD 0 vertex (meshoptimizer): at distance 0, attributes copied; only
+        # the face interiors (centroids) are queried. Row-wise temporaries only ((m, 3), no (m, 3, 3)).
+        centroid = P[F[:, 0]] + P[F[:, 1]]
+        centroid += P[F[:, 2]]
+        centroid /= 3.0
+        # a vertex of the face lies on LOD 0: its distance bounds the centroid's
+        bound = np.full(m, np.inf)
+        for j in range(3):
+            gap = centroid - P[F[:, j]]
+            np.minimum(bound, np.einsum("ij,ij->i", gap, gap), out=bound)
+        del gap
+        d2, fc, _ = ref.query_bounded(centroid, bound)
+        del bound, _
+    else:
+        tri = P[F]
+        centroid = tri.mean(axis=1)
+        d2, fid, closest = ref.query(np.concatenate([P, centroid]))
+        fv, fc = fid[:k], fid[k:]
+        del tri
     lod_to_ref = float(np.sqrt(d2.max()))
+    del d2
 
     # flipped faces: facing away (more than 120 degrees) from LOD 0's nearest face at the centroid
     # and at 2 of the 3 points half-way to the corners (one sample alone is fooled where a coarse
     # face cuts a sharp edge or lies between two sheets)
-    fn = face_normals(P, F)
-    fl = np.linalg.norm(fn, axis=1)
-    unit = fn / np.where(fl > 0, fl, 1.0)[:, None]
+    unit = face_normals(P, F)
+    fl = np.linalg.norm(unit, axis=1)
+    unit /= np.where(fl > 0, fl, 1.0)[:, None]
+    del fl
     cand = np.flatnonzero(np.einsum("ij,ij->i", unit, ref.face_unit[fc]) < FLIP_COS)
     flipped = 0
     if cand.size:
-        half = 0.5 * (tri[cand] + centroid[cand][:, None, :])  # (c, 3, 3)
-        fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
+        tri_c = P[F[cand]]
+        half = 0.5 * (tri_c + centroid[cand][:, None, :])  # (c, 3, 3)
+        if found is not None:  # half-way to a corner that lies on LOD 0
+            hb = 0.25 * ((tri_c - centroid[cand][:, None, :]) ** 2).sum(axis=2)
+            fh = ref.query_near(half.reshape(-1, 3), hb.reshape(-1))[1].reshape(-1, 3)
+        else:
+            fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
         votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
         flipped = int((votes >= 2).sum())
     if flipped > max_flipped_fraction * m and flipped > 0:
@@ -218,7 +537,14 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         names.append("uvs")
     vid = F.ravel()
     corner_attr = {}
-    if names:
+    srcv = None
+    if found is not None:
+        if names:
+            wedge = (res.wedge_uvs.reshape(-1, 2).astype(np.float32) if res.wedge_uvs is not None
+                     and src.uvs is not None and not uv_from_ref and mode != "xatlas" else None)
+            srcv = exact_corner_sources(ref, names, P, F, centroid, found, wedge)
+            corner_attr = {n: np.ascontiguousarray(getattr(src, n)[srcv], dtype=np.float32) for n in names}
+    elif names:
         face_of_corner = np.repeat(np.arange(m), 3)
         bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
         at_v = attributes_at(ref, names, fv, bary_v, ref.face_unit[fv])
@@ -261,7 +587,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             if n == "normals":
                 val = val / np.linalg.norm(val, axis=1, keepdims=True)
             corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
-    per_group = bool(names)  # every attribute so far is a function of the corner's group
+    per_group = bool(names) and found is None  # every attribute so far is a function of the corner's group
     if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
         if per_group:
             corner_attr = {n: v[group] for n, v in corner_attr.items()}
@@ -279,7 +605,11 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
                             .astype(np.int64))
         return unique_rows(np.concatenate(keys, axis=1))
 
-    if per_group:
+    exact_key = _exact_vertex_key(vid, srcv, found, corner_attr, names) if found is not None else None
+    if exact_key is not None:
+        vfirst, vinv = exact_key
+        pick = vfirst
+    elif per_group:
         # corners of one group share their row, and groups are numbered by first appearance, so
         # the unique rows of the groups, numbered by first appearance, are those of the corners
         gfirst, ginv = unique_vertices(vid[first])
