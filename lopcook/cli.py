@@ -94,6 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hierarchy", action="store_true",
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
                         "lopcook refine; docs/hierarchy.md)")
+    p.add_argument("--clusters", default=None, metavar="N",
+                   help="clustered position buffers of N vertices per cluster, N in [16, 1024]: per-cluster "
+                        "anchors store the top bits a cluster's vertices share once (container version 3.0; "
+                        "docs/clusters.md) (default: unclustered)")
     add_analyse_options(p)
     add_attribute_options(p)
     add_viewing_options(p)
@@ -481,7 +485,25 @@ def settings_from_args(args):
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
                     tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune,
-                    attributes=_attribute_settings(args))
+                    attributes=_attribute_settings(args), emit=_emit_settings(args))
+
+
+def _emit_settings(args):
+    """``--clusters N`` -> EmitSettings; not an integer in [16, 1024]: usage error (exit 2)."""
+    from .settings import CLUSTER_SIZE_RANGE, EmitSettings
+
+    text = getattr(args, "clusters", None)
+    if text is None:
+        return EmitSettings()
+    lo, hi = CLUSTER_SIZE_RANGE
+    try:
+        n = int(str(text).strip())
+    except ValueError:
+        n = None
+    if n is None or not lo <= n <= hi:
+        raise LopcookError("usage", None, f"--clusters {text!r}: expected an integer number of vertices per "
+                           f"cluster in [{lo}, {hi}]", hint="e.g. --clusters 64, or leave it out for unclustered buffers")
+    return EmitSettings(clusters=n)
 
 
 def cmd_analyse(args) -> int:

@@ -179,7 +179,24 @@ def _ulp_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
-    offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it."""
+    offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it
+    (a clustered buffer's slice is ``reader.plane_slice_bits`` long)."""
+    from ..emit.reader import buffer_clusters, lod_entry, plane_slice_bits, top_values
+
+    if buffer_clusters(c, part, lod) is not None:
+        # a clustered buffer's stored slice skips anchor-implied components: the unclustered
+        # kernels get the unclustered plane of the same vertices (bit 24 - p of each component)
+        vid = np.asarray(lod_entry(c, part, lod)["vertex_id"], dtype=np.int64)
+
+        def unclustered(p: int):
+            values, _ = top_values(c, part, lod, p)
+            bits = (values[: int(vid[p - 1])] & 1).astype(np.uint8).ravel()
+            padded = np.zeros(-(-max(bits.size, 1) // 32) * 32, np.uint8)
+            padded[: bits.size] = bits
+            return np.packbits(padded, bitorder="little").view("<u4").astype(np.uint32), 0
+
+        return unclustered
+
     def plane(p: int):
         start = 0
         for i, pp in enumerate(c.manifest["parts"]):
@@ -187,7 +204,7 @@ def plane_source(c, part: int, lod: int):
                 if (i, k) == (part, lod):
                     data = c.section(c.manifest["positions"]["planes"][str(p)])
                     return np.frombuffer(data, dtype="<u4"), start
-                start += 3 * int(e["vertex_id"][p - 1])
+                start += plane_slice_bits(e, p)
         raise LopcookError("usage", c.path, f"part {part} has no LOD {lod}")
 
     return plane
@@ -225,8 +242,10 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         gpu.require_hlsl_tools()
     gpu.context()
 
-    from ..emit.reader import gpu_buffer
+    from ..emit.clusters import decode_clustered
+    from ..emit.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
 
+    cluster_stats = {"decoded_vertices": 0, "mismatches": 0}
     grid = c.manifest["grid"]
     origin, cell = grid["origin"], float(grid["extent"]) / float(1 << LEVELS)
     half = np.float32(cell / 2.0)
@@ -240,9 +259,16 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     vertices = 0
     attribute_buffers = 0
     for part, lod in buffers:
+        clustered = buffer_clusters(c, part, lod) is not None
         for level in levels:
             buf = gpu_buffer(c, part, lod, level)
             values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+            if clustered:  # the clustered CPU decode must equal the unclustered one exactly
+                cbuf = clustered_gpu_buffer(c, part, lod, level)
+                cvals, cwidths = decode_clustered(cbuf.words, cbuf.clusters, level)
+                bad = np.any(cvals != values, axis=1) | (cwidths != widths)
+                cluster_stats["decoded_vertices"] += int(widths.size)
+                cluster_stats["mismatches"] += int(bad.sum())
             ref_grid = to_grid(values, widths)
             ref_pos = reconstruct_float32(values, widths, origin, cell)
             if level == levels[0]:
@@ -277,6 +303,7 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
              and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 and s["normal_mismatches"] == 0
              and s["uv_mismatches"] == 0 and s["color_mismatches"] == 0 for s in stats.values())
+    ok = ok and cluster_stats["mismatches"] == 0
     for s in stats.values():
         s["decode_seconds"] = round(s["decode_seconds"], 4)
         s["adapt_seconds"] = round(s["adapt_seconds"], 4)
@@ -289,6 +316,7 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         "vertices": vertices,
         "float_ulp_tolerance": 0,
         "languages": stats,
+        "clustered_cpu": cluster_stats,
         "examples": examples,
         "ok": bool(ok),
         "device": gpu.context_info(),
@@ -454,6 +482,10 @@ def format_report(report: dict) -> str:
         lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
                      f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
                      f"{s['color_mismatches']}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
+    cs = report.get("clustered_cpu") or {}
+    if cs.get("decoded_vertices"):
+        lines.append(f"  clustered CPU decode: {cs['decoded_vertices']:,} vertex decodes, {cs['mismatches']} "
+                     "mismatches against the unclustered reference")
     for e in report["examples"]:
         lines.append(f"  mismatch: {e}")
     lines.append("  ok: decoders are bit-exact" if report["ok"] else "  FAILED: decoders differ from the CPU reference")
