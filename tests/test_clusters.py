@@ -342,3 +342,18 @@ def test_corpus_asset_clustered_equals_unclustered_at_every_level(corpus, name):
                                                                >> (24 - w[:, None])) << (24 - w[:, None]))
             g0, w0, pos0 = decode_positions(plain, i, 0, level)  # the same vertex, read from both files
             np.testing.assert_array_equal(pos[bins.inverse].view(np.uint32), pos0[ref.inverse].view(np.uint32))
+
+
+def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(tmp_path):
+    from lopcook.emit.summary import describe_container
+    from lopcook.report.html import _clusters_html
+
+    c = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--clusters", "16", tmp_path=tmp_path).read_bytes())
+    d = describe_container(c)
+    html = "".join(_clusters_html({"clusters": d["clusters"], "memory": d["memory"], "available_level": 24}))
+    r12 = next(r for r in d["memory"] if r["level"] == 12)
+    assert "<h2>Clusters</h2>" in html and f"<td>{r12['cap_bytes']:,}</td>" in html
+    assert f"<td>{r12['unclustered_cap_bytes']:,}</td>" in html
+    assert " ".join(f"{k}:{v}" for k, v in enumerate(d["clusters"]["k_histogram"]) if v) in html
+    plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="p.lop").read_bytes())
+    assert describe_container(plain)["clusters"] is None and _clusters_html({"clusters": None}) == []

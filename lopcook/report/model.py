@@ -249,6 +249,7 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                       "uniform16": u16},
         "histogram": [int(x) for x in t["histogram"]],
         "memory": container_desc["memory"],
+        "clusters": container_desc.get("clusters"),
         "images": images,
         "cook": None if cook is None else {"status": cook["status"], "detail": cook["detail"],
                                            "bytes": cook.get("bytes")},
