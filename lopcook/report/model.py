@@ -249,7 +249,6 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                       "uniform16": u16},
         "histogram": [int(x) for x in t["histogram"]],
         "memory": container_desc["memory"],
-        "clusters": container_desc.get("clusters"),
         "images": images,
         "cook": None if cook is None else {"status": cook["status"], "detail": cook["detail"],
                                            "bytes": cook.get("bytes")},
@@ -259,6 +258,8 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
         "calibration": options.get("calibration"),
         "seconds": ev.get("seconds"),
     }
+    if container_desc.get("clusters") is not None:  # clustered containers only: unclustered reports keep their keys
+        rep["clusters"] = container_desc["clusters"]
     rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
                    "ratios": (options.get("lods") or {}).get("ratios"),
                    "savings": m.get("savings"),
