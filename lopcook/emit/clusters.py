@@ -129,22 +129,30 @@ def _bit_length(x: np.ndarray) -> np.ndarray:
     return np.frexp(np.asarray(x, dtype=np.float64))[1].astype(np.int64)
 
 
-def make_clusters(q_binned: np.ndarray, vertex_id: np.ndarray, size: int) -> Clusters:
-    """Cut a buffer in cluster order into clusters of ``size`` vertices and compute their anchors.
-
-    q_binned : (n, 3) uint32 grid integers in cluster (or any binned) order; vertex_id : (25,)."""
+def _shape(vertex_id: np.ndarray, size: int):
+    """(N, VertexId, ClusterId, m, start, count) of the clusters of a buffer's bins (no grid data)."""
     size = check_size(size)
     vid = np.asarray(vertex_id, dtype=np.int64)
-    q = np.asarray(q_binned, dtype=np.int64).reshape(-1, 3)
     counts = np.diff(vid, prepend=0)
     counts[0] = 0
     per_bin = -(-counts // size)  # clusters per bin
     cid = np.cumsum(per_bin).astype(np.int64)
-    n_c = int(cid[LEVELS])
     m = np.repeat(np.arange(LEVELS + 1, dtype=np.int64), per_bin)
-    first = cid[m - 1] if n_c else np.zeros(0, np.int64)
-    start = vid[m - 1] + (np.arange(n_c, dtype=np.int64) - first) * size
+    first = cid[m - 1]
+    start = vid[m - 1] + (np.arange(m.size, dtype=np.int64) - first) * size
     count = np.minimum(size, vid[m] - start)
+    return size, vid, cid, m, start.astype(np.int64), count.astype(np.int64)
+
+
+def make_clusters(q_binned: np.ndarray, vertex_id: np.ndarray, size: int) -> Clusters:
+    """Cut a buffer in cluster order into clusters of ``size`` vertices and compute their anchors.
+
+    q_binned : (n, 3) uint32 grid integers in cluster (or any binned) order; vertex_id : (25,)."""
+    size, vid, cid, m, start, count = _shape(vertex_id, size)
+    n_c = int(cid[LEVELS])
+    q = np.asarray(q_binned, dtype=np.int64).reshape(-1, 3)
+    if q.shape[0] != int(vid[LEVELS]):
+        raise ValueError(f"{q.shape[0]} grid integers for {int(vid[LEVELS])} vertices")
     if n_c:
         lo = np.minimum.reduceat(q, start, axis=0)
         hi = np.maximum.reduceat(q, start, axis=0)
@@ -261,17 +269,17 @@ def from_header(header: np.ndarray, vertex_id: np.ndarray, size: int) -> Cluster
     """The Clusters of a buffer from its stored header words (n_c * 3 uint32, ``header_words``) and
     its VertexId table. Raises ValueError when the words do not fit the table (wrong count,
     k > 24, an anchor wider than k bits)."""
-    shape = make_clusters(np.zeros((int(vertex_id[LEVELS]), 3), np.uint32), vertex_id, size)
+    size, vid, cid, m, start, count = _shape(vertex_id, size)
     h = np.asarray(header, dtype=np.uint32)
-    if h.size != HEADER_WORDS * shape.n_clusters:
-        raise ValueError(f"{h.size} cluster header words, expected {HEADER_WORDS * shape.n_clusters}")
+    if h.size != HEADER_WORDS * m.size:
+        raise ValueError(f"{h.size} cluster header words, expected {HEADER_WORDS * m.size}")
     h = h.reshape(-1, 3)
     k = (h >> np.uint32(24)).astype(np.int64)
     a = (h & np.uint32(0xFFFFFF)).astype(np.int64)
-    if np.any(k > LEVELS) or np.any(a >> k):
+    if np.any(k > LEVELS) or np.any(a >> np.minimum(k, LEVELS)):
         raise ValueError("a cluster header has k > 24 or an anchor wider than k bits")
-    return Clusters(size=shape.size, vertex_id=shape.vertex_id, cluster_id=shape.cluster_id, k=k.astype(np.uint8),
-                    anchor=a.astype(np.uint32), count=shape.count, m=shape.m, start=shape.start)
+    return Clusters(size=size, vertex_id=vid, cluster_id=cid, k=k.astype(np.uint8), anchor=a.astype(np.uint32),
+                    count=count, m=m, start=start)
 
 
 def plane_bit(clusters: Clusters, plane: int) -> np.ndarray:
