@@ -357,3 +357,26 @@ def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(
     assert " ".join(f"{k}:{v}" for k, v in enumerate(d["clusters"]["k_histogram"]) if v) in html
     plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="p.lop").read_bytes())
     assert describe_container(plain)["clusters"] is None and _clusters_html({"clusters": None}) == []
+
+
+def test_clusters_with_hierarchy_lods_and_dropped_planes(tmp_path):
+    """--hierarchy sections go before positions/clusters; with --nearest the planes no view needs
+    are dropped and the savings record still balances; every LOD is clustered."""
+    path = cook(FIXTURES / "unit_sphere.glb", "--clusters", "16", "--hierarchy", "--lods", "1/2", "--nearest", "2",
+                tmp_path=tmp_path)
+    c = from_bytes(path.read_bytes())
+    names = [s["name"] for s in c.manifest["sections"]]
+    at = names.index("positions/clusters")
+    assert names[at + 1] == "positions/mandatory" and all(not n.startswith("positions/") for n in names[:at])
+    assert "part0/lod0/hierarchy" in names[:at]
+    assert c.manifest["positions"]["max_level"] < 24 and c.manifest["savings"]["bytes_saved"] > 0
+    lods = c.manifest["parts"][0]["lods"]
+    assert len(lods) == 2 and all(e["cluster_size"] == 16 for e in lods)
+    plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--hierarchy", "--lods", "1/2", "--nearest", "2",
+                            tmp_path=tmp_path, name="plain.lop").read_bytes())
+    assert plain.available_level == c.available_level
+    for k in range(2):  # the same vertices decode the same (in another order)
+        g, w, pos = decode_positions(c, 0, k, c.available_level)
+        g0, w0, pos0 = decode_positions(plain, 0, k, c.available_level)
+        a, b = np.lexsort(np.c_[g, w].T), np.lexsort(np.c_[g0, w0].T)
+        np.testing.assert_array_equal(pos[a].view(np.uint32), pos0[b].view(np.uint32))
