@@ -118,12 +118,26 @@ uint lop_read_field(uint o, uint b)
 }
 
 #ifdef LOP_CLUSTERED
+// r / n for 0 <= r < 2^26 and 16 <= n <= 1024 without an integer division (which llvmpipe, for
+// one, runs lane by lane): a float32 estimate, within 1.5 of r / n (float(r) is off by at most 2,
+// 1 / n and the product by a few units in the last place of 2^-23 relative), then two corrections
+// each way make it exact. Any rounding or fusing of the float operations stays within that bound.
+uint lop_div(uint r, uint n)
+{
+    uint q = uint(float(r) * (1.0 / float(n)));
+    q -= (q * n > r) ? 1u : 0u;
+    q -= (q * n > r) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    return q;
+}
+
 // Vertex j (clustered order, 0 <= j < VertexId[24]) of bin k = i + 1: top bits v (b bits per
 // component) and the width b = max(bin level, B), as the global grid's decode at b bits. With
 // r = j - VertexId[k-1], the vertex lies in cluster c = ClusterId[k-1] + r / N at local index
-// l = r % N. Component t keeps k_t bits of the anchor and stores w_t = b - min(k_t, b) bits at
-// ClusterBit[c] + l (w_x + w_y + w_z) (x, then y, then z): v_t = (a_t >> (k_t - min(k_t, b))) << w_t
-// | field_t. A 0-bit field reads as 0; its offset, which may lie at the end of P, is clamped to
+// l = r % N (lop_div: N in [16, 1024]). Component t keeps k_t bits of the anchor and stores
+// w_t = b - min(k_t, b) bits at ClusterBit[c] + l (w_x + w_y + w_z) (x, then y, then z):
+// v_t = (a_t >> (k_t - min(k_t, b))) << w_t | field_t. A 0-bit field reads as 0; its offset, which may lie at the end of P, is clamped to
 // the last bit of P so that no read leaves the buffer.
 void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
 {
@@ -131,8 +145,9 @@ void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
     bin_level = i + 1u;
     b = max(bin_level, lop_params.x);
     uint r = j - LOP_VERTEX_ID(i);
-    uint c = LOP_CLUSTER_ID(i) + r / lop_params.z;
-    uint l = r % lop_params.z;
+    uint d = lop_div(r, lop_params.z);
+    uint c = LOP_CLUSTER_ID(i) + d;
+    uint l = r - d * lop_params.z;
     uvec4 rec = LOP_CLUSTER(c);
     uvec3 k = rec.xyz >> 24u;
     uvec3 a = rec.xyz & 0xFFFFFFu;

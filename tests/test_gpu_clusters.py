@@ -332,6 +332,62 @@ def test_empty_buffer_and_single_cluster(language):
     assert gpu_decode(language, np.zeros((0, 3), np.uint32), empty, 5)[1].grid.shape == (0, 3)
 
 
+_DIV_GLSL = """
+layout(std430, binding = 5) readonly buffer LopDivIn { uint lop_div_in[]; };
+out uint lop_out_q;
+void main()
+{
+    uint i = uint(gl_VertexID);
+    lop_out_q = lop_div(lop_div_in[2u * i], lop_div_in[2u * i + 1u]);
+}
+"""
+
+_DIV_HLSL = """
+ByteAddressBuffer lop_div_in : register(t5);
+struct LopDivOut { nointerpolation uint q : LOP_Q; };
+LopDivOut lop_div_vs(uint i : SV_VertexID)
+{
+    LopDivOut o;
+    o.q = lop_div(lop_div_in.Load((2u * i) << 2), lop_div_in.Load((2u * i + 1u) << 2));
+    return o;
+}
+"""
+
+
+def test_division_is_exact_over_the_contract_range(language, rng):
+    """lop_div(r, n) == r // n for every cluster size n in [16, 1024] and r up to 2^26 - 1 (the
+    decoder's vertex limit): multiples of n and their neighbours, random values, the largest r."""
+    import moderngl
+
+    n = np.arange(gpu.CLUSTER_SIZES[0], gpu.CLUSTER_SIZES[1] + 1, dtype=np.int64)
+    top = 2**26 - 1
+    r = [np.minimum(top, (top // n) * n + d) for d in (-1, 0, 1)]
+    for q in rng.integers(0, top // 16, 12):
+        r += [np.clip(q % (top // n) * n + d, 0, top) for d in (-1, 0, 1)]
+    r += [rng.integers(0, top + 1, n.size), np.full(n.size, top), n - 1, n, np.zeros(n.size, np.int64)]
+    pairs = np.stack(np.broadcast_arrays(np.stack(r), n[None, :]), axis=-1).reshape(-1, 2).astype("<u4")
+    if language == "glsl":
+        src = ("#version 450\n#define LOP_NO_VIEW\n#define LOP_CLUSTERED\n" + gpu.shader_source("decode_bitplanes.glsl")
+               + _DIV_GLSL)
+    else:
+        src = gpu.hlsl_to_glsl(gpu.shader_source("decode_bitplanes.hlsl") + _DIV_HLSL, "vert", "lop_div_vs",
+                               defines=("LOP_NO_VIEW", "LOP_CLUSTERED"), rename_outputs=("lop_out_q",))
+    ctx = gpu.context()
+    prog = ctx.program(vertex_shader=src, varyings=("lop_out_q",))
+    vao = ctx.vertex_array(prog, [])
+    data, out = ctx.buffer(pairs.tobytes()), ctx.buffer(reserve=4 * len(pairs))
+    try:
+        data.bind_to_storage_buffer(5)
+        vao.transform(out, mode=moderngl.POINTS, vertices=len(pairs))
+        got = np.frombuffer(out.read(), "<u4")
+    finally:
+        for x in (data, out, vao, prog):
+            x.release()
+    want = pairs[:, 0].astype(np.int64) // pairs[:, 1]
+    bad = np.flatnonzero(got != want)
+    assert bad.size == 0, f"{bad.size} wrong quotients, e.g. {pairs[bad[:3]].tolist()} -> {got[bad[:3]].tolist()}"
+
+
 def test_crack_free_decode_equals_the_cpu_rule(language, rng):
     """The crack-free decode of a clustered buffer equals lopcook.verify.decoders.decode_crack_free on
     the reference's values, from near and far cameras."""

@@ -405,12 +405,14 @@ def vertex_decoder(language: str, crack_free: bool = False) -> VertexDecoder:
 CLUSTER_RECORD_WORDS = 4
 #: bytes of the clustered LopDecode block
 CLUSTER_DECODE_BLOCK_BYTES = 416
+#: cluster sizes N the decoders accept (the contract's range; lop_div is exact there)
+CLUSTER_SIZES = (16, 1024)
 
 
 def check_cluster_tables(records, cluster_id, vertex_id, cluster_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate a clustered buffer's tables and return them as ``(records (n_c, 4) uint32,
     cluster_id (25,) int64, vertex_id (25,) int64)``. Raises ValueError when the shapes disagree,
-    ``cluster_size`` is outside [1, 2^16], ClusterId[24] is not the number of records, a bin's
+    ``cluster_size`` is outside ``CLUSTER_SIZES``, the buffer has 2^26 vertices or more, ClusterId[24] is not the number of records, a bin's
     cluster count is not ceil(bin vertices / N), or a k_t exceeds 24 / an anchor has more than
     k_t bits."""
     rec = np.ascontiguousarray(records, dtype=np.uint32).reshape(-1, CLUSTER_RECORD_WORDS)
@@ -419,8 +421,10 @@ def check_cluster_tables(records, cluster_id, vertex_id, cluster_size: int) -> t
     n = int(cluster_size)
     if cid.shape != (LEVELS + 1,) or vid.shape != (LEVELS + 1,):
         raise ValueError(f"ClusterId and VertexId have {LEVELS + 1} entries, got {cid.shape} and {vid.shape}")
-    if not 1 <= n <= 1 << 16:
-        raise ValueError(f"cluster size {n} is outside [1, 65536]")
+    if not CLUSTER_SIZES[0] <= n <= CLUSTER_SIZES[1]:
+        raise ValueError(f"cluster size {n} is outside [{CLUSTER_SIZES[0]}, {CLUSTER_SIZES[1]}]")
+    if vid[LEVELS] >= 1 << 26:
+        raise ValueError(f"{int(vid[LEVELS])} vertices exceed the clustered decoder's 2^26 per buffer")
     if int(cid[LEVELS]) != len(rec) or cid[0] != 0:
         raise ValueError(f"ClusterId[24] = {int(cid[LEVELS])} but {len(rec)} cluster records (ClusterId[0] must be 0)")
     per_bin = -(-np.diff(vid) // n)
@@ -988,6 +992,6 @@ __all__ = ["LANGUAGES", "KERNELS", "context", "use_default_framebuffer", "contex
            "require_hlsl_tools", "tool_versions", "hlsl_to_glsl", "vertex_shader_source", "compute_shader_source", "decode_block",
            "view_block", "Decoded", "VertexDecoder", "vertex_decoder", "ATTRIBUTE_FIELDS", "attribute_shader_source",
            "attribute_bits", "attribute_block", "AttributeDecoder", "attribute_decoder", "Passthrough", "AdaptBuffer", "Adapter",
-           "adapter", "CLUSTER_RECORD_WORDS", "CLUSTER_DECODE_BLOCK_BYTES", "check_cluster_tables", "cluster_decode_block",
+           "adapter", "CLUSTER_RECORD_WORDS", "CLUSTER_DECODE_BLOCK_BYTES", "CLUSTER_SIZES", "check_cluster_tables", "cluster_decode_block",
            "clustered_vertex_decoder", "decode_clustered", "clustered_bits", "ClusteredAdaptBuffer", "ClusteredAdapter",
            "clustered_adapter"]
