@@ -29,7 +29,7 @@
 //           cluster size N (>= 1), and
 //           offset 288  uvec4 lop_cluster_id[8] ClusterId[0..24] (clusters in bins <= k);
 //                                               entries 25..31 = 0xFFFFFFFF
-//   SSBO  binding LOP_CLUSTERS_BINDING (3)  LopClusters { uint lop_clusters[]; }  4 words per
+//   SSBO  binding LOP_CLUSTERS_BINDING (3)  LopClusters { uvec4 lop_clusters[]; }  4 words per
 //         cluster c: word t (x, y, z) = anchor a_t | (k_t << 24) (k_t = shared prefix bits,
 //         a_t = their value), word 3 = ClusterBit[c] at level B (bit offset of the cluster in P)
 //         (or #define LOP_CLUSTER(c) yourself, returning those 4 words as a uvec4)
@@ -69,9 +69,9 @@ layout(std430, binding = LOP_POSITIONS_BINDING) readonly buffer LopPositions {
 #endif
 #ifndef LOP_CLUSTER
 layout(std430, binding = LOP_CLUSTERS_BINDING) readonly buffer LopClusters {
-    uint lop_clusters[];
+    uvec4 lop_clusters[];  // 4 uint32 words per cluster (std430: 16-byte stride, no padding)
 };
-#define LOP_CLUSTER(c) uvec4(lop_clusters[4u * (c)], lop_clusters[4u * (c) + 1u], lop_clusters[4u * (c) + 2u], lop_clusters[4u * (c) + 3u])
+#define LOP_CLUSTER(c) lop_clusters[(c)]
 #endif
 #endif
 
