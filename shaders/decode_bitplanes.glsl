@@ -107,7 +107,7 @@ uint lop_bin_start(uint j)
 
 // The b-bit field (1 <= b <= 24) at bit offset o of P, least significant bit first. A field spans at
 // most two words; the second read is clamped to the last word (its bits are masked away whenever
-// the field ends inside the first word), so P needs no padding word. b = 0 reads 0 (clustered).
+// the field ends inside the first word), so P needs no padding word.
 uint lop_read_field(uint o, uint b)
 {
     uint w = o >> 5u;
@@ -132,13 +132,33 @@ uint lop_div(uint r, uint n)
     return q;
 }
 
+// The three fields of widths w.x, w.y, w.z (each 0..24 bits; 0 reads 0) that follow each other from
+// bit offset o of P, least significant bit first: four word reads (each clamped to the last word of
+// P; clamped words only feed bits past the end of P, which no field uses) give three 32-bit windows
+// of the bits from o on, a = bits [o, o + 32), [o + 32, o + 64), [o + 64, o + 96); x is a.x, y
+// starts at w.x, z at t = w.x + w.y (< 48: in a.x / a.y or a.y / a.z). x << 1u << (31u - s) is
+// x << (32 - s), 0 when s == 0.
+uvec3 lop_read_fields(uint o, uvec3 w)
+{
+    uint n = lop_params.y - 1u;
+    uint i = o >> 5u;
+    uint s = o & 31u;
+    uvec4 x = uvec4(LOP_WORD(min(i, n)), LOP_WORD(min(i + 1u, n)), LOP_WORD(min(i + 2u, n)), LOP_WORD(min(i + 3u, n)));
+    uvec3 a = (x.xyz >> s) | ((x.yzw << 1u) << (31u - s));
+    uint t = w.x + w.y;
+    uint lo = (t < 32u) ? a.x : a.y;
+    uint hi = (t < 32u) ? a.y : a.z;
+    uint u = t & 31u;
+    uvec3 f = uvec3(a.x, (a.x >> w.x) | ((a.y << 1u) << (31u - w.x)), (lo >> u) | ((hi << 1u) << (31u - u)));
+    return f & ((uvec3(1u, 1u, 1u) << w) - 1u);
+}
+
 // Vertex j (clustered order, 0 <= j < VertexId[24]) of bin k = i + 1: top bits v (b bits per
 // component) and the width b = max(bin level, B), as the global grid's decode at b bits. With
 // r = j - VertexId[k-1], the vertex lies in cluster c = ClusterId[k-1] + r / N at local index
 // l = r % N (lop_div: N in [16, 1024]). Component t keeps k_t bits of the anchor and stores
 // w_t = b - min(k_t, b) bits at ClusterBit[c] + l (w_x + w_y + w_z) (x, then y, then z):
-// v_t = (a_t >> (k_t - min(k_t, b))) << w_t | field_t. A 0-bit field reads as 0; its offset, which may lie at the end of P, is clamped to
-// the last bit of P so that no read leaves the buffer.
+// v_t = (a_t >> (k_t - min(k_t, b))) << w_t | field_t, the fields read together by lop_read_fields.
 void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
 {
     uint i = lop_bin_start(j);
@@ -154,10 +174,7 @@ void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
     uvec3 kb = min(k, b);
     uvec3 w = b - kb;
     uint o = rec.w + l * (w.x + w.y + w.z);
-    uint last = (lop_params.y - 1u) * 32u + 31u;
-    uvec3 f = uvec3(lop_read_field(min(o, last), w.x), lop_read_field(min(o + w.x, last), w.y),
-                    lop_read_field(min(o + w.x + w.y, last), w.z));
-    v = ((a >> (k - kb)) << w) | f;
+    v = ((a >> (k - kb)) << w) | lop_read_fields(o, w);
 }
 #else
 // Vertex j (binned order, 0 <= j < VertexId[24]): top bits v (b bits per component) and the width

@@ -119,9 +119,30 @@ uint lop_div(uint r, uint n)
     return q;
 }
 
+// The three fields of widths w.x, w.y, w.z (each 0..24 bits; 0 reads 0) that follow each other from
+// bit offset o of P, least significant bit first: four word reads (each clamped to the last word of
+// P; clamped words only feed bits past the end of P, which no field uses) give three 32-bit windows
+// of the bits from o on, a = bits [o, o + 32), [o + 32, o + 64), [o + 64, o + 96); x is a.x, y
+// starts at w.x, z at t = w.x + w.y (< 48: in a.x / a.y or a.y / a.z). x << 1u << (31u - s) is
+// x << (32 - s), 0 when s == 0.
+uint3 lop_read_fields(uint o, uint3 w)
+{
+    uint n = lop_params.y - 1u;
+    uint i = o >> 5u;
+    uint s = o & 31u;
+    uint4 x = uint4(LOP_WORD(min(i, n)), LOP_WORD(min(i + 1u, n)), LOP_WORD(min(i + 2u, n)), LOP_WORD(min(i + 3u, n)));
+    uint3 a = (x.xyz >> s) | ((x.yzw << 1u) << (31u - s));
+    uint t = w.x + w.y;
+    uint lo = (t < 32u) ? a.x : a.y;
+    uint hi = (t < 32u) ? a.y : a.z;
+    uint u = t & 31u;
+    uint3 f = uint3(a.x, (a.x >> w.x) | ((a.y << 1u) << (31u - w.x)), (lo >> u) | ((hi << 1u) << (31u - u)));
+    return f & ((uint3(1u, 1u, 1u) << w) - 1u);
+}
+
 // Vertex j (clustered order) of bin k = i + 1: cluster c = ClusterId[k-1] + r / N, local index
 // l = r % N (r = j - VertexId[k-1]; lop_div); component t: anchor bits and w_t = b - min(k_t, b) stored bits
-// at ClusterBit[c] + l (w_x + w_y + w_z); 0-bit fields read 0 at a clamped offset (see the GLSL file).
+// at ClusterBit[c] + l (w_x + w_y + w_z), read together by lop_read_fields (see the GLSL file).
 void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
 {
     uint i = lop_bin_start(j);
@@ -137,10 +158,7 @@ void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
     uint3 kb = min(k, b);
     uint3 w = b - kb;
     uint o = rec.w + l * (w.x + w.y + w.z);
-    uint last = (lop_params.y - 1u) * 32u + 31u;
-    uint3 f = uint3(lop_read_field(min(o, last), w.x), lop_read_field(min(o + w.x, last), w.y),
-                    lop_read_field(min(o + w.x + w.y, last), w.z));
-    v = ((a >> (k - kb)) << w) | f;
+    v = ((a >> (k - kb)) << w) | lop_read_fields(o, w);
 }
 #else
 // Vertex j (binned order): top bits v (b bits per component), width b = max(bin level, B).
