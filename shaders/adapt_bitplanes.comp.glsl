@@ -65,7 +65,7 @@
 //           lop_bit_id: 384 bytes; bytes 0..255 fill LopDecode at offset 0, bytes 256..383 at 288
 //   SSBO 5  LopClusters  { uint lop_clusters[]; }    4 words per cluster (decode_bitplanes' records)
 //   SSBO 6  LopPlaneBit  { uint lop_plane_bit[]; }   n_clusters + 1 words, written by TABLES
-//   lop_adapt_first.y  cluster size N (>= 1);  lop_adapt_first.z  number of clusters
+//   lop_adapt_first.y  cluster size N (16..1024);  lop_adapt_first.z  number of clusters
 //   lop_adapt.y        TABLES: 1 (dispatch exactly one group); PACK: words of lop_out;
 //                      ADD_PLANE: VertexId[p-1] (as unclustered); lop_adapt.z: the slice's bit offset
 

@@ -26,7 +26,7 @@
 //           without wasting 12 bytes per entry; the same bytes fill the HLSL cbuffer)
 //   With #define LOP_CLUSTERED (clustered buffers, issue 16; layout in docs/format.md):
 //   UBO   LopDecode grows to 416 bytes: lop_bit_id is unused (may be zero), lop_params.z is the
-//           cluster size N (>= 1), and
+//           cluster size N (16..1024), and
 //           offset 288  uvec4 lop_cluster_id[8] ClusterId[0..24] (clusters in bins <= k);
 //                                               entries 25..31 = 0xFFFFFFFF
 //   SSBO  binding LOP_CLUSTERS_BINDING (3)  LopClusters { uvec4 lop_clusters[]; }  4 words per

@@ -25,7 +25,7 @@
 //           offset 272  uint4  lop_params        x: per-buffer level B (1..24), y: words in P (>= 1)
 //   With #define LOP_CLUSTERED (clustered buffers, issue 16; layout in docs/format.md):
 //   cbuffer LopDecode grows to 416 bytes: lop_bit_id unused (may be zero), lop_params.z = cluster
-//           size N (>= 1), offset 288 uint4 lop_cluster_id[8] ClusterId[0..24] (25..31 = 0xFFFFFFFF)
+//           size N (16..1024), offset 288 uint4 lop_cluster_id[8] ClusterId[0..24] (25..31 = 0xFFFFFFFF)
 //   ByteAddressBuffer lop_clusters : register(LOP_CLUSTERS_REGISTER = t3)   4 uint32 per cluster:
 //         a_t | (k_t << 24) for t = x, y, z, then ClusterBit[c] at level B (or #define
 //         LOP_CLUSTER(c) yourself, returning them as a uint4)
