@@ -10,17 +10,23 @@ CI=true, where they fail.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
 from conftest import require
-from lopcook.emit.binning import LEVELS, Bins, make_bins
+
+from lopcook.emit.binning import LEVELS, Bins
 from lopcook.emit.bitplane import read_fields, reconstruct_float32, to_grid, top_bits
 from lopcook.verify import gpu
-from lopcook.verify.decoders import decode_crack_free, verify_clustered_adapt, verify_clustered_decode, view_tables
+from lopcook.verify.decoders import (
+    decode_crack_free,
+    verify_clustered_adapt,
+    verify_clustered_decode,
+    view_tables,
+)
 from lopcook.viewing import Viewing
 
 # ==== CPU reference of the cluster layout ==========================================================
@@ -139,7 +145,7 @@ def _field_offsets(clusters: Clusters, level: int):
 
 def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.ndarray:
     """P at ``level`` from per-vertex top bits (n, 3) at max(m, B) bits: the low w_t bits of each."""
-    c, _, w, offsets = _field_offsets(clusters, level)
+    _, _, w, offsets = _field_offsets(clusters, level)
     fields = np.asarray(values, dtype=np.int64) & ((1 << w) - 1)
     return _write_fields(offsets.ravel(), w.ravel(), fields.ravel(), int(cluster_bit(clusters, level)[-1]))
 
@@ -295,6 +301,7 @@ def test_vertex_decode_every_level(language, rng):
             values, widths = reference_decode(qb, cl, level)
             ref_v, ref_w = decode_clustered(words, cl, level)
             np.testing.assert_array_equal(ref_v, values)
+            np.testing.assert_array_equal(ref_w, widths)
             np.testing.assert_array_equal(got.grid, to_grid(values, widths), err_msg=f"grid {name} B={level}")
             ref = reconstruct_float32(values, widths, ORIGIN, CELL)
             np.testing.assert_array_equal(got.position.view(np.uint32), ref.view(np.uint32),
@@ -407,7 +414,7 @@ def test_crack_free_decode_equals_the_cpu_rule(language, rng):
 
 
 def test_verify_clustered_decode_counts_mismatches(gl, rng):
-    qb, bins, cl = prepared(*random_data(rng, 500), 37)
+    qb, _, cl = prepared(*random_data(rng, 500), 37)
     level = 7
     values, widths = reference_decode(qb, cl, level)
     words = pack_clustered(values, cl, level)
@@ -453,8 +460,8 @@ def test_decode_block_layout():
 def test_unclustered_shaders_do_not_see_the_clustered_code(gl):
     """Without LOP_CLUSTERED the preprocessed shaders hold nothing of the clustered layout (the
     unclustered code is what it was before issue 16); with it they do."""
-    import subprocess
     import shutil
+    import subprocess
 
     require(gpu.hlsl_tools_available())
     glslang = shutil.which("glslangValidator")
@@ -464,7 +471,7 @@ def test_unclustered_shaders_do_not_see_the_clustered_code(gl):
         for define, present in (([], False), (["-DLOP_CLUSTERED"], True)):
             head = ["-D", "-e", "lop_pack_cs"] if hlsl else []
             src = ("" if hlsl else "#version 450\n") + path.read_text()  # GLSL needs its #version first
-            res = subprocess.run([glslang, "-E", "--stdin", "-S", stage, *head, *define, "-DLOP_KERNEL_PACK"],
+            res = subprocess.run([glslang, "-E", "--stdin", "-S", stage, *head, *define, "-DLOP_KERNEL_PACK"], check=False,
                                  input=src, capture_output=True, text=True)
             assert res.returncode == 0 and "bin_start(" in res.stdout, res.stdout + res.stderr
             assert ("lop_cluster" in res.stdout) == present, (name, define)
@@ -520,7 +527,7 @@ def test_adapt_sequence(language, rng):
     steps = 0
     for name, (qb, bins, cl) in datasets(rng):
         steps += _adapt_walk(language, qb, cl, SEQUENCE)
-    assert steps == len(SIZES) * 2 * sum(abs(b - a) for a, b in zip(SEQUENCE, SEQUENCE[1:]))
+    assert steps == len(SIZES) * 2 * sum(abs(b - a) for a, b in itertools.pairwise(SEQUENCE))
 
 
 def test_adapt_many_clusters_per_thread(language, rng):
@@ -534,7 +541,7 @@ def test_adapt_many_clusters_per_thread(language, rng):
 
 
 def test_memory_reference_counts_records(rng):
-    qb, _, cl = prepared(*random_data(rng, 400), 64)
+    _, _, cl = prepared(*random_data(rng, 400), 64)
     assert clustered_bytes(cl, 24) == 4 * math.ceil(cluster_bit(cl, 24)[-1] / 32) + 16 * len(cl.count)
 
 
@@ -554,3 +561,43 @@ def test_verify_clustered_adapt(gl, rng):
     rep = verify_clustered_adapt(words_at, lambda b: records(cl, b), cl.cluster_id, cl.vertex_id, cl.size,
                                  [9, 11], lambda p: (plane(p)[0] ^ np.uint32(1), 0), languages=("glsl",))
     assert rep["glsl"]["adapt_mismatches"] >= 1  # a corrupted plane is caught
+
+
+@pytest.mark.parametrize("name", ["fixtures/unit_sphere.glb", "fixtures/two_plates.glb", "stanford-bunny.obj"])
+def test_cooked_buffers_decode_as_the_unclustered_container(language, request, name):
+    """The invariant across layouts, on cooked buffers: every buffer of the container, re-ordered and
+    cut into clusters of 64, decodes at every level 1..24 to exactly the grid integers and float32
+    positions that the container's own (unclustered) buffer decodes to, vertex for vertex."""
+    from conftest import FIXTURES
+
+    from lopcook.analyse import analyse
+    from lopcook.emit import build
+    from lopcook.emit.bitplane import decode
+    from lopcook.emit.container import from_bytes
+    from lopcook.emit.reader import gpu_buffer
+    from lopcook.ingest import load
+
+    path = FIXTURES / name.split("/", 1)[1] if name.startswith("fixtures/") else request.getfixturevalue("corpus") / name
+    scene = load(path)
+    c = from_bytes(build(scene, analyse(scene)), str(path))
+    g = c.manifest["grid"]
+    cell = g["extent"] / 2**24
+    for part, p in enumerate(c.manifest["parts"]):
+        for lod in range(len(p["lods"])):
+            full = gpu_buffer(c, part, lod, LEVELS)
+            q = to_grid(*decode(full.words, full.vertex_id, full.bit_id, LEVELS))
+            levels = np.repeat(np.arange(1, LEVELS + 1), np.diff(np.asarray(full.vertex_id, dtype=np.int64)))
+            bins = cluster_order(q, levels)
+            qb = q[bins.order]
+            cl = make_clusters(qb, bins.vertex_id, 64)
+            np.testing.assert_array_equal(bins.vertex_id, full.vertex_id)  # the bins do not change
+            for level in range(1, LEVELS + 1):
+                buf = gpu_buffer(c, part, lod, level)
+                values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+                words = pack_clustered(reference_decode(qb, cl, level)[0], cl, level)
+                got = gpu.decode_clustered(language, words, records(cl, level), cl.cluster_id, cl.vertex_id, 64, level,
+                                           g["origin"], np.float32(cell / 2))
+                np.testing.assert_array_equal(got.grid, to_grid(values, widths)[bins.order], err_msg=f"{name} B={level}")
+                ref = reconstruct_float32(values, widths, g["origin"], cell)[bins.order]
+                np.testing.assert_array_equal(got.position.view(np.uint32), ref.view(np.uint32))
+                np.testing.assert_array_equal(got.level, widths[bins.order])
