@@ -324,6 +324,68 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     }
 
 
+# ---- clustered buffers (issue 16) ----------------------------------------------------------------
+
+def verify_clustered_decode(words, records, cluster_id, vertex_id, cluster_size: int, level: int, origin, cell: float,
+                            values, widths, languages=("glsl", "hlsl")) -> dict:
+    """Decode one clustered buffer with the ``LOP_CLUSTERED`` vertex shader of each language and
+    compare with the CPU reference's decode ``(values, widths)`` (top bits (n, 3) and bits per
+    component (n,), e.g. ``lopcook.emit.clusters.decode_clustered``): grid integers
+    (``to_grid``), float32 bits (``reconstruct_float32``, 0 ulp) and widths.
+
+    ``words``: P at ``level``; ``records``: (n_c, 4) uint32 with word 3 = ClusterBit at ``level``;
+    ``cluster_id``, ``vertex_id``: (25,); ``cell``: extent / 2^24 metres. Returns ``{language:
+    {decoded_vertices, grid_mismatches, float_mismatches, level_mismatches, max_float_ulp}}``, the
+    per-language counters of ``verify_decoders``, so a container walk can add them up."""
+    from . import gpu
+
+    values = np.asarray(values, dtype=np.uint32)
+    widths = np.asarray(widths, dtype=np.int64)
+    ref_grid = to_grid(values, widths)
+    ref_pos = reconstruct_float32(values, widths, origin, cell)
+    half = np.float32(cell / 2.0)
+    out = {}
+    for lang in languages:
+        got = gpu.decode_clustered(lang, words, records, cluster_id, vertex_id, cluster_size, level, origin, half)
+        out[lang] = {
+            "decoded_vertices": int(widths.size),
+            "grid_mismatches": int(np.any(got.grid != ref_grid, axis=1).sum()),
+            "float_mismatches": int(np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1).sum()),
+            "level_mismatches": int((got.level.astype(np.int64) != widths).sum()),
+            "max_float_ulp": int(_ulp_distance(got.position, ref_pos).max()) if widths.size else 0,
+        }
+    return out
+
+
+def verify_clustered_adapt(words_at, records_at, cluster_id, vertex_id, cluster_size: int, levels, plane,
+                           languages=("glsl", "hlsl")) -> dict:
+    """Walk one clustered buffer through ``adapt_walk(levels)`` plane by plane with the
+    ``LOP_CLUSTERED`` kernels of each language; after every step P and the cluster records must
+    equal the CPU's from scratch. ``words_at(B)`` / ``records_at(B)``: the CPU's P and (n_c, 4)
+    records at level B; ``plane(p)``: (uint32 words, bit offset) of this buffer's slice of plane
+    p. Returns ``{language: {adapt_steps, adapt_mismatches}}``."""
+    from . import gpu
+
+    chosen = sorted(set(int(v) for v in levels))
+    walk = [chosen[0], *adapt_walk(chosen)]
+    out = {}
+    for lang in languages:
+        ad = gpu.clustered_adapter(lang)
+        steps = bad = 0
+        buf = ad.upload(words_at(walk[0]), records_at(walk[0]), cluster_id, vertex_id, cluster_size, walk[0])
+        try:
+            for target in walk[1:]:
+                while buf.level != target:
+                    ad.adapt(buf, buf.level + (1 if target > buf.level else -1), plane)
+                    steps += 1
+                    bad += not (np.array_equal(buf.read_words(), np.asarray(words_at(buf.level), dtype=np.uint32))
+                                and np.array_equal(buf.read_records(), np.asarray(records_at(buf.level))))
+        finally:
+            buf.release()
+        out[lang] = {"adapt_steps": steps, "adapt_mismatches": bad}
+    return out
+
+
 CAMERA_DISTANCES = (0.25, 4.0, 64.0)  # in grid extents from the buffer's box centre: inside, near, far
 
 
@@ -506,5 +568,5 @@ def _levels_text(levels: list[int]) -> str:
     return ",".join(runs)
 
 
-__all__ = ["parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
+__all__ = ["verify_clustered_decode", "verify_clustered_adapt", "parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
            "attribute_record", "verify_decoders", "adapt_walk", "format_report"]

@@ -1,0 +1,603 @@
+"""Clustered position buffers (issue 16) on the GPU: the GLSL and HLSL vertex decoders and
+adaption kernels with ``LOP_CLUSTERED`` against a CPU reference of the layout contract, bit for bit.
+
+The vertex path runs through transform feedback (lopcook.verify.gpu.decode_clustered), the kernels
+through SSBOs (lopcook.verify.gpu.ClusteredAdapter). Every decode must equal the unclustered (global
+grid) decode at max(B, m_v) bits exactly; every level change must give the bytes of packing the new
+level from scratch. Tests skip when EGL, glslangValidator or spirv-cross is missing, except under
+CI=true, where they fail.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from conftest import require
+
+from lopcook.emit.binning import LEVELS, Bins
+from lopcook.emit.bitplane import read_fields, reconstruct_float32, to_grid, top_bits
+from lopcook.verify import gpu
+from lopcook.verify.decoders import (
+    decode_crack_free,
+    verify_clustered_adapt,
+    verify_clustered_decode,
+    view_tables,
+)
+from lopcook.viewing import Viewing
+
+# ==== CPU reference of the cluster layout ==========================================================
+# A compact copy of the contract's CPU reference, written before lopcook/emit/clusters.py existed on
+# this branch. REPLACE this whole section after the merge with
+#     from lopcook.emit.clusters import (Clusters, add_plane_clustered, cluster_bit, cluster_order, clustered_bytes,
+#                                        decode_clustered, make_clusters, pack_clustered, plane_bits_clustered,
+#                                        records, remove_plane_clustered)
+# (same names and arguments as the contract lists; ``pack_clustered`` here takes the top bits at
+# max(m, B), as lopcook.emit.bitplane.pack does).
+
+
+@dataclass(frozen=True)
+class Clusters:
+    """cluster_id (25,) int64; k (n_c, 3) uint8 shared prefix lengths; anchor (n_c, 3) uint32;
+    count (n_c,) int64; m (n_c,) int64 bin level; plus vertex_id (25,) and size N."""
+
+    cluster_id: np.ndarray
+    k: np.ndarray
+    anchor: np.ndarray
+    count: np.ndarray
+    m: np.ndarray
+    vertex_id: np.ndarray
+    size: int
+
+
+def _morton21(q: np.ndarray) -> np.ndarray:
+    """Interleave the top 21 bits of the 24-bit grid integers (x in the lowest bit of each triple)."""
+    top = (np.asarray(q, dtype=np.uint64) >> np.uint64(3))
+    out = np.zeros(len(q), dtype=np.uint64)
+    for bit in range(21):
+        for t in range(3):
+            out |= ((top[:, t] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + t)
+    return out
+
+
+def cluster_order(q: np.ndarray, min_level: np.ndarray) -> Bins:
+    """Vertices sorted by (m_v, Morton code, original index); Bins as lopcook.emit.binning.make_bins."""
+    levels = np.asarray(min_level, dtype=np.int64)
+    order = np.lexsort((np.arange(len(q)), _morton21(q), levels))
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(len(order))
+    sorted_levels = levels[order]
+    vid = np.searchsorted(sorted_levels, np.arange(LEVELS + 1), side="right").astype(np.int64)
+    return Bins(order=order, inverse=inverse, levels=sorted_levels.astype(np.uint8), vertex_id=vid)
+
+
+def _vertex_clusters(clusters: Clusters, j: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cluster c, local index l, bin k) of vertices j."""
+    vid, cid, n = clusters.vertex_id, clusters.cluster_id, clusters.size
+    k = np.searchsorted(vid, j, side="right")
+    r = j - vid[k - 1]
+    return cid[k - 1] + r // n, r % n, k
+
+
+def make_clusters(q_binned: np.ndarray, vertex_id: np.ndarray, size: int) -> Clusters:
+    vid = np.asarray(vertex_id, dtype=np.int64)
+    per_bin = -(-np.diff(vid) // size)
+    cid = np.concatenate([[0], np.cumsum(per_bin)]).astype(np.int64)
+    nc = int(cid[-1])
+    m = np.repeat(np.arange(1, LEVELS + 1), per_bin)
+    c = np.arange(nc)
+    start = vid[m - 1] + (c - cid[m - 1]) * size
+    count = np.minimum(size, vid[m] - start)
+    q = np.asarray(q_binned, dtype=np.int64)
+    if nc:
+        lo, hi = np.minimum.reduceat(q, start, axis=0), np.maximum.reduceat(q, start, axis=0)
+        diff = lo ^ hi
+        length = np.zeros_like(diff)
+        nz = diff > 0
+        length[nz] = np.floor(np.log2(diff[nz])).astype(np.int64) + 1  # bit length, exact below 2^24
+        k = LEVELS - length
+        anchor = np.where(k > 0, lo >> (LEVELS - k), 0)
+    else:
+        k = anchor = np.zeros((0, 3), np.int64)
+    return Clusters(cid, k.astype(np.uint8), anchor.astype(np.uint32), count.astype(np.int64), m.astype(np.int64),
+                    vid, int(size))
+
+
+def _widths(clusters: Clusters, level: int) -> np.ndarray:
+    """(n_c, 3) stored bits per component w_t = max(0, max(m, B) - k_t)."""
+    b = np.maximum(clusters.m, level)[:, None]
+    return np.maximum(b - clusters.k.astype(np.int64), 0)
+
+
+def cluster_bit(clusters: Clusters, level: int) -> np.ndarray:
+    return np.concatenate([[0], np.cumsum(clusters.count * _widths(clusters, level).sum(axis=1))]).astype(np.int64)
+
+
+def records(clusters: Clusters, level: int) -> np.ndarray:
+    rec = np.zeros((len(clusters.count), 4), np.uint32)
+    rec[:, :3] = clusters.anchor | (clusters.k.astype(np.uint32) << np.uint32(24))
+    rec[:, 3] = cluster_bit(clusters, level)[:-1]
+    return rec
+
+
+def _write_fields(offsets, widths, values, total: int) -> np.ndarray:
+    """Words holding fields (bit offset, width, value) LSB first; at least one word."""
+    widths = np.asarray(widths, dtype=np.int64)
+    rep = np.repeat(np.arange(len(widths)), widths)
+    within = np.arange(rep.size) - np.repeat(np.cumsum(widths) - widths, widths)
+    bits = np.zeros(max(-(-total // 32), 1) * 32, np.uint8)
+    bits[np.asarray(offsets, dtype=np.int64)[rep] + within] = (np.asarray(values, dtype=np.int64)[rep] >> within) & 1
+    return np.packbits(bits, bitorder="little").view("<u4").astype(np.uint32)
+
+
+def _field_offsets(clusters: Clusters, level: int):
+    n = int(clusters.vertex_id[LEVELS])
+    j = np.arange(n)
+    c, l, k = _vertex_clusters(clusters, j)
+    w = _widths(clusters, level)[c]
+    o = cluster_bit(clusters, level)[c] + l * w.sum(axis=1)
+    offsets = np.stack([o, o + w[:, 0], o + w[:, 0] + w[:, 1]], axis=1)
+    return c, k, w, offsets
+
+
+def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.ndarray:
+    """P at ``level`` from per-vertex top bits (n, 3) at max(m, B) bits: the low w_t bits of each."""
+    _, _, w, offsets = _field_offsets(clusters, level)
+    fields = np.asarray(values, dtype=np.int64) & ((1 << w) - 1)
+    return _write_fields(offsets.ravel(), w.ravel(), fields.ravel(), int(cluster_bit(clusters, level)[-1]))
+
+
+def decode_clustered(words, clusters: Clusters, level: int, vertices=None):
+    """(values (n, 3) uint32 top bits, widths (n,) int64 = max(m, B)), as lopcook.emit.bitplane.decode."""
+    c, k, w, offsets = _field_offsets(clusters, level)
+    if vertices is not None:
+        c, k, w, offsets = c[vertices], k[vertices], w[vertices], offsets[vertices]
+    b = np.maximum(k, level)
+    f = read_fields(words, offsets.ravel(), w.ravel()).reshape(-1, 3).astype(np.int64)
+    kc = clusters.k[c].astype(np.int64)
+    a = clusters.anchor[c].astype(np.int64)
+    kb = np.minimum(kc, b[:, None])
+    return (((a >> (kc - kb)) << w) | f).astype(np.uint32), b.astype(np.int64)
+
+
+def plane_bits_clustered(q: np.ndarray, clusters: Clusters, p: int) -> np.ndarray:
+    """Refinement plane p: per cluster with m < p, per vertex, per component with k_t < p: bit 24 - p."""
+    count = int(clusters.vertex_id[p - 1])
+    c, _, _ = _vertex_clusters(clusters, np.arange(count))
+    keep = clusters.k[c] < p
+    return ((np.asarray(q[:count], dtype=np.uint32) >> np.uint32(LEVELS - p)) & 1).astype(np.uint8)[keep]
+
+
+def plane_bit(clusters: Clusters, p: int) -> np.ndarray:
+    """(n_c + 1,) PlaneBit_p: each cluster's offset in this buffer's slice of plane p."""
+    per = clusters.count * (clusters.k < p).sum(axis=1) * (clusters.m < p)
+    return np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
+
+
+def add_plane_clustered(words, clusters: Clusters, level: int, plane: np.ndarray) -> np.ndarray:
+    """Level B -> B + 1 with plane B + 1 (bits as plane_bits_clustered); anchor-implied bits from the anchor."""
+    p = level + 1
+    values, _ = decode_clustered(words, clusters, level)
+    grow = int(clusters.vertex_id[level])
+    c, _, _ = _vertex_clusters(clusters, np.arange(grow))
+    kc = clusters.k[c].astype(np.int64)
+    new = (clusters.anchor[c].astype(np.int64) >> np.maximum(kc - p, 0)) & 1
+    new[kc < p] = np.asarray(plane, dtype=np.int64)
+    values[:grow] = (values[:grow] << np.uint32(1)) | new.astype(np.uint32)
+    return pack_clustered(values, clusters, p)
+
+
+def remove_plane_clustered(words, clusters: Clusters, level: int) -> np.ndarray:
+    values, _ = decode_clustered(words, clusters, level)
+    values[: int(clusters.vertex_id[level - 1])] >>= np.uint32(1)
+    return pack_clustered(values, clusters, level - 1)
+
+
+def clustered_bytes(clusters: Clusters, level: int) -> int:
+    return 4 * max(-(-int(cluster_bit(clusters, level)[-1]) // 32), 1) + 16 * len(clusters.count)
+
+# ==== end of the CPU reference =======================================================================
+
+
+SIZES = (16, 37, 64, 256)
+SEQUENCE = (6, 12, 8, 24, 1, 10)
+ORIGIN, CELL = (1000.3, -52.7, 3.1e-3), 0.37 / 2**24
+
+
+@pytest.fixture(params=gpu.LANGUAGES)
+def language(request, gl):
+    if request.param == "hlsl":
+        require(gpu.hlsl_tools_available())
+    return request.param
+
+
+def random_data(rng, n=2500):
+    """Every bin populated, random grid integers over the whole range (k mostly small)."""
+    levels = np.concatenate([np.arange(1, 25), rng.integers(1, 25, n - 24)])
+    q = rng.integers(0, 2**24, (n, 3)).astype(np.uint32)
+    q[:3] = [[0, 0, 0], [2**24 - 1] * 3, [2**23, 2**23 - 1, 2**23 + 1]]
+    return q, levels
+
+
+def analytic_data(rng, size):
+    """Spatially coherent points (a quantised sphere shell: large k) plus crafted bins: bin 3 holds
+    2N + 1 copies of one point (k = 24, the last cluster a single vertex), bin 5 spans the whole grid
+    in x (k_x = 0), bin 10 a single vertex, bin 17 exactly N vertices, bins 2, 4, 6-9, 11-16, 18-23
+    empty, bin 24 the sphere."""
+    u = rng.normal(size=(1500, 3))
+    sphere = (u / np.linalg.norm(u, axis=1, keepdims=True) * 0.45 + 0.5) * (2**24 - 1)
+    parts = [(np.full((2 * size + 1, 3), [12345, 2**23 + 7, 2**24 - 1]), 3),
+             (np.column_stack([np.linspace(0, 2**24 - 1, 40), np.full(40, 5), np.arange(40) * 3]), 5),
+             (np.array([[7, 8, 9]]), 10),
+             (sphere[:size], 17),
+             (sphere, 24)]
+    q = np.concatenate([p for p, _ in parts]).astype(np.uint32)
+    levels = np.concatenate([np.full(len(p), m) for p, m in parts])
+    return q, levels
+
+
+def prepared(q, levels, size):
+    bins = cluster_order(q, levels)
+    qb = q[bins.order]
+    return qb, bins, make_clusters(qb, bins.vertex_id, size)
+
+
+def datasets(rng):
+    for size in SIZES:
+        yield f"random N={size}", prepared(*random_data(rng), size)
+        yield f"analytic N={size}", prepared(*analytic_data(rng, size), size)
+
+
+def reference_decode(qb, clusters, level):
+    widths = np.maximum(np.repeat(np.arange(1, LEVELS + 1), np.diff(clusters.vertex_id)), level)
+    return top_bits(qb, widths), widths
+
+
+def gpu_decode(language, qb, clusters, level, view=None):
+    words = pack_clustered(reference_decode(qb, clusters, level)[0], clusters, level)
+    got = gpu.decode_clustered(language, words, records(clusters, level), clusters.cluster_id, clusters.vertex_id,
+                               clusters.size, level, ORIGIN, np.float32(CELL / 2), view=view)
+    return words, got
+
+
+# ---- the reference itself (CPU only) --------------------------------------------------------------
+
+def test_reference_layout_round_trips(rng):
+    """The reference decodes what it packs to the global grid's top max(B, m) bits; the crafted data
+    has the cluster kinds the tests rely on; a prefix of planes rebuilds every level."""
+    qb, bins, cl = prepared(*analytic_data(rng, 16), 16)
+    assert {24, 0} <= set(cl.k.ravel().tolist()) and 1 in cl.count.tolist()
+    assert np.any(np.diff(cl.cluster_id) == 0)  # empty bins
+    assert np.all(np.diff(bins.levels.astype(int)) >= 0)
+    for size in (16, 37):
+        qb, bins, cl = prepared(*random_data(rng, 600), size)
+        words = pack_clustered(reference_decode(qb, cl, 1)[0], cl, 1)
+        for level in range(1, LEVELS + 1):
+            values, widths = reference_decode(qb, cl, level)
+            scratch = pack_clustered(values, cl, level)
+            np.testing.assert_array_equal(words, scratch)
+            got, w = decode_clustered(scratch, cl, level)
+            np.testing.assert_array_equal(got, values)
+            np.testing.assert_array_equal(w, widths)
+            assert clustered_bytes(cl, level) == 4 * len(scratch) + 16 * len(cl.count)
+            if level < LEVELS:
+                words = add_plane_clustered(words, cl, level, plane_bits_clustered(qb, cl, level + 1))
+        for level in range(LEVELS, 1, -1):
+            words = remove_plane_clustered(words, cl, level)
+            np.testing.assert_array_equal(words, pack_clustered(reference_decode(qb, cl, level - 1)[0], cl, level - 1))
+
+
+# ---- vertex decoding ------------------------------------------------------------------------------
+
+def test_vertex_decode_every_level(language, rng):
+    """Every level 1..24, four cluster sizes, random and analytic data: grid integers, float32 bits and
+    widths equal the reference and the unclustered decode at max(B, m_v) bits."""
+    for name, (qb, bins, cl) in datasets(rng):
+        for level in range(1, LEVELS + 1):
+            words, got = gpu_decode(language, qb, cl, level)
+            values, widths = reference_decode(qb, cl, level)
+            ref_v, ref_w = decode_clustered(words, cl, level)
+            np.testing.assert_array_equal(ref_v, values)
+            np.testing.assert_array_equal(ref_w, widths)
+            np.testing.assert_array_equal(got.grid, to_grid(values, widths), err_msg=f"grid {name} B={level}")
+            ref = reconstruct_float32(values, widths, ORIGIN, CELL)
+            np.testing.assert_array_equal(got.position.view(np.uint32), ref.view(np.uint32),
+                                          err_msg=f"float bits {name} B={level}")
+            np.testing.assert_array_equal(got.level, widths, err_msg=f"bits {name} B={level}")
+            if level == LEVELS:
+                np.testing.assert_array_equal(got.grid, qb)
+
+
+def test_decode_reads_the_anchor(language, rng):
+    """At a level at or below a cluster's k_t the stored field is empty: the component comes from the
+    anchor alone. Zeroing P changes only the stored bits, so the anchor-implied components still
+    decode right (and a wrong anchor would show)."""
+    qb, _, cl = prepared(*analytic_data(rng, 16), 16)
+    level = 4
+    values, widths = reference_decode(qb, cl, level)
+    words = pack_clustered(values, cl, level)
+    got = gpu.decode_clustered(language, np.zeros_like(words), records(cl, level), cl.cluster_id, cl.vertex_id,
+                               cl.size, level, ORIGIN, np.float32(CELL / 2))
+    c, _, _ = _vertex_clusters(cl, np.arange(len(qb)))
+    implied = cl.k[c].astype(np.int64) >= widths[:, None]
+    assert implied.sum() > 100 and not implied.all()
+    np.testing.assert_array_equal(got.grid[implied], to_grid(values, widths)[implied])
+    assert np.any(got.grid[~implied] != to_grid(values, widths)[~implied])
+
+
+def test_empty_buffer_and_single_cluster(language):
+    q = np.array([[5, 6, 7]], np.uint32)
+    _, _, one = prepared(q, np.array([9]), 16)
+    for level in (1, 9, 24):
+        words, got = gpu_decode(language, q, one, level)
+        assert len(words) == 1 and (level < LEVELS or words[0] == 0)  # all bits implied: one zero word
+        np.testing.assert_array_equal(got.grid, to_grid(*reference_decode(q, one, level)))
+    _, _, empty = prepared(np.zeros((0, 3), np.uint32), np.zeros(0, np.int64), 16)
+    assert gpu_decode(language, np.zeros((0, 3), np.uint32), empty, 5)[1].grid.shape == (0, 3)
+
+
+_DIV_GLSL = """
+layout(std430, binding = 5) readonly buffer LopDivIn { uint lop_div_in[]; };
+out uint lop_out_q;
+void main()
+{
+    uint i = uint(gl_VertexID);
+    lop_out_q = lop_div(lop_div_in[2u * i], lop_div_in[2u * i + 1u]);
+}
+"""
+
+_DIV_HLSL = """
+ByteAddressBuffer lop_div_in : register(t5);
+struct LopDivOut { nointerpolation uint q : LOP_Q; };
+LopDivOut lop_div_vs(uint i : SV_VertexID)
+{
+    LopDivOut o;
+    o.q = lop_div(lop_div_in.Load((2u * i) << 2), lop_div_in.Load((2u * i + 1u) << 2));
+    return o;
+}
+"""
+
+
+def test_division_is_exact_over_the_contract_range(language, rng):
+    """lop_div(r, n) == r // n for every cluster size n in [16, 1024] and r up to 2^26 - 1 (the
+    decoder's vertex limit): multiples of n and their neighbours, random values, the largest r."""
+    import moderngl
+
+    n = np.arange(gpu.CLUSTER_SIZES[0], gpu.CLUSTER_SIZES[1] + 1, dtype=np.int64)
+    top = 2**26 - 1
+    r = [np.minimum(top, (top // n) * n + d) for d in (-1, 0, 1)]
+    for q in rng.integers(0, top // 16, 12):
+        r += [np.clip(q % (top // n) * n + d, 0, top) for d in (-1, 0, 1)]
+    r += [rng.integers(0, top + 1, n.size), np.full(n.size, top), n - 1, n, np.zeros(n.size, np.int64)]
+    pairs = np.stack(np.broadcast_arrays(np.stack(r), n[None, :]), axis=-1).reshape(-1, 2).astype("<u4")
+    if language == "glsl":
+        src = ("#version 450\n#define LOP_NO_VIEW\n#define LOP_CLUSTERED\n" + gpu.shader_source("decode_bitplanes.glsl")
+               + _DIV_GLSL)
+    else:
+        src = gpu.hlsl_to_glsl(gpu.shader_source("decode_bitplanes.hlsl") + _DIV_HLSL, "vert", "lop_div_vs",
+                               defines=("LOP_NO_VIEW", "LOP_CLUSTERED"), rename_outputs=("lop_out_q",))
+    ctx = gpu.context()
+    prog = ctx.program(vertex_shader=src, varyings=("lop_out_q",))
+    vao = ctx.vertex_array(prog, [])
+    data, out = ctx.buffer(pairs.tobytes()), ctx.buffer(reserve=4 * len(pairs))
+    try:
+        data.bind_to_storage_buffer(5)
+        vao.transform(out, mode=moderngl.POINTS, vertices=len(pairs))
+        got = np.frombuffer(out.read(), "<u4")
+    finally:
+        for x in (data, out, vao, prog):
+            x.release()
+    want = pairs[:, 0].astype(np.int64) // pairs[:, 1]
+    bad = np.flatnonzero(got != want)
+    assert bad.size == 0, f"{bad.size} wrong quotients, e.g. {pairs[bad[:3]].tolist()} -> {got[bad[:3]].tolist()}"
+
+
+def test_crack_free_decode_equals_the_cpu_rule(language, rng):
+    """The crack-free decode of a clustered buffer equals lopcook.verify.decoders.decode_crack_free on
+    the reference's values, from near and far cameras."""
+    extent = CELL * 2**24
+    viewing = Viewing()
+    level_dist, radius = view_tables(extent, viewing, ORIGIN)
+    for name, (qb, bins, cl) in list(datasets(rng))[::3]:
+        for trial in range(6):
+            cam = np.asarray(ORIGIN) + extent * (0.5 + rng.uniform(-1, 1, 3) * 10.0 ** rng.uniform(-2, 2))
+            level = int(rng.integers(1, 25))
+            _, got = gpu_decode(language, qb, cl, level, view=(cam, level_dist, radius))
+            values, widths = reference_decode(qb, cl, level)
+            g, p, lv = decode_crack_free(values, widths, bins.levels, level, ORIGIN, CELL, cam, level_dist, radius)
+            np.testing.assert_array_equal(got.grid, g, err_msg=name)
+            np.testing.assert_array_equal(got.position.view(np.uint32), p.view(np.uint32), err_msg=name)
+            np.testing.assert_array_equal(got.level, lv, err_msg=name)
+
+
+def test_verify_clustered_decode_counts_mismatches(gl, rng):
+    qb, _, cl = prepared(*random_data(rng, 500), 37)
+    level = 7
+    values, widths = reference_decode(qb, cl, level)
+    words = pack_clustered(values, cl, level)
+    args = (words, records(cl, level), cl.cluster_id, cl.vertex_id, cl.size, level, ORIGIN, CELL)
+    ok = verify_clustered_decode(*args, values, widths, languages=("glsl",))
+    assert ok["glsl"] == {"decoded_vertices": 500, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
+                          "max_float_ulp": 0}
+    bad = values.copy()
+    bad[10, 1] ^= 1
+    got = verify_clustered_decode(*args, bad, widths, languages=("glsl",))["glsl"]
+    assert got["grid_mismatches"] == 1 and got["float_mismatches"] == 1
+
+
+def test_bad_cluster_tables_are_refused():
+    q = np.arange(60, dtype=np.uint32).reshape(20, 3)
+    _, _, cl = prepared(q, np.full(20, 4), 16)
+    rec = records(cl, 4)
+    with pytest.raises(ValueError, match="ClusterId\\[24\\]"):
+        gpu.check_cluster_tables(rec[:1], cl.cluster_id, cl.vertex_id, 16)
+    with pytest.raises(ValueError, match="runs of the cluster size"):
+        gpu.check_cluster_tables(rec, cl.cluster_id, cl.vertex_id, 32)
+    with pytest.raises(ValueError, match="outside"):
+        gpu.check_cluster_tables(rec, cl.cluster_id, cl.vertex_id, 0)
+    broken = rec.copy()
+    broken[0, 0] = (3 << 24) | 9  # anchor of 4 bits with k = 3
+    with pytest.raises(ValueError, match="anchor"):
+        gpu.check_cluster_tables(broken, cl.cluster_id, cl.vertex_id, 16)
+
+
+def test_decode_block_layout():
+    vid = np.arange(LEVELS + 1) * 10
+    cid = np.arange(LEVELS + 1)
+    block = gpu.cluster_decode_block(vid, cid, 7, (1.0, 2.0, 3.0), 0.25, 99, 37)
+    assert len(block) == gpu.CLUSTER_DECODE_BLOCK_BYTES == 416
+    u = np.frombuffer(block, "<u4")
+    np.testing.assert_array_equal(u[:25], vid)
+    assert np.all(u[32:57] == 0) and np.all(u[57:64] == 0xFFFFFFFF) and tuple(u[68:72]) == (7, 99, 37, 0)
+    np.testing.assert_array_equal(u[72:97], cid)
+    assert np.all(u[97:104] == 0xFFFFFFFF)
+    assert block[:256] == gpu.decode_block(vid, np.zeros(25), 7, (1.0, 2.0, 3.0), 0.25, 99)[:256]
+
+
+def test_unclustered_shaders_do_not_see_the_clustered_code(gl):
+    """Without LOP_CLUSTERED the preprocessed shaders hold nothing of the clustered layout (the
+    unclustered code is what it was before issue 16); with it they do."""
+    import shutil
+    import subprocess
+
+    require(gpu.hlsl_tools_available())
+    glslang = shutil.which("glslangValidator")
+    for name, stage, hlsl in (("decode_bitplanes.glsl", "vert", False), ("decode_bitplanes.hlsl", "vert", True),
+                              ("adapt_bitplanes.comp.glsl", "comp", False), ("adapt_bitplanes.comp.hlsl", "comp", True)):
+        path = gpu.shader_dir() / name
+        for define, present in (([], False), (["-DLOP_CLUSTERED"], True)):
+            head = ["-D", "-e", "lop_pack_cs"] if hlsl else []
+            src = ("" if hlsl else "#version 450\n") + path.read_text()  # GLSL needs its #version first
+            res = subprocess.run([glslang, "-E", "--stdin", "-S", stage, *head, *define, "-DLOP_KERNEL_PACK"], check=False,
+                                 input=src, capture_output=True, text=True)
+            assert res.returncode == 0 and "bin_start(" in res.stdout, res.stdout + res.stderr
+            assert ("lop_cluster" in res.stdout) == present, (name, define)
+
+
+# ---- adaption (compute shaders) --------------------------------------------------------------------
+
+def _adapt_walk(language, qb, cl, sequence, offset=37):
+    """Plane by plane through ``sequence``; after each plane: P, U (the decoded grid), every record's
+    word 3, BitId and the PlaneBit of an added plane equal the CPU's from scratch."""
+    ad = gpu.clustered_adapter(language)
+
+    def scratch(level):
+        return pack_clustered(reference_decode(qb, cl, level)[0], cl, level)
+
+    def plane(p):  # this buffer's slice at bit ``offset`` of a larger section, foreign bits around it
+        bits = np.concatenate([np.ones(offset, np.uint8), plane_bits_clustered(qb, cl, p)])
+        bits = np.concatenate([bits, np.ones(-bits.size % 32 + 32, np.uint8)])
+        return np.packbits(bits, bitorder="little").view("<u4"), offset
+
+    buf = ad.upload(scratch(sequence[0]), records(cl, sequence[0]), cl.cluster_id, cl.vertex_id, cl.size,
+                    sequence[0])
+    try:
+        ad.unpack(buf)
+        values, widths = reference_decode(qb, cl, sequence[0])
+        np.testing.assert_array_equal(buf.read_unpacked(), to_grid(values, widths))
+        steps = 0
+        for target in sequence[1:]:
+            while buf.level != target:
+                up = target > buf.level
+                ad.adapt(buf, buf.level + (1 if up else -1), plane)
+                steps += 1
+                level = buf.level
+                np.testing.assert_array_equal(buf.read_words(), scratch(level), err_msg=f"P at level {level}")
+                np.testing.assert_array_equal(buf.read_unpacked(), to_grid(*reference_decode(qb, cl, level)),
+                                              err_msg=f"U at level {level}")  # anchor-implied bits included
+                np.testing.assert_array_equal(buf.read_records(), records(cl, level), err_msg=f"records at {level}")
+                vid, bid, cid = buf.read_tables()
+                np.testing.assert_array_equal(bid[:25], cluster_bit(cl, level)[cl.cluster_id])
+                assert np.all(bid[25:] == 0xFFFFFFFF) and np.all(vid[25:] == 0xFFFFFFFF)
+                np.testing.assert_array_equal(vid[:25], cl.vertex_id)
+                np.testing.assert_array_equal(cid[:25], cl.cluster_id)
+                assert buf.bits(level) == (int(cluster_bit(cl, level)[-1]), int(plane_bit(cl, level)[-1]))
+                if up:
+                    np.testing.assert_array_equal(buf.read_plane_bit(), plane_bit(cl, level))
+        return steps
+    finally:
+        buf.release()
+
+
+def test_adapt_sequence(language, rng):
+    """6 -> 12 -> 8 -> 24 -> 1 -> 10 plane by plane, random and analytic data, four cluster sizes."""
+    steps = 0
+    for name, (qb, bins, cl) in datasets(rng):
+        steps += _adapt_walk(language, qb, cl, SEQUENCE)
+    assert steps == len(SIZES) * 2 * sum(abs(b - a) for a, b in itertools.pairwise(SEQUENCE))
+
+
+def test_adapt_many_clusters_per_thread(language, rng):
+    """More clusters than the tables kernel has threads (64), several per thread with a ragged end,
+    and a pack dispatch of several groups: 9 000 vertices in clusters of 16."""
+    u = rng.normal(size=(9000, 3))
+    q = ((u / np.linalg.norm(u, axis=1, keepdims=True) * 0.4 + 0.5) * (2**24 - 1)).astype(np.uint32)
+    qb, _, cl = prepared(q, rng.integers(1, 25, 9000), 16)
+    assert len(cl.count) > 64 * 4
+    _adapt_walk(language, qb, cl, (1, 5, 3, 24, 20))
+
+
+def test_memory_reference_counts_records(rng):
+    _, _, cl = prepared(*random_data(rng, 400), 64)
+    assert clustered_bytes(cl, 24) == 4 * math.ceil(cluster_bit(cl, 24)[-1] / 32) + 16 * len(cl.count)
+
+
+def test_verify_clustered_adapt(gl, rng):
+    qb, _, cl = prepared(*analytic_data(rng, 16), 16)
+
+    def words_at(level):
+        return pack_clustered(reference_decode(qb, cl, level)[0], cl, level)
+
+    def plane(p):
+        bits = plane_bits_clustered(qb, cl, p)
+        return np.packbits(np.concatenate([bits, np.zeros(-bits.size % 32 + 32, np.uint8)]), bitorder="little").view("<u4"), 0
+
+    rep = verify_clustered_adapt(words_at, lambda b: records(cl, b), cl.cluster_id, cl.vertex_id, cl.size,
+                                 [3, 6, 9], plane, languages=("glsl",))
+    assert rep == {"glsl": {"adapt_steps": 12, "adapt_mismatches": 0}}
+    rep = verify_clustered_adapt(words_at, lambda b: records(cl, b), cl.cluster_id, cl.vertex_id, cl.size,
+                                 [9, 11], lambda p: (plane(p)[0] ^ np.uint32(1), 0), languages=("glsl",))
+    assert rep["glsl"]["adapt_mismatches"] >= 1  # a corrupted plane is caught
+
+
+@pytest.mark.parametrize("name", ["fixtures/unit_sphere.glb", "fixtures/two_plates.glb", "stanford-bunny.obj"])
+def test_cooked_buffers_decode_as_the_unclustered_container(language, request, name):
+    """The invariant across layouts, on cooked buffers: every buffer of the container, re-ordered and
+    cut into clusters of 64, decodes at every level 1..24 to exactly the grid integers and float32
+    positions that the container's own (unclustered) buffer decodes to, vertex for vertex."""
+    from conftest import FIXTURES
+
+    from lopcook.analyse import analyse
+    from lopcook.emit import build
+    from lopcook.emit.bitplane import decode
+    from lopcook.emit.container import from_bytes
+    from lopcook.emit.reader import gpu_buffer
+    from lopcook.ingest import load
+
+    path = FIXTURES / name.split("/", 1)[1] if name.startswith("fixtures/") else request.getfixturevalue("corpus") / name
+    scene = load(path)
+    c = from_bytes(build(scene, analyse(scene)), str(path))
+    g = c.manifest["grid"]
+    cell = g["extent"] / 2**24
+    for part, p in enumerate(c.manifest["parts"]):
+        for lod in range(len(p["lods"])):
+            full = gpu_buffer(c, part, lod, LEVELS)
+            q = to_grid(*decode(full.words, full.vertex_id, full.bit_id, LEVELS))
+            levels = np.repeat(np.arange(1, LEVELS + 1), np.diff(np.asarray(full.vertex_id, dtype=np.int64)))
+            bins = cluster_order(q, levels)
+            qb = q[bins.order]
+            cl = make_clusters(qb, bins.vertex_id, 64)
+            np.testing.assert_array_equal(bins.vertex_id, full.vertex_id)  # the bins do not change
+            for level in range(1, LEVELS + 1):
+                buf = gpu_buffer(c, part, lod, level)
+                values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+                words = pack_clustered(reference_decode(qb, cl, level)[0], cl, level)
+                got = gpu.decode_clustered(language, words, records(cl, level), cl.cluster_id, cl.vertex_id, 64, level,
+                                           g["origin"], np.float32(cell / 2))
+                np.testing.assert_array_equal(got.grid, to_grid(values, widths)[bins.order], err_msg=f"{name} B={level}")
+                ref = reconstruct_float32(values, widths, g["origin"], cell)[bins.order]
+                np.testing.assert_array_equal(got.position.view(np.uint32), ref.view(np.uint32))
+                np.testing.assert_array_equal(got.level, widths[bins.order])
