@@ -1,5 +1,6 @@
 """Clustered position buffers (issue 16) on the GPU: the GLSL and HLSL vertex decoders and
-adaption kernels with ``LOP_CLUSTERED`` against a CPU reference of the layout contract, bit for bit.
+adaption kernels with ``LOP_CLUSTERED`` against the CPU reference of the layout contract
+(lopcook.emit.clusters), bit for bit.
 
 The vertex path runs through transform feedback (lopcook.verify.gpu.decode_clustered), the kernels
 through SSBOs (lopcook.verify.gpu.ClusteredAdapter). Every decode must equal the unclustered (global
@@ -12,14 +13,28 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 from conftest import require
 
-from lopcook.emit.binning import LEVELS, Bins
-from lopcook.emit.bitplane import read_fields, reconstruct_float32, to_grid, top_bits
+from lopcook.emit.binning import LEVELS
+from lopcook.emit.bitplane import reconstruct_float32, to_grid, top_bits
+from lopcook.emit.clusters import (
+    CLUSTER_ID_BYTES,
+    add_plane_clustered,
+    cluster_bit,
+    cluster_order,
+    clustered_bytes,
+    decode_clustered,
+    make_clusters,
+    pack_clustered,
+    plane_bit,
+    plane_bits_clustered,
+    records,
+    remove_plane_clustered,
+    vertex_clusters,
+)
 from lopcook.verify import gpu
 from lopcook.verify.decoders import (
     decode_crack_free,
@@ -29,177 +44,6 @@ from lopcook.verify.decoders import (
 )
 from lopcook.viewing import Viewing
 
-# ==== CPU reference of the cluster layout ==========================================================
-# A compact copy of the contract's CPU reference, written before lopcook/emit/clusters.py existed on
-# this branch. REPLACE this whole section after the merge with
-#     from lopcook.emit.clusters import (Clusters, add_plane_clustered, cluster_bit, cluster_order, clustered_bytes,
-#                                        decode_clustered, make_clusters, pack_clustered, plane_bits_clustered,
-#                                        records, remove_plane_clustered)
-# (same names and arguments as the contract lists; ``pack_clustered`` here takes the top bits at
-# max(m, B), as lopcook.emit.bitplane.pack does).
-
-
-@dataclass(frozen=True)
-class Clusters:
-    """cluster_id (25,) int64; k (n_c, 3) uint8 shared prefix lengths; anchor (n_c, 3) uint32;
-    count (n_c,) int64; m (n_c,) int64 bin level; plus vertex_id (25,) and size N."""
-
-    cluster_id: np.ndarray
-    k: np.ndarray
-    anchor: np.ndarray
-    count: np.ndarray
-    m: np.ndarray
-    vertex_id: np.ndarray
-    size: int
-
-
-def _morton21(q: np.ndarray) -> np.ndarray:
-    """Interleave the top 21 bits of the 24-bit grid integers (x in the lowest bit of each triple)."""
-    top = (np.asarray(q, dtype=np.uint64) >> np.uint64(3))
-    out = np.zeros(len(q), dtype=np.uint64)
-    for bit in range(21):
-        for t in range(3):
-            out |= ((top[:, t] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + t)
-    return out
-
-
-def cluster_order(q: np.ndarray, min_level: np.ndarray) -> Bins:
-    """Vertices sorted by (m_v, Morton code, original index); Bins as lopcook.emit.binning.make_bins."""
-    levels = np.asarray(min_level, dtype=np.int64)
-    order = np.lexsort((np.arange(len(q)), _morton21(q), levels))
-    inverse = np.empty_like(order)
-    inverse[order] = np.arange(len(order))
-    sorted_levels = levels[order]
-    vid = np.searchsorted(sorted_levels, np.arange(LEVELS + 1), side="right").astype(np.int64)
-    return Bins(order=order, inverse=inverse, levels=sorted_levels.astype(np.uint8), vertex_id=vid)
-
-
-def _vertex_clusters(clusters: Clusters, j: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(cluster c, local index l, bin k) of vertices j."""
-    vid, cid, n = clusters.vertex_id, clusters.cluster_id, clusters.size
-    k = np.searchsorted(vid, j, side="right")
-    r = j - vid[k - 1]
-    return cid[k - 1] + r // n, r % n, k
-
-
-def make_clusters(q_binned: np.ndarray, vertex_id: np.ndarray, size: int) -> Clusters:
-    vid = np.asarray(vertex_id, dtype=np.int64)
-    per_bin = -(-np.diff(vid) // size)
-    cid = np.concatenate([[0], np.cumsum(per_bin)]).astype(np.int64)
-    nc = int(cid[-1])
-    m = np.repeat(np.arange(1, LEVELS + 1), per_bin)
-    c = np.arange(nc)
-    start = vid[m - 1] + (c - cid[m - 1]) * size
-    count = np.minimum(size, vid[m] - start)
-    q = np.asarray(q_binned, dtype=np.int64)
-    if nc:
-        lo, hi = np.minimum.reduceat(q, start, axis=0), np.maximum.reduceat(q, start, axis=0)
-        diff = lo ^ hi
-        length = np.zeros_like(diff)
-        nz = diff > 0
-        length[nz] = np.floor(np.log2(diff[nz])).astype(np.int64) + 1  # bit length, exact below 2^24
-        k = LEVELS - length
-        anchor = np.where(k > 0, lo >> (LEVELS - k), 0)
-    else:
-        k = anchor = np.zeros((0, 3), np.int64)
-    return Clusters(cid, k.astype(np.uint8), anchor.astype(np.uint32), count.astype(np.int64), m.astype(np.int64),
-                    vid, int(size))
-
-
-def _widths(clusters: Clusters, level: int) -> np.ndarray:
-    """(n_c, 3) stored bits per component w_t = max(0, max(m, B) - k_t)."""
-    b = np.maximum(clusters.m, level)[:, None]
-    return np.maximum(b - clusters.k.astype(np.int64), 0)
-
-
-def cluster_bit(clusters: Clusters, level: int) -> np.ndarray:
-    return np.concatenate([[0], np.cumsum(clusters.count * _widths(clusters, level).sum(axis=1))]).astype(np.int64)
-
-
-def records(clusters: Clusters, level: int) -> np.ndarray:
-    rec = np.zeros((len(clusters.count), 4), np.uint32)
-    rec[:, :3] = clusters.anchor | (clusters.k.astype(np.uint32) << np.uint32(24))
-    rec[:, 3] = cluster_bit(clusters, level)[:-1]
-    return rec
-
-
-def _write_fields(offsets, widths, values, total: int) -> np.ndarray:
-    """Words holding fields (bit offset, width, value) LSB first; at least one word."""
-    widths = np.asarray(widths, dtype=np.int64)
-    rep = np.repeat(np.arange(len(widths)), widths)
-    within = np.arange(rep.size) - np.repeat(np.cumsum(widths) - widths, widths)
-    bits = np.zeros(max(-(-total // 32), 1) * 32, np.uint8)
-    bits[np.asarray(offsets, dtype=np.int64)[rep] + within] = (np.asarray(values, dtype=np.int64)[rep] >> within) & 1
-    return np.packbits(bits, bitorder="little").view("<u4").astype(np.uint32)
-
-
-def _field_offsets(clusters: Clusters, level: int):
-    n = int(clusters.vertex_id[LEVELS])
-    j = np.arange(n)
-    c, l, k = _vertex_clusters(clusters, j)
-    w = _widths(clusters, level)[c]
-    o = cluster_bit(clusters, level)[c] + l * w.sum(axis=1)
-    offsets = np.stack([o, o + w[:, 0], o + w[:, 0] + w[:, 1]], axis=1)
-    return c, k, w, offsets
-
-
-def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.ndarray:
-    """P at ``level`` from per-vertex top bits (n, 3) at max(m, B) bits: the low w_t bits of each."""
-    _, _, w, offsets = _field_offsets(clusters, level)
-    fields = np.asarray(values, dtype=np.int64) & ((1 << w) - 1)
-    return _write_fields(offsets.ravel(), w.ravel(), fields.ravel(), int(cluster_bit(clusters, level)[-1]))
-
-
-def decode_clustered(words, clusters: Clusters, level: int, vertices=None):
-    """(values (n, 3) uint32 top bits, widths (n,) int64 = max(m, B)), as lopcook.emit.bitplane.decode."""
-    c, k, w, offsets = _field_offsets(clusters, level)
-    if vertices is not None:
-        c, k, w, offsets = c[vertices], k[vertices], w[vertices], offsets[vertices]
-    b = np.maximum(k, level)
-    f = read_fields(words, offsets.ravel(), w.ravel()).reshape(-1, 3).astype(np.int64)
-    kc = clusters.k[c].astype(np.int64)
-    a = clusters.anchor[c].astype(np.int64)
-    kb = np.minimum(kc, b[:, None])
-    return (((a >> (kc - kb)) << w) | f).astype(np.uint32), b.astype(np.int64)
-
-
-def plane_bits_clustered(q: np.ndarray, clusters: Clusters, p: int) -> np.ndarray:
-    """Refinement plane p: per cluster with m < p, per vertex, per component with k_t < p: bit 24 - p."""
-    count = int(clusters.vertex_id[p - 1])
-    c, _, _ = _vertex_clusters(clusters, np.arange(count))
-    keep = clusters.k[c] < p
-    return ((np.asarray(q[:count], dtype=np.uint32) >> np.uint32(LEVELS - p)) & 1).astype(np.uint8)[keep]
-
-
-def plane_bit(clusters: Clusters, p: int) -> np.ndarray:
-    """(n_c + 1,) PlaneBit_p: each cluster's offset in this buffer's slice of plane p."""
-    per = clusters.count * (clusters.k < p).sum(axis=1) * (clusters.m < p)
-    return np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
-
-
-def add_plane_clustered(words, clusters: Clusters, level: int, plane: np.ndarray) -> np.ndarray:
-    """Level B -> B + 1 with plane B + 1 (bits as plane_bits_clustered); anchor-implied bits from the anchor."""
-    p = level + 1
-    values, _ = decode_clustered(words, clusters, level)
-    grow = int(clusters.vertex_id[level])
-    c, _, _ = _vertex_clusters(clusters, np.arange(grow))
-    kc = clusters.k[c].astype(np.int64)
-    new = (clusters.anchor[c].astype(np.int64) >> np.maximum(kc - p, 0)) & 1
-    new[kc < p] = np.asarray(plane, dtype=np.int64)
-    values[:grow] = (values[:grow] << np.uint32(1)) | new.astype(np.uint32)
-    return pack_clustered(values, clusters, p)
-
-
-def remove_plane_clustered(words, clusters: Clusters, level: int) -> np.ndarray:
-    values, _ = decode_clustered(words, clusters, level)
-    values[: int(clusters.vertex_id[level - 1])] >>= np.uint32(1)
-    return pack_clustered(values, clusters, level - 1)
-
-
-def clustered_bytes(clusters: Clusters, level: int) -> int:
-    return 4 * max(-(-int(cluster_bit(clusters, level)[-1]) // 32), 1) + 16 * len(clusters.count)
-
-# ==== end of the CPU reference =======================================================================
 
 
 SIZES = (16, 37, 64, 256)
@@ -266,7 +110,7 @@ def gpu_decode(language, qb, clusters, level, view=None):
 # ---- the reference itself (CPU only) --------------------------------------------------------------
 
 def test_reference_layout_round_trips(rng):
-    """The reference decodes what it packs to the global grid's top max(B, m) bits; the crafted data
+    """lopcook.emit.clusters decodes what it packs to the global grid's top max(B, m) bits; the crafted data
     has the cluster kinds the tests rely on; a prefix of planes rebuilds every level."""
     qb, bins, cl = prepared(*analytic_data(rng, 16), 16)
     assert {24, 0} <= set(cl.k.ravel().tolist()) and 1 in cl.count.tolist()
@@ -282,7 +126,7 @@ def test_reference_layout_round_trips(rng):
             got, w = decode_clustered(scratch, cl, level)
             np.testing.assert_array_equal(got, values)
             np.testing.assert_array_equal(w, widths)
-            assert clustered_bytes(cl, level) == 4 * len(scratch) + 16 * len(cl.count)
+            assert clustered_bytes(cl, level) == 4 * len(scratch) + 16 * len(cl.count) + CLUSTER_ID_BYTES
             if level < LEVELS:
                 words = add_plane_clustered(words, cl, level, plane_bits_clustered(qb, cl, level + 1))
         for level in range(LEVELS, 1, -1):
@@ -321,7 +165,7 @@ def test_decode_reads_the_anchor(language, rng):
     words = pack_clustered(values, cl, level)
     got = gpu.decode_clustered(language, np.zeros_like(words), records(cl, level), cl.cluster_id, cl.vertex_id,
                                cl.size, level, ORIGIN, np.float32(CELL / 2))
-    c, _, _ = _vertex_clusters(cl, np.arange(len(qb)))
+    _, c, _ = vertex_clusters(cl, np.arange(len(qb)))
     implied = cl.k[c].astype(np.int64) >= widths[:, None]
     assert implied.sum() > 100 and not implied.all()
     np.testing.assert_array_equal(got.grid[implied], to_grid(values, widths)[implied])
@@ -542,7 +386,8 @@ def test_adapt_many_clusters_per_thread(language, rng):
 
 def test_memory_reference_counts_records(rng):
     _, _, cl = prepared(*random_data(rng, 400), 64)
-    assert clustered_bytes(cl, 24) == 4 * math.ceil(cluster_bit(cl, 24)[-1] / 32) + 16 * len(cl.count)
+    assert clustered_bytes(cl, 24) == (4 * math.ceil(cluster_bit(cl, 24)[-1] / 32) + 16 * len(cl.count)
+                                     + CLUSTER_ID_BYTES)
 
 
 def test_verify_clustered_adapt(gl, rng):
