@@ -44,8 +44,6 @@ from lopcook.verify.decoders import (
 )
 from lopcook.viewing import Viewing
 
-
-
 SIZES = (16, 37, 64, 256)
 SEQUENCE = (6, 12, 8, 24, 1, 10)
 ORIGIN, CELL = (1000.3, -52.7, 3.1e-3), 0.37 / 2**24
