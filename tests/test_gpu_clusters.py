@@ -444,3 +444,218 @@ def test_cooked_buffers_decode_as_the_unclustered_container(language, request, n
                 ref = reconstruct_float32(values, widths, g["origin"], cell)[bins.order]
                 np.testing.assert_array_equal(got.position.view(np.uint32), ref.view(np.uint32))
                 np.testing.assert_array_equal(got.level, widths[bins.order])
+
+
+# ---- lopcook verify --decoders on cooked clustered containers ----------------------------------------
+
+@pytest.fixture(scope="module")
+def clustered_lop(tmp_path_factory):
+    """unit_sphere cooked with --clusters 64 and one LOD below it: two clustered buffers, the second
+    one's plane slices at a non-zero bit offset."""
+    from conftest import FIXTURES
+
+    from lopcook.cli import main
+
+    out = tmp_path_factory.mktemp("clustered") / "sphere64.lop"
+    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--clusters", "64", "--lods", "0.5",
+                 "-q"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def plain_lop(tmp_path_factory):
+    """The same cook as ``clustered_lop`` without clusters."""
+    from conftest import FIXTURES
+
+    from lopcook.cli import main
+
+    out = tmp_path_factory.mktemp("plain") / "sphere.lop"
+    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--lods", "0.5", "-q"]) == 0
+    return out
+
+
+def test_cli_verify_decoders_on_a_clustered_container(gl, clustered_lop, capsys):
+    """``verify --decoders`` decodes every clustered buffer with the LOP_CLUSTERED vertex shader and
+    adapts it with the LOP_CLUSTERED kernels, in both languages, at every level: 0 mismatches."""
+    import json
+
+    from lopcook.cli import main
+    from lopcook.emit.container import read
+
+    require(gpu.hlsl_tools_available())
+    c = read(str(clustered_lop))
+    assert c.manifest["options"]["clusters"] == 64
+    assert all(e["cluster_size"] == 64 for p in c.manifest["parts"] for e in p["lods"])
+    assert main(["verify", str(clustered_lop), "--decoders", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)["decoders"]
+    n = rep["vertices"]
+    assert rep["ok"] is True and rep["buffers"] == rep["clustered_buffers"] == 2 and n > 642
+    assert rep["levels"] == list(range(1, 25)) and set(rep["languages"]) == {"glsl", "hlsl"}
+    for s in rep["languages"].values():
+        assert s["decoded_vertices"] == s["clustered_decoded_vertices"] == 24 * n
+        assert s["adapt_steps"] == s["clustered_adapt_steps"] == 2 * 46
+        assert s["crack_free_vertices"] == 3 * n
+        assert s["grid_mismatches"] == s["float_mismatches"] == s["level_mismatches"] == s["max_float_ulp"] == 0
+        assert s["crack_free_mismatches"] == s["adapt_mismatches"] == 0
+    assert rep["clustered_cpu"] == {"decoded_vertices": 24 * n, "mismatches": 0}
+    assert main(["verify", str(clustered_lop), "--decoders", "--levels", "3,9", "--languages", "glsl"]) == 0
+    text = capsys.readouterr().out
+    assert "clustered buffers: 2 of 2, decoded by the LOP_CLUSTERED shaders" in text and "bit-exact" in text
+
+
+def _wrong_anchor_vertices(c, levels):
+    """Vertex decodes that go wrong at ``levels`` (summed over buffers) when bit 0 of every x anchor
+    with k_x >= 1 is flipped: those with b = max(m, B) >= k_x (below k_x the bit is shifted out)."""
+    from lopcook.emit.reader import buffer_clusters
+
+    total = 0
+    for part, p in enumerate(c.manifest["parts"]):
+        for lod in range(len(p["lods"])):
+            cl = buffer_clusters(c, part, lod)
+            kx = cl.k[:, 0].astype(np.int64)
+            for level in levels:
+                hit = (kx >= 1) & (np.maximum(cl.m, level) >= kx)
+                total += int(cl.count[hit].sum())
+    return total
+
+
+def test_cli_verify_catches_a_corrupted_cluster_record(gl, clustered_lop, monkeypatch, capsys):
+    """A cluster record whose anchor is wrong on the GPU (bit 0 of every x anchor with k_x >= 1
+    flipped in the records the renderer uploads; the file and so the CPU reference untouched)
+    fails with exit 1, in both languages exactly the vertices whose decode reads that bit."""
+    import json
+
+    from lopcook.cli import main
+    from lopcook.emit import reader
+    from lopcook.emit.container import read
+
+    require(gpu.hlsl_tools_available())
+    real = reader.records
+
+    def corrupted(clusters, level):
+        rec = real(clusters, level).copy()
+        flip = (rec[:, 0] >> np.uint32(24)) >= 1
+        rec[flip, 0] ^= np.uint32(1)
+        return rec
+
+    monkeypatch.setattr(reader, "records", corrupted)
+    levels = [1, 6, 12, 18, 24]
+    want = _wrong_anchor_vertices(read(str(clustered_lop)), levels)
+    assert want > 100
+    assert main(["verify", str(clustered_lop), "--decoders", "--levels", "1,6,12,18,24", "--no-adapt",
+                 "--json"]) == 1
+    rep = json.loads(capsys.readouterr().out)["decoders"]
+    assert rep["ok"] is False and rep["clustered_cpu"]["mismatches"] == 0
+    for s in rep["languages"].values():
+        assert s["grid_mismatches"] == want and s["float_mismatches"] == want and s["level_mismatches"] == 0
+    e = rep["examples"][0]
+    assert e["kind"] == "decode" and e["clustered"] is True and e["expected_grid"] != e["got_grid"]
+
+
+def _broken_shaders(tmp_path):
+    """A copy of the shaders whose GLSL clustered decode drops bit 0 of every anchor (the
+    unclustered code untouched)."""
+    broken = tmp_path / "shaders"
+    broken.mkdir()
+    for f in gpu.shader_dir().iterdir():
+        (broken / f.name).write_text(f.read_text())
+    src = (broken / "decode_bitplanes.glsl").read_text()
+    line = "uvec3 a = rec.xyz & 0xFFFFFFu;"
+    assert src.count(line) == 1
+    (broken / "decode_bitplanes.glsl").write_text(src.replace(line, "uvec3 a = rec.xyz & 0xFFFFFEu;"))
+    return broken
+
+
+def test_cli_verify_catches_a_broken_clustered_decoder(gl, clustered_lop, plain_lop, tmp_path, monkeypatch, capsys):
+    """A GLSL decoder whose clustered code drops bit 0 of every anchor fails the clustered container
+    (exit 1, exactly the vertices whose decode reads an odd anchor's bit 0) and passes the same
+    asset cooked unclustered: the clustered container is decoded by the LOP_CLUSTERED code."""
+    import json
+
+    from lopcook.cli import main
+    from lopcook.emit.container import read
+    from lopcook.emit.reader import buffer_clusters
+
+    monkeypatch.setenv("LOPCOOK_SHADERS", str(_broken_shaders(tmp_path)))
+    c = read(str(clustered_lop))
+    want = 0
+    for part, p in enumerate(c.manifest["parts"]):
+        for lod in range(len(p["lods"])):
+            cl = buffer_clusters(c, part, lod)
+            k, odd = cl.k.astype(np.int64), (cl.anchor & 1).astype(bool)
+            for level in range(1, LEVELS + 1):
+                b = np.maximum(cl.m, level)[:, None]
+                want += int(cl.count[np.any(odd & (k >= 1) & (b >= k), axis=1)].sum())
+    assert want > 0
+    assert main(["verify", str(clustered_lop), "--decoders", "--languages", "glsl", "--no-adapt", "--json"]) == 1
+    rep = json.loads(capsys.readouterr().out)["decoders"]
+    assert rep["languages"]["glsl"]["grid_mismatches"] == want and rep["examples"][0]["clustered"] is True
+    assert main(["verify", str(plain_lop), "--decoders", "--languages", "glsl", "--no-adapt", "-q"]) == 0
+
+
+def test_render_harness_draws_clustered_buffers_with_the_clustered_decoder(gl, clustered_lop, plain_lop, tmp_path,
+                                                                          monkeypatch):
+    """The harness uploads a clustered container's CAP buffers in their clustered layout
+    (``cap_buffer``) and draws them with the LOP_CLUSTERED decoder: the images and PSNR equal those
+    of the same cook unclustered, pixel for pixel, and a clustered decoder that drops an anchor bit
+    changes the clustered CAP image (not AP's, not the unclustered container's)."""
+    from conftest import FIXTURES
+
+    from lopcook.emit.container import read
+    from lopcook.emit.reader import ClusteredGpuBuffer, GpuBuffer
+    from lopcook.ingest import load
+    from lopcook.verify.buffers import cap_buffer
+    from lopcook.verify.evaluate import evaluate
+
+    scene = load(FIXTURES / "unit_sphere.glb")
+    clus, plain = read(str(clustered_lop)), read(str(plain_lop))
+    assert isinstance(cap_buffer(clus, 0, 0, 8), ClusteredGpuBuffer) and isinstance(cap_buffer(plain, 0, 0, 8), GpuBuffer)
+    kw = {"levels": [12, 16], "views": 2, "resolution": (160, 120), "keep_images": True, "image_view": 0}
+
+    def run(c):
+        r = evaluate(c, scene, **kw)
+        return [(row["level"], row["cap"]["psnr_mean"], row["ap"]["psnr_mean"]) for row in r["levels"]], r["images"]
+
+    rows_c, img_c = run(clus)
+    rows_p, img_p = run(plain)
+    assert rows_c == rows_p
+    for v in ("cap", "ap", "cap_ids"):
+        np.testing.assert_array_equal(img_c[v], img_p[v])
+    monkeypatch.setenv("LOPCOOK_SHADERS", str(_broken_shaders(tmp_path)))
+    rows_b, img_b = run(clus)
+    assert np.any(img_b["cap"] != img_c["cap"]) and rows_b[0][1] != rows_c[0][1]
+    np.testing.assert_array_equal(img_b["ap"], img_c["ap"])
+    rows_pb, img_pb = run(plain)
+    assert rows_pb == rows_p
+    np.testing.assert_array_equal(img_pb["cap"], img_p["cap"])
+
+
+def test_cli_verify_refuses_a_container_with_a_bad_cluster_record(clustered_lop, tmp_path, capsys):
+    """A stored cluster header with k_x = 25 (CRCs kept right): exit 2 with one container error
+    naming the clusters, no traceback."""
+    import json
+    import struct
+    import zlib
+
+    from lopcook.cli import main
+    from lopcook.emit.container import from_bytes
+
+    data = bytearray(clustered_lop.read_bytes())
+    c = from_bytes(bytes(data))
+    msize = struct.unpack_from("<I", data, 12)[0]
+    sec = next(s for s in c.manifest["sections"] if s["name"] == "positions/clusters")
+    at = 32 + msize + sec["offset"]
+    data[at + 3] = 25
+    m = json.loads(bytes(data[32:32 + msize]))
+    next(s for s in m["sections"] if s["name"] == "positions/clusters")["crc32"] = zlib.crc32(
+        bytes(data[at:at + sec["length"]]))
+    mb = json.dumps(m, sort_keys=True, separators=(",", ":")).encode()
+    assert len(mb) == msize
+    data[32:32 + msize] = mb
+    data[16:20] = struct.pack("<I", zlib.crc32(mb))
+    data[28:32] = struct.pack("<I", zlib.crc32(bytes(data[:28])))
+    bad = tmp_path / "bad.lop"
+    bad.write_bytes(bytes(data))
+    assert main(["verify", str(bad), "--decoders", "--languages", "glsl"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("lopcook: error: container") and "cluster" in err and "Traceback" not in err

@@ -13,6 +13,15 @@ the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror 
 compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
 BitId must equal the CPU's packing of each level from scratch, byte for byte.
 
+A clustered buffer (issue 16, ``cook --clusters N``, ``lopcook.emit.clusters``) is uploaded as a
+renderer uploads it: its clustered P and cluster records (``reader.clustered_gpu_buffer``), decoded
+by the ``LOP_CLUSTERED`` vertex shader of each language (``gpu.decode_clustered``, the crack-free
+path included) and compared with the same global-grid reference at max(B, m_v) bits; its adaption
+runs the ``LOP_CLUSTERED`` kernels (``gpu.ClusteredAdapter``) on the file's own plane slices
+(``stored_plane_source``), and P, the cluster records (word 3 = ClusterBit), VertexId, ClusterId
+and BitId = ClusterBit[ClusterId[k]] must equal the CPU's at every level. The CPU clustered decode
+is also compared with the unclustered one (``clustered_cpu``).
+
 The packed vertex attribute record of every part/LOD (section ``part{i}/lod{k}/attributes``:
 octahedral normals, UVs, colours at the manifest's ``attribute_bits``; Purnomo et al. 2005,
 sections 3-5) is decoded by ``shaders/decode_attributes.*`` in each language and compared with
@@ -181,7 +190,7 @@ def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
     offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it
     (a clustered buffer's slice is ``reader.plane_slice_bits`` long)."""
-    from ..emit.reader import buffer_clusters, lod_entry, plane_slice_bits, top_values
+    from ..emit.reader import buffer_clusters, lod_entry, top_values
 
     if buffer_clusters(c, part, lod) is not None:
         # a clustered buffer's stored slice skips anchor-implied components: the unclustered
@@ -196,6 +205,17 @@ def plane_source(c, part: int, lod: int):
             return np.packbits(padded, bitorder="little").view("<u4").astype(np.uint32), 0
 
         return unclustered
+    return stored_plane_source(c, part, lod)
+
+
+def stored_plane_source(c, part: int, lod: int):
+    """``plane(p) -> (words, bit_offset)``: the container's plane section p as stored (uint32 words)
+    and the bit offset of buffer (part, lod)'s slice inside it (buffers in manifest order, each
+    ``reader.plane_slice_bits`` long). For a clustered buffer this is the slice the
+    ``LOP_CLUSTERED`` add-plane kernel reads (anchor-implied components skipped)."""
+    from ..emit.reader import lod_entry, plane_slice_bits
+
+    lod_entry(c, part, lod)  # LopcookError for a part or LOD that does not exist
 
     def plane(p: int):
         start = 0
@@ -253,16 +273,20 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
                     "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
                     "normal_mismatches": 0, "uv_mismatches": 0, "color_mismatches": 0, "attribute_max_ulp": 0,
-                    "attribute_seconds": 0.0} for lang in languages}
+                    "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0}
+             for lang in languages}
     examples: list[dict] = []
     buffers = list(_buffers(c))
     vertices = 0
     attribute_buffers = 0
+    clustered_buffers = 0
     for part, lod in buffers:
         clustered = buffer_clusters(c, part, lod) is not None
+        clustered_buffers += clustered
         for level in levels:
             buf = gpu_buffer(c, part, lod, level)
             values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+            cbuf = None
             if clustered:  # the clustered CPU decode must equal the unclustered one exactly
                 cbuf = clustered_gpu_buffer(c, part, lod, level)
                 cvals, cwidths = decode_clustered(cbuf.words, cbuf.clusters, level)
@@ -276,7 +300,11 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
             for lang in languages:
                 s = stats[lang]
                 t0 = time.perf_counter()
-                got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+                if cbuf is None:
+                    got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+                else:  # what a renderer uploads for a clustered buffer: clustered P and its records
+                    got = _decode_clustered(c, part, lod, lang, cbuf, origin, half)
+                    s["clustered_decoded_vertices"] += int(widths.size)
                 s["decode_seconds"] += time.perf_counter() - t0
                 bad_grid = np.any(got.grid != ref_grid, axis=1)
                 bad_float = np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1)
@@ -289,16 +317,19 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                     s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
                 for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
                     examples.append({"language": lang, "kind": "decode", "part": part, "lod": lod, "level": level,
-                                     "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
+                                     "clustered": cbuf is not None, "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
                                      "got_grid": got.grid[j].tolist(),
                                      "expected_position": [float(v) for v in ref_pos[j]],
                                      "got_position": [float(v) for v in got.position[j]],
                                      "expected_bits": int(widths[j]), "got_bits": int(got.level[j])})
             if level == levels[-1] and widths.size:
                 _verify_crack_free(c, part, lod, buf, values, widths, ref_pos, languages, stats, examples,
-                                   max_examples)
+                                   max_examples, cbuf)
         if adapt and levels:
-            _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+            if clustered:
+                _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+            else:
+                _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
         attribute_buffers += _verify_attributes(c, part, lod, languages, stats, examples, max_examples)
     ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
              and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 and s["normal_mismatches"] == 0
@@ -312,6 +343,7 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         "container": None if c.path is None else str(c.path),
         "levels": levels,
         "buffers": len(buffers),
+        "clustered_buffers": int(clustered_buffers),
         "attribute_buffers": attribute_buffers,
         "vertices": vertices,
         "float_ulp_tolerance": 0,
@@ -390,9 +422,11 @@ CAMERA_DISTANCES = (0.25, 4.0, 64.0)  # in grid extents from the buffer's box ce
 
 
 def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, stats, examples,
-                       max_examples) -> None:
+                       max_examples, cbuf=None) -> None:
     """``lop_decode_crack_free`` against ``decode_crack_free`` at the buffer's level, from three
-    cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest."""
+    cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest.
+    ``cbuf``: the buffer's ``ClusteredGpuBuffer`` at that level, decoded by the ``LOP_CLUSTERED``
+    crack-free path instead (same reference)."""
     from . import gpu
 
     g = c.manifest["grid"]
@@ -409,15 +443,19 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
         ref_grid, ref_pos, ref_level = decode_crack_free(values, widths, bin_levels, buf.level, origin, cell, camera,
                                                          level_dist, radius)
         for lang in languages:
-            got = gpu.vertex_decoder(lang, crack_free=True).decode(
-                buf.words, buf.vertex_id, buf.bit_id, buf.level, origin, np.float32(cell / 2.0),
-                view=(camera, level_dist, radius))
+            view = (camera, level_dist, radius)
+            if cbuf is None:
+                got = gpu.vertex_decoder(lang, crack_free=True).decode(
+                    buf.words, buf.vertex_id, buf.bit_id, buf.level, origin, np.float32(cell / 2.0), view=view)
+            else:
+                got = _decode_clustered(c, part, lod, lang, cbuf, origin, np.float32(cell / 2.0), view=view)
             bad = (np.any(got.grid != ref_grid, axis=1) | np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32),
                                                                    axis=1) | (got.level.astype(np.int64) != ref_level))
             stats[lang]["crack_free_vertices"] += int(bad.size)
             stats[lang]["crack_free_mismatches"] += int(bad.sum())
             for j in np.flatnonzero(bad)[: max(0, max_examples - len(examples))]:
-                examples.append({"language": lang, "kind": "crack_free", "part": part, "lod": lod,
+                examples.append({"language": lang, "kind": "crack_free", "clustered": cbuf is not None,
+                                 "part": part, "lod": lod,
                                  "level": int(buf.level), "camera": [float(v) for v in camera], "vertex": int(j),
                                  "expected_level": int(ref_level[j]), "got_level": int(got.level[j]),
                                  "expected_position": [float(v) for v in ref_pos[j]],
@@ -529,6 +567,70 @@ def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples
         s["adapt_seconds"] += time.perf_counter() - t0
 
 
+def _decode_clustered(c, part, lod, lang, cbuf, origin, half_cell, view=None):
+    """``gpu.decode_clustered`` of a container's ClusteredGpuBuffer; a buffer outside what the
+    clustered decoder accepts (2^26 vertices or more) is a LopcookError naming it."""
+    from . import gpu
+
+    cl = cbuf.clusters
+    try:
+        return gpu.decode_clustered(lang, cbuf.words, cbuf.records, cl.cluster_id, cl.vertex_id, cl.size, cbuf.level,
+                                    origin, half_cell, view=view)
+    except ValueError as exc:
+        raise LopcookError("verify", c.path, f"part {part} LOD {lod}: the clustered decoder cannot take this "
+                           f"buffer: {exc}", hint="cook it unclustered (--clusters 0) or with fewer vertices "
+                           "per part") from None
+
+
+def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, max_examples) -> None:
+    """The ``LOP_CLUSTERED`` kernels walk a clustered buffer through ``adapt_walk(levels)`` one
+    plane at a time, fed the file's own plane slices; after each chosen level P, the cluster
+    records, VertexId, ClusterId and BitId (= ClusterBit[ClusterId[k]]) must equal the CPU's
+    (``reader.clustered_gpu_buffer`` at that level)."""
+    from ..emit.clusters import cluster_bit
+    from ..emit.reader import clustered_gpu_buffer
+    from . import gpu
+
+    first = clustered_gpu_buffer(c, part, lod, levels[0])
+    cl = first.clusters
+    if cl.n == 0:
+        return
+    plane = stored_plane_source(c, part, lod)
+    refs: dict = {}
+    for lang in languages:
+        ad = gpu.clustered_adapter(lang)
+        s = stats[lang]
+        t0 = time.perf_counter()
+        buf = ad.upload(first.words, first.records, cl.cluster_id, cl.vertex_id, cl.size, levels[0])
+        try:
+            for target in adapt_walk(levels):
+                steps = abs(target - buf.level)
+                s["adapt_steps"] += steps
+                s["clustered_adapt_steps"] += steps
+                ad.adapt(buf, target, plane)
+                if target not in refs:
+                    refs[target] = clustered_gpu_buffer(c, part, lod, target)
+                ref = refs[target]
+                vid, bid, cid = buf.read_tables()
+                words, rec = buf.read_words(), buf.read_records()
+                same = (np.array_equal(words, ref.words) and np.array_equal(rec, ref.records)
+                        and np.array_equal(vid[: LEVELS + 1], cl.vertex_id)
+                        and np.array_equal(cid[: LEVELS + 1], cl.cluster_id)
+                        and np.array_equal(bid[: LEVELS + 1], cluster_bit(cl, target)[cl.cluster_id]))
+                if not same:
+                    s["adapt_mismatches"] += 1
+                    if len(examples) < max_examples:
+                        examples.append({"language": lang, "kind": "adapt", "clustered": True, "part": part,
+                                         "lod": lod, "level": target, "words_expected": int(ref.words.size),
+                                         "words_got": int(words.size),
+                                         "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
+                                         if words.size == ref.words.size else None,
+                                         "records_equal": bool(np.array_equal(rec, ref.records))})
+        finally:
+            buf.release()
+        s["adapt_seconds"] += time.perf_counter() - t0
+
+
 def format_report(report: dict) -> str:
     """Human-readable summary: one line per language, then the first mismatches."""
     lines = [f"{report['container']}: {report['buffers']} buffers, {report['vertices']:,} vertices, levels "
@@ -544,6 +646,11 @@ def format_report(report: dict) -> str:
         lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
                      f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
                      f"{s['color_mismatches']}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
+    if report.get("clustered_buffers"):
+        lines.append(f"  clustered buffers: {report['clustered_buffers']} of {report['buffers']}, decoded by the "
+                     "LOP_CLUSTERED shaders: " + "; ".join(
+                         f"{lang} {s['clustered_decoded_vertices']:,} vertex decodes, {s['clustered_adapt_steps']} "
+                         "plane steps" for lang, s in report["languages"].items()))
     cs = report.get("clustered_cpu") or {}
     if cs.get("decoded_vertices"):
         lines.append(f"  clustered CPU decode: {cs['decoded_vertices']:,} vertex decodes, {cs['mismatches']} "
@@ -568,5 +675,5 @@ def _levels_text(levels: list[int]) -> str:
     return ",".join(runs)
 
 
-__all__ = ["verify_clustered_decode", "verify_clustered_adapt", "parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
+__all__ = ["verify_clustered_decode", "verify_clustered_adapt", "parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source", "stored_plane_source",
            "attribute_record", "verify_decoders", "adapt_walk", "format_report"]

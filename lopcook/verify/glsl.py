@@ -7,7 +7,9 @@ section 6.2 (positions decoded in the vertex shader).
 * ``vertex_shader_source(decoded=True)``: the shipped ``shaders/decode_bitplanes.glsl`` (with
   ``LOP_NO_VIEW``) followed by ``VS_MAIN``; the position is ``lop_decode(gl_VertexID)`` (index value
   = vertex), read from SSBO 0 (packed words) and UBO 0 (tables and grid,
-  ``lopcook.verify.gpu.decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
+  ``lopcook.verify.gpu.decode_block``). ``clustered=True`` adds ``LOP_CLUSTERED``: the clustered
+  layout of issue 16 (SSBO 0 clustered P, SSBO 3 the cluster records, UBO 0
+  ``lopcook.verify.gpu.cluster_decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
   Both pass the source normals, UVs and colours through unchanged.
 * ``FS`` (shading): ``colour = base * (ambient + diffuse * max(N.L, 0)) + ks * max(R.V, 0)^shininess``
   (the specular term only where N.L > 0), clamped to [0, 1]; uniforms ``u_phong`` = (ambient,
@@ -111,13 +113,15 @@ void main()
 """
 
 
-def vertex_shader_source(decoded: bool) -> str:
-    """GLSL 4.50 vertex shader: ``decoded`` = the shipped ``decode_bitplanes.glsl`` (LOP_NO_VIEW) with
-    ``lop_decode(gl_VertexID)`` for the position; else a float32 ``in_position`` attribute."""
+def vertex_shader_source(decoded: bool, clustered: bool = False) -> str:
+    """GLSL 4.50 vertex shader: ``decoded`` = the shipped ``decode_bitplanes.glsl`` (LOP_NO_VIEW, and
+    LOP_CLUSTERED with ``clustered``) with ``lop_decode(gl_VertexID)`` for the position; else a
+    float32 ``in_position`` attribute."""
     from .gpu import shader_source
 
     if decoded:
-        return "#version 450\n#define LOP_NO_VIEW\n#line 1\n" + shader_source("decode_bitplanes.glsl") + VS_MAIN
+        head = "#version 450\n#define LOP_NO_VIEW\n" + ("#define LOP_CLUSTERED\n" if clustered else "")
+        return head + "#line 1\n" + shader_source("decode_bitplanes.glsl") + VS_MAIN
     return "#version 450\n#define LOP_FLOAT_POSITIONS\n" + VS_MAIN
 
 
