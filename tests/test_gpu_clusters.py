@@ -497,6 +497,9 @@ def test_cli_verify_decoders_on_a_clustered_container(gl, clustered_lop, capsys)
         assert s["crack_free_vertices"] == 3 * n
         assert s["grid_mismatches"] == s["float_mismatches"] == s["level_mismatches"] == s["max_float_ulp"] == 0
         assert s["crack_free_mismatches"] == s["adapt_mismatches"] == 0
+        assert sorted(s["per_level"], key=int) == [str(b) for b in range(1, 25)]
+        for per in s["per_level"].values():  # every level decoded, and arrived at once per buffer by adaption
+            assert per == {"decoded_vertices": n, "decode_mismatches": 0, "adapt_checks": 2, "adapt_mismatches": 0}
     assert rep["clustered_cpu"] == {"decoded_vertices": 24 * n, "mismatches": 0}
     assert main(["verify", str(clustered_lop), "--decoders", "--levels", "3,9", "--languages", "glsl"]) == 0
     text = capsys.readouterr().out
@@ -504,18 +507,19 @@ def test_cli_verify_decoders_on_a_clustered_container(gl, clustered_lop, capsys)
 
 
 def _wrong_anchor_vertices(c, levels):
-    """Vertex decodes that go wrong at ``levels`` (summed over buffers) when bit 0 of every x anchor
-    with k_x >= 1 is flipped: those with b = max(m, B) >= k_x (below k_x the bit is shifted out)."""
+    """{level: vertex decodes that go wrong at it (summed over buffers)} when bit 0 of every x
+    anchor with k_x >= 1 is flipped: those with b = max(m, B) >= k_x (below k_x the bit is shifted
+    out)."""
     from lopcook.emit.reader import buffer_clusters
 
-    total = 0
+    total = dict.fromkeys(levels, 0)
     for part, p in enumerate(c.manifest["parts"]):
         for lod in range(len(p["lods"])):
             cl = buffer_clusters(c, part, lod)
             kx = cl.k[:, 0].astype(np.int64)
             for level in levels:
                 hit = (kx >= 1) & (np.maximum(cl.m, level) >= kx)
-                total += int(cl.count[hit].sum())
+                total[level] += int(cl.count[hit].sum())
     return total
 
 
@@ -540,7 +544,8 @@ def test_cli_verify_catches_a_corrupted_cluster_record(gl, clustered_lop, monkey
 
     monkeypatch.setattr(reader, "records", corrupted)
     levels = [1, 6, 12, 18, 24]
-    want = _wrong_anchor_vertices(read(str(clustered_lop)), levels)
+    by_level = _wrong_anchor_vertices(read(str(clustered_lop)), levels)
+    want = sum(by_level.values())
     assert want > 100
     assert main(["verify", str(clustered_lop), "--decoders", "--levels", "1,6,12,18,24", "--no-adapt",
                  "--json"]) == 1
@@ -548,6 +553,7 @@ def test_cli_verify_catches_a_corrupted_cluster_record(gl, clustered_lop, monkey
     assert rep["ok"] is False and rep["clustered_cpu"]["mismatches"] == 0
     for s in rep["languages"].values():
         assert s["grid_mismatches"] == want and s["float_mismatches"] == want and s["level_mismatches"] == 0
+        assert {int(b): v["decode_mismatches"] for b, v in s["per_level"].items()} == by_level
     e = rep["examples"][0]
     assert e["kind"] == "decode" and e["clustered"] is True and e["expected_grid"] != e["got_grid"]
 

@@ -243,7 +243,9 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     Returns a report dict (JSON-ready, sorted keys when dumped): ``ok``, per-language counts under
     ``languages`` (vertices decoded, grid / float / level mismatches, max float distance in ulp,
     adaption steps and mismatches, attribute records decoded and their normal / UV / colour
-    mismatches and max ulp; ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
+    mismatches and max ulp; ``clustered_decoded_vertices`` / ``clustered_adapt_steps``: those done by
+    the ``LOP_CLUSTERED`` shaders; ``per_level[str(B)]``: vertex decodes and decode mismatches (grid,
+    float or bits wrong) at level B, and adaption checks on arriving at B and their mismatches); ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
     context (``device``) and tool versions. Raises LopcookError when GL or the HLSL tools are missing
     or a level is not in the file.
     """
@@ -273,7 +275,9 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
                     "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
                     "normal_mismatches": 0, "uv_mismatches": 0, "color_mismatches": 0, "attribute_max_ulp": 0,
-                    "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0}
+                    "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0,
+                    "per_level": {str(v): {"decoded_vertices": 0, "decode_mismatches": 0, "adapt_checks": 0,
+                                           "adapt_mismatches": 0} for v in levels}}
              for lang in languages}
     examples: list[dict] = []
     buffers = list(_buffers(c))
@@ -313,6 +317,9 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                 s["grid_mismatches"] += int(bad_grid.sum())
                 s["float_mismatches"] += int(bad_float.sum())
                 s["level_mismatches"] += int(bad_level.sum())
+                per = s["per_level"][str(level)]
+                per["decoded_vertices"] += int(widths.size)
+                per["decode_mismatches"] += int((bad_grid | bad_float | bad_level).sum())
                 if widths.size:
                     s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
                 for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
@@ -554,8 +561,11 @@ def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples
                 words = buf.read_words()
                 same = (np.array_equal(words, ref.words) and np.array_equal(vid[: LEVELS + 1], ref.vertex_id)
                         and np.array_equal(bid[: LEVELS + 1], table_bit_id(ref.vertex_id, target)))
+                per = s["per_level"][str(target)]
+                per["adapt_checks"] += 1
                 if not same:
                     s["adapt_mismatches"] += 1
+                    per["adapt_mismatches"] += 1
                     if len(examples) < max_examples:
                         examples.append({"language": lang, "kind": "adapt", "part": part, "lod": lod,
                                          "level": target, "words_expected": int(ref.words.size),
@@ -617,8 +627,11 @@ def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, ma
                         and np.array_equal(vid[: LEVELS + 1], cl.vertex_id)
                         and np.array_equal(cid[: LEVELS + 1], cl.cluster_id)
                         and np.array_equal(bid[: LEVELS + 1], cluster_bit(cl, target)[cl.cluster_id]))
+                per = s["per_level"][str(target)]
+                per["adapt_checks"] += 1
                 if not same:
                     s["adapt_mismatches"] += 1
+                    per["adapt_mismatches"] += 1
                     if len(examples) < max_examples:
                         examples.append({"language": lang, "kind": "adapt", "clustered": True, "part": part,
                                          "lod": lod, "level": target, "words_expected": int(ref.words.size),
@@ -642,6 +655,10 @@ def format_report(report: dict) -> str:
                      f"max {s['max_float_ulp']} ulp) in {s['decode_seconds']:.2f} s; crack-free: "
                      f"{s['crack_free_vertices']:,} decodes, {s['crack_free_mismatches']} mismatches; adaption: {s['adapt_steps']} "
                      f"plane steps, {s['adapt_mismatches']} mismatches in {s['adapt_seconds']:.2f} s")
+        bad_levels = [f"{b}: {v['decode_mismatches']} decode, {v['adapt_mismatches']} adapt"
+                      for b, v in (s.get("per_level") or {}).items() if v["decode_mismatches"] or v["adapt_mismatches"]]
+        if bad_levels:
+            lines.append(f"  {lang} mismatches by level: " + "; ".join(bad_levels))
         attr_bad = s["normal_mismatches"] + s["uv_mismatches"] + s["color_mismatches"]
         lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
                      f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
