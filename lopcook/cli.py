@@ -97,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--clusters", default=None, metavar="N",
                    help="clustered position buffers of N vertices per cluster, N in [16, 1024]: per-cluster "
                         "anchors store the top bits a cluster's vertices share once (container version 3.0; "
-                        "docs/clusters.md) (default: unclustered)")
+                        f"docs/clusters.md); 0: unclustered (version 2.0) (default {D.emit.clusters})")
     add_analyse_options(p)
     add_attribute_options(p)
     add_viewing_options(p)
@@ -489,7 +489,8 @@ def settings_from_args(args):
 
 
 def _emit_settings(args):
-    """``--clusters N`` -> EmitSettings; not an integer in [16, 1024]: usage error (exit 2)."""
+    """``--clusters N`` -> EmitSettings (absent: the default, ``DEFAULT_CLUSTER_SIZE``; 0: unclustered);
+    not 0 or an integer in [16, 1024]: usage error (exit 2)."""
     from .settings import CLUSTER_SIZE_RANGE, EmitSettings
 
     text = getattr(args, "clusters", None)
@@ -500,9 +501,12 @@ def _emit_settings(args):
         n = int(str(text).strip())
     except ValueError:
         n = None
+    if n == 0:
+        return EmitSettings(clusters=None)
     if n is None or not lo <= n <= hi:
         raise LopcookError("usage", None, f"--clusters {text!r}: expected an integer number of vertices per "
-                           f"cluster in [{lo}, {hi}]", hint="e.g. --clusters 64, or leave it out for unclustered buffers")
+                           f"cluster in [{lo}, {hi}], or 0 for unclustered buffers",
+                           hint=f"e.g. --clusters {D.emit.clusters} (the default), or --clusters 0")
     return EmitSettings(clusters=n)
 
 

@@ -467,6 +467,9 @@ class AttributeSettings:
 
 
 CLUSTER_SIZE_RANGE = (16, 1024)
+#: vertices per cluster of the default cook (docs/clusters.md: the best N, or within 0.1 point of
+#: it, on every corpus asset and level measured)
+DEFAULT_CLUSTER_SIZE = 64
 
 
 @dataclass(frozen=True)
@@ -475,10 +478,11 @@ class EmitSettings:
 
     clusters : int in [16, 1024] or None  vertices per cluster of clustered position buffers
         (``lopcook.emit.clusters``: per-cluster anchors store the top bits a cluster's vertices
-        share once; docs/clusters.md); None (default): the unclustered binned layout.
+        share once; docs/clusters.md), default ``DEFAULT_CLUSTER_SIZE``; None: the unclustered
+        binned layout (``cook --clusters 0``).
     """
 
-    clusters: int | None = None
+    clusters: int | None = DEFAULT_CLUSTER_SIZE
 
     def __post_init__(self) -> None:
         lo, hi = CLUSTER_SIZE_RANGE
@@ -547,7 +551,8 @@ class Settings:
             attributes = AttributeSettings()
             if options.get("attributes") is not None:
                 attributes = AttributeSettings.from_record(options["attributes"])
-            emit = EmitSettings()
+            # no options.clusters: cooked unclustered (before clusters were the default, or --clusters 0)
+            emit = EmitSettings(clusters=None)
             if options.get("clusters") is not None:
                 emit = EmitSettings(clusters=options["clusters"])
             v = manifest["viewing"]

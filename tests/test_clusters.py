@@ -181,7 +181,7 @@ def cook(path, *flags, tmp_path, name="out.lop"):
 
 @pytest.mark.parametrize("fixture", ["two_plates.glb", "unit_sphere.glb", "seamed_cube.glb"])
 def test_cooked_clustered_decodes_like_unclustered(fixture, tmp_path):
-    plain = from_bytes((cook(FIXTURES / fixture, tmp_path=tmp_path, name="a.lop")).read_bytes())
+    plain = from_bytes((cook(FIXTURES / fixture, "--clusters", "0", tmp_path=tmp_path, name="a.lop")).read_bytes())
     clus = from_bytes((cook(FIXTURES / fixture, "--clusters", "16", tmp_path=tmp_path, name="b.lop")).read_bytes())
     data = (tmp_path / "b.lop").read_bytes()
     assert struct.unpack_from("<HH", data, 4) == (3, 0) and struct.unpack_from("<HH", (tmp_path / "a.lop").read_bytes(),
@@ -344,6 +344,30 @@ def test_corpus_asset_clustered_equals_unclustered_at_every_level(corpus, name):
             np.testing.assert_array_equal(pos[bins.inverse].view(np.uint32), pos0[ref.inverse].view(np.uint32))
 
 
+def test_default_cook_is_clustered_and_clusters_0_is_not(tmp_path):
+    """The default cook writes clusters of DEFAULTS.emit.clusters (64) vertices, version 3.0, and
+    records it; --clusters 0 writes the unclustered 2.0 file, which reads back as unclustered
+    settings; both decode to the same grid integers and float32 positions."""
+    from lopcook.settings import DEFAULTS, Settings
+
+    assert DEFAULTS.emit.clusters == 64
+    d = cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="d.lop")
+    u = cook(FIXTURES / "unit_sphere.glb", "--clusters", "0", tmp_path=tmp_path, name="u.lop")
+    assert struct.unpack_from("<HH", d.read_bytes(), 4) == (3, 0) and struct.unpack_from("<HH", u.read_bytes(), 4) == (2, 0)
+    cd, cu = from_bytes(d.read_bytes()), from_bytes(u.read_bytes())
+    assert cd.manifest["options"]["clusters"] == 64 and "clusters" not in cu.manifest["options"]
+    assert all(e["cluster_size"] == 64 for p in cd.manifest["parts"] for e in p["lods"])
+    assert not any("cluster_size" in e for p in cu.manifest["parts"] for e in p["lods"])
+    assert Settings.from_manifest(cd.manifest).emit.clusters == 64
+    assert Settings.from_manifest(cu.manifest).emit.clusters is None
+    for level in (1, 9, 24):
+        ga, wa, pa = decode_positions(cd, 0, 0, level)
+        gb, wb, pb = decode_positions(cu, 0, 0, level)
+        ka, kb = np.lexsort(np.c_[ga, wa].T), np.lexsort(np.c_[gb, wb].T)
+        np.testing.assert_array_equal(ga[ka], gb[kb])
+        np.testing.assert_array_equal(pa[ka].view(np.uint32), pb[kb].view(np.uint32))
+
+
 def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(tmp_path):
     from lopcook.emit.summary import describe_container
     from lopcook.report.html import _clusters_html
@@ -355,7 +379,7 @@ def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(
     assert "<h2>Clusters</h2>" in html and f"<td>{r12['cap_bytes']:,}</td>" in html
     assert f"<td>{r12['unclustered_cap_bytes']:,}</td>" in html
     assert " ".join(f"{k}:{v}" for k, v in enumerate(d["clusters"]["k_histogram"]) if v) in html
-    plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="p.lop").read_bytes())
+    plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--clusters", "0", tmp_path=tmp_path, name="p.lop").read_bytes())
     assert describe_container(plain)["clusters"] is None and _clusters_html({"clusters": None}) == []
 
 

@@ -464,13 +464,14 @@ def clustered_lop(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def plain_lop(tmp_path_factory):
-    """The same cook as ``clustered_lop`` without clusters."""
+    """The same cook as ``clustered_lop`` without clusters (``--clusters 0``)."""
     from conftest import FIXTURES
 
     from lopcook.cli import main
 
     out = tmp_path_factory.mktemp("plain") / "sphere.lop"
-    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--lods", "0.5", "-q"]) == 0
+    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--lods", "0.5", "--clusters", "0",
+                 "-q"]) == 0
     return out
 
 
