@@ -5,6 +5,7 @@ Not a test (pytest does not collect benchmarks/). Usage::
 
     .venv/bin/python benchmarks/bench_gpu_decode.py [SOURCE_OR_LOP] [--levels 6,8,10,12,16,24]
                                                     [--repeat 20] [--out bench-out/gpu_decode]
+                                                    [--clustered N] [--adapt-off]
 
 SOURCE_OR_LOP defaults to the corpus chess set (49 buffers, 774,281 vertices), cooked in-process.
 
@@ -14,6 +15,14 @@ same output as the passthrough). Passthrough: the same frame from standard float
 (a vec3 attribute copied to the output: the paper's "UC"). All buffers are resident; each frame
 is timed to ``ctx.finish()``; the best of ``--repeat`` frames is reported, after one warm-up.
 ratio = decode time / passthrough time (> 1: decoding is slower).
+
+Clustered (``--clustered N``, issue 16): every buffer is also re-ordered and cut into clusters of N
+vertices by the cluster layout's CPU reference (lopcook.emit.clusters once merged; until then the
+reference in tests/test_gpu_clusters.py), packed at each level and decoded by the ``LOP_CLUSTERED``
+vertex shader, frames of both layouts alternating (both see the same machine load);
+``{lang}_clustered_ratio`` = best clustered frame / best unclustered frame (the issue's target:
+<= 1.3), ``{lang}_clustered_ratio_median`` the median of the per-pair ratios, ``clustered_bytes`` = P + 16 B per cluster.
+``--adapt-off`` skips the adaption part.
 
 Adapt: on the largest buffer, and on a synthetic ``--synthetic`` N-vertex buffer (1,000,000 by default;
 minimum levels drawn from the container's histogram), each single-plane change B -> B + 1 (unpack, add the uploaded plane,
@@ -39,6 +48,8 @@ from lopcook.emit.bitplane import decode, reconstruct_float32  # noqa: E402
 from lopcook.emit.reader import gpu_buffer  # noqa: E402
 from lopcook.verify import gpu  # noqa: E402
 from lopcook.verify.decoders import plane_source  # noqa: E402
+
+LANGUAGES = list(gpu.LANGUAGES)  # --languages
 
 GLSL_MAIN = """
 out vec3 lop_out_position;
@@ -75,13 +86,43 @@ def container(path: str | None):
     return from_bytes(build(scene, analyse(scene)), path), path
 
 
-def decode_program(ctx, language: str):
+def decode_program(ctx, language: str, clustered: bool = False):
     if language == "glsl":
-        src = "#version 450\n#define LOP_NO_VIEW\n" + gpu.shader_source("decode_bitplanes.glsl") + GLSL_MAIN
+        src = ("#version 450\n#define LOP_NO_VIEW\n" + ("#define LOP_CLUSTERED\n" if clustered else "")
+               + gpu.shader_source("decode_bitplanes.glsl") + GLSL_MAIN)
     else:
         src = gpu.hlsl_to_glsl(gpu.shader_source("decode_bitplanes.hlsl") + HLSL_MAIN, "vert", "lop_bench_vs",
-                               defines=("LOP_NO_VIEW",), rename_outputs=("lop_out_position",))
+                               defines=("LOP_NO_VIEW",) + (("LOP_CLUSTERED",) if clustered else ()),
+                               rename_outputs=("lop_out_position",))
     return ctx.program(vertex_shader=src, varyings=("lop_out_position",))
+
+
+def cluster_reference():
+    """The cluster layout's CPU reference: lopcook.emit.clusters once merged, else the copy in
+    tests/test_gpu_clusters.py."""
+    try:
+        from lopcook.emit import clusters as ref  # noqa: F401
+    except ImportError:
+        sys.path.insert(0, str(REPO / "tests"))
+        import test_gpu_clusters as ref
+    return ref
+
+
+def clustered_buffers(c, buffers, size: int):
+    """Per buffer: (q in clustered order, Clusters) from the container's level-24 grid integers and
+    minimum levels (VertexId)."""
+    from lopcook.emit.bitplane import to_grid
+
+    ref = cluster_reference()
+    out = []
+    for i, k in buffers:
+        b = gpu_buffer(c, i, k, LEVELS)
+        q = to_grid(*decode(b.words, b.vertex_id, b.bit_id, LEVELS))
+        levels = np.repeat(np.arange(1, LEVELS + 1), np.diff(np.asarray(b.vertex_id, dtype=np.int64)))
+        bins = ref.cluster_order(q, levels)
+        qb = q[bins.order]
+        out.append((qb, ref.make_clusters(qb, bins.vertex_id, size)))
+    return ref, out
 
 
 def best_frame(ctx, draw, repeat: int) -> float:
@@ -96,7 +137,22 @@ def best_frame(ctx, draw, repeat: int) -> float:
     return best
 
 
-def bench_decode(c, levels, repeat: int) -> list[dict]:
+def interleaved(ctx, draw_a, draw_b, repeat: int) -> tuple[float, float, float]:
+    """Frames of ``draw_a`` and ``draw_b`` alternately (so both see the same machine load): best
+    time of each and the median of the per-pair ratios b / a."""
+    draw_a(), draw_b()
+    ctx.finish()
+    ta, tb = [], []
+    for _ in range(repeat):
+        for draw, times in ((draw_a, ta), (draw_b, tb)):
+            t0 = time.perf_counter()
+            draw()
+            ctx.finish()
+            times.append(time.perf_counter() - t0)
+    return min(ta), min(tb), float(np.median(np.asarray(tb) / np.asarray(ta)))
+
+
+def bench_decode(c, levels, repeat: int, clustered: int = 0) -> list[dict]:
     import moderngl
 
     ctx = gpu.context()
@@ -120,11 +176,17 @@ def bench_decode(c, levels, repeat: int) -> list[dict]:
     t_pass = best_frame(ctx, pass_frame, repeat)
     rows = []
     programs = {}
-    for lang in gpu.LANGUAGES:
+    for lang in LANGUAGES:
         if lang == "hlsl" and gpu.hlsl_tools_available() is not None:
             continue
         prog = decode_program(ctx, lang)
         programs[lang] = (prog, ctx.vertex_array(prog, []))
+    cprograms, cbufs = {}, None
+    if clustered:
+        ref, cbufs = clustered_buffers(c, buffers, clustered)
+        for lang in programs:
+            prog = decode_program(ctx, lang, clustered=True)
+            cprograms[lang] = (prog, ctx.vertex_array(prog, []))
     for level in levels:
         resident = []
         for i, k in buffers:
@@ -135,6 +197,21 @@ def bench_decode(c, levels, repeat: int) -> list[dict]:
         p_bytes = sum(r[3] for r in resident)
         row = {"level": level, "vertices": n_total, "packed_bytes": p_bytes, "float_bytes": 12 * n_total,
                "passthrough_s": t_pass}
+        cres = []
+        if clustered:
+            from lopcook.emit.bitplane import top_bits
+
+            for qb, cl in cbufs:
+                widths = np.maximum(np.repeat(np.arange(1, LEVELS + 1), np.diff(cl.vertex_id)), level)
+                cw = ref.pack_clustered(top_bits(qb, widths), cl, level)
+                rec = ref.records(cl, level)
+                cres.append((ctx.buffer(cw.astype("<u4").tobytes()), ctx.buffer(rec.astype("<u4").tobytes() or b"\0" * 16),
+                             ctx.buffer(gpu.cluster_decode_block(cl.vertex_id, cl.cluster_id, level, g["origin"], half,
+                                                                 cw.size, cl.size)),
+                             len(qb), ref.clustered_bytes(cl, level)))
+            row["cluster_size"] = clustered
+            row["clustered_bytes"] = sum(r[4] for r in cres)
+            row["clusters"] = sum(len(cl.count) for _, cl in cbufs)
         for lang, (prog, vao) in programs.items():
             def frame(vao=vao):
                 for words, ubo, n, _ in resident:
@@ -142,16 +219,38 @@ def bench_decode(c, levels, repeat: int) -> list[dict]:
                     ubo.bind_to_uniform_block(0)
                     vao.transform(out, mode=moderngl.POINTS, vertices=n)
 
-            t = best_frame(ctx, frame, repeat)
+            if clustered:
+                def cframe(vao=cprograms[lang][1]):
+                    for words, recs, ubo, n, _ in cres:
+                        words.bind_to_storage_buffer(0)
+                        recs.bind_to_storage_buffer(3)
+                        ubo.bind_to_uniform_block(0)
+                        vao.transform(out, mode=moderngl.POINTS, vertices=n)
+
+                t, tc, median = interleaved(ctx, frame, cframe, repeat)
+                row[f"{lang}_clustered_s"] = tc
+                row[f"{lang}_clustered_ratio"] = tc / t
+                row[f"{lang}_clustered_ratio_median"] = median
+            else:
+                t = best_frame(ctx, frame, repeat)
             row[f"{lang}_s"] = t
             row[f"{lang}_ratio"] = t / t_pass
             row[f"{lang}_mvertices_per_s"] = n_total / t / 1e6
         for words, ubo, _, _ in resident:
             words.release()
             ubo.release()
+        for r in cres:
+            for b in r[:3]:
+                b.release()
         rows.append(row)
         text = ", ".join(f"{lang} {row[f'{lang}_s'] * 1e3:.2f} ms ({row[f'{lang}_mvertices_per_s']:.1f} Mvert/s, "
                          f"ratio {row[f'{lang}_ratio']:.2f})" for lang in programs)
+        if clustered:
+            text += "; clustered N=%d (%d clusters, %.0f%% of float32 memory): " % (
+                clustered, row["clusters"], 100 * row["clustered_bytes"] / (12 * n_total)) + ", ".join(
+                f"{lang} {row[f'{lang}_clustered_s'] * 1e3:.2f} ms (x{row[f'{lang}_clustered_ratio']:.2f} of unclustered, "
+                f"median of pairs x{row[f'{lang}_clustered_ratio_median']:.2f})"
+                for lang in cprograms)
         print(f"decode B={level:2d}: {n_total:,} vertices, {p_bytes / (12 * n_total):.0%} of float32 memory: "
               f"passthrough {t_pass * 1e3:.2f} ms ({n_total / t_pass / 1e6:.1f} Mvert/s); {text}", flush=True)
     return rows
@@ -196,7 +295,7 @@ def bench_adapt(c, levels, repeat: int, synthetic_n: int) -> list[dict]:
     rows = []
     for name, vid, words_at, plane in cases:
         n = int(vid[LEVELS])
-        for lang in gpu.LANGUAGES:
+        for lang in LANGUAGES:
             if lang == "hlsl" and gpu.hlsl_tools_available() is not None:
                 continue
             ad = gpu.adapter(lang)
@@ -250,13 +349,21 @@ def main(argv=None) -> int:
     ap.add_argument("--synthetic", type=int, default=1_000_000, metavar="N",
                     help="also adapt a synthetic N-vertex buffer (0: skip)")
     ap.add_argument("--out", default=str(REPO / "bench-out" / "gpu_decode"))
+    ap.add_argument("--clustered", type=int, default=0, metavar="N",
+                    help="also decode every buffer in clusters of N vertices (issue 16 layout)")
+    ap.add_argument("--adapt-off", action="store_true", help="skip the adaption kernels")
+    ap.add_argument("--languages", default=",".join(gpu.LANGUAGES), help="glsl,hlsl (default both)")
     args = ap.parse_args(argv)
     levels = [int(v) for v in args.levels.split(",")]
+    LANGUAGES[:] = [v for v in args.languages.split(",") if v]
     c, path = container(args.source)
     info = gpu.context_info()
     print(f"{path}: {info['renderer']} ({info['version']})", flush=True)
     result = {"source": Path(path).name, "device": info, "repeat": args.repeat,
-              "decode": bench_decode(c, levels, args.repeat), "adapt": bench_adapt(c, levels, max(3, args.repeat // 4), args.synthetic)}
+              "decode": bench_decode(c, levels, args.repeat, args.clustered),
+              "adapt": [] if args.adapt_off else bench_adapt(c, levels, max(3, args.repeat // 4), args.synthetic)}
+    if args.clustered:
+        result["cluster_size"] = args.clustered
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = "".join(ch if ch.isalnum() else "_" for ch in info["renderer"].split("(")[0].strip().lower())

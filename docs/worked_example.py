@@ -4,7 +4,7 @@ Run from the repository root::
 
     .venv/bin/python docs/worked_example.py
 
-It cooks ``fixtures/two_plates.glb`` exactly as ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges``
+It cooks ``fixtures/two_plates.glb`` exactly as ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges --clusters 0``
 does (default options), then walks through the bytes with nothing but ``struct``, ``json``,
 ``zlib`` and plain integer arithmetic -- the way an engine's reader would -- and prints every
 number that docs/format.md ("Worked example") shows. Float32 arithmetic uses numpy float32
@@ -50,12 +50,13 @@ def out(key: str, value) -> None:
 
 
 def cook() -> bytes:
-    """The bytes ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges`` writes."""
+    """The bytes ``lopcook cook fixtures/two_plates.glb -o OUT.lop --no-edges --clusters 0`` writes
+    (the unclustered layout this example reads by hand)."""
     from lopcook.cli import main
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "two_plates.lop")
-        rc = main(["-q", "cook", str(FIXTURE), "-o", path, "--no-edges"])
+        rc = main(["-q", "cook", str(FIXTURE), "-o", path, "--no-edges", "--clusters", "0"])
         if rc != 0:
             raise SystemExit(f"lopcook cook failed with exit code {rc}")
         return Path(path).read_bytes()
@@ -128,7 +129,7 @@ def main() -> int:
     data = cook()
 
     # ---- header -----------------------------------------------------------------------------
-    out("file", "fixtures/two_plates.glb cooked with --no-edges (depth levels only)")
+    out("file", "fixtures/two_plates.glb cooked with --no-edges --clusters 0 (depth levels only, unclustered)")
     out("header.bytes[0:12]", data[0:12].hex(" "))
     out("header.bytes[12:32]", data[12:32].hex(" "))
     magic, major, minor, hsize, msize, mcrc, total = struct.unpack_from("<4sHHIIIQ", data, 0)

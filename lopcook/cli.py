@@ -98,6 +98,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="store each group of copies of one mesh once, on a grid of its own, with one transform "
                         "per placement; copies that share a vertex with another part stay on the scene grid "
                         "(docs/format.md, Placements)")
+    p.add_argument("--clusters", default=None, metavar="N",
+                   help="clustered position buffers of N vertices per cluster, N in [16, 1024]: per-cluster "
+                        "anchors store the top bits a cluster's vertices share once (container version 3.0; "
+                        f"docs/clusters.md); 0: unclustered (version 2.0) (default {D.emit.clusters})")
     add_analyse_options(p)
     add_attribute_options(p)
     add_viewing_options(p)
@@ -487,7 +491,29 @@ def settings_from_args(args):
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
                     tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune,
-                    attributes=_attribute_settings(args))
+                    attributes=_attribute_settings(args), emit=_emit_settings(args))
+
+
+def _emit_settings(args):
+    """``--clusters N`` -> EmitSettings (absent: the default, ``DEFAULT_CLUSTER_SIZE``; 0: unclustered);
+    not 0 or an integer in [16, 1024]: usage error (exit 2)."""
+    from .settings import CLUSTER_SIZE_RANGE, EmitSettings
+
+    text = getattr(args, "clusters", None)
+    if text is None:
+        return EmitSettings()
+    lo, hi = CLUSTER_SIZE_RANGE
+    try:
+        n = int(str(text).strip())
+    except ValueError:
+        n = None
+    if n == 0:
+        return EmitSettings(clusters=None)
+    if n is None or not lo <= n <= hi:
+        raise LopcookError("usage", None, f"--clusters {text!r}: expected an integer number of vertices per "
+                           f"cluster in [{lo}, {hi}], or 0 for unclustered buffers",
+                           hint=f"e.g. --clusters {D.emit.clusters} (the default), or --clusters 0")
+    return EmitSettings(clusters=n)
 
 
 def cmd_analyse(args) -> int:

@@ -1,7 +1,7 @@
 """Every knob lopcook has, with its unit, default and valid range: one frozen ``Settings``.
 
 ``Settings`` has one section per stage (``ingest``, ``simplify``, ``analyse``, ``viewing``,
-``render``, ``tune``, ``attributes``); ``DEFAULTS`` is the instance with every default, and the CLI formats its
+``render``, ``tune``, ``attributes``, ``emit``); ``DEFAULTS`` is the instance with every default, and the CLI formats its
 help texts from it. Choices are enums, never strings or tuples. ``Settings.to_manifest()`` gives
 the container's ``options`` and ``viewing`` records and ``Settings.from_manifest()`` reads them
 back (exactly: ``from_manifest(s.to_manifest()) == s`` for the recorded sections); a record that
@@ -22,7 +22,7 @@ from .viewing import Viewing
 
 __all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
            "LodSpec", "AttributeSettings", "NORMAL_BITS_RANGE", "UV_BITS_RANGE", "COLOR_BITS_RANGE", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
-           "TuneSettings", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
+           "TuneSettings", "EmitSettings", "CLUSTER_SIZE_RANGE", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
            "parse_lods"]
 
 
@@ -469,6 +469,31 @@ class AttributeSettings:
                    parts=tuple(tuple(p) for p in rec["parts"]))
 
 
+CLUSTER_SIZE_RANGE = (16, 1024)
+#: vertices per cluster of the default cook (docs/clusters.md: the best N, or within 0.1 point of
+#: it, on every corpus asset and level measured)
+DEFAULT_CLUSTER_SIZE = 64
+
+
+@dataclass(frozen=True)
+class EmitSettings:
+    """Options of the emit stage (how position buffers are laid out).
+
+    clusters : int in [16, 1024] or None  vertices per cluster of clustered position buffers
+        (``lopcook.emit.clusters``: per-cluster anchors store the top bits a cluster's vertices
+        share once; docs/clusters.md), default ``DEFAULT_CLUSTER_SIZE``; None: the unclustered
+        binned layout (``cook --clusters 0``).
+    """
+
+    clusters: int | None = DEFAULT_CLUSTER_SIZE
+
+    def __post_init__(self) -> None:
+        lo, hi = CLUSTER_SIZE_RANGE
+        c = self.clusters
+        if c is not None and (isinstance(c, bool) or not isinstance(c, int) or not lo <= c <= hi):
+            raise ValueError(f"clusters must be an integer in [{lo}, {hi}] vertices per cluster, got {c!r}")
+
+
 @dataclass(frozen=True)
 class Settings:
     """Every section of a cook, frozen. ``Settings()`` is ``DEFAULTS``."""
@@ -480,6 +505,7 @@ class Settings:
     render: RenderSettings = field(default_factory=RenderSettings)
     tune: TuneSettings = field(default_factory=TuneSettings)
     attributes: AttributeSettings = field(default_factory=AttributeSettings)
+    emit: EmitSettings = field(default_factory=EmitSettings)
 
     def with_(self, **sections) -> "Settings":
         """A copy with whole sections or fields of sections replaced: ``with_(analyse=...)`` or
@@ -505,6 +531,8 @@ class Settings:
             options["instances"] = True
         if not self.attributes.is_default:
             options["attributes"] = self.attributes.to_record()
+        if self.emit.clusters is not None:
+            options["clusters"] = int(self.emit.clusters)
         return {"options": options, "viewing": self.viewing.as_dict()}
 
     @classmethod
@@ -533,6 +561,10 @@ class Settings:
             attributes = AttributeSettings()
             if options.get("attributes") is not None:
                 attributes = AttributeSettings.from_record(options["attributes"])
+            # no options.clusters: cooked unclustered (before clusters were the default, or --clusters 0)
+            emit = EmitSettings(clusters=None)
+            if options.get("clusters") is not None:
+                emit = EmitSettings(clusters=options["clusters"])
             v = manifest["viewing"]
             viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
                               fov_y_deg=float(v["fov_y_deg"]),
@@ -543,7 +575,8 @@ class Settings:
                 f"missing {exc}" if isinstance(exc, KeyError) else str(exc))
             raise LopcookError("container", path, f"the recorded cook options do not parse ({what})",
                                hint="cook the source again with this lopcook version") from None
-        return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing, attributes=attributes)
+        return cls(ingest=ingest, simplify=simplify, analyse=analyse, viewing=viewing, attributes=attributes,
+                   emit=emit)
 
 
 DEFAULTS = Settings()

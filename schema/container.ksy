@@ -1,6 +1,6 @@
 meta:
   id: lopcook_lop
-  title: lopcook level-of-precision container (.lop), version 2.0
+  title: lopcook level-of-precision container (.lop), versions 2.0 and 3.0 (3.0 = clustered position buffers)
   application: lopcook (offline asset cooker, Meyer et al. 2011 adaptive level-of-precision)
   file-extension: lop
   license: MIT
@@ -65,16 +65,19 @@ seq:
       Order and names: for each part i (manifest order), for each LOD k:
       "part{i}/lod{k}/indices", then "part{i}/lod{k}/attributes" when the buffer has normals,
       UVs or colours; then, in containers cooked with --hierarchy,
-      "part{i}/lod0/hierarchy" for every part i (manifest parts[i].hierarchy.section); then
+      "part{i}/lod0/hierarchy" for every part i (manifest parts[i].hierarchy.section); then,
+      in version 3.0 files (clustered buffers), "positions/clusters"; then
       "positions/mandatory"; then
       "positions/plane02" .. "positions/planeNN" (two-digit plane number, NN =
       manifest.positions.max_level).
 
       Interpret a section with: indices_section, attributes_section (normals, UVs, colours
       of one buffer; attribute_record reads vertex j's), hierarchy_section (a part's vertex
-      hierarchy), mandatory_section (positions/mandatory),
+      hierarchy), cluster_section (positions/clusters), mandatory_section (positions/mandatory),
       refinement_plane (positions/planePP); a buffer's packed positions at a level are
-      described by packed_position_buffer. To cut the area into its sections, parse it as
+      described by packed_position_buffer, or clustered_position_buffer for a clustered
+      buffer (lod.cluster_size present), whose plane slices skip the components its
+      anchors imply (docs/format.md, "Clustered buffers"). To cut the area into its sections, parse it as
       section_list(lengths) with the lengths taken from the manifest.
 
 types:
@@ -90,19 +93,25 @@ types:
         doc: 'Offset 0, 4 bytes: the ASCII bytes "LOPC" (4c 4f 50 43).'
       - id: version_major
         type: u2
-        valid: 2
+        valid:
+          any-of: [2, 3]
         doc: |
-          Offset 4, uint16: format major version, 1 for this description. A reader refuses a
-          major version it does not know (an incompatible change of layout or meaning).
+          Offset 4, uint16: format major version: 2, or 3 when the file holds clustered
+          position buffers (manifest positions.clusters; cluster_section) or placement parts
+          (cook --instances, parts[].placement); a file with neither is written as 2.0. 3.x
+          means "may hold clusters and/or placements". A writer writes the oldest major that
+          reads the file correctly. A reader refuses a major version it does not know (an
+          incompatible change of layout or meaning): a 2.x reader must not read clustered
+          buffers, whose words and planes it would misread, nor placements, whose mesh-grid
+          positions it would not transform.
       - id: version_minor
         type: u2
         doc: |
           Offset 6, uint16: format minor version, 0 for this description. Minor versions only
-          add (new manifest properties, new optional sections); a 1.x reader reads any 1.y
-          file, ignoring what it does not know. Minor 1: the manifest has placement parts
-          (cook --instances, parts[].placement and parts[].grid): a placement's LOD entries
-          name another part's buffers, which are stored once in the sections and planes; a
-          reader without placements refuses such a file (its mandatory-word check fails).
+          add (new manifest properties, new optional sections); an N.x reader reads any N.y
+          file, ignoring what it does not know. 2.1 was written by an earlier lopcook for
+          placement parts without clusters (a placement's LOD entries name another part's
+          buffers, stored once); lopcook still reads it, and now writes such files as 3.0.
       - id: len_header
         type: u4
         valid: 32
@@ -413,6 +422,11 @@ types:
 
       Merging plane p into a buffer at level p-1 (top bits v, p-1 bits per component for
       j < VertexId[p-1]): v = (v << 1) | bit. The result is the buffer at level p.
+
+      A clustered buffer's slice (version 3.0) holds, for every cluster with m_c < p in order,
+      for every vertex, only the components with k_t < p (the others take bit
+      (a_t >> (k_t - p)) & 1 from the anchor); its length is lod.cluster_plane_bits[p-2]
+      bits, and start_t sums the earlier buffers' slice lengths.
     meta:
       bit-endian: le
     seq:
@@ -589,3 +603,181 @@ types:
           | ((ofs_bit & 31) + width > 32 ? word_hi << (32 - (ofs_bit & 31)) : 0))
           & ((1 << width) - 1)
         doc: The field's value, 0 .. 2^width - 1.
+
+  cluster_section:
+    doc: |
+      Section "positions/clusters" (version 3.0 only, files with clustered buffers; it comes
+      right before positions/mandatory): uint32 little-endian words, 3 per cluster of every
+      clustered buffer in manifest order. Manifest lod.cluster_words = [offset, count] locates
+      a buffer's headers in words (count = 3 * clusters, clusters = sum over bins k of
+      ceil(|bin k| / N), N = lod.cluster_size). docs/format.md, "Clustered buffers".
+    seq:
+      - id: headers
+        type: cluster_header
+        repeat: eos
+        doc: The clusters of all clustered buffers; buffer t's are headers[offset_t / 3 ..].
+
+  cluster_header:
+    doc: |
+      Words 0-2 of a cluster record: per component t (x, y, z) the anchor a_t (the top k_t
+      bits every vertex of the cluster shares, a_t < 2^k_t) in bits 0..23 and k_t (0..24) in
+      bits 24..28. On the GPU a fourth word follows, ClusterBit[c] at the current level
+      (computed by the reader, not stored).
+    seq:
+      - id: word_x
+        type: u4
+        doc: a_x | k_x << 24.
+      - id: word_y
+        type: u4
+        doc: a_y | k_y << 24.
+      - id: word_z
+        type: u4
+        doc: a_z | k_z << 24.
+    instances:
+      k_x:
+        value: word_x >> 24
+        doc: Common-prefix bits of x, 0..24.
+      k_y:
+        value: word_y >> 24
+        doc: Common-prefix bits of y, 0..24.
+      k_z:
+        value: word_z >> 24
+        doc: Common-prefix bits of z, 0..24.
+      a_x:
+        value: word_x & 0xffffff
+        doc: Anchor of x (its top k_x bits).
+      a_y:
+        value: word_y & 0xffffff
+        doc: Anchor of y.
+      a_z:
+        value: word_z & 0xffffff
+        doc: Anchor of z.
+
+  clustered_position_buffer:
+    doc: |
+      A clustered buffer P at per-buffer level B (version 3.0, manifest lod.cluster_size = N):
+      what positions/mandatory holds for B = 1 and what a renderer keeps in GPU memory.
+      Vertices are in cluster order (minimum level, then Morton code of the top 21 bits of
+      x, y, z, then source index); bin k is cut into clusters of N (the last may be shorter).
+      ClusterId[k] = clusters in bins <= k. Vertex j of bin k: cluster
+      c = ClusterId[k-1] + (j - VertexId[k-1]) / N, local index l = (j - VertexId[k-1]) % N.
+      b = max(k, B); stored widths w_t = max(0, b - k_t); stride s_c = w_x + w_y + w_z;
+      ClusterBit[c] = sum over c' < c of count_c' * s_c'; vertex j's x field at
+      o = ClusterBit[c] + l * s_c, y at o + w_x, z at o + w_x + w_y, each LSB first (a 0-bit
+      field reads 0). Top b bits: a_t >> (k_t - b) if b <= k_t, else
+      (a_t << (b - k_t)) | field_t: exactly q_t >> (24 - b), as in packed_position_buffer.
+      P has max(1, ceil(ClusterBit[n_c] / 32)) words (lod.cluster_p_words[B-1]).
+    params:
+      - id: level
+        type: u1
+        doc: Per-buffer level B, 1..24.
+      - id: vertex_id
+        type: u4[]
+        doc: manifest lod.vertex_id (25 entries).
+      - id: cluster_size
+        type: u2
+        doc: manifest lod.cluster_size, N in 16..1024.
+      - id: cluster_id
+        type: u4[]
+        doc: ClusterId (25 entries), computed by the reader from vertex_id and N.
+      - id: cluster_bit
+        type: u8[]
+        doc: ClusterBit at level B (one entry per cluster), computed by the reader from the headers.
+      - id: headers
+        type: u4[]
+        doc: The buffer's cluster header words (3 per cluster) from positions/clusters.
+    seq:
+      - id: words
+        type: u4
+        repeat: eos
+        doc: The uint32 words of the clustered P.
+    instances:
+      vertices:
+        pos: 0
+        type: clustered_vertex(_index)
+        repeat: expr
+        repeat-expr: vertex_id[24]
+        doc: Vertex j = vertices[j].
+
+  clustered_vertex:
+    doc: Vertex j of a clustered_position_buffer (random access through ClusterId, then one division).
+    params:
+      - id: j
+        type: u4
+        doc: Vertex index in cluster order.
+    instances:
+      bin:
+        value: >-
+          1 + (j >= _parent.vertex_id[1] ? 1 : 0) + (j >= _parent.vertex_id[2] ? 1 : 0)
+          + (j >= _parent.vertex_id[3] ? 1 : 0) + (j >= _parent.vertex_id[4] ? 1 : 0)
+          + (j >= _parent.vertex_id[5] ? 1 : 0) + (j >= _parent.vertex_id[6] ? 1 : 0)
+          + (j >= _parent.vertex_id[7] ? 1 : 0) + (j >= _parent.vertex_id[8] ? 1 : 0)
+          + (j >= _parent.vertex_id[9] ? 1 : 0) + (j >= _parent.vertex_id[10] ? 1 : 0)
+          + (j >= _parent.vertex_id[11] ? 1 : 0) + (j >= _parent.vertex_id[12] ? 1 : 0)
+          + (j >= _parent.vertex_id[13] ? 1 : 0) + (j >= _parent.vertex_id[14] ? 1 : 0)
+          + (j >= _parent.vertex_id[15] ? 1 : 0) + (j >= _parent.vertex_id[16] ? 1 : 0)
+          + (j >= _parent.vertex_id[17] ? 1 : 0) + (j >= _parent.vertex_id[18] ? 1 : 0)
+          + (j >= _parent.vertex_id[19] ? 1 : 0) + (j >= _parent.vertex_id[20] ? 1 : 0)
+          + (j >= _parent.vertex_id[21] ? 1 : 0) + (j >= _parent.vertex_id[22] ? 1 : 0)
+          + (j >= _parent.vertex_id[23] ? 1 : 0)
+        doc: Bin k of vertex j (as in packed_vertex).
+      cluster:
+        value: _parent.cluster_id[bin - 1] + (j - _parent.vertex_id[bin - 1]) / _parent.cluster_size
+        doc: c, the vertex's cluster.
+      local:
+        value: (j - _parent.vertex_id[bin - 1]) % _parent.cluster_size
+        doc: l, its index inside the cluster.
+      bits:
+        value: 'bin > _parent.level ? bin : _parent.level'
+        doc: b = max(bin, B).
+      k_x:
+        value: _parent.headers[3 * cluster] >> 24
+        doc: k_x of the cluster.
+      k_y:
+        value: _parent.headers[3 * cluster + 1] >> 24
+        doc: k_y of the cluster.
+      k_z:
+        value: _parent.headers[3 * cluster + 2] >> 24
+        doc: k_z of the cluster.
+      w_x:
+        value: 'bits > k_x ? bits - k_x : 0'
+        doc: Stored bits of x.
+      w_y:
+        value: 'bits > k_y ? bits - k_y : 0'
+        doc: Stored bits of y.
+      w_z:
+        value: 'bits > k_z ? bits - k_z : 0'
+        doc: Stored bits of z.
+      ofs_bit:
+        value: _parent.cluster_bit[cluster] + local * (w_x + w_y + w_z)
+        doc: o, bit offset of the vertex's x field.
+      field_x:
+        pos: 0
+        type: bit_field(ofs_bit, w_x)
+        if: w_x > 0
+        doc: The stored low w_x bits of x.
+      field_y:
+        pos: 0
+        type: bit_field(ofs_bit + w_x, w_y)
+        if: w_y > 0
+        doc: The stored low w_y bits of y.
+      field_z:
+        pos: 0
+        type: bit_field(ofs_bit + w_x + w_y, w_z)
+        if: w_z > 0
+        doc: The stored low w_z bits of z.
+      x:
+        value: >-
+          bits <= k_x ? (_parent.headers[3 * cluster] & 0xffffff) >> (k_x - bits)
+          : ((_parent.headers[3 * cluster] & 0xffffff) << w_x) | field_x.value
+        doc: Top b bits of the x grid integer.
+      y:
+        value: >-
+          bits <= k_y ? (_parent.headers[3 * cluster + 1] & 0xffffff) >> (k_y - bits)
+          : ((_parent.headers[3 * cluster + 1] & 0xffffff) << w_y) | field_y.value
+        doc: Top b bits of the y grid integer.
+      z:
+        value: >-
+          bits <= k_z ? (_parent.headers[3 * cluster + 2] & 0xffffff) >> (k_z - bits)
+          : ((_parent.headers[3 * cluster + 2] & 0xffffff) << w_z) | field_z.value
+        doc: Top b bits of the z grid integer.

@@ -24,6 +24,15 @@
 //                                               z, w: unused (0)
 //           (entry k of an array is lop_x[k >> 2][k & 3]: 16-byte std140 / cbuffer array stride
 //           without wasting 12 bytes per entry; the same bytes fill the HLSL cbuffer)
+//   With #define LOP_CLUSTERED (clustered buffers, issue 16; layout in docs/format.md):
+//   UBO   LopDecode grows to 416 bytes: lop_bit_id is unused (may be zero), lop_params.z is the
+//           cluster size N (16..1024), and
+//           offset 288  uvec4 lop_cluster_id[8] ClusterId[0..24] (clusters in bins <= k);
+//                                               entries 25..31 = 0xFFFFFFFF
+//   SSBO  binding LOP_CLUSTERS_BINDING (3)  LopClusters { uvec4 lop_clusters[]; }  4 words per
+//         cluster c: word t (x, y, z) = anchor a_t | (k_t << 24) (k_t = shared prefix bits,
+//         a_t = their value), word 3 = ClusterBit[c] at level B (bit offset of the cluster in P)
+//         (or #define LOP_CLUSTER(c) yourself, returning those 4 words as a uvec4)
 //   UBO   binding LOP_VIEW_UBO_BINDING (1), std140, 272 bytes, only for lop_vertex_level (per frame):
 //           offset   0  vec4  lop_camera          xyz: camera position, metres, grid space
 //           offset  16  vec4  lop_level_dist[8]   [b]: distance (metres) from which level b is
@@ -54,15 +63,33 @@ layout(std430, binding = LOP_POSITIONS_BINDING) readonly buffer LopPositions {
 #define LOP_WORD(i) lop_words[(i)]
 #endif
 
+#ifdef LOP_CLUSTERED
+#ifndef LOP_CLUSTERS_BINDING
+#define LOP_CLUSTERS_BINDING 3
+#endif
+#ifndef LOP_CLUSTER
+layout(std430, binding = LOP_CLUSTERS_BINDING) readonly buffer LopClusters {
+    uvec4 lop_clusters[];  // 4 uint32 words per cluster (std430: 16-byte stride, no padding)
+};
+#define LOP_CLUSTER(c) lop_clusters[(c)]
+#endif
+#endif
+
 layout(std140, binding = LOP_DECODE_UBO_BINDING) uniform LopDecode {
     uvec4 lop_vertex_id[8];
     uvec4 lop_bit_id[8];
     vec4 lop_origin_half;
     uvec4 lop_params;
+#ifdef LOP_CLUSTERED
+    uvec4 lop_cluster_id[8];
+#endif
 };
 
 #define LOP_VERTEX_ID(i) lop_vertex_id[(i) >> 2u][(i) & 3u]
 #define LOP_BIT_ID(i) lop_bit_id[(i) >> 2u][(i) & 3u]
+#ifdef LOP_CLUSTERED
+#define LOP_CLUSTER_ID(i) lop_cluster_id[(i) >> 2u][(i) & 3u]
+#endif
 
 // Largest i in [0, 24] with VertexId[i] <= j, i.e. vertex j lies in bin k = i + 1 (j < VertexId[24]).
 // Branch-free: five steps of a binary search over the 32-entry padded table (entries 25..31 are
@@ -90,6 +117,66 @@ uint lop_read_field(uint o, uint b)
     return (lo | hi) & ((1u << b) - 1u);
 }
 
+#ifdef LOP_CLUSTERED
+// r / n for 0 <= r < 2^26 and 16 <= n <= 1024 without an integer division (which llvmpipe, for
+// one, runs lane by lane): a float32 estimate, within 1.5 of r / n (float(r) is off by at most 2,
+// 1 / n and the product by a few units in the last place of 2^-23 relative), then two corrections
+// each way make it exact. Any rounding or fusing of the float operations stays within that bound.
+uint lop_div(uint r, uint n)
+{
+    uint q = uint(float(r) * (1.0 / float(n)));
+    q -= (q * n > r) ? 1u : 0u;
+    q -= (q * n > r) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    return q;
+}
+
+// The three fields of widths w.x, w.y, w.z (each 0..24 bits; 0 reads 0) that follow each other from
+// bit offset o of P, least significant bit first: four word reads (each clamped to the last word of
+// P; clamped words only feed bits past the end of P, which no field uses) give three 32-bit windows
+// of the bits from o on, a = bits [o, o + 32), [o + 32, o + 64), [o + 64, o + 96); x is a.x, y
+// starts at w.x, z at t = w.x + w.y (< 48: in a.x / a.y or a.y / a.z). x << 1u << (31u - s) is
+// x << (32 - s), 0 when s == 0.
+uvec3 lop_read_fields(uint o, uvec3 w)
+{
+    uint n = lop_params.y - 1u;
+    uint i = o >> 5u;
+    uint s = o & 31u;
+    uvec4 x = uvec4(LOP_WORD(min(i, n)), LOP_WORD(min(i + 1u, n)), LOP_WORD(min(i + 2u, n)), LOP_WORD(min(i + 3u, n)));
+    uvec3 a = (x.xyz >> s) | ((x.yzw << 1u) << (31u - s));
+    uint t = w.x + w.y;
+    uint lo = (t < 32u) ? a.x : a.y;
+    uint hi = (t < 32u) ? a.y : a.z;
+    uint u = t & 31u;
+    uvec3 f = uvec3(a.x, (a.x >> w.x) | ((a.y << 1u) << (31u - w.x)), (lo >> u) | ((hi << 1u) << (31u - u)));
+    return f & ((uvec3(1u, 1u, 1u) << w) - 1u);
+}
+
+// Vertex j (clustered order, 0 <= j < VertexId[24]) of bin k = i + 1: top bits v (b bits per
+// component) and the width b = max(bin level, B), as the global grid's decode at b bits. With
+// r = j - VertexId[k-1], the vertex lies in cluster c = ClusterId[k-1] + r / N at local index
+// l = r % N (lop_div: N in [16, 1024]). Component t keeps k_t bits of the anchor and stores
+// w_t = b - min(k_t, b) bits at ClusterBit[c] + l (w_x + w_y + w_z) (x, then y, then z):
+// v_t = (a_t >> (k_t - min(k_t, b))) << w_t | field_t, the fields read together by lop_read_fields.
+void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
+{
+    uint i = lop_bin_start(j);
+    bin_level = i + 1u;
+    b = max(bin_level, lop_params.x);
+    uint r = j - LOP_VERTEX_ID(i);
+    uint d = lop_div(r, lop_params.z);
+    uint c = LOP_CLUSTER_ID(i) + d;
+    uint l = r - d * lop_params.z;
+    uvec4 rec = LOP_CLUSTER(c);
+    uvec3 k = rec.xyz >> 24u;
+    uvec3 a = rec.xyz & 0xFFFFFFu;
+    uvec3 kb = min(k, b);
+    uvec3 w = b - kb;
+    uint o = rec.w + l * (w.x + w.y + w.z);
+    v = ((a >> (k - kb)) << w) | lop_read_fields(o, w);
+}
+#else
 // Vertex j (binned order, 0 <= j < VertexId[24]): top bits v (b bits per component) and the width
 // b = max(bin level, B). The paper's formula: 3 b (j - VertexId[k-1]) + BitId[k-1].
 void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
@@ -100,6 +187,7 @@ void lop_decode_bits(uint j, out uvec3 v, out uint b, out uint bin_level)
     uint o = 3u * b * (j - LOP_VERTEX_ID(i)) + LOP_BIT_ID(i);
     v = uvec3(lop_read_field(o, b), lop_read_field(o + b, b), lop_read_field(o + 2u * b, b));
 }
+#endif
 
 // 24-bit grid integers with the dropped bits zero (v << (24 - b)).
 uvec3 lop_to_grid(uvec3 v, uint b)

@@ -23,6 +23,12 @@
 //           offset 128  uint4  lop_bit_id[8]     BitId[0..24] at level B (bit offsets, uint32)
 //           offset 256  float4 lop_origin_half   xyz: float32(grid origin), w: float32(extent / 2^25)
 //           offset 272  uint4  lop_params        x: per-buffer level B (1..24), y: words in P (>= 1)
+//   With #define LOP_CLUSTERED (clustered buffers, issue 16; layout in docs/format.md):
+//   cbuffer LopDecode grows to 416 bytes: lop_bit_id unused (may be zero), lop_params.z = cluster
+//           size N (16..1024), offset 288 uint4 lop_cluster_id[8] ClusterId[0..24] (25..31 = 0xFFFFFFFF)
+//   ByteAddressBuffer lop_clusters : register(LOP_CLUSTERS_REGISTER = t3)   4 uint32 per cluster:
+//         a_t | (k_t << 24) for t = x, y, z, then ClusterBit[c] at level B (or #define
+//         LOP_CLUSTER(c) yourself, returning them as a uint4)
 //   cbuffer LopView : register(LOP_VIEW_REGISTER = b1), 272 bytes, only for lop_vertex_level:
 //           offset   0  float4 lop_camera          xyz: camera position, metres, grid space
 //           offset  16  float4 lop_level_dist[8]   [b]: distance from which level b is enough
@@ -49,16 +55,32 @@ ByteAddressBuffer lop_words : register(LOP_POSITIONS_REGISTER);
 #define LOP_WORD(i) lop_words.Load((i) << 2)
 #endif
 
+#ifdef LOP_CLUSTERED
+#ifndef LOP_CLUSTERS_REGISTER
+#define LOP_CLUSTERS_REGISTER t3
+#endif
+#ifndef LOP_CLUSTER
+ByteAddressBuffer lop_clusters : register(LOP_CLUSTERS_REGISTER);
+#define LOP_CLUSTER(c) lop_clusters.Load4((c) << 4)
+#endif
+#endif
+
 cbuffer LopDecode : register(LOP_DECODE_REGISTER)
 {
     uint4 lop_vertex_id[8];
     uint4 lop_bit_id[8];
     float4 lop_origin_half;
     uint4 lop_params;
+#ifdef LOP_CLUSTERED
+    uint4 lop_cluster_id[8];
+#endif
 };
 
 #define LOP_VERTEX_ID(i) lop_vertex_id[(i) >> 2u][(i) & 3u]
 #define LOP_BIT_ID(i) lop_bit_id[(i) >> 2u][(i) & 3u]
+#ifdef LOP_CLUSTERED
+#define LOP_CLUSTER_ID(i) lop_cluster_id[(i) >> 2u][(i) & 3u]
+#endif
 
 // Largest i in [0, 24] with VertexId[i] <= j, i.e. vertex j lies in bin k = i + 1 (j < VertexId[24]).
 // Branch-free: five steps of a binary search over the 32-entry padded table.
@@ -84,6 +106,61 @@ uint lop_read_field(uint o, uint b)
     return (lo | hi) & ((1u << b) - 1u);
 }
 
+#ifdef LOP_CLUSTERED
+// r / n for 0 <= r < 2^26 and 16 <= n <= 1024 without an integer division: a float32 estimate
+// within 1.5 of r / n, then two corrections each way (see the GLSL file).
+uint lop_div(uint r, uint n)
+{
+    uint q = uint(float(r) * (1.0f / float(n)));
+    q -= (q * n > r) ? 1u : 0u;
+    q -= (q * n > r) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    q += (r - q * n >= n) ? 1u : 0u;
+    return q;
+}
+
+// The three fields of widths w.x, w.y, w.z (each 0..24 bits; 0 reads 0) that follow each other from
+// bit offset o of P, least significant bit first: four word reads (each clamped to the last word of
+// P; clamped words only feed bits past the end of P, which no field uses) give three 32-bit windows
+// of the bits from o on, a = bits [o, o + 32), [o + 32, o + 64), [o + 64, o + 96); x is a.x, y
+// starts at w.x, z at t = w.x + w.y (< 48: in a.x / a.y or a.y / a.z). x << 1u << (31u - s) is
+// x << (32 - s), 0 when s == 0.
+uint3 lop_read_fields(uint o, uint3 w)
+{
+    uint n = lop_params.y - 1u;
+    uint i = o >> 5u;
+    uint s = o & 31u;
+    uint4 x = uint4(LOP_WORD(min(i, n)), LOP_WORD(min(i + 1u, n)), LOP_WORD(min(i + 2u, n)), LOP_WORD(min(i + 3u, n)));
+    uint3 a = (x.xyz >> s) | ((x.yzw << 1u) << (31u - s));
+    uint t = w.x + w.y;
+    uint lo = (t < 32u) ? a.x : a.y;
+    uint hi = (t < 32u) ? a.y : a.z;
+    uint u = t & 31u;
+    uint3 f = uint3(a.x, (a.x >> w.x) | ((a.y << 1u) << (31u - w.x)), (lo >> u) | ((hi << 1u) << (31u - u)));
+    return f & ((uint3(1u, 1u, 1u) << w) - 1u);
+}
+
+// Vertex j (clustered order) of bin k = i + 1: cluster c = ClusterId[k-1] + r / N, local index
+// l = r % N (r = j - VertexId[k-1]; lop_div); component t: anchor bits and w_t = b - min(k_t, b) stored bits
+// at ClusterBit[c] + l (w_x + w_y + w_z), read together by lop_read_fields (see the GLSL file).
+void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
+{
+    uint i = lop_bin_start(j);
+    bin_level = i + 1u;
+    b = max(bin_level, lop_params.x);
+    uint r = j - LOP_VERTEX_ID(i);
+    uint d = lop_div(r, lop_params.z);
+    uint c = LOP_CLUSTER_ID(i) + d;
+    uint l = r - d * lop_params.z;
+    uint4 rec = LOP_CLUSTER(c);
+    uint3 k = rec.xyz >> 24u;
+    uint3 a = rec.xyz & 0xFFFFFFu;
+    uint3 kb = min(k, b);
+    uint3 w = b - kb;
+    uint o = rec.w + l * (w.x + w.y + w.z);
+    v = ((a >> (k - kb)) << w) | lop_read_fields(o, w);
+}
+#else
 // Vertex j (binned order): top bits v (b bits per component), width b = max(bin level, B).
 void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
 {
@@ -93,6 +170,7 @@ void lop_decode_bits(uint j, out uint3 v, out uint b, out uint bin_level)
     uint o = 3u * b * (j - LOP_VERTEX_ID(i)) + LOP_BIT_ID(i);
     v = uint3(lop_read_field(o, b), lop_read_field(o + b, b), lop_read_field(o + 2u * b, b));
 }
+#endif
 
 // 24-bit grid integers with the dropped bits zero (v << (24 - b)).
 uint3 lop_to_grid(uint3 v, uint b)

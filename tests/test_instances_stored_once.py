@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from lopcook.emit.container import VERSION, from_bytes, to_bytes
+from lopcook.emit.container import CLUSTERED_VERSION, VERSION, from_bytes, to_bytes
 from lopcook.emit.placement import float32_slack, level_shift, local_level, resident_level, to_world
 from lopcook.emit.reader import decode_positions, lod_attributes, owner, part_grid
 from lopcook.errors import LopcookError
@@ -111,8 +111,8 @@ def test_copies_are_grouped_and_the_touching_copy_is_not(cooked):
         s = pl["level_shift"]
         assert 2.0 ** s >= sig * e_m / e_w * (1 - 1e-9) and 2.0 ** (s - 1) < sig * e_m / e_w
     assert placed["scaled"]["level_shift"] == placed["rep"]["level_shift"] + 1
-    head = inst.container.data[:8]
-    assert int.from_bytes(head[6:8], "little") == 1 and int.from_bytes(head[4:6], "little") == VERSION[0]
+    head = inst.container.data[:8]  # placements: version 3.0, whether or not a buffer is clustered
+    assert (int.from_bytes(head[4:6], "little"), int.from_bytes(head[6:8], "little")) == CLUSTERED_VERSION
 
 
 def _reference_world(c, i: int, level: int) -> np.ndarray:

@@ -14,6 +14,7 @@ from lopcook import pipeline
 from lopcook.analyse import analyse
 from lopcook.emit import build
 from lopcook.emit.binning import make_bins
+from lopcook.emit.clusters import cluster_order
 from lopcook.emit.container import from_bytes
 from lopcook.emit.reader import decode_positions
 from lopcook.errors import LopcookError
@@ -69,14 +70,16 @@ def _errors(schema_validator, manifest) -> list[str]:
 def test_without_lods_bytes_equal_build(name):
     scene = load(FIXTURES / name)
     data, info = cook_bytes(scene, Viewing())
-    assert data == build(scene, analyse(scene, DEFAULT_ANALYSE), options=pipeline.DEFAULTS.to_manifest()["options"])
+    assert data == build(scene, analyse(scene, DEFAULT_ANALYSE), options=pipeline.DEFAULTS.to_manifest()["options"],
+                         cluster_size=pipeline.DEFAULTS.emit.clusters)
     assert info.bytes_saved == 0 and info.max_level == 24
     assert "savings" not in from_bytes(data).manifest
 
 
 def test_without_lods_bytes_equal_build_bunny(bunny):
     data, _ = cook_bytes(bunny, Viewing())
-    assert data == build(bunny, analyse(bunny), options=pipeline.DEFAULTS.to_manifest()["options"])
+    assert data == build(bunny, analyse(bunny), options=pipeline.DEFAULTS.to_manifest()["options"],
+                         cluster_size=pipeline.DEFAULTS.emit.clusters)
 
 
 def test_bunny_lods_structure(bunny_lods, validator):
@@ -95,12 +98,20 @@ def test_bunny_lods_structure(bunny_lods, validator):
     assert _errors(validator, c.manifest) == []
 
 
+def stored_order(c, part, lod, quantized, min_level):
+    """``Bins`` of buffer (part, lod) in the container's vertex order: the cluster order (minimum
+    level, Morton code) for a clustered buffer (the default cook), the binned order otherwise."""
+    if "cluster_size" in c.manifest["parts"][part]["lods"][lod]:
+        return cluster_order(np.asarray(quantized), np.asarray(min_level, dtype=np.int64))
+    return make_bins(np.asarray(min_level, dtype=np.int64))
+
+
 def test_every_lod_decodes_to_its_quantized_positions(bunny_lods):
     _, info, c = bunny_lods
     for i, bufs in enumerate(info.buffers):
         assert len(bufs) == len(c.manifest["parts"][i]["lods"])
         for k, buf in enumerate(bufs):
-            bins = make_bins(np.asarray(buf.min_level, dtype=np.int64))
+            bins = stored_order(c, i, k, buf.quantized, buf.min_level)
             q, widths, _ = decode_positions(c, i, k, 24)
             np.testing.assert_array_equal(q, np.asarray(buf.quantized)[bins.order])
             _, w1, _ = decode_positions(c, i, k, 1)
@@ -168,7 +179,7 @@ def test_nearest_on_a_small_scene(validator):
     assert c.manifest["stats"]["vertices_clamped_to_max_level"] == 0
     an = analyse(scene)
     for i, pa in enumerate(an.parts):
-        bins = make_bins(pa.min_level)
+        bins = stored_order(c, i, 0, pa.quantized, pa.min_level)
         q, widths, _ = decode_positions(c, i, 0, info.max_level)
         np.testing.assert_array_equal(widths, np.maximum(bins.levels, info.max_level))
         s = (24 - widths)[:, None].astype(np.uint32)

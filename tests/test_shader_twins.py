@@ -124,3 +124,13 @@ def test_command_line_exit_codes(copy):
     assert r.returncode == 1 and "changed without its twin" in r.stdout
     r = run("--update")
     assert r.returncode == 2 and r.stderr.startswith("lopcook: error:") and "Traceback" not in r.stderr
+
+
+def test_alternative_definitions_are_all_compared(copy):
+    """A function defined twice (under #ifdef LOP_CLUSTERED / #else) keys its second definition
+    name#2, so a one-sided change to either alternative is caught."""
+    assert list(T.functions("uint f() { return 1u; }\n#ifdef X\nuint f() { return 2u; }\n#endif\n")) == ["f", "f#2"]
+    g = T.functions((SHADERS / "decode_bitplanes.glsl").read_text())
+    assert {"lop_decode_bits", "lop_decode_bits#2", "lop_div", "lop_read_fields"} <= set(g)
+    _edit(copy / "decode_bitplanes.hlsl", "uint l = r - d * lop_params.z;", "uint l = r - d * lop_params.x;")
+    assert any("lop_decode_bits" in p and "differs at token" in p for p in T.check(copy))

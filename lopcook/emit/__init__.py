@@ -21,6 +21,7 @@ from ..viewing import Viewing
 from . import attributes as attr
 from .binning import LEVELS, make_bins, vertex_widths
 from .bitplane import pack, plane_bits, top_bits
+from .clusters import Clusters, cluster_order, make_clusters, pack_clustered, plane_bit, plane_bits_clustered, words_at
 from .container import to_bytes
 from .manifest import FORMAT
 
@@ -82,14 +83,20 @@ class EncodedBuffer:
     q: np.ndarray
     counts: np.ndarray
     clamped: int
+    clusters: Clusters | None = None
 
 
-def encode_buffer(buf: BufferInput, max_level: int = LEVELS) -> EncodedBuffer:
+def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int | None = None) -> EncodedBuffer:
     """Bins, remapped indices and attribute payloads of one buffer (steps (1)-(3a) of the module
-    doc). Levels above ``max_level`` are stored at ``max_level`` and counted in ``clamped``."""
+    doc). Levels above ``max_level`` are stored at ``max_level`` and counted in ``clamped``.
+    ``cluster_size`` N: the clustered layout (``lopcook.emit.clusters``: vertices in cluster order,
+    per-cluster anchors, the entry's ``cluster_size``); None: the unclustered layout."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)
     clamped = int(np.count_nonzero(raw_levels > max_level))
-    bins = make_bins(np.minimum(raw_levels, max_level))
+    if cluster_size is None:
+        bins = make_bins(np.minimum(raw_levels, max_level))
+    else:
+        bins = cluster_order(buf.quantized, np.minimum(raw_levels, max_level))
     q = np.asarray(buf.quantized, dtype=np.uint32)[bins.order]
     indices = bins.remap_indices(buf.indices)
     n, m = q.shape[0], indices.shape[0]
@@ -115,14 +122,30 @@ def encode_buffer(buf: BufferInput, max_level: int = LEVELS) -> EncodedBuffer:
         if meta["uv_range"] is not None:
             entry["uv_range"] = meta["uv_range"]
             entry["uv_step"] = meta["uv_step"]
-    words = pack(top_bits(q, vertex_widths(bins.vertex_id, 1)), bins.vertex_id, 1)
+    top = top_bits(q, vertex_widths(bins.vertex_id, 1))
+    clusters = None
+    if cluster_size is None:
+        words = pack(top, bins.vertex_id, 1)
+    else:
+        clusters = make_clusters(q, bins.vertex_id, cluster_size)
+        words = pack_clustered(top, clusters, 1)
+        entry["cluster_size"] = int(clusters.size)
+        entry["cluster_p_words"] = [words_at(clusters, b) for b in range(1, LEVELS + 1)]
+        entry["cluster_plane_bits"] = [int(plane_bit(clusters, p)[-1]) for p in range(2, LEVELS + 1)]
     return EncodedBuffer(entry=entry, attributes=attributes, mandatory=words, vertex_id=bins.vertex_id, q=q,
-                         counts=bins.counts(), clamped=clamped)
+                         counts=bins.counts(), clamped=clamped, clusters=clusters)
+
+
+def _plane_of(e: EncodedBuffer, plane: int) -> np.ndarray:
+    if e.clusters is None:
+        return plane_bits(e.q, e.vertex_id, plane).ravel()
+    return plane_bits_clustered(e.q, e.clusters, plane)
 
 
 def plane_payload(encoded: list[EncodedBuffer], plane: int) -> bytes:
-    """Refinement plane ``plane`` of the buffers ``encoded`` (manifest order), packed LSB first."""
-    return _pack_bits(np.concatenate([plane_bits(e.q, e.vertex_id, plane).ravel() for e in encoded]))
+    """Refinement plane ``plane`` of the buffers ``encoded`` (manifest order), packed LSB first
+    (a clustered buffer's slice skips the components its anchors imply)."""
+    return _pack_bits(np.concatenate([_plane_of(e, plane) for e in encoded] or [np.zeros(0, np.uint8)]))
 
 
 def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, options: dict | None,
@@ -134,7 +157,7 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
     sections: list[tuple[str, bytes]] = []
     parts_manifest = []
     hist = np.zeros(LEVELS + 1, dtype=np.int64)
-    word_offset, clamped = 0, 0
+    word_offset, clamped, header_offset, headers = 0, 0, 0, []
     for i, (part, encoded) in enumerate(zip(scene.parts, parts)):
         lod_entries = []
         for k, e in enumerate(encoded):
@@ -145,6 +168,11 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
                 entry[kind] = f"{prefix}/{kind}"
             entry["mandatory_words"] = [word_offset, int(e.mandatory.size)]
             word_offset += int(e.mandatory.size)
+            if e.clusters is not None:
+                head = e.clusters.header_words()
+                entry["cluster_words"] = [header_offset, int(head.size)]
+                header_offset += int(head.size)
+                headers.append(head)
             hist += e.counts
             clamped += e.clamped
             lod_entries.append(entry)
@@ -155,6 +183,9 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
             "attribute_bits": lod_entries[0]["attribute_bits"] if lod_entries else None, "lods": lod_entries,
         })
     flat = [e for encoded in parts for e in encoded]
+    clustered = any(e.clusters is not None for e in flat)
+    if clustered:  # the anchors come first: a prefix holding the mandatory words holds them too
+        sections.append(("positions/clusters", np.concatenate(headers + [np.zeros(0, np.uint32)]).astype("<u4").tobytes()))
     sections.append(("positions/mandatory", np.concatenate([e.mandatory for e in flat]).astype("<u4").tobytes()))
     plane_names = {}
     for p in range(2, max_level + 1):
@@ -180,6 +211,10 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
                   "histogram": [int(v) for v in hist], "float32_position_bytes": 12 * total_vertices,
                   "vertices_clamped_to_max_level": clamped},
     }
+    if clustered:
+        manifest["positions"]["clusters"] = "positions/clusters"
+        manifest["positions"]["plane_order"] += ("; a clustered buffer (cluster_size) skips the components its "
+                                                 "cluster's anchor implies (k_t >= plane)")
     if savings is not None:
         manifest["savings"] = savings
     return manifest, sections
@@ -197,7 +232,7 @@ def default_buffers(scene, analysis) -> list[list[BufferInput]]:
 
 def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
           lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS,
-          savings: dict | None = None) -> bytes:
+          savings: dict | None = None, cluster_size: int | None = None) -> bytes:
     """Container bytes for ``scene`` analysed by ``analysis``.
 
     ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
@@ -205,10 +240,11 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
     never needed by any view, see lopcook.viewing); vertices whose minimum level is higher are
     stored at ``max_level`` and counted in ``stats.vertices_clamped_to_max_level``. ``options``
     are recorded verbatim. ``savings``: recorded as the optional manifest field ``savings``.
+    ``cluster_size``: N vertices per cluster (clustered position buffers), None: unclustered.
     """
     viewing = viewing or Viewing()
     lods = lods if lods is not None else default_buffers(scene, analysis)
-    parts = [[encode_buffer(buf, max_level) for buf in part_lods] for part_lods in lods]
+    parts = [[encode_buffer(buf, max_level, cluster_size) for buf in part_lods] for part_lods in lods]
     manifest, sections = assemble(scene, analysis.grid, parts, max_level=max_level, options=options,
                                   viewing=viewing, savings=savings)
     return to_bytes(manifest, sections)

@@ -40,10 +40,13 @@ from ..errors import LopcookError
 
 MAGIC = b"LOPC"
 VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
-#: minor version of a container with placement entries (``cook --instances``, 2.1, additive: a
-#: 2.0 reader refuses it with a manifest error, as its mandatory-word check fails on the shared
-#: LOD entries; containers without placements keep 2.0 and their bytes)
+#: files with clustered position buffers or placement entries (issue 16): a 2.x reader that
+#: ignored ``cluster_size`` or ``placement`` would decode them wrongly, so they carry the next
+#: major; files with neither stay 2.0, byte for byte. 3.x = may hold clusters and/or placements.
+CLUSTERED_VERSION = (3, 0)
+#: the minor that an earlier build wrote for placements without clusters (2.1); still read
 PLACEMENT_MINOR = 1
+READABLE_MAJORS = (VERSION[0], CLUSTERED_VERSION[0])
 HEADER_SIZE = 32
 _HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
 
@@ -112,6 +115,24 @@ def file_size(manifest: dict, table: list[dict]) -> int:
     return HEADER_SIZE + len(manifest_bytes(dict(manifest, sections=table))) + sum(t["length"] for t in table)
 
 
+def is_clustered(manifest: dict) -> bool:
+    """Whether the manifest holds clustered position buffers (``positions.clusters`` present)."""
+    pos = manifest.get("positions") if isinstance(manifest, dict) else None
+    return isinstance(pos, dict) and "clusters" in pos
+
+
+def has_placements(manifest: dict) -> bool:
+    """Whether the manifest holds placement entries (``cook --instances``)."""
+    parts = manifest.get("parts") if isinstance(manifest, dict) else None
+    return isinstance(parts, list) and any(isinstance(p, dict) and "placement" in p for p in parts)
+
+
+def version_of(manifest: dict) -> tuple[int, int]:
+    """The version a file with this manifest is written as: the oldest that reads it correctly
+    (``CLUSTERED_VERSION`` with clustered buffers or placements, else ``VERSION``)."""
+    return CLUSTERED_VERSION if is_clustered(manifest) or has_placements(manifest) else VERSION
+
+
 def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> bytes:
     """Serialise: fills ``manifest["sections"]`` (name, offset, length, crc32) and returns the file.
     ``table``: ``section_table(sections)`` when the caller has it already."""
@@ -121,8 +142,8 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> b
     manifest["sections"] = table
     mbytes = manifest_bytes(manifest)
     total = HEADER_SIZE + len(mbytes) + offset
-    minor = PLACEMENT_MINOR if any("placement" in p for p in manifest.get("parts", ())) else VERSION[1]
-    head = _HEADER.pack(MAGIC, VERSION[0], minor, HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
+    major, minor = version_of(manifest)
+    head = _HEADER.pack(MAGIC, major, minor, HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
     head += struct.pack("<I", zlib.crc32(head))
     return b"".join([head, mbytes, *payloads])
 
@@ -171,8 +192,9 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     (hcrc,) = struct.unpack_from("<I", data, 28)
     if zlib.crc32(data[:28]) != hcrc:
         fail("header checksum mismatch")
-    if major != VERSION[0]:
-        fail(f"container version {major}.{minor} is not supported (this lopcook reads {VERSION[0]}.x)",
+    if major not in READABLE_MAJORS:
+        fail(f"container version {major}.{minor} is not supported (this lopcook reads "
+             f"{' and '.join(f'{v}.x' for v in READABLE_MAJORS)})",
              "use a lopcook release that reads this version, or cook the source again")
     if hsize != HEADER_SIZE:
         fail(f"header size {hsize} (expected {HEADER_SIZE})")
@@ -196,6 +218,10 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     from .manifest import validate_manifest
 
     validate_manifest(manifest, path)
+    if major == VERSION[0] and is_clustered(manifest):
+        fail(f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
+    if major == VERSION[0] and has_placements(manifest) and minor < PLACEMENT_MINOR:
+        fail(f"container version {major}.{minor} must not hold placements (they need 3.x)")
     base = HEADER_SIZE + msize
     sections: dict = {}
     expected_end = base
@@ -216,6 +242,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     if not truncated and expected_end != total:
         fail(f"sections end at byte {expected_end}, file size says {total}")
     _check_index_values(manifest, sections, fail)
+    _check_cluster_sizes(manifest, sections, fail)
     container = Container(manifest=manifest, sections=sections, path=path, data=data)
     container.available_level = _available_level(manifest, sections)
     if container.available_level < 1:
@@ -240,9 +267,50 @@ def _check_index_values(manifest: dict, sections: dict, fail) -> None:
                 fail(f"part {i} LOD {k}: index {int(idx.max())} is out of range for {lod['vertices']} vertices")
 
 
+def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
+    """With clustered buffers: every cluster header is sound (k <= 24, anchors within k bits) and
+    ``mandatory_words`` and every plane present are exactly as long as the headers say (the
+    manifest alone cannot say it). Vectorised per buffer."""
+    if not is_clustered(manifest) or manifest["positions"]["clusters"] not in sections:
+        return
+    import numpy as np
+
+    from .clusters import from_header, plane_bit, words_at
+
+    pos = manifest["positions"]
+    head = np.frombuffer(sections[pos["clusters"]], "<u4")
+    present = [p for p in range(2, pos["max_level"] + 1) if pos["planes"][str(p)] in sections]
+    plane_bits = {p: 0 for p in present}
+    for i, part in enumerate(manifest["parts"]):
+        pl = part.get("placement")
+        if isinstance(pl, dict) and pl.get("of") != i:
+            continue  # a placement of another part's buffers stores none (validate_manifest checked its entries)
+        for k, lod in enumerate(part["lods"]):
+            vid = np.asarray(lod["vertex_id"], dtype=np.int64)
+            if "cluster_size" not in lod:
+                for p in present:
+                    plane_bits[p] += 3 * int(vid[p - 1])
+                continue
+            off, count = lod["cluster_words"]
+            try:
+                cl = from_header(head[off:off + count], vid, lod["cluster_size"])
+            except ValueError as exc:
+                fail(f"part {i} LOD {k}: cluster headers: {exc}")
+            if lod["cluster_p_words"] != [words_at(cl, b) for b in range(1, 25)]:
+                fail(f"part {i} LOD {k}: cluster_p_words (mandatory_words count {lod['mandatory_words'][1]}) "
+                     f"do not match its clusters ({words_at(cl, 1)} words at level 1)")
+            if lod["cluster_plane_bits"] != [int(plane_bit(cl, p)[-1]) for p in range(2, 25)]:
+                fail(f"part {i} LOD {k}: cluster_plane_bits do not match its clusters")
+            for p in present:
+                plane_bits[p] += int(plane_bit(cl, p)[-1])
+    for p, bits in plane_bits.items():
+        if len(sections[pos["planes"][str(p)]]) != 4 * ((bits + 31) // 32):
+            fail(f"refinement plane {p} is not the {bits} bits its buffers hold")
+
+
 def _available_level(manifest: dict, sections: dict) -> int:
     pos = manifest["positions"]
-    if pos["mandatory"] not in sections:
+    if pos["mandatory"] not in sections or ("clusters" in pos and pos["clusters"] not in sections):
         return 0
     for name in manifest["sections"]:
         if name["name"] not in sections and not name["name"].startswith("positions/"):

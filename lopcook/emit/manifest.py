@@ -172,14 +172,17 @@ def validate_manifest(m, path: str | None) -> None:
             fail(f"positions.planes[{p}] names no section")
     # position sections come last, mandatory first, then planes in ascending order (prefix property)
     order = [s["name"] for s in sections]
-    tail = [pos["mandatory"]] + [planes[str(p)] for p in range(2, max_level + 1)]
+    clustered = "clusters" in pos  # clustered position buffers (version 3): their anchors come first
+    if clustered and need(pos, "clusters", str, "positions") not in names:
+        fail("positions.clusters names no section")
+    tail = ([pos["clusters"]] if clustered else []) + [pos["mandatory"]] + [planes[str(p)] for p in range(2, max_level + 1)]
     if order[len(order) - len(tail):] != tail:
         fail("position sections are not last and in level order")
     length = {s["name"]: s["length"] for s in sections}
     parts = need(m, "parts", list, "manifest")
     if not parts:
         fail("no parts")
-    words_next = 0
+    words_next, headers_next, n_clustered = 0, 0, 0
     plane_bits = {p: 0 for p in range(2, max_level + 1)}
     for i, part in enumerate(parts):
         need(part, "name", str, f"parts[{i}]")
@@ -246,11 +249,37 @@ def validate_manifest(m, path: str | None) -> None:
                 fail(f"{where}.mandatory_words must be [offset, count]")
             # the buffer at level 1 holds sum_k 3 * k * |bin k| bits, buffers back to back
             bits = sum(3 * k * (vid[k] - vid[k - 1]) for k in range(1, LEVELS + 1))
-            if mw[0] != words_next or mw[1] != (bits + 31) // 32:
-                fail(f"{where}.mandatory_words do not match its bins")
+            if "cluster_size" in lod or "cluster_words" in lod:
+                # clustered (lopcook.emit.clusters): at most the unclustered bits, at least one word;
+                # container.from_bytes checks the exact count against the cluster headers
+                if not clustered:
+                    fail(f"{where} is clustered but positions.clusters is missing")
+                size = need(lod, "cluster_size", int, where)
+                if not 16 <= size <= 1024:
+                    fail(f"{where}.cluster_size must be in [16, 1024]")
+                cw = need(lod, "cluster_words", list, where)
+                n_c = sum(-(-(vid[k] - vid[k - 1]) // size) for k in range(1, LEVELS + 1))
+                if len(cw) != 2 or not all(is_int(v) for v in cw) or cw != [headers_next, 3 * n_c]:
+                    fail(f"{where}.cluster_words must be [offset, 3 * clusters] = [{headers_next}, {3 * n_c}]")
+                headers_next += cw[1]
+                n_clustered += 1
+                pw = need(lod, "cluster_p_words", list, where)
+                if len(pw) != LEVELS or not all(is_int(v) and v >= 1 for v in pw) or pw[0] != mw[1]:
+                    fail(f"{where}.cluster_p_words must be 24 positive word counts, the first its mandatory count")
+                cpb = need(lod, "cluster_plane_bits", list, where)
+                if len(cpb) != LEVELS - 1 or not all(is_int(v) and 0 <= v <= 3 * vid[p - 1]
+                                                     for p, v in zip(range(2, LEVELS + 1), cpb)):
+                    fail(f"{where}.cluster_plane_bits must be 23 bit counts, at most 3 VertexId[p-1] each")
+                for p in plane_bits:
+                    plane_bits[p] += cpb[p - 2]
+                if mw[0] != words_next or not 1 <= mw[1] <= max(1, (bits + 31) // 32):
+                    fail(f"{where}.mandatory_words do not match its bins")
+            else:
+                if mw[0] != words_next or mw[1] != (bits + 31) // 32:
+                    fail(f"{where}.mandatory_words do not match its bins")
+                for p in plane_bits:
+                    plane_bits[p] += 3 * vid[p - 1]
             words_next += mw[1]
-            for p in plane_bits:
-                plane_bits[p] += 3 * vid[p - 1]
             width = lod["index_width"]
             if (n <= 65535) != (width == 2):
                 fail(f"{where}.index_width {width} does not match {n} vertices")
@@ -275,6 +304,10 @@ def validate_manifest(m, path: str | None) -> None:
         pb = need(part, "attribute_bits", dict, f"parts[{i}]")
         if pb != i_bits.as_dict():
             fail(f"parts[{i}].attribute_bits is not the attribute_bits its LODs share")
+    if clustered and not n_clustered:
+        fail("positions.clusters is present but no buffer is clustered")
+    if clustered and length[pos["clusters"]] < 4 * headers_next:
+        fail("positions.clusters is shorter than the cluster headers it holds")
     if length[pos["mandatory"]] < 4 * words_next:
         fail("positions.mandatory is shorter than the buffers it holds")
     for p, bits in plane_bits.items():
@@ -361,13 +394,44 @@ class LodEntry:
     mandatory_words: int = 0
     attribute_bits: dict | None = None
     record_bits: int = 0
+    cluster_size: int | None = None
+    cluster_p_words: tuple | None = None
+    cluster_plane_bits: tuple | None = None
+
+    @property
+    def clustered(self) -> bool:
+        return self.cluster_size is not None
+
+    @property
+    def n_clusters(self) -> int:
+        """Clusters of a clustered buffer (bins cut into runs of N), 0 when unclustered."""
+        if self.cluster_size is None:
+            return 0
+        counts = np.diff(np.asarray(self.vertex_id, dtype=np.int64))
+        return int((-(-counts // int(self.cluster_size))).sum())
 
     def cap_bytes(self, level: int) -> int:
         """GPU-resident bytes of the binned (CAP) position buffer at per-buffer level B: every
-        vertex at max(B, m_v) bits per component, whole uint32 words (Meyer et al. 2011, 5.3)."""
+        vertex at max(B, m_v) bits per component, whole uint32 words (Meyer et al. 2011, 5.3).
+        A clustered buffer (``lopcook.emit.clusters``) counts its words of P, 16 B per cluster
+        record and the 128-byte ClusterId table."""
+        if self.cluster_size is not None:
+            from .clusters import CLUSTER_ID_BYTES, RECORD_WORDS
+
+            return (4 * int(self.cluster_p_words[int(level) - 1]) + 4 * RECORD_WORDS * self.n_clusters
+                    + CLUSTER_ID_BYTES)
+        return self.unclustered_cap_bytes(level)
+
+    def unclustered_cap_bytes(self, level: int) -> int:
+        """Bytes the same vertices take in the unclustered binned layout at level B (for comparison)."""
         from .binning import buffer_bytes
 
         return buffer_bytes(np.asarray(self.vertex_id, dtype=np.int64), int(level))
+
+    @property
+    def cluster_header_bytes(self) -> int:
+        """Stored bytes of its cluster headers (12 per cluster in ``positions/clusters``), 0 when unclustered."""
+        return 12 * self.n_clusters
 
     def ap_bytes(self, level: int) -> int:
         """GPU-resident bytes of the uniform (AP) position buffer at level B: B bits per component
@@ -388,6 +452,8 @@ class LodEntry:
     def plane_bytes(self, max_level: int) -> int:
         """Stored bits of its refinement planes 2..max_level, in bytes rounded up per plane (the
         planes of all buffers are packed together; this is this buffer's share)."""
+        if self.cluster_plane_bits is not None:
+            return sum((int(self.cluster_plane_bits[p - 2]) + 7) // 8 for p in range(2, int(max_level) + 1))
         return sum((3 * int(self.vertex_id[p - 1]) + 7) // 8 for p in range(2, int(max_level) + 1))
 
     @property
@@ -437,7 +503,12 @@ class Manifest:
                                   min_distance_m=e.get("min_distance_m"), index_width=int(e.get("index_width") or 0),
                                   section_bytes={k: sizes.get(e.get(k) or "", 0) for k in ("indices", "attributes")},
                                   mandatory_words=int((e.get("mandatory_words") or [0, 0])[1]),
-                                  attribute_bits=e.get("attribute_bits"), record_bits=int(e.get("record_bits") or 0))
+                                  attribute_bits=e.get("attribute_bits"), record_bits=int(e.get("record_bits") or 0),
+                                  cluster_size=e.get("cluster_size"),
+                                  cluster_p_words=None if e.get("cluster_p_words") is None
+                                  else tuple(e["cluster_p_words"]),
+                                  cluster_plane_bits=None if e.get("cluster_plane_bits") is None
+                                  else tuple(e["cluster_plane_bits"]))
                          for e in p["lods"])
             pl = p.get("placement")
             parts.append(PartEntry(name=str(p["name"]), source=str(p.get("source", "")), lods=lods,
@@ -497,6 +568,15 @@ class Manifest:
     def ap_bytes_all_copies(self, level: int, lod: int = 0) -> int:
         """As ``cap_bytes_all_copies`` for AP."""
         return sum(p.lod(lod).ap_bytes(self.part_level(i, level)) for i, p in enumerate(self.parts))
+
+    def unclustered_cap_bytes(self, level: int, lod: int = 0) -> int:
+        """As ``cap_bytes`` with every buffer in the unclustered layout (each distinct buffer once,
+        at its resident level), for comparison."""
+        return sum(e.unclustered_cap_bytes(b) for e, b in self.resident(level, lod))
+
+    @property
+    def clustered(self) -> bool:
+        return any(e.clustered for p in self.parts for e in p.lods)
 
     def float32_bytes(self, lod: int = 0) -> int:
         """float32 position bytes of LOD ``lod`` of every part, every placement counted (as a

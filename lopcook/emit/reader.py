@@ -3,6 +3,12 @@
 ``gpu_buffer(container, part, lod, B)`` rebuilds the packed buffer P at per-buffer level B from
 the mandatory bits and refinement planes 2..B, exactly as the paper lays it out (binned order,
 VertexId/BitId tables); ``decode_positions`` decodes it with the reference decoder.
+
+A clustered buffer (``cluster_size`` in its entry, ``lopcook.emit.clusters``) is read from its
+cluster headers, its clustered mandatory words and its plane slices (which skip the components
+its anchors imply); ``clustered_gpu_buffer`` gives its clustered P and cluster records, and
+``decode_positions`` decodes that with ``clusters.decode_clustered``. ``gpu_buffer`` of a clustered
+buffer still gives the unclustered P of the same vertices (for the unclustered shaders).
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from ..errors import LopcookError
 from . import attributes as attr
 from .binning import LEVELS, table_bit_id, vertex_widths
 from .bitplane import decode, pack, reconstruct_float32, reconstruct_float64, to_grid
+from .clusters import Clusters, decode_clustered, from_header, pack_clustered, records, vertex_clusters
 from .container import Container
 
 
@@ -25,6 +32,18 @@ class GpuBuffer:
     words: np.ndarray
     vertex_id: np.ndarray
     bit_id: np.ndarray
+    level: int
+
+
+@dataclass
+class ClusteredGpuBuffer:
+    """A clustered buffer as a renderer uploads it at level B: words (w,) uint32 clustered P,
+    clusters (its ``Clusters``: VertexId, ClusterId, anchors), records (n_c, 4) uint32 (the
+    ``LopClusters`` SSBO at B), level B."""
+
+    words: np.ndarray
+    clusters: Clusters
+    records: np.ndarray
     level: int
 
 
@@ -98,9 +117,37 @@ def _plane_offsets(c: Container, p: int) -> dict:
         offsets, start = {}, 0
         for i, k, e in _buffer_order(c):
             offsets[(i, k)] = start
-            start += 3 * int(e["vertex_id"][p - 1])
+            start += plane_slice_bits(e, p)
         cache[p] = offsets
     return cache[p]
+
+
+def plane_slice_bits(entry: dict, p: int) -> int:
+    """Bits of one buffer's slice of refinement plane p: 3 VertexId[p-1], or for a clustered buffer
+    its ``cluster_plane_bits`` (the components its anchors imply are not stored)."""
+    if "cluster_size" in entry:
+        return int(entry["cluster_plane_bits"][p - 2])
+    return 3 * int(entry["vertex_id"][p - 1])
+
+
+def buffer_clusters(c: Container, part: int, lod: int) -> Clusters | None:
+    """The Clusters of a clustered buffer from its stored headers (cached), None when unclustered."""
+    part = owner(c, part)  # a placement's entries equal its owner's: one Clusters per distinct buffer
+    e = lod_entry(c, part, lod)
+    if "cluster_size" not in e:
+        return None
+    cache = c.__dict__.setdefault("_cluster_cache", {})
+    if (part, lod) not in cache:
+        off, count = e["cluster_words"]
+        head = np.frombuffer(c.section(c.manifest["positions"]["clusters"]), dtype="<u4")
+        if off + count > head.size:
+            raise LopcookError("container", c.path, "cluster header words out of range")
+        try:
+            cache[(part, lod)] = from_header(head[off:off + count], np.asarray(e["vertex_id"], np.int64),
+                                             e["cluster_size"])
+        except ValueError as exc:
+            raise LopcookError("container", c.path, f"part {part} LOD {lod}: {exc}") from None
+    return cache[(part, lod)]
 
 
 def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarray, np.ndarray]:
@@ -119,6 +166,9 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     if off + count > mandatory.size:
         raise LopcookError("container", c.path, "mandatory position words out of range")
     words = mandatory[off:off + count]
+    cl = buffer_clusters(c, part, lod)
+    if cl is not None:
+        return _clustered_top_values(c, part, lod, level, words, cl)
     values, widths = decode(words, vid, table_bit_id(vid, 1), 1)
     values = values.astype(np.uint32)
     for p in range(2, level + 1):
@@ -134,6 +184,30 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     return values, vertex_widths(vid, level)
 
 
+def _clustered_top_values(c: Container, part: int, lod: int, level: int, words: np.ndarray,
+                          cl: Clusters) -> tuple[np.ndarray, np.ndarray]:
+    """``top_values`` of a clustered buffer: the level-1 decode, then per plane p the stored bit of
+    every component with k_t < p and the anchor's bit of every other (vertices with m_v < p)."""
+    values = decode_clustered(words, cl, 1)[0].astype(np.int64)
+    vid = cl.vertex_id
+    for p in range(2, level + 1):
+        g = int(vid[p - 1])
+        if g == 0:
+            continue
+        _, ci, _ = vertex_clusters(cl, np.arange(g, dtype=np.int64))
+        kt = cl.k[ci].astype(np.int64)
+        bit = (cl.anchor[ci].astype(np.int64) >> np.maximum(kt - p, 0)) & 1
+        keep = kt < p
+        want = int(keep.sum())
+        stream = _plane_bits(c, p)
+        start = _plane_offsets(c, p)[(owner(c, part), lod)]  # a placement reads its owner's slice
+        if start + want > stream.size:
+            raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
+        bit[keep] = stream[start:start + want]
+        values[:g] = (values[:g] << 1) | bit
+    return values.astype(np.uint32), vertex_widths(vid, level)
+
+
 def gpu_buffer(c: Container, part: int, lod: int, level: int) -> GpuBuffer:
     """The packed buffer P (uint32 words) at per-buffer level B with its VertexId/BitId tables."""
     values, _ = top_values(c, part, lod, level)
@@ -141,15 +215,32 @@ def gpu_buffer(c: Container, part: int, lod: int, level: int) -> GpuBuffer:
     return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=level)
 
 
+def clustered_gpu_buffer(c: Container, part: int, lod: int, level: int) -> ClusteredGpuBuffer:
+    """The clustered P (uint32 words) at level B with its clusters and records. LopcookError
+    ("usage") when the buffer is not clustered."""
+    cl = buffer_clusters(c, part, lod)
+    if cl is None:
+        raise LopcookError("usage", c.path, f"part {part} LOD {lod} is not clustered",
+                           hint="cook with --clusters N")
+    values, _ = top_values(c, part, lod, level)
+    return ClusteredGpuBuffer(words=pack_clustered(values, cl, level), clusters=cl, records=records(cl, level),
+                              level=level)
+
+
 def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: bool = True):
-    """Decode a buffer at level B with the reference decoder.
+    """Decode a buffer at level B with the reference decoder (``clusters.decode_clustered`` for a
+    clustered buffer, ``bitplane.decode`` otherwise).
 
     Returns (grid (n, 3) uint32 24-bit integers with dropped bits zero, widths (n,), positions
     (n, 3) float32 as the shaders compute them, or float64 block centres with float32=False).
     The grid integers are on the part's grid (``part_grid``); the positions are world metres: for
     a placement the local decode mapped by its transform (``placement.to_world``)."""
-    buf = gpu_buffer(c, part, lod, level)
-    values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+    if buffer_clusters(c, part, lod) is not None:
+        cbuf = clustered_gpu_buffer(c, part, lod, level)
+        values, widths = decode_clustered(cbuf.words, cbuf.clusters, level)
+    else:
+        buf = gpu_buffer(c, part, lod, level)
+        values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
     origin, extent = part_grid(c, part)
     cell = extent / float(1 << LEVELS)
     recon = reconstruct_float32 if float32 else reconstruct_float64

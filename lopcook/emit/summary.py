@@ -16,6 +16,7 @@ def memory_rows(c: Container, levels=range(1, LEVELS + 1), lod: int = 0) -> list
     (12 bytes per vertex, the baseline of the percentages), from ``Manifest``'s accounting."""
     m = c.entries
     f32 = m.float32_bytes(lod)
+    clustered = m.clustered
     rows = []
     for b in levels:
         cap, ap = m.cap_bytes(b, lod), m.ap_bytes(b, lod)
@@ -25,7 +26,37 @@ def memory_rows(c: Container, levels=range(1, LEVELS + 1), lod: int = 0) -> list
             cap_all, ap_all = m.cap_bytes_all_copies(b, lod), m.ap_bytes_all_copies(b, lod)
             rows[-1].update(cap_bytes_all_copies=int(cap_all), ap_bytes_all_copies=int(ap_all),
                             cap_saved_by_sharing_bytes=int(cap_all - cap), ap_saved_by_sharing_bytes=int(ap_all - ap))
+        if clustered:  # the same vertices unclustered, for comparison (cap_bytes counts the clusters' records)
+            un = m.unclustered_cap_bytes(b, lod)
+            rows[-1].update(unclustered_cap_bytes=int(un), unclustered_cap_percent=100.0 * un / max(f32, 1))
     return rows
+
+
+def cluster_stats(c: Container) -> dict | None:
+    """Clustered buffers' figures (``inspect``'s ``clusters`` record), None when unclustered:
+    ``cluster_size`` (N values used), ``buffers``, ``clusters`` (all buffers), ``k_histogram``
+    (25 counts: cluster components with each common-prefix length k, x, y, z together),
+    ``header_bytes`` (stored anchors, 12 per cluster) and ``record_bytes`` (GPU records, 16 per cluster)."""
+    from .clusters import k_histogram
+    from .reader import buffer_clusters
+
+    hist = np.zeros(LEVELS + 1, dtype=np.int64)
+    sizes, buffers, total = set(), 0, 0
+    for i, p in enumerate(c.manifest["parts"]):
+        if "placement" in p:  # a placement draws its owner's buffers: each distinct buffer counted once
+            continue
+        for k, e in enumerate(p["lods"]):
+            if "cluster_size" not in e:
+                continue
+            cl = buffer_clusters(c, i, k)
+            sizes.add(int(e["cluster_size"]))
+            buffers += 1
+            total += cl.n_clusters
+            hist += k_histogram(cl)
+    if not buffers:
+        return None
+    return {"cluster_size": sorted(sizes), "buffers": buffers, "clusters": total,
+            "k_histogram": [int(v) for v in hist], "header_bytes": 12 * total, "record_bytes": 16 * total}
 
 
 def lod_shortfalls(c: Container) -> list[str]:
@@ -171,6 +202,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "section_bytes": by_kind,
         "sections": sections,
         "memory": memory_rows(c),
+        "clusters": cluster_stats(c),
         "savings": m.get("savings"),
         "vertex_bits": vb["total"],
         "parts": parts,
@@ -185,6 +217,11 @@ def _n(count: int, noun: str) -> str:
 
 def _hist(h) -> str:
     nz = [b for b in range(1, LEVELS + 1) if h[b]]
+    return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
+
+
+def _hist0(h) -> str:
+    nz = [b for b in range(0, LEVELS + 1) if h[b]]
     return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
 
 
@@ -205,7 +242,9 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
     for r in d["memory"]:
         if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]:  # not levels the file lacks
             lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
-                         f"{r['ap_percent']:>5.1f}%")
+                         f"{r['ap_percent']:>5.1f}%" + (f"   unclustered {r['unclustered_cap_bytes']:,} B "
+                                                        f"{r['unclustered_cap_percent']:.1f}%"
+                                                        if "unclustered_cap_bytes" in r else ""))
     pl = t.get("placements")
     if pl:
         shown = [r for r in d["memory"] if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]
@@ -219,6 +258,11 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
                          f"with each mesh once, {lo['cap_bytes_all_copies']:,}-{hi['cap_bytes_all_copies']:,} with "
                          f"every copy: saves {100.0 * lo['cap_saved_by_sharing_bytes'] / max(lo['cap_bytes_all_copies'], 1):.1f}%"
                          f"-{100.0 * hi['cap_saved_by_sharing_bytes'] / max(hi['cap_bytes_all_copies'], 1):.1f}%")
+    cs = d.get("clusters")
+    if cs:
+        lines.append(f"  clusters: {cs['clusters']:,} of N = {'/'.join(str(v) for v in cs['cluster_size'])} in "
+                     f"{_n(cs['buffers'], 'buffer')} (CAP counts their {cs['record_bytes']:,} B of records and "
+                     f"128 B ClusterId per buffer); anchor bits k (k:components): " + _hist0(cs["k_histogram"]))
     if d.get("savings"):
         sv = d["savings"]
         planes = sv["planes_dropped"]

@@ -98,7 +98,7 @@ def add_hierarchy(manifest: dict, sections: list, lod0: list, grid, cache: dict 
         name = section_name(i)
         parts.append(dict(part, hierarchy=dict(record, section=name)))
         extra.append((name, blob))
-    at = next(k for k, (name, _) in enumerate(sections) if name == "positions/mandatory")
+    at = next(k for k, (name, _) in enumerate(sections) if name.startswith("positions/"))
     return dict(manifest, parts=parts), sections[:at] + extra + sections[at:]
 
 

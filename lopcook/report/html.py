@@ -377,6 +377,28 @@ def time_bought(rep: dict, seconds: float) -> str:
     return text + "."
 
 
+def _clusters_html(rep: dict) -> list[str]:
+    """Clustered buffers (cook --clusters N): memory per level clustered (P, records, ClusterId)
+    against the same vertices unclustered, and the histogram of the anchors' k; [] when unclustered."""
+    cs = rep.get("clusters")
+    if not cs:
+        return []
+    e = escape
+    rows = [r for r in rep.get("memory") or [] if "unclustered_cap_bytes" in r and r["level"] <= rep["available_level"]]
+    out = [f"<h2>Clusters</h2><p>{cs['clusters']:,} clusters of N = {e('/'.join(str(v) for v in cs['cluster_size']))} "
+           f"vertices in {cs['buffers']:,} buffers; the clustered memory counts P, {cs['record_bytes']:,} B of cluster "
+           "records and 128 B of ClusterId per buffer.</p>",
+           '<div class="scroll"><table id="clusters"><thead><tr><th>level</th><th>clustered B</th><th>%</th>'
+           "<th>unclustered B</th><th>%</th></tr></thead><tbody>"]
+    for r in rows:
+        out.append(f"<tr><td>{r['level']}</td><td>{r['cap_bytes']:,}</td><td>{r['cap_percent']:.1f}</td>"
+                   f"<td>{r['unclustered_cap_bytes']:,}</td><td>{r['unclustered_cap_percent']:.1f}</td></tr>")
+    hist = cs["k_histogram"]
+    out.append("</tbody></table></div><p>Anchor bits k per cluster component (k: count): "
+               + e(" ".join(f"{k}:{v}" for k, v in enumerate(hist) if v)) + "</p>")
+    return out
+
+
 def render_html(rep: dict, images: dict | None) -> str:
     """The report page (UTF-8 HTML text) of ``rep`` (``lopcook.report.model.build_report``) and ``images``
     (``render_for_report``'s images: every level's, the depth-order view's and the level image, or
@@ -419,6 +441,7 @@ def render_html(rep: dict, images: dict | None) -> str:
     out.append('<h2>Minimum-level histogram</h2><div class="hist"><input type="checkbox" id="hist-log">'
                '<label for="hist-log"> log scale</label><div class="hist-linear">' + histogram_svg(rep["histogram"])
                + '</div><div class="hist-log">' + histogram_svg(rep["histogram"], log=True) + "</div></div>")
+    out.extend(_clusters_html(rep))
     im = rep.get("images")
     if images and im:
         if images.get("levels") is not None:

@@ -258,6 +258,8 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
         "calibration": options.get("calibration"),
         "seconds": ev.get("seconds"),
     }
+    if container_desc.get("clusters") is not None:  # clustered containers only: unclustered reports keep their keys
+        rep["clusters"] = container_desc["clusters"]
     rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
                    "ratios": (options.get("lods") or {}).get("ratios"),
                    "savings": m.get("savings"),

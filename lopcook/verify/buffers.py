@@ -47,6 +47,18 @@ def ap_buffer(c, part: int, lod: int, level: int) -> GpuBuffer:
     return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=int(level))
 
 
+def cap_buffer(c, part: int, lod: int, level: int):
+    """CAP at per-buffer level B as a renderer uploads it: the container's buffer in its own layout,
+    ``lopcook.emit.reader.clustered_gpu_buffer`` (clustered P and cluster records, decoded by the
+    ``LOP_CLUSTERED`` shader) for a clustered buffer, else ``gpu_buffer`` (binned P, VertexId/BitId).
+    Both decode to the same grid integers at max(B, m_v) bits."""
+    from ..emit.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
+
+    if buffer_clusters(c, part, lod) is not None:
+        return clustered_gpu_buffer(c, part, lod, level)
+    return gpu_buffer(c, part, lod, level)
+
+
 def source_order(c, scene, lod: int = LOD) -> list[np.ndarray]:
     """Per part: ``order`` (n,) int64 with ``order[j]`` = the source vertex of container vertex j
     (binned order), recovered from the index buffers (emit keeps the triangle order and only remaps
@@ -161,5 +173,5 @@ def resident_levels(c, lods: list[int], level: int) -> dict:
     return out
 
 
-__all__ = ["DEFAULT_LEVELS", "VARIANTS", "LOD", "ap_buffer", "source_order", "lod_indices", "lod0_is_source",
-           "position_bytes", "resident_levels"]
+__all__ = ["DEFAULT_LEVELS", "VARIANTS", "LOD", "ap_buffer", "cap_buffer", "source_order", "lod_indices",
+           "lod0_is_source", "position_bytes", "resident_levels"]

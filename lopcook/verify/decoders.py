@@ -13,6 +13,15 @@ the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror 
 compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
 BitId must equal the CPU's packing of each level from scratch, byte for byte.
 
+A clustered buffer (issue 16, ``cook --clusters N``, ``lopcook.emit.clusters``) is uploaded as a
+renderer uploads it: its clustered P and cluster records (``reader.clustered_gpu_buffer``), decoded
+by the ``LOP_CLUSTERED`` vertex shader of each language (``gpu.decode_clustered``, the crack-free
+path included) and compared with the same global-grid reference at max(B, m_v) bits; its adaption
+runs the ``LOP_CLUSTERED`` kernels (``gpu.ClusteredAdapter``) on the file's own plane slices
+(``stored_plane_source``), and P, the cluster records (word 3 = ClusterBit), VertexId, ClusterId
+and BitId = ClusterBit[ClusterId[k]] must equal the CPU's at every level. The CPU clustered decode
+is also compared with the unclustered one (``clustered_cpu``).
+
 The packed vertex attribute record of every part/LOD (section ``part{i}/lod{k}/attributes``:
 octahedral normals, UVs, colours at the manifest's ``attribute_bits``; Purnomo et al. 2005,
 sections 3-5) is decoded by ``shaders/decode_attributes.*`` in each language and compared with
@@ -179,10 +188,36 @@ def _ulp_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
-    offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it."""
-    from ..emit.reader import owner
+    offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it
+    (a clustered buffer's slice is ``reader.plane_slice_bits`` long)."""
+    from ..emit.reader import buffer_clusters, lod_entry, owner, top_values
 
     part = owner(c, part)  # a placement's buffer is its owner's
+    if buffer_clusters(c, part, lod) is not None:
+        # a clustered buffer's stored slice skips anchor-implied components: the unclustered
+        # kernels get the unclustered plane of the same vertices (bit 24 - p of each component)
+        vid = np.asarray(lod_entry(c, part, lod)["vertex_id"], dtype=np.int64)
+
+        def unclustered(p: int):
+            values, _ = top_values(c, part, lod, p)
+            bits = (values[: int(vid[p - 1])] & 1).astype(np.uint8).ravel()
+            padded = np.zeros(-(-max(bits.size, 1) // 32) * 32, np.uint8)
+            padded[: bits.size] = bits
+            return np.packbits(padded, bitorder="little").view("<u4").astype(np.uint32), 0
+
+        return unclustered
+    return stored_plane_source(c, part, lod)
+
+
+def stored_plane_source(c, part: int, lod: int):
+    """``plane(p) -> (words, bit_offset)``: the container's plane section p as stored (uint32 words)
+    and the bit offset of buffer (part, lod)'s slice inside it (buffers in manifest order, each
+    ``reader.plane_slice_bits`` long). For a clustered buffer this is the slice the
+    ``LOP_CLUSTERED`` add-plane kernel reads (anchor-implied components skipped)."""
+    from ..emit.reader import lod_entry, owner, plane_slice_bits
+
+    part = owner(c, part)  # a placement's buffer is its owner's
+    lod_entry(c, part, lod)  # LopcookError for a part or LOD that does not exist
 
     def plane(p: int):
         start = 0
@@ -193,7 +228,7 @@ def plane_source(c, part: int, lod: int):
                 if (i, k) == (part, lod):
                     data = c.section(c.manifest["positions"]["planes"][str(p)])
                     return np.frombuffer(data, dtype="<u4"), start
-                start += 3 * int(e["vertex_id"][p - 1])
+                start += plane_slice_bits(e, p)
         raise LopcookError("usage", c.path, f"part {part} has no LOD {lod}")
 
     return plane
@@ -218,7 +253,9 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     Returns a report dict (JSON-ready, sorted keys when dumped): ``ok``, per-language counts under
     ``languages`` (vertices decoded, grid / float / level mismatches, max float distance in ulp,
     adaption steps and mismatches, attribute records decoded and their normal / UV / colour
-    mismatches and max ulp; ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
+    mismatches and max ulp; ``clustered_decoded_vertices`` / ``clustered_adapt_steps``: those done by
+    the ``LOP_CLUSTERED`` shaders; ``per_level[str(B)]``: vertex decodes and decode mismatches (grid,
+    float or bits wrong) at level B, and adaption checks on arriving at B and their mismatches); ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
     context (``device``) and tool versions. Raises LopcookError when GL or the HLSL tools are missing
     or a level is not in the file.
     """
@@ -237,25 +274,41 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         gpu.require_hlsl_tools()
     gpu.context()
 
-    from ..emit.reader import gpu_buffer
+    from ..emit.clusters import decode_clustered
+    from ..emit.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
 
     from ..emit.reader import part_grid
+
+    cluster_stats = {"decoded_vertices": 0, "mismatches": 0}
     stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
                     "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
                     "normal_mismatches": 0, "uv_mismatches": 0, "color_mismatches": 0, "attribute_max_ulp": 0,
-                    "attribute_seconds": 0.0} for lang in languages}
+                    "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0,
+                    "per_level": {str(v): {"decoded_vertices": 0, "decode_mismatches": 0, "adapt_checks": 0,
+                                           "adapt_mismatches": 0} for v in levels}}
+             for lang in languages}
     examples: list[dict] = []
     buffers = list(_buffers(c))
     vertices = 0
     attribute_buffers = 0
+    clustered_buffers = 0
     for part, lod in buffers:
         origin, extent = part_grid(c, part)  # the scene grid, or a shared buffer's mesh grid
         cell = extent / float(1 << LEVELS)
         half = np.float32(cell / 2.0)
+        clustered = buffer_clusters(c, part, lod) is not None
+        clustered_buffers += clustered
         for level in levels:
             buf = gpu_buffer(c, part, lod, level)
             values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+            cbuf = None
+            if clustered:  # the clustered CPU decode must equal the unclustered one exactly
+                cbuf = clustered_gpu_buffer(c, part, lod, level)
+                cvals, cwidths = decode_clustered(cbuf.words, cbuf.clusters, level)
+                bad = np.any(cvals != values, axis=1) | (cwidths != widths)
+                cluster_stats["decoded_vertices"] += int(widths.size)
+                cluster_stats["mismatches"] += int(bad.sum())
             ref_grid = to_grid(values, widths)
             ref_pos = reconstruct_float32(values, widths, origin, cell)
             if level == levels[0]:
@@ -263,7 +316,11 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
             for lang in languages:
                 s = stats[lang]
                 t0 = time.perf_counter()
-                got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+                if cbuf is None:
+                    got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+                else:  # what a renderer uploads for a clustered buffer: clustered P and its records
+                    got = _decode_clustered(c, part, lod, lang, cbuf, origin, half)
+                    s["clustered_decoded_vertices"] += int(widths.size)
                 s["decode_seconds"] += time.perf_counter() - t0
                 bad_grid = np.any(got.grid != ref_grid, axis=1)
                 bad_float = np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1)
@@ -272,24 +329,31 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                 s["grid_mismatches"] += int(bad_grid.sum())
                 s["float_mismatches"] += int(bad_float.sum())
                 s["level_mismatches"] += int(bad_level.sum())
+                per = s["per_level"][str(level)]
+                per["decoded_vertices"] += int(widths.size)
+                per["decode_mismatches"] += int((bad_grid | bad_float | bad_level).sum())
                 if widths.size:
                     s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
                 for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
                     examples.append({"language": lang, "kind": "decode", "part": part, "lod": lod, "level": level,
-                                     "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
+                                     "clustered": cbuf is not None, "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
                                      "got_grid": got.grid[j].tolist(),
                                      "expected_position": [float(v) for v in ref_pos[j]],
                                      "got_position": [float(v) for v in got.position[j]],
                                      "expected_bits": int(widths[j]), "got_bits": int(got.level[j])})
             if level == levels[-1] and widths.size:
                 _verify_crack_free(c, part, lod, buf, values, widths, ref_pos, languages, stats, examples,
-                                   max_examples)
+                                   max_examples, cbuf)
         if adapt and levels:
-            _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+            if clustered:
+                _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
+            else:
+                _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
         attribute_buffers += _verify_attributes(c, part, lod, languages, stats, examples, max_examples)
     ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
              and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 and s["normal_mismatches"] == 0
              and s["uv_mismatches"] == 0 and s["color_mismatches"] == 0 for s in stats.values())
+    ok = ok and cluster_stats["mismatches"] == 0
     for s in stats.values():
         s["decode_seconds"] = round(s["decode_seconds"], 4)
         s["adapt_seconds"] = round(s["adapt_seconds"], 4)
@@ -298,10 +362,12 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         "container": None if c.path is None else str(c.path),
         "levels": levels,
         "buffers": len(buffers),
+        "clustered_buffers": int(clustered_buffers),
         "attribute_buffers": attribute_buffers,
         "vertices": vertices,
         "float_ulp_tolerance": 0,
         "languages": stats,
+        "clustered_cpu": cluster_stats,
         "examples": examples,
         "ok": bool(ok),
         "device": gpu.context_info(),
@@ -309,13 +375,77 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     }
 
 
+# ---- clustered buffers (issue 16) ----------------------------------------------------------------
+
+def verify_clustered_decode(words, records, cluster_id, vertex_id, cluster_size: int, level: int, origin, cell: float,
+                            values, widths, languages=("glsl", "hlsl")) -> dict:
+    """Decode one clustered buffer with the ``LOP_CLUSTERED`` vertex shader of each language and
+    compare with the CPU reference's decode ``(values, widths)`` (top bits (n, 3) and bits per
+    component (n,), e.g. ``lopcook.emit.clusters.decode_clustered``): grid integers
+    (``to_grid``), float32 bits (``reconstruct_float32``, 0 ulp) and widths.
+
+    ``words``: P at ``level``; ``records``: (n_c, 4) uint32 with word 3 = ClusterBit at ``level``;
+    ``cluster_id``, ``vertex_id``: (25,); ``cell``: extent / 2^24 metres. Returns ``{language:
+    {decoded_vertices, grid_mismatches, float_mismatches, level_mismatches, max_float_ulp}}``, the
+    per-language counters of ``verify_decoders``, so a container walk can add them up."""
+    from . import gpu
+
+    values = np.asarray(values, dtype=np.uint32)
+    widths = np.asarray(widths, dtype=np.int64)
+    ref_grid = to_grid(values, widths)
+    ref_pos = reconstruct_float32(values, widths, origin, cell)
+    half = np.float32(cell / 2.0)
+    out = {}
+    for lang in languages:
+        got = gpu.decode_clustered(lang, words, records, cluster_id, vertex_id, cluster_size, level, origin, half)
+        out[lang] = {
+            "decoded_vertices": int(widths.size),
+            "grid_mismatches": int(np.any(got.grid != ref_grid, axis=1).sum()),
+            "float_mismatches": int(np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1).sum()),
+            "level_mismatches": int((got.level.astype(np.int64) != widths).sum()),
+            "max_float_ulp": int(_ulp_distance(got.position, ref_pos).max()) if widths.size else 0,
+        }
+    return out
+
+
+def verify_clustered_adapt(words_at, records_at, cluster_id, vertex_id, cluster_size: int, levels, plane,
+                           languages=("glsl", "hlsl")) -> dict:
+    """Walk one clustered buffer through ``adapt_walk(levels)`` plane by plane with the
+    ``LOP_CLUSTERED`` kernels of each language; after every step P and the cluster records must
+    equal the CPU's from scratch. ``words_at(B)`` / ``records_at(B)``: the CPU's P and (n_c, 4)
+    records at level B; ``plane(p)``: (uint32 words, bit offset) of this buffer's slice of plane
+    p. Returns ``{language: {adapt_steps, adapt_mismatches}}``."""
+    from . import gpu
+
+    chosen = sorted(set(int(v) for v in levels))
+    walk = [chosen[0], *adapt_walk(chosen)]
+    out = {}
+    for lang in languages:
+        ad = gpu.clustered_adapter(lang)
+        steps = bad = 0
+        buf = ad.upload(words_at(walk[0]), records_at(walk[0]), cluster_id, vertex_id, cluster_size, walk[0])
+        try:
+            for target in walk[1:]:
+                while buf.level != target:
+                    ad.adapt(buf, buf.level + (1 if target > buf.level else -1), plane)
+                    steps += 1
+                    bad += not (np.array_equal(buf.read_words(), np.asarray(words_at(buf.level), dtype=np.uint32))
+                                and np.array_equal(buf.read_records(), np.asarray(records_at(buf.level))))
+        finally:
+            buf.release()
+        out[lang] = {"adapt_steps": steps, "adapt_mismatches": bad}
+    return out
+
+
 CAMERA_DISTANCES = (0.25, 4.0, 64.0)  # in grid extents from the buffer's box centre: inside, near, far
 
 
 def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, stats, examples,
-                       max_examples) -> None:
+                       max_examples, cbuf=None) -> None:
     """``lop_decode_crack_free`` against ``decode_crack_free`` at the buffer's level, from three
-    cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest."""
+    cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest.
+    ``cbuf``: the buffer's ``ClusteredGpuBuffer`` at that level, decoded by the ``LOP_CLUSTERED``
+    crack-free path instead (same reference)."""
     from . import gpu
 
     from ..emit.reader import part_grid
@@ -333,15 +463,19 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
         ref_grid, ref_pos, ref_level = decode_crack_free(values, widths, bin_levels, buf.level, origin, cell, camera,
                                                          level_dist, radius)
         for lang in languages:
-            got = gpu.vertex_decoder(lang, crack_free=True).decode(
-                buf.words, buf.vertex_id, buf.bit_id, buf.level, origin, np.float32(cell / 2.0),
-                view=(camera, level_dist, radius))
+            view = (camera, level_dist, radius)
+            if cbuf is None:
+                got = gpu.vertex_decoder(lang, crack_free=True).decode(
+                    buf.words, buf.vertex_id, buf.bit_id, buf.level, origin, np.float32(cell / 2.0), view=view)
+            else:
+                got = _decode_clustered(c, part, lod, lang, cbuf, origin, np.float32(cell / 2.0), view=view)
             bad = (np.any(got.grid != ref_grid, axis=1) | np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32),
                                                                    axis=1) | (got.level.astype(np.int64) != ref_level))
             stats[lang]["crack_free_vertices"] += int(bad.size)
             stats[lang]["crack_free_mismatches"] += int(bad.sum())
             for j in np.flatnonzero(bad)[: max(0, max_examples - len(examples))]:
-                examples.append({"language": lang, "kind": "crack_free", "part": part, "lod": lod,
+                examples.append({"language": lang, "kind": "crack_free", "clustered": cbuf is not None,
+                                 "part": part, "lod": lod,
                                  "level": int(buf.level), "camera": [float(v) for v in camera], "vertex": int(j),
                                  "expected_level": int(ref_level[j]), "got_level": int(got.level[j]),
                                  "expected_position": [float(v) for v in ref_pos[j]],
@@ -440,14 +574,84 @@ def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples
                 words = buf.read_words()
                 same = (np.array_equal(words, ref.words) and np.array_equal(vid[: LEVELS + 1], ref.vertex_id)
                         and np.array_equal(bid[: LEVELS + 1], table_bit_id(ref.vertex_id, target)))
+                per = s["per_level"][str(target)]
+                per["adapt_checks"] += 1
                 if not same:
                     s["adapt_mismatches"] += 1
+                    per["adapt_mismatches"] += 1
                     if len(examples) < max_examples:
                         examples.append({"language": lang, "kind": "adapt", "part": part, "lod": lod,
                                          "level": target, "words_expected": int(ref.words.size),
                                          "words_got": int(words.size),
                                          "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
                                          if words.size == ref.words.size else None})
+        finally:
+            buf.release()
+        s["adapt_seconds"] += time.perf_counter() - t0
+
+
+def _decode_clustered(c, part, lod, lang, cbuf, origin, half_cell, view=None):
+    """``gpu.decode_clustered`` of a container's ClusteredGpuBuffer; a buffer outside what the
+    clustered decoder accepts (2^26 vertices or more) is a LopcookError naming it."""
+    from . import gpu
+
+    cl = cbuf.clusters
+    try:
+        return gpu.decode_clustered(lang, cbuf.words, cbuf.records, cl.cluster_id, cl.vertex_id, cl.size, cbuf.level,
+                                    origin, half_cell, view=view)
+    except ValueError as exc:
+        raise LopcookError("verify", c.path, f"part {part} LOD {lod}: the clustered decoder cannot take this "
+                           f"buffer: {exc}", hint="cook it unclustered (--clusters 0) or with fewer vertices "
+                           "per part") from None
+
+
+def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, max_examples) -> None:
+    """The ``LOP_CLUSTERED`` kernels walk a clustered buffer through ``adapt_walk(levels)`` one
+    plane at a time, fed the file's own plane slices; after each chosen level P, the cluster
+    records, VertexId, ClusterId and BitId (= ClusterBit[ClusterId[k]]) must equal the CPU's
+    (``reader.clustered_gpu_buffer`` at that level)."""
+    from ..emit.clusters import cluster_bit
+    from ..emit.reader import clustered_gpu_buffer
+    from . import gpu
+
+    first = clustered_gpu_buffer(c, part, lod, levels[0])
+    cl = first.clusters
+    if cl.n == 0:
+        return
+    plane = stored_plane_source(c, part, lod)
+    refs: dict = {}
+    for lang in languages:
+        ad = gpu.clustered_adapter(lang)
+        s = stats[lang]
+        t0 = time.perf_counter()
+        buf = ad.upload(first.words, first.records, cl.cluster_id, cl.vertex_id, cl.size, levels[0])
+        try:
+            for target in adapt_walk(levels):
+                steps = abs(target - buf.level)
+                s["adapt_steps"] += steps
+                s["clustered_adapt_steps"] += steps
+                ad.adapt(buf, target, plane)
+                if target not in refs:
+                    refs[target] = clustered_gpu_buffer(c, part, lod, target)
+                ref = refs[target]
+                vid, bid, cid = buf.read_tables()
+                words, rec = buf.read_words(), buf.read_records()
+                same = (np.array_equal(words, ref.words) and np.array_equal(rec, ref.records)
+                        and np.array_equal(vid[: LEVELS + 1], cl.vertex_id)
+                        and np.array_equal(cid[: LEVELS + 1], cl.cluster_id)
+                        and np.array_equal(bid[: LEVELS + 1], cluster_bit(cl, target)[cl.cluster_id]))
+                per = s["per_level"][str(target)]
+                per["adapt_checks"] += 1
+                if not same:
+                    s["adapt_mismatches"] += 1
+                    per["adapt_mismatches"] += 1
+                    if len(examples) < max_examples:
+                        examples.append({"language": lang, "kind": "adapt", "clustered": True, "part": part,
+                                         "lod": lod, "level": target, "words_expected": int(ref.words.size),
+                                         "words_got": int(words.size),
+                                         "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
+                                         if words.size == ref.words.size else None,
+                                         "records_equal": bool(np.array_equal(rec, ref.records))})
         finally:
             buf.release()
         s["adapt_seconds"] += time.perf_counter() - t0
@@ -464,10 +668,23 @@ def format_report(report: dict) -> str:
                      f"max {s['max_float_ulp']} ulp) in {s['decode_seconds']:.2f} s; crack-free: "
                      f"{s['crack_free_vertices']:,} decodes, {s['crack_free_mismatches']} mismatches; adaption: {s['adapt_steps']} "
                      f"plane steps, {s['adapt_mismatches']} mismatches in {s['adapt_seconds']:.2f} s")
+        bad_levels = [f"{b}: {v['decode_mismatches']} decode, {v['adapt_mismatches']} adapt"
+                      for b, v in (s.get("per_level") or {}).items() if v["decode_mismatches"] or v["adapt_mismatches"]]
+        if bad_levels:
+            lines.append(f"  {lang} mismatches by level: " + "; ".join(bad_levels))
         attr_bad = s["normal_mismatches"] + s["uv_mismatches"] + s["color_mismatches"]
         lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
                      f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
                      f"{s['color_mismatches']}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
+    if report.get("clustered_buffers"):
+        lines.append(f"  clustered buffers: {report['clustered_buffers']} of {report['buffers']}, decoded by the "
+                     "LOP_CLUSTERED shaders: " + "; ".join(
+                         f"{lang} {s['clustered_decoded_vertices']:,} vertex decodes, {s['clustered_adapt_steps']} "
+                         "plane steps" for lang, s in report["languages"].items()))
+    cs = report.get("clustered_cpu") or {}
+    if cs.get("decoded_vertices"):
+        lines.append(f"  clustered CPU decode: {cs['decoded_vertices']:,} vertex decodes, {cs['mismatches']} "
+                     "mismatches against the unclustered reference")
     for e in report["examples"]:
         lines.append(f"  mismatch: {e}")
     lines.append("  ok: decoders are bit-exact" if report["ok"] else "  FAILED: decoders differ from the CPU reference")
@@ -488,5 +705,5 @@ def _levels_text(levels: list[int]) -> str:
     return ",".join(runs)
 
 
-__all__ = ["parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source",
+__all__ = ["verify_clustered_decode", "verify_clustered_adapt", "parse_levels", "view_tables", "buffer_level", "vertex_levels", "decode_crack_free", "plane_source", "stored_plane_source",
            "attribute_record", "verify_decoders", "adapt_walk", "format_report"]

@@ -14,7 +14,9 @@ What is rendered (``evaluate``), for every per-buffer level B and every view:
   part with its own index buffer (the same triangles, in the same order, as the container's).
 * **AP** (paper section 4): every vertex decoded with B bits (``lopcook.verify.buffers.ap_buffer``).
 * **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
-  vertices of bin k > B keep k bits.
+  vertices of bin k > B keep k bits. A clustered buffer (``cook --clusters N``) is uploaded in its
+  clustered layout and drawn by the ``LOP_CLUSTERED`` decoder (``lopcook.verify.buffers.cap_buffer``);
+  it decodes to the same positions.
 
 Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the container's own
 decoded normals, UVs and colours (``lopcook.emit.reader.lod_attributes``: the packed attribute
@@ -47,11 +49,11 @@ import time
 import numpy as np
 
 from ..emit.binning import LEVELS
-from ..emit.reader import gpu_buffer, lod_entry
+from ..emit.reader import lod_entry
 from ..errors import LopcookError
 from ..viewing import Viewing, required_level
 from . import metrics as M
-from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
+from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
 
@@ -250,7 +252,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     origin = g["origin"]
     half_cell = np.float32(extent / float(1 << LEVELS) / 2.0)
     f32 = 12 * sum(int(lod_entry(c, i, 0)["vertices"]) for i in range(len(c.manifest["parts"])))
-    builders = {"ap": ap_buffer, "cap": gpu_buffer}
+    builders = {"ap": ap_buffer, "cap": cap_buffer}  # CAP in the buffer's own layout (clustered or binned)
     ctx = h.ctx
     attr_cache: dict = {}
     seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
@@ -260,7 +262,8 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         drawn, owned_all = {}, []
         for v in variants:
             items, owned = decoded_items(ctx, h.renderer.decode_program, c, scene, lods, orders, h.textures,
-                                          builders[v], level, origin, half_cell, attr_cache)
+                                          builders[v], level, origin, half_cell, attr_cache,
+                                          cluster_program=_cluster_program(h.renderer, c))
             drawn[v] = (items, True)
             owned_all += owned
         return drawn, owned_all
@@ -289,6 +292,13 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     if keep_images:
         out["images"] = images
     return out
+
+
+def _cluster_program(renderer, c):
+    """The renderer's ``LOP_CLUSTERED`` decode program when container ``c`` holds a clustered buffer
+    (compiled on first use), else None."""
+    clustered = any("cluster_size" in e for p in c.manifest["parts"] for e in p["lods"])
+    return renderer.cluster_decode_program if clustered else None
 
 
 def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, distance_m, extent, viewing,

@@ -9,7 +9,9 @@ section 6.2 (positions decoded in the vertex shader).
   = vertex), read from SSBO 0 (packed words) and UBO 0 (tables and grid,
   ``lopcook.verify.gpu.decode_block``), then mapped by the placement rows ``u_place0..2`` (the
   3 x 4 transform of a ``cook --instances`` placement, identity otherwise) in the float32 order of
-  ``lopcook.emit.placement.to_world``. ``decoded=False``: a float32 ``in_position`` attribute.
+  ``lopcook.emit.placement.to_world``. ``clustered=True`` adds ``LOP_CLUSTERED``: the clustered
+  layout of issue 16 (SSBO 0 clustered P, SSBO 3 the cluster records, UBO 0
+  ``lopcook.verify.gpu.cluster_decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
   Both pass the source normals, UVs and colours through unchanged.
 * ``FS`` (shading): ``colour = base * (ambient + diffuse * max(N.L, 0)) + ks * max(R.V, 0)^shininess``
   (the specular term only where N.L > 0), clamped to [0, 1]; uniforms ``u_phong`` = (ambient,
@@ -123,13 +125,15 @@ void main()
 """
 
 
-def vertex_shader_source(decoded: bool) -> str:
-    """GLSL 4.50 vertex shader: ``decoded`` = the shipped ``decode_bitplanes.glsl`` (LOP_NO_VIEW) with
-    ``lop_decode(gl_VertexID)`` for the position; else a float32 ``in_position`` attribute."""
+def vertex_shader_source(decoded: bool, clustered: bool = False) -> str:
+    """GLSL 4.50 vertex shader: ``decoded`` = the shipped ``decode_bitplanes.glsl`` (LOP_NO_VIEW, and
+    LOP_CLUSTERED with ``clustered``) with ``lop_decode(gl_VertexID)`` for the position; else a
+    float32 ``in_position`` attribute."""
     from .gpu import shader_source
 
     if decoded:
-        return "#version 450\n#define LOP_NO_VIEW\n#line 1\n" + shader_source("decode_bitplanes.glsl") + VS_MAIN
+        head = "#version 450\n#define LOP_NO_VIEW\n" + ("#define LOP_CLUSTERED\n" if clustered else "")
+        return head + "#line 1\n" + shader_source("decode_bitplanes.glsl") + VS_MAIN
     return "#version 450\n#define LOP_FLOAT_POSITIONS\n" + VS_MAIN
 
 

@@ -253,14 +253,17 @@ void main() { lop_out_position = in_position; }
 """
 
 
-def vertex_shader_source(language: str, crack_free: bool = False) -> str:
+def vertex_shader_source(language: str, crack_free: bool = False, clustered: bool = False) -> str:
     """GLSL 4.50 source of the verification vertex shader: the library of ``shaders/`` plus a main
-    that writes grid integers, float position and level to transform feedback."""
+    that writes grid integers, float position and level to transform feedback. ``clustered``
+    defines ``LOP_CLUSTERED`` (the clustered layout of issue 16)."""
     if language == "glsl":
         head = "#version 450\n" + ("#define LOP_CRACK_FREE\n" if crack_free else "#define LOP_NO_VIEW\n")
+        head += "#define LOP_CLUSTERED\n" if clustered else ""
         return head + "#line 1\n" + shader_source("decode_bitplanes.glsl") + _GLSL_VS_MAIN
     if language == "hlsl":
         defines = ("LOP_CRACK_FREE",) if crack_free else ("LOP_NO_VIEW",)
+        defines += ("LOP_CLUSTERED",) if clustered else ()
         return hlsl_to_glsl(shader_source("decode_bitplanes.hlsl") + _HLSL_VS_MAIN, "vert", "lop_verify_vs",
                             defines=defines, rename_outputs=VARYINGS, name="decode_bitplanes.hlsl")
     raise ValueError(f"language must be one of {LANGUAGES}, got {language!r}")
@@ -327,14 +330,33 @@ class VertexDecoder:
         self.program = self.ctx.program(vertex_shader=self.source, varyings=VARYINGS)
         self.vao = self.ctx.vertex_array(self.program, [])
 
-    def decode(self, words, vertex_id, bit_id, level: int, origin, half_cell, view=None) -> Decoded:
-        ctx = self.ctx
+    def decode_clustered(self, words, records, cluster_id, vertex_id, cluster_size: int, level: int, origin,
+                         half_cell, view=None) -> Decoded:
+        """The clustered decode (for a decoder from ``clustered_vertex_decoder``, whose shader has
+        ``LOP_CLUSTERED``): as ``decode_clustered`` of this module, without its validation."""
         n = int(vertex_id[LEVELS])
         if n == 0:
             return Decoded(np.zeros((0, 3), np.uint32), np.zeros((0, 3), np.float32), np.zeros(0, np.uint32))
         words = np.ascontiguousarray(words, dtype="<u4")
-        resources = [ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0"),
-                     ctx.buffer(decode_block(vertex_id, bit_id, level, origin, half_cell, words.size))]
+        rec = np.ascontiguousarray(records, dtype="<u4")
+        clusters = self.ctx.buffer(rec.tobytes() if rec.size else b"\0" * 16)
+        clusters.bind_to_storage_buffer(3)
+        try:
+            block = cluster_decode_block(vertex_id, cluster_id, level, origin, half_cell, words.size, cluster_size)
+            return self._transform(n, words, block, view)
+        finally:
+            clusters.release()
+
+    def decode(self, words, vertex_id, bit_id, level: int, origin, half_cell, view=None) -> Decoded:
+        n = int(vertex_id[LEVELS])
+        if n == 0:
+            return Decoded(np.zeros((0, 3), np.uint32), np.zeros((0, 3), np.float32), np.zeros(0, np.uint32))
+        words = np.ascontiguousarray(words, dtype="<u4")
+        return self._transform(n, words, decode_block(vertex_id, bit_id, level, origin, half_cell, words.size), view)
+
+    def _transform(self, n: int, words, block: bytes, view) -> Decoded:
+        ctx = self.ctx
+        resources = [ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0"), ctx.buffer(block)]
         resources[0].bind_to_storage_buffer(0)
         resources[1].bind_to_uniform_block(0)
         if self.crack_free:
@@ -369,6 +391,85 @@ def vertex_decoder(language: str, crack_free: bool = False) -> VertexDecoder:
     if key not in _DECODERS:
         _DECODERS[key] = VertexDecoder(language, crack_free, source)
     return _DECODERS[key]
+
+
+# ---- clustered buffers (issue 16): vertex decoding ----------------------------------------------
+#
+# Layout (the contract between the CPU reference and these shaders; docs/format.md): vertices in
+# (minimum level, Morton code) order, each bin cut into clusters of at most N vertices;
+# ClusterId[k] = clusters in bins <= k; per cluster and component the shared prefix length k_t and
+# anchor a_t, stored as 4 uint32 records (a_t | k_t << 24 for x, y, z, then ClusterBit[c] at the
+# current level); P holds w_t = max(0, b - k_t) bits per component, clusters back to back.
+
+#: uint32 words per cluster record (LopClusters)
+CLUSTER_RECORD_WORDS = 4
+#: bytes of the clustered LopDecode block
+CLUSTER_DECODE_BLOCK_BYTES = 416
+#: cluster sizes N the decoders accept (the contract's range; lop_div is exact there)
+CLUSTER_SIZES = (16, 1024)
+
+
+def check_cluster_tables(records, cluster_id, vertex_id, cluster_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validate a clustered buffer's tables and return them as ``(records (n_c, 4) uint32,
+    cluster_id (25,) int64, vertex_id (25,) int64)``. Raises ValueError when the shapes disagree,
+    ``cluster_size`` is outside ``CLUSTER_SIZES``, the buffer has 2^26 vertices or more, ClusterId[24] is not the number of records, a bin's
+    cluster count is not ceil(bin vertices / N), or a k_t exceeds 24 / an anchor has more than
+    k_t bits."""
+    rec = np.ascontiguousarray(records, dtype=np.uint32).reshape(-1, CLUSTER_RECORD_WORDS)
+    cid = np.asarray(cluster_id, dtype=np.int64)
+    vid = np.asarray(vertex_id, dtype=np.int64)
+    n = int(cluster_size)
+    if cid.shape != (LEVELS + 1,) or vid.shape != (LEVELS + 1,):
+        raise ValueError(f"ClusterId and VertexId have {LEVELS + 1} entries, got {cid.shape} and {vid.shape}")
+    if not CLUSTER_SIZES[0] <= n <= CLUSTER_SIZES[1]:
+        raise ValueError(f"cluster size {n} is outside [{CLUSTER_SIZES[0]}, {CLUSTER_SIZES[1]}]")
+    if vid[LEVELS] >= 1 << 26:
+        raise ValueError(f"{int(vid[LEVELS])} vertices exceed the clustered decoder's 2^26 per buffer")
+    if int(cid[LEVELS]) != len(rec) or cid[0] != 0:
+        raise ValueError(f"ClusterId[24] = {int(cid[LEVELS])} but {len(rec)} cluster records (ClusterId[0] must be 0)")
+    per_bin = -(-np.diff(vid) // n)
+    if np.any(np.diff(cid) != per_bin):
+        raise ValueError("ClusterId does not cut each bin of VertexId into runs of the cluster size")
+    k = rec[:, :3] >> np.uint32(24)
+    a = rec[:, :3] & np.uint32(0xFFFFFF)
+    if np.any(k > LEVELS) or np.any(a >> np.minimum(k, 31).astype(np.uint32) != 0):
+        raise ValueError("a cluster record has k_t > 24 or an anchor wider than k_t bits")
+    return rec, cid, vid
+
+
+def cluster_decode_block(vertex_id, cluster_id, level: int, origin, half_cell, words: int,
+                         cluster_size: int) -> bytes:
+    """The 416 bytes of the clustered LopDecode uniform block / cbuffer (``LOP_CLUSTERED``): the
+    288 bytes of ``decode_block`` with BitId zero and ``lop_params.z = cluster_size``, then
+    ClusterId[0..24] padded to 32 entries with 0xFFFFFFFF."""
+    base = bytearray(decode_block(vertex_id, np.zeros(LEVELS + 1, np.int64), level, origin, half_cell, words))
+    base[272 + 8:272 + 12] = np.array([int(cluster_size)], dtype="<u4").tobytes()
+    return bytes(base) + _table32(cluster_id).tobytes()
+
+
+def clustered_vertex_decoder(language: str, crack_free: bool = False) -> "VertexDecoder":
+    """Cached clustered VertexDecoder (``LOP_CLUSTERED``) per (language, crack_free, source)."""
+    source = vertex_shader_source(language, crack_free, clustered=True)
+    key = (language, bool(crack_free), source)
+    if key not in _DECODERS:
+        _DECODERS[key] = VertexDecoder(language, crack_free, source)
+    return _DECODERS[key]
+
+
+def decode_clustered(language: str, words, records, cluster_id, vertex_id, cluster_size: int, level: int,
+                     origin, half_cell, view=None) -> Decoded:
+    """Decode every vertex ``j`` in ``[0, VertexId[24])`` of a clustered buffer with the vertex
+    shader of ``language`` (``shaders/decode_bitplanes.*`` with ``LOP_CLUSTERED``).
+
+    ``words``: P at ``level`` (uint32); ``records``: (n_c, 4) uint32 cluster records whose word 3 is
+    ClusterBit at ``level`` (the CPU reference's ``records(clusters, level)``); ``cluster_id``,
+    ``vertex_id``: (25,) tables; ``cluster_size``: N; ``origin`` / ``half_cell``: the grid, rounded
+    to float32 here. With ``view=(camera, level_dist, block_radius)`` the crack-free decode runs
+    instead. Returns ``Decoded`` (grid, float32 position, bits per component), which must equal
+    the unclustered decode at max(B, m_v) bits."""
+    rec, cid, vid = check_cluster_tables(records, cluster_id, vertex_id, cluster_size)
+    dec = clustered_vertex_decoder(language, crack_free=view is not None)
+    return dec.decode_clustered(words, rec, cid, vid, cluster_size, level, origin, half_cell, view=view)
 
 
 # ---- vertex-shader attribute decoding (transform feedback) -------------------------------------
@@ -571,16 +672,16 @@ _HLSL_KERNEL_ENTRY = {"unpack": "lop_unpack_cs", "add_plane": "lop_add_plane_cs"
                       "remove_plane": "lop_remove_plane_cs", "tables": "lop_tables_cs", "pack": "lop_pack_cs"}
 
 
-def compute_shader_source(language: str, kernel: str) -> str:
-    """GLSL 4.50 source of one adaption kernel (``KERNELS``)."""
+def compute_shader_source(language: str, kernel: str, clustered: bool = False) -> str:
+    """GLSL 4.50 source of one adaption kernel (``KERNELS``); ``clustered`` defines ``LOP_CLUSTERED``."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     if language == "glsl":
-        return (f"#version 450\n#define {_GLSL_KERNEL_DEFINE[kernel]}\n#line 1\n"
-                + shader_source("adapt_bitplanes.comp.glsl"))
+        return (f"#version 450\n{'#define LOP_CLUSTERED' + chr(10) if clustered else ''}"
+                f"#define {_GLSL_KERNEL_DEFINE[kernel]}\n#line 1\n" + shader_source("adapt_bitplanes.comp.glsl"))
     if language == "hlsl":
         return hlsl_to_glsl(shader_source("adapt_bitplanes.comp.hlsl"), "comp", _HLSL_KERNEL_ENTRY[kernel],
-                            name="adapt_bitplanes.comp.hlsl")
+                            defines=("LOP_CLUSTERED",) if clustered else (), name="adapt_bitplanes.comp.hlsl")
     raise ValueError(f"language must be one of {LANGUAGES}, got {language!r}")
 
 
@@ -720,6 +821,161 @@ class Adapter:
             k.release()
 
 
+# ---- clustered buffers (issue 16): adaption ----------------------------------------------------
+
+def clustered_bits(records, cluster_id, vertex_id, cluster_size: int, level: int) -> tuple[int, int]:
+    """(bits of P, bits of plane ``level`` in this buffer's slice) of a clustered buffer at
+    ``level``, from the tables the CPU holds (what it needs to size buffers; no read-back):
+    sum over clusters of count_c * sum_t max(0, max(m_c, B) - k_t), and of count_c * #{t : k_t < p}
+    over clusters with m_c < p."""
+    rec, cid, vid = check_cluster_tables(records, cluster_id, vertex_id, cluster_size)
+    k = (rec[:, :3] >> np.uint32(24)).astype(np.int64)
+    c = np.arange(len(rec), dtype=np.int64)
+    i = np.searchsorted(cid, c, side="right") - 1  # bin i + 1
+    count = np.minimum(int(cluster_size), vid[i + 1] - vid[i] - (c - cid[i]) * int(cluster_size))
+    b = np.maximum(i + 1, int(level))[:, None]
+    bits = int((count * np.maximum(b - k, 0).sum(axis=1)).sum())
+    plane = int((count * (k < level).sum(axis=1) * (i + 1 < level)).sum())
+    return bits, plane
+
+
+class ClusteredAdaptBuffer:
+    """One clustered buffer resident on the GPU for adaption: P (``packed``), the tables SSBO
+    (VertexId, BitId, ClusterId: 384 bytes), the cluster records (``clusters``, word 3 = ClusterBit
+    at ``level``), PlaneBit (``plane_bit``) and U. Use ``ClusteredAdapter`` to change its level."""
+
+    def __init__(self, ctx, words, records, cluster_id, vertex_id, cluster_size: int, level: int):
+        rec, cid, vid = check_cluster_tables(records, cluster_id, vertex_id, cluster_size)
+        self.ctx = ctx
+        self.vertex_id, self.cluster_id, self.cluster_size = vid, cid, int(cluster_size)
+        self.records = rec.copy()  # words 0-2 (the CPU's copy; word 3 lives on the GPU)
+        self.n = int(vid[LEVELS])
+        self.n_clusters = len(rec)
+        self.level = int(level)
+        self.u_level = None
+        words = np.ascontiguousarray(words, dtype="<u4")
+        self.packed = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
+        self.words = int(words.size)
+        self.tables = ctx.buffer(_table32(vid).tobytes() + np.zeros(32, "<u4").tobytes() + _table32(cid).tobytes())
+        self.clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
+        self.plane_bit = ctx.buffer(reserve=4 * (self.n_clusters + 1))
+        self.unpacked = ctx.buffer(reserve=max(12 * self.n, 4))
+
+    def bits(self, level: int) -> tuple[int, int]:
+        return clustered_bits(self.records, self.cluster_id, self.vertex_id, self.cluster_size, level)
+
+    def read_words(self) -> np.ndarray:
+        return np.frombuffer(self.packed.read(), dtype="<u4")[: self.words].copy()
+
+    def read_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(32,) uint32 VertexId, BitId (= ClusterBit[ClusterId[k]] after the tables kernel), ClusterId."""
+        t = np.frombuffer(self.tables.read(), dtype="<u4")
+        return t[:32].copy(), t[32:64].copy(), t[64:96].copy()
+
+    def read_records(self) -> np.ndarray:
+        """(n_c, 4) uint32 cluster records as the GPU holds them."""
+        return np.frombuffer(self.clusters.read(), dtype="<u4")[: 4 * self.n_clusters].reshape(-1, 4).copy()
+
+    def read_plane_bit(self) -> np.ndarray:
+        """(n_c + 1,) uint32 PlaneBit of the last tables kernel's level."""
+        return np.frombuffer(self.plane_bit.read(), dtype="<u4")[: self.n_clusters + 1].copy()
+
+    def read_unpacked(self) -> np.ndarray:
+        return np.frombuffer(self.unpacked.read(), dtype="<u4")[: 3 * self.n].reshape(-1, 3).copy()
+
+    def release(self) -> None:
+        for b in (self.packed, self.tables, self.clusters, self.plane_bit, self.unpacked):
+            b.release()
+
+
+class ClusteredAdapter(Adapter):
+    """The adaption kernels compiled with ``LOP_CLUSTERED`` (protocol in adapt_bitplanes.comp.glsl):
+    ``unpack`` at the buffer's level; ``add_plane`` runs the tables kernel at the new level first
+    (PlaneBit of the plane, word 3) and merges the plane; ``remove_plane`` zeroes the lowest bit;
+    ``repack`` runs the tables kernel (unless ``add_plane`` already did for that level) and packs."""
+
+    def __init__(self, language: str, sources: dict | None = None):
+        sources = sources or {k: compute_shader_source(language, k, clustered=True) for k in KERNELS}
+        super().__init__(language, sources)
+
+    def upload(self, words, records, cluster_id, vertex_id, cluster_size: int, level: int) -> ClusteredAdaptBuffer:
+        return ClusteredAdaptBuffer(self.ctx, words, records, cluster_id, vertex_id, cluster_size, level)
+
+    def _run(self, kernel: str, buf, params, threads: int, extra=()) -> None:
+        ctx = self.ctx
+        buf.packed.bind_to_storage_buffer(0)
+        buf.unpacked.bind_to_storage_buffer(1)
+        buf.tables.bind_to_storage_buffer(3)
+        buf.clusters.bind_to_storage_buffer(5)
+        buf.plane_bit.bind_to_storage_buffer(6)
+        for binding, b in extra:
+            b.bind_to_storage_buffer(binding)
+        shader = self.kernels[kernel]
+        first = 0
+        while True:
+            groups = 1 if kernel == "tables" else min(max((threads - first + LOCAL_SIZE - 1) // LOCAL_SIZE, 1), MAX_GROUPS)
+            ubo = ctx.buffer(np.array([*params, first, buf.cluster_size, buf.n_clusters, 0], dtype="<u4").tobytes())
+            ubo.bind_to_uniform_block(0)
+            shader.run(groups)
+            ctx.memory_barrier()
+            ubo.release()
+            first += groups * LOCAL_SIZE
+            if first >= threads:
+                break
+
+    def unpack(self, buf) -> None:
+        self._run("unpack", buf, (buf.level, buf.n, 0, max(buf.words, 1)), buf.n)
+        buf.u_level = buf.level
+        buf.tables_level = buf.level
+
+    def tables(self, buf, level: int) -> None:
+        """Word 3 of every record = ClusterBit at ``level``, PlaneBit of plane ``level``, BitId."""
+        self._run("tables", buf, (level, 1, 0, 0), 1)
+        buf.tables_level = level
+
+    def add_plane(self, buf, plane_words, bit_offset: int = 0) -> None:
+        """U's level L -> L + 1: the tables kernel at L + 1, then merge plane L + 1 (``plane_words``:
+        uint32 words holding this buffer's slice at bit ``bit_offset``, laid out as the spec's
+        refinement plane: per cluster with m_c < p, per vertex, the components with k_t < p)."""
+        p = buf.u_level + 1
+        if not 2 <= p <= LEVELS:
+            raise ValueError(f"cannot add plane {p}")
+        self.tables(buf, p)
+        count = int(buf.vertex_id[p - 1])
+        data = np.ascontiguousarray(plane_words, dtype="<u4").tobytes() or b"\0\0\0\0"
+        plane = self.ctx.buffer(data)
+        try:
+            if count:
+                self._run("add_plane", buf, (p, count, int(bit_offset), 0), count, extra=[(2, plane)])
+        finally:
+            plane.release()
+        buf.u_level = p
+
+    def repack(self, buf) -> None:
+        level = buf.u_level
+        if getattr(buf, "tables_level", None) != level:
+            self.tables(buf, level)
+        nwords = max((buf.bits(level)[0] + 31) // 32, 1)
+        out = self.ctx.buffer(reserve=nwords * 4)
+        self._run("pack", buf, (level, nwords, 0, 0), nwords, extra=[(4, out)])
+        buf.packed.release()
+        buf.packed = out
+        buf.words = nwords
+        buf.level = level
+
+
+_CLUSTERED_ADAPTERS: dict = {}
+
+
+def clustered_adapter(language: str) -> ClusteredAdapter:
+    """Cached ClusteredAdapter per (language, shader sources) for this process's context."""
+    sources = {k: compute_shader_source(language, k, clustered=True) for k in KERNELS}
+    key = (language, tuple(sources[k] for k in KERNELS))
+    if key not in _CLUSTERED_ADAPTERS:
+        _CLUSTERED_ADAPTERS[key] = ClusteredAdapter(language, sources)
+    return _CLUSTERED_ADAPTERS[key]
+
+
 _ADAPTERS: dict = {}
 
 
@@ -736,4 +992,6 @@ __all__ = ["LANGUAGES", "KERNELS", "context", "use_default_framebuffer", "contex
            "require_hlsl_tools", "tool_versions", "hlsl_to_glsl", "vertex_shader_source", "compute_shader_source", "decode_block",
            "view_block", "Decoded", "VertexDecoder", "vertex_decoder", "ATTRIBUTE_FIELDS", "attribute_shader_source",
            "attribute_bits", "attribute_block", "AttributeDecoder", "attribute_decoder", "Passthrough", "AdaptBuffer", "Adapter",
-           "adapter"]
+           "adapter", "CLUSTER_RECORD_WORDS", "CLUSTER_DECODE_BLOCK_BYTES", "CLUSTER_SIZES", "check_cluster_tables", "cluster_decode_block",
+           "clustered_vertex_decoder", "decode_clustered", "clustered_bits", "ClusteredAdaptBuffer", "ClusteredAdapter",
+           "clustered_adapter"]

@@ -8,7 +8,9 @@ vertices).
 
 Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
 ``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
-CPU. Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
+CPU; a clustered buffer (issue 16, ``cook --clusters N``) is uploaded as clustered P plus its
+cluster records and drawn by the ``LOP_CLUSTERED`` build of that shader
+(``Renderer.cluster_decode_program``). Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
 packed attribute record, normals normalised per vertex), all with the source's textures.
 
 Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
@@ -157,6 +159,15 @@ class Renderer:
                            self.fbo_ms, self.fbo_ms_colour, self._colour_ms, self._ids_ms, self._depth_ms,
                            self.fbo_colour, self._colour, self.fbo_ids, self._ids]
 
+    @property
+    def cluster_decode_program(self):
+        """The decode program built with ``LOP_CLUSTERED`` (clustered buffers; compiled on first use)."""
+        if getattr(self, "_cluster_program", None) is None:
+            self._cluster_program = self.ctx.program(vertex_shader=vertex_shader_source(True, clustered=True),
+                                                     fragment_shader=FS)
+            self._resources.append(self._cluster_program)
+        return self._cluster_program
+
     def _uniforms(self, program, camera: Camera, shading: Shading) -> None:
         program["u_mvp"].write(camera.mvp.T.astype("<f4").tobytes())
         light = camera.eye - camera.centre
@@ -216,7 +227,9 @@ class Renderer:
 
     def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
         """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
-        ``ssbo`` / ``ubo`` when ``decoded``; optional ``box``) from ``camera`` with ``shading``, depth
+        ``ssbo`` / ``ubo`` when ``decoded``; a clustered item also ``clusters`` (the records SSBO,
+        binding 3) and ``program`` (the program its ``vao`` was made with); optional ``box``) from
+        ``camera`` with ``shading``, depth
         test on, no culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first:
         the MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
         (part index + 1, 0 = background). Clear, draw, resolve and read-back are limited to
@@ -230,6 +243,7 @@ class Renderer:
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
         self._uniforms(program, camera, shading)
+        base, primed = program, {id(program)}
         rect = self.screen_rect(camera, items)
         full = (0, 0, self.size[0], self.size[1])
         region = full if rect is None else rect
@@ -242,9 +256,16 @@ class Renderer:
         for it in items:
             if self.outside(camera, it.get("cull_box", it.get("box"))):
                 continue
+            prog = base if it.get("program") is None else it["program"]
+            if id(prog) not in primed:
+                self._uniforms(prog, camera, shading)
+                primed.add(id(prog))
             if decoded:
                 it["ssbo"].bind_to_storage_buffer(0)
                 it["ubo"].bind_to_uniform_block(0)
+                if it.get("clusters") is not None:
+                    it["clusters"].bind_to_storage_buffer(3)
+            program = prog
             program["u_part"].value = int(it["part"]) + 1
             if decoded:
                 rows = it.get("place", IDENTITY_ROWS)
@@ -477,13 +498,16 @@ class Harness:
 
 
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
-                   attr_cache: dict) -> tuple[list, list]:
+                   attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
-    gives the GpuBuffer (AP or CAP); ``lods[i]`` is part i's LOD index. Part i's attributes are the
+    gives the GpuBuffer (AP or CAP) or, for a clustered buffer, the ``ClusteredGpuBuffer``
+    (``lopcook.verify.buffers.cap_buffer``), drawn with ``cluster_program`` (the ``LOP_CLUSTERED``
+    build; ValueError when it is needed and None); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
     file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
-    from .gpu import decode_block
+    from ..emit.reader import ClusteredGpuBuffer
+    from .gpu import check_cluster_tables, cluster_decode_block, decode_block
 
     from ..emit.placement import split
     from ..emit.reader import part_grid, placement_transform, world_normals
@@ -543,11 +567,27 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         buf = buffers_of(c, i, k, p_level)
         words = np.ascontiguousarray(buf.words, dtype="<u4")
         ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
-        ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
-        vao = ctx.vertex_array(program, list(specs), index_buffer=ibo, index_element_size=4)
+        prog, clusters = program, None
+        if isinstance(buf, ClusteredGpuBuffer):
+            if cluster_program is None:
+                raise ValueError("a clustered buffer needs the LOP_CLUSTERED program (cluster_program)")
+            cl = buf.clusters
+            try:
+                rec, _, _ = check_cluster_tables(buf.records, cl.cluster_id, cl.vertex_id, cl.size)
+            except ValueError as exc:
+                raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take this "
+                                   f"buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
+            clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
+            ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, level, origin, half_cell, words.size,
+                                                  cl.size))
+            prog = cluster_program
+            owned.append(clusters)
+        else:
+            ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
+        vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
-                      "has_color": has_color, "texture": texture,
+                      "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
                       "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, **extra})
     return items, owned
 

@@ -82,7 +82,9 @@ def tokens(source: str, hlsl: bool = False) -> list[str]:
 
 def functions(source: str, hlsl: bool = False) -> dict[str, list[str]]:
     """Function name -> tokens of its signature and body (from the return type to the closing
-    brace), for every top-level function definition of ``source``."""
+    brace), for every top-level function definition of ``source``. A name defined more than once
+    (alternatives under ``#ifdef``, e.g. ``LOP_CLUSTERED``) keys its second definition ``name#2``,
+    its third ``name#3``, and so on, in source order, so every definition is compared."""
     toks = tokens(source, hlsl)
     out: dict[str, list[str]] = {}
     depth, i = 0, 0
@@ -104,7 +106,10 @@ def functions(source: str, hlsl: bool = False) -> dict[str, list[str]]:
                     if d == 0:
                         break
                     k += 1
-                out[toks[i + 1]] = toks[i:k + 1]
+                name, n = toks[i + 1], 1
+                while (name if n == 1 else f"{name}#{n}") in out:
+                    n += 1
+                out[name if n == 1 else f"{name}#{n}"] = toks[i:k + 1]
                 i = k + 1
                 continue
         i += 1
