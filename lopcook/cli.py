@@ -101,7 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--clusters", default=None, metavar="N",
                    help="clustered position buffers of N vertices per cluster, N in [16, 1024]: per-cluster "
                         "anchors store the top bits a cluster's vertices share once (container version 3.0; "
-                        f"docs/clusters.md); 0: unclustered (version 2.0) (default {D.emit.clusters})")
+                        f"docs/clusters.md); 0: unclustered (version 2.0) (default {D.emit.clusters}); a buffer "
+                        "is clustered only where that makes it smaller (docs/clusters.md, Per-buffer choice)")
+    p.add_argument("--cluster-all", action="store_true",
+                   help="with clusters: cluster every buffer, even where the unclustered layout is smaller")
     add_analyse_options(p)
     add_attribute_options(p)
     add_viewing_options(p)
@@ -500,20 +503,24 @@ def _emit_settings(args):
     from .settings import CLUSTER_SIZE_RANGE, EmitSettings
 
     text = getattr(args, "clusters", None)
+    every = bool(getattr(args, "cluster_all", False))
     if text is None:
-        return EmitSettings()
+        return EmitSettings(cluster_all=every)
     lo, hi = CLUSTER_SIZE_RANGE
     try:
         n = int(str(text).strip())
     except ValueError:
         n = None
     if n == 0:
+        if every:
+            raise LopcookError("usage", None, "--cluster-all does not combine with --clusters 0",
+                               hint="drop one of them")
         return EmitSettings(clusters=None)
     if n is None or not lo <= n <= hi:
         raise LopcookError("usage", None, f"--clusters {text!r}: expected an integer number of vertices per "
                            f"cluster in [{lo}, {hi}], or 0 for unclustered buffers",
                            hint=f"e.g. --clusters {D.emit.clusters} (the default), or --clusters 0")
-    return EmitSettings(clusters=n)
+    return EmitSettings(clusters=n, cluster_all=every)
 
 
 def cmd_analyse(args) -> int:

@@ -216,7 +216,8 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
     buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
                             uvs=p.uvs, colors=p.colors, attribute_bits=part_bits(settings, i, p, pa))]
                for i, (p, pa) in enumerate(zip(scene.parts, analysis.parts))]
-    encoded = [[encode_buffer(b, BITS, settings.emit.clusters) for b in bufs] for bufs in buffers]
+    encoded = [[encode_buffer(b, BITS, settings.emit.clusters, cluster_all=settings.emit.cluster_all) for b in bufs]
+               for bufs in buffers]
     manifest, sections = assemble(scene, analysis.grid, encoded, max_level=BITS, options=options,
                                   viewing=settings.viewing)
     if settings.simplify.hierarchy:
@@ -281,9 +282,9 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
     bytes saved against the container of every buffer with every plane. Each buffer is encoded
     once; the larger container's size comes from its manifest and section table."""
     kept_mask = [[r.kept for r in rs] for rs in rows]
-    n = settings.emit.clusters
-    full_enc = [[encode_buffer(b, BITS, n) for b in bufs] for bufs in all_buffers]
-    kept_enc = [[encode_buffer(b, max_level, n) if b.min_level.max() > max_level else e
+    n, every = settings.emit.clusters, settings.emit.cluster_all
+    full_enc = [[encode_buffer(b, BITS, n, cluster_all=every) for b in bufs] for bufs in all_buffers]
+    kept_enc = [[encode_buffer(b, max_level, n, cluster_all=every) if b.min_level.max() > max_level else e
                  for b, e, k in zip(bufs, encs, ks) if k]
                 for bufs, encs, ks in zip(all_buffers, full_enc, kept_mask)]
     planes_dropped = list(range(max_level + 1, BITS + 1))
@@ -475,7 +476,8 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
             max_level = max([vlevel, highest_min] + res)
     max_level = int(max_level)
     # shared mesh-grid buffers and the parts left on the scene grid are clustered as any buffer
-    encoded = [[] if placement.get(i, (i,))[0] != i else [encode_buffer(b, max_level, settings.emit.clusters)
+    encoded = [[] if placement.get(i, (i,))[0] != i else [encode_buffer(b, max_level, settings.emit.clusters,
+                                                                        cluster_all=settings.emit.cluster_all)
                                                           for b in kept[i]]
                for i in range(len(kept))]
     manifest, sections = assemble(scene, grid, encoded, max_level=max_level, options=options,

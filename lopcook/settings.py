@@ -483,9 +483,14 @@ class EmitSettings:
         (``lopcook.emit.clusters``: per-cluster anchors store the top bits a cluster's vertices
         share once; docs/clusters.md), default ``DEFAULT_CLUSTER_SIZE``; None: the unclustered
         binned layout (``cook --clusters 0``).
+    cluster_all : bool  cluster every buffer (``cook --cluster-all``); default False: a buffer is
+        clustered only when that makes it smaller (``lopcook.emit.clustering_wins``: GPU-resident
+        bytes summed over levels 6-12), else written unclustered (docs/clusters.md, "Per-buffer
+        choice").
     """
 
     clusters: int | None = DEFAULT_CLUSTER_SIZE
+    cluster_all: bool = False
 
     def __post_init__(self) -> None:
         lo, hi = CLUSTER_SIZE_RANGE
@@ -533,6 +538,8 @@ class Settings:
             options["attributes"] = self.attributes.to_record()
         if self.emit.clusters is not None:
             options["clusters"] = int(self.emit.clusters)
+            if self.emit.cluster_all:
+                options["cluster_all"] = True
         return {"options": options, "viewing": self.viewing.as_dict()}
 
     @classmethod
@@ -564,7 +571,9 @@ class Settings:
             # no options.clusters: cooked unclustered (before clusters were the default, or --clusters 0)
             emit = EmitSettings(clusters=None)
             if options.get("clusters") is not None:
-                emit = EmitSettings(clusters=options["clusters"])
+                if options.get("cluster_all", False) not in (False, True):
+                    raise ValueError(f"options.cluster_all must be true when present, got {options['cluster_all']!r}")
+                emit = EmitSettings(clusters=options["clusters"], cluster_all=options.get("cluster_all", False))
             v = manifest["viewing"]
             viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
                               fov_y_deg=float(v["fov_y_deg"]),

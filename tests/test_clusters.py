@@ -174,7 +174,11 @@ def test_a_cluster_at_b_at_most_k_collapses_to_its_anchors_cell():
 # ---- cooked containers ----------------------------------------------------------------------------
 
 def cook(path, *flags, tmp_path, name="out.lop"):
+    """Cook with the CLI; an explicit ``--clusters N`` (N > 0) clusters every buffer (``--cluster-all``):
+    the small fixtures would otherwise be written unclustered by the per-buffer choice."""
     out = tmp_path / name
+    if "--clusters" in flags and flags[list(flags).index("--clusters") + 1] != "0":
+        flags = (*flags, "--cluster-all")
     assert cli_main(["cook", str(path), "-o", str(out), "-q", *flags]) == 0
     return out
 
@@ -331,7 +335,7 @@ def test_corpus_asset_clustered_equals_unclustered_at_every_level(corpus, name):
 
     scene = load(str(corpus / name))
     an = analyse(scene)
-    plain, clus = from_bytes(build(scene, an)), from_bytes(build(scene, an, cluster_size=64))
+    plain, clus = from_bytes(build(scene, an)), from_bytes(build(scene, an, cluster_size=64, cluster_all=True))
     for i, (part, pa) in enumerate(zip(scene.parts, an.parts)):
         bins = C.cluster_order(pa.quantized, pa.min_level)
         ref = make_bins(pa.min_level)
@@ -345,20 +349,32 @@ def test_corpus_asset_clustered_equals_unclustered_at_every_level(corpus, name):
 
 
 def test_default_cook_is_clustered_and_clusters_0_is_not(tmp_path):
-    """The default cook writes clusters of DEFAULTS.emit.clusters (64) vertices, version 3.0, and
-    records it; --clusters 0 writes the unclustered 2.0 file, which reads back as unclustered
-    settings; both decode to the same grid integers and float32 positions."""
+    """The default cook uses clusters of DEFAULTS.emit.clusters (64) vertices where they make a
+    buffer smaller (``clustering_wins``); forced with --cluster-all every buffer is clustered,
+    version 3.0, and records it; --clusters 0 writes the unclustered 2.0 file, which reads back
+    as unclustered settings; all decode to the same grid integers and float32 positions."""
+    from lopcook.emit import clustering_wins
+    from lopcook.emit.reader import buffer_clusters
     from lopcook.settings import DEFAULTS, Settings
 
     assert DEFAULTS.emit.clusters == 64
-    d = cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="d.lop")
+    a = cook(FIXTURES / "unit_sphere.glb", tmp_path=tmp_path, name="a.lop")
+    d = cook(FIXTURES / "unit_sphere.glb", "--clusters", "64", tmp_path=tmp_path, name="d.lop")
     u = cook(FIXTURES / "unit_sphere.glb", "--clusters", "0", tmp_path=tmp_path, name="u.lop")
     assert struct.unpack_from("<HH", d.read_bytes(), 4) == (3, 0) and struct.unpack_from("<HH", u.read_bytes(), 4) == (2, 0)
-    cd, cu = from_bytes(d.read_bytes()), from_bytes(u.read_bytes())
+    cd, cu, ca = from_bytes(d.read_bytes()), from_bytes(u.read_bytes()), from_bytes(a.read_bytes())
     assert cd.manifest["options"]["clusters"] == 64 and "clusters" not in cu.manifest["options"]
+    assert cd.manifest["options"]["cluster_all"] is True and "cluster_all" not in ca.manifest["options"]
     assert all(e["cluster_size"] == 64 for p in cd.manifest["parts"] for e in p["lods"])
     assert not any("cluster_size" in e for p in cu.manifest["parts"] for e in p["lods"])
-    assert Settings.from_manifest(cd.manifest).emit.clusters == 64
+    # the default: clustered exactly where the forced clustering wins, the same vertices otherwise
+    for i, p in enumerate(cd.manifest["parts"]):
+        for k, e in enumerate(p["lods"]):
+            wins = clustering_wins(buffer_clusters(cd, i, k), e["vertex_id"])
+            assert ("cluster_size" in ca.manifest["parts"][i]["lods"][k]) == wins
+    assert struct.unpack_from("<HH", a.read_bytes(), 4) == ((3, 0) if ca.entries.clustered else (2, 0))
+    assert Settings.from_manifest(cd.manifest).emit == DEFAULTS.emit.__class__(clusters=64, cluster_all=True)
+    assert Settings.from_manifest(ca.manifest).emit == DEFAULTS.emit
     assert Settings.from_manifest(cu.manifest).emit.clusters is None
     for level in (1, 9, 24):
         ga, wa, pa = decode_positions(cd, 0, 0, level)

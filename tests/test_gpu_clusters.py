@@ -457,8 +457,8 @@ def clustered_lop(tmp_path_factory):
     from lopcook.cli import main
 
     out = tmp_path_factory.mktemp("clustered") / "sphere64.lop"
-    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--clusters", "64", "--lods", "0.5",
-                 "-q"]) == 0
+    assert main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--clusters", "64", "--cluster-all",
+                 "--lods", "0.5", "-q"]) == 0
     return out
 
 

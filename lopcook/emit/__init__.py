@@ -86,11 +86,38 @@ class EncodedBuffer:
     clusters: Clusters | None = None
 
 
-def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int | None = None) -> EncodedBuffer:
+#: per-buffer levels over which clustering must save GPU-resident bytes (``clustering_wins``)
+CHOICE_LEVELS = range(6, 13)
+
+
+def clustering_wins(clusters: Clusters, vertex_id) -> bool:
+    """Whether the clustered layout of a buffer is smaller than its unclustered one: the sum over
+    per-buffer levels 6-12 (``CHOICE_LEVELS``) of its clustered GPU-resident bytes (P's words,
+    16 B per cluster record, the 128-byte ClusterId table: ``clusters.clustered_bytes``) against
+    the unclustered binned buffer's (``binning.buffer_bytes``; same bins). Ties stay unclustered."""
+    from .binning import buffer_bytes
+    from .clusters import clustered_bytes
+
+    vid = np.asarray(vertex_id, dtype=np.int64)
+    return sum(clustered_bytes(clusters, b) for b in CHOICE_LEVELS) < sum(buffer_bytes(vid, b) for b in CHOICE_LEVELS)
+
+
+def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int | None = None, *,
+                  cluster_all: bool = False) -> EncodedBuffer:
     """Bins, remapped indices and attribute payloads of one buffer (steps (1)-(3a) of the module
     doc). Levels above ``max_level`` are stored at ``max_level`` and counted in ``clamped``.
     ``cluster_size`` N: the clustered layout (``lopcook.emit.clusters``: vertices in cluster order,
-    per-cluster anchors, the entry's ``cluster_size``); None: the unclustered layout."""
+    per-cluster anchors, the entry's ``cluster_size``) when it is smaller (``clustering_wins``),
+    else the unclustered layout, chosen per buffer and deterministically (``cluster_all``: always
+    clustered); None: unclustered."""
+    if cluster_size is not None:
+        e = _encode_buffer(buf, max_level, cluster_size)
+        return e if cluster_all or clustering_wins(e.clusters, e.vertex_id) else _encode_buffer(buf, max_level, None)
+    return _encode_buffer(buf, max_level, None)
+
+
+def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None) -> EncodedBuffer:
+    """``encode_buffer`` in the layout asked for (no choice)."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)
     clamped = int(np.count_nonzero(raw_levels > max_level))
     if cluster_size is None:
@@ -232,7 +259,7 @@ def default_buffers(scene, analysis) -> list[list[BufferInput]]:
 
 def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | None = None,
           lods: list[list[BufferInput]] | None = None, max_level: int = LEVELS,
-          savings: dict | None = None, cluster_size: int | None = None) -> bytes:
+          savings: dict | None = None, cluster_size: int | None = None, cluster_all: bool = False) -> bytes:
     """Container bytes for ``scene`` analysed by ``analysis``.
 
     ``lods``: per part, the list of buffers (LOD 0 first). Default: LOD 0 only, taken from the
@@ -244,7 +271,8 @@ def build(scene, analysis, *, options: dict | None = None, viewing: Viewing | No
     """
     viewing = viewing or Viewing()
     lods = lods if lods is not None else default_buffers(scene, analysis)
-    parts = [[encode_buffer(buf, max_level, cluster_size) for buf in part_lods] for part_lods in lods]
+    parts = [[encode_buffer(buf, max_level, cluster_size, cluster_all=cluster_all) for buf in part_lods]
+             for part_lods in lods]
     manifest, sections = assemble(scene, analysis.grid, parts, max_level=max_level, options=options,
                                   viewing=viewing, savings=savings)
     return to_bytes(manifest, sections)
