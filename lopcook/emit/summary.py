@@ -43,7 +43,7 @@ def cluster_stats(c: Container) -> dict | None:
     hist = np.zeros(LEVELS + 1, dtype=np.int64)
     sizes, buffers, total = set(), 0, 0
     for i, p in enumerate(c.manifest["parts"]):
-        if "placement" in p:  # a placement draws its owner's buffers: each distinct buffer counted once
+        if (p.get("placement") or {}).get("of", i) != i:  # a placement draws its owner's buffers: once
             continue
         for k, e in enumerate(p["lods"]):
             if "cluster_size" not in e:
