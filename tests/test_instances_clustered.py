@@ -108,3 +108,22 @@ def test_verify_decoders_on_clustered_placements(gl, cooked, tmp_path, capsys):
         assert s["grid_mismatches"] == s["float_mismatches"] == s["level_mismatches"] == 0
         assert s["crack_free_mismatches"] == s["adapt_mismatches"] == 0
     assert rep["clustered_cpu"]["mismatches"] == 0
+
+
+def test_render_harness_draws_clustered_placements_like_unclustered(gl, cooked):
+    """The harness draws each placement of the clustered shared buffer with the LOP_CLUSTERED
+    decoder and its transform: PSNR rows and images equal, pixel for pixel, those of the same
+    scene cooked with --instances unclustered."""
+    from lopcook.emit.reader import ClusteredGpuBuffer, GpuBuffer
+    from lopcook.verify.buffers import cap_buffer
+    from lopcook.verify.evaluate import evaluate
+
+    scene, c, u, _ = cooked
+    placed = next(i for i, p in enumerate(c.manifest["parts"]) if "placement" in p and p["placement"]["of"] != i)
+    assert isinstance(cap_buffer(c, placed, 0, 8), ClusteredGpuBuffer) and isinstance(cap_buffer(u, placed, 0, 8), GpuBuffer)
+    kw = {"levels": [8, 14], "views": 2, "resolution": (160, 120), "keep_images": True, "image_view": 0}
+    rc, ru = evaluate(c, scene, **kw), evaluate(u, scene, **kw)
+    assert [(r["level"], r["cap"]["psnr_mean"], r["ap"]["psnr_mean"]) for r in rc["levels"]] == \
+        [(r["level"], r["cap"]["psnr_mean"], r["ap"]["psnr_mean"]) for r in ru["levels"]]
+    for v in ("cap", "ap", "cap_ids"):
+        np.testing.assert_array_equal(rc["images"][v], ru["images"][v])

@@ -578,7 +578,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take this "
                                    f"buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
             clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
-            ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, level, origin, half_cell, words.size,
+            ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, p_level, p_origin, p_half, words.size,
                                                   cl.size))
             prog = cluster_program
             owned.append(clusters)
