@@ -53,7 +53,7 @@ def test_placements_decode_exactly_through_the_clustered_decode(cooked):
 
 
 def test_memory_counts_each_distinct_clustered_buffer_once_with_its_records(cooked):
-    scene, c, _, _ = cooked
+    scene, c, u, _ = cooked
     m = c.entries
     owners = sorted({owner(c, i) for i in range(len(scene.parts))})
     shifts = [m.parts[i].level_shift for i in range(len(scene.parts)) if m.parts[i].placement_of is not None]
@@ -67,7 +67,12 @@ def test_memory_counts_each_distinct_clustered_buffer_once_with_its_records(cook
             assert clustered_gpu_buffer(c, j, 0, b).words.size * 4 + 16 * cl.n_clusters + 128 == clustered_bytes(cl, b)
         assert m.cap_bytes(level) == want
         assert m.cap_bytes(level) < m.cap_bytes_all_copies(level)
-    from lopcook.emit.summary import cluster_stats
+    from lopcook.emit.summary import cluster_stats, memory_rows
+
+    # inspect's rows: the unclustered comparison is the unclustered instanced cook's CAP bytes
+    for r, ru in zip(memory_rows(c), memory_rows(u)):
+        assert r["unclustered_cap_bytes"] == ru["cap_bytes"] and r["cap_bytes_all_copies"] > r["cap_bytes"]
+        assert r["cap_bytes"] == m.cap_bytes(r["level"])
 
     cs = cluster_stats(c)
     assert cs["buffers"] == len(owners)  # placements' entries are not counted again
