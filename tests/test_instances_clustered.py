@@ -132,3 +132,34 @@ def test_render_harness_draws_clustered_placements_like_unclustered(gl, cooked):
         [(r["level"], r["cap"]["psnr_mean"], r["ap"]["psnr_mean"]) for r in ru["levels"]]
     for v in ("cap", "ap", "cap_ids"):
         np.testing.assert_array_equal(rc["images"][v], ru["images"][v])
+
+
+def _relabel(data: bytes, major: int, minor: int) -> bytes:
+    import struct
+    import zlib
+
+    head = bytearray(data[:32])
+    head[4:8] = struct.pack("<HH", major, minor)
+    head[28:32] = struct.pack("<I", zlib.crc32(bytes(head[:28])))
+    return bytes(head) + data[32:]
+
+
+def test_version_rule_clusters_or_placements_make_3_0(cooked):
+    """3.0 = may hold clusters and/or placements: a 3.0 label on a file with neither is read;
+    placements under 2.1 (an earlier lopcook's label) are read, under 2.0 refused; clusters under
+    any 2.x are refused; an unknown major is refused."""
+    import struct
+
+    from lopcook.errors import LopcookError
+    from lopcook.pipeline import run as cook
+
+    scene, c, u, _ = cooked
+    plain = cook(procedural_scene(), Settings(emit=EmitSettings(clusters=None))).data
+    assert struct.unpack_from("<HH", plain, 4) == (2, 0)
+    assert from_bytes(_relabel(plain, 3, 0)).manifest == from_bytes(plain).manifest
+    assert from_bytes(_relabel(u.data, 2, 1)).manifest == u.manifest
+    for data, major, minor, words in ((u.data, 2, 0, "must not hold placements"),
+                                      (c.data, 2, 1, "must not hold clustered"),
+                                      (c.data, 4, 0, "is not supported")):
+        with pytest.raises(LopcookError, match=words):
+            from_bytes(_relabel(data, major, minor))
