@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import compact, components, degenerate_mask, sorted_unique, unique_rows, weld_exact, weld_labels
+from ..mesh import (compact, components, degenerate_mask, sorted_unique, stable_argsort, unique_rows, weld_exact,
+                    weld_labels)
 from ..types import MeshPart
 
 
@@ -120,12 +121,12 @@ def weld_first(positions: np.ndarray) -> np.ndarray:
     lab, k = weld_labels(positions, np.int64)
     if n == 0:
         return lab
-    order = np.argsort(lab, kind="stable")  # stable: each group's first index comes first
+    order, _ = stable_argsort(lab)  # stable: each group's first index comes first
     starts = np.flatnonzero(np.r_[True, lab[order][1:] != lab[order][:-1]])
     first = np.empty(k, dtype=np.int64)
     first[lab[order[starts]]] = order[starts]
     rank = np.empty(k, dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(k)
+    rank[stable_argsort(first)[0]] = np.arange(k)
     return rank[lab]
 
 
