@@ -200,7 +200,8 @@ class _Fields(NamedTuple):
 def _sorted_fields(order: np.ndarray, normals, has_normal, boundary) -> _Fields:
     n = normals[order]
     h = has_normal[order]
-    return _Fields(n * h[:, None], n, h, boundary[order])
+    # n * 1.0 is n bit for bit: where every vertex has a normal the product is skipped
+    return _Fields(n if h.all() else n * h[:, None], n, h, boundary[order])
 
 
 def _edge_runs(starts: np.ndarray, f: _Fields, cos_half: float) -> np.ndarray:

@@ -150,7 +150,11 @@ def prepare(part: MeshPart, mode: str, degenerate: np.ndarray | None = None) -> 
         region = np.zeros(p.shape[0], dtype=np.int64)
         region[f.ravel()] = np.repeat(comp, 3)
         return Work(p, f, uv, mode, region), int(bad.sum())
-    _, first = np.unique(w, return_index=True)  # w is numbered by first appearance
+    # w is numbered by first appearance: a label's first index is where the running maximum rises
+    # (np.unique(w, return_index=True)[1], without its sort)
+    rise = np.maximum.accumulate(w)
+    first = np.flatnonzero(np.r_[w.size > 0, rise[1:] > rise[:-1]])
+    del rise
     p, f, _ = compact(part.positions[first], w[faces])
     return Work(p, f, None, mode), int(bad.sum())
 

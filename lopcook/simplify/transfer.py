@@ -135,7 +135,10 @@ class Reference:
             return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
 
         for c, (ch, _, _) in enumerate(chunks):
-            sel = np.union1d(np.flatnonzero(home == c), reach(c, np.flatnonzero(home < c)))
+            pick = home == c
+            pick[reach(c, np.flatnonzero(home < c))] = True
+            sel = np.flatnonzero(pick)  # sorted, distinct: np.union1d's result
+            del pick
             if sel.size == 0 or ch.size == 0:
                 continue
             fc = np.ascontiguousarray(self.faces[ch])
