@@ -250,12 +250,40 @@ def degenerate_mask(positions: np.ndarray, faces: np.ndarray, rel_tol: float = 1
     """
     if faces.shape[0] == 0:
         return np.zeros(0, dtype=bool)
-    rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    p0, p1, p2 = positions[faces[:, 0]], positions[faces[:, 1]], positions[faces[:, 2]]
-    e0, e1, e2 = p1 - p0, p2 - p0, p2 - p1
-    del p0, p1
-    area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
-    longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
+    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    rep = (f0 == f1) | (f1 == f2) | (f0 == f2)
+    # per coordinate (1-D gathers and (m,) temporaries), in the operation order of np.cross and
+    # np.linalg.norm / .sum(1) over rows of 3: the same bits as the (m, 3) form
+    pt = np.ascontiguousarray(np.asarray(positions, dtype=np.float64).T)
+    e0, e1, e2 = [], [], []
+    for c in range(3):
+        a, b, d = pt[c][f0], pt[c][f1], pt[c][f2]
+        e0.append(b - a)
+        e1.append(d - a)
+        d -= b
+        e2.append(d)
+    del a, b, d, pt
+    area2 = e0[1] * e1[2]
+    area2 -= e0[2] * e1[1]
+    area2 *= area2
+    cy = e0[2] * e1[0]
+    cy -= e0[0] * e1[2]
+    cy *= cy
+    area2 += cy
+    cz = e0[0] * e1[1]
+    cz -= e0[1] * e1[0]
+    cz *= cz
+    area2 += cz
+    del cy, cz
+    np.sqrt(area2, out=area2)
+
+    def length2(e: list) -> np.ndarray:
+        s = e[0] * e[0]
+        s += e[1] * e[1]
+        s += e[2] * e[2]
+        return s
+
+    longest2 = np.maximum(np.maximum(length2(e0), length2(e1)), length2(e2))
     return rep | (longest2 == 0) | (area2 <= rel_tol * longest2)
 
 

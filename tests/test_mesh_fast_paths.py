@@ -1,10 +1,11 @@
-"""``mesh.stable_argsort`` and ``mesh.unique_first_inverse`` equal numpy's stable argsort and
-``np.unique(return_index, return_inverse)`` exactly, on both the packed path and the fallback."""
+"""Fast paths of ``lopcook.mesh`` equal the plain numpy forms exactly: ``stable_argsort`` and
+``unique_first_inverse`` (numpy's stable argsort and ``np.unique(return_index, return_inverse)``, on
+both the packed path and the fallback), ``degenerate_mask`` (the (m, 3) cross-product form)."""
 
 import numpy as np
 import pytest
 
-from lopcook.mesh import stable_argsort, unique_first_inverse, unique_rows
+from lopcook.mesh import degenerate_mask, stable_argsort, unique_first_inverse, unique_rows
 
 
 @pytest.mark.parametrize("dtype", [np.int64, np.int32, np.uint64, np.uint32, np.int16, np.uint8])
@@ -48,3 +49,32 @@ def test_unique_rows_first_appearance():
     first, inv = unique_rows(np.array([[7], [3], [7], [-1]], dtype=np.int64))
     np.testing.assert_array_equal(first, [0, 1, 3])
     np.testing.assert_array_equal(inv, [0, 1, 0, 2])
+
+
+def _degenerate_rows(p, f, rel_tol=1e-12):
+    """The (m, 3) form of the definition (``degenerate_mask``'s docstring)."""
+    rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    e0, e1, e2 = p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 1]]
+    area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
+    longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
+    return rep | (longest2 == 0) | (area2 <= rel_tol * longest2)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_degenerate_mask_equals_row_form(seed):
+    """Random scales, near-collinear triangles (a corner on the opposite edge, nudged by about the
+    threshold), repeated indices and coincident corners."""
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(3000, 3)) * 10.0 ** rng.uniform(-6, 6)
+    f = rng.integers(0, 3000, (30000, 3))
+    line = f[::3]
+    t = rng.uniform(0, 1, (line.shape[0], 1))
+    p[line[:, 2]] = p[line[:, 0]] + (p[line[:, 1]] - p[line[:, 0]]) * t + rng.normal(size=(line.shape[0], 3)) * (
+        np.abs(p[line[:, 0]]).max() * 10.0 ** rng.uniform(-9, -3))
+    f[::11, 1] = f[::11, 0]
+    p[f[::13, 2]] = p[f[::13, 1]]
+    got = degenerate_mask(p, f)
+    want = _degenerate_rows(p, f)
+    assert 0 < want.sum() < want.size
+    np.testing.assert_array_equal(got, want)
+    assert degenerate_mask(p, f[:0]).shape == (0,)
