@@ -131,6 +131,17 @@ def stable_argsort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return order, packed.astype(key.dtype, copy=False)
 
 
+def stable_lexsort(keys) -> np.ndarray:
+    """``np.lexsort(keys)`` (int64; the last key is the primary one) for 1-D integer keys, as one
+    ``stable_argsort`` per key from the least significant (a stable sort by each key in turn
+    orders by all of them, ties by index)."""
+    keys = [np.asarray(k).ravel() for k in keys]
+    order = stable_argsort(keys[0])[0]
+    for k in keys[1:]:
+        order = order[stable_argsort(k[order])[0]]
+    return order
+
+
 def unique_first_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``np.unique(values, return_index=True, return_inverse=True)[1:]`` for a 1-D integer array:
     ``first`` (u,) int64, the index of the first occurrence of each distinct value in increasing

@@ -1,11 +1,11 @@
 """Fast paths of ``lopcook.mesh`` equal the plain numpy forms exactly: ``stable_argsort`` and
 ``unique_first_inverse`` (numpy's stable argsort and ``np.unique(return_index, return_inverse)``, on
-both the packed path and the fallback), ``degenerate_mask`` (the (m, 3) cross-product form)."""
+both the packed path and the fallback), ``stable_lexsort`` (``np.lexsort``), ``degenerate_mask`` (the (m, 3) cross-product form)."""
 
 import numpy as np
 import pytest
 
-from lopcook.mesh import degenerate_mask, stable_argsort, unique_first_inverse, unique_rows
+from lopcook.mesh import degenerate_mask, stable_argsort, stable_lexsort, unique_first_inverse, unique_rows
 
 
 @pytest.mark.parametrize("dtype", [np.int64, np.int32, np.uint64, np.uint32, np.int16, np.uint8])
@@ -78,3 +78,15 @@ def test_degenerate_mask_equals_row_form(seed):
     assert 0 < want.sum() < want.size
     np.testing.assert_array_equal(got, want)
     assert degenerate_mask(p, f[:0]).shape == (0,)
+
+
+@pytest.mark.parametrize("span", [2, 50, 1 << 24, 1 << 40])
+def test_stable_lexsort_equals_numpy(span):
+    """Three columns of grid integers (many equal rows at small spans; 1 << 40 takes the unpacked
+    argsort for each key)."""
+    rng = np.random.default_rng(span % 97)
+    q = rng.integers(0, span, (20000, 3))
+    q[::5] = q[0]
+    np.testing.assert_array_equal(stable_lexsort((q[:, 2], q[:, 1], q[:, 0])),
+                                  np.lexsort((q[:, 2], q[:, 1], q[:, 0])))
+    np.testing.assert_array_equal(stable_lexsort((q[:, 0],)), np.lexsort((q[:, 0],)))

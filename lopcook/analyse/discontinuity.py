@@ -50,7 +50,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..grid import BITS
-from ..mesh import stable_argsort
+from ..mesh import stable_argsort, stable_lexsort
 
 #: the half-pixel criterion's pixel error (``lopcook.viewing.Viewing``), pixels per dx(B)
 PIXEL_ERROR = 0.5
@@ -79,7 +79,7 @@ def colocated_groups(q: np.ndarray) -> np.ndarray:
     n = q.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    order = stable_lexsort((q[:, 2], q[:, 1], q[:, 0]))
     s = q[order]
     start = np.ones(n, dtype=bool)
     start[1:] = np.any(s[1:] != s[:-1], axis=1)
@@ -231,7 +231,7 @@ def _cell_runs(c: np.ndarray, bits: int) -> tuple[np.ndarray, np.ndarray]:
     if bits <= 21:
         order, key_sorted = stable_argsort(_morton(c))
         return order, _run_starts(key_sorted)
-    order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))
+    order = stable_lexsort((c[:, 2], c[:, 1], c[:, 0]))
     s = c[order]
     return order, np.flatnonzero(np.r_[True, np.any(s[1:] != s[:-1], axis=1)])
 
