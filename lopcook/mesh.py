@@ -97,6 +97,71 @@ def sorted_unique(values: np.ndarray) -> np.ndarray:
     return s[keep]
 
 
+def stable_argsort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(order, key[order])`` with ``order`` exactly ``np.argsort(key, kind="stable")`` (int64) for
+    a 1-D integer array ``key``.
+
+    Where the key's range and the row index fit together in 63 bits, the pairs (key, index) are
+    packed into one int64 and sorted with ``np.sort`` (several times faster than a stable argsort:
+    the packed values are distinct, so an unstable sort orders them as the stable one orders the
+    keys); otherwise the stable argsort itself."""
+    key = np.asarray(key).ravel()
+    n = key.size
+    if n == 0 or key.dtype.kind not in "iu":
+        order = np.argsort(key, kind="stable").astype(np.int64)
+        return order, key[order]
+    lo, hi = int(key.min()), int(key.max())
+    ib = max(1, (n - 1).bit_length())
+    if (hi - lo).bit_length() + ib > 63:
+        order = np.argsort(key, kind="stable").astype(np.int64)
+        return order, key[order]
+    if key.dtype.kind == "u":
+        packed = (key - key.dtype.type(lo)).astype(np.int64)
+    else:
+        packed = key.astype(np.int64)
+        packed -= np.int64(lo)
+    packed <<= np.int64(ib)
+    packed |= np.arange(n, dtype=np.int64)
+    packed.sort()
+    order = packed & np.int64((1 << ib) - 1)
+    packed >>= np.int64(ib)
+    if key.dtype.kind == "u":
+        return order, packed.astype(key.dtype) + key.dtype.type(lo)
+    packed += np.int64(lo)
+    return order, packed.astype(key.dtype, copy=False)
+
+
+def stable_lexsort(keys) -> np.ndarray:
+    """``np.lexsort(keys)`` (int64; the last key is the primary one) for 1-D integer keys, as one
+    ``stable_argsort`` per key from the least significant (a stable sort by each key in turn
+    orders by all of them, ties by index)."""
+    keys = [np.asarray(k).ravel() for k in keys]
+    order = stable_argsort(keys[0])[0]
+    for k in keys[1:]:
+        order = order[stable_argsort(k[order])[0]]
+    return order
+
+
+def unique_first_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(values, return_index=True, return_inverse=True)[1:]`` for a 1-D integer array:
+    ``first`` (u,) int64, the index of the first occurrence of each distinct value in increasing
+    value order, and ``inverse`` (n,) int64, the rank of each value among them (one
+    ``stable_argsort``)."""
+    order, s = stable_argsort(values)
+    n = s.size
+    inverse = np.empty(n, dtype=np.int64)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), inverse
+    new = np.empty(n, dtype=bool)
+    new[0] = True
+    np.not_equal(s[1:], s[:-1], out=new[1:])
+    first = order[new]
+    rank = np.cumsum(new, dtype=np.int64)
+    rank -= 1
+    inverse[order] = rank
+    return first, inverse
+
+
 def used_ids(indices: np.ndarray, n: int) -> np.ndarray:
     """(k,) int64 sorted distinct vertex ids referenced by ``indices`` (any shape, values in [0, n));
     the same as ``np.unique(indices)``, by a mask."""
@@ -139,16 +204,21 @@ def unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     k = np.ascontiguousarray(keys)
     if k.shape[1] == 1:  # one column: sort its values directly
-        _, first, inverse = np.unique(k[:, 0], return_index=True, return_inverse=True)
-        order = np.argsort(first, kind="stable")
+        if k.dtype.kind in "iu":
+            first, inverse = unique_first_inverse(k[:, 0])
+        else:
+            _, first, inverse = np.unique(k[:, 0], return_index=True, return_inverse=True)
+        order = stable_argsort(first)[0]
         rank = np.empty_like(order)
         rank[order] = np.arange(order.size)
         return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
     rows = _pack_int_columns(k)  # one int64 per row where the column ranges allow: a faster sort
     if rows is None:
         rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
-    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
+        _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    else:
+        first, inverse = unique_first_inverse(rows)
+    order = stable_argsort(first)[0]
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
     return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
@@ -191,12 +261,40 @@ def degenerate_mask(positions: np.ndarray, faces: np.ndarray, rel_tol: float = 1
     """
     if faces.shape[0] == 0:
         return np.zeros(0, dtype=bool)
-    rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    p0, p1, p2 = positions[faces[:, 0]], positions[faces[:, 1]], positions[faces[:, 2]]
-    e0, e1, e2 = p1 - p0, p2 - p0, p2 - p1
-    del p0, p1
-    area2 = np.linalg.norm(np.cross(e0, e1), axis=1)
-    longest2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
+    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    rep = (f0 == f1) | (f1 == f2) | (f0 == f2)
+    # per coordinate (1-D gathers and (m,) temporaries), in the operation order of np.cross and
+    # np.linalg.norm / .sum(1) over rows of 3: the same bits as the (m, 3) form
+    pt = np.ascontiguousarray(np.asarray(positions, dtype=np.float64).T)
+    e0, e1, e2 = [], [], []
+    for c in range(3):
+        a, b, d = pt[c][f0], pt[c][f1], pt[c][f2]
+        e0.append(b - a)
+        e1.append(d - a)
+        d -= b
+        e2.append(d)
+    del a, b, d, pt
+    area2 = e0[1] * e1[2]
+    area2 -= e0[2] * e1[1]
+    area2 *= area2
+    cy = e0[2] * e1[0]
+    cy -= e0[0] * e1[2]
+    cy *= cy
+    area2 += cy
+    cz = e0[0] * e1[1]
+    cz -= e0[1] * e1[0]
+    cz *= cz
+    area2 += cz
+    del cy, cz
+    np.sqrt(area2, out=area2)
+
+    def length2(e: list) -> np.ndarray:
+        s = e[0] * e[0]
+        s += e[1] * e[1]
+        s += e[2] * e[2]
+        return s
+
+    longest2 = np.maximum(np.maximum(length2(e0), length2(e1)), length2(e2))
     return rep | (longest2 == 0) | (area2 <= rel_tol * longest2)
 
 
@@ -214,8 +312,7 @@ def edge_groups(a: np.ndarray, b: np.ndarray, n: int):
     """Sort half-edges (a_i, b_i) by undirected key: (order, group starts, group sizes)."""
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     key = lo * np.int64(max(n, 1)) + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
+    order, ks = stable_argsort(key)
     starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]]) if ks.size else np.zeros(0, np.int64)
     sizes = np.diff(np.r_[starts, ks.size])
     return order, starts, sizes

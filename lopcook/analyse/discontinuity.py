@@ -50,6 +50,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..grid import BITS
+from ..mesh import stable_argsort, stable_lexsort
 
 #: the half-pixel criterion's pixel error (``lopcook.viewing.Viewing``), pixels per dx(B)
 PIXEL_ERROR = 0.5
@@ -78,7 +79,7 @@ def colocated_groups(q: np.ndarray) -> np.ndarray:
     n = q.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    order = stable_lexsort((q[:, 2], q[:, 1], q[:, 0]))
     s = q[order]
     start = np.ones(n, dtype=bool)
     start[1:] = np.any(s[1:] != s[:-1], axis=1)
@@ -148,8 +149,7 @@ def seam_jumps(groups: np.ndarray, colours: np.ndarray) -> np.ndarray:
     runs over the largest group size (a few), never over vertices."""
     n = groups.shape[0]
     out = np.zeros(n)
-    order = np.argsort(groups, kind="stable")
-    gs = groups[order]
+    order, gs = stable_argsort(groups)
     k = 1
     while k < n:
         same = gs[k:] == gs[:-k]
@@ -200,7 +200,8 @@ class _Fields(NamedTuple):
 def _sorted_fields(order: np.ndarray, normals, has_normal, boundary) -> _Fields:
     n = normals[order]
     h = has_normal[order]
-    return _Fields(n * h[:, None], n, h, boundary[order])
+    # n * 1.0 is n bit for bit: where every vertex has a normal the product is skipped
+    return _Fields(n if h.all() else n * h[:, None], n, h, boundary[order])
 
 
 def _edge_runs(starts: np.ndarray, f: _Fields, cos_half: float) -> np.ndarray:
@@ -228,10 +229,9 @@ def _cell_runs(c: np.ndarray, bits: int) -> tuple[np.ndarray, np.ndarray]:
     sorts equal rows together (stable: vertex order within a cell), ``starts`` is the first sorted
     index of every cell. Morton order where the code fits 63 bits, else lexicographic."""
     if bits <= 21:
-        key = _morton(c)
-        order = np.argsort(key, kind="stable")
-        return order, _run_starts(key[order])
-    order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))
+        order, key_sorted = stable_argsort(_morton(c))
+        return order, _run_starts(key_sorted)
+    order = stable_lexsort((c[:, 2], c[:, 1], c[:, 0]))
     s = c[order]
     return order, np.flatnonzero(np.r_[True, np.any(s[1:] != s[:-1], axis=1)])
 
@@ -268,9 +268,7 @@ def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boun
     finest = _cell_shift(levels[0])  # the finest cells: the highest level
     morton_ok = BITS - finest <= 21
     if morton_ok:
-        code = _morton(q >> finest)
-        order0 = np.argsort(code, kind="stable")
-        code_sorted = code[order0]
+        order0, code_sorted = stable_argsort(_morton(q >> finest))
         fields0 = _sorted_fields(order0, normals, has_normal, boundary)
     pending = np.ones(n, dtype=bool)
     for level in levels:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import compact, components, degenerate_mask, sorted_unique, unique_rows, weld_exact, weld_labels
+from ..mesh import (compact, components, degenerate_mask, sorted_unique, stable_argsort, unique_rows, weld_exact,
+                    weld_labels)
 from ..types import MeshPart
 
 
@@ -120,12 +121,12 @@ def weld_first(positions: np.ndarray) -> np.ndarray:
     lab, k = weld_labels(positions, np.int64)
     if n == 0:
         return lab
-    order = np.argsort(lab, kind="stable")  # stable: each group's first index comes first
+    order, _ = stable_argsort(lab)  # stable: each group's first index comes first
     starts = np.flatnonzero(np.r_[True, lab[order][1:] != lab[order][:-1]])
     first = np.empty(k, dtype=np.int64)
     first[lab[order[starts]]] = order[starts]
     rank = np.empty(k, dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(k)
+    rank[stable_argsort(first)[0]] = np.arange(k)
     return rank[lab]
 
 
@@ -149,7 +150,11 @@ def prepare(part: MeshPart, mode: str, degenerate: np.ndarray | None = None) -> 
         region = np.zeros(p.shape[0], dtype=np.int64)
         region[f.ravel()] = np.repeat(comp, 3)
         return Work(p, f, uv, mode, region), int(bad.sum())
-    _, first = np.unique(w, return_index=True)  # w is numbered by first appearance
+    # w is numbered by first appearance: a label's first index is where the running maximum rises
+    # (np.unique(w, return_index=True)[1], without its sort)
+    rise = np.maximum.accumulate(w)
+    first = np.flatnonzero(np.r_[w.size > 0, rise[1:] > rise[:-1]])
+    del rise
     p, f, _ = compact(part.positions[first], w[faces])
     return Work(p, f, None, mode), int(bad.sum())
 

@@ -143,6 +143,7 @@ import numpy as np
 
 from .. import isolate
 from ..memory import release_free_memory
+from ..mesh import degenerate_mask
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
 from .backends import BACKENDS, SELECTABLE, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
@@ -367,7 +368,11 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
         notes.append(f"target {target} >= {part.n_triangles} input triangles: not simplified")
         return _unchanged(part, ref, ratio, target, t0, notes, seams), 0
     attempts = [backend] + ([b for b in BACKENDS if b != backend] if fallback else [])
-    defects = mesh_defects(part.positions, part.indices) if part is not ref.part else ref.defects
+    if part is ref.part:
+        degenerate, defects = ref.degenerate, ref.defects
+    else:  # one zero-area mask for the defect counts and the backend's input
+        degenerate = degenerate_mask(part.positions, part.indices.astype(np.int64))
+        defects = mesh_defects(part.positions, part.indices, degenerate)
     nonmanifold = defects["nonmanifold_edges"] > 0 or defects["nonmanifold_vertices"] > 0
     if nonmanifold:
         notes.append(f"non-manifold input: {defects['nonmanifold_edges']} edges with more than two faces, "
@@ -381,7 +386,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             mode = "ignore"
         work_mode = "ignore" if mode in ("-", "xatlas") else mode
         try:
-            work, dropped = prepare(part, work_mode, ref.degenerate if part is ref.part else None)
+            work, dropped = prepare(part, work_mode, degenerate)
             msg = f"{dropped} zero-area faces dropped before simplification"
             if dropped and msg not in notes:
                 notes.append(msg)

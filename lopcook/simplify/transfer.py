@@ -4,9 +4,11 @@ normals, UVs and colours, with corners re-split where LOD 0 has a crease or seam
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
-from ..mesh import components, degenerate_mask, face_normals, unique_rows, used_ids, weld_labels
+from ..mesh import components, degenerate_mask, face_normals, stable_argsort, unique_rows, used_ids, weld_labels
 from ..types import MeshPart
 from .backends import BackendFailure, BackendResult, Work
 from .error import point_mesh, samples
@@ -133,7 +135,10 @@ class Reference:
             return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
 
         for c, (ch, _, _) in enumerate(chunks):
-            sel = np.union1d(np.flatnonzero(home == c), reach(c, np.flatnonzero(home < c)))
+            pick = home == c
+            pick[reach(c, np.flatnonzero(home < c))] = True
+            sel = np.flatnonzero(pick)  # sorted, distinct: np.union1d's result
+            del pick
             if sel.size == 0 or ch.size == 0:
                 continue
             fc = np.ascontiguousarray(self.faces[ch])
@@ -201,7 +206,7 @@ class Reference:
         r = np.sqrt(np.asarray(bound2, dtype=np.float64)) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
         hits = kd.query_ball_point(pts, r)
         near = np.zeros(self.positions.shape[0], dtype=bool)
-        near[used[np.fromiter((i for h in hits for i in h), dtype=np.int64)]] = True
+        near[used[np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64)]] = True
         faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
         del near
         if faces.size > CHUNK_FACES or faces.size == 0:
@@ -363,7 +368,7 @@ def exact_sources(ref: Reference, points: np.ndarray):
     count = count_of[lab_q]
     if k and int(count.min()) == 0:
         return None
-    order = used[np.argsort(lab_ref, kind="stable")]
+    order = used[stable_argsort(lab_ref)[0]]
     first_of = np.zeros(n_lab, dtype=np.int64)
     np.cumsum(count_of[:-1], out=first_of[1:])
     return count, first_of[lab_q], order
