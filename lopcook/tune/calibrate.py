@@ -67,6 +67,11 @@ covers the same pixels at level B whatever the resolution (``lopcook.verify.came
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
 directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 
+Harnesses. Both harnesses (the reduced one and the gate's) are ``shared_harness``es of the scene:
+they stay open after the search, so that the attribute search of the same cook
+(``lopcook.tune.attributes``) finds their float renders cached and every decoded draw already made
+memoised by content (``Harness.view_memo``); their results equal fresh harnesses'.
+
 Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
 object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
 choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
@@ -102,7 +107,7 @@ from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
 from ..verify.buffers import DEFAULT_LEVELS
 from ..verify.cameras import VIEW_COUNT, select_views
-from ..verify.renderer import RESOLUTION, Harness
+from ..verify.renderer import RESOLUTION, Harness, shared_harness
 
 CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
@@ -396,7 +401,7 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
     probed: dict = {}
     # the float renders are cached (cropped to the object's box, capped): a second probe renders CAP only
-    with Harness(scene, resolution, cache_float=True) as h:
+    with shared_harness(scene, resolution) as h:
         def run(c):
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=clevels, views=views, viewing=viewing,
@@ -522,7 +527,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     from ..analyse.prepared import PreparedAnalysis
 
     prepared = PreparedAnalysis(scene, settings)  # what no probe changes, computed once
-    with Harness(scene, resolution, cache_float=True) as h:
+    with shared_harness(scene, resolution) as h:
         def run(x: float, e: float = 0.0) -> dict:
             if (x, e) not in probes:
                 p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
@@ -605,7 +610,6 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         confirmation = None
         same = confirm is not None and _same_harness(confirm, views, resolution)
         if reached and confirm is not None and not same:
-            h.float_cache, h.cached_bytes = {}, 0  # the gate's harness caches its own
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,
