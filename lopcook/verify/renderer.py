@@ -551,6 +551,26 @@ class Harness:
                                keep_images=keep_images, image_view=image_view)
 
 
+def trim_heap() -> None:
+    """Return the C heap's free pages to the system (glibc ``malloc_trim``; nothing elsewhere): after
+    an evaluation, the freed GL buffers and llvmpipe's scene blocks would otherwise stay in the
+    process's resident memory and add to the next evaluation's peak."""
+    global _LIBC
+    if _LIBC is None:
+        try:
+            import ctypes
+
+            lib = ctypes.CDLL("libc.so.6")
+            _LIBC = lib if hasattr(lib, "malloc_trim") else False
+        except OSError:
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)
+
+
+_LIBC = None
+
+
 # ---- harnesses shared by the searches of one scene ------------------------------------------------
 
 #: open harnesses by (id(scene), (w, h), samples): every one belongs to the same scene object
@@ -671,4 +691,4 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
 __all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "Harness",
-           "shared_harness", "release_shared", "digest"]
+           "shared_harness", "release_shared", "digest", "trim_heap"]
