@@ -175,3 +175,61 @@ def test_finishing_the_queue_between_draws_changes_no_pixel(gl, monkeypatch, eve
         assert (len(finishes) > 0) == (every == 1)
         for (a, b), (x, y) in zip(want, got):
             assert np.array_equal(a, x) and np.array_equal(b, y)
+
+
+def _tiny_calibrated(scene):
+    """``cook --target-psnr 35`` of ``scene`` on small harnesses (k_f calibration, its gate, the
+    attribute search and its gate), through ``lopcook.api.cook``."""
+    from lopcook.api import cook
+    from lopcook.settings import DEFAULTS, RenderSettings
+
+    s = DEFAULTS.with_(tune={"target_psnr": 35.0, "calibration": RenderSettings(views=2, resolution=(80, 45)),
+                             "confirm": RenderSettings(views=3, resolution=(112, 63))})
+    return cook(scene, s)
+
+
+def test_a_calibrated_cook_with_shared_harnesses_writes_the_same_bytes_and_reuses_renders(gl, monkeypatch):
+    """The attribute search's first probe (the k_f choice with the default bits) is the k_f
+    calibration's chosen cook: with the shared harness it draws nothing; without sharing (a fresh
+    harness for every caller, as before) the container is the same, byte for byte."""
+    from conftest import FIXTURES
+    from lopcook.ingest import load
+    from lopcook.tune import attributes as TA
+    from lopcook.tune import calibrate as TC
+
+    scene = load(FIXTURES / "unit_sphere.glb")
+    draws = {"decoded": 0, "float": 0}
+    real_draw = R.Renderer.draw
+
+    def counted(self, items, camera, shading, decoded):
+        draws["decoded" if decoded else "float"] += 1
+        return real_draw(self, items, camera, shading, decoded)
+
+    monkeypatch.setattr(R.Renderer, "draw", counted)
+    at_probe = []
+    real_quality = TA.Search.quality
+
+    def quality(self, alloc, step_name=""):
+        before = dict(draws)
+        q = real_quality(self, alloc, step_name)
+        at_probe.append((step_name, draws["decoded"] - before["decoded"], draws["float"] - before["float"]))
+        return q
+
+    monkeypatch.setattr(TA.Search, "quality", quality)
+    try:
+        shared = _tiny_calibrated(scene)
+        assert at_probe and at_probe[0][0] == "start"
+        assert at_probe[0][1:] == (0, 0)  # the k_f choice's renders, memoised on the shared harness
+        shared_draws = dict(draws)
+    finally:
+        release_shared()
+
+    def fresh(scene_, resolution=R.RESOLUTION, samples=R.SAMPLES):
+        return R._Borrowed(Harness(scene_, resolution, samples, cache_float=True))
+
+    monkeypatch.setattr(R, "shared_harness", fresh)
+    monkeypatch.setattr(TC, "shared_harness", fresh)
+    draws.update(decoded=0, float=0)
+    alone = _tiny_calibrated(scene)
+    assert alone.data == shared.data
+    assert draws["decoded"] > shared_draws["decoded"] and draws["float"] > shared_draws["float"]

@@ -95,12 +95,10 @@ along hard edges and sub-pixel folds whose vertices have E_v = 0 (docs/analyse.m
 
 from __future__ import annotations
 
-import hashlib
 import math
 import time
 from dataclasses import replace
 
-import numpy as np
 
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
@@ -174,9 +172,11 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
 
     ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
     misses the target (the probe fails whatever the other levels give); the per-level lists then
-    hold the levels rendered and ``complete`` is False. A probe whose minimum levels equal an earlier
-    one's on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart)
-    reuses its renders (``Harness.memo``): identical minimum levels give identical buffers.
+    hold the levels rendered and ``complete`` is False. A probe that draws exactly what an earlier
+    one drew on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart:
+    the same buffers and attribute bits) takes the earlier renders' numbers (``Harness.view_memo``,
+    keyed by the content of every draw). (Until this was keyed by content, probes with the same
+    minimum levels shared renders even when eps gave them different attribute bits.)
     ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and ``settings``
     (the same minimum levels as ``analyse``, without recomputing what does not depend on eps and
     edge_eps); None analyses from scratch."""
@@ -204,14 +204,9 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
             else:
                 v = min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
             return v is not None and v < target
-    # the same minimum levels give the same binned buffers and the same renders: reuse them
-    key = (hashlib.sha256(b"".join(np.ascontiguousarray(pa.min_level).tobytes() for pa in analysis.parts)).digest(),
-           tuple(int(b) for b in levels), repr(views))
-    res = harness.memo.get(key)
-    if res is None:
-        res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
-        if len(res["levels"]) == len(list(levels)):
-            harness.memo[key] = res
+    # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
+    # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
+    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
     per_level = [r["cap"]["psnr_min"] for r in res["levels"]]
     per_level_mean = [r["cap"]["psnr_mean"] for r in res["levels"]]
     finite = [p for p in per_level if p is not None]
