@@ -599,7 +599,8 @@ def shared_harness(scene, resolution=RESOLUTION, samples: int = SAMPLES) -> _Bor
     for another scene releases every shared harness of the previous one (``release_shared``), so at
     most one scene's harnesses are held; the results equal those of fresh harnesses (cached and
     memoised renders are exactly what a new draw gives). ``Harness.memo`` (results a caller keys by
-    what it cooked, not by content) is emptied on each call: it belongs to one search."""
+    what it cooked, not by content) is emptied on each call: it belongs to one search. Like the
+    process's GL context it serves, the pool is for one thread."""
     res = (int(resolution[0]), int(resolution[1]))
     key = (id(scene), res, int(samples))
     h = _SHARED.get(key)
