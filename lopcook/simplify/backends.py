@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import (compact, components, degenerate_mask, sorted_unique, stable_argsort, unique_rows, weld_exact,
+from ..mesh import (compact, components, degenerate_mask, sorted_unique, stable_argsort, unique_rows,
                     weld_labels)
 from ..types import MeshPart
 

@@ -208,14 +208,16 @@ class Search:
     "min" or "mean"; ``progress(dict)`` is called with each probe."""
 
     def __init__(self, scene, settings, *, harness, statistic: str, progress=None):
-        from ..verify.renderer import Harness
+        from ..verify.renderer import shared_harness
 
         self.scene = scene
         self.settings = settings
         self.views, self.resolution, self.levels = harness[0], tuple(harness[1]), [int(b) for b in harness[2]]
         self.statistic = statistic
         self.progress = progress
-        self.h = Harness(scene, self.resolution, cache_float=True)
+        # the k_f calibration's reduced harness when it ran on this scene (its float renders and
+        # decoded draws are reused: ``shared_harness``)
+        self.h = shared_harness(scene, self.resolution).harness
         self.costs: dict = {}
         self.quality_memo: dict = {}
         self.probes: list = []
@@ -223,7 +225,8 @@ class Search:
         self._last = (None, None)
 
     def close(self) -> None:
-        self.h.release()
+        """Nothing to release: the harness is shared (``lopcook.verify.renderer.release_shared``)."""
+        self.h = None
 
     def cook(self, alloc: Allocation):
         """The container of ``alloc`` (the last one is kept)."""
@@ -395,10 +398,11 @@ def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocati
 def gate_quality(scene, c, confirm, levels, statistic: str) -> dict:
     """Render ``c`` quantized on the gate's harness ``confirm`` = (views, (w, h)): {"psnr_min",
     "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level"}."""
-    from ..verify.evaluate import evaluate
+    from ..verify.renderer import shared_harness
 
-    res = evaluate(c, scene, levels=levels, views=confirm[0], resolution=tuple(confirm[1]), variants=("cap",),
-                   attributes="container")
+    # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
+    with shared_harness(scene, tuple(confirm[1])) as h:
+        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container")
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
     return {"views": confirm[0], "resolution": list(confirm[1]), "levels": list(levels),
             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),

@@ -67,6 +67,11 @@ covers the same pixels at level B whatever the resolution (``lopcook.verify.came
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
 directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 
+Harnesses. Both harnesses (the reduced one and the gate's) are ``shared_harness``es of the scene:
+they stay open after the search, so that the attribute search of the same cook
+(``lopcook.tune.attributes``) finds their float renders cached and every decoded draw already made
+memoised by content (``Harness.view_memo``); their results equal fresh harnesses'.
+
 Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
 object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
 choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
@@ -90,19 +95,17 @@ along hard edges and sub-pixel folds whose vertices have E_v = 0 (docs/analyse.m
 
 from __future__ import annotations
 
-import hashlib
 import math
 import time
 from dataclasses import replace
 
-import numpy as np
 
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
 from ..verify.buffers import DEFAULT_LEVELS
 from ..verify.cameras import VIEW_COUNT, select_views
-from ..verify.renderer import RESOLUTION, Harness
+from ..verify.renderer import RESOLUTION, Harness, shared_harness
 
 CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
@@ -169,9 +172,11 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
 
     ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
     misses the target (the probe fails whatever the other levels give); the per-level lists then
-    hold the levels rendered and ``complete`` is False. A probe whose minimum levels equal an earlier
-    one's on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart)
-    reuses its renders (``Harness.memo``): identical minimum levels give identical buffers.
+    hold the levels rendered and ``complete`` is False. A probe that draws exactly what an earlier
+    one drew on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart:
+    the same buffers and attribute bits) takes the earlier renders' numbers (``Harness.view_memo``,
+    keyed by the content of every draw). (Until this was keyed by content, probes with the same
+    minimum levels shared renders even when eps gave them different attribute bits.)
     ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and ``settings``
     (the same minimum levels as ``analyse``, without recomputing what does not depend on eps and
     edge_eps); None analyses from scratch."""
@@ -199,14 +204,9 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
             else:
                 v = min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
             return v is not None and v < target
-    # the same minimum levels give the same binned buffers and the same renders: reuse them
-    key = (hashlib.sha256(b"".join(np.ascontiguousarray(pa.min_level).tobytes() for pa in analysis.parts)).digest(),
-           tuple(int(b) for b in levels), repr(views))
-    res = harness.memo.get(key)
-    if res is None:
-        res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
-        if len(res["levels"]) == len(list(levels)):
-            harness.memo[key] = res
+    # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
+    # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
+    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
     per_level = [r["cap"]["psnr_min"] for r in res["levels"]]
     per_level_mean = [r["cap"]["psnr_mean"] for r in res["levels"]]
     finite = [p for p in per_level if p is not None]
@@ -396,7 +396,7 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
     probed: dict = {}
     # the float renders are cached (cropped to the object's box, capped): a second probe renders CAP only
-    with Harness(scene, resolution, cache_float=True) as h:
+    with shared_harness(scene, resolution) as h:
         def run(c):
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=clevels, views=views, viewing=viewing,
@@ -522,7 +522,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     from ..analyse.prepared import PreparedAnalysis
 
     prepared = PreparedAnalysis(scene, settings)  # what no probe changes, computed once
-    with Harness(scene, resolution, cache_float=True) as h:
+    with shared_harness(scene, resolution) as h:
         def run(x: float, e: float = 0.0) -> dict:
             if (x, e) not in probes:
                 p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
@@ -605,7 +605,6 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         confirmation = None
         same = confirm is not None and _same_harness(confirm, views, resolution)
         if reached and confirm is not None and not same:
-            h.float_cache, h.cached_bytes = {}, 0  # the gate's harness caches its own
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,

@@ -36,7 +36,11 @@ errors from the part-ID images), computed per view by ``metrics.view_metrics`` i
 pixels where the test render differs from the float one.
 
 Cost: every (level, view) renders float, AP and CAP once (the float render is reused when the
-harness caches it); GPU buffers are uploaded once per level and reused across views. ``views`` and
+harness caches it); GPU buffers are uploaded once per level and reused across views. A decoded
+draw is named by its content (``variant_key``: the digest of every item's GPU inputs, with the
+camera and shading); a (level, view) whose variants were all drawn before on the same harness
+takes the metrics recorded then (``Harness.view_memo``) and renders nothing, and a variant whose
+draw equals another's in the same view reuses its images. ``views`` and
 ``resolution`` (CLI ``--views N --resolution WxH``) scale the cost linearly; measured times are in
 ``docs/measurements.md``.
 """
@@ -55,7 +59,7 @@ from ..viewing import Viewing, required_level
 from . import metrics as M
 from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
-from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, float_items
+from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items, trim_heap
 
 #: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
 ATTRIBUTE_SOURCES = ("container", "source")
@@ -140,6 +144,7 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
     images = None
     coarsest = min(b for b, _, _ in plan)
     best_score = -1.0
+    memo = getattr(h, "view_memo", None)
     for level, cam_level, distance in plan:
         t0 = time.perf_counter()
         drawn, owned_all = draws(level)
@@ -147,14 +152,29 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         per_view = {v: [] for v in variants}
         depth = {v: [] for v in variants}
         cams, float_pixels = [], []
+        images_here = keep_images and level == coarsest
+        # content keys of the variants' draws (None: not memoised, e.g. float-position scenes)
+        vkeys = {v: (None if memo is None else variant_key(drawn[v][0], drawn[v][1], shading)) for v in variants}
         try:
             for view in view_ids:
                 cam = make_camera(view, h.lo, h.hi, distance, viewing)
                 cams.append(cam)
                 t0 = time.perf_counter()
                 key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+                hits = {v: memo.get((vkeys[v], key)) for v in variants if vkeys[v] is not None}
+                if not images_here and len(hits) == len(variants) and all(x is not None for x in hits.values()):
+                    # every variant drew exactly this before, from this camera: its numbers, no render
+                    float_pixels.append(hits[variants[0]][2])
+                    for v in variants:
+                        per_view[v].append(hits[v][0])
+                        depth[v].append(hits[v][1])
+                    continue
                 ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
-                outs = {v: h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1]) for v in variants}
+                outs = {}
+                for v in variants:  # a variant whose draws equal an earlier one's gives its images
+                    same = next((u for u in outs if vkeys[u] is not None and vkeys[u] == vkeys[v]), None)
+                    outs[v] = outs[same] if same is not None else h.renderer.draw(drawn[v][0], cam, shading,
+                                                                                  decoded=drawn[v][1])
                 seconds["render"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
@@ -162,8 +182,10 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1])
                     per_view[v].append(colour)
                     depth[v].append(order)
+                    if vkeys[v] is not None:
+                        memo[(vkeys[v], key)] = (colour, order, float_pixels[-1])
                 seconds["metrics"] += time.perf_counter() - t0
-                if keep_images and level == coarsest:
+                if images_here:
                     score = per_view[variants[0]][-1]["sum_sq"]
                     chosen = view == image_view if image_view is not None else score > best_score
                     if chosen:
@@ -189,6 +211,16 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         if stop is not None and stop(per_view[variants[0]]):
             break
     return rows, images
+
+
+def variant_key(items, decoded: bool, shading) -> bytes | None:
+    """The content key of one variant's draw at one level: the program (decoded or float), the
+    shading and every item's ``digest`` in draw order (``renderer.decoded_items``); None when an
+    item has no digest. With a camera key it names a render exactly (``Harness.view_memo``)."""
+    keys = [it.get("digest") for it in items]
+    if any(k is None for k in keys):
+        return None
+    return digest(bool(decoded), shading, *keys)
 
 
 def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, seconds) -> dict:
@@ -276,6 +308,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         for entry in attr_cache.values():
             for b in entry[2]:
                 b.release()
+        trim_heap()
     for row in rows:
         raw = row.pop("_raw")
         row["float32_bytes"] = int(f32)
@@ -432,4 +465,4 @@ def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT
 
 
 __all__ = ["evaluate", "evaluate_scene", "harness_evaluate", "harness_evaluate_scene", "parse_levels",
-           "camera_rows", "render_rows", "summarise", "view_header"]
+           "camera_rows", "render_rows", "summarise", "variant_key", "view_header"]

@@ -32,7 +32,10 @@ documented convention. Images are returned top row first.
 
 from __future__ import annotations
 
+import atexit
+import hashlib
 import math
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +61,10 @@ BASE_GREY = 0.8
 RECT_MARGIN = 2
 #: the most bytes a harness's float-render cache holds (cropped renders, ``Harness``)
 FLOAT_CACHE_BYTES = 384 << 20
+#: a draw finishes the GL queue (``glFinish``) after this many triangles, to bound llvmpipe's memory
+FINISH_TRIANGLES = 1 << 18
+#: the bytes of a float-render cache held uncompressed; entries past them are compressed (``_pack``)
+RAW_CACHE_BYTES = 64 << 20
 #: a draw item is culled only when its box is beyond a clip plane by this share of |w| (float32 slack)
 CULL_MARGIN = 1e-4
 
@@ -80,6 +87,44 @@ def _crop(rgba: np.ndarray, ids: np.ndarray):
     crop = ids[box[0]:box[1], box[2]:box[3]]
     crop = crop.astype(np.uint16) if int(ids.max(initial=0)) < 65536 else crop.copy()
     return box, rgba[box[0]:box[1], box[2]:box[3]].copy(), crop
+
+
+def _pack(entry) -> tuple:
+    """A ``_crop`` entry with its two crops compressed (zlib level 1: the background and flat
+    shading compress 10-50x at about 2 ms per megabyte); ``_unpack`` gives back the same arrays."""
+    box, rgba_c, ids_c = entry
+    return (box, zlib.compress(rgba_c.tobytes(), 1), rgba_c.shape, zlib.compress(ids_c.tobytes(), 1),
+            ids_c.shape, ids_c.dtype.str)
+
+
+def _unpack(packed) -> tuple:
+    """The ``_crop`` entry of a ``_pack`` result (arrays equal to the packed ones, bit for bit)."""
+    box, rgba_z, rgba_shape, ids_z, ids_shape, ids_dtype = packed
+    rgba_c = np.frombuffer(zlib.decompress(rgba_z), np.uint8).reshape(rgba_shape)
+    ids_c = np.frombuffer(zlib.decompress(ids_z), np.dtype(ids_dtype)).reshape(ids_shape)
+    return box, rgba_c, ids_c
+
+
+def _packed_bytes(packed) -> int:
+    return len(packed[1]) + len(packed[3])
+
+
+def digest(*parts) -> bytes:
+    """A 32-byte BLAKE2b digest of ``parts`` (numpy arrays by dtype, shape and bytes; other values by
+    ``repr``), in order: the content key of what a draw reads (``decoded_items``' item digests)."""
+    hsh = hashlib.blake2b(digest_size=32)
+    for x in parts:
+        if isinstance(x, np.ndarray):
+            a = np.ascontiguousarray(x)
+            hsh.update(repr((a.dtype.str, a.shape)).encode())
+            hsh.update(a.tobytes())
+        elif isinstance(x, (bytes, bytearray)):
+            hsh.update(b"b%d:" % len(x))
+            hsh.update(x)
+        else:
+            hsh.update(repr(x).encode())
+        hsh.update(b"|")
+    return hsh.digest()
 
 
 def _expand(entry, size) -> tuple[np.ndarray, np.ndarray]:
@@ -236,8 +281,12 @@ class Renderer:
         ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
         whole-viewport render would give, filled in on the CPU). An item whose ``cull_box`` (world
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
-        not drawn (it could not put a fragment in the image). Leaves the context's default 1x1
-        framebuffer bound."""
+        not drawn (it could not put a fragment in the image). Before an item, once
+        ``FINISH_TRIANGLES`` triangles (items' ``triangles``) have been drawn since the last one, the
+        context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
+        draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
+        the read-back (about 200 MB for 1.4M triangles), holds about that many. Leaves the context's
+        default 1x1 framebuffer bound."""
         import moderngl
 
         ctx = self.ctx
@@ -253,9 +302,14 @@ class Renderer:
         self.fbo_ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=None if rect is None else rect)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
+        queued = 0  # triangles drawn since the last finish
         for it in items:
             if self.outside(camera, it.get("cull_box", it.get("box"))):
                 continue
+            if queued >= FINISH_TRIANGLES:
+                ctx.finish()
+                queued = 0
+            queued += int(it.get("triangles", 0))
             prog = base if it.get("program") is None else it["program"]
             if id(prog) not in primed:
                 self._uniforms(prog, camera, shading)
@@ -346,16 +400,25 @@ def attribute_vbos(ctx, normals, uvs, colors, order=None) -> tuple[list, list]:
     """VBO specs (buffer, format, name) of normals (n, 3) / uvs (n, 2) / colours (n, 4) float32 (each
     optional; permuted by ``order`` when given) and the list of buffers to release."""
     specs, bufs = [], []
+    for name, a, fmt in vbo_arrays(normals, uvs, colors, order):
+        b = ctx.buffer(a.tobytes())
+        bufs.append(b)
+        specs.append((b, fmt, name))
+    return specs, bufs
+
+
+def vbo_arrays(normals, uvs, colors, order=None) -> list[tuple[str, np.ndarray, str]]:
+    """(attribute name, contiguous little-endian float32 array, format) of each attribute given, as
+    ``attribute_vbos`` uploads them (permuted by ``order`` when given)."""
+    out = []
     for name, arr, fmt in (("in_normal", normals, "3f"), ("in_uv", uvs, "2f"), ("in_color", colors, "4f")):
         if arr is None:
             continue
         a = np.asarray(arr, np.float32)
         if order is not None:
             a = a[order]
-        b = ctx.buffer(np.ascontiguousarray(a, dtype="<f4").tobytes())
-        bufs.append(b)
-        specs.append((b, fmt, name))
-    return specs, bufs
+        out.append((name, np.ascontiguousarray(a, dtype="<f4"), fmt))
+    return out
 
 
 def attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
@@ -379,7 +442,8 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
             f = np.asarray(p.positions, np.float32).astype(np.float64)
             box = (f.min(axis=0), f.max(axis=0))
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
-                      "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box})
+                      "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box,
+                      "triangles": int(p.n_triangles)})
     return items, owned
 
 
@@ -389,9 +453,16 @@ class Harness:
     the camera matrix, eye and shading, reused across containers of the same scene, e.g. by the k_f
     calibration or the byte-budget fit). A cached render keeps only the box of its object pixels
     (outside it the image is background: RGBA 0 and part ID 0, exactly what the renderer clears to),
-    at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; renders past
-    ``cache_bytes`` (default ``FLOAT_CACHE_BYTES``) are not cached. A hit returns the same arrays a
-    fresh render would (re-expanded to the full size)."""
+    at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; once the cache holds
+    ``RAW_CACHE_BYTES`` further entries are zlib-compressed (``_pack``: 10-50x on these images, about
+    2 ms per megabyte to expand, which only a large cache is worth); renders past ``cache_bytes``
+    (default ``FLOAT_CACHE_BYTES``, counted as stored) are not cached. A hit returns the same arrays a fresh render would (re-expanded to the full size).
+
+    ``view_memo``: the per-view metrics of decoded draws by content (``evaluate``: the digest of
+    every item's GPU inputs, ``decoded_items``, with the camera and shading), so that a later
+    evaluation that would draw exactly the same thing -- another probe of a search, or the same
+    container cooked again -- takes the numbers instead of rendering (the renderer is
+    deterministic: the same inputs give the same pixels)."""
 
     def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False,
                  cache_bytes: int | None = None):
@@ -408,6 +479,8 @@ class Harness:
         #: results callers keep by what they rendered (the calibration: probes whose containers have
         #: the same minimum levels, so the same decoded positions, render the same)
         self.memo: dict = {}
+        #: (variant content key, camera key) -> (colour metrics, depth metrics, float object pixels)
+        self.view_memo: dict = {}
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
@@ -421,6 +494,8 @@ class Harness:
         self.renderer.release()
         self.float_cache = {}
         self.cached_bytes = 0
+        self.view_memo = {}
+        self.memo = {}
 
     def __enter__(self):
         return self
@@ -432,15 +507,23 @@ class Harness:
         """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
         (hashable: camera matrix, eye and shading) the result is computed once and reused."""
         if self.cache_float and key is not None and key in self.float_cache:
-            return _expand(self.float_cache[key], self.renderer.size)
+            entry = self.float_cache[key]
+            return _expand(entry if len(entry) == 3 else _unpack(entry), self.renderer.size)
         out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
         if self.cache_float and key is not None:
             entry = _crop(*out)
             size = entry[1].nbytes + entry[2].nbytes
+            if self.cached_bytes + size > RAW_CACHE_BYTES:  # past the raw share: compressed
+                entry = _pack(entry)
+                size = _packed_bytes(entry)
             if self.cached_bytes + size <= self.cache_bytes:
                 self.float_cache[key] = entry
                 self.cached_bytes += size
         return out
+
+    def clear_float_cache(self) -> None:
+        """Empty the float-render cache (its bytes are freed)."""
+        self.float_cache, self.cached_bytes = {}, 0
 
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
@@ -497,6 +580,78 @@ class Harness:
                                keep_images=keep_images, image_view=image_view)
 
 
+def trim_heap() -> None:
+    """Return the C heap's free pages to the system (glibc ``malloc_trim``; nothing elsewhere): after
+    an evaluation, the freed GL buffers and llvmpipe's scene blocks would otherwise stay in the
+    process's resident memory and add to the next evaluation's peak."""
+    global _LIBC
+    if _LIBC is None:
+        try:
+            import ctypes
+
+            lib = ctypes.CDLL("libc.so.6")
+            _LIBC = lib if hasattr(lib, "malloc_trim") else False
+        except OSError:
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)
+
+
+_LIBC = None
+
+
+# ---- harnesses shared by the searches of one scene ------------------------------------------------
+
+#: open harnesses by (id(scene), (w, h), samples): every one belongs to the same scene object
+_SHARED: dict = {}
+
+
+class _Borrowed:
+    """``with shared_harness(...) as h``: the harness stays open when the block ends."""
+
+    def __init__(self, harness: Harness):
+        self.harness = harness
+
+    def __enter__(self) -> Harness:
+        return self.harness
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+
+def shared_harness(scene, resolution=RESOLUTION, samples: int = SAMPLES) -> _Borrowed:
+    """A ``Harness(scene, resolution, samples, cache_float=True)`` kept open for later callers with
+    the **same scene object** (``scene is``), as a context manager that does not release it: the
+    k_f calibration, its confirmation, the attribute search and its gate renders of one cook share
+    the float-render caches and ``view_memo`` of their two harnesses (the reduced one and the
+    gate's), so a float render or a decoded draw made by one is not made again by the next. Asking
+    for another scene releases every shared harness of the previous one (``release_shared``), so at
+    most one scene's harnesses are held; the results equal those of fresh harnesses (cached and
+    memoised renders are exactly what a new draw gives). ``Harness.memo`` (results a caller keys by
+    what it cooked, not by content) is emptied on each call: it belongs to one search. Like the
+    process's GL context it serves, the pool is for one thread."""
+    res = (int(resolution[0]), int(resolution[1]))
+    key = (id(scene), res, int(samples))
+    h = _SHARED.get(key)
+    if h is None or h.scene is not scene:
+        if any(v.scene is not scene for v in _SHARED.values()) or h is not None:
+            release_shared()
+        h = Harness(scene, res, samples, cache_float=True)
+        _SHARED[key] = h
+    h.memo = {}
+    return _Borrowed(h)
+
+
+def release_shared() -> None:
+    """Release every harness ``shared_harness`` holds (their caches and GL objects)."""
+    while _SHARED:
+        _, h = _SHARED.popitem()
+        h.release()
+
+
+atexit.register(release_shared)
+
+
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
@@ -505,13 +660,18 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     build; ValueError when it is needed and None); ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
-    file, normals normalised per vertex). Attribute VBOs and index buffers come from ``attr_cache``."""
-    from ..emit.reader import ClusteredGpuBuffer
-    from .gpu import check_cluster_tables, cluster_decode_block, decode_block
+    file, normals normalised per vertex; a placement's mapped by A^-T). Attribute VBOs and index
+    buffers come from ``attr_cache``.
 
+    Each item carries ``digest``: the content key (``digest``) of everything its draw reads -- part
+    index, index buffer, attribute arrays as uploaded, flags, texture content digest, culling box,
+    packed words, VertexId/BitId tables, cluster records, level, origin and half cell of the grid it
+    is decoded on, and a placement's transform -- so two items with equal digests, drawn with the
+    same camera and shading, give the same pixels."""
     from ..emit.placement import split
-    from ..emit.reader import part_grid, placement_transform, world_normals
+    from ..emit.reader import ClusteredGpuBuffer, part_grid, placement_transform, world_normals
     from .buffers import resident_levels
+    from .gpu import check_cluster_tables, cluster_decode_block, decode_block
 
     items, owned = [], []
     # every decoded position lies in the grid's cube (24-bit integers, at most 2^24 - 1, plus half a cell)
@@ -525,21 +685,29 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             # unit normals, as a vertex shader normalises the octahedral decode before the
             # interpolation (an unnormalised one would weight the vertices by its length)
             a = lod_attributes(c, i, k, unit_normals=True)
-            ibo = ctx.buffer(np.ascontiguousarray(a["indices"], dtype="<u4").tobytes())
+            index_words = np.ascontiguousarray(a["indices"], dtype="<u4")
+            ibo = ctx.buffer(index_words.tobytes())
             if orders[i] is not None:
-                specs, bufs = attribute_buffers(ctx, p, orders[i])
+                arrays = vbo_arrays(p.normals, p.uvs, p.colors, orders[i])
                 flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
+                tex = p.texture
             else:
                 nrm = world_normals(c, i, a["normals"])  # a placement's: A^-T n, unit
-                specs, bufs = attribute_vbos(ctx, nrm, a["uvs"], a["colors"])
+                arrays = vbo_arrays(nrm, a["uvs"], a["colors"])
                 flags = (a["normals"] is not None, a["colors"] is not None,
                          textures.get(p.texture) if a["uvs"] is not None else None)
+                tex = p.texture if a["uvs"] is not None else None
+            bufs = [ctx.buffer(arr.tobytes()) for _, arr, _ in arrays]
+            specs = [(b, fmt, name) for b, (name, _, fmt) in zip(bufs, arrays)]
             src_box = None
             if orders[i] is not None and p.positions.size:  # the source's positions, in binned order
                 f = np.asarray(p.positions, np.float64)
                 src_box = (f.min(axis=0), f.max(axis=0))
-            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box)
-        ibo, specs, _, (has_normal, has_color, texture), src_box = attr_cache[i]
+            key = digest(i, index_words, *[x for name, arr, fmt in arrays for x in (name, fmt, arr)],
+                         bool(flags[0]), bool(flags[1]), None if tex is None else tex.digest,
+                         None if src_box is None else np.asarray(src_box, np.float64))
+            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]))
+        ibo, specs, _, (has_normal, has_color, texture), src_box, attr_key, n_tri = attr_cache[i]
         cull_box = None
         if src_box is not None:
             # decoded with >= level bits: within half a level-B cell of the 24-bit grid point, itself
@@ -586,11 +754,16 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
+        key = digest(attr_key, words, np.asarray(buf.vertex_id, np.int64), np.asarray(buf.bit_id, np.int64),
+                     int(p_level), np.asarray(p_origin, np.float64), float(p_half),
+                     None if clusters is None else np.asarray(rec, np.uint32), extra.get("place"))
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
-                      "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, **extra})
+                      "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, "digest": key,
+                      "triangles": n_tri, **extra})
     return items, owned
 
 
-__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
-           "attribute_vbos", "attribute_buffers", "float_items", "decoded_items", "Harness"]
+__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+           "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "Harness",
+           "shared_harness", "release_shared", "digest", "trim_heap"]

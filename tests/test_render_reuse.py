@@ -1,0 +1,235 @@
+"""Render reuse in the harness: draws named by content (``Harness.view_memo``), harnesses shared by
+the searches of one scene (``shared_harness``), compressed float-cache entries and the queue
+finishes of large draws. Each must give the same numbers and the same bits as rendering afresh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import cook_container
+from lopcook import fixtures as fx
+from lopcook.settings import DEFAULT_ANALYSE, AnalyseSettings
+from lopcook.types import MeshPart, Scene
+from lopcook.verify import renderer as R
+from lopcook.verify.cameras import camera_distance, make_camera, render_viewing
+from lopcook.verify.renderer import Harness, Shading, digest, release_shared, shared_harness
+
+RES = (96, 54)
+
+
+def spheres(n: int = 3) -> Scene:
+    base = fx.unit_sphere(2)[0]
+    parts = [MeshPart(f"s{k}", base.positions + [2.5 * k, 0.3 * k, 0.0], base.indices, normals=base.normals)
+             for k in range(n)]
+    return Scene(parts=tuple(parts), source="spheres", format="obj").validate()
+
+
+def strip(res: dict) -> dict:
+    """An evaluation without its timings (the only machine-dependent keys)."""
+    return {k: v for k, v in res.items() if k != "seconds"}
+
+
+class Counting:
+    """Counts ``Renderer.draw`` calls (decoded and float) on one harness."""
+
+    def __init__(self, h: Harness, monkeypatch):
+        self.decoded = self.float = 0
+        draw = h.renderer.draw
+
+        def counted(items, camera, shading, decoded):
+            if decoded:
+                self.decoded += 1
+            else:
+                self.float += 1
+            return draw(items, camera, shading, decoded)
+
+        monkeypatch.setattr(h.renderer, "draw", counted)
+
+
+def test_a_memoised_evaluation_equals_a_fresh_one_and_renders_nothing(gl, monkeypatch):
+    scene = spheres()
+    c = cook_container(scene)
+    levels = [6, 9, 12]
+    with Harness(scene, RES) as fresh:
+        want = strip(fresh.evaluate(c, levels=levels, views=4))
+    with Harness(scene, RES, cache_float=True) as h:
+        first = strip(h.evaluate(c, levels=levels, views=4))
+        n = Counting(h, monkeypatch)
+        again = strip(h.evaluate(c, levels=levels, views=4))
+        assert (n.decoded, n.float) == (0, 0)  # every (level, view) came from the memo
+        assert first == want and again == want
+        # a container cooked at a looser eps draws other positions: no memo hit, its own numbers
+        other = cook_container(scene, AnalyseSettings(eps=DEFAULT_ANALYSE.eps * 64.0))
+        got = strip(h.evaluate(other, levels=levels, views=4))
+        assert n.decoded == 2 * len(levels) * 4  # AP and CAP of every (level, view) rendered
+    with Harness(scene, RES) as fresh:
+        assert got == strip(fresh.evaluate(other, levels=levels, views=4))
+        assert got["levels"][0]["cap"] != want["levels"][0]["cap"]
+
+
+def test_a_stopped_evaluation_leaves_the_levels_it_rendered_memoised(gl, monkeypatch):
+    scene = spheres(2)
+    c = cook_container(scene)
+    with Harness(scene, RES, cache_float=True) as h:
+        part = strip(h.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",), stop=lambda pv: True))
+        assert [r["level"] for r in part["levels"]] == [6]
+        n = Counting(h, monkeypatch)
+        full = strip(h.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",)))
+        assert n.decoded == 2 * 3  # levels 8 and 10 only
+        assert full["levels"][0] == part["levels"][0]
+    with Harness(scene, RES) as fresh:
+        assert full == strip(fresh.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",)))
+
+
+def test_digest_tells_dtype_shape_and_bytes_apart():
+    a = np.arange(6, dtype=np.uint32)
+    assert digest(a) == digest(a.copy())
+    assert digest(a) != digest(a.astype(np.int32))
+    assert digest(a) != digest(a.reshape(2, 3))
+    b = a.copy()
+    b[5] += 1
+    assert digest(a) != digest(b)
+    assert digest(1, 2) != digest(12) and digest(b"ab", b"c") != digest(b"a", b"bc")
+
+
+def test_decoded_items_digest_follows_their_content(gl):
+    scene = spheres(2)
+    c = cook_container(scene)
+    from lopcook.emit.reader import gpu_buffer
+    from lopcook.verify.buffers import ap_buffer
+
+    g = c.manifest["grid"]
+    half = np.float32(float(g["extent"]) / float(1 << 24) / 2.0)
+    with Harness(scene, RES) as h:
+        keys = {}
+        for name, builder in (("cap", gpu_buffer), ("ap", ap_buffer)):
+            for level in (6, 7):
+                cache: dict = {}
+                items, owned = R.decoded_items(h.ctx, h.renderer.decode_program, c, scene, [0, 0], [None, None],
+                                               h.textures, builder, level, g["origin"], half, cache)
+                keys[(name, level)] = [it["digest"] for it in items]
+                assert [it["triangles"] for it in items] == [p.n_triangles for p in scene.parts]
+                for r in owned:
+                    r.release()
+                for entry in cache.values():
+                    for b in entry[2]:
+                        b.release()
+        flat = [k for ks in keys.values() for k in ks]
+        assert len(set(flat)) == len(flat)  # parts, levels and variants all differ
+
+
+def test_shared_harness_is_kept_per_scene_and_released_for_another(gl):
+    a, b = spheres(2), spheres(3)
+    try:
+        with shared_harness(a, RES) as h1:
+            h1.memo["x"] = 1
+        with shared_harness(a, RES) as h2:
+            assert h2 is h1 and h2.memo == {}  # the same harness; the caller's memo is its own
+            assert h2.cache_float
+        with shared_harness(a, (64, 36)) as g:
+            assert g is not h1 and g.renderer.size == (64, 36)
+        with shared_harness(b, RES) as h3:
+            assert h3 is not h1 and h3.scene is b
+        assert h1._buffers == [] and g._buffers == []  # another scene released a's harnesses
+    finally:
+        release_shared()
+
+
+def test_compressed_float_cache_gives_the_same_renders(gl, monkeypatch):
+    scene = spheres()
+    c = cook_container(scene)
+    monkeypatch.setattr(R, "RAW_CACHE_BYTES", 0)  # every entry compressed
+    with Harness(scene, RES) as plain, Harness(scene, RES, cache_float=True) as cached:
+        viewing = render_viewing(c.manifest, RES)
+        shading = Shading.from_manifest(c.manifest)
+        for level in (6, 10):
+            for view in (0, 3, 11):
+                cam = make_camera(view, plain.lo, plain.hi, camera_distance(level, float(c.manifest["grid"]["extent"]),
+                                                                             viewing), viewing)
+                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+                want = plain.render_float(cam, shading)
+                first = cached.render_float(cam, shading, key=key)
+                assert len(cached.float_cache[key]) == 6  # a packed entry
+                hit = cached.render_float(cam, shading, key=key)
+                for x, y, z in zip(want, first, hit):
+                    assert np.array_equal(x, y) and np.array_equal(x, z) and x.dtype == z.dtype
+        assert 0 < cached.cached_bytes < sum(RES[0] * RES[1] * 6 for _ in range(6))
+
+
+@pytest.mark.parametrize("every", [1, 10**9])
+def test_finishing_the_queue_between_draws_changes_no_pixel(gl, monkeypatch, every):
+    scene = spheres(4)
+    c = cook_container(scene)
+    with Harness(scene, RES) as h:
+        viewing = render_viewing(c.manifest, RES)
+        shading = Shading.from_manifest(c.manifest)
+        cams = [make_camera(v, h.lo, h.hi, camera_distance(b, float(c.manifest["grid"]["extent"]), viewing), viewing)
+                for b in (6, 11) for v in (0, 7)]
+        want = [h.renderer.draw(h.float_items, cam, shading, False) for cam in cams]
+        monkeypatch.setattr(R, "FINISH_TRIANGLES", every)  # 1: a glFinish before every item
+        finishes = []
+        finish = h.ctx.finish
+        monkeypatch.setattr(type(h.ctx), "finish", lambda self: (finishes.append(1), finish())[1])
+        got = [h.renderer.draw(h.float_items, cam, shading, False) for cam in cams]
+        assert (len(finishes) > 0) == (every == 1)
+        for (a, b), (x, y) in zip(want, got):
+            assert np.array_equal(a, x) and np.array_equal(b, y)
+
+
+def _tiny_calibrated(scene):
+    """``cook --target-psnr 35`` of ``scene`` on small harnesses (k_f calibration, its gate, the
+    attribute search and its gate), through ``lopcook.api.cook``."""
+    from lopcook.api import cook
+    from lopcook.settings import DEFAULTS, RenderSettings
+
+    s = DEFAULTS.with_(tune={"target_psnr": 35.0, "calibration": RenderSettings(views=2, resolution=(80, 45)),
+                             "confirm": RenderSettings(views=3, resolution=(112, 63))})
+    return cook(scene, s)
+
+
+def test_a_calibrated_cook_with_shared_harnesses_writes_the_same_bytes_and_reuses_renders(gl, monkeypatch):
+    """The attribute search's first probe (the k_f choice with the default bits) is the k_f
+    calibration's chosen cook: with the shared harness it draws nothing; without sharing (a fresh
+    harness for every caller, as before) the container is the same, byte for byte."""
+    from conftest import FIXTURES
+    from lopcook.ingest import load
+    from lopcook.tune import attributes as TA
+    from lopcook.tune import calibrate as TC
+
+    scene = load(FIXTURES / "unit_sphere.glb")
+    draws = {"decoded": 0, "float": 0}
+    real_draw = R.Renderer.draw
+
+    def counted(self, items, camera, shading, decoded):
+        draws["decoded" if decoded else "float"] += 1
+        return real_draw(self, items, camera, shading, decoded)
+
+    monkeypatch.setattr(R.Renderer, "draw", counted)
+    at_probe = []
+    real_quality = TA.Search.quality
+
+    def quality(self, alloc, step_name=""):
+        before = dict(draws)
+        q = real_quality(self, alloc, step_name)
+        at_probe.append((step_name, draws["decoded"] - before["decoded"], draws["float"] - before["float"]))
+        return q
+
+    monkeypatch.setattr(TA.Search, "quality", quality)
+    try:
+        shared = _tiny_calibrated(scene)
+        assert at_probe and at_probe[0][0] == "start"
+        assert at_probe[0][1:] == (0, 0)  # the k_f choice's renders, memoised on the shared harness
+        shared_draws = dict(draws)
+    finally:
+        release_shared()
+
+    def fresh(scene_, resolution=R.RESOLUTION, samples=R.SAMPLES):
+        return R._Borrowed(Harness(scene_, resolution, samples, cache_float=True))
+
+    monkeypatch.setattr(R, "shared_harness", fresh)
+    monkeypatch.setattr(TC, "shared_harness", fresh)
+    draws.update(decoded=0, float=0)
+    alone = _tiny_calibrated(scene)
+    assert alone.data == shared.data
+    assert draws["decoded"] > shared_draws["decoded"] and draws["float"] > shared_draws["float"]
