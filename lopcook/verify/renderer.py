@@ -754,9 +754,14 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
         owned += [ssbo, ubo, vao]
-        key = digest(attr_key, words, np.asarray(buf.vertex_id, np.int64), np.asarray(buf.bit_id, np.int64),
-                     int(p_level), np.asarray(p_origin, np.float64), float(p_half),
-                     None if clusters is None else np.asarray(rec, np.uint32), extra.get("place"))
+        if clusters is None:
+            tables = (np.asarray(buf.vertex_id, np.int64), np.asarray(buf.bit_id, np.int64))
+        else:
+            cl = buf.clusters
+            tables = (np.asarray(cl.vertex_id, np.int64), np.asarray(cl.cluster_id, np.int64), int(cl.size),
+                      np.asarray(rec, np.uint32))
+        key = digest(attr_key, words, *tables, int(p_level), np.asarray(p_origin, np.float64), float(p_half),
+                     extra.get("place"))
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
                       "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, "digest": key,
