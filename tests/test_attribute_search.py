@@ -218,3 +218,21 @@ def test_fallbacks_walk_back_to_the_anchor():
     # a choice at the anchor's k_f skips the first step; the anchor itself has nothing to fall back to
     assert [r for r, _ in TA.fallbacks(TA.Allocation(0.0, choice.parts), start)] == ["halfway", "anchor"]
     assert TA.fallbacks(start, start) == []
+
+
+@pytest.mark.parametrize("n,cut", [(1, 1), (1, 0), (2, 1), (7, 0), (7, 3), (7, 7), (16, 11), (33, 32)])
+def test_last_passing_bisects_the_path(n, cut):
+    # a path of n allocations whose first `cut` pass the gate (monotone verdict)
+    path = [TA.Allocation(-0.5 * i, ((8, 7, None),)) for i in range(n)]
+    calls = []
+
+    def gate(a, k):
+        assert path[k] == a
+        calls.append(k)
+        return k < cut
+
+    got = TA.last_passing(path, gate)
+    assert got == (cut - 1 if cut else None)
+    assert calls[0] == 0 and len(calls) <= 1 + math.ceil(math.log2(n))
+    assert len(set(calls)) == len(calls)  # no allocation gated twice
+    assert TA.last_passing([], gate) is None

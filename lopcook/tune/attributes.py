@@ -49,9 +49,12 @@ until it reaches the target; then while it passes, the bit-reduce winner (least 
 steps down that lower the cost) while it still passes, and when it does not, the swap of that
 winner with the bit-increase of another knob that passes and still costs less than the current
 choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
-20 views at 1280 x 720): when the choice misses there, ``fallbacks`` walk back toward the anchor
-(the choice's bits at the anchor's k_f, then halfway to the anchor's bits, then the anchor), the
-first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
+20 views at 1280 x 720): when the choice misses there (the reduced harness crops the object at
+high levels, so it flatters coarse positions), ``last_passing`` bisects the search's path (the
+passing choices in the order taken, cost falling) for the last one that passes the gate (at most
+1 + ceil(log2(len(path))) gate renders); when even the path's first misses, ``fallbacks`` walk
+back toward the anchor (the choice's bits at the anchor's k_f, then halfway to the anchor's bits,
+then the anchor), the first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
 misses too, so the search never ends below the default cook's quality.
 
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
@@ -375,6 +378,24 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
     return cur, True
 
 
+def last_passing(path: list, passes) -> int | None:
+    """Index of the last allocation of ``path`` that ``passes(alloc, index)`` (the gate), by
+    bisection, assuming the gate's verdict falls monotonically along the path (a target search's
+    path: passing choices of falling cost, ``Search.path``); None when ``path`` is empty or its
+    first entry fails. Calls ``passes`` at most ``1 + ceil(log2(len(path)))`` times, on the first
+    entry, then on midpoints."""
+    if not path or not passes(path[0], 0):
+        return None
+    lo, hi = 0, len(path)  # path[lo] passes; path[hi:] fail or are untested past the end
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if passes(path[mid], mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocation]]:
     """The allocations a target search confirms on the gate, in order, after its choice missed
     there: (1) "anchor positions": the choice's attribute bits with the anchor's k_f scale (the
@@ -486,6 +507,17 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             conf.append(dict(g, allocation=choice.record(), role="choice"))
             if mode == "target":
                 reached = g["objective_db"] >= float(goal)
+                if not reached:  # the last choice on the search's path that passes the gate
+                    def gate(a, k):
+                        ga = gate_quality(scene, search.cook(a), confirm, levels, statistic)
+                        conf.append(dict(ga, allocation=a.record(), role=f"path {k}"))
+                        return ga["objective_db"] >= float(goal)
+
+                    k = last_passing(search.path[:-1] if search.path and search.path[-1] == choice else search.path,
+                                     gate)
+                    if k is not None:
+                        choice = search.path[k]
+                        c, objective, reached = search.cook(choice), search.quality(choice, f"confirm path {k}"), True
                 # walk back toward the anchor (``fallbacks``)
                 for role, a in fallbacks(choice, start):
                     if reached:
@@ -561,5 +593,5 @@ def format_search(result: dict) -> str:
 
 __all__ = ["NORMAL_BITS", "UV_BITS", "COLOR_BITS", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
            "Allocation", "Knob", "knobs", "step", "vertex_bits", "container_allocation", "cook_settings", "Search",
-           "search_budget", "search_target", "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
+           "search_budget", "search_target", "last_passing", "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
            "require_reached", "format_search", "format_probe"]
