@@ -237,3 +237,37 @@ def test_last_passing_bisects_the_path(n, cut):
     assert calls[0] == 0 and len(calls) <= 1 + math.ceil(math.log2(n))
     assert len(set(calls)) == len(calls)  # no allocation gated twice
     assert TA.last_passing([], gate) is None
+
+
+def test_moved_knobs_names_what_differs():
+    a = TA.Allocation(0.0, ((8, 7, None), (None, 9, 8)))
+    assert TA.moved_knobs(a, a) == []
+    assert TA.moved_knobs(a, TA.Allocation(-0.5, a.parts)) == ["positions"]
+    assert TA.moved_knobs(a, TA.Allocation(0.0, ((8, 6, None), (None, 9, 7)))) == ["uvs[0]", "colors[1]"]
+
+
+def test_refine_on_gate_freezes_what_the_reduced_harness_misjudged():
+    # the reduced harness is the analytic model; the gate also refuses UVs under 10 bits (as
+    # DamagedHelmet's and Duck's textures at level 12 do): the search's own choice misses it
+    model = Analytic()
+    target = 30.0
+    start = TA.Allocation(4.0, ((16, 16, None),))
+    choice, ok = TA.search_target(model, start, target)
+    assert ok and choice.parts[0][1] < 10
+    gated = []
+
+    def gate(a, role):
+        gated.append((a, role))
+        return model.quality(a) >= target and a.parts[0][1] >= 10
+
+    got = TA.refine_on_gate(model, choice, target, gate)
+    assert got is not None
+    best, frozen = got
+    assert gate(best, "check") and "uvs[0]" in frozen
+    # it is no dearer than the last choice of the first path that passed the gate
+    first_path_pass = [a for a, _ in gated if a.parts[0][1] >= 10 and model.quality(a) >= target]
+    assert model.cost(best) <= min(model.cost(a) for a in first_path_pass)
+    # with the UVs frozen at the gate's floor the other knobs went on down
+    assert best.parts[0][1] == 10 and (best.x < start.x or best.parts[0][0] < 16)
+    # a gate nothing passes: None
+    assert TA.refine_on_gate(model, choice, target, lambda a, role: False) is None
