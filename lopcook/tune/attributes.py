@@ -50,9 +50,12 @@ steps down that lower the cost) while it still passes, and when it does not, the
 winner with the bit-increase of another knob that passes and still costs less than the current
 choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
 20 views at 1280 x 720): when the choice misses there (the reduced harness crops the object at
-high levels, so it flatters coarse positions), ``last_passing`` bisects the search's path (the
-passing choices in the order taken, cost falling) for the last one that passes the gate (at most
-1 + ceil(log2(len(path))) gate renders); when even the path's first misses, ``fallbacks`` walk
+high levels, so it flatters coarse positions and UVs on magnified textures), ``refine_on_gate``:
+``last_passing`` bisects the search's path (the passing choices in the order taken, cost falling)
+for the last one that passes the gate (at most 1 + ceil(log2(len(path))) gate renders), freezes
+the knobs of the step after it (``moved_knobs``: what the reduced harness misjudged) and searches
+on from there with the others, confirmed the same way (at most ``MAX_FREEZES`` freezes; the
+record's ``frozen``); when even the path's first misses, ``fallbacks`` walk
 back toward the anchor (the choice's bits at the anchor's k_f, then halfway to the anchor's bits,
 then the anchor), the first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
 misses too, so the search never ends below the default cook's quality.
