@@ -1,5 +1,5 @@
-"""Attribute bits end to end: the bound-based default (lopcook.emit.attributes.default_bits) on
-analytic cases, ``cook --normal-bits/--uv-bits/--color-bits`` (range errors exit 2), the manifest
+"""Attribute bits end to end: the worst-case bound (lopcook.emit.attributes.worst_case_bits) on
+analytic cases (the average-case default is tests/test_attribute_bound.py), ``cook --normal-bits/--uv-bits/--color-bits`` (range errors exit 2), the manifest
 and ``inspect --json`` fields ``attribute_bits`` / ``vertex_bits``, and determinism."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from lopcook.cli import main
-from lopcook.emit.attributes import (AttributeBits, color_error_bound, default_bits, normal_error_deg,
+from lopcook.emit.attributes import (AttributeBits, color_error_bound, normal_error_deg, worst_case_bits,
                                      uv_error_bound)
 from lopcook.emit.container import from_bytes
 from lopcook.errors import LopcookError
@@ -25,38 +25,38 @@ def smallest(pred, lo, hi):
 
 
 @pytest.mark.parametrize("kf,eps", [(16.0, 1 / 255), (1.0, 1 / 255), (16.0, 0.05), (0.0, 1 / 255), (1e6, 1e-6)])
-def test_default_normal_bits_are_the_smallest_meeting_the_bound(kf, eps):
-    b = default_bits(normals=True, uvs=None, colors=False, eps=eps, normal_kf=kf).normals
+def test_worst_case_normal_bits_are_the_smallest_meeting_the_bound(kf, eps):
+    b = worst_case_bits(normals=True, uvs=None, colors=False, eps=eps, normal_kf=kf).normals
     assert kf * math.radians(normal_error_deg(b)) <= eps or b == 16
     if b > 4:
         assert kf * math.radians(normal_error_deg(b - 1)) > eps
     assert b == smallest(lambda x: kf * math.radians(normal_error_deg(x)) <= eps, 4, 16)
 
 
-def test_default_bits_with_the_default_shading():
+def test_worst_case_bits_with_the_default_shading():
     # ks * n = 16, eps = 1/255: theta <= 0.014 degrees: 14 bits (0.0105), not 13 (0.021)
-    assert default_bits(normals=True, uvs=None, colors=True, eps=1 / 255, normal_kf=16.0, color_kf=1.0) == \
+    assert worst_case_bits(normals=True, uvs=None, colors=True, eps=1 / 255, normal_kf=16.0, color_kf=1.0) == \
         AttributeBits(normals=14, uvs=None, colors=8)
     # colours: 1/(2 (2^b - 1)) <= eps
-    assert default_bits(normals=False, uvs=None, colors=True, eps=1 / 29, color_kf=1.0).colors == 4
-    assert default_bits(normals=False, uvs=None, colors=True, eps=1 / 100, color_kf=1.0).colors == 6
+    assert worst_case_bits(normals=False, uvs=None, colors=True, eps=1 / 29, color_kf=1.0).colors == 4
+    assert worst_case_bits(normals=False, uvs=None, colors=True, eps=1 / 100, color_kf=1.0).colors == 6
     assert color_error_bound(6) <= 1 / 100 < color_error_bound(5)
 
 
-def test_default_uv_bits_follow_the_texture_slope_and_range():
+def test_worst_case_uv_bits_follow_the_texture_slope_and_range():
     uv = np.array([[0.0, 0.0], [1.0, 1.0], [0.3, 0.7]])
     eps = 1 / 255
     for slope in (0.0, 1.0, 50.0, 548.0, 3000.0):
-        b = default_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=slope).uvs
+        b = worst_case_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=slope).uvs
         ok = lambda x: slope * np.linalg.norm(uv_error_bound([0, 0], [1, 1], x)) <= eps  # noqa: E731
         assert b == smallest(ok, 6, 16)
-    assert default_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=0.0).uvs == 6  # untextured
-    assert default_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=3000.0).uvs == 16  # capped
+    assert worst_case_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=0.0).uvs == 6  # untextured
+    assert worst_case_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=3000.0).uvs == 16  # capped
     # a smaller range needs fewer bits for the same slope
-    assert default_bits(normals=False, uvs=uv * 0.01, colors=False, eps=eps, uv_kf=50.0).uvs < \
-        default_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=50.0).uvs
+    assert worst_case_bits(normals=False, uvs=uv * 0.01, colors=False, eps=eps, uv_kf=50.0).uvs < \
+        worst_case_bits(normals=False, uvs=uv, colors=False, eps=eps, uv_kf=50.0).uvs
     with pytest.raises(LopcookError):
-        default_bits(normals=True, uvs=None, colors=False, eps=0.0, normal_kf=1.0)
+        worst_case_bits(normals=True, uvs=None, colors=False, eps=0.0, normal_kf=1.0)
 
 
 def _cook(tmp_path, name, *flags):
@@ -100,9 +100,9 @@ def test_default_cook_records_the_bound_based_bits(tmp_path, capsys):
     assert rc == 0
     c = from_bytes(out.read_bytes())
     assert "attributes" not in c.manifest["options"]
-    for p in c.manifest["parts"]:  # untextured plates: UVs cannot change a colour
-        assert p["attribute_bits"] == {"normals": 14, "uvs": 6, "colors": None}
-        assert all(e["attribute_bits"] == p["attribute_bits"] and e["record_bits"] == 40 for e in p["lods"])
+    for p in c.manifest["parts"]:  # average-case bound: 8-bit normals; untextured UVs cannot change a colour
+        assert p["attribute_bits"] == {"normals": 8, "uvs": 6, "colors": None}
+        assert all(e["attribute_bits"] == p["attribute_bits"] and e["record_bits"] == 28 for e in p["lods"])
 
 
 @pytest.mark.parametrize("flag,value", [("--normal-bits", "3"), ("--normal-bits", "17"), ("--uv-bits", "5"),

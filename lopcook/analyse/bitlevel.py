@@ -67,8 +67,12 @@ def texture_slope(texture: Texture) -> float:
 
 def clear_slope_cache() -> None:
     """Forget the texture slopes computed so far in this process (``texture_slope`` caches them by
-    texture digest), so that the next analysis pays what a fresh cook pays."""
+    texture digest) and the gradient images of the attribute bound (``attribute_bound``), so
+    that the next analysis pays what a fresh cook pays."""
+    from .attribute_bound import clear_gradient_cache
+
     _SLOPE_CACHE.clear()
+    clear_gradient_cache()
 
 
 __all__ = ["attribute_level", "texture_slope", "clear_slope_cache", "BITS"]

@@ -77,34 +77,40 @@ padding word): at most 31 bits are wasted per buffer (:func:`record_waste`), aga
 ``32 ceil(S/32) - S`` per vertex for word-aligned records (:func:`aligned_waste`, first-fit
 decreasing bins of whole components).
 
-Bound-based defaults (:func:`default_bits`, issue 15 item 3)
--------------------------------------------------------------
-Without an image search (``lopcook.tune``), each part's bits come from the same kind of bound
-as the positions' (Meyer et al. 2011, section 5.1: ``k_f * E_v * dx(b) <= eps``): the change of
-the shaded colour an attribute's quantisation error can cause, its error times the shader's
-slope ``k_f`` with respect to that attribute, must stay within ``eps`` (AnalyseSettings.eps,
-colour units; default 1/255). The k_f are the analysis's (``lopcook.analyse.attribute_kf``):
+Bound-based defaults (:func:`default_bits`, issue 15 item 3): the average-case bound
+------------------------------------------------------------------------------------------
+Without an image search (``lopcook.tune``), each part's normal and UV bits are the fewest whose
+**root-mean-square change of a pixel's colour** stays within ``eps`` (AnalyseSettings.eps, colour
+units, default 1/255: the positions' per-vertex bound, Meyer et al. 2011, section 5.1, now per
+pixel on average, one eps per attribute). The verify harness measures the mean square error over
+object pixels, so this is the quantity its PSNR sees: one attribute alone at eps = 1/255 costs at
+most 48.1 dB. Inputs (``lopcook.analyse.attribute_bound``): the harness's headlight Phong shading
+averaged over the projected-area density of facing normals, and the part's texture gradient where
+its surface samples it. Pixel errors (vertex errors independent, interpolated with barycentric
+weights w: E[sum w_i^2] = 1/2 over a triangle, hence the factor sqrt(1/2)):
 
-* normals: the angle between a normal and its decode is at most ``theta(b) = normal_error_deg(b)``,
-  so the normal moves by at most ``theta`` (radians, a unit-vector change); with Phong k_f =
-  ks * n (colour per unit normal change; 16 by default), ``b_n`` is the smallest b in [4, 16]
-  with ``k_f * theta(b) <= eps``. Default: 16 * theta <= 1/255 needs theta <= 0.0140 degrees:
-  2.7 * 2^(6 - b) <= 0.0140 at b = 14 (0.0105 degrees), not at 13 (0.021).
-* UVs: each component's error is at most ``e(b) = uv_error_bound(lo, hi, b)`` (half a step of
-  the part's range plus rounding), so the UV moves by at most ``|e(b)|`` UV units, i.e.
-  ``|e(b)| * resolution`` texels, and the texture's colour by at most ``k_f * |e(b)|`` with
-  k_f the texture's maximum slope (colour per UV unit: the largest texel-to-texel difference
-  times the resolution, ``TextureSlope.IMAGE``); ``b_u`` is the smallest b in [6, 16] with
-  ``k_f * |e(b)| <= eps``. A part without a texture has k_f = 0 (``untextured_uv_kf``) and gets
-  6 bits; a detailed texture (DamagedHelmet: slope 2896 per UV unit, 2048 texels) needs
-  |e| <= 1.35e-6 UV units = 0.0028 texels, more than 16 bits give: it gets 16.
-* colours: the error per channel is at most ``1 / (2 (2^b - 1))`` (+ 2^-24) and k_f = color_kf
-  (1), so ``b_c`` is the smallest b in [4, 8] with ``k_f / (2 (2^b - 1)) <= eps``: 8 for 1/255.
+* normals (:func:`normal_pixel_rms`): ``0.5 * slope_rms * delta_rms(b)``, ``delta_rms(b)`` the
+  codec's RMS angle (:data:`NORMAL_RMS_ERROR_DEG`, radians; 0.53 x Cigolle et al.'s maxima),
+  ``slope_rms`` the shading's RMS slope per radian (0.693 with ks 0.5, n 32), the 0.5 =
+  sqrt(1/2) for the error's direction (only the tilt towards the light counts) times sqrt(1/2)
+  for the interpolation. 1/255 gives 8 bits (0.00204; 7 bits: 0.00412).
+* UVs (:func:`uv_pixel_rms`): ``lighting_rms * sqrt(1/2) * sqrt(((g_u s_u)^2 + (g_v s_v)^2) / 12)``,
+  s the step over the part's range (rounding error uniform in +-s/2, variance s^2/12), g the
+  texture's RMS derivative along u, v (colour per UV unit, area-weighted over the surface, at the
+  mip level of the design view), lighting_rms = 0.603 the diffuse factor the base colour is
+  multiplied by. An untextured part has g = 0: 6 bits. In texels: the RMS error is
+  ``s R / sqrt(12)`` texels, times the gradient per texel ``g / R``.
+* colours: the worst case below (unchanged).
 
-Where no b in the range satisfies the bound, the largest is used. The bound is a worst case
-(every vertex at its largest error, at the steepest point of the shading), so an image search
-at a PSNR target can go lower; the bits chosen are recorded per part and per LOD in the
-manifest (``attribute_bits``). ``docs/attributes.md`` has the measured image errors.
+The worst-case bound (:func:`worst_case_bits`, the default before): every vertex at its largest
+error at the steepest point of the shading: normals ``ks * n * theta_max(b) <= eps`` (14 bits by
+default), UVs ``max slope * |uv_error_bound(b)| <= eps`` (16 on any detailed texture), colours
+``color_kf / (2 (2^b - 1)) <= eps`` (8 for 1/255). It is 40-75 % above the image search's bits
+(docs/attributes.md), the average-case bound within 20 %.
+
+Where no b in the range satisfies a bound, the largest is used. The bits chosen are recorded per
+part and per LOD in the manifest (``attribute_bits``). ``docs/attributes.md`` has the derivation
+in full and the measured image errors.
 
 Indices -- uint16 or uint32 (``"<u2"`` / ``"<u4"``), 6 or 12 bytes per triangle
 -------------------------------------------------------------------------------------
@@ -129,7 +135,8 @@ from ..settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
 
 __all__ = [
     "NORMAL_BITS", "UV_BITS", "COLOR_BITS", "DEFAULT_BITS", "CIGOLLE_MAX_ERROR_DEG",
-    "AttributeBits", "bits_for", "default_bits", "part_default_bits", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
+    "AttributeBits", "bits_for", "default_bits", "worst_case_bits", "part_default_bits",
+    "normal_pixel_rms", "uv_pixel_rms", "normal_rms_error_deg", "NORMAL_RMS_ERROR_DEG", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
     "encode_normals", "decode_normals", "encode_uvs", "uv_step", "decode_uvs",
     "encode_colors", "decode_colors", "encode_record", "decode_record", "record_fields",
     "record_waste", "aligned_waste", "record_words",
@@ -196,11 +203,62 @@ def bits_for(normals: bool, uvs: bool, colors: bool, requested=(None, None, None
                          colors=(dc if rc is None else rc) if colors else None)
 
 
-def default_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_kf: float = 0.0,
+def normal_pixel_rms(bits: int, slope_rms: float) -> float:
+    """Root-mean-square change of a pixel's colour (colour units) caused by ``bits``-bit octahedral
+    normals under a shading whose RMS slope is ``slope_rms`` (colour per radian of normal tilt,
+    ``lopcook.analyse.attribute_bound.shading_rms``): ``slope_rms * sqrt(1/2) * sqrt(1/2) *
+    radians(normal_rms_error_deg(bits))`` (the error's direction in the tangent plane, the
+    barycentric interpolation of three independent vertex errors: module doc)."""
+    return 0.5 * float(slope_rms) * math.radians(normal_rms_error_deg(bits))
+
+
+def uv_pixel_rms(lo, hi, bits: int, gradient_rms, lighting_rms: float) -> float:
+    """Root-mean-square change of a pixel's colour (colour units) caused by ``bits``-bit UVs over
+    [lo, hi] (per component) on a texture of RMS derivatives ``gradient_rms`` = (g_u, g_v) (colour
+    per UV unit, ``lopcook.analyse.attribute_bound.texture_gradient_rms``) lit by ``lighting_rms``:
+    ``lighting_rms * sqrt(1/2) * sqrt((g_u step_u)^2 + (g_v step_v)^2) / sqrt(12)`` (uniform
+    rounding error of variance step^2 / 12 per component, barycentric interpolation: module doc)."""
+    b = _check_bits(bits, UV_BITS, "uv")
+    step = uv_step(np.asarray(lo, dtype=_F4).astype(np.float64), np.asarray(hi, dtype=_F4).astype(np.float64), b)
+    g = np.asarray(gradient_rms, dtype=np.float64).reshape(2)
+    return float(lighting_rms) * math.sqrt(0.5 * float(np.sum((g * step.astype(np.float64)) ** 2)) / 12.0)
+
+
+def default_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_slope_rms: float = 0.0,
+                 uv_gradient_rms=(0.0, 0.0), lighting_rms: float = 1.0, color_kf: float = 0.0) -> AttributeBits:
+    """The bound-based default bits of one part (issue 15 item 3; derivation in the module doc,
+    section "Bound-based defaults", and docs/attributes.md): the fewest bits whose **root-mean-square**
+    change of a pixel's colour stays within ``eps`` (colour units), per attribute.
+
+    normals : bool; smallest b_n in [4, 16] with ``normal_pixel_rms(b_n, normal_slope_rms) <= eps``.
+    uvs : None or the part's (n, 2) UVs; smallest b_u in [6, 16] with
+        ``uv_pixel_rms(lo, hi, b_u, uv_gradient_rms, lighting_rms) <= eps`` over the part's range
+        (a zero gradient, an untextured part, gives 6).
+    colors : bool; the worst case, smallest b_c in [4, 8] with ``color_kf * color_error_bound(b_c) <= eps``.
+    Each is the largest allowed when none satisfies the bound."""
+    if not (math.isfinite(eps) and eps > 0):
+        raise LopcookError("usage", None, f"eps must be a finite number > 0, got {eps}")
+    bn = bu = bc = None
+    if normals:
+        bn = next((b for b in range(NORMAL_BITS[0], NORMAL_BITS[1] + 1)
+                   if normal_pixel_rms(b, normal_slope_rms) <= eps), NORMAL_BITS[1])
+    if uvs is not None:
+        u = _float_input(uvs, 2, "uvs")
+        lo = u.min(axis=0) if u.shape[0] else np.zeros(2)
+        hi = u.max(axis=0) if u.shape[0] else np.zeros(2)
+        bu = next((b for b in range(UV_BITS[0], UV_BITS[1] + 1)
+                   if uv_pixel_rms(lo, hi, b, uv_gradient_rms, lighting_rms) <= eps), UV_BITS[1])
+    if colors:
+        bc = next((b for b in range(COLOR_BITS[0], COLOR_BITS[1] + 1)
+                   if float(color_kf) * color_error_bound(b) <= eps), COLOR_BITS[1])
+    return AttributeBits(normals=bn, uvs=bu, colors=bc)
+
+
+def worst_case_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_kf: float = 0.0,
                  uv_kf: float = 0.0, color_kf: float = 0.0) -> AttributeBits:
-    """The bound-based bits of one part (issue 15 item 3; derivation in the module doc, section
-    "Bound-based defaults"): the fewest bits whose worst-case attribute error changes the shaded
-    colour by at most ``eps`` (colour units), with the shading slopes k_f of the analysis.
+    """The worst-case bound's bits of one part (the module doc, section "The worst-case bound";
+    no longer the default, kept for comparison): the fewest bits whose largest attribute error
+    changes the shaded colour by at most ``eps`` (colour units), with the analysis's slopes k_f.
 
     normals : bool, the part has normals; smallest b_n in [4, 16] with
         ``normal_kf * radians(normal_error_deg(b_n)) <= eps`` (normal_kf: colour per unit normal).
@@ -228,19 +286,29 @@ def default_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_kf: flo
 
 
 def part_default_bits(part, analyse_settings, kf: dict | None = None) -> AttributeBits:
-    """:func:`default_bits` of a MeshPart under AnalyseSettings: eps and the k_f of the analysis
-    (``kf``: a PartAnalysis's ``kf``, else ``lopcook.analyse.attribute_kf``). UVs whose k_f the
-    analysis leaves out (``texture_kf off``) use the texture's slope when the part has a texture."""
+    """:func:`default_bits` of a MeshPart under AnalyseSettings (eps, ks, shininess, color_kf):
+    the shading's RMS slope and lighting from ``lopcook.analyse.attribute_bound.shading_rms``
+    (the verify harness's Phong), the UVs' gradient ``texture_gradient_rms`` of the part's
+    texture at the design view (0 without a texture). An explicit k_f (``analyse_settings.kf``,
+    or a numeric ``texture_kf`` for UVs) is taken as the RMS slope instead (normals: colour per
+    radian; UVs: the gradient's length, split equally between u and v). ``kf``: a PartAnalysis's
+    k_f (only its colour entry is used), else ``lopcook.analyse.attribute_kf``."""
     from ..analyse import attribute_kf
-    from ..analyse.bitlevel import texture_slope
+    from ..analyse.attribute_bound import shading_rms, texture_gradient_rms
 
-    kf = attribute_kf(part, analyse_settings) if kf is None else kf
-    uv_kf = kf.get("uv")
-    if uv_kf is None:
-        uv_kf = texture_slope(part.texture) if (part.uvs is not None and part.texture is not None) else 0.0
+    st = analyse_settings
+    kf = attribute_kf(part, st) if kf is None else kf
+    slope_rms, lighting_rms = shading_rms(st.ks, st.shininess)
+    if st.kf is not None:
+        slope_rms = float(st.kf)
+    grad = (0.0, 0.0)
+    if part.uvs is not None:
+        explicit = float(st.kf) if st.kf is not None else (
+            float(st.texture_kf) if isinstance(st.texture_kf, (int, float)) else None)
+        grad = (explicit / math.sqrt(2.0),) * 2 if explicit is not None else texture_gradient_rms(part)
     return default_bits(normals=part.normals is not None, uvs=part.uvs, colors=part.colors is not None,
-                        eps=float(analyse_settings.eps), normal_kf=float(kf.get("normal", 0.0)),
-                        uv_kf=float(uv_kf), color_kf=float(kf.get("color", 0.0)))
+                        eps=float(st.eps), normal_slope_rms=slope_rms, uv_gradient_rms=grad,
+                        lighting_rms=lighting_rms, color_kf=float(kf.get("color", 0.0)))
 
 
 def part_bits(settings, index: int, part, part_analysis=None) -> AttributeBits:
@@ -264,6 +332,19 @@ def normal_error_deg(bits: int) -> float:
     (:data:`CIGOLLE_MAX_ERROR_DEG`); the error halves per added bit."""
     b = _check_bits(bits, NORMAL_BITS, "normal")
     return _SMALL_NORMAL_ERROR_DEG.get(b, 2.7 * 2.0 ** (6 - b))
+
+
+#: root-mean-square angle (degrees) of the precise octahedral encoding at b bits per component,
+#: measured over 20000 directions of a Fibonacci sphere (about 86 * 2^-b for b >= 8: 0.53 x the
+#: maximum); tests/test_attribute_bound.py re-measures it on other directions
+NORMAL_RMS_ERROR_DEG = {4: 6.081, 5: 2.855, 6: 1.384, 7: 0.6806, 8: 0.3378, 9: 0.1687, 10: 0.08388,
+                        11: 0.04197, 12: 0.02096, 13: 0.01048, 14: 0.005258, 15: 0.002626, 16: 0.001311}
+
+
+def normal_rms_error_deg(bits: int) -> float:
+    """Root-mean-square angle (degrees) between directions and their precise octahedral decode at
+    ``bits`` per component (:data:`NORMAL_RMS_ERROR_DEG`, measured)."""
+    return NORMAL_RMS_ERROR_DEG[_check_bits(bits, NORMAL_BITS, "normal")]
 
 
 #: below 6 bits the error grows faster than 2^-b: measured maxima 11.42 and 5.34 degrees over the

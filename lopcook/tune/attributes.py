@@ -49,9 +49,15 @@ until it reaches the target; then while it passes, the bit-reduce winner (least 
 steps down that lower the cost) while it still passes, and when it does not, the swap of that
 winner with the bit-increase of another knob that passes and still costs less than the current
 choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
-20 views at 1280 x 720): when the choice misses there, ``fallbacks`` walk back toward the anchor
-(the choice's bits at the anchor's k_f, then halfway to the anchor's bits, then the anchor), the
-first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
+20 views at 1280 x 720): when the choice misses there (the reduced harness crops the object at
+high levels, so it flatters coarse positions and UVs on magnified textures), ``refine_on_gate``:
+``last_passing`` bisects the search's path (the passing choices in the order taken, cost falling)
+for the last one that passes the gate (at most 1 + ceil(log2(len(path))) gate renders), freezes
+the knobs of the step after it (``moved_knobs``: what the reduced harness misjudged) and searches
+on from there with the others, confirmed the same way (at most ``MAX_FREEZES`` freezes; the
+record's ``frozen``); when even the path's first misses, ``fallbacks`` walk
+back toward the anchor (the choice's bits at the anchor's k_f, then halfway to the anchor's bits,
+then the anchor), the first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
 misses too, so the search never ends below the default cook's quality.
 
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
@@ -292,10 +298,11 @@ def _best(search: Search, cands: list[tuple[Knob, Allocation]], name: str) -> tu
     return None if best is None else (best[1], best[2], best[3])
 
 
-def _moves(alloc: Allocation, delta: int, exclude: Knob | None = None) -> list[tuple[Knob, Allocation]]:
+def _moves(alloc: Allocation, delta: int, exclude: Knob | None = None,
+           frozen: frozenset = frozenset()) -> list[tuple[Knob, Allocation]]:
     out = []
     for k in knobs(alloc):
-        if exclude is not None and k == exclude:
+        if (exclude is not None and k == exclude) or k.name in frozen:
             continue
         a = step(alloc, k, delta)
         if a is not None:
@@ -343,12 +350,14 @@ def search_budget(search: Search, start: Allocation, budget: float) -> Allocatio
     return cur
 
 
-def search_target(search: Search, start: Allocation, target: float) -> tuple[Allocation, bool]:
-    """``cook --target-psnr DB`` on the reduced harness (module doc): (choice, whether it passed)."""
+def search_target(search: Search, start: Allocation, target: float,
+                  frozen: frozenset = frozenset()) -> tuple[Allocation, bool]:
+    """``cook --target-psnr DB`` on the reduced harness (module doc): (choice, whether it passed).
+    Knobs named in ``frozen`` (``Knob.name``) are not moved."""
     cur = start
     q = search.quality(cur, "start")
     while q < target and not search.full():
-        got = _best(search, _moves(cur, +1), "increase")
+        got = _best(search, _moves(cur, +1, frozen=frozen), "increase")
         if got is None:
             return cur, False
         q, cur = got[0], got[1]
@@ -356,7 +365,7 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         return cur, False
     search.path = [cur]  # the passing choices in the order taken
     while not search.full():
-        down = [(k, a) for k, a in _moves(cur, -1) if search.cost(a) < search.cost(cur)]
+        down = [(k, a) for k, a in _moves(cur, -1, frozen=frozen) if search.cost(a) < search.cost(cur)]
         got = _best(search, down, "reduce") if down else None
         if got is None:
             break
@@ -364,7 +373,8 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
             cur = got[1]
             search.path.append(cur)
             continue
-        swaps = [(k, a) for k, a in _moves(got[1], +1, exclude=got[2]) if search.cost(a) < search.cost(cur)]
+        swaps = [(k, a) for k, a in _moves(got[1], +1, exclude=got[2], frozen=frozen)
+                 if search.cost(a) < search.cost(cur)]
         passing = []
         for k, a in swaps:
             if search.full():
@@ -376,6 +386,87 @@ def search_target(search: Search, start: Allocation, target: float) -> tuple[All
         cur = min(passing)[2]
         search.path.append(cur)
     return cur, True
+
+
+def last_passing(path: list, passes) -> int | None:
+    """Index of the last allocation of ``path`` that ``passes(alloc, index)`` (the gate), by
+    bisection, assuming the gate's verdict falls monotonically along the path (a target search's
+    path: passing choices of falling cost, ``Search.path``); None when ``path`` is empty or its
+    first entry fails. Calls ``passes`` at most ``1 + ceil(log2(len(path)))`` times, on the first
+    entry, then on midpoints."""
+    if not path or not passes(path[0], 0):
+        return None
+    lo, hi = 0, len(path)  # path[lo] passes; path[hi:] fail or are untested past the end
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if passes(path[mid], mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+#: at most this many knobs frozen by ``refine_on_gate`` (each freeze: one more reduced-harness search)
+MAX_FREEZES = 3
+
+
+def moved_knobs(a: Allocation, b: Allocation) -> list[str]:
+    """Names (``Knob.name``) of the knobs of ``a`` whose quantities differ in ``b``, in knob order."""
+    out = []
+    for k in knobs(a):
+        if k.attribute == "positions":
+            if a.x != b.x:
+                out.append(k.name)
+            continue
+        i = ATTRIBUTES.index(k.attribute)
+        if any(a.parts[p][i] != b.parts[p][i] for p in k.parts):
+            out.append(k.name)
+    return out
+
+
+def refine_on_gate(search: Search, choice: Allocation, target: float, passes) -> tuple | None:
+    """After a target search's ``choice`` missed the gate: (allocation that passes the gate, the
+    frozen knob names), or None when even the first choice of the search's path misses.
+
+    ``last_passing`` finds the last choice of ``search.path`` that ``passes(alloc, role)`` (the
+    gate); the step after it (the knobs it moved, ``moved_knobs``) is what the reduced harness
+    misjudged, so those knobs are frozen and the search continues from that choice
+    (``search_target`` with ``frozen``); its new choice is confirmed the same way, at most
+    ``MAX_FREEZES`` times. The result is the last allocation that passed the gate (cost falls
+    along every path, so it is the cheapest gated one)."""
+    frozen: list = []
+    best = None
+    path = [a for a in search.path if a != choice]
+    for _ in range(MAX_FREEZES + 1):
+        k = last_passing(path, lambda a, i: passes(a, f"path {i}"))
+        if k is None:
+            break
+        best = path[k]
+        nxt = search.path[search.path.index(best) + 1] if best in search.path[:-1] else choice
+        new = [n for n in moved_knobs(best, nxt) if n not in frozen]
+        if not new or len(frozen) >= MAX_FREEZES or search.full():
+            break
+        frozen += new
+        cur, ok = search_target(search, best, target, frozenset(frozen))
+        if not ok or cur == best:
+            break
+        if passes(cur, f"choice, frozen {','.join(frozen)}"):
+            best = cur
+            break
+        choice = cur
+        path = [a for a in search.path if a != cur]
+    return None if best is None else (best, frozen)
+
+
+def _gate_record(scene, search, a, confirm, levels, statistic, goal, conf, role, gated) -> bool:
+    """Whether ``a`` passes the gate (``gate_quality`` objective >= ``goal``, dB): renders it
+    once (memo ``gated``) and records it in ``conf`` with ``role``."""
+    k = a.key()
+    if k not in gated:
+        ga = gate_quality(scene, search.cook(a), confirm, levels, statistic)
+        conf.append(dict(ga, allocation=a.record(), role=role))
+        gated[k] = ga["objective_db"]
+    return gated[k] >= goal
 
 
 def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocation]]:
@@ -474,6 +565,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
     start = container_allocation(base, 0.0)
     search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress)
     conf = []
+    frozen: list = []
     try:
         if mode == "budget":
             choice = search_budget(search, start, float(goal))
@@ -488,8 +580,16 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             levels = harness[2]
             g = gate_quality(scene, c, confirm, levels, statistic)
             conf.append(dict(g, allocation=choice.record(), role="choice"))
+            gated = {choice.key(): g["objective_db"]}
             if mode == "target":
                 reached = g["objective_db"] >= float(goal)
+                if not reached:
+                    got = refine_on_gate(search, choice, float(goal),
+                                         lambda a, role: _gate_record(scene, search, a, confirm, levels, statistic,
+                                                                      float(goal), conf, role, gated))
+                    if got is not None:
+                        choice, frozen = got
+                        c, objective, reached = search.cook(choice), search.quality(choice, "confirm path"), True
                 # walk back toward the anchor (``fallbacks``)
                 for role, a in fallbacks(choice, start):
                     if reached:
@@ -508,7 +608,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             "start": start.record(), "start_bits_per_vertex": round(vertex_bits(base)["total"], 4),
             "choice": choice.record(), "bits_per_vertex": round(vb["total"], 4),
             "vertex_bits": {k: round(vb[k], 4) for k in ("positions", "attributes", "total")},
-            "objective_db": round(objective, 4), "reached": bool(reached), "confirmation": conf,
+            "objective_db": round(objective, 4), "reached": bool(reached), "confirmation": conf, "frozen": frozen,
             "probes": search.probes, "seconds": round(time.perf_counter() - t0, 3),
             "attribute_errors": attribute_errors(c, scene), "_settings": cook_settings(settings, choice)}
 
@@ -519,6 +619,8 @@ def search_record(result: dict) -> dict:
     keep = ("mode", "goal", "statistic", "harness", "start", "start_bits_per_vertex", "choice", "bits_per_vertex",
             "vertex_bits", "objective_db", "reached", "confirmation", "attribute_errors")
     rec = {k: result[k] for k in keep}
+    if result.get("frozen"):
+        rec["frozen"] = list(result["frozen"])
     rec["probes"] = [{k: v for k, v in p.items() if k != "seconds"} for p in result["probes"]]
     return rec
 
@@ -565,5 +667,6 @@ def format_search(result: dict) -> str:
 
 __all__ = ["NORMAL_BITS", "UV_BITS", "COLOR_BITS", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
            "Allocation", "Knob", "knobs", "step", "vertex_bits", "container_allocation", "cook_settings", "Search",
-           "search_budget", "search_target", "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
+           "search_budget", "search_target", "last_passing", "moved_knobs", "refine_on_gate", "MAX_FREEZES",
+           "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",
            "require_reached", "format_search", "format_probe"]
