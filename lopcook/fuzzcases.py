@@ -999,9 +999,9 @@ def _lop_cases(w: _Writer, rng) -> None:
     # header lies
     lop("total_size_small", _lop_pack(mbytes, payload, total=100), "refuse")
     lop("total_size_huge", _lop_pack(mbytes, payload, total=1 << 60), "refuse")
-    from .emit.container import VERSION
+    from .emit.container import READABLE_MAJORS, VERSION
 
-    future = struct.pack("<H", VERSION[0] + 1)
+    future = struct.pack("<H", max(READABLE_MAJORS) + 1)  # the first major no reader knows
     lop("header_major_next", data[:4] + future + data[6:28] + struct.pack(
         "<I", zlib.crc32(data[:4] + future + data[6:28])) + data[32:], "refuse")
     past = struct.pack("<H", VERSION[0] - 1)  # format 1.0: fixed normals/uvs/colors sections
