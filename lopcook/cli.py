@@ -376,6 +376,10 @@ def add_analyse_options(p: argparse.ArgumentParser) -> None:
                    help=f"highest per-buffer level the edge bound is kept at, in [1, 24] (default {d.edge_level})")
     g.add_argument("--edge-angle", type=float, default=d.edge_angle_deg, metavar="DEGREES",
                    help=f"normal spread within one pixel that makes a fold, degrees in (0, 180] (default {d.edge_angle_deg:g})")
+    g.add_argument("--position-margin", type=float, default=d.position_margin, metavar="M",
+                   help="the positions' E_v constraint holds with eps x M: k_f * E_v * dx(m_v) <= eps * M, M in "
+                        f"[1/4096, 4096]; 1 is the paper's worst-case bound (default {d.position_margin:g}; "
+                        "docs/analyse.md, Position margin, has measured margins)")
 
 
 def _ingest_settings(args):
@@ -422,7 +426,8 @@ def _analyse_settings(args):
         return AnalyseSettings(eps=args.eps, ks=args.ks, shininess=args.shininess, kf=args.kf, texture_kf=tk,
                                depth=depth, depth_level=level, depth_threshold=args.depth_threshold,
                                depth_ceiling=args.depth_ceiling, edges=args.edges, edge_eps=args.edge_eps,
-                               edge_level=args.edge_level, edge_angle_deg=args.edge_angle)
+                               edge_level=args.edge_level, edge_angle_deg=args.edge_angle,
+                               position_margin=args.position_margin)
     except ValueError as exc:
         raise LopcookError("usage", None, _flag_message(str(exc))) from None
 

@@ -244,6 +244,11 @@ class AnalyseSettings:
     edge_level : int in [1, 24], the highest per-buffer level the edge bound is kept at. Default 12.
     edge_angle_deg : float, degrees in (0, 180]: a one-pixel cell whose vertex normals spread by
         more than this holds a fold (a crease or a sub-pixel bevel). Default 45.
+    position_margin : float in [1/4096, 4096], dimensionless: the E_v constraint of the positions
+        (PRODUCT.md invariant 3) holds with ``position_eps = eps * position_margin``, i.e.
+        ``k_f * E_v * dx(m_v) <= eps * position_margin``. Default 1, the paper's worst-case bound
+        (docs/analyse.md, Position margin, has the measured margins). The attribute bits
+        (``lopcook.emit.attributes.default_bits``) use ``eps`` itself.
     """
 
     eps: float = 1.0 / 255.0
@@ -261,6 +266,7 @@ class AnalyseSettings:
     edge_eps: float = 0.125
     edge_level: int = 12
     edge_angle_deg: float = 45.0
+    position_margin: float = 1.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "depth", _enum(DepthMode, self.depth, "depth mode"))
@@ -292,6 +298,13 @@ class AnalyseSettings:
             raise ValueError(f"edge_level must be in [1, 24], got {self.edge_level}")
         if not (math.isfinite(self.edge_angle_deg) and 0.0 < self.edge_angle_deg <= 180.0):
             raise ValueError(f"edge_angle_deg must be in (0, 180] degrees, got {self.edge_angle_deg}")
+        if not (math.isfinite(self.position_margin) and 2.0**-12 <= self.position_margin <= 2.0**12):
+            raise ValueError(f"position_margin must be in [1/4096, 4096], got {self.position_margin}")
+
+    @property
+    def position_eps(self) -> float:
+        """eps of the positions' E_v constraint, colour units: ``eps * position_margin``."""
+        return float(self.eps) * float(self.position_margin)
 
     @property
     def normal_kf(self) -> float:
@@ -304,19 +317,22 @@ class AnalyseSettings:
         return f"fixed:{int(self.depth_level)}" if self.depth is DepthMode.FIXED else self.depth.value
 
     def to_record(self) -> dict:
-        """The manifest's ``options.analyse`` record."""
+        """The manifest's ``options.analyse`` record; ``position_margin`` only when it is not 1 (so
+        a cook at the worst-case bound writes the same bytes as before the field existed)."""
         tk = self.texture_kf.value if isinstance(self.texture_kf, TextureSlope) else float(self.texture_kf)
         return {"eps": self.eps, "ks": self.ks, "shininess": self.shininess, "kf": self.kf, "texture_kf": tk,
                 "untextured_uv_kf": self.untextured_uv_kf, "color_kf": self.color_kf, "depth": self.depth_text,
                 "depth_threshold_m": self.depth_threshold, "depth_ceiling": self.depth_ceiling,
                 "edges": bool(self.edges), "edge_eps": float(self.edge_eps), "edge_level": int(self.edge_level),
-                "edge_angle_deg": float(self.edge_angle_deg)}
+                "edge_angle_deg": float(self.edge_angle_deg),
+                **({} if self.position_margin == 1.0 else {"position_margin": float(self.position_margin)})}
 
     @classmethod
     def from_record(cls, rec: dict) -> "AnalyseSettings":
         """Inverse of ``to_record``; ValueError/TypeError/KeyError on a record that does not parse."""
         kw = dict(rec)
         kw["depth_threshold"] = kw.pop("depth_threshold_m")
+        kw.setdefault("position_margin", 1.0)  # files written before the field: the worst-case bound
         depth = str(kw.pop("depth"))
         if depth.startswith("fixed:"):
             kw["depth"], kw["depth_level"] = DepthMode.FIXED, int(depth.split(":", 1)[1])

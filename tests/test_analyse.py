@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -119,13 +121,27 @@ def test_invariant_3_on_fixture_sphere_with_uv_texture_kf():
     an = analyse(scene_of([part]), st)
     p = an.parts[0]
     d = an.grid.dx(p.min_level.astype(np.int64))
-    assert np.all(p.kf["normal"] * p.e_v["normal"] * d <= st.eps)
-    assert np.all(3.0 * p.e_v["uv"] * d <= st.eps)
+    assert np.all(p.kf["normal"] * p.e_v["normal"] * d <= st.position_eps)
+    assert np.all(3.0 * p.e_v["uv"] * d <= st.position_eps)
     # and one level lower would violate one of them wherever the level is > 1 and not co-located
     lower = an.grid.dx(np.maximum(p.min_level.astype(np.int64) - 1, 1))
     tight = (p.min_level > 1) & (p.reason != REASON_CODE["co-located"])
     worst = np.maximum(p.kf["normal"] * p.e_v["normal"], 3.0 * p.e_v["uv"])
-    assert np.all(worst[tight] * lower[tight] > st.eps)
+    assert np.all(worst[tight] * lower[tight] > st.position_eps)
+
+
+@pytest.mark.parametrize("margin", [1.0, 4.0, 16.0, 0.25])
+def test_position_margin_moves_attribute_levels_by_its_log2(margin):
+    # dx(b) halves per level, so eps x 2^k lowers every attribute level by exactly k (clamped to
+    # [1, 24]); the attribute bits' eps is unchanged
+    s = exact_sphere_part(1.0)
+    base = analyse(scene_of([s]), AnalyseSettings(depth="off", edges=False, position_margin=1.0))
+    an = analyse(scene_of([s]), AnalyseSettings(depth="off", edges=False, position_margin=margin))
+    k = int(round(math.log2(margin)))
+    want = np.clip(base.parts[0].min_level.astype(np.int64) - k, 1, 24)
+    assert an.grid.extent == base.grid.extent
+    np.testing.assert_array_equal(an.parts[0].min_level, want)
+    assert an.settings.position_eps == pytest.approx(an.settings.eps * margin)
 
 
 def test_edge_reason_in_counts_and_schema():

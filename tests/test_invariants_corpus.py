@@ -66,7 +66,7 @@ def analysed(corpus):
 @pytest.mark.parametrize("name", ASSETS)
 def test_invariant_3_attribute_bound(analysed, name):
     scene, an = analysed(name)
-    eps = an.settings.eps
+    eps = an.settings.position_eps  # eps x position_margin (PRODUCT.md invariant 3, docs/analyse.md)
     for part, pa in zip(scene.parts, an.parts):
         d = an.grid.dx(pa.min_level.astype(np.int64))
         attrs = {"normal": part.normals, "uv": part.uvs, "color": part.colors}

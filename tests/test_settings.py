@@ -39,6 +39,7 @@ def test_containers_without_a_seam_record_were_cooked_with_locked_seams():
              ingest=IngestSettings(crease_angle_deg=30.0),
              simplify=SimplifySettings(lods=LodSpec(auto=False, ratios=(0.5, 0.25)), backend="fast"),
              viewing=Viewing(viewport=(640, 480), fov_y_deg=45.0, nearest_m=0.5, pixel_error=1.0)),
+    Settings(analyse=AnalyseSettings(position_margin=16.0)),
     Settings(simplify=SimplifySettings(lods=LodSpec()), analyse=AnalyseSettings(depth="off", texture_kf="off")),
     Settings(attributes=AttributeSettings(normal_bits=9, uv_bits=None, color_bits=4)),
     Settings(attributes=AttributeSettings(uv_bits=12, parts=((8, None, 5), (None, 16, None), (16, 6, 8)))),
@@ -50,6 +51,17 @@ def test_manifest_round_trip_is_exact(settings):
     import json
 
     assert json.loads(json.dumps(record)) == record
+
+
+def test_containers_without_a_position_margin_were_cooked_with_the_worst_case_bound():
+    # the default (1) is not written, so a default cook's bytes did not change with the field
+    assert DEFAULTS.analyse.position_margin == 1.0
+    assert "position_margin" not in Settings().to_manifest()["options"]["analyse"]
+    record = Settings(analyse=AnalyseSettings(position_margin=16.0)).to_manifest()
+    assert record["options"]["analyse"]["position_margin"] == 16.0
+    assert Settings.from_manifest(record).analyse.position_margin == 16.0
+    del record["options"]["analyse"]["position_margin"]
+    assert Settings.from_manifest(record).analyse.position_margin == 1.0
 
 
 def test_record_matches_the_cli_spelling():
@@ -82,7 +94,8 @@ def test_a_record_that_does_not_parse_is_one_clear_error(mutate, match):
 @pytest.mark.parametrize("bad", [dict(eps=float("inf")), dict(eps=0.0), dict(ks=-1.0), dict(kf=float("nan")),
                                  dict(texture_kf=-1.0), dict(texture_kf="sometimes"), dict(depth="fixed"),
                                  dict(depth="off", depth_level=3), dict(depth_threshold=-1.0), dict(edge_eps=2.0),
-                                 dict(depth_ceiling=25)])
+                                 dict(depth_ceiling=25), dict(position_margin=0.0),
+                                 dict(position_margin=float("nan")), dict(position_margin=8192.0)])
 def test_out_of_range_analyse_values_are_refused(bad):
     with pytest.raises(ValueError):
         AnalyseSettings(**bad)

@@ -120,7 +120,7 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         deg = int(np.count_nonzero(degen))
         for (name, _), e_t in zip(named, e_ts):
             e_v[name] = vertex_max(frames.tri, e_t, n)
-        level, reason, over = attribute_levels(e_v, kf, settings.eps, grid.extent, n)
+        level, reason, over = attribute_levels(e_v, kf, settings.position_eps, grid.extent, n)
         unsatisfied.append(over)
         attr_level.append(level)
         attr_reason.append(reason)

@@ -129,7 +129,7 @@ class PreparedAnalysis:
         parts = self.scene.parts
         attr_level, attr_reason, unsatisfied = [], [], []
         for part, e_v, kf in zip(parts, self.e_vs, self.kfs):
-            level, reason, over = attribute_levels(e_v, kf, s.eps, self.grid.extent, part.n_vertices)
+            level, reason, over = attribute_levels(e_v, kf, s.position_eps, self.grid.extent, part.n_vertices)
             unsatisfied.append(over)
             attr_level.append(level)
             attr_reason.append(reason)
