@@ -240,17 +240,12 @@ def default_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_slope_r
         raise LopcookError("usage", None, f"eps must be a finite number > 0, got {eps}")
     bn = bu = bc = None
     if normals:
-        bn = next((b for b in range(NORMAL_BITS[0], NORMAL_BITS[1] + 1)
-                   if normal_pixel_rms(b, normal_slope_rms) <= eps), NORMAL_BITS[1])
+        bn = _fewest(NORMAL_BITS, lambda b: normal_pixel_rms(b, normal_slope_rms) <= eps)
     if uvs is not None:
-        u = _float_input(uvs, 2, "uvs")
-        lo = u.min(axis=0) if u.shape[0] else np.zeros(2)
-        hi = u.max(axis=0) if u.shape[0] else np.zeros(2)
-        bu = next((b for b in range(UV_BITS[0], UV_BITS[1] + 1)
-                   if uv_pixel_rms(lo, hi, b, uv_gradient_rms, lighting_rms) <= eps), UV_BITS[1])
+        lo, hi = _uv_range(uvs)
+        bu = _fewest(UV_BITS, lambda b: uv_pixel_rms(lo, hi, b, uv_gradient_rms, lighting_rms) <= eps)
     if colors:
-        bc = next((b for b in range(COLOR_BITS[0], COLOR_BITS[1] + 1)
-                   if float(color_kf) * color_error_bound(b) <= eps), COLOR_BITS[1])
+        bc = _fewest(COLOR_BITS, lambda b: float(color_kf) * color_error_bound(b) <= eps)
     return AttributeBits(normals=bn, uvs=bu, colors=bc)
 
 
@@ -271,18 +266,24 @@ def worst_case_bits(*, normals: bool, uvs, colors: bool, eps: float, normal_kf: 
         raise LopcookError("usage", None, f"eps must be a finite number > 0, got {eps}")
     bn = bu = bc = None
     if normals:
-        bn = next((b for b in range(NORMAL_BITS[0], NORMAL_BITS[1] + 1)
-                   if float(normal_kf) * math.radians(normal_error_deg(b)) <= eps), NORMAL_BITS[1])
+        bn = _fewest(NORMAL_BITS, lambda b: float(normal_kf) * math.radians(normal_error_deg(b)) <= eps)
     if uvs is not None:
-        u = _float_input(uvs, 2, "uvs")
-        lo = u.min(axis=0) if u.shape[0] else np.zeros(2)
-        hi = u.max(axis=0) if u.shape[0] else np.zeros(2)
-        bu = next((b for b in range(UV_BITS[0], UV_BITS[1] + 1)
-                   if float(uv_kf) * float(np.linalg.norm(uv_error_bound(lo, hi, b))) <= eps), UV_BITS[1])
+        lo, hi = _uv_range(uvs)
+        bu = _fewest(UV_BITS, lambda b: float(uv_kf) * float(np.linalg.norm(uv_error_bound(lo, hi, b))) <= eps)
     if colors:
-        bc = next((b for b in range(COLOR_BITS[0], COLOR_BITS[1] + 1)
-                   if float(color_kf) * color_error_bound(b) <= eps), COLOR_BITS[1])
+        bc = _fewest(COLOR_BITS, lambda b: float(color_kf) * color_error_bound(b) <= eps)
     return AttributeBits(normals=bn, uvs=bu, colors=bc)
+
+
+def _fewest(bounds: tuple[int, int], ok) -> int:
+    """The smallest b in [bounds[0], bounds[1]] with ``ok(b)``; bounds[1] when none has."""
+    return next((b for b in range(bounds[0], bounds[1] + 1) if ok(b)), bounds[1])
+
+
+def _uv_range(uvs) -> tuple[np.ndarray, np.ndarray]:
+    """(2,) per-component minimum and maximum of (n, 2) UVs (zeros for no vertices)."""
+    u = _float_input(uvs, 2, "uvs")
+    return (u.min(axis=0), u.max(axis=0)) if u.shape[0] else (np.zeros(2), np.zeros(2))
 
 
 def part_default_bits(part, analyse_settings, kf: dict | None = None) -> AttributeBits:

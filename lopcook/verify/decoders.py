@@ -574,20 +574,33 @@ def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples
                 words = buf.read_words()
                 same = (np.array_equal(words, ref.words) and np.array_equal(vid[: LEVELS + 1], ref.vertex_id)
                         and np.array_equal(bid[: LEVELS + 1], table_bit_id(ref.vertex_id, target)))
-                per = s["per_level"][str(target)]
-                per["adapt_checks"] += 1
-                if not same:
-                    s["adapt_mismatches"] += 1
-                    per["adapt_mismatches"] += 1
-                    if len(examples) < max_examples:
-                        examples.append({"language": lang, "kind": "adapt", "part": part, "lod": lod,
-                                         "level": target, "words_expected": int(ref.words.size),
-                                         "words_got": int(words.size),
-                                         "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
-                                         if words.size == ref.words.size else None})
+                _record_adapt(s, target, same, examples, max_examples,
+                              lambda: _adapt_example(lang, part, lod, target, ref.words, words))
         finally:
             buf.release()
         s["adapt_seconds"] += time.perf_counter() - t0
+
+
+def _record_adapt(s: dict, target: int, same: bool, examples: list, max_examples: int, example) -> None:
+    """Count one adaption check at ``target`` in language stats ``s``; a mismatch adds
+    ``example()`` to ``examples`` while fewer than ``max_examples`` are held."""
+    per = s["per_level"][str(target)]
+    per["adapt_checks"] += 1
+    if not same:
+        s["adapt_mismatches"] += 1
+        per["adapt_mismatches"] += 1
+        if len(examples) < max_examples:
+            examples.append(example())
+
+
+def _adapt_example(lang, part, lod, target, expected, got, **extra) -> dict:
+    """One adaption mismatch as the report lists it: the word counts and the first differing word
+    (None when the counts differ), plus ``extra`` keys."""
+    return {"language": lang, "kind": "adapt", **({"clustered": True} if extra.pop("clustered", False) else {}),
+            "part": part, "lod": lod, "level": target, "words_expected": int(expected.size),
+            "words_got": int(got.size),
+            "first_bad_word": int(np.argmax(got[: expected.size] != expected)) if got.size == expected.size else None,
+            **extra}
 
 
 def _decode_clustered(c, part, lod, lang, cbuf, origin, half_cell, view=None):
@@ -640,18 +653,9 @@ def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, ma
                         and np.array_equal(vid[: LEVELS + 1], cl.vertex_id)
                         and np.array_equal(cid[: LEVELS + 1], cl.cluster_id)
                         and np.array_equal(bid[: LEVELS + 1], cluster_bit(cl, target)[cl.cluster_id]))
-                per = s["per_level"][str(target)]
-                per["adapt_checks"] += 1
-                if not same:
-                    s["adapt_mismatches"] += 1
-                    per["adapt_mismatches"] += 1
-                    if len(examples) < max_examples:
-                        examples.append({"language": lang, "kind": "adapt", "clustered": True, "part": part,
-                                         "lod": lod, "level": target, "words_expected": int(ref.words.size),
-                                         "words_got": int(words.size),
-                                         "first_bad_word": int(np.argmax(words[: ref.words.size] != ref.words))
-                                         if words.size == ref.words.size else None,
-                                         "records_equal": bool(np.array_equal(rec, ref.records))})
+                _record_adapt(s, target, same, examples, max_examples,
+                              lambda: _adapt_example(lang, part, lod, target, ref.words, words, clustered=True,
+                                                     records_equal=bool(np.array_equal(rec, ref.records))))
         finally:
             buf.release()
         s["adapt_seconds"] += time.perf_counter() - t0

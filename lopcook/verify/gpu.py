@@ -739,18 +739,23 @@ class Adapter:
     def upload(self, words, vertex_id, level: int) -> AdaptBuffer:
         return AdaptBuffer(self.ctx, words, vertex_id, level)
 
-    def _run(self, kernel: str, buf: AdaptBuffer, params, threads: int, extra=()) -> None:
-        ctx = self.ctx
+    def _bind(self, buf) -> tuple:
+        """Bind ``buf``'s SSBOs; returns the three uniform words after ``first``."""
         buf.packed.bind_to_storage_buffer(0)
         buf.unpacked.bind_to_storage_buffer(1)
         buf.tables.bind_to_storage_buffer(3)
+        return (0, 0, 0)
+
+    def _run(self, kernel: str, buf, params, threads: int, extra=()) -> None:
+        ctx = self.ctx
+        tail = self._bind(buf)
         for binding, b in extra:
             b.bind_to_storage_buffer(binding)
         shader = self.kernels[kernel]
         first = 0
         while True:
             groups = min(max((threads - first + LOCAL_SIZE - 1) // LOCAL_SIZE, 1), MAX_GROUPS)
-            ubo = ctx.buffer(np.array([*params, first, 0, 0, 0], dtype="<u4").tobytes())
+            ubo = ctx.buffer(np.array([*params, first, *tail], dtype="<u4").tobytes())
             ubo.bind_to_uniform_block(0)
             shader.run(groups)
             ctx.memory_barrier()
@@ -770,6 +775,7 @@ class Adapter:
         p = buf.u_level + 1
         if not 2 <= p <= LEVELS:
             raise ValueError(f"cannot add plane {p}")
+        self._before_plane(buf, p)
         count = int(buf.vertex_id[p - 1])
         data = np.ascontiguousarray(plane_words, dtype="<u4").tobytes() or b"\0\0\0\0"
         plane = self.ctx.buffer(data)
@@ -779,6 +785,9 @@ class Adapter:
         finally:
             plane.release()
         buf.u_level = p
+
+    def _before_plane(self, buf, p: int) -> None:
+        """Hook run before plane ``p`` is merged (the clustered adapter's tables kernel)."""
 
     def remove_plane(self, buf: AdaptBuffer) -> None:
         """U's level L -> L - 1: zero bit 24 - L of the vertices of bins below L."""
@@ -901,27 +910,11 @@ class ClusteredAdapter(Adapter):
     def upload(self, words, records, cluster_id, vertex_id, cluster_size: int, level: int) -> ClusteredAdaptBuffer:
         return ClusteredAdaptBuffer(self.ctx, words, records, cluster_id, vertex_id, cluster_size, level)
 
-    def _run(self, kernel: str, buf, params, threads: int, extra=()) -> None:
-        ctx = self.ctx
-        buf.packed.bind_to_storage_buffer(0)
-        buf.unpacked.bind_to_storage_buffer(1)
-        buf.tables.bind_to_storage_buffer(3)
+    def _bind(self, buf) -> tuple:
+        super()._bind(buf)
         buf.clusters.bind_to_storage_buffer(5)
         buf.plane_bit.bind_to_storage_buffer(6)
-        for binding, b in extra:
-            b.bind_to_storage_buffer(binding)
-        shader = self.kernels[kernel]
-        first = 0
-        while True:
-            groups = 1 if kernel == "tables" else min(max((threads - first + LOCAL_SIZE - 1) // LOCAL_SIZE, 1), MAX_GROUPS)
-            ubo = ctx.buffer(np.array([*params, first, buf.cluster_size, buf.n_clusters, 0], dtype="<u4").tobytes())
-            ubo.bind_to_uniform_block(0)
-            shader.run(groups)
-            ctx.memory_barrier()
-            ubo.release()
-            first += groups * LOCAL_SIZE
-            if first >= threads:
-                break
+        return (buf.cluster_size, buf.n_clusters, 0)
 
     def unpack(self, buf) -> None:
         self._run("unpack", buf, (buf.level, buf.n, 0, max(buf.words, 1)), buf.n)
@@ -933,23 +926,11 @@ class ClusteredAdapter(Adapter):
         self._run("tables", buf, (level, 1, 0, 0), 1)
         buf.tables_level = level
 
-    def add_plane(self, buf, plane_words, bit_offset: int = 0) -> None:
-        """U's level L -> L + 1: the tables kernel at L + 1, then merge plane L + 1 (``plane_words``:
-        uint32 words holding this buffer's slice at bit ``bit_offset``, laid out as the spec's
-        refinement plane: per cluster with m_c < p, per vertex, the components with k_t < p)."""
-        p = buf.u_level + 1
-        if not 2 <= p <= LEVELS:
-            raise ValueError(f"cannot add plane {p}")
+    def _before_plane(self, buf, p: int) -> None:
+        """The tables kernel at p: PlaneBit of plane p, which ``add_plane``'s merge reads (the
+        plane's words hold this buffer's slice laid out as the spec's refinement plane: per cluster
+        with m_c < p, per vertex, the components with k_t < p)."""
         self.tables(buf, p)
-        count = int(buf.vertex_id[p - 1])
-        data = np.ascontiguousarray(plane_words, dtype="<u4").tobytes() or b"\0\0\0\0"
-        plane = self.ctx.buffer(data)
-        try:
-            if count:
-                self._run("add_plane", buf, (p, count, int(bit_offset), 0), count, extra=[(2, plane)])
-        finally:
-            plane.release()
-        buf.u_level = p
 
     def repack(self, buf) -> None:
         level = buf.u_level
