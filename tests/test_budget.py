@@ -100,10 +100,15 @@ def test_combined_beats_quantize_only_and_simplify_only(fitted):
     # the choice is the best rendered candidate, and every rendered candidate fits
     assert all(c["bytes"] <= target for c in b["candidates"])
     assert ch["psnr_mean"] == max(c["psnr_mean"] for c in b["candidates"] if c["psnr_mean"] is not None)
-    # each rendered LOD's level_fit is the largest that fits (positions: 3 B bits per vertex, whole words)
+    # each rendered LOD's level_fit is the largest that fits: its buffer written one level higher,
+    # in the default cook's cluster layout, takes more than the target
+    from lopcook.emit import PositionSizer
+
+    cooked = info["cook"]
     for row in b["lods"]:
-        if row["status"] == "rendered" and row["level_fit"] < 24:
-            assert 4 * ((3 * (row["level_fit"] + 1) * row["vertices"] + 31) // 32) > target
+        if row["status"] == "rendered" and row["level_fit"] < cooked.container.available_level:
+            sizer = PositionSizer(cooked.buffers[0][row["lod"]], FAST.emit.clusters)
+            assert sizer.bytes_at(row["level_fit"]) <= target < sizer.bytes_at(row["level_fit"] + 1)
 
 
 def test_written_container_holds_only_the_chosen_lod_and_planes(fitted):
@@ -117,9 +122,13 @@ def test_written_container_holds_only_the_chosen_lod_and_planes(fitted):
     assert m["positions"]["max_level"] == ch["level"] == c.available_level
     assert sorted(int(p) for p in m["positions"]["planes"]) == list(range(2, ch["level"] + 1))
     assert m["stats"]["vertices_clamped_to_max_level"] == ch["clamped_vertices"]
-    # the GPU buffer at the chosen level is the budgeted one: every vertex ch["level"] bits
+    # the GPU buffer at the chosen level is the budgeted one: every vertex ch["level"] bits, in the
+    # layout the default cook's encoding chooses for it (clustered where that is smaller)
     row = memory_rows(c, levels=[ch["level"]])[0]
-    assert row["cap_bytes"] == row["ap_bytes"] == ch["position_bytes"] <= target
+    assert row["cap_bytes"] == ch["position_bytes"] <= target
+    # candidates are sized clustered: on this sphere LOD 0's take fewer bytes than AP at their level
+    ap = {(x["lod"], x["level"]): 4 * ((3 * x["level"] * x["vertices"] + 31) // 32) for x in info["budget"]["candidates"]}
+    assert any(x["position_bytes"] < ap[x["lod"], x["level"]] for x in info["budget"]["candidates"] if x["lod"] == 0)
     assert m["options"]["budget"]["chosen"] == ch
     assert m["parts"][0]["lods"][0]["min_distance_m"] == 0.0
 

@@ -420,3 +420,26 @@ def test_clusters_with_hierarchy_lods_and_dropped_planes(tmp_path):
         g0, w0, pos0 = decode_positions(plain, 0, k, c.available_level)
         a, b = np.lexsort(np.c_[g, w].T), np.lexsort(np.c_[g0, w0].T)
         np.testing.assert_array_equal(pos[a].view(np.uint32), pos0[b].view(np.uint32))
+
+
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+def test_position_sizer_equals_the_encoded_buffers_bytes(mesh, rng):
+    """``PositionSizer.bytes_at(B)`` (the byte-budget fit's candidate size) is the ``cap_bytes(B)``
+    the manifest gives the buffer ``encode_buffer(buf, B, N)`` writes: every vertex clamped to B,
+    the per-buffer clustered/unclustered choice included, for N = None, 16, 64 and cluster_all."""
+    from lopcook.emit import BufferInput, PositionSizer, encode_buffer
+    from lopcook.emit.manifest import Manifest
+
+    q, lv = MESHES[mesh](rng)
+    buf = BufferInput(quantized=q, min_level=lv, indices=np.zeros((0, 3), np.int64))
+    chosen = set()
+    for size, every in ((None, False), (16, False), (64, False), (64, True)):
+        sizer = PositionSizer(buf, size, cluster_all=every)
+        for b in (1, 3, 6, 9, 12, 16, 20, 24):
+            e = encode_buffer(buf, b, size, cluster_all=every)
+            entry = Manifest.of({"parts": [{"name": "p", "lods": [e.entry]}], "positions": {"max_level": b}}).parts[0].lods[0]
+            assert sizer.bytes_at(b) == entry.cap_bytes(b), (size, every, b)
+            chosen.add(e.clusters is not None)
+            if size is None:
+                assert sizer.bytes_at(b) == entry.ap_bytes(b)  # unclustered: AP at B
+    assert True in chosen  # the clustered layout was exercised

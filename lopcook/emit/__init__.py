@@ -116,6 +116,39 @@ def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int |
     return _encode_buffer(buf, max_level, None)
 
 
+class PositionSizer:
+    """GPU-resident position bytes of one buffer encoded at highest plane B, without encoding it.
+
+    ``bytes_at(B)`` = the ``cap_bytes(B)`` that ``encode_buffer(buf, B, cluster_size,
+    cluster_all=cluster_all)`` gives the manifest: every minimum level clamped to B, so every
+    vertex at B bits per component; the clustered layout's words of P, records and ClusterId table
+    where that encoding would choose it (``clustering_wins``, the same bins and clusters), else the
+    unclustered binned buffer's words. The Morton codes are computed once per buffer."""
+
+    def __init__(self, buf: BufferInput, cluster_size: int | None = None, *, cluster_all: bool = False):
+        self.q = np.asarray(buf.quantized, dtype=np.uint32)
+        self.levels = np.asarray(buf.min_level, dtype=np.int64)
+        self.size, self.every = cluster_size, bool(cluster_all)
+        self._codes = None
+
+    def bytes_at(self, level: int) -> int:
+        from .binning import buffer_bytes, table_vertex_id
+        from .clusters import clustered_bytes, morton_codes
+
+        b = int(level)
+        lv = np.minimum(self.levels, b)
+        vid = table_vertex_id(lv)
+        if self.size is None:
+            return int(buffer_bytes(vid, b))
+        if self._codes is None:
+            self._codes = morton_codes(self.q)
+        bins = cluster_order(self.q, lv, self._codes)
+        cl = make_clusters(self.q[bins.order], bins.vertex_id, self.size)
+        if self.every or clustering_wins(cl, bins.vertex_id):
+            return int(clustered_bytes(cl, b))
+        return int(buffer_bytes(vid, b))
+
+
 def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None) -> EncodedBuffer:
     """``encode_buffer`` in the layout asked for (no choice)."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)

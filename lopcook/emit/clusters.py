@@ -110,15 +110,17 @@ def morton_codes(q: np.ndarray) -> np.ndarray:
     return _spread3(top[:, 0]) | (_spread3(top[:, 1]) << np.uint64(1)) | (_spread3(top[:, 2]) << np.uint64(2))
 
 
-def cluster_order(q: np.ndarray, min_level: np.ndarray) -> Bins:
+def cluster_order(q: np.ndarray, min_level: np.ndarray, codes: np.ndarray | None = None) -> Bins:
     """The cluster order of a buffer as ``Bins``: sorted by (m_v, Morton code, original index).
 
-    q : (n, 3) uint32 grid integers (original order); min_level : (n,) ints in [1, 24].
+    q : (n, 3) uint32 grid integers (original order); min_level : (n,) ints in [1, 24];
+    codes : their ``morton_codes`` when already computed (the same order either way).
     ``order``/``inverse``/``levels``/``vertex_id`` mean what they mean for ``binning.make_bins``."""
     lv = np.asarray(min_level, dtype=np.int64)
     if lv.size and (lv.min() < 1 or lv.max() > LEVELS):
         raise ValueError(f"minimum levels must be in [1, {LEVELS}], got [{lv.min()}, {lv.max()}]")
-    order = np.lexsort((np.arange(lv.size), morton_codes(q), lv)).astype(np.int64)
+    codes = morton_codes(q) if codes is None else codes
+    order = np.lexsort((np.arange(lv.size), codes, lv)).astype(np.int64)
     inverse = np.empty_like(order)
     inverse[order] = np.arange(order.size)
     return Bins(order=order, inverse=inverse, levels=lv[order].astype(np.uint8), vertex_id=table_vertex_id(lv))

@@ -13,16 +13,21 @@ Steps of ``fit``:
    ``lod_chain`` makes them, ``default_ratios``), all on one grid, every plane the viewing allows.
 2. For every LOD k and level B in 1..(highest level in the file): the **candidate (k, B)** is the
    container holding only LOD k with every vertex at B bits per component: planes above B are not
-   written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``;
+   written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``,
+   in the cook's cluster layout;
    their count is ``clamped_vertices``: the budget trades their shading guarantee for bytes, and
    the image error measures what that costs). Its GPU buffer at level B is exactly AP at B of the
    chain's LOD k (``lopcook.verify.buffers.ap_buffer``), which is what is rendered.
 3. Bytes of a candidate (``candidate_bytes``), by ``scope``:
 
-   * ``"positions"`` (default): the GPU-resident position buffer at level B -- 3 B bits per vertex,
-     whole 32-bit words per buffer (``lopcook.emit.summary.memory_rows``'s ``ap_bytes``, which is
-     the ``cap_bytes`` of the written container). Float size: 12 bytes per LOD-0 vertex
-     (``memory_rows``'s ``float32_bytes``).
+   * ``"positions"`` (default): the GPU-resident position buffer at level B of the container
+     that would be written (``lopcook.emit.PositionSizer``; the written container's ``cap_bytes``
+     at B, ``lopcook.emit.summary.memory_rows``). Unclustered (``cook --clusters 0``): 3 B bits
+     per vertex, whole 32-bit words per buffer (AP at B). Clustered (the default,
+     ``settings.emit.clusters``): each buffer in the layout the cook's encoding chooses for it
+     (``clustering_wins``): the words of P with every vertex at B bits less its cluster's shared
+     top bits, plus 16 B per cluster record and the 128-byte ClusterId table. Float size: 12 bytes
+     per LOD-0 vertex (``memory_rows``'s ``float32_bytes``).
    * ``"vertices"``: plus the normals, UVs and colours as stored in the container (the packed
      attribute record, ``4 ceil(n S / 32)`` bytes per buffer for S = 2 b_n + 2 b_u + 4 b_c
      bits per vertex at the part's attribute bits; the section lengths). Float size: plus float32
@@ -122,10 +127,13 @@ def _check_scope(scope: str) -> None:
         raise LopcookError("usage", None, f"budget scope {scope!r}: expected one of {', '.join(SCOPES)}")
 
 
-def candidate_bytes(c, lods: list[int], level: int, scope: str = DEFAULT_SCOPE) -> dict:
+def candidate_bytes(c, lods: list[int], level: int, scope: str = DEFAULT_SCOPE, position_bytes=None) -> dict:
     """Bytes of candidate (LOD, level B) of container ``c`` (part i at LOD ``lods[i]``).
 
-    Returns ``position_bytes`` (3 B bits per vertex, whole uint32 words per buffer),
+    ``position_bytes(i, k, B)``: GPU-resident position bytes of part i's LOD k written at highest
+    plane B (``fit`` passes ``lopcook.emit.PositionSizer``'s); None: unclustered, 3 B bits per
+    vertex in whole uint32 words per buffer.
+    Returns ``position_bytes`` (the positions as written),
     ``attribute_bytes`` (normals / UVs / colours sections as stored), ``index_bytes`` (index
     section as stored), ``bytes`` (the sum of what ``scope`` counts), ``vertices``, ``triangles``
     and ``clamped_vertices`` (vertices whose minimum level is above B)."""
@@ -134,7 +142,7 @@ def candidate_bytes(c, lods: list[int], level: int, scope: str = DEFAULT_SCOPE) 
     parts = c.entries.parts
     for i, k in enumerate(lods):
         e = parts[i].lods[k]
-        pos += e.ap_bytes(level)
+        pos += e.ap_bytes(level) if position_bytes is None else position_bytes(i, k, int(level))
         attrs += e.attribute_bytes
         idx += e.index_bytes
         n += e.vertices
@@ -161,12 +169,13 @@ def lod_float_bytes(c, lods: list[int], scope: str = DEFAULT_SCOPE) -> int:
     return int(total)
 
 
-def level_fit(c, lods: list[int], target: int, scope: str = DEFAULT_SCOPE) -> int | None:
-    """The largest level B in [1, highest level in the file] whose candidate fits in ``target``
-    bytes (bytes grow with B), or None when even level 1 does not."""
+def level_fit(c, lods: list[int], target: int, scope: str = DEFAULT_SCOPE, position_bytes=None) -> int | None:
+    """The largest level B in [1, highest level in the file] such that the candidates at every
+    level up to B fit in ``target`` bytes (bytes grow with B), or None when even level 1 does not.
+    ``position_bytes``: as for ``candidate_bytes``."""
     best = None
     for b in range(1, int(c.available_level) + 1):
-        if candidate_bytes(c, lods, b, scope)["bytes"] <= target:
+        if candidate_bytes(c, lods, b, scope, position_bytes)["bytes"] <= target:
             best = b
         else:
             break
@@ -242,7 +251,7 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     (``budget_record``), ``info["cook"]`` the chain's ``lopcook.pipeline.CookResult``,
     ``info["timings_s"]`` (``cook``, ``render``, ``emit``).
     """
-    from ..emit import build
+    from ..emit import PositionSizer, build
     from ..pipeline import run
     from ..verify.buffers import lod_indices
     from ..verify.renderer import Harness, Shading
@@ -268,6 +277,18 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     c = cooked.container
     timings["cook"] = time.perf_counter() - t0
     depth = max(len(p["lods"]) for p in c.manifest["parts"])
+    n_cluster, every = settings.emit.clusters, settings.emit.cluster_all
+    sizers: dict = {}
+    sizes: dict = {}
+
+    def position_bytes(i: int, k: int, b: int) -> int:
+        """Position bytes of part i's LOD k written at highest plane b (as ``build`` will write it)."""
+        if (i, k, b) not in sizes:
+            if (i, k) not in sizers:
+                sizers[i, k] = PositionSizer(cooked.buffers[i][k], n_cluster, cluster_all=every)
+            sizes[i, k, b] = sizers[i, k].bytes_at(b)
+        return sizes[i, k, b]
+
     available = int(c.available_level)
     fsize = float_bytes(scene, scope)
 
@@ -276,8 +297,8 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     dominated = False
     for k in range(depth):
         lods = lod_indices(c, k)
-        b_fit = level_fit(c, lods, target, scope)
-        smallest = candidate_bytes(c, lods, 1, scope)
+        b_fit = level_fit(c, lods, target, scope, position_bytes)
+        smallest = candidate_bytes(c, lods, 1, scope, position_bytes)
         row = {"lod": k, "lods": lods, "vertices": smallest["vertices"], "triangles": smallest["triangles"],
                "geometric_error_m": max(float(c.manifest["parts"][i]["lods"][j]["geometric_error_m"])
                                         for i, j in enumerate(lods)),
@@ -316,7 +337,7 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
             r = h.evaluate(c, levels=levels, views=views, variants=("ap",), lod=k, distance_m=distance)
             for row in r["levels"]:
                 b = row["level"]
-                cb = candidate_bytes(c, lods, b, scope)
+                cb = candidate_bytes(c, lods, b, scope, position_bytes)
                 ap = row["ap"]
                 candidates.append({"lod": k, "level": b, **cb,
                                    "bits_per_vertex": 8.0 * cb["bytes"] / max(cb["vertices"], 1),
@@ -349,7 +370,8 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     buffers = [[replace(cooked.buffers[i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
     opts = dict(options or {})
     opts["budget"] = record
-    data = build(scene, cooked.analysis, options=opts, viewing=viewing, lods=buffers, max_level=best["level"])
+    data = build(scene, cooked.analysis, options=opts, viewing=viewing, lods=buffers, max_level=best["level"],
+                 cluster_size=n_cluster, cluster_all=every)
     timings["emit"] = time.perf_counter() - t0
     say(f"budget: chose LOD {best['lod']} at level {best['level']}: {best['bytes']:,} of {target:,} bytes")
     return data, {"budget": record, "cook": cooked, "analysis": cooked.analysis, "timings_s": timings}
