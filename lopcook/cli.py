@@ -967,15 +967,19 @@ def cmd_report(args) -> int:
         t0 = time.perf_counter()
         scene = load(args.source, ingest)
         ingest_s = time.perf_counter() - t0
-    ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution,
-                                              progress=progress)
     warnings = cook = None
     if not args.no_analyse:
+        # before the renders, and only its record kept: the re-cook's arrays are freed before the
+        # renders' images accumulate, so the two peaks do not add up
+        from .memory import release_free_memory
         from .tune.recook import recook
 
         with progress.stage("re-cook (stage timings, warnings, determinism)"):
             cook = recook(c, scene, ingest_s=ingest_s, progress=progress)
-            warnings = analysis_warnings(scene, cook["analysis"])
+            warnings = analysis_warnings(scene, cook.pop("analysis"))
+        release_free_memory()
+    ev, ev16, level_range = render_for_report(c, scene, levels=levels, views=views, resolution=resolution,
+                                              progress=progress)
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
     with progress.stage("page"):
         rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)

@@ -22,6 +22,8 @@ image.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..progress import NONE
 
 
@@ -70,6 +72,22 @@ def choose_view(visible: list[int], ap_psnr: list, worst: int) -> int:
     return min(best, key=lambda i: (float("inf") if ap_psnr[i] is None else ap_psnr[i], i))
 
 
+def compact_ids(images: dict | None) -> dict | None:
+    """``images`` with every part-ID image (keys ending ``_ids``) in the smallest unsigned dtype that
+    holds its values (uint8 below 256 parts): the same values, a quarter of the memory of the
+    renderer's uint32 for the report's seven levels of kept images."""
+    if not images:
+        return images
+    out = dict(images)
+    for k, a in images.items():
+        if k.endswith("_ids") and isinstance(a, np.ndarray) and a.size:
+            top = int(a.max())
+            dt = np.uint8 if top < 1 << 8 else np.uint16 if top < 1 << 16 else None
+            if dt is not None:
+                out[k] = a.astype(dt)
+    return out
+
+
 def render_for_report(container, scene, *, levels, views, resolution,
                       progress=NONE) -> tuple[dict, dict, tuple[int, int] | None]:
     """All renders of a report in one GL harness (module doc). Returns (evaluation, uniform16
@@ -111,8 +129,6 @@ def render_for_report(container, scene, *, levels, views, resolution,
         image_view = imgs["view"] if imgs else None
         visible = None
         if imgs and len(scene.parts) > 1 and len(view_ids) > 1:
-            import numpy as np
-
             from ..verify.cameras import make_camera
 
             row = first["levels"][0]
@@ -131,10 +147,13 @@ def render_for_report(container, scene, *, levels, views, resolution,
                 parts = [first]
         st.advance()
         baseline(order[0])
+        imgs = compact_ids(imgs)
+        if imgs is not None:
+            first["images"] = imgs  # parts[0] is first: the uint32 IDs are not kept alongside
         per_level = {order[0]: imgs}
         for b in order[1:]:
             e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
-            per_level[b] = e.get("images")
+            e["images"] = per_level[b] = compact_ids(e.get("images"))
             parts.append(e)
             st.advance()
             baseline(b)

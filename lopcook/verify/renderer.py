@@ -581,23 +581,12 @@ class Harness:
 
 
 def trim_heap() -> None:
-    """Return the C heap's free pages to the system (glibc ``malloc_trim``; nothing elsewhere): after
+    """Return the C heap's free pages to the system (``lopcook.memory.release_free_memory``): after
     an evaluation, the freed GL buffers and llvmpipe's scene blocks would otherwise stay in the
     process's resident memory and add to the next evaluation's peak."""
-    global _LIBC
-    if _LIBC is None:
-        try:
-            import ctypes
+    from ..memory import release_free_memory
 
-            lib = ctypes.CDLL("libc.so.6")
-            _LIBC = lib if hasattr(lib, "malloc_trim") else False
-        except OSError:
-            _LIBC = False
-    if _LIBC:
-        _LIBC.malloc_trim(0)
-
-
-_LIBC = None
+    release_free_memory()
 
 
 # ---- harnesses shared by the searches of one scene ------------------------------------------------
