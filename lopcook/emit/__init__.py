@@ -129,24 +129,34 @@ class PositionSizer:
         self.q = np.asarray(buf.quantized, dtype=np.uint32)
         self.levels = np.asarray(buf.min_level, dtype=np.int64)
         self.size, self.every = cluster_size, bool(cluster_all)
+        self._top = int(self.levels.max()) if self.levels.size else 1
         self._codes = None
+        self._layouts: dict = {}  # clamp level -> (VertexId, Clusters or None)
+
+    def _layout(self, clamp: int):
+        from .binning import table_vertex_id
+        from .clusters import morton_codes
+
+        if clamp not in self._layouts:
+            lv = np.minimum(self.levels, clamp)
+            vid, cl = table_vertex_id(lv), None
+            if self.size is not None:
+                if self._codes is None:
+                    self._codes = morton_codes(self.q)
+                bins = cluster_order(self.q, lv, self._codes)
+                cl = make_clusters(self.q[bins.order], bins.vertex_id, self.size)
+                if not (self.every or clustering_wins(cl, bins.vertex_id)):
+                    cl = None
+            self._layouts[clamp] = (vid, cl)
+        return self._layouts[clamp]
 
     def bytes_at(self, level: int) -> int:
-        from .binning import buffer_bytes, table_vertex_id
-        from .clusters import clustered_bytes, morton_codes
+        from .binning import buffer_bytes
+        from .clusters import clustered_bytes
 
         b = int(level)
-        lv = np.minimum(self.levels, b)
-        vid = table_vertex_id(lv)
-        if self.size is None:
-            return int(buffer_bytes(vid, b))
-        if self._codes is None:
-            self._codes = morton_codes(self.q)
-        bins = cluster_order(self.q, lv, self._codes)
-        cl = make_clusters(self.q[bins.order], bins.vertex_id, self.size)
-        if self.every or clustering_wins(cl, bins.vertex_id):
-            return int(clustered_bytes(cl, b))
-        return int(buffer_bytes(vid, b))
+        vid, cl = self._layout(min(b, self._top))  # at or above the highest m_v nothing is clamped
+        return int(buffer_bytes(vid, b)) if cl is None else int(clustered_bytes(cl, b))
 
 
 def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None) -> EncodedBuffer:
