@@ -131,12 +131,17 @@ def test_checks_report_pass_and_miss_from_rows():
                    psnr_min_db=45.0) for b in (6, 7)]
     scaling = [{"input": "bunny s2", "tool": "lopcook", "triangles": 1_111_216, "wall_s": 6.0, "peak_rss_mb": 500.0},
                {"input": "bunny s2", "tool": "gltfpack", "triangles": 1_111_216, "wall_s": 3.0, "peak_rss_mb": 300.0},
-               {"input": "bunny s0", "tool": "lopcook", "triangles": 69_451, "wall_s": 6.0 / 16, "peak_rss_mb": 90.0}]
-    got = {c["check"].split(" ")[0] + str(i): c for i, c in enumerate(B.checks(rows, scaling, ["x"], {"pareto": "p.png"},
-                                                                            [6, 7]))}
-    status = [c["status"] for c in got.values()]
-    # the chart lacks the four default assets; 3.7 B/vertex at 45 dB; 2x gltfpack; slope 1
-    assert status == ["miss", "pass", "miss", "pass", "pass"]
+               {"input": "bunny s0", "tool": "lopcook", "triangles": 69_451, "wall_s": 6.0 / 16, "peak_rss_mb": 90.0},
+               {"input": "bunny s3", "tool": "lopcook", "triangles": 4_444_864, "wall_s": 24.0, "peak_rss_mb": 1400.0},
+               {"input": "bunny s3", "tool": "gltfpack", "triangles": 4_444_864, "wall_s": 6.0, "peak_rss_mb": 600.0}]
+    checks = B.checks(rows, scaling, ["x"], {"pareto": "p.png"}, [6, 7])
+    status = [c["status"] for c in checks]
+    # the chart lacks the four default assets; 3.7 B/vertex at 45 dB; 1.1M: 2x gltfpack (<= 3x) but
+    # 500 MiB = 524 MB (> 500 MB); 4.4M: 4x gltfpack (> 3x), 1,400 MiB = 1,468 MB (<= 1,500); slope 1
+    assert status == ["miss", "pass", "pass", "miss", "miss", "pass", "pass"]
+    assert checks[2]["ratio"] == pytest.approx(2.0) and checks[4]["ratio"] == pytest.approx(4.0)
+    assert checks[3]["peak_rss_MB"] == pytest.approx(500 * 2**20 / 1e6)
+    assert [c["status"] for c in B.checks(rows, scaling[:3], ["x"], {}, [6, 7])[4:6]] == ["not measured"] * 2
     assert B.checks(rows, scaling, ["x"], {}, [6, 7])[1]["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
 
 
