@@ -128,3 +128,27 @@ def test_choose_view_shows_the_most_parts_then_the_worst_error():
     assert choose_view([3, 5, 5, 2], [30.0, 25.0, 20.0, 10.0], 1) == 1  # the worst view kept when it shows them
     assert choose_view([4, 4], [None, None], 5) == 0  # identical everywhere: the first
     assert choose_view([2, 2, 2], [40.0, None, 35.0], 7) == 2
+
+
+def test_compact_ids_keeps_the_values_in_the_smallest_type():
+    """The report keeps every level's part-ID images as uint8 (< 256 parts) or uint16 (< 65,536):
+    the same values, so the same crops and depth masks; wider IDs and other images are untouched."""
+    from lopcook.report.render import compact_ids
+    from lopcook.report.images import crop_box
+    from lopcook.verify.metrics import depth_error_mask
+
+    rng = np.random.default_rng(3)
+    rgba = np.zeros((40, 60, 4), np.uint8)
+    rgba[10:20, 5:30] = 200
+    small = rng.integers(0, 50, (40, 60)).astype(np.uint32)
+    mid = rng.integers(0, 3000, (40, 60)).astype(np.uint32)
+    wide = np.full((40, 60), 70_000, np.uint32)
+    imgs = {"level": 6, "float": rgba, "float_ids": small, "cap_ids": mid, "ap_ids": wide}
+    out = compact_ids(imgs)
+    assert out["float_ids"].dtype == np.uint8 and out["cap_ids"].dtype == np.uint16 and out["ap_ids"].dtype == np.uint32
+    for k in ("float_ids", "cap_ids", "ap_ids"):
+        assert np.array_equal(out[k], imgs[k])
+    assert out["float"] is rgba and imgs["float_ids"].dtype == np.uint32  # the input dict is not changed
+    assert crop_box(out) == crop_box(imgs)
+    assert np.array_equal(depth_error_mask(out["float_ids"], out["cap_ids"]), depth_error_mask(small, mid))
+    assert compact_ids(None) is None
