@@ -186,6 +186,13 @@ def test_memory_counts_each_distinct_buffer_once(cooked):
         "parts": 4, "groups": 1, "vertices_all_copies": sum(p.n_vertices for p in scene.parts),
         "triangles_all_copies": sum(p.n_triangles for p in scene.parts)}
     assert m.cap_bytes(12) < plain.container.entries.cap_bytes(12)
+    # inspect counts stored buffers: the group's once, plus "touching" and "plate"
+    from lopcook.emit.summary import describe_container, format_container
+
+    d = describe_container(inst.container)
+    assert d["totals"]["parts"] == 6 and d["totals"]["buffers"] == len(groups) == 3
+    assert "6 parts, 3 buffers" in format_container(d) and "of every part vs" in format_container(d)
+    assert describe_container(plain.container)["totals"]["buffers"] == 6
 
 
 def test_bytes_are_deterministic_and_the_default_cook_is_unchanged(cooked):

@@ -194,7 +194,9 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "options": m["options"],
         "available_level": c.available_level,
         "max_level": m["positions"]["max_level"],
-        "totals": {"parts": len(parts), "buffers": sum(len(p["lods"]) for p in parts),
+        # stored buffers: a placement draws its owner's buffers and owns none (cook --instances)
+        "totals": {"parts": len(parts), "buffers": sum(len(p["lods"]) for i, p in enumerate(m["parts"])
+                                                       if (p.get("placement") or {}).get("of", i) == i),
                    "vertices": m["stats"]["vertices"], "triangles": m["stats"]["triangles"],
                    "histogram": m["stats"]["histogram"],
                    "float32_position_bytes": m["stats"]["float32_position_bytes"],
@@ -236,7 +238,7 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
         "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
         "",
         f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions of "
-        f"{'LOD 0' if t['buffers'] > t['parts'] else 'every part'} vs their float32 "
+        f"{'LOD 0' if any(len(p['lods']) > 1 for p in d['parts']) else 'every part'} vs their float32 "
         f"{d['memory'][0]['float32_bytes'] if d['memory'] else 0:,} B)",
     ]
     for r in d["memory"]:
