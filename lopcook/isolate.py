@@ -7,6 +7,10 @@ that follows (docs/lod.md has the measured sizes). In a child it is returned to 
 (copy on write), so the system's memory at any time is the parent's plus the child's private
 pages: the peak is not hidden, only no longer added to what comes after.
 
+``start(fn, *args)`` forks the same way but returns at once: the child computes while the parent
+goes on, and ``Child.result()`` collects the value. ``fork_map(fn, items)`` uses it to spread
+independent pieces of work over two cores. Both give exactly the in-process results.
+
 ``call(fn, *args)`` forks (Linux only; elsewhere, and for small inputs where the ~10 ms of a fork
 and the pickling are not worth it, the call runs in-process), runs ``fn(*args)`` in the child,
 sends the result (or the exception) back through a pipe with pickle, and returns it (or raises it).
@@ -50,6 +54,152 @@ def _available() -> bool:
     return hasattr(os, "fork") and sys.platform.startswith("linux")
 
 
+def _serve(fn, args, kwargs, w: int) -> None:
+    """In the child: ``fn(*args, **kwargs)``, its value or exception pickled to ``w``; never returns."""
+    code = 0
+    _quiet_child()
+    try:
+        try:
+            payload = pickle.dumps((True, fn(*args, **kwargs)), protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+            try:
+                payload = pickle.dumps((False, exc), protocol=pickle.HIGHEST_PROTOCOL)
+            except Exception:  # noqa: BLE001 - an exception that does not pickle
+                payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+        view = memoryview(struct.pack("<Q", len(payload)) + payload)
+        while view:
+            view = view[os.write(w, view):]
+    except BaseException:  # noqa: BLE001
+        code = 1
+    finally:
+        os._exit(code)
+
+
+def _collect(r: int, pid: int, what: str):
+    """In the parent: the value ``_serve`` sent through the pipe ``r`` (or its exception raised)."""
+    try:
+        head = _read_exact(r, 8)
+        data = _read_exact(r, struct.unpack("<Q", head)[0]) if len(head) == 8 else b""
+    finally:
+        os.close(r)
+        _, status = os.waitpid(pid, 0)
+    return _unpack(head, data, status, what)
+
+
+def _unpack(head: bytes, data: bytes, status: int, what: str):
+    if len(head) != 8 or len(data) != struct.unpack("<Q", head)[0]:
+        why = (f"killed by signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status)
+               else f"exit status {os.WEXITSTATUS(status)}")
+        raise ChildFailed(f"the {what} process ended without a result ({why})")
+    ok, value = pickle.loads(data)
+    if ok:
+        return value
+    raise value
+
+
+class Child:
+    """A computation started by ``start``: ``result()`` returns its value (or raises its
+    exception, or ``ChildFailed``); ``cancel()`` stops it. In-process (``start`` without a fork),
+    the value is computed by the first ``result()``."""
+
+    def __init__(self, fn, args, kwargs, fork: bool):
+        self._fn, self._args, self._kwargs = fn, args, kwargs
+        self._pid = self._fd = None
+        self._done, self._value = False, None
+        if fork:
+            import tempfile
+
+            release_free_memory()
+            # the result goes to an unlinked file, not a pipe: the child writes it and exits at
+            # once, its memory freed, however long the parent takes to ask for it
+            with tempfile.TemporaryFile() as spool:
+                fd = os.dup(spool.fileno())
+            pid = os.fork()
+            if pid == 0:
+                _serve(fn, args, kwargs, fd)
+            self._pid, self._fd = pid, fd
+            self._fn = self._args = self._kwargs = None  # the child has them
+
+    def result(self):
+        if not self._done:
+            if self._pid is not None:
+                pid, fd = self._pid, self._fd
+                self._pid = self._fd = None
+                try:
+                    _, status = os.waitpid(pid, 0)
+                    os.lseek(fd, 0, os.SEEK_SET)
+                    head = _read_exact(fd, 8)
+                    data = _read_exact(fd, struct.unpack("<Q", head)[0]) if len(head) == 8 else b""
+                finally:
+                    os.close(fd)
+                self._value = _unpack(head, data, status, "worker")
+            else:
+                self._value = self._fn(*self._args, **self._kwargs)
+                self._fn = self._args = self._kwargs = None
+            self._done = True
+        return self._value
+
+    def cancel(self) -> None:
+        """Stop the child (if it still runs) and drop its result."""
+        if self._pid is not None:
+            import signal
+
+            try:
+                os.kill(self._pid, signal.SIGKILL)
+            except OSError:
+                pass
+            os.waitpid(self._pid, 0)
+            os.close(self._fd)
+            self._pid = self._fd = None
+        self._done, self._value = True, None
+        self._fn = self._args = self._kwargs = None
+
+
+def start(fn, *args, fork: bool = True, **kwargs) -> Child:
+    """``fn(*args, **kwargs)`` started in a forked child (when ``fork`` and the platform allows;
+    else it runs in-process at ``result()``). The child shares the parent's pages copy on write;
+    the arguments must not change in the parent before ``result()`` matters (the child sees
+    them as they were at the fork). Results and exceptions must pickle."""
+    return Child(fn, args, kwargs, bool(fork) and _available())
+
+
+def cpus() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def fork_map(fn, items: list, weights: list | None = None, workers: int | None = None) -> list:
+    """``[fn(x) for x in items]``, the items split between this process and one forked child when
+    there are two or more items and ``workers`` (default: ``cpus()``, at most 2) is 2 or more. The
+    split balances ``weights`` (default 1 each): the child takes a contiguous run of items from
+    the front, the parent the rest. Same values as the serial list, in item order."""
+    n = len(items)
+    k = min(2, cpus()) if workers is None else int(workers)
+    if n < 2 or k < 2 or not _available():
+        return [fn(x) for x in items]
+    w = [1.0] * n if weights is None else [float(x) for x in weights]
+    total, acc, cut = sum(w), 0.0, 1
+    for i in range(n - 1):  # the smallest front run holding at least half the weight, leaving one item
+        acc += w[i]
+        cut = i + 1
+        if acc >= total / 2:
+            break
+    front = start(_map, fn, items[:cut])
+    try:
+        back = [fn(x) for x in items[cut:]]
+    except BaseException:
+        front.cancel()
+        raise
+    return front.result() + back
+
+
+def _map(fn, items):
+    return [fn(x) for x in items]
+
+
 def _read_exact(fd: int, n: int) -> bytes:
     chunks, got = [], 0
     while got < n:
@@ -71,38 +221,9 @@ def call(fn, *args, faces: int | None = None, **kwargs):
     pid = os.fork()
     if pid == 0:  # child: never returns
         os.close(r)
-        code = 0
-        _quiet_child()
-        try:
-            try:
-                payload = pickle.dumps((True, fn(*args, **kwargs)), protocol=pickle.HIGHEST_PROTOCOL)
-            except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
-                try:
-                    payload = pickle.dumps((False, exc), protocol=pickle.HIGHEST_PROTOCOL)
-                except Exception:  # noqa: BLE001 - an exception that does not pickle
-                    payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
-            view = memoryview(struct.pack("<Q", len(payload)) + payload)
-            while view:
-                view = view[os.write(w, view):]
-        except BaseException:  # noqa: BLE001
-            code = 1
-        finally:
-            os._exit(code)
+        _serve(fn, args, kwargs, w)
     os.close(w)
-    try:
-        head = _read_exact(r, 8)
-        data = _read_exact(r, struct.unpack("<Q", head)[0]) if len(head) == 8 else b""
-    finally:
-        os.close(r)
-        _, status = os.waitpid(pid, 0)
-    if len(head) != 8 or len(data) != struct.unpack("<Q", head)[0]:
-        why = (f"killed by signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status)
-               else f"exit status {os.WEXITSTATUS(status)}")
-        raise ChildFailed(f"the backend process ended without a result ({why})")
-    ok, value = pickle.loads(data)
-    if ok:
-        return value
-    raise value
+    return _collect(r, pid, "backend")
 
 
 def _fresh_child(conn, fn, args, kwargs) -> None:
@@ -148,4 +269,4 @@ def call_fresh(fn, *args, **kwargs):
     raise value
 
 
-__all__ = ["MIN_FACES", "ChildFailed", "call", "call_fresh"]
+__all__ = ["MIN_FACES", "ChildFailed", "Child", "call", "call_fresh", "start", "fork_map", "cpus"]
