@@ -9,7 +9,9 @@ the input's own restored in the parent (a texture is not sent back per LOD). Els
 worker, one part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
 
 ``workers()`` is ``$LOPCOOK_LOD_WORKERS`` when set (1 = serial), else the CPUs this process may
-use, at most ``MAX_WORKERS``. Measurements: docs/lod.md.
+use, at most ``MAX_WORKERS``; 1 inside a worker, so the work a chain splits over two
+processes when it runs alone (``lopcook.simplify.transfer``, ``lopcook.pipeline.parallel``) stays
+in the worker. Measurements: docs/lod.md.
 """
 
 from __future__ import annotations
@@ -27,9 +29,14 @@ MAX_WORKERS = 2
 
 _JOBS: list = []
 
+#: set in a worker process: its chain runs serially inside (the workers already fill the CPUs)
+_IN_WORKER = False
+
 
 def workers() -> int:
-    """Worker processes for the LOD stage (see the module doc)."""
+    """Worker processes for the LOD stage (see the module doc); 1 inside a worker."""
+    if _IN_WORKER:
+        return 1
     env = os.environ.get("LOPCOOK_LOD_WORKERS", "").strip()
     if env:
         try:
@@ -44,6 +51,8 @@ def workers() -> int:
 
 
 def _one(i: int):
+    global _IN_WORKER
+    _IN_WORKER = True
     part, chain, kwargs = _JOBS[i]
     lods, report = chain(part, **kwargs)
     own = []

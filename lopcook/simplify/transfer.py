@@ -26,6 +26,15 @@ NUDGE = 0.25
 #: faces (a tree over 1.1M faces takes about 265 MB)
 CHUNK_FACES = 1 << 18
 
+#: ``Reference.query_bounded`` on at least this many points sweeps its chunks in two processes
+PARALLEL_POINTS = 20_000
+
+
+def _workers() -> int:
+    from .parallel import workers
+
+    return workers()
+
 
 #: corners per step of the transfer's side test (bounds its (k, 3, 3) temporaries)
 TRANSFER_CHUNK = 1 << 17
@@ -113,9 +122,14 @@ class Reference:
         its best distance so far; the earlier chunks it could still reach are checked afterwards
         (``query_near``: the faces within reach), so every chunk that can hold its closest face is
         searched and the distance is the exact closest one, as ``query``'s (the face may differ
-        where several are equally close). Costs a tree build per call."""
-        import igl
+        where several are equally close). Costs a tree build per call.
 
+        With two LOD workers (``lopcook.simplify.parallel.workers``) and at least
+        ``PARALLEL_POINTS`` points, a forked child sweeps the first half of the chunks while this
+        process sweeps the second (its points homed in the first half searched with their
+        ``bound2``, a superset of what the serial sweep searches); the sweep is then replayed in
+        chunk order with the serial rule on those results, so the answer is the serial one, bit
+        for bit."""
         if self.faces.shape[0] <= CHUNK_FACES:
             return self.query(points)
         pts = np.ascontiguousarray(points, dtype=np.float64)
@@ -123,41 +137,40 @@ class Reference:
         best = np.asarray(bound2, dtype=np.float64) * (1.0 + 1e-9) + 1e-300
         face = np.full(pts.shape[0], -1, dtype=np.int64)
         near = np.zeros_like(pts)
-        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
         chunks = self.chunks
         home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
+        n = len(chunks)
+        if pts.shape[0] >= PARALLEL_POINTS and n >= 2 and _workers() >= 2:
+            from .. import isolate
 
-        def reach(c: int, idx: np.ndarray) -> np.ndarray:
-            """The points ``idx`` whose best distance reaches chunk ``c``'s box."""
-            lo, hi = chunks[c][1], chunks[c][2]
-            q = pts[idx]
-            gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
-            return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
-
-        for c, (ch, _, _) in enumerate(chunks):
-            pick = home == c
-            pick[reach(c, np.flatnonzero(home < c))] = True
-            sel = np.flatnonzero(pick)  # sorted, distinct: np.union1d's result
-            del pick
-            if sel.size == 0 or ch.size == 0:
+            half = n // 2
+            front = isolate.start(self._sweep, pts, best.copy(), home, range(half))
+            try:
+                records = self._sweep(pts, best.copy(), home, range(half, n))
+            except BaseException:
+                front.cancel()
+                raise
+            records = front.result() + records
+        else:
+            records = self._sweep(pts, best.copy(), home, range(n))
+        for c, sel_q, d, f, cp in records:  # the serial sweep, replayed on the queried distances
+            sel = self._visits(c, pts, best, home)
+            if sel.size == 0:
                 continue
-            fc = np.ascontiguousarray(self.faces[ch])
-            tree = igl.AABB()
-            tree.init(pos, fc)
-            d, i, cp = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
-            del tree, fc
-            d = np.asarray(d)
-            better = d <= best[sel]
-            at = sel[better]
-            best[at] = d[better]
-            face[at] = ch[np.asarray(i, dtype=np.int64)[better]]
-            near[at] = np.asarray(cp)[better]
+            at = np.searchsorted(sel_q, sel)  # sel is a subset of sel_q (both sorted)
+            dd = d[at]
+            better = dd <= best[sel]
+            hit = sel[better]
+            best[hit] = dd[better]
+            face[hit] = f[at[better]]
+            near[hit] = cp[at[better]]
+        del records
         if not _sweep_only:
             # chunks before a point's home were not searched for it: where it can reach one, search
             # the faces within its reach
             left = np.zeros(pts.shape[0], dtype=bool)
-            for c in range(len(chunks) - 1):
-                left[reach(c, np.flatnonzero(home > c))] = True
+            for c in range(n - 1):
+                left[self._reach(c, pts, np.flatnonzero(home > c), best)] = True
             left = np.flatnonzero(left)
             if left.size:
                 d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
@@ -167,6 +180,43 @@ class Reference:
         if (face < 0).any():  # a bound below the true distance: not a caller of this contract
             raise ValueError("query_bounded: a bound below the distance to LOD 0")
         return best, face, near
+
+    def _reach(self, c: int, pts: np.ndarray, idx: np.ndarray, best: np.ndarray) -> np.ndarray:
+        """The points ``idx`` whose best distance reaches chunk ``c``'s box."""
+        lo, hi = self.chunks[c][1], self.chunks[c][2]
+        q = pts[idx]
+        gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
+        return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
+
+    def _visits(self, c: int, pts: np.ndarray, best: np.ndarray, home: np.ndarray) -> np.ndarray:
+        """The sweep's rule: the points (sorted ids) chunk ``c`` is searched for, given ``best``."""
+        if self.chunks[c][0].size == 0:
+            return np.zeros(0, dtype=np.int64)
+        pick = home == c
+        pick[self._reach(c, pts, np.flatnonzero(home < c), best)] = True
+        return np.flatnonzero(pick)  # sorted, distinct
+
+    def _sweep(self, pts: np.ndarray, best: np.ndarray, home: np.ndarray, cs) -> list:
+        """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point)`` of
+        the points ``_visits`` picks, ``best`` (this call's own copy) lowered as they are found."""
+        import igl
+
+        pos = np.ascontiguousarray(self.positions, dtype=np.float64)
+        out = []
+        for c in cs:
+            sel = self._visits(c, pts, best, home)
+            if sel.size == 0:
+                continue
+            ch = self.chunks[c][0]
+            fc = np.ascontiguousarray(self.faces[ch])
+            tree = igl.AABB()
+            tree.init(pos, fc)
+            d, i, cp = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
+            del tree, fc
+            d = np.asarray(d)
+            np.minimum.at(best, sel, d)
+            out.append((c, sel, d, ch[np.asarray(i, dtype=np.int64)], np.asarray(cp)))
+        return out
 
     def _home(self, pts: np.ndarray) -> np.ndarray:
         """(q,) the chunk whose cell of the median splits (``chunks``) holds each point."""
