@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import isolate
 from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
@@ -49,6 +50,9 @@ from .settings import DEFAULTS, Settings
 from .simplify import lod_chain
 from .types import Scene
 from .viewing import Viewing, required_level
+
+#: LOD cooks of at least this many LOD 0 vertices analyse and encode in two processes (``parallel``)
+PARALLEL_VERTICES = 100_000
 
 
 def far_error_m(extent: float, viewing: Viewing) -> float:
@@ -167,22 +171,62 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
     return out, reports
 
 
+def parallel(scene: Scene) -> bool:
+    """Whether a LOD cook of ``scene`` analyses and encodes in forked processes beside its own
+    (``lopcook.isolate``): two or more LOD workers (``lopcook.simplify.parallel.workers``,
+    ``$LOPCOOK_LOD_WORKERS=1`` turns it off) and at least ``PARALLEL_VERTICES`` LOD 0 vertices.
+    The bytes are the same either way."""
+    from .simplify.parallel import workers
+
+    return workers() >= 2 and sum(p.n_vertices for p in scene.parts) >= PARALLEL_VERTICES
+
+
+def speculate(scene: Scene, settings: Settings):
+    """LOD 0's analysis started in a forked child before the LOD chains run (``parallel`` scenes
+    with LODs; else None): ``(grid, child)``, the grid fitted over LOD 0 alone. ``analyse_lods``
+    uses it only where its own grid is that grid and every chain starts with the scene's own part
+    (meshoptimizer's LODs reuse LOD 0's vertices, so the grid is the same); otherwise it stops the
+    child and analyses LOD 0 itself."""
+    if settings.simplify.lods is None or not parallel(scene):
+        return None
+    grid = Grid.fit([p.positions for p in scene.parts])
+    return grid, isolate.start(analyse, scene, settings.analyse, grid)
+
+
 def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Grid | None = None,
-                 progress: Progress = NONE):
+                 progress: Progress = NONE, first=None):
     """Analyse every LOD level on one grid, then share levels between co-located vertices.
 
-    parts_chain: per part, its list of MeshParts (LOD 0 first). Returns ``(grid, analyses, levels,
-    raised)``: ``analyses[k]`` the Analysis of LOD index k (parts that have one, in part order;
-    its ``min_level`` and ``reason`` include the sharing), ``levels[i][k]`` the final (n,) uint8
-    minimum levels of part i's LOD k, ``raised`` how many vertices the sharing raised."""
+    parts_chain: per part, its list of MeshParts (LOD 0 first). ``first``: ``speculate``'s
+    ``(grid, child)`` or None. Returns ``(grid, analyses, levels, raised)``: ``analyses[k]`` the
+    Analysis of LOD index k (parts that have one, in part order; its ``min_level`` and ``reason``
+    include the sharing), ``levels[i][k]`` the final (n,) uint8 minimum levels of part i's LOD k,
+    ``raised`` how many vertices the sharing raised. Levels are analysed in forked processes for
+    ``parallel`` scenes, with the same results."""
     grid = grid or Grid.fit([p.positions for chain in parts_chain for p in chain])
-    analyses, members = [], []
     depth = max(len(c) for c in parts_chain)
+    members = [[i for i, c in enumerate(parts_chain) if len(c) > k] for k in range(depth)]
+    scenes = [replace(scene, parts=tuple(parts_chain[i][k] for i in idx)) for k, idx in enumerate(members)]
+    analyses: list = [None] * depth
     with progress.stage("analyse", total=depth) as st:
-        for k in range(depth):
-            idx = [i for i, c in enumerate(parts_chain) if len(c) > k]
-            analyses.append(analyse(replace(scene, parts=tuple(parts_chain[i][k] for i in idx)), settings, grid=grid))
-            members.append(idx)
+        if first is not None:
+            fgrid, child = first
+            try:
+                if fgrid == grid and len(parts_chain) == len(scene.parts) and all(
+                        c[0] is p for c, p in zip(parts_chain, scene.parts)):
+                    analyses[0] = child.result()
+                    st.advance()
+            except isolate.ChildFailed:  # killed (memory): analysed here instead
+                analyses[0] = None
+            finally:
+                child.cancel()  # nothing once the result is in
+        todo = [k for k in range(depth) if analyses[k] is None]
+        workers = 2 if parallel(scene) else 1
+        done = isolate.fork_map(lambda k: analyse(scenes[k], settings, grid=grid), todo,
+                                weights=[sum(p.n_vertices for p in scenes[k].parts) for k in todo],
+                                workers=workers)
+        for k, an in zip(todo, done):
+            analyses[k] = an
             st.advance()
     allq = np.concatenate([pa.quantized for an in analyses for pa in an.parts])
     alll = np.concatenate([pa.min_level.astype(np.int64) for an in analyses for pa in an.parts])
@@ -235,7 +279,18 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
 
 
 def _lod_stage(scene: Scene, settings: Settings, timings: dict, progress: Progress):
-    """(1): per part its MeshParts and errors (LOD 0 alone without LODs), the reports, the cap."""
+    """(1): per part its MeshParts and errors (LOD 0 alone without LODs), the reports, the cap,
+    and ``speculate``'s LOD 0 analysis started before the chains (or None)."""
+    first = speculate(scene, settings)
+    try:
+        return _lod_chains(scene, settings, timings, progress) + (first,)
+    except BaseException:
+        if first is not None:
+            first[1].cancel()
+        raise
+
+
+def _lod_chains(scene: Scene, settings: Settings, timings: dict, progress: Progress):
     t0 = time.perf_counter()
     cap = None
     if settings.viewing.nearest_m is not None:
@@ -283,7 +338,11 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
     once; the larger container's size comes from its manifest and section table."""
     kept_mask = [[r.kept for r in rs] for rs in rows]
     n, every = settings.emit.clusters, settings.emit.cluster_all
-    full_enc = [[encode_buffer(b, BITS, n, cluster_all=every) for b in bufs] for bufs in all_buffers]
+    flat = [b for bufs in all_buffers for b in bufs]  # encoded in two processes for parallel scenes
+    done = iter(isolate.fork_map(lambda b: encode_buffer(b, BITS, n, cluster_all=every), flat,
+                                 weights=[b.quantized.shape[0] for b in flat],
+                                 workers=2 if parallel(scene) else 1))
+    full_enc = [[next(done) for _ in bufs] for bufs in all_buffers]
     kept_enc = [[encode_buffer(b, max_level, n, cluster_all=every) if b.min_level.max() > max_level else e
                  for b, e, k in zip(bufs, encs, ks) if k]
                 for bufs, encs, ks in zip(all_buffers, full_enc, kept_mask)]
@@ -344,9 +403,10 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
         return _plain(scene, settings, options, keep_buffers, progress)
     timings: dict = {}
-    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings, progress)
+    parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
     t0 = time.perf_counter()
-    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress)
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
+                                                  first=first)
     release_free_memory()
     timings["analyse"] = time.perf_counter() - t0
     all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
@@ -419,9 +479,10 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
         raise LopcookError("usage", scene.source, "--instances does not combine with a byte budget (--target-bytes)",
                            hint="cook without --instances")
     timings: dict = {}
-    parts_chain, errors, reports, cap = _lod_stage(scene, settings, timings, progress)
+    parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
     t0 = time.perf_counter()
-    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress)
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
+                                                  first=first)
     timings["analyse"] = time.perf_counter() - t0
     all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
     t0 = time.perf_counter()
