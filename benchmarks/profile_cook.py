@@ -192,7 +192,7 @@ def main() -> int:
             res = child(args)
             prof.disable()
             buf = io.StringIO()
-            pstats.Stats(prof, stream=buf).sort_stats("cumulative").print_stats(args.child_cprofile)
+            pstats.Stats(prof, stream=buf).sort_stats(os.environ.get("PROFILE_SORT", "cumulative")).print_stats(args.child_cprofile)
             print(buf.getvalue(), file=sys.stderr)
         else:
             res = child(args)
