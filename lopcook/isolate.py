@@ -102,8 +102,8 @@ class Child:
     exception, or ``ChildFailed``); ``cancel()`` stops it. In-process (``start`` without a fork),
     the value is computed by the first ``result()``."""
 
-    def __init__(self, fn, args, kwargs, fork: bool):
-        self._fn, self._args, self._kwargs = fn, args, kwargs
+    def __init__(self, fn, args, kwargs, fork: bool, what: str = "worker"):
+        self._fn, self._args, self._kwargs, self._what = fn, args, kwargs, what
         self._pid = self._fd = None
         self._done, self._value = False, None
         if fork:
@@ -119,6 +119,12 @@ class Child:
                 _serve(fn, args, kwargs, fd)
             self._pid, self._fd = pid, fd
             self._fn = self._args = self._kwargs = None  # the child has them
+        self._forked = fork
+
+    @property
+    def forked(self) -> bool:
+        """Whether the computation runs (or ran) in a child process."""
+        return self._forked
 
     def result(self):
         if not self._done:
@@ -132,7 +138,7 @@ class Child:
                     data = _read_exact(fd, struct.unpack("<Q", head)[0]) if len(head) == 8 else b""
                 finally:
                     os.close(fd)
-                self._value = _unpack(head, data, status, "worker")
+                self._value = _unpack(head, data, status, self._what)
             else:
                 self._value = self._fn(*self._args, **self._kwargs)
                 self._fn = self._args = self._kwargs = None
@@ -161,6 +167,13 @@ def start(fn, *args, fork: bool = True, **kwargs) -> Child:
     the arguments must not change in the parent before ``result()`` matters (the child sees
     them as they were at the fork). Results and exceptions must pickle."""
     return Child(fn, args, kwargs, bool(fork) and _available())
+
+
+def begin(fn, *args, faces: int | None = None, **kwargs) -> Child:
+    """``call`` started: forked when ``call`` would fork (``faces`` at least ``MIN_FACES``), else
+    computed in-process at ``result()``; ``Child.forked`` says which. The caller may work while
+    the child runs; ``result()`` returns or raises as ``call`` does."""
+    return Child(fn, args, kwargs, faces is not None and faces >= MIN_FACES and _available(), "backend")
 
 
 def cpus() -> int:
@@ -269,4 +282,4 @@ def call_fresh(fn, *args, **kwargs):
     raise value
 
 
-__all__ = ["MIN_FACES", "ChildFailed", "Child", "call", "call_fresh", "start", "fork_map", "cpus"]
+__all__ = ["MIN_FACES", "ChildFailed", "Child", "begin", "call", "call_fresh", "start", "fork_map", "cpus"]

@@ -155,3 +155,16 @@ def test_analyse_lods_uses_a_speculative_analysis_only_on_its_own_grid(monkeypat
         for ga, wa in zip(got[1], want[1]):
             for x, y in zip(ga.parts, wa.parts):
                 assert np.array_equal(x.quantized, y.quantized) and np.array_equal(x.reason, y.reason)
+
+
+def _crash():
+    os.kill(os.getpid(), 11)
+
+
+def test_begin_forks_where_call_would():
+    job = isolate.begin(_square_and_pid, 3, faces=isolate.MIN_FACES)
+    assert job.forked and job.result()[0] == 9 and job.result()[1] != os.getpid()
+    job = isolate.begin(_square_and_pid, 3, faces=isolate.MIN_FACES - 1)
+    assert not job.forked and job.result() == (9, os.getpid())
+    with pytest.raises(isolate.ChildFailed, match=r"backend process ended without a result \(killed by signal 11\)"):
+        isolate.begin(_crash, faces=isolate.MIN_FACES).result()

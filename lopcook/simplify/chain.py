@@ -394,8 +394,15 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
                 raise BackendFailure(f"only {work.faces.shape[0]} non-degenerate triangles")
             tgt = min(target, work.faces.shape[0] - 1)
             # large inputs: in a child process (its memory is freed on return; a crash is a failure)
-            raw = isolate.call(run_backend, name, work, tgt, preserve_boundary, topology=not nonmanifold,
-                               faces=work.faces.shape[0])
+            job = isolate.begin(run_backend, name, work, tgt, preserve_boundary, topology=not nonmanifold,
+                                faces=work.faces.shape[0])
+            if job.forked:  # LOD 0's search structures, built while this process would only wait
+                try:
+                    ref.warm()
+                except BaseException:
+                    job.cancel()
+                    raise
+            raw = job.result()
             res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
             if dropped_out:
                 notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")

@@ -238,21 +238,11 @@ class Reference:
         is the exact closest one. Falls back to ``query_bounded`` when they are more than
         ``CHUNK_FACES`` faces."""
         import igl
-        from scipy.spatial import cKDTree
 
         pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
             return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
-        if self._near is None:
-            f, p = self.faces, self.positions
-            max_edge = 0.0
-            for a, b in ((0, 1), (1, 2), (2, 0)):  # (m, 3) temporaries only
-                e = p[f[:, b]] - p[f[:, a]]
-                max_edge = max(max_edge, float(np.einsum("ij,ij->i", e, e).max()))
-            del e
-            used = self.sample_vertices
-            self._near = (cKDTree(p[used]), used, float(np.sqrt(max_edge)))
-        kd, used, max_edge = self._near
+        kd, used, max_edge = self.near_index
         r = np.sqrt(np.asarray(bound2, dtype=np.float64)) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
         hits = kd.query_ball_point(pts, r)
         near = np.zeros(self.positions.shape[0], dtype=bool)
@@ -265,6 +255,31 @@ class Reference:
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
         d, i, c = igl.point_mesh_squared_distance(pts, pos, sub)
         return np.asarray(d), faces[np.asarray(i, dtype=np.int64)], np.asarray(c)
+
+    @property
+    def near_index(self):
+        """``(KD-tree over the referenced vertices, their ids, longest edge)`` for ``query_near``,
+        built once."""
+        if self._near is None:
+            from scipy.spatial import cKDTree
+
+            f, p = self.faces, self.positions
+            max_edge = 0.0
+            for a, b in ((0, 1), (1, 2), (2, 0)):  # (m, 3) temporaries only
+                e = p[f[:, b]] - p[f[:, a]]
+                max_edge = max(max_edge, float(np.einsum("ij,ij->i", e, e).max()))
+            del e
+            used = self.sample_vertices
+            self._near = (cKDTree(p[used]), used, float(np.sqrt(max_edge)))
+        return self._near
+
+    def warm(self) -> None:
+        """Build now the search structures a LOD's transfer and measurement will use (the chunks
+        and ``near_index`` above ``CHUNK_FACES`` faces, ``sample_order``): the chain calls this
+        while a backend runs in its child process, when this process would only wait."""
+        if self.faces.shape[0] > CHUNK_FACES:
+            _ = self.chunks, self.near_index
+        _ = self.sample_order
 
     @property
     def chunks(self) -> list:
