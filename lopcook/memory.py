@@ -25,3 +25,28 @@ def release_free_memory() -> None:
 
 
 __all__ = ["release_free_memory"]
+
+
+def available_bytes() -> int | None:
+    """The system's ``MemAvailable`` (Linux ``/proc/meminfo``; within a cgroup limit
+    ``memory.max`` minus ``memory.current`` when that is lower), bytes; None where unknown."""
+    avail = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        return None
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            limit = f.read().strip()
+        with open("/sys/fs/cgroup/memory.current") as f:
+            used = int(f.read().strip())
+        if limit != "max":
+            room = int(limit) - used
+            avail = room if avail is None else min(avail, room)
+    except (OSError, ValueError):
+        pass
+    return avail

@@ -54,6 +54,11 @@ from .viewing import Viewing, required_level
 #: LOD cooks of at least this many LOD 0 vertices analyse and encode in two processes (``parallel``)
 PARALLEL_VERTICES = 100_000
 
+#: ... and when the system has at least this much memory available per LOD 0 vertex: the children
+#: beside the LOD chains added about 760 B per vertex to the process tree at 1.1M triangles, so
+#: this leaves room for twice that
+PARALLEL_BYTES_PER_VERTEX = 1600
+
 
 def far_error_m(extent: float, viewing: Viewing) -> float:
     """The largest geometric error (metres) any useful view can show: at the distance where the
@@ -174,11 +179,17 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
 def parallel(scene: Scene) -> bool:
     """Whether a LOD cook of ``scene`` analyses and encodes in forked processes beside its own
     (``lopcook.isolate``): two or more LOD workers (``lopcook.simplify.parallel.workers``,
-    ``$LOPCOOK_LOD_WORKERS=1`` turns it off) and at least ``PARALLEL_VERTICES`` LOD 0 vertices.
-    The bytes are the same either way."""
+    ``$LOPCOOK_LOD_WORKERS=1`` turns it off), at least ``PARALLEL_VERTICES`` LOD 0 vertices, and
+    the system's available memory at least ``PARALLEL_BYTES_PER_VERTEX`` per vertex (the children
+    add their working memory to the cook's; docs/performance.md). The bytes are the same either way."""
+    from .memory import available_bytes
     from .simplify.parallel import workers
 
-    return workers() >= 2 and sum(p.n_vertices for p in scene.parts) >= PARALLEL_VERTICES
+    n = sum(p.n_vertices for p in scene.parts)
+    if workers() < 2 or n < PARALLEL_VERTICES:
+        return False
+    avail = available_bytes()
+    return avail is None or avail >= PARALLEL_BYTES_PER_VERTEX * n
 
 
 def speculate(scene: Scene, settings: Settings):

@@ -168,3 +168,23 @@ def test_begin_forks_where_call_would():
     assert not job.forked and job.result() == (9, os.getpid())
     with pytest.raises(isolate.ChildFailed, match=r"backend process ended without a result \(killed by signal 11\)"):
         isolate.begin(_crash, faces=isolate.MIN_FACES).result()
+
+
+def test_parallel_needs_two_workers_enough_vertices_and_memory(monkeypatch):
+    import lopcook.memory as M
+
+    scene = Scene(parts=(_bumpy_sphere(3, 0.01),), source="bumpy.obj", format="obj")
+    n = scene.parts[0].n_vertices
+    monkeypatch.setattr(pipeline, "PARALLEL_VERTICES", n)
+    monkeypatch.setenv("LOPCOOK_LOD_WORKERS", "2")
+    monkeypatch.setattr(M, "available_bytes", lambda: pipeline.PARALLEL_BYTES_PER_VERTEX * n)
+    assert pipeline.parallel(scene)
+    monkeypatch.setattr(M, "available_bytes", lambda: pipeline.PARALLEL_BYTES_PER_VERTEX * n - 1)
+    assert not pipeline.parallel(scene)
+    monkeypatch.setattr(M, "available_bytes", lambda: None)
+    assert pipeline.parallel(scene)
+    monkeypatch.setattr(pipeline, "PARALLEL_VERTICES", n + 1)
+    assert not pipeline.parallel(scene)
+    monkeypatch.setattr(pipeline, "PARALLEL_VERTICES", n)
+    monkeypatch.setenv("LOPCOOK_LOD_WORKERS", "1")
+    assert not pipeline.parallel(scene)

@@ -110,7 +110,8 @@ class Reference:
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
 
-    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, _sweep_only: bool = False):
+    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, _sweep_only: bool = False,
+                      closest: bool = True):
         """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
         to LOD 0 is known to be at most ``bound2`` (q,), without a tree over all of LOD 0.
 
@@ -122,7 +123,8 @@ class Reference:
         its best distance so far; the earlier chunks it could still reach are checked afterwards
         (``query_near``: the faces within reach), so every chunk that can hold its closest face is
         searched and the distance is the exact closest one, as ``query``'s (the face may differ
-        where several are equally close). Costs a tree build per call.
+        where several are equally close). Costs a tree build per call. ``closest=False``: the
+        third value is None (the closest points are neither kept nor returned).
 
         With two LOD workers (``lopcook.simplify.parallel.workers``) and at least
         ``PARALLEL_POINTS`` points, a forked child sweeps the first half of the chunks while this
@@ -136,7 +138,7 @@ class Reference:
         # slack for rounding: a bound equal to the distance must not lose the closest face
         best = np.asarray(bound2, dtype=np.float64) * (1.0 + 1e-9) + 1e-300
         face = np.full(pts.shape[0], -1, dtype=np.int64)
-        near = np.zeros_like(pts)
+        near = np.zeros_like(pts) if closest else None
         chunks = self.chunks
         home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
         n = len(chunks)
@@ -144,16 +146,18 @@ class Reference:
             from .. import isolate
 
             half = n // 2
-            front = isolate.start(self._sweep, pts, best.copy(), home, range(half))
+            front = isolate.start(self._sweep, pts, best.copy(), home, range(half), closest)
             try:
-                records = self._sweep(pts, best.copy(), home, range(half, n))
+                records = self._sweep(pts, best.copy(), home, range(half, n), closest)
             except BaseException:
                 front.cancel()
                 raise
             records = front.result() + records
         else:
-            records = self._sweep(pts, best.copy(), home, range(n))
-        for c, sel_q, d, f, cp in records:  # the serial sweep, replayed on the queried distances
+            records = self._sweep(pts, best.copy(), home, range(n), closest)
+        records.reverse()
+        while records:  # the serial sweep, replayed on the queried distances (each freed after use)
+            c, sel_q, d, f, cp = records.pop()
             sel = self._visits(c, pts, best, home)
             if sel.size == 0:
                 continue
@@ -163,8 +167,9 @@ class Reference:
             hit = sel[better]
             best[hit] = dd[better]
             face[hit] = f[at[better]]
-            near[hit] = cp[at[better]]
-        del records
+            if closest:
+                near[hit] = cp[at[better]]
+            del sel_q, d, f, cp
         if not _sweep_only:
             # chunks before a point's home were not searched for it: where it can reach one, search
             # the faces within its reach
@@ -176,7 +181,9 @@ class Reference:
                 d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
                 better = d <= best[left]
                 at = left[better]
-                best[at], face[at], near[at] = d[better], f2[better], cp[better]
+                best[at], face[at] = d[better], f2[better]
+                if closest:
+                    near[at] = cp[better]
         if (face < 0).any():  # a bound below the true distance: not a caller of this contract
             raise ValueError("query_bounded: a bound below the distance to LOD 0")
         return best, face, near
@@ -196,9 +203,10 @@ class Reference:
         pick[self._reach(c, pts, np.flatnonzero(home < c), best)] = True
         return np.flatnonzero(pick)  # sorted, distinct
 
-    def _sweep(self, pts: np.ndarray, best: np.ndarray, home: np.ndarray, cs) -> list:
-        """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point)`` of
-        the points ``_visits`` picks, ``best`` (this call's own copy) lowered as they are found."""
+    def _sweep(self, pts: np.ndarray, best: np.ndarray, home: np.ndarray, cs, closest: bool = True) -> list:
+        """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point or
+        None)`` of the points ``_visits`` picks, ``best`` (this call's own copy) lowered as they are
+        found."""
         import igl
 
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
@@ -215,7 +223,8 @@ class Reference:
             del tree, fc
             d = np.asarray(d)
             np.minimum.at(best, sel, d)
-            out.append((c, sel, d, ch[np.asarray(i, dtype=np.int64)], np.asarray(cp)))
+            out.append((c, sel, d, ch[np.asarray(i, dtype=np.int64)], np.asarray(cp) if closest else None))
+            del cp
         return out
 
     def _home(self, pts: np.ndarray) -> np.ndarray:
@@ -274,12 +283,12 @@ class Reference:
         return self._near
 
     def warm(self) -> None:
-        """Build now the search structures a LOD's transfer and measurement will use (the chunks
-        and ``near_index`` above ``CHUNK_FACES`` faces, ``sample_order``): the chain calls this
-        while a backend runs in its child process, when this process would only wait."""
+        """Build now the search structures a LOD's transfer will use (the chunks and
+        ``near_index``, above ``CHUNK_FACES`` faces): the chain calls this while a backend runs in
+        its child process, when this process would only wait. (``sample_order`` is left to the
+        measurement after the transfer: built here it would add its arrays to the transfer's peak.)"""
         if self.faces.shape[0] > CHUNK_FACES:
             _ = self.chunks, self.near_index
-        _ = self.sample_order
 
     @property
     def chunks(self) -> list:
@@ -562,7 +571,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             gap = centroid - P[F[:, j]]
             np.minimum(bound, np.einsum("ij,ij->i", gap, gap), out=bound)
         del gap
-        d2, fc, _ = ref.query_bounded(centroid, bound)
+        d2, fc, _ = ref.query_bounded(centroid, bound, closest=False)
         del bound, _
     else:
         tri = P[F]
