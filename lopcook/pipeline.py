@@ -22,6 +22,10 @@
 With ``simplify.hierarchy`` every part's LOD 0 buffer also gets its vertex hierarchy section
 (``lopcook.hierarchy.container.add_hierarchy``), before the position sections.
 
+LOD cooks of large scenes (``parallel``) use a second process: LOD 0 is analysed in a child while
+the chains run (``speculate``), and the other analyses and the encodes are split by
+``lopcook.isolate.fork_map``; the bytes are the one-process ones.
+
 Without LODs and ``nearest_m`` (and ``max_level``) the bytes are exactly those of
 ``lopcook.emit.build(scene, analyse(scene, settings.analyse), viewing=settings.viewing)``.
 Stages never change their inputs: the co-located sharing returns new level arrays.
