@@ -82,6 +82,7 @@ def result_row(**kw) -> dict:
 
 
 def _mb(nbytes) -> float:
+    """Bytes in MiB (2^20 bytes), one decimal: the unit of every ``peak_rss_mb`` column."""
     return round(float(nbytes) / 2**20, 1)
 
 
@@ -624,7 +625,7 @@ def results_table(rows: list[dict], levels) -> list[str]:
     the file without ``-cc``)."""
     lo, hi = min(levels), max(levels)
     out = ["| asset | tool | config | GPU B/vertex | PSNR dB at level "
-           f"{lo} / {hi} | file KB | wall s | peak RSS MB | cracks between parts |",
+           f"{lo} / {hi} | file KB | wall s | peak RSS MiB | cracks between parts |",
            "|---|---|---|---|---|---|---|---|---|"]
     groups: dict = {}
     for r in rows:
@@ -702,7 +703,7 @@ def write_outputs(out_dir: Path, rows, scaling, stage_rows, assets, opts, meta: 
     if rows:
         lines += ["", "## Results", "", *results_table(rows, list(opts.levels))]
     if scaling:
-        lines += ["", "## Scaling", "", "| input | triangles | tool | config | wall s | peak RSS MB |",
+        lines += ["", "## Scaling", "", "| input | triangles | tool | config | wall s | peak RSS MiB |",
                   "|---|---|---|---|---|---|"]
         lines += [f"| {r['input']} | {int(_f(r['triangles'])):,} | {r['tool']} | {r['config']} | {_f(r['wall_s']):.2f} | "
                   f"{_f(r['peak_rss_mb']):.0f} |" for r in scaling if not r.get("error")]
