@@ -155,12 +155,14 @@ class CookResult:
         return int(self.container.manifest["stats"]["vertices_clamped_to_max_level"])
 
 
-def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress: Progress = NONE):
+def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress: Progress = NONE,
+           on_lod=None):
     """LOD chain and report of every part, in part order. Copies of one mesh
     (``lopcook.simplify.instances.copies``: same triangles and attributes, positions related by one
     affine map) are simplified once and the chain placed on every copy. Distinct meshes run in
     worker processes (``lopcook.simplify.parallel``; threads would not help: pymeshlab is not
-    thread-safe, and fast-simplification and libigl hold the GIL); the result is the serial one."""
+    thread-safe, and fast-simplification and libigl hold the GIL); the result is the serial one.
+    ``on_lod(k, part)``: called as a one-part scene's chain accepts its LOD k (``lod_chain``)."""
     from .simplify.instances import copies, placed_chain
     from .simplify.parallel import run_chains
 
@@ -172,7 +174,8 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
         # distinct meshes in parallel worker processes (lopcook.simplify.parallel: the serial result)
         done = run_chains([scene.parts[lead] for lead, _ in groups], progress=st.advance, chain=lod_chain,
                           ratios=list(ratios),
-                          backend=backend, seams=seams, max_error_m=max_error_m)
+                          backend=backend, seams=seams, max_error_m=max_error_m,
+                          **({"on_lod": on_lod} if on_lod is not None and len(scene.parts) == 1 else {}))
         for (lead, members), (lods, report) in zip(groups, done):
             out[lead], reports[lead] = lods, report
             for i, a, t in members:
@@ -196,24 +199,61 @@ def parallel(scene: Scene) -> bool:
     return avail is None or avail >= PARALLEL_BYTES_PER_VERTEX * n
 
 
-def speculate(scene: Scene, settings: Settings):
-    """LOD 0's analysis started in a forked child before the LOD chains run (``parallel`` scenes
-    with LODs; else None): ``(grid, child)``, the grid fitted over LOD 0 alone. ``analyse_lods``
-    uses it only where its own grid is that grid and every chain starts with the scene's own part
-    (meshoptimizer's LODs reuse LOD 0's vertices, so the grid is the same); otherwise it stops the
-    child and analyses LOD 0 itself."""
+class Speculation:
+    """Analyses started in forked children before their levels are final (``speculate``), each on
+    ``grid``, the grid of LOD 0 alone: LOD 0's (every part) before the chains run, and, for a
+    one-part scene, each further LOD's as its chain accepts it (``started``). ``take`` returns one
+    only for exactly the parts it was started on and only when the cook's grid is ``grid``
+    (meshoptimizer's LODs reuse LOD 0's vertices, so it is); otherwise the level is analysed as
+    without it. The results are the ones analysing in place would give."""
+
+    def __init__(self, scene: Scene, settings: Settings, grid: Grid):
+        self.scene, self.settings, self.grid = scene, settings, grid
+        self._children: dict = {0: (tuple(scene.parts), isolate.start(analyse, scene, settings.analyse, grid))}
+
+    def started(self, k: int, part) -> None:
+        """The one-part chain accepted ``part`` as its LOD ``k``: start its analysis."""
+        old = self._children.pop(k, None)
+        if old is not None:
+            old[1].cancel()
+        sub = replace(self.scene, parts=(part,))
+        self._children[k] = ((part,), isolate.start(analyse, sub, self.settings.analyse, self.grid))
+
+    def take(self, k: int, parts, grid: Grid):
+        """LOD ``k``'s Analysis if it was started on exactly ``parts`` (the same objects) on
+        ``grid``; else None. Its child is gone either way."""
+        got = self._children.pop(k, None)
+        if got is None:
+            return None
+        own, child = got
+        try:
+            if grid == self.grid and len(own) == len(parts) and all(a is b for a, b in zip(own, parts)):
+                return child.result()
+        except isolate.ChildFailed:  # killed (memory): analysed in place instead
+            return None
+        finally:
+            child.cancel()  # nothing once the result is in
+        return None
+
+    def cancel(self) -> None:
+        for _, child in self._children.values():
+            child.cancel()
+        self._children = {}
+
+
+def speculate(scene: Scene, settings: Settings) -> Speculation | None:
+    """A ``Speculation`` for a ``parallel`` scene with LODs (LOD 0's analysis started), else None."""
     if settings.simplify.lods is None or not parallel(scene):
         return None
-    grid = Grid.fit([p.positions for p in scene.parts])
-    return grid, isolate.start(analyse, scene, settings.analyse, grid)
+    return Speculation(scene, settings, Grid.fit([p.positions for p in scene.parts]))
 
 
 def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Grid | None = None,
-                 progress: Progress = NONE, first=None):
+                 progress: Progress = NONE, first: Speculation | None = None):
     """Analyse every LOD level on one grid, then share levels between co-located vertices.
 
-    parts_chain: per part, its list of MeshParts (LOD 0 first). ``first``: ``speculate``'s
-    ``(grid, child)`` or None. Returns ``(grid, analyses, levels, raised)``: ``analyses[k]`` the
+    parts_chain: per part, its list of MeshParts (LOD 0 first). ``first``: the analyses
+    ``speculate`` started, or None. Returns ``(grid, analyses, levels, raised)``: ``analyses[k]`` the
     Analysis of LOD index k (parts that have one, in part order; its ``min_level`` and ``reason``
     include the sharing), ``levels[i][k]`` the final (n,) uint8 minimum levels of part i's LOD k,
     ``raised`` how many vertices the sharing raised. Levels are analysed in forked processes for
@@ -225,16 +265,13 @@ def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Gri
     analyses: list = [None] * depth
     with progress.stage("analyse", total=depth) as st:
         if first is not None:
-            fgrid, child = first
             try:
-                if fgrid == grid and len(parts_chain) == len(scene.parts) and all(
-                        c[0] is p for c, p in zip(parts_chain, scene.parts)):
-                    analyses[0] = child.result()
-                    st.advance()
-            except isolate.ChildFailed:  # killed (memory): analysed here instead
-                analyses[0] = None
+                for k in range(depth):
+                    analyses[k] = first.take(k, scenes[k].parts, grid)
+                    if analyses[k] is not None:
+                        st.advance()
             finally:
-                child.cancel()  # nothing once the result is in
+                first.cancel()
         todo = [k for k in range(depth) if analyses[k] is None]
         workers = 2 if parallel(scene) else 1
         done = isolate.fork_map(lambda k: analyse(scenes[k], settings, grid=grid), todo,
@@ -295,23 +332,25 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
 
 def _lod_stage(scene: Scene, settings: Settings, timings: dict, progress: Progress):
     """(1): per part its MeshParts and errors (LOD 0 alone without LODs), the reports, the cap,
-    and ``speculate``'s LOD 0 analysis started before the chains (or None)."""
+    and the analyses ``speculate`` started (or None)."""
     first = speculate(scene, settings)
     try:
-        return _lod_chains(scene, settings, timings, progress) + (first,)
+        return _lod_chains(scene, settings, timings, progress, first) + (first,)
     except BaseException:
         if first is not None:
-            first[1].cancel()
+            first.cancel()
         raise
 
 
-def _lod_chains(scene: Scene, settings: Settings, timings: dict, progress: Progress):
+def _lod_chains(scene: Scene, settings: Settings, timings: dict, progress: Progress,
+                first: Speculation | None = None):
     t0 = time.perf_counter()
     cap = None
     if settings.viewing.nearest_m is not None:
         cap = far_error_m(Grid.fit([p.positions for p in scene.parts]).extent, settings.viewing)
     if settings.simplify.lods is not None:
-        lods, reports = chains(scene, settings, cap, progress)
+        lods, reports = chains(scene, settings, cap, progress,
+                               on_lod=first.started if first is not None and len(scene.parts) == 1 else None)
         parts_chain = [[lod.part for lod in c] for c in lods]
         errors = [[float(lod.error_m) for lod in c] for c in lods]
     else:

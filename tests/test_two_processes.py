@@ -134,40 +134,51 @@ def test_a_lod_cook_in_two_processes_writes_the_one_process_bytes(monkeypatch):
     assert out["1"] == out["2"]
 
 
-def test_analyse_lods_uses_a_speculative_analysis_only_on_its_own_grid(monkeypatch):
-    from lopcook.analyse import analyse
+def test_analyse_lods_uses_a_speculative_analysis_only_on_its_own_grid_and_parts(monkeypatch):
     from lopcook.grid import Grid
 
     part = _bumpy_sphere(3, 0.01)
     scene = Scene(parts=(part,), source="bumpy.obj", format="obj")
-    lod = MeshPart(name="bumpy", positions=part.positions * np.float32(1.5), indices=part.indices)
-    chain = [[part, lod]]  # LOD 1 outside LOD 0's box: the grid over both is another one
+    half = MeshPart(name="bumpy", positions=part.positions, indices=part.indices[::2].copy())
+    big = MeshPart(name="bumpy", positions=part.positions * np.float32(1.5), indices=part.indices)
     monkeypatch.setenv("LOPCOOK_LOD_WORKERS", "1")
-    want = pipeline.analyse_lods(scene, chain)
-    own = Grid.fit([part.positions])
-    assert own != want[0]
-    for first in ((own, isolate.start(analyse, scene, pipeline.DEFAULTS.analyse, own)),  # stopped
-                  (want[0], isolate.start(analyse, scene, pipeline.DEFAULTS.analyse, want[0]))):  # used
-        got = pipeline.analyse_lods(scene, chain, first=first)
+    settings = pipeline.DEFAULTS
+
+    def check(chain, spec):
+        want = pipeline.analyse_lods(scene, chain)
+        got = pipeline.analyse_lods(scene, chain, first=spec)
         assert got[0] == want[0] and got[3] == want[3]
         for a, b in zip(got[2][0], want[2][0]):
             assert np.array_equal(a, b)
         for ga, wa in zip(got[1], want[1]):
             for x, y in zip(ga.parts, wa.parts):
-                assert np.array_equal(x.quantized, y.quantized) and np.array_equal(x.reason, y.reason)
+                assert np.array_equal(x.quantized, y.quantized) and np.array_equal(x.min_level, y.min_level)
+                assert np.array_equal(x.reason, y.reason)
+        return want
 
+    own = Grid.fit([part.positions])
+    # LOD 1 inside LOD 0's box: both levels taken from the children
+    spec = pipeline.Speculation(scene, settings, own)
+    spec.started(1, half)
+    took = []
+    real_take = pipeline.Speculation.take
 
-def _crash():
-    os.kill(os.getpid(), 11)
+    def spy(self, k, parts, grid):
+        got = real_take(self, k, parts, grid)
+        took.append(got is not None)
+        return got
 
-
-def test_begin_forks_where_call_would():
-    job = isolate.begin(_square_and_pid, 3, faces=isolate.MIN_FACES)
-    assert job.forked and job.result()[0] == 9 and job.result()[1] != os.getpid()
-    job = isolate.begin(_square_and_pid, 3, faces=isolate.MIN_FACES - 1)
-    assert not job.forked and job.result() == (9, os.getpid())
-    with pytest.raises(isolate.ChildFailed, match=r"backend process ended without a result \(killed by signal 11\)"):
-        isolate.begin(_crash, faces=isolate.MIN_FACES).result()
+    monkeypatch.setattr(pipeline.Speculation, "take", spy)
+    assert check([[part, half]], spec)[0] == own and took == [True, True]
+    # another LOD 1 object than the one started on: LOD 1 analysed in place
+    spec, took[:] = pipeline.Speculation(scene, settings, own), []
+    spec.started(1, MeshPart(name="bumpy", positions=part.positions, indices=half.indices))
+    check([[part, half]], spec)
+    assert took == [True, False]
+    # LOD 1 outside LOD 0's box: another grid, nothing taken
+    spec, took[:] = pipeline.Speculation(scene, settings, own), []
+    spec.started(1, big)
+    assert check([[part, big]], spec)[0] != own and took == [False, False]
 
 
 def test_parallel_needs_two_workers_enough_vertices_and_memory(monkeypatch):

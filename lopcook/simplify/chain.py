@@ -486,7 +486,8 @@ def simplify(part: MeshPart, ratio: float, backend: str = "pymeshlab", *, seams:
 def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_error_m: float | None = None,
               min_triangles: int = MIN_SIMPLIFY_TRIANGLES, seams: str = "lock", chain: str = "previous",
               parametrise: bool = False, preserve_boundary: bool = True, fallback: bool = True,
-              max_flipped_fraction: float = MAX_FLIPPED_FRACTION, max_levels: int = DEFAULT_LOD_LEVELS):
+              max_flipped_fraction: float = MAX_FLIPPED_FRACTION, max_levels: int = DEFAULT_LOD_LEVELS,
+              on_lod=None):
     """A LOD chain for one part: ``(lods, report)`` with ``lods[0]`` = LOD 0 (the part, error 0).
 
     ratios : fractions of LOD 0's triangles in decreasing order (default 1/2, 1/4, 1/8, ... while
@@ -495,6 +496,8 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
         can still show. The first LOD above it is dropped and ends the chain. None: no limit.
     chain : ``"previous"`` simplifies each LOD from the one before, ``"source"`` from LOD 0
     parametrise : give a part without UVs an xatlas atlas first (LOD 0 then has UVs)
+    on_lod : ``on_lod(k, part)`` is called as LOD k (k >= 1) joins the chain, before the next is
+        made (the cook starts its analysis then)
     Other arguments as for ``simplify``. ``error_m`` is non-decreasing along the returned chain.
     """
     if chain not in ("previous", "source"):
@@ -564,6 +567,8 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
                 report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
                 break
             lods.append(lod)
+            if on_lod is not None:
+                on_lod(len(lods) - 1, lod.part)
             report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
         else:
             if not report.stop_reason:
