@@ -109,3 +109,29 @@ def test_inside_out_result_is_a_backend_failure():
     # allowed to flip every face, the closed mesh's volume sign still rejects it
     with pytest.raises(B.BackendFailure, match="inside out"):
         X.transfer_attributes(res, ref, cube, work, "ignore", 1.0)
+
+
+def test_chunks_partition_the_faces_box_them_and_home_their_centroids(monkeypatch):
+    """``Reference.chunks``: every face in exactly one chunk, each chunk's box holding its faces'
+    corners exactly (min and max attained), and ``_home`` of a face's centroid is that face's chunk
+    (the median splits send ties left, as ``_home`` does)."""
+    s = F.unit_sphere(5)[0]
+    rng = np.random.default_rng(11)
+    pos = s.positions * (1.0 + 0.03 * rng.standard_normal(s.positions.shape[0]))[:, None]
+    part = MeshPart("bumpy", pos.astype(np.float32), s.indices.astype(np.uint32))
+    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
+    ref = X.Reference(part)
+    chunks = ref.chunks
+    assert len(chunks) == 8
+    owner = np.full(ref.faces.shape[0], -1)
+    for c, (ids, lo, hi) in enumerate(chunks):
+        assert (owner[ids] == -1).all()
+        owner[ids] = c
+        corners = ref.positions[ref.faces[ids].ravel()]
+        assert np.array_equal(lo, corners.min(axis=0)) and np.array_equal(hi, corners.max(axis=0))
+    assert (owner >= 0).all()
+    p, f = ref.positions, ref.faces
+    cen = p[f[:, 0]] + p[f[:, 1]]
+    cen += p[f[:, 2]]
+    cen /= 3.0
+    assert np.array_equal(ref._home(cen), owner)
