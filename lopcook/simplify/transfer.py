@@ -222,7 +222,7 @@ class Reference:
             d, i, cp = tree.squared_distance(pos, fc, np.ascontiguousarray(pts[sel]))
             del tree, fc
             d = np.asarray(d)
-            np.minimum.at(best, sel, d)
+            best[sel] = np.minimum(best[sel], d)  # sel is distinct
             out.append((c, sel, d, ch[np.asarray(i, dtype=np.int64)], np.asarray(cp) if closest else None))
             del cp
         return out
