@@ -66,9 +66,10 @@ def _serve(fn, args, kwargs, w: int) -> None:
                 payload = pickle.dumps((False, exc), protocol=pickle.HIGHEST_PROTOCOL)
             except Exception:  # noqa: BLE001 - an exception that does not pickle
                 payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
-        view = memoryview(struct.pack("<Q", len(payload)) + payload)
-        while view:
-            view = view[os.write(w, view):]
+        for part in (struct.pack("<Q", len(payload)), payload):  # no copy of the payload
+            view = memoryview(part)
+            while view:
+                view = view[os.write(w, view):]
     except BaseException:  # noqa: BLE001
         code = 1
     finally:
