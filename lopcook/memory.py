@@ -24,7 +24,6 @@ def release_free_memory() -> None:
         _LIBC.malloc_trim(0)
 
 
-__all__ = ["release_free_memory"]
 
 
 def available_bytes() -> int | None:
@@ -50,3 +49,6 @@ def available_bytes() -> int | None:
     except (OSError, ValueError):
         pass
     return avail
+
+
+__all__ = ["available_bytes", "release_free_memory"]
