@@ -13,7 +13,8 @@ independent pieces of work over two cores. Both give exactly the in-process resu
 
 ``call(fn, *args)`` forks (Linux only; elsewhere, and for small inputs where the ~10 ms of a fork
 and the pickling are not worth it, the call runs in-process), runs ``fn(*args)`` in the child,
-sends the result (or the exception) back through a pipe with pickle, and returns it (or raises it).
+sends the result (or the exception) back with pickle, and returns it (or raises it): it is
+``begin(...).result()``.
 A child that dies without answering (a segmentation fault in a backend) raises ``ChildFailed``.
 """
 
@@ -74,17 +75,6 @@ def _serve(fn, args, kwargs, w: int) -> None:
         code = 1
     finally:
         os._exit(code)
-
-
-def _collect(r: int, pid: int, what: str):
-    """In the parent: the value ``_serve`` sent through the pipe ``r`` (or its exception raised)."""
-    try:
-        head = _read_exact(r, 8)
-        data = _read_exact(r, struct.unpack("<Q", head)[0]) if len(head) == 8 else b""
-    finally:
-        os.close(r)
-        _, status = os.waitpid(pid, 0)
-    return _unpack(head, data, status, what)
 
 
 def _unpack(head: bytes, data: bytes, status: int, what: str):
@@ -228,16 +218,7 @@ def _read_exact(fd: int, n: int) -> bytes:
 def call(fn, *args, faces: int | None = None, **kwargs):
     """``fn(*args, **kwargs)`` in a forked child when ``faces`` is at least ``MIN_FACES`` (else, or
     without ``fork``, in this process). Results and exceptions must pickle."""
-    if faces is None or faces < MIN_FACES or not _available():
-        return fn(*args, **kwargs)
-    release_free_memory()
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # child: never returns
-        os.close(r)
-        _serve(fn, args, kwargs, w)
-    os.close(w)
-    return _collect(r, pid, "backend")
+    return begin(fn, *args, faces=faces, **kwargs).result()
 
 
 def _fresh_child(conn, fn, args, kwargs) -> None:

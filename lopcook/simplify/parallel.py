@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ..isolate import cpus
 from .chain import lod_chain
 
 #: below this many triangles in all, the fork and pickling cost more than they save
@@ -43,11 +44,7 @@ def workers() -> int:
             return max(1, int(env))
         except ValueError:
             return 1
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cpus = os.cpu_count() or 1
-    return max(1, min(MAX_WORKERS, cpus))
+    return max(1, min(MAX_WORKERS, cpus()))
 
 
 def _one(i: int):
