@@ -349,8 +349,7 @@ def _lod_chains(scene: Scene, settings: Settings, timings: dict, progress: Progr
     if settings.viewing.nearest_m is not None:
         cap = far_error_m(Grid.fit([p.positions for p in scene.parts]).extent, settings.viewing)
     if settings.simplify.lods is not None:
-        lods, reports = chains(scene, settings, cap, progress,
-                               on_lod=first.started if first is not None and len(scene.parts) == 1 else None)
+        lods, reports = chains(scene, settings, cap, progress, on_lod=first.started if first is not None else None)
         parts_chain = [[lod.part for lod in c] for c in lods]
         errors = [[float(lod.error_m) for lod in c] for c in lods]
     else:
