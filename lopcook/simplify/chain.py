@@ -404,9 +404,11 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
                     raise
             raw = job.result()
             res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
+            del raw  # check_result copied what it keeps (the result's arrays are freed at the peak below)
             if dropped_out:
                 notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
             lod_part, info = transfer_attributes(res, ref, part, work, mode, max_flipped_fraction)
+            del res, work  # not needed past the transfer; freed before the LOD's error tree is built
             if mode == "xatlas":
                 try:
                     lod_part = _xatlas_part(lod_part)
