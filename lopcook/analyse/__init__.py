@@ -60,19 +60,28 @@ def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
         group_max = np.zeros(inverse.max() + 1, dtype=np.int64)
         np.maximum.at(group_max, inverse, values)
         return group_max[inverse]
-    q = q.astype(np.int64)
-    key = (q[:, 0] << 40) | (q[:, 1] << 16) | (q[:, 2] >> 8)
+    # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
+    # peak (docs/performance.md, "Memory at 4.4M")
+    key = q[:, 0].astype(np.int64) << 40
+    key |= q[:, 1].astype(np.int64) << 16
+    key |= q[:, 2].astype(np.int64) >> 8
     order = np.argsort(key)
-    sorted_key = key[order]
+    key = key[order]
     run = np.zeros(n, dtype=np.int64)
-    np.cumsum(sorted_key[1:] != sorted_key[:-1], out=run[1:])
-    low = (q[:, 2] & 0xFF)[order]
-    within = np.argsort((run << 8) | low, kind="stable")  # nearly sorted already
-    order, run, low = order[within], run[within], low[within]
+    np.cumsum(key[1:] != key[:-1], out=run[1:])
+    del key
+    run <<= 8
+    run |= (q[:, 2] & 0xFF)[order]  # (run, low 8 bits of z): equal exactly for co-located rows
+    within = np.argsort(run, kind="stable")  # nearly sorted already
+    order = order[within]
+    run = run[within]
+    del within
     start = np.ones(n, dtype=bool)
-    start[1:] = (run[1:] != run[:-1]) | (low[1:] != low[:-1])
-    group = np.cumsum(start) - 1
+    start[1:] = run[1:] != run[:-1]
+    del run
     group_max = np.maximum.reduceat(values[order], np.flatnonzero(start))
+    group = np.cumsum(start) - 1
+    del start
     out = np.empty(n, dtype=np.int64)
     out[order] = group_max[group]
     return out
