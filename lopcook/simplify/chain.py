@@ -403,8 +403,9 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
                     job.cancel()
                     raise
             raw = job.result()
+            del job  # it holds the result too
             res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
-            del raw  # check_result copied what it keeps (the result's arrays are freed at the peak below)
+            del raw  # check_result copied what it keeps: the result's arrays are freed here
             if dropped_out:
                 notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
             lod_part, info = transfer_attributes(res, ref, part, work, mode, max_flipped_fraction)
