@@ -149,12 +149,13 @@ def unique_first_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ``stable_argsort``)."""
     order, s = stable_argsort(values)
     n = s.size
-    inverse = np.empty(n, dtype=np.int64)
     if n == 0:
-        return np.zeros(0, dtype=np.int64), inverse
+        return np.zeros(0, dtype=np.int64), np.empty(0, dtype=np.int64)
     new = np.empty(n, dtype=bool)
     new[0] = True
     np.not_equal(s[1:], s[:-1], out=new[1:])
+    del s  # (n,) freed before the (n,) rank and inverse
+    inverse = np.empty(n, dtype=np.int64)
     first = order[new]
     rank = np.cumsum(new, dtype=np.int64)
     rank -= 1
@@ -211,17 +212,18 @@ def unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         order = stable_argsort(first)[0]
         rank = np.empty_like(order)
         rank[order] = np.arange(order.size)
-        return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
+        return first[order].astype(np.int64, copy=False), rank[inverse.ravel()].astype(np.int64, copy=False)
     rows = _pack_int_columns(k)  # one int64 per row where the column ranges allow: a faster sort
     if rows is None:
         rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
         _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
     else:
         first, inverse = unique_first_inverse(rows)
+    del rows
     order = stable_argsort(first)[0]
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
-    return first[order].astype(np.int64), rank[inverse.ravel()].astype(np.int64)
+    return first[order].astype(np.int64, copy=False), rank[inverse.ravel()].astype(np.int64, copy=False)
 
 
 def duplicated_positions(positions: np.ndarray) -> int:

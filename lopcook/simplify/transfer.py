@@ -549,6 +549,7 @@ def _exact_vertex_key(vid: np.ndarray, srcv, found, corner_attr: dict, names: li
     key = vid.astype(np.int64)
     key *= int(canon.max()) + 1
     key += canon
+    del canon
     return unique_rows(key.reshape(-1, 1))
 
 
