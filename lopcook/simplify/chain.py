@@ -27,7 +27,11 @@ Backends
     meshoptimizer; for a LOD whose input has at most ``AUTO_BOTH_TRIANGLES`` triangles pymeshlab
     as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
     lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
-    sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md).
+    sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md). There, with
+    ``seams="auto"`` and UVs, pymeshlab also runs with the seams locked, which is kept where it
+    reaches the target with a lower error (until it first misses one along the chain); and a LOD
+    of at most ``AUTO_TINY_TARGET`` triangles is also made from LOD 0 (when LOD 0 has at most
+    ``AUTO_TINY_LOD0``), the lower error kept.
 
 All run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
 never tear the surface. Normals, colours (and UVs where the backend does not supply them) are
@@ -179,6 +183,10 @@ MAX_FLIPPED_FRACTION = 0.02
 #: ``backend="auto"`` runs pymeshlab as well as meshoptimizer on inputs of at most this many
 #: triangles (where pymeshlab costs well under a second and can measure lower: docs/lod.md)
 AUTO_BOTH_TRIANGLES = 100_000
+#: ``backend="auto"``: LODs of at most ``AUTO_TINY_TARGET`` triangles are also made from LOD 0
+#: when it has at most ``AUTO_TINY_LOD0`` (one simplification of LOD 0 per such LOD: docs/lod.md)
+AUTO_TINY_TARGET = 64
+AUTO_TINY_LOD0 = 20_000
 
 
 
@@ -316,6 +324,15 @@ def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: R
     # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
     other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
                              max_flipped_fraction)
+    if seams == "auto" and part.uvs is not None and ref.lock_reaches:
+        # and with the seams locked, which keeps every seam exactly: kept where it reaches the
+        # target with a lower error (the Chessboard at 1/2: docs/lod.md). Once it misses a target
+        # the coarser LODs of the chain do not try it again (locked seams only stop it sooner).
+        locked, used3 = _simplify(part, ratio, target, "pymeshlab", "lock", ref, preserve_boundary, fallback,
+                                  max_flipped_fraction, _retry=True)
+        ref.lock_reaches = not locked.failed and abs(locked.triangles - target) <= TARGET_TOLERANCE * target
+        if _better(locked, other):
+            other, used2 = locked, used3
     keep, drop = (other, lod) if _better(other, lod) else (lod, other)
     what = "failed" if drop.failed else f"{drop.triangles} triangles, {drop.hausdorff_m:.3g} m"
     keep.notes.append(f"auto: {keep.backend} kept ({keep.triangles} triangles, {keep.hausdorff_m:.3g} m); "
@@ -539,15 +556,30 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             lod, used = _simplify(start, ratio, target, backend, seams, ref, preserve_boundary, fallback,
                                   max_flipped_fraction)
             report.fallbacks += used
-            if start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target):
+            missed = start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target)
+            # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
+            # LOD 0's own collapse order can do much better (fandisk at 6 triangles: docs/lod.md)
+            tiny = start is not part and backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
+            if missed or tiny:
                 # the previous LOD's collapses may block this target: try again from LOD 0
                 again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
                                          max_flipped_fraction)
-                report.fallbacks += used2
-                if not again.failed and (lod.failed or abs(again.triangles - target) < abs(lod.triangles - target)):
+                if missed and not again.failed and (
+                        lod.failed or abs(again.triangles - target) < abs(lod.triangles - target)):
+                    report.fallbacks += used2
                     again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
                                           f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
                     lod = again
+                elif tiny and (_better(again, lod) or (not again.failed and again.triangles <= lod.triangles
+                                                       and again.hausdorff_m < lod.hausdorff_m)):
+                    # kept when better, or no larger and lower in error (a triangle short of a tiny
+                    # target is not "near" it, yet no worse a LOD)
+                    report.fallbacks += used2
+                    again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
+                                          f"{lod.hausdorff_m:.3g} m from the previous LOD")
+                    lod = again
+                elif missed:
+                    report.fallbacks += used2
             if lod.failed:
                 report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
                 report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
