@@ -28,9 +28,9 @@ Backends
     as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
     lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
     sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md). There, with
-    ``seams="auto"`` and UVs, pymeshlab also runs with the seams locked, which is kept where it
-    reaches the target with a lower error (until it first misses one along the chain); and a LOD
-    of at most ``AUTO_TINY_TARGET`` triangles is also made from LOD 0 (when LOD 0 has at most
+    ``seams="auto"`` and UVs, the first LOD of a chain is also made by fast-simplification with
+    the seams locked, kept where it reaches the target with a lower error; and a LOD of at most
+    ``AUTO_TINY_TARGET`` triangles is also made from LOD 0 (when LOD 0 has at most
     ``AUTO_TINY_LOD0``), the lower error kept.
 
 All run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
@@ -324,13 +324,12 @@ def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: R
     # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
     other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
                              max_flipped_fraction)
-    if seams == "auto" and part.uvs is not None and ref.lock_reaches:
-        # and with the seams locked, which keeps every seam exactly: kept where it reaches the
-        # target with a lower error (the Chessboard at 1/2: docs/lod.md). Once it misses a target
-        # the coarser LODs of the chain do not try it again (locked seams only stop it sooner).
-        locked, used3 = _simplify(part, ratio, target, "pymeshlab", "lock", ref, preserve_boundary, fallback,
+    if seams == "auto" and part.uvs is not None and part is ref.part:
+        # and, for the first LOD of a chain, fast-simplification with the seams locked, which keeps
+        # every seam exactly: kept where it reaches the target with a lower error (the Chessboard at
+        # 1/2: docs/lod.md). Locked seams reach a target most easily at the first halving.
+        locked, used3 = _simplify(part, ratio, target, "fast", "lock", ref, preserve_boundary, False,
                                   max_flipped_fraction, _retry=True)
-        ref.lock_reaches = not locked.failed and abs(locked.triangles - target) <= TARGET_TOLERANCE * target
         if _better(locked, other):
             other, used2 = locked, used3
     keep, drop = (other, lod) if _better(other, lod) else (lod, other)

@@ -83,9 +83,6 @@ class Reference:
         self._samples = None
         self._sample_vertices = None
         self._sample_order = None
-        #: backend "auto" with seams "auto": whether the chain still tries a LOD with the seams
-        #: locked (``chain._simplify_auto``); cleared when such a LOD first misses its target
-        self.lock_reaches = True
         self._tree = None
         self._chunks = None
         self._near = None
