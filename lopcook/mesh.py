@@ -97,6 +97,9 @@ def sorted_unique(values: np.ndarray) -> np.ndarray:
     return s[keep]
 
 
+_BLOCK = 1 << 20  # rows per block where a pass is split to keep (n,) temporaries out of a peak
+
+
 def stable_argsort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(order, key[order])`` with ``order`` exactly ``np.argsort(key, kind="stable")`` (int64) for
     a 1-D integer array ``key``.
@@ -121,7 +124,8 @@ def stable_argsort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         packed = key.astype(np.int64)
         packed -= np.int64(lo)
     packed <<= np.int64(ib)
-    packed |= np.arange(n, dtype=np.int64)
+    for a in range(0, n, _BLOCK):  # the row index, a block at a time (no (n,) arange)
+        packed[a:a + _BLOCK] |= np.arange(a, min(n, a + _BLOCK), dtype=np.int64)
     packed.sort()
     order = packed & np.int64((1 << ib) - 1)
     packed >>= np.int64(ib)
@@ -154,12 +158,16 @@ def unique_first_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     new = np.empty(n, dtype=bool)
     new[0] = True
     np.not_equal(s[1:], s[:-1], out=new[1:])
-    del s  # (n,) freed before the (n,) rank and inverse
+    del s  # (n,) freed before the (n,) inverse
     inverse = np.empty(n, dtype=np.int64)
     first = order[new]
-    rank = np.cumsum(new, dtype=np.int64)
-    rank -= 1
-    inverse[order] = rank
+    # the ranks (cumsum(new) - 1) scattered a block at a time: no second (n,) array
+    done = -1
+    for a in range(0, n, _BLOCK):
+        rank = np.cumsum(new[a:a + _BLOCK], dtype=np.int64)
+        rank += done
+        inverse[order[a:a + _BLOCK]] = rank
+        done = int(rank[-1])
     return first, inverse
 
 
