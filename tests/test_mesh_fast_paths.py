@@ -90,3 +90,20 @@ def test_stable_lexsort_equals_numpy(span):
     np.testing.assert_array_equal(stable_lexsort((q[:, 2], q[:, 1], q[:, 0])),
                                   np.lexsort((q[:, 2], q[:, 1], q[:, 0])))
     np.testing.assert_array_equal(stable_lexsort((q[:, 0],)), np.lexsort((q[:, 0],)))
+
+
+@pytest.mark.parametrize("block", [1, 3, 7])
+def test_blocked_passes_equal_numpy_across_block_boundaries(monkeypatch, block):
+    # the passes split a block of rows at a time (mesh._BLOCK, 2^20) give the unsplit results
+    import lopcook.mesh as M
+
+    monkeypatch.setattr(M, "_BLOCK", block)
+    rng = np.random.default_rng(block)
+    for n in (0, 1, block - 1, block, block + 1, 5 * block + 2, 50):
+        for dtype in (np.int64, np.uint32):
+            k = rng.integers(0, max(2, n // 2), n).astype(dtype)
+            order, s = M.stable_argsort(k)
+            assert np.array_equal(order, np.argsort(k, kind="stable")) and np.array_equal(s, k[order])
+            first, inv = M.unique_first_inverse(k)
+            _, f2, i2 = np.unique(k, return_index=True, return_inverse=True)
+            assert np.array_equal(first, f2) and np.array_equal(inv, i2.ravel())
