@@ -61,7 +61,7 @@ def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
         np.maximum.at(group_max, inverse, values)
         return group_max[inverse]
     # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
-    # peak (docs/performance.md, "Memory at 4.4M")
+    # peak (docs/performance.md, "Memory at 1.1M and 4.4M")
     key = q[:, 0].astype(np.int64) << 40
     key |= q[:, 1].astype(np.int64) << 16
     key |= q[:, 2].astype(np.int64) >> 8
