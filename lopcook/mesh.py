@@ -217,17 +217,15 @@ def unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             first, inverse = unique_first_inverse(k[:, 0])
         else:
             _, first, inverse = np.unique(k[:, 0], return_index=True, return_inverse=True)
-        order = stable_argsort(first)[0]
-        rank = np.empty_like(order)
-        rank[order] = np.arange(order.size)
-        return first[order].astype(np.int64, copy=False), rank[inverse.ravel()].astype(np.int64, copy=False)
-    rows = _pack_int_columns(k)  # one int64 per row where the column ranges allow: a faster sort
-    if rows is None:
-        rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
-        _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
     else:
-        first, inverse = unique_first_inverse(rows)
-    del rows
+        rows = _pack_int_columns(k)  # one int64 per row where the column ranges allow: a faster sort
+        if rows is None:
+            rows = k.view(np.dtype((np.void, k.dtype.itemsize * k.shape[1]))).ravel()
+            _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+        else:
+            first, inverse = unique_first_inverse(rows)
+        del rows
+    # renumber from value order to order of first appearance
     order = stable_argsort(first)[0]
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)

@@ -28,8 +28,9 @@ Backends
     as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
     lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
     sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md). There, with
-    ``seams="auto"`` and UVs, the first LOD of a chain is also made by fast-simplification with
-    the seams locked, kept where it reaches the target with a lower error; and a LOD of at most
+    ``seams="auto"`` and UVs, a LOD made from LOD 0 (a chain's first LOD, and the retries from
+    LOD 0 below) is also made by fast-simplification with the seams locked, kept where it reaches
+    the target with a lower error; and a LOD of at most
     ``AUTO_TINY_TARGET`` triangles is also made from LOD 0 (when LOD 0 has at most
     ``AUTO_TINY_LOD0``), the lower error kept.
 
@@ -325,9 +326,10 @@ def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: R
     other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
                              max_flipped_fraction)
     if seams == "auto" and part.uvs is not None and part is ref.part:
-        # and, for the first LOD of a chain, fast-simplification with the seams locked, which keeps
-        # every seam exactly: kept where it reaches the target with a lower error (the Chessboard at
-        # 1/2: docs/lod.md). Locked seams reach a target most easily at the first halving.
+        # and, for a LOD made from LOD 0 (a chain's first LOD, or a retry from LOD 0),
+        # fast-simplification with the seams locked, which keeps every seam exactly: kept where it
+        # reaches the target with a lower error (the Chessboard at 1/2: docs/lod.md). Locked seams
+        # reach a target most easily at the first halving.
         locked, used3 = _simplify(part, ratio, target, "fast", "lock", ref, preserve_boundary, False,
                                   max_flipped_fraction, _retry=True)
         if _better(locked, other):
@@ -560,25 +562,26 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             # LOD 0's own collapse order can do much better (fandisk at 6 triangles: docs/lod.md)
             tiny = start is not part and backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
             if missed or tiny:
-                # the previous LOD's collapses may block this target: try again from LOD 0
+                # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
+                # make it from LOD 0 as well
                 again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
                                          max_flipped_fraction)
-                if missed and not again.failed and (
-                        lod.failed or abs(again.triangles - target) < abs(lod.triangles - target)):
+                nearer = missed and not again.failed and (
+                    lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
+                # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
+                # a tiny target is not "near" it, yet no worse a LOD)
+                lower = not nearer and tiny and (_better(again, lod) or (
+                    not again.failed and again.triangles <= lod.triangles and again.hausdorff_m < lod.hausdorff_m))
+                if missed or lower:
                     report.fallbacks += used2
+                if nearer:
                     again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
                                           f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
-                    lod = again
-                elif tiny and (_better(again, lod) or (not again.failed and again.triangles <= lod.triangles
-                                                       and again.hausdorff_m < lod.hausdorff_m)):
-                    # kept when better, or no larger and lower in error (a triangle short of a tiny
-                    # target is not "near" it, yet no worse a LOD)
-                    report.fallbacks += used2
+                elif lower:
                     again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
                                           f"{lod.hausdorff_m:.3g} m from the previous LOD")
+                if nearer or lower:
                     lod = again
-                elif missed:
-                    report.fallbacks += used2
             if lod.failed:
                 report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
                 report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
