@@ -5,6 +5,7 @@ everything is seen and close-ups where most parts are off-screen or behind the e
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from conftest import cook_container
 from lopcook import fixtures as fx
@@ -42,7 +43,7 @@ def test_culled_draws_equal_drawing_everything(gl):
                 for its, decoded in ((h.float_items, False), (items, True)):
                     culled += sum(Renderer.outside(cam, it.get("cull_box", it["box"])) for it in its)
                     got = h.renderer.draw(its, cam, shading, decoded)
-                    every = h.renderer.draw([dict(it, box=None, cull_box=None) for it in its], cam, shading, decoded)
+                    every = h.renderer.draw(_every_triangle(its), cam, shading, decoded)
                     assert np.array_equal(got[0], every[0]) and np.array_equal(got[1], every[1])
                     assert got[0][..., 3].any()  # something was drawn
             for r in owned:
@@ -87,3 +88,141 @@ def test_float_cache_crop_keeps_everything_that_is_not_background(rng):
     only_bg[0, 0, 1] = 9
     entry = RR._crop(only_bg, np.zeros_like(ids))
     assert np.array_equal(RR._expand(entry, (70, 40))[0], only_bg)
+
+
+# ---- the coverage cull: triangles that cover no sample are left out, the images stay the same bits ----
+
+def _every_triangle(its):
+    """The items without culling of any kind (no box, no coverage)."""
+    return [dict(it, box=None, cull_box=None, cover=None) for it in its]
+
+
+def test_sample_positions_are_the_contexts_own(gl):
+    """The positions read off the context are its 4x pattern, and a 1-sample target's centre."""
+    from lopcook.verify.renderer import sample_positions
+
+    four = sample_positions(gl, 4)
+    assert four is not None and four.shape == (4, 2)
+    assert np.all((four * 16) == np.rint(four * 16))  # on the lattice
+    # llvmpipe's lp_sample_pos_4x, y up from the pixel's lower left corner
+    want = {(0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)}
+    if "llvmpipe" in gl.info["GL_RENDERER"]:
+        assert {tuple(float(v) for v in p) for p in four} == want
+    one = sample_positions(gl, 0)
+    assert one is not None and [tuple(p) for p in one] == [(0.5, 0.5)]
+
+
+def test_covering_triangles_equals_a_sample_by_sample_count(rng):
+    """Against a direct count of the sample points inside each widened box (float64, pixel by
+    pixel): the same verdict for tiny, pixel-sized and large boxes, boxes that straddle or miss the
+    viewport, boxes whose edge lies on a sample, and untrusted vertices."""
+    from lopcook.verify.renderer import COVER_MARGIN, covering_triangles
+
+    offsets = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0.875]])
+    size = (23, 17)
+    n = 3000
+    centre = rng.uniform(-3.0, 26.0, (n // 3, 2)).repeat(3, axis=0)
+    spread = 10.0 ** rng.uniform(-3.0, 0.7, (n // 3, 1)).repeat(3, axis=0)
+    xy = (centre + rng.normal(0.0, 1.0, (n, 2)) * spread).astype(np.float32)
+    # a fifth of the vertices sit exactly a margin away from a sample's coordinate
+    on = rng.random(n) < 0.2
+    k = rng.integers(0, 4, on.sum())
+    xy[on, 0] = (np.floor(xy[on, 0]) + offsets[k, 0] + rng.choice([-1.0, 1.0], on.sum()) * COVER_MARGIN).astype(np.float32)
+    ok = rng.random(n) > 0.02
+    tri = np.concatenate([np.arange(n).reshape(-1, 3), rng.integers(0, n, (500, 3))])
+    got = covering_triangles(xy[:, 0], xy[:, 1], ok, tri, size, offsets)
+    m = np.float32(COVER_MARGIN)
+    want = np.zeros(len(tri), bool)
+    for t, (a, b, c) in enumerate(tri):
+        if not (ok[a] and ok[b] and ok[c]):
+            want[t] = True
+            continue
+        x0, x1 = float(min(xy[[a, b, c], 0]) - m), float(max(xy[[a, b, c], 0]) + m)
+        y0, y1 = float(min(xy[[a, b, c], 1]) - m), float(max(xy[[a, b, c], 1]) + m)
+        for i in range(max(0, int(np.floor(x0)) - 1), min(size[0], int(np.ceil(x1)) + 1)):
+            for j in range(max(0, int(np.floor(y0)) - 1), min(size[1], int(np.ceil(y1)) + 1)):
+                if any(x0 <= i + sx <= x1 and y0 <= j + sy <= y1 for sx, sy in offsets):
+                    want[t] = True
+    assert np.array_equal(got, want)
+    assert 0.1 < got.mean() < 0.9  # both verdicts are exercised
+
+
+def test_window_coordinates_distrust_vertices_behind_the_eye(gl):
+    from lopcook.verify.renderer import window_coordinates
+
+    cam = make_camera(0, np.zeros(3), np.ones(3), 2.0, render_viewing({"viewing": None}, (64, 36)))
+    eye, centre = np.asarray(cam.eye, float), np.asarray(cam.centre, float)
+    pts = np.array([centre, eye + (eye - centre), [np.nan, 0.0, 0.0]], np.float32)
+    px, py, ok = window_coordinates(pts, cam.mvp, (64, 36))
+    assert ok.tolist() == [True, False, False]
+    assert abs(float(px[0]) - 32.0) < 1e-3 and abs(float(py[0]) - 18.0) < 1e-3  # the centre is mid-frame
+
+
+def _dense_scenes(tmp):
+    """A sphere row (float and decoded, binned), the instanced and clustered procedural scene (a
+    plate without normals: face normals from screen-space derivatives), and the textured fixture."""
+    from lopcook.pipeline import run
+    from lopcook.settings import EmitSettings, Settings, SimplifySettings
+    from test_instances_stored_once import procedural_scene
+
+    row = row_of_spheres()
+    yield row, cook_container(row)
+    inst = procedural_scene()
+    yield inst, run(inst, Settings(simplify=SimplifySettings(instances=True),
+                                   emit=EmitSettings(clusters=64, cluster_all=True))).container
+    from lopcook.ingest import load
+
+    fx.write_textured_gltf(tmp / "textured.glb")
+    tex = load(tmp / "textured.glb")
+    yield tex, run(tex, Settings()).container
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_coverage_cull_draws_the_same_bits(gl, monkeypatch, tmp_path, which):
+    """With the cull forced on every item (no size threshold), float, AP and CAP draws of far and
+    close views, at two resolutions, equal the draws of every triangle bit for bit, and the far
+    views leave most triangles out."""
+    from lopcook.verify import renderer as RR
+    from lopcook.verify.buffers import ap_buffer, cap_buffer
+
+    monkeypatch.setattr(RR, "COVER_MIN_TRIANGLES", 0)
+    monkeypatch.setattr(RR, "COVER_DENSITY", 0.0)
+    scene, c = list(_dense_scenes(tmp_path))[which]
+    dropped = kept = 0
+    for res in ((160, 90), (97, 61)):
+        with Harness(scene, res) as h:
+            assert h.renderer.sample_offsets is not None
+            g = c.manifest["grid"]
+            viewing = render_viewing(c.manifest, res)
+            shading = Shading.from_manifest(c.manifest)
+            cache: dict = {}
+            orders = [None] * len(scene.parts)
+            for level in (2, 7, 12):
+                for builder in (ap_buffer, cap_buffer):
+                    items, owned = decoded_items(h.ctx, h.renderer.decode_program, c, scene, [0] * len(scene.parts),
+                                                 orders, h.textures, builder, level, g["origin"],
+                                                 np.float32(float(g["extent"]) / float(1 << 24) / 2.0), cache,
+                                                 cluster_program=h.renderer.cluster_decode_program)
+                    for view in (0, 6, 13):
+                        cam = make_camera(view, h.lo, h.hi, camera_distance(level, float(g["extent"]), viewing),
+                                          viewing)
+                        for its, decoded in ((h.float_items, False), (items, True)):
+                            got = h.renderer.draw(its, cam, shading, decoded)
+                            every = h.renderer.draw(_every_triangle(its), cam, shading, decoded)
+                            assert np.array_equal(got[0], every[0]) and np.array_equal(got[1], every[1])
+                            assert got[0][..., 3].any() or level == 2  # level 2: AP may collapse it all
+                            for it in its:
+                                picked = it["cover"].select(cam, res, h.renderer.sample_offsets)
+                                n = it["cover"].triangles.shape[0]
+                                k = n if picked is None else picked[1] // 3  # None: every triangle drawn
+                                if level == 2:  # the far views
+                                    kept += k
+                                    dropped += n - k
+                    for r in owned:
+                        r.release()
+            for entry in cache.values():
+                for b in entry[2]:
+                    b.release()
+    assert dropped > 0 and kept > 0
+    if which == 0:  # 2,240 triangles a few pixels across: most cover no sample
+        assert dropped > kept

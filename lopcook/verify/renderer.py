@@ -21,6 +21,20 @@ trilinear mipmaps and repeat wrap, texel values used as they are (no sRGB decodi
 are linear RGB as stored; grey 0.8 when a part has neither. No back-face culling (quantization may
 flip a tiny triangle's winding; the paper does not cull either), depth test on.
 
+Coverage cull (``Coverage``, ``covering_triangles``): before a draw, an item's triangles whose
+screen bounding box, widened by ``COVER_MARGIN`` pixels, holds no sample position of any pixel
+of the viewport are left out of the draw. GL produces a fragment only where a triangle covers a
+sample, so such a triangle changes no pixel, depth or part ID: the images are the same bit for bit
+(``tests/test_render_cull.py``). The sample positions are read off the context once
+(``sample_positions``: one tiny triangle around each candidate point on a 1/16-pixel lattice);
+a context whose positions are not found there draws every triangle. The vertices are projected on
+the CPU in float64 from the float32 positions the vertex shader reads (a decoded item's positions
+from the reference decoder, ``lopcook.emit.bitplane.decode``), with the float32 matrix it is
+given; ``COVER_MARGIN`` (1/32 px) covers the float32 arithmetic of the shader and the
+rasteriser's snapping (llvmpipe: 1/256 px). It runs where it pays: an item of at least
+``COVER_MIN_TRIANGLES`` triangles and ``COVER_DENSITY`` triangles per pixel of its projected box (a
+far, small object: llvmpipe's cost there is vertex and setup work per triangle, not pixels).
+
 Framebuffer: ``SAMPLES`` x MSAA (4, or the context's maximum when lower), colour RGBA8 (alpha = 1
 where a sample saw the object; the background is cleared to 0, 0, 0, 0), a part-ID target R32UI
 (``part index + 1``, 0 = background) written by the same fragment shader in the same pass, and a
@@ -67,6 +81,14 @@ FINISH_TRIANGLES = 1 << 18
 RAW_CACHE_BYTES = 64 << 20
 #: a draw item is culled only when its box is beyond a clip plane by this share of |w| (float32 slack)
 CULL_MARGIN = 1e-4
+#: pixels a triangle's screen box is widened by before the coverage test (``covering_triangles``)
+COVER_MARGIN = 1.0 / 32.0
+#: the coverage test runs for an item with at least this many triangles per pixel of its projected box
+COVER_DENSITY = 2.0
+#: ... and at least this many triangles
+COVER_MIN_TRIANGLES = 4096
+#: candidate sample positions: multiples of 1/16 pixel (``sample_positions``)
+SAMPLE_LATTICE = 16
 
 
 def _crop(rgba: np.ndarray, ids: np.ndarray):
@@ -169,6 +191,202 @@ class Shading:
 IDENTITY_ROWS = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
 
 
+# ---- the coverage cull ------------------------------------------------------------------------------
+
+_PROBE_VS = """#version 450
+in vec2 in_xy;
+void main() { gl_Position = vec4(in_xy, 0.0, 1.0); }
+"""
+_PROBE_FS = """#version 450
+layout(location = 0) out vec4 o_color;
+void main() { o_color = vec4(1.0); }
+"""
+
+
+def sample_positions(ctx, samples: int):
+    """(k, 2) float64 sample offsets (x right, y up, pixels from the pixel's lower left corner) of a
+    ``samples``-sample colour target on ``ctx``, or None when they are not all found on the lattice of
+    ``SAMPLE_LATTICE``-ths of a pixel.
+
+    One draw into a 16 x 16 target: pixel (a, b) holds a triangle of radius 1/64 pixel around the
+    candidate (a / 16, b / 16) (a, b in 1..15); a pixel with coverage has a sample there. The result
+    is trusted only when exactly ``max(samples, 1)`` candidates are covered, each by exactly one
+    sample (coverage 1 / samples); a sample off the lattice by more than 1/64 pixel is found nowhere,
+    and the cull is then off."""
+    import moderngl
+
+    n = SAMPLE_LATTICE
+    samples = int(samples)
+    r = 1.0 / 64.0
+    pts = []
+    for a in range(1, n):
+        for b in range(1, n):
+            cx, cy = a + a / n, b + b / n  # pixel (a, b), candidate (a / n, b / n)
+            for x, y in ((cx - r, cy - r), (cx + r, cy - r), (cx, cy + r)):
+                pts.append((x / n * 2.0 - 1.0, y / n * 2.0 - 1.0))
+    owned = []
+    try:
+        prog = ctx.program(vertex_shader=_PROBE_VS, fragment_shader=_PROBE_FS)
+        vbo = ctx.buffer(np.asarray(pts, "<f4").tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "2f", "in_xy")])
+        rb_ms = ctx.renderbuffer((n, n), 4, samples=samples)
+        fbo_ms = ctx.framebuffer([rb_ms])
+        rb = ctx.renderbuffer((n, n), 4)
+        fbo = ctx.framebuffer([rb])
+        owned = [prog, vbo, vao, rb_ms, fbo_ms, rb, fbo]
+        fbo_ms.use()
+        fbo_ms.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.disable(moderngl.DEPTH_TEST)
+        vao.render(moderngl.TRIANGLES)
+        ctx.copy_framebuffer(fbo, fbo_ms)
+        alpha = np.frombuffer(fbo.read(components=4, dtype="f1"), np.uint8).reshape(n, n, 4)[..., 3]
+    finally:
+        for o in owned:
+            o.release()
+        from . import gpu
+
+        gpu.use_default_framebuffer()
+    want = max(samples, 1)
+    b_idx, a_idx = np.nonzero(alpha)  # rows are y (GL: bottom row first)
+    if len(a_idx) != want:
+        return None
+    if want > 1 and not np.all(np.abs(alpha[b_idx, a_idx].astype(np.int64) - round(255 / want)) <= 1):
+        return None
+    return np.stack([a_idx / n, b_idx / n], axis=1).astype(np.float64)
+
+
+def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles: np.ndarray, size,
+                       offsets: np.ndarray, margin: float = COVER_MARGIN) -> np.ndarray:
+    """(m,) bool: the triangles that may cover a sample of a ``size`` = (w, h) pixel viewport.
+
+    px, py : (n,) window coordinates of the vertices, pixels (x right, y up, the viewport's lower
+    left corner at 0); ok : (n,) bool, False for a vertex whose projection is not trusted (behind
+    the eye, not finite): a triangle with such a vertex is kept. triangles : (m, 3) vertex indices,
+    or a tuple of its three contiguous columns. offsets : (k, 2) sample offsets within a pixel, multiples of 1 / ``SAMPLE_LATTICE``
+    (``sample_positions``). A triangle is dropped only when its box, widened by ``margin`` on every
+    side, holds no point (i + sx, j + sy) with pixel (i, j) in the viewport: such a triangle covers
+    no sample (it lies inside its box).
+
+    In lattice units (1 / L pixel, L = ``SAMPLE_LATTICE``) the box holds the integers lo..hi of each
+    axis (clipped to the viewport's), and a sample column at offset a (a lattice integer, 0 <= a < L)
+    lies in it exactly when ``(a - lo) mod L <= hi - lo``; rows likewise, and columns and rows are
+    independent."""
+    w, h = int(size[0]), int(size[1])
+    lat = SAMPLE_LATTICE
+    if isinstance(triangles, tuple):
+        a, b, c = triangles
+    else:
+        t = np.asarray(triangles)
+        a, b, c = (np.ascontiguousarray(t[:, i]) for i in range(3))
+    hit = ~(np.take(ok, a) & np.take(ok, b) & np.take(ok, c))
+
+    def span(v, n_px):
+        va, vb, vc = np.take(v, a), np.take(v, b), np.take(v, c)
+        lo = np.minimum(np.minimum(va, vb), vc)
+        hi = np.maximum(np.maximum(va, vb), vc)
+        del va, vb, vc
+        lo -= np.float32(margin)
+        lo *= np.float32(lat)
+        hi += np.float32(margin)
+        hi *= np.float32(lat)
+        # clipped to the viewport's lattice points [0, n_px * L - 1] (float32 holds them exactly)
+        np.ceil(lo, out=lo)
+        np.maximum(lo, np.float32(0.0), out=lo)
+        np.floor(hi, out=hi)
+        np.minimum(hi, np.float32(n_px * lat - 1), out=hi)
+        hi -= lo  # the span, negative when the box misses the viewport
+        return lo.astype(np.int32), hi.astype(np.int32)
+
+    x_lo, x_span = span(px, w)
+    y_lo, y_span = span(py, h)
+    k = np.rint(np.asarray(offsets, np.float64) * lat).astype(np.int32)
+    d = np.empty_like(x_lo)
+    for ax, ay in k:
+        np.subtract(ax, x_lo, out=d)
+        d &= lat - 1
+        inx = d <= x_span
+        np.subtract(ay, y_lo, out=d)
+        d &= lat - 1
+        inx &= d <= y_span
+        hit |= inx
+    return hit
+
+
+def window_coordinates(positions: np.ndarray, mvp: np.ndarray, size):
+    """(px, py, ok) of ``positions`` (n, 3) float32 metres under ``mvp`` (4, 4), both in float32 as
+    the vertex shader has them, in a ``size`` viewport: window x, y (float32 pixels, origin lower
+    left) and whether each is trusted (w > 0 and finite). The float32 arithmetic here and the
+    shader's differ by a few units in the last place of the clip coordinates: far below
+    ``COVER_MARGIN`` at any viewport this harness renders."""
+    m = np.asarray(mvp, np.float64).astype(np.float32)
+    p = np.asarray(positions, np.float32)
+    q = p @ m[(0, 1, 3), :3].T
+    q += m[(0, 1, 3), 3]
+    with np.errstate(all="ignore"):
+        cw = q[:, 2]
+        ok = cw > np.float32(0.0)
+        inv = np.float32(1.0) / np.where(ok, cw, np.float32(1.0))
+        px = (q[:, 0] * inv + np.float32(1.0)) * np.float32(0.5 * float(size[0]))
+        py = (q[:, 1] * inv + np.float32(1.0)) * np.float32(0.5 * float(size[1]))
+        ok &= (np.abs(px) < np.float32(1e30)) & (np.abs(py) < np.float32(1e30))  # finite, and not huge
+    px[~ok] = 0.0
+    py[~ok] = 0.0
+    return px, py, ok
+
+
+class Coverage:
+    """What the coverage cull needs of one draw item: its triangles (m, 3) in draw order, the positions
+    (n, 3) float32 metres its vertex shader computes (an array, or a function giving it once, on
+    first use), and the program and vertex specs its VAO was made with (a second VAO reads the
+    kept triangles from a scratch index buffer, made on first use). ``release`` frees the two."""
+
+    def __init__(self, ctx, program, specs, triangles, positions):
+        self.ctx, self.program, self.specs = ctx, program, list(specs)
+        self.triangles = np.ascontiguousarray(np.asarray(triangles).reshape(-1, 3), dtype=np.int32)
+        self._columns = None
+        self._positions = positions
+        self._ibo = self._vao = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        if callable(self._positions):
+            self._positions = np.asarray(self._positions(), np.float32)
+        return self._positions
+
+    def select(self, camera: Camera, size, offsets) -> tuple | None:
+        """(VAO, index count) drawing only the triangles that may cover a sample from ``camera``, or
+        None when the test would not pay (``COVER_MIN_TRIANGLES``, ``COVER_DENSITY``: the item then
+        draws its own VAO)."""
+        m = self.triangles.shape[0]
+        if m < COVER_MIN_TRIANGLES:
+            return None
+        px, py, ok = window_coordinates(self.positions, camera.mvp, size)
+        if not ok.all():
+            return None
+        w, h = float(size[0]), float(size[1])
+        area = max(0.0, min(w, float(px.max())) - max(0.0, float(px.min())) + 2.0) * \
+            max(0.0, min(h, float(py.max())) - max(0.0, float(py.min())) + 2.0)
+        if m < COVER_DENSITY * max(area, 1.0):
+            return None
+        if self._columns is None:
+            self._columns = tuple(np.ascontiguousarray(self.triangles[:, i]) for i in range(3))
+        keep = covering_triangles(px, py, ok, self._columns, size, offsets)
+        kept = self.triangles[keep]  # int32 >= 0: the bytes of the uint32 indices
+        if self._ibo is None:
+            self._ibo = self.ctx.buffer(reserve=max(12, self.triangles.nbytes))
+            self._vao = self.ctx.vertex_array(self.program, self.specs, index_buffer=self._ibo,
+                                              index_element_size=4)
+        if kept.size:
+            self._ibo.write(kept.tobytes())
+        return self._vao, int(kept.size)
+
+    def release(self) -> None:
+        for o in (self._vao, self._ibo):
+            if o is not None:
+                o.release()
+        self._ibo = self._vao = None
+
+
 # ---- the renderer -----------------------------------------------------------------------------------
 
 class Renderer:
@@ -203,6 +421,8 @@ class Renderer:
         self._resources = [self.float_program, self.decode_program, self.resolve_program, self.resolve_vao,
                            self.fbo_ms, self.fbo_ms_colour, self._colour_ms, self._ids_ms, self._depth_ms,
                            self.fbo_colour, self._colour, self.fbo_ids, self._ids]
+        #: the sample offsets the coverage cull tests against (None: every triangle is drawn)
+        self.sample_offsets = sample_positions(ctx, samples)
 
     @property
     def cluster_decode_program(self):
@@ -281,7 +501,8 @@ class Renderer:
         ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
         whole-viewport render would give, filled in on the CPU). An item whose ``cull_box`` (world
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
-        not drawn (it could not put a fragment in the image). Before an item, once
+        not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``) leaves
+out the triangles that cover no sample (module doc, "Coverage cull"). Before an item, once
         ``FINISH_TRIANGLES`` triangles (items' ``triangles``) have been drawn since the last one, the
         context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
@@ -306,10 +527,18 @@ class Renderer:
         for it in items:
             if self.outside(camera, it.get("cull_box", it.get("box"))):
                 continue
+            vao, count = it["vao"], None
+            cover = it.get("cover")
+            if cover is not None and self.sample_offsets is not None:
+                picked = cover.select(camera, self.size, self.sample_offsets)
+                if picked is not None:
+                    vao, count = picked
+                    if count == 0:  # no triangle covers a sample: nothing to draw
+                        continue
             if queued >= FINISH_TRIANGLES:
                 ctx.finish()
                 queued = 0
-            queued += int(it.get("triangles", 0))
+            queued += int(it.get("triangles", 0)) if count is None else count // 3
             prog = base if it.get("program") is None else it["program"]
             if id(prog) not in primed:
                 self._uniforms(prog, camera, shading)
@@ -330,7 +559,10 @@ class Renderer:
             program["u_has_color"].value = int(it["has_color"])
             if it["texture"] is not None:
                 it["texture"].use(location=0)
-            it["vao"].render(moderngl.TRIANGLES)
+            if count is None:
+                vao.render(moderngl.TRIANGLES)
+            else:
+                vao.render(moderngl.TRIANGLES, vertices=count)
         # resolve: colour by a blit (average of samples), part IDs by sample 0
         self.fbo_colour.use()
         ctx.copy_framebuffer(self.fbo_colour, self.fbo_ms_colour)
@@ -441,9 +673,12 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
         if p.positions.size:
             f = np.asarray(p.positions, np.float32).astype(np.float64)
             box = (f.min(axis=0), f.max(axis=0))
+        cover = Coverage(ctx, program, [(pos, "3f", "in_position"), *specs], p.indices,
+                         np.asarray(p.positions, np.float32))
+        owned.append(cover)
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
                       "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box,
-                      "triangles": int(p.n_triangles)})
+                      "triangles": int(p.n_triangles), "cover": cover})
     return items, owned
 
 
@@ -641,6 +876,30 @@ def release_shared() -> None:
 atexit.register(release_shared)
 
 
+def _decoded_positions(buf, level: int, origin, half_cell, place):
+    """A function giving the (n, 3) float32 positions the decoding vertex shader computes for ``buf``
+    (a ``GpuBuffer`` or ``ClusteredGpuBuffer``) at ``level`` on the grid (``origin``, ``half_cell``),
+    mapped by the placement rows ``place`` when given: the reference decoder's (``decode`` /
+    ``decode_clustered``, ``reconstruct_float32``, ``placement.to_world``)."""
+    def positions():
+        from ..emit.bitplane import decode, reconstruct_float32
+        from ..emit.clusters import decode_clustered
+        from ..emit.placement import to_world
+        from ..emit.reader import ClusteredGpuBuffer
+
+        words = np.asarray(buf.words, np.uint32)
+        if isinstance(buf, ClusteredGpuBuffer):
+            values, widths = decode_clustered(words, buf.clusters, int(level))
+        else:
+            values, widths = decode(words, buf.vertex_id, buf.bit_id, int(level))
+        pos = reconstruct_float32(values, widths, origin, 2.0 * float(half_cell))
+        if place is not None:
+            pos = to_world(pos, np.asarray(place, np.float64).reshape(3, 4))
+        return pos
+
+    return positions
+
+
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
@@ -695,8 +954,8 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             key = digest(i, index_words, *[x for name, arr, fmt in arrays for x in (name, fmt, arr)],
                          bool(flags[0]), bool(flags[1]), None if tex is None else tex.digest,
                          None if src_box is None else np.asarray(src_box, np.float64))
-            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]))
-        ibo, specs, _, (has_normal, has_color, texture), src_box, attr_key, n_tri = attr_cache[i]
+            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]), index_words)
+        ibo, specs, _, (has_normal, has_color, texture), src_box, attr_key, n_tri, index_words = attr_cache[i]
         cull_box = None
         if src_box is not None:
             # decoded with >= level bits: within half a level-B cell of the 24-bit grid point, itself
@@ -742,7 +1001,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         else:
             ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
-        owned += [ssbo, ubo, vao]
+        cover = Coverage(ctx, prog, specs, index_words,
+                         _decoded_positions(buf, p_level, p_origin, p_half, extra.get("place")))
+        owned += [ssbo, ubo, vao, cover]
         if clusters is None:
             tables = (np.asarray(buf.vertex_id, np.int64), np.asarray(buf.bit_id, np.int64))
         else:
@@ -754,10 +1015,11 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
                       "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, "digest": key,
-                      "triangles": n_tri, **extra})
+                      "triangles": n_tri, "cover": cover, **extra})
     return items, owned
 
 
-__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+__all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "COVER_MARGIN", "COVER_DENSITY", "COVER_MIN_TRIANGLES",
+           "SAMPLE_LATTICE", "sample_positions", "covering_triangles", "window_coordinates", "Coverage", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "Harness",
            "shared_harness", "release_shared", "digest", "trim_heap"]
