@@ -15,7 +15,7 @@ from fractions import Fraction
 
 from .emit.container import Container
 from .emit.container import read as _read
-from .errors import LopcookError
+from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
 from .types import Scene
@@ -51,36 +51,55 @@ def budget_target(text: str, float_size: int | None = None) -> int | None:
     return None if float_size is None else int(value * float_size)
 
 
-def calibration(scene: Scene, settings: Settings, progress: Progress = NONE) -> dict:
+def calibration(scene: Scene, settings: Settings, progress: Progress = NONE, complete: bool = True) -> dict:
     """``lopcook calibrate``: the k_f search of ``settings.tune`` (``lopcook.tune.calibrate``);
-    its result says whether the target was reached."""
+    its result says whether the target was reached. ``complete`` False: a direct search does not
+    render its choice at every level (the attribute search that follows does)."""
     with progress.stage("calibrate (probes)") as st:
         def on_probe(p):
             st.advance()
             progress(p)
 
-        return _search(scene, settings, on_probe)
+        return _search(scene, settings, on_probe, complete)
 
 
-def _search(scene: Scene, settings: Settings, on_probe) -> dict:
-    from .tune.calibrate import calibrate
+def search_harness(settings: Settings) -> tuple:
+    """(views, (w, h), levels, direct) the ``target_psnr`` searches render on: the gate's harness
+    (``tune.confirm``, verify's 20 views at 1280 x 720 by default) at its levels among 6..11
+    (``CONFIRM_LEVELS``, the gate's ``verify --levels 6-11``) for a direct search (``tune.direct``),
+    else the reduced ``tune.calibration``."""
+    from .tune.calibrate import CONFIRM_LEVELS
 
     t = settings.tune
-    confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
-    cal = calibrate(scene, settings.analyse, target_psnr=t.target_psnr, levels=list(t.calibration.levels),
-                    views=t.calibration.views, resolution=t.calibration.resolution, viewing=settings.viewing,
+    if t.direct:
+        gate = t.confirm if t.confirm is not None else settings.render
+        levels = tuple(b for b in gate.levels if b in CONFIRM_LEVELS) or tuple(gate.levels)
+        return gate.views, tuple(gate.resolution), levels, True
+    return t.calibration.views, tuple(t.calibration.resolution), tuple(t.calibration.levels), False
+
+
+def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True) -> dict:
+    from .tune.calibrate import WATCH_DB, calibrate
+
+    t = settings.tune
+    views, resolution, levels, direct = search_harness(settings)
+    confirm = None if t.confirm is None or direct else (t.confirm.views, t.confirm.resolution)
+    cal = calibrate(scene, settings.analyse, target_psnr=t.target_psnr, levels=list(levels),
+                    views=views, resolution=resolution, viewing=settings.viewing,
                     ingest_options={"crease_angle_deg": settings.ingest.crease_angle_deg}, progress=on_probe,
                     statistic=t.psnr_stat.value, search=None if t.search is None else t.search.value,
-                    confirm=confirm)
+                    confirm=confirm, watch_db=WATCH_DB if direct else None,
+                    complete=complete and t.confirm is not None,
+                    clusters=(settings.emit.clusters, bool(settings.emit.cluster_all)))
     return cal
 
 
-def _calibrate(scene: Scene, settings: Settings, progress):
+def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True):
     """``tune.target_psnr``: the calibration, its manifest record and the settings it chose;
     LopcookError (exit 1) when the target is not reached."""
     from .tune.calibrate import calibration_record, require_reached
 
-    cal = calibration(scene, settings, progress)
+    cal = calibration(scene, settings, progress, complete)
     require_reached(cal, scene.source)
     chosen = settings.with_(analyse={"eps": cal["eps"], "edge_eps": cal["edge_eps"]})
     return cal, calibration_record(cal), chosen
@@ -101,7 +120,7 @@ def _budget(scene: Scene, settings: Settings, options: dict, say):
     return data, info
 
 
-def _attribute_search(scene: Scene, settings: Settings, progress):
+def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
     """``tune.vertex_bits`` (a bit budget) or ``tune.target_psnr`` with ``tune.attribute_search``:
     Purnomo's greedy search over every attribute's bits (``lopcook.tune.attributes``). Returns
     (the record for ``cook --json``, the manifest record, the chosen Settings); LopcookError (exit
@@ -112,6 +131,10 @@ def _attribute_search(scene: Scene, settings: Settings, progress):
     budget = t.vertex_bits is not None
     confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
     harness = (t.calibration.views, t.calibration.resolution, tuple(t.calibration.levels))
+    if not budget and watch is not None:  # a direct search: on the gate's harness, watching those levels
+        views, resolution, levels, _ = search_harness(settings)
+        harness = (views, resolution, levels)
+        confirm = None if t.confirm is None else (views, resolution)
     with progress.stage("attribute search (probes)") as st:
         def on_probe(p):
             st.advance()
@@ -119,7 +142,8 @@ def _attribute_search(scene: Scene, settings: Settings, progress):
 
         res = allocate(scene, settings, mode="budget" if budget else "target",
                        goal=t.vertex_bits if budget else t.target_psnr, harness=harness, confirm=confirm,
-                       statistic="mean" if budget else t.psnr_stat.value, progress=on_probe)
+                       statistic="mean" if budget else t.psnr_stat.value, progress=on_probe,
+                       watch=None if budget else watch)
     chosen = res.pop("_settings")
     require_reached(res, scene.source)
     return res, search_record(res), chosen
@@ -134,15 +158,28 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
     say = progress
     timings: dict = {}
     calibration = record = None
+    attributes = settings.tune.vertex_bits is not None or (settings.tune.target_psnr is not None
+                                                           and settings.tune.attribute_search)
+    # a direct search's k_f choice is rendered at every level by the attribute search that follows
+    leave = attributes and settings.tune.target_psnr is not None and settings.tune.direct
+    given = settings
     if settings.tune.target_psnr is not None:
         t0 = time.perf_counter()
-        calibration, record, settings = _calibrate(scene, settings, progress)
+        calibration, record, settings = _calibrate(scene, given, progress, complete=not leave)
         timings["calibrate"] = time.perf_counter() - t0
     search = search_rec = None
-    if settings.tune.vertex_bits is not None or (settings.tune.target_psnr is not None
-                                                 and settings.tune.attribute_search):
+    if attributes:
         t0 = time.perf_counter()
-        search, search_rec, settings = _attribute_search(scene, settings, progress)
+        watch = None if calibration is None else calibration.get("watch")
+        try:
+            search, search_rec, settings = _attribute_search(scene, settings, progress, watch)
+        except LopcookError as exc:
+            if not leave or exc.exit_code != EXIT_VERIFY_FAILED:
+                raise
+            # even the k_f choice missed a level nobody watched: the calibration completes its own
+            # choice (moving toward the default cook), and the attribute search starts again from it
+            calibration, record, settings = _calibrate(scene, given, progress, complete=True)
+            search, search_rec, settings = _attribute_search(scene, settings, progress, calibration.get("watch"))
         timings["attribute_search"] = time.perf_counter() - t0
     options = settings.to_manifest()["options"]
     if record is not None:

@@ -248,13 +248,17 @@ def add_calibration_options(p: argparse.ArgumentParser, cook: bool) -> None:
         g.add_argument("--target-psnr", type=float, required=True, metavar="DB",
                        help="CAP PSNR (dB) to reach at every level (see --psnr-stat)")
     prefix = "calibration-" if cook else ""
-    g.add_argument(f"--{prefix}views", dest="calibration_views", type=int, default=cal.views, metavar="N",
-                   help=f"icosahedron views per probe, 1..20 (default {cal.views})")
-    g.add_argument(f"--{prefix}resolution", dest="calibration_resolution", default=cal.resolution_text,
-                   metavar="WxH", help=f"render size per probe, pixels (default {cal.resolution_text})")
-    g.add_argument(f"--{prefix}levels", dest="calibration_levels", default=_levels_text(cal.levels),
-                   metavar="LEVELS",
-                   help=f"per-buffer levels every probe must pass (default {_levels_text(cal.levels)})")
+    gate = D.render
+    g.add_argument(f"--{prefix}views", dest="calibration_views", type=int, default=None, metavar="N",
+                   help=f"search on a reduced harness of N icosahedron views per probe, 1..20, confirmed on "
+                        f"the gate's (default: search on the gate's own {gate.views} views at "
+                        f"{gate.resolution_text}, levels 6-11, rendering the levels where the default cook has "
+                        f"the least margin first; a reduced harness given by any of these three flags has "
+                        f"{cal.views} views, {cal.resolution_text}, levels {_levels_text(cal.levels)} unless set)")
+    g.add_argument(f"--{prefix}resolution", dest="calibration_resolution", default=None,
+                   metavar="WxH", help="render size per probe of the reduced harness, pixels")
+    g.add_argument(f"--{prefix}levels", dest="calibration_levels", default=None,
+                   metavar="LEVELS", help="per-buffer levels every probe of the reduced harness must pass")
     g.add_argument("--psnr-stat", choices=[v.value for v in PsnrStat], default=D.tune.psnr_stat.value,
                    help="PSNR over views that must reach the target: min (every view, default) or mean "
                         "(PSNR of the view-averaged MSE, as Purnomo et al. average errors)")
@@ -453,9 +457,14 @@ def _tune_settings(args):
     prefix = "--calibration-" if args.command == "cook" else "--"
     if args.target_psnr is not None and not args.target_psnr > 0:
         raise LopcookError("usage", None, f"--target-psnr {args.target_psnr}: expected a positive number of dB")
-    calibration = RenderSettings(views=_views(args.calibration_views, f"{prefix}views"),
-                                 resolution=_resolution(args.calibration_resolution, f"{prefix}resolution"),
-                                 levels=tuple(parse_levels(args.calibration_levels)))
+    given = [getattr(args, k) for k in ("calibration_views", "calibration_resolution", "calibration_levels")]
+    cal = D.tune.calibration
+    views, res, lv = (cal.views if given[0] is None else given[0],
+                      cal.resolution_text if given[1] is None else given[1],
+                      _levels_text(cal.levels) if given[2] is None else given[2])
+    calibration = RenderSettings(views=_views(views, f"{prefix}views"), resolution=_resolution(res, f"{prefix}resolution"),
+                                 levels=tuple(parse_levels(lv)))
+    direct = all(v is None for v in given)  # no reduced harness asked for: search on the gate's
     kw = {}
     if getattr(args, "target_bytes", None) is not None:
         budget_target(args.target_bytes)
@@ -477,7 +486,7 @@ def _tune_settings(args):
     try:
         return TuneSettings(target_psnr=args.target_psnr, psnr_stat=args.psnr_stat, search=args.search,
                             calibration=calibration, confirm=RenderSettings() if args.calibration_confirm else None,
-                            **kw)
+                            direct=direct, **kw)
     except ValueError as exc:
         raise LopcookError("usage", None, str(exc)) from None
 

@@ -376,8 +376,13 @@ class TuneSettings:
     target_psnr : float dB or None  calibrate k_f to the least memory whose CAP renders reach it
     psnr_stat : PsnrStat  PSNR over views compared with the target
     search : SearchKnobs or None  knobs to search (None: k_f+edge when edges are on, else k_f)
-    calibration : RenderSettings  the reduced harness every calibration probe renders on
-    confirm : RenderSettings or None  the harness the choice is confirmed on (verify's)
+    calibration : RenderSettings  the reduced harness every probe renders on when ``direct`` is off,
+        and the attribute search's for a bit budget (``vertex_bits``)
+    confirm : RenderSettings or None  the gate's harness (verify's): a direct search renders there and
+        completes its choice at every level; otherwise the choice is confirmed there; None: neither
+    direct : bool  ``target_psnr`` searches (k_f, then the attribute bits) render on ``confirm``'s
+        views and resolution at the gate's levels 6..11, watching the levels where the default cook
+        has the least margin (``lopcook.tune.calibrate``, "Watched levels"); off: on ``calibration``
     target_bytes : str or None  ``--target-bytes``: N bytes or P/Q of the float size
     budget_scope, budget : BudgetScope, RenderSettings  what the bytes count, the harness
     budget_levels : int >= 1  levels rendered per LOD by the budget fit
@@ -391,6 +396,7 @@ class TuneSettings:
     search: SearchKnobs | None = None
     calibration: RenderSettings = RenderSettings(views=8, resolution=(640, 360))
     confirm: RenderSettings | None = RenderSettings()
+    direct: bool = True
     target_bytes: str | None = None
     budget_scope: BudgetScope = BudgetScope.POSITIONS
     budget: RenderSettings = RenderSettings(views=20, resolution=(640, 360))

@@ -3,6 +3,8 @@ thin parts, an open surface. Each calibrated cook either passes the gate (the co
 harness: every level, the minimum over views >= 40 dB) or fails with exit 1 only where the default
 cook fails that gate too; the calibrated cook never ends below the default cook's quality.
 
+Both searches: on a reduced harness confirmed on the gate's, and the direct search on the gate's
+harness itself (``tune.direct``, the default: watched levels, the choice completed at every level).
 Small harnesses keep the cost down: the search on 2 views at 128 x 72, the gate on 6 views at
 256 x 144, levels 6-11 (6, 8 and 11 for the corpus assets) (the cameras put an object on the same pixels at a level whatever the
 resolution, ``lopcook.verify.cameras``)."""
@@ -35,12 +37,12 @@ def _passes(psnrs) -> bool:
     return all(p is None or p >= TARGET for p in psnrs)
 
 
-def _check(scene, levels=LEVELS):
+def _check(scene, levels=LEVELS, direct=False):
     search, gate_h = (RenderSettings(views=h.views, resolution=h.resolution, levels=tuple(levels)) for h in (SEARCH, GATE))
     # the k_f calibration alone (the attribute search, lopcook.tune.attributes, is tested in
     # test_attribute_search.py): the gate renders below use the source attributes
     settings = DEFAULTS.with_(tune={"target_psnr": TARGET, "calibration": search, "confirm": gate_h,
-                                    "attribute_search": False})
+                                    "attribute_search": False, "direct": direct})
     default = api.cook(scene, DEFAULTS)
     default_gate = _gate(default, scene, levels)
     try:
@@ -51,8 +53,16 @@ def _check(scene, levels=LEVELS):
         return None
     cal = c.result.calibration
     gate = _gate(c, scene, levels)
-    assert cal["reached"] and cal["confirmation"] is not None
     assert _passes(gate), f"calibrated {gate}, default {default_gate}"
+    if direct:  # searched on the gate's own harness, the choice rendered at every level there
+        assert cal["reached"] and cal["complete"] and cal["confirmation"] is None
+        assert cal["watch"] and set(cal["watch"]) <= set(levels)
+        assert sorted(cal["chosen"]["levels"]) == sorted(levels)
+        by_level = dict(zip(cal["chosen"]["levels"], cal["chosen"]["psnr_min_per_level"]))
+        assert gate == pytest.approx([by_level[b] for b in levels], rel=1e-12)
+        assert len(cal["curve"]) <= 16
+        return c, default
+    assert cal["reached"] and cal["confirmation"] is not None
     # the gate's numbers are the confirmation's: the same harness and levels, the chosen probe
     assert gate == pytest.approx(cal["chosen"]["psnr_min_per_level"], rel=1e-12)
     # far fewer probes than a bisection (each bisection of log2 sigma over [-8, 8] to 0.25 is 8)
@@ -134,16 +144,18 @@ def written(tmp_path_factory):
             "thin": write_obj(_thin(), d / "thin.obj")}
 
 
+@pytest.mark.parametrize("direct", [False, True], ids=["reduced", "direct"])
 @pytest.mark.parametrize("name", ["scan", "sheet", "thin"])
-def test_generated_unseen_inputs(gl, written, name):
+def test_generated_unseen_inputs(gl, written, name, direct):
     scene = load(str(written[name]))
     assert all(p.normals_computed or p.normals is None for p in scene.parts)
-    _check(scene)
+    _check(scene, direct=direct)
 
 
+@pytest.mark.parametrize("direct", [False, True], ids=["reduced", "direct"])
 @pytest.mark.parametrize("asset", ["stanford-bunny.obj", "fandisk.obj"])
-def test_corpus_scan_without_normals_and_cad_creases(gl, corpus, asset):
+def test_corpus_scan_without_normals_and_cad_creases(gl, corpus, asset, direct):
     scene = load(str(corpus / asset))
     if asset == "stanford-bunny.obj":  # the scan's file has no normals: ingest computes them
         assert "vn " not in (corpus / asset).read_text()
-    _check(scene, levels=(6, 8, 11))  # three of the levels: 35K vertices cost a render each
+    _check(scene, levels=(6, 8, 11), direct=direct)  # three of the levels: 35K vertices cost a render each

@@ -168,3 +168,27 @@ def test_draws_limited_to_the_screen_rect_equal_whole_viewport_draws(gl, name):
             for b in entry[2]:
                 b.release()
         assert any(r is not None and r[2] * r[3] < res[0] * res[1] / 4 for r in rects)  # some draws were small
+
+
+@pytest.mark.parametrize("changed", [0.0, 0.05, 0.5])
+def test_view_metrics_in_a_box_equals_the_whole_frame(rng, changed):
+    """Limited to a box outside which both renders are background (what ``Renderer.last_box`` and
+    the float cache's crop give), the pass gives the whole frame's numbers exactly, also for
+    part IDs on the box's edge (their 3 x 3 neighbourhoods reach one pixel out) and a box on the
+    frame's border."""
+    for r0, r1, c0, c1 in ((5, 40, 9, 60), (0, 61, 0, 97), (0, 17, 50, 97)):
+        ref, rid, tst, tid = _pair(rng, changed=changed)
+        outside = np.ones(ref.shape[:2], bool)
+        outside[r0:r1, c0:c1] = False
+        for a in (ref, tst, rid, tid):
+            a[outside] = 0
+        # parts that differ on the box's first and last rows (depth-order candidates at its edge)
+        rid[r0, c0:c1], tid[r0, c0:c1] = 1, 2
+        rid[r1 - 1, c0:c1], tid[r1 - 1, c0:c1] = 2, 1
+        whole = M.view_metrics(ref, tst, rid, tid)
+        boxed = M.view_metrics(ref, tst, rid, tid, box=(r0, r1, c0, c1))
+        _same(boxed[0], whole[0])
+        assert boxed[1] == whole[1]
+    empty = np.zeros((8, 9, 4), np.uint8), np.zeros((8, 9), np.uint32)
+    got = M.view_metrics(empty[0], empty[0], empty[1], empty[1], box=(0, 0, 0, 0))
+    assert got == M.view_metrics(empty[0], empty[0], empty[1], empty[1])

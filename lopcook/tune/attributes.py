@@ -68,6 +68,7 @@ vertex, PSNR per level, step), the error-against-bits curve of Purnomo's Fig. 11
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 
@@ -93,6 +94,13 @@ MAX_ROUNDS = 16
 MAX_PROBES = 96
 #: an identical render (PSNR None) in the objective's arithmetic, dB
 INF_DB = 200.0
+#: a passing step ends a round once no step left is predicted within this many dB of it (``_best_predicted``)
+PREDICT_TOL = 0.25
+#: jumps (``_jump``): at most this many steps at once, aiming this far above the target, with at
+#: least this loss per step assumed (dB)
+MAX_JUMP = 8
+JUMP_MARGIN_DB = 0.5
+JUMP_MIN_DB = 0.25
 MODES = ("budget", "target")
 
 
@@ -213,9 +221,13 @@ class Search:
     per allocation. ``harness`` = (views, (w, h), levels) of the reduced harness; ``statistic``
     "min" or "mean"; ``progress(dict)`` is called with each probe."""
 
-    def __init__(self, scene, settings, *, harness, statistic: str, progress=None):
+    def __init__(self, scene, settings, *, harness, statistic: str, progress=None, watch=None, goal=None):
         from ..verify.renderer import shared_harness
 
+        #: the watched levels of a direct search (render order; None: every level of the harness) and
+        #: the target a probe's renders stop at (``allocate``, module doc "Direct search")
+        self.watch = None if watch is None else [int(b) for b in watch]
+        self.goal = None if goal is None else float(goal)
         self.scene = scene
         self.settings = settings
         self.views, self.resolution, self.levels = harness[0], tuple(harness[1]), [int(b) for b in harness[2]]
@@ -256,15 +268,23 @@ class Search:
         """The objective (module doc): min over levels of the PSNR statistic, dB (``INF_DB`` for
         identical renders). Records the probe."""
         k = alloc.key()
-        if k in self.quality_memo:
+        if k in self.quality_memo and self._settled(self.quality_memo[k]):
             return self.quality_memo[k]["objective"]
         t0 = time.perf_counter()
         c = self.cook(alloc)
         cost = self.cost(alloc)
-        res = self.h.evaluate(c, levels=self.levels, views=self.views, variants=("cap",), attributes="container")
+        levels, stop = self.levels, None
+        if self.watch is not None and self.goal is not None:
+            from .calibrate import stop_rule
+
+            levels = self.watch + [b for b in self.levels if b not in self.watch]
+            stop = stop_rule(self.goal, self.statistic, len(self.watch))
+        res = self.h.evaluate(c, levels=levels, views=self.views, variants=("cap",), attributes="container",
+                              stop=stop)
         per = [r["cap"][f"psnr_{self.statistic}"] for r in res["levels"]]
         obj = min(INF_DB if v is None else float(v) for v in per)
         p = {"allocation": alloc.record(), "bits_per_vertex": round(cost, 4), "objective_db": round(obj, 4),
+             "levels": [int(r["level"]) for r in res["levels"]],
              "psnr_per_level": [None if v is None else round(float(v), 4) for v in per],
              "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),
              "psnr_mean": _min_db(r["cap"]["psnr_mean"] for r in res["levels"]),
@@ -275,6 +295,13 @@ class Search:
             self.progress(p)
         return obj
 
+    def _settled(self, memo: dict) -> bool:
+        """Whether a memoised probe's verdict holds for the watched levels (it missed the goal on a
+        level it rendered, or it rendered every watched level)."""
+        if self.watch is None or self.goal is None:
+            return True
+        return memo["objective"] < self.goal or set(self.watch) <= set(memo["levels"])
+
     def full(self) -> bool:
         return len(self.probes) >= MAX_PROBES
 
@@ -284,18 +311,80 @@ def _min_db(values):
     return None if not vals else round(min(float(v) for v in vals), 4)
 
 
-def _best(search: Search, cands: list[tuple[Knob, Allocation]], name: str) -> tuple | None:
-    """(objective, cost, index, knob, alloc) of the least-error candidate (ties: lower cost, then
-    order), rendering each; None without candidates."""
+def _best(search: Search, cands: list[tuple[Knob, Allocation]], name: str, measured: list | None = None) -> tuple | None:
+    """(objective, alloc, knob) of the least-error candidate (ties: lower cost, then order),
+    rendering each; None without candidates. ``measured`` (a list) receives (knob, objective) of
+    each candidate rendered."""
     best = None
     for idx, (k, a) in enumerate(cands):
         if search.full():
             break
         q = search.quality(a, f"{name} {k.name}")
+        if measured is not None:
+            measured.append((k, q))
         key = (-q, search.cost(a), idx)
         if best is None or key < best[0]:
             best = (key, q, a, k)
     return None if best is None else (best[1], best[2], best[3])
+
+
+def _best_predicted(search, cands: list[tuple[Knob, Allocation]], name: str, q_cur: float, effect: dict,
+                    target: float, measured: list) -> tuple | None:
+    """``_best`` of the steps down ``cands`` from an allocation of objective ``q_cur``, rendering
+    fewer (module doc, "Predicted steps"): each step is predicted at ``q_cur`` plus its knob's last
+    measured effect (``effect``; a knob never measured is rendered first), and rendered in order of
+    prediction; once a rendered step passes ``target`` and no step left is predicted within
+    ``PREDICT_TOL`` dB of it, the rest are not rendered. ``measured`` receives (knob, objective) of
+    each step rendered."""
+    order = sorted(range(len(cands)), key=lambda i: (-(q_cur + effect[cands[i][0].name])
+                                                    if cands[i][0].name in effect else -INF_DB, i))
+    best = None
+    for n, i in enumerate(order):
+        k, a = cands[i]
+        if best is not None and best[1] >= target:
+            left = [q_cur + effect.get(cands[j][0].name, INF_DB) for j in order[n:]]
+            if max(left) < best[1] - PREDICT_TOL:
+                break
+        if search.full():
+            break
+        q = search.quality(a, f"{name} {k.name}")
+        measured.append((k, q))
+        key = (-q, search.cost(a), i)
+        if best is None or key < best[0]:
+            best = (key, q, a, k)
+    return None if best is None else (best[1], best[2], best[3])
+
+
+def _jump(search, cur: Allocation, knob: Knob, q: float, effect: dict, target: float, frozen) -> Allocation:
+    """After a passing step down of ``knob`` to ``cur`` (objective ``q``): when its effect per
+    step is small against the margin left, try that knob ``n`` steps further at once (module doc,
+    "Jumps"), n = min(``MAX_JUMP``, (q - target - ``JUMP_MARGIN_DB``) / max(-effect,
+    ``JUMP_MIN_DB``)); a passing jump is taken (added to the path), a failing one is not, and the
+    greedy steps go on from where they are; after a passing jump the next is tried at once, with
+    the effect per step that jump measured."""
+    if knob.name in frozen:
+        return cur
+    per = max(-float(effect.get(knob.name, 0.0)), JUMP_MIN_DB)
+    n = int(min(MAX_JUMP, math.floor((q - target - JUMP_MARGIN_DB) / per)))
+    if n < 2 or search.full():
+        return cur
+    a, between = cur, []
+    for _ in range(n):
+        nxt = step(a, knob, -1)
+        if nxt is None:
+            break
+        a = nxt
+        between.append(a)
+    if a == cur or search.cost(a) >= search.cost(cur):
+        return cur
+    qa = search.quality(a, f"jump {knob.name}")
+    if qa >= target:
+        effect[knob.name] = (qa - q) / len(between)
+        # the steps jumped over join the path unrendered (they pass if the end does, as the
+        # verdict falls along a knob): ``refine_on_gate`` can still stop at any of them
+        search.path.extend(between)
+        return _jump(search, a, knob, qa, effect, target, frozen)  # on, at the effect now measured
+    return cur
 
 
 def _moves(alloc: Allocation, delta: int, exclude: Knob | None = None,
@@ -364,14 +453,20 @@ def search_target(search: Search, start: Allocation, target: float,
     if q < target:
         return cur, False
     search.path = [cur]  # the passing choices in the order taken
+    effect: dict = {}  # knob name -> objective change of its last step down measured (dB per step)
     while not search.full():
         down = [(k, a) for k, a in _moves(cur, -1, frozen=frozen) if search.cost(a) < search.cost(cur)]
-        got = _best(search, down, "reduce") if down else None
+        q_cur = search.quality(cur)
+        measured: list = []
+        got = _best_predicted(search, down, "reduce", q_cur, effect, target, measured) if down else None
+        for k, q in measured:  # the knobs' measured effect of one step down, for the next rounds
+            effect[k.name] = q - q_cur
         if got is None:
             break
         if got[0] >= target:
             cur = got[1]
             search.path.append(cur)
+            cur = _jump(search, cur, got[2], got[0], effect, target, frozen)
             continue
         swaps = [(k, a) for k, a in _moves(got[1], +1, exclude=got[2], frozen=frozen)
                  if search.cost(a) < search.cost(cur)]
@@ -458,12 +553,12 @@ def refine_on_gate(search: Search, choice: Allocation, target: float, passes) ->
     return None if best is None else (best, frozen)
 
 
-def _gate_record(scene, search, a, confirm, levels, statistic, goal, conf, role, gated) -> bool:
-    """Whether ``a`` passes the gate (``gate_quality`` objective >= ``goal``, dB): renders it
+def _gate_record(search, a, gate, goal, conf, role, gated) -> bool:
+    """Whether ``a`` passes the gate (``gate(container)``'s objective >= ``goal``, dB): renders it
     once (memo ``gated``) and records it in ``conf`` with ``role``."""
     k = a.key()
     if k not in gated:
-        ga = gate_quality(scene, search.cook(a), confirm, levels, statistic)
+        ga = gate(search.cook(a))
         conf.append(dict(ga, allocation=a.record(), role=role))
         gated[k] = ga["objective_db"]
     return gated[k] >= goal
@@ -486,16 +581,23 @@ def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocati
     return out
 
 
-def gate_quality(scene, c, confirm, levels, statistic: str) -> dict:
+def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | None = None) -> dict:
     """Render ``c`` quantized on the gate's harness ``confirm`` = (views, (w, h)): {"psnr_min",
-    "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level"}."""
+    "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level", "levels"
+    (those rendered)}. ``stop_below`` (dB): the renders end after the first level that misses it
+    (the levels in the order given)."""
     from ..verify.renderer import shared_harness
 
+    stop = None
+    if stop_below is not None:
+        from .calibrate import stop_rule
+
+        stop = stop_rule(float(stop_below), statistic)
     # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
     with shared_harness(scene, tuple(confirm[1])) as h:
-        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container")
+        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container", stop=stop)
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
-    return {"views": confirm[0], "resolution": list(confirm[1]), "levels": list(levels),
+    return {"views": confirm[0], "resolution": list(confirm[1]), "levels": [int(r["level"]) for r in res["levels"]],
             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),
             "psnr_mean": _min_db(r["cap"]["psnr_mean"] for r in res["levels"]),
             "psnr_per_level": [None if v is None else round(float(v), 4) for v in per],
@@ -545,11 +647,13 @@ def attribute_errors(c, scene) -> list[dict]:
 
 
 def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, statistic: str = "mean",
-             progress=None) -> dict:
+             progress=None, watch=None) -> dict:
     """Run one search (module doc). ``mode`` "budget" (``goal`` bits per vertex) or "target"
     (``goal`` dB); ``settings`` the cook's (for "target" the k_f calibration's choice already
     applied); ``harness`` (views, (w, h), levels) the reduced harness; ``confirm`` (views, (w, h))
-    the gate's or None.
+    the gate's or None. ``watch`` (target mode): the watched levels of a direct search (module doc,
+    "Direct search"; ``harness`` is then the gate's, and so is ``confirm``), None: every probe renders
+    every level.
 
     Returns the search record: {"mode", "goal", "statistic", "harness", "start" and "choice"
     (allocation records), "bits_per_vertex" (choice's, at ``COST_LEVEL``), "vertex_bits" (its
@@ -563,9 +667,24 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
 
     base = run(scene, settings, options=settings.to_manifest()["options"]).container
     start = container_allocation(base, 0.0)
-    search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress)
+    direct = watch is not None and mode == "target"
+    search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress,
+                    watch=watch if direct else None, goal=goal if direct else None)
     conf = []
     frozen: list = []
+    all_levels = [int(b) for b in harness[2]]
+
+    def gate(c) -> dict:
+        """The gate's verdict on container ``c``: every level; a direct search renders the watched
+        levels first, stops at the first miss and watches the level it missed from then on."""
+        if not direct:
+            return gate_quality(scene, c, confirm, all_levels, statistic)
+        order = search.watch + [b for b in all_levels if b not in search.watch]
+        g = gate_quality(scene, c, confirm, order, statistic, stop_below=float(goal))
+        if g["objective_db"] < float(goal) and g["levels"] and g["levels"][-1] not in search.watch:
+            search.watch.append(g["levels"][-1])
+        return g
+
     try:
         if mode == "budget":
             choice = search_budget(search, start, float(goal))
@@ -577,16 +696,15 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
         objective = search.quality(choice)
         c = search.cook(choice)
         if confirm is not None:
-            levels = harness[2]
-            g = gate_quality(scene, c, confirm, levels, statistic)
+            g = gate(c)
             conf.append(dict(g, allocation=choice.record(), role="choice"))
             gated = {choice.key(): g["objective_db"]}
             if mode == "target":
                 reached = g["objective_db"] >= float(goal)
                 if not reached:
                     got = refine_on_gate(search, choice, float(goal),
-                                         lambda a, role: _gate_record(scene, search, a, confirm, levels, statistic,
-                                                                      float(goal), conf, role, gated))
+                                         lambda a, role: _gate_record(search, a, gate, float(goal), conf, role,
+                                                                      gated))
                     if got is not None:
                         choice, frozen = got
                         c, objective, reached = search.cook(choice), search.quality(choice, "confirm path"), True
@@ -595,7 +713,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
                     if reached:
                         break
                     ca = search.cook(a)
-                    ga = gate_quality(scene, ca, confirm, levels, statistic)
+                    ga = gate(ca)
                     conf.append(dict(ga, allocation=a.record(), role=role))
                     if ga["objective_db"] >= float(goal) or role == "anchor":
                         choice, c, objective = a, ca, search.quality(a, f"confirm {role}")
@@ -609,6 +727,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             "choice": choice.record(), "bits_per_vertex": round(vb["total"], 4),
             "vertex_bits": {k: round(vb[k], 4) for k in ("positions", "attributes", "total")},
             "objective_db": round(objective, 4), "reached": bool(reached), "confirmation": conf, "frozen": frozen,
+            "watch": None if search.watch is None else list(search.watch),
             "probes": search.probes, "seconds": round(time.perf_counter() - t0, 3),
             "attribute_errors": attribute_errors(c, scene), "_settings": cook_settings(settings, choice)}
 

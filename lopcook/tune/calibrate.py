@@ -67,6 +67,20 @@ covers the same pixels at level B whatever the resolution (``lopcook.verify.came
 viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
 directions more coarsely. Measured costs: docs/performance.md ("Calibration").
 
+Watched levels (the direct search, ``watch_db``; ``cook --target-psnr``'s default). The search
+renders on the gate's harness itself (20 views at 1280 x 720, levels 6..11), so nothing it sees can
+differ from the gate, and it renders there only what decides a probe. The **anchor** (the default
+cook, sigma 1) is rendered level by level upward until two levels in a row are ``watch_db`` dB
+above the least so far (``scout_rule``: the PSNR climbs with the level as the object grows on
+screen); the levels rendered whose PSNR is within ``watch_db`` dB of the least are **watched**, in
+order of margin. Every other probe renders the watched levels only, least
+margin first, and stops at the first that misses the target: a failing probe usually costs one
+level (at levels 6-8 the object covers a small part of the frame, so those are also the cheapest),
+a passing one the watched levels. The choice is then rendered at every level (``complete``); if it
+misses an unwatched level, that level is watched too and the search runs again (its probes are
+memoised by content: only the new level is rendered). So the result passes every level or, as
+before, ``reached`` is False. The float renders are made once per (level, view) and cached.
+
 Harnesses. Both harnesses (the reduced one and the gate's) are ``shared_harness``es of the scene:
 they stay open after the search, so that the attribute search of the same cook
 (``lopcook.tune.attributes``) finds their float renders cached and every decoded draw already made
@@ -118,6 +132,8 @@ CONFIRM_STEPS = 4
 CONFIRM_LEVELS = tuple(range(6, 12))
 LOG2_RANGE = (-8.0, 8.0)
 TOLERANCE = 0.25
+#: a direct search watches the levels where the anchor's PSNR is within this many dB of its least
+WATCH_DB = 4.0
 STATISTICS = ("min", "mean")
 SEARCHES = ("kf", "kf+edge")
 EDGE_RANGE = 8  # whole steps of edge strictness x_e above the given edge_eps (edge_eps / 2^8 at most)
@@ -159,20 +175,67 @@ def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
     return min(1.0, float(settings.edge_eps) / 2.0**float(edge_scale))
 
 
+def _statistic(per_view, statistic: str):
+    """A level's PSNR statistic over its views' metrics (None: identical renders)."""
+    from ..verify import metrics as M
+
+    if statistic == "mean":
+        return M.mean_mse_psnr([m["mse"] for m in per_view])
+    return min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
+
+
+def scout_rule(statistic: str, watch_db: float):
+    """The ``stop(per_view)`` of the anchor's renders (levels ascending): true once the last two
+    levels rendered are each at least ``watch_db`` dB above the least so far (the PSNR climbs with the
+    level there, as the object grows on screen; a higher level that binds anyway is found when the
+    choice is completed)."""
+    seen: list = []
+
+    def stop(per_view) -> bool:
+        v = _statistic(per_view, statistic)
+        seen.append(INF_DB if v is None else float(v))
+        least = min(seen)
+        return len(seen) >= 3 and all(x >= least + float(watch_db) for x in seen[-2:])
+
+    return stop
+
+
+def stop_rule(target: float, statistic: str, watch: int | None = None):
+    """The ``stop(per_view)`` of ``Harness.evaluate`` for a probe that must reach ``target`` dB
+    (``statistic`` "min" or "mean" over views) at every level it renders: true after the first level
+    that misses it, or once ``watch`` levels (when given) have been rendered."""
+    done = [0]
+
+    def stop(per_view) -> bool:
+        v = _statistic(per_view, statistic)
+        done[0] += 1
+        return (v is not None and v < target) or (watch is not None and done[0] >= int(watch))
+
+    return stop
+
+
 def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
           viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
-          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None, prepared=None) -> dict:
+          edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None, prepared=None,
+          watch: int | None = None, stop=None, clusters: tuple | None = None) -> dict:
     """Cook ``scene`` with every k_f scaled by ``sigma`` (and edge_eps divided by 2^``edge_scale``)
     and render its CAP buffers.
 
     Returns ``{"sigma", "log2_sigma", "eps", "edge_scale", "edge_eps", "edges", "kf", "kf_normal",
     "psnr_min" (min over levels of the min over views, dB; None = identical), "psnr_mean" (min over
-    levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level], "cap_percent",
-    "cap_bytes" [per level], "depth_order_errors" (summed), "seconds", "complete"}``.
+    levels of the PSNR of the view-averaged MSE), "psnr_min_per_level", "psnr_mean_per_level" [per level
+    rendered], "cap_percent", "cap_bytes" [per level of ``levels``, rendered or not: memory needs no
+    render], "depth_order_errors" (summed), "seconds", "complete", "levels" (the levels rendered, in
+    the order of ``levels``: the PSNR lists follow it)}``.
 
     ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
     misses the target (the probe fails whatever the other levels give); the per-level lists then
-    hold the levels rendered and ``complete`` is False. A probe that draws exactly what an earlier
+    hold the levels rendered and ``complete`` is False. ``watch`` = k (with ``stop_below``): the
+    renders also end once the first k levels of ``levels`` have passed (the watched levels of a
+    direct search, ``calibrate``; the probe passes provisionally). ``stop``: another rule of that
+    kind (``scout_rule``). ``clusters`` = (cluster size or None, cluster_all): the position layout
+    of the cook (``lopcook.settings.EmitSettings``; default unclustered), so that memory is counted
+    as the cook will store it and a probe draws what the cook of the same knobs draws. A probe that draws exactly what an earlier
     one drew on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart:
     the same buffers and attribute bits) takes the earlier renders' numbers (``Harness.view_memo``,
     keyed by the content of every draw). (Until this was keyed by content, probes with the same
@@ -191,22 +254,18 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     opts["analyse"] = s.to_record()
     if ingest_options is not None:
         opts["ingest"] = ingest_options
-    c = from_bytes(build(scene, analysis, options=opts, viewing=viewing), None)
-    stop = None
-    if stop_below is not None:
-        from ..verify import metrics as M
-
-        target, statistic = float(stop_below[0]), stop_below[1]
-
-        def stop(per_view) -> bool:
-            if statistic == "mean":
-                v = M.mean_mse_psnr([m["mse"] for m in per_view])
-            else:
-                v = min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
-            return v is not None and v < target
+    size, every = clusters if clusters is not None else (None, False)
+    c = from_bytes(build(scene, analysis, options=opts, viewing=viewing, cluster_size=size, cluster_all=every), None)
+    if stop is None and stop_below is not None:
+        stop = stop_rule(float(stop_below[0]), stop_below[1], watch)
     # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
     # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
     res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
+    from ..verify.buffers import position_bytes
+
+    lods = [0] * len(c.manifest["parts"])
+    f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
+    cap_bytes = [int(position_bytes(c, lods, int(b))["cap"]) for b in levels]  # memory needs no render
     per_level = [r["cap"]["psnr_min"] for r in res["levels"]]
     per_level_mean = [r["cap"]["psnr_mean"] for r in res["levels"]]
     finite = [p for p in per_level if p is not None]
@@ -225,16 +284,17 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
         "psnr_mean": min(finite_mean) if finite_mean else None,
         "psnr_min_per_level": per_level,
         "psnr_mean_per_level": per_level_mean,
-        "cap_percent": [r["cap"]["percent_of_float32"] for r in res["levels"]],
-        "cap_bytes": [r["cap"]["bytes"] for r in res["levels"]],
+        "cap_percent": [100.0 * b / max(f32, 1) for b in cap_bytes],
+        "cap_bytes": cap_bytes,
         "depth_order_errors": int(sum(r["cap"]["depth_order_errors"] for r in res["levels"])),
         "seconds": round(time.perf_counter() - t0, 3),
         "complete": len(res["levels"]) == len(list(levels)),
+        "levels": [int(r["level"]) for r in res["levels"]],
     }
 
 
 def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cache: dict | None = None,
-               prepared=None) -> float:
+               prepared=None, clusters: tuple | None = None) -> float:
     """Mean over ``levels`` of the CAP memory (% of float32 positions) of the cook at log2 sigma ``x``
     and edge strictness ``e``: what ``probe`` reports as ``cap_percent``, from the analysis and the
     build alone (no render). ``cache`` (a dict) keeps results by (x, e); ``prepared`` as in ``probe``."""
@@ -247,7 +307,9 @@ def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cac
         return cache[(x, e)]
     s = replace(settings, eps=settings.eps / 2.0**x, edge_eps=_edge_eps(settings, e))
     analysis = analyse(scene, s) if prepared is None else prepared.analyse(s.eps, s.edge_eps)
-    c = from_bytes(build(scene, analysis, options={"analyse": s.to_record()}), None)
+    size, every = clusters if clusters is not None else (None, False)
+    c = from_bytes(build(scene, analysis, options={"analyse": s.to_record()}, cluster_size=size, cluster_all=every),
+                   None)
     f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
     lods = [0] * len(c.manifest["parts"])
     out = sum(100.0 * position_bytes(c, lods, int(b))["cap"] / max(f32, 1) for b in levels) / len(levels)
@@ -268,9 +330,14 @@ def _same_harness(confirm, views, resolution) -> bool:
     return select_views(cv) == select_views(views) and tuple(cr) == tuple(resolution)
 
 
-def _level_psnrs(p: dict, statistic: str) -> list[float]:
-    """Per level, the probe's PSNR statistic in dB (an identical render, None, counts as ``INF_DB``)."""
-    return [INF_DB if v is None else float(v) for v in p[f"psnr_{statistic}_per_level"]]
+def _level_psnrs(p: dict, statistic: str, levels=None) -> list:
+    """Per level rendered, the probe's PSNR statistic in dB (an identical render, None, counts as
+    ``INF_DB``); with ``levels``, one entry per level given: None where the probe did not render it."""
+    got = [INF_DB if v is None else float(v) for v in p[f"psnr_{statistic}_per_level"]]
+    if levels is None:
+        return got
+    by = dict(zip(p.get("levels") or [], got))
+    return [by.get(int(b)) for b in levels]
 
 
 def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> float:
@@ -281,9 +348,12 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
     crossing (the highest failing and the lowest passing one when both exist), its slope clipped
     to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling (a flat curve sends the next probe far: to the range's end); with one probe the slope is ``SLOPE_DB``
     (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB)."""
-    pts = sorted(points, key=lambda t: t[0])
     need = -math.inf
     for li, target in enumerate(targets):
+        # the probes that rendered this level (a probe of a direct search may have stopped before it)
+        pts = sorted(((x, ps) for x, ps in points if li < len(ps) and ps[li] is not None), key=lambda t: t[0])
+        if not pts:
+            continue
         below = [(x, ps[li]) for x, ps in pts if ps[li] < target]
         above = [(x, ps[li]) for x, ps in pts if ps[li] >= target]
         if below and above and max(b[0] for b in below) < min(a[0] for a in above):
@@ -377,7 +447,7 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 
 def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
              statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
-             run_reduced, dry, prepared=None, confirm_levels=None) -> dict:
+             run_reduced, dry, prepared=None, confirm_levels=None, clusters: tuple | None = None) -> dict:
     """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
     "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
     probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
@@ -401,7 +471,7 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
             if c not in probed:
                 p = probe(scene, settings, 2.0**c[0], h, levels=clevels, views=views, viewing=viewing,
                           options=options, ingest_options=ingest_options, edge_scale=c[1],
-                          stop_below=(target_psnr, statistic), prepared=prepared)
+                          stop_below=(target_psnr, statistic), prepared=prepared, clusters=clusters)
                 p["confirm"] = True
                 probed[c] = p
                 out["probes"].append(p)
@@ -479,7 +549,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
               levels=DEFAULT_LEVELS, views=CAL_VIEWS, resolution=CAL_RESOLUTION, viewing: Viewing | None = None,
               log2_range=LOG2_RANGE, tolerance: float = TOLERANCE, options: dict | None = None,
               ingest_options: dict | None = None, progress=None, statistic: str = "min",
-              search: str | None = None, confirm=CONFIRM, confirm_levels=CONFIRM_LEVELS) -> dict:
+              search: str | None = None, confirm=CONFIRM, confirm_levels=CONFIRM_LEVELS,
+              watch_db: float | None = None, complete: bool = True, clusters: tuple | None = None) -> dict:
     """Search the smallest k_f scale sigma whose CAP renders reach ``target_psnr`` dB (module doc).
 
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
@@ -492,15 +563,23 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     "kf+edge" when ``settings.edges``, else "kf"), ``confirm`` ((views, (w, h)) of the gate's
     harness, default 20 views at 1280 x 720; None: no confirmation; skipped when it equals the
     search harness), ``confirm_levels`` (the levels of ``levels`` confirmed there, default
-    ``CONFIRM_LEVELS`` = 6..11, the gate's ``verify --levels 6-11``; None: every level).
+    ``CONFIRM_LEVELS`` = 6..11, the gate's ``verify --levels 6-11``; None: every level),
+    ``watch_db`` (None: every probe renders every level; a number: the direct search of the module
+    doc, "Watched levels", with the anchor's margin ``watch_db`` dB; give the gate's harness as
+    ``views``/``resolution``/``levels`` and ``confirm=None``), ``complete`` (direct search: render
+    the choice at every level before returning it, and search again watching the level it missed;
+    False leaves that to the caller: ``lopcook.tune.attributes`` completes its own choice),
+    ``clusters`` (the cook's position layout, as ``probe``).
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
     ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
     passing probe with the least memory; the best probe when unreachable), ``search``, ``chosen``
     (that probe), ``curve`` (every probe on the search's harness, sorted by sigma, then edge
     strictness: sigma, eps, edge_eps, kf, psnr_min, psnr_min_per_level, cap_percent per level, ...),
-    ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, and ``confirmation`` (None, or
-    ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the gate's harness, in order]).
+    ``levels``, ``views``, ``resolution``, ``base_eps``, ``seconds``, ``confirmation`` (None, or
+    ``views``, ``resolution``, ``passed``, ``probes`` [the probes on the gate's harness, in order]), and
+    ``watch`` (the watched levels, in render order; None without ``watch_db``) and ``complete``
+    (whether the choice was rendered at every level).
     """
     search = search or ("kf+edge" if settings.edges else "kf")
     if search not in SEARCHES:
@@ -522,11 +601,25 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     from ..analyse.prepared import PreparedAnalysis
 
     prepared = PreparedAnalysis(scene, settings)  # what no probe changes, computed once
+    direct = watch_db is not None
+    watch: list | None = None  # the watched levels, in render order (direct search)
     with shared_harness(scene, resolution) as h:
+        def order() -> list:
+            return list(watch) + [b for b in levels if b not in watch]
+
+        def settled(p: dict) -> bool:
+            """Whether a direct probe's verdict holds for the watched levels: it failed on a level it
+            rendered, or it rendered every watched level."""
+            return not _passes(p, target_psnr, statistic) or set(watch) <= set(p["levels"])
+
         def run(x: float, e: float = 0.0) -> dict:
-            if (x, e) not in probes:
-                p = probe(scene, settings, 2.0**x, h, levels=levels, views=views, viewing=viewing, options=options,
-                          ingest_options=ingest_options, edge_scale=e, prepared=prepared)
+            if (x, e) not in probes or (direct and not settled(probes[(x, e)])):
+                extra = {}
+                if direct:  # the watched levels first (least margin first), up to the first that fails
+                    extra = dict(levels=order(), stop_below=(float(target_psnr), statistic), watch=len(watch))
+                p = probe(scene, settings, 2.0**x, h, **{"levels": levels, **extra}, views=views, viewing=viewing,
+                          options=options, ingest_options=ingest_options, edge_scale=e, prepared=prepared,
+                          clusters=clusters)
                 probes[(x, e)] = p
                 if progress is not None:
                     progress(p)
@@ -538,8 +631,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         def passes(p: dict) -> bool:
             return _passes(p, target_psnr, statistic)
 
-        def psnrs(p: dict) -> list[float]:
-            return _level_psnrs(p, statistic)
+        def psnrs(p: dict) -> list:
+            return _level_psnrs(p, statistic, levels if direct else None)
 
         def kf_search(e: float, a: float, x_start: float, give_up=None):
             return model_search(lambda t: run(t, e), passes, a, hi, tolerance, x_start, psnrs, targets, give_up)
@@ -550,7 +643,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         def dry(x: float, e: float) -> float:  # the memory of a probe, without rendering it
             if (x, e) in probes:
                 return memory((x, e))
-            return cap_memory(scene, settings, x, e, levels, dry_cache, prepared=prepared)
+            return cap_memory(scene, settings, x, e, levels, dry_cache, prepared=prepared, clusters=clusters)
 
         def least_passing(f, a: float, b: float):
             """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
@@ -568,51 +661,89 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
                     a = m
             return b
 
-        # (1) k_f at the given edge_eps
-        e = 0.0
-        x = kf_search(e, lo, start)
-        candidates = [] if x is None else [(x, e)]
-        if search == "kf+edge" and settings.edges:
-            loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
-            if x is not None and loosest < 0:
-                # (2a) loosen the edges while the target holds at the chosen k_f
-                e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
-                candidates.append((x, e1))
-                if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
-                    best = min(memory(c) for c in candidates)
-                    if memory((x, loosest)) < best:
-                        guess = _predict([(x, psnrs(run(x, loosest)))], targets)
-                        guess = x + tolerance * max(1, math.ceil((guess - x) / tolerance - 1e-9))
-                        x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, guess,
-                                          psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
-                                          give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best,
-                                          before=lambda t: dry(t, loosest) >= best)
-                        if x1 is not None:
-                            candidates.append((x1, loosest))
-            elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
-                e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE))
-                if e_found is not None:
-                    e = e_found
-                    x = kf_search(e, lo, hi)
-                    candidates = [(x, e)]
-        reached = bool(candidates)
-        if reached:  # the least position memory, averaged over the levels (ties: less k_f)
-            x, e = min(candidates, key=lambda c: (memory(c), c[0]))
+        def choose():
+            """(reached, x, e) of one search over the knobs (module doc, steps 1-2c)."""
+            # (1) k_f at the given edge_eps
+            e = 0.0
+            x = kf_search(e, lo, start)
+            candidates = [] if x is None else [(x, e)]
+            if search == "kf+edge" and settings.edges:
+                loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
+                if x is not None and loosest < 0:
+                    # (2a) loosen the edges while the target holds at the chosen k_f
+                    e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
+                    candidates.append((x, e1))
+                    if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
+                        best = min(memory(c) for c in candidates)
+                        if memory((x, loosest)) < best:
+                            guess = _predict([(x, psnrs(run(x, loosest)))], targets)
+                            guess = x + tolerance * max(1, math.ceil((guess - x) / tolerance - 1e-9))
+                            x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, guess,
+                                              psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
+                                              give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best,
+                                              before=lambda t: dry(t, loosest) >= best)
+                            if x1 is not None:
+                                candidates.append((x1, loosest))
+                elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
+                    e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE))
+                    if e_found is not None:
+                        e = e_found
+                        x = kf_search(e, lo, hi)
+                        candidates = [(x, e)]
+            # only candidates whose verdict holds for the watched levels (a direct search's watch may
+            # have grown since one was found)
+            candidates = [c for c in candidates if ok(*c)]
+            if candidates:  # the least position memory, averaged over the levels (ties: less k_f)
+                x, e = min(candidates, key=lambda c: (memory(c), c[0]))
+                return True, x, e
+            return False, hi, e
+
+        if direct:
+            # the anchor (the default cook), levels ascending until the PSNR has climbed clear of its
+            # least (``scout_rule``): its margins name the watched levels
+            anchor = probe(scene, settings, 2.0**start, h, levels=sorted(levels), views=views, viewing=viewing,
+                           options=options, ingest_options=ingest_options, prepared=prepared,
+                           stop=scout_rule(statistic, float(watch_db)), clusters=clusters)
+            probes[(start, 0.0)] = anchor
+            if progress is not None:
+                progress(anchor)
+            per = dict(zip(anchor["levels"], _level_psnrs(anchor, statistic)))
+            least = min(per.values())
+            watch = sorted((b for b in per if per[b] < least + float(watch_db)), key=lambda b: (per[b], b))
+        whole = False
+        for _ in range(len(levels) + 1):
+            reached, x, e = choose()
             chosen = run(x, e)
-        else:
-            x = hi
-            chosen = run(x, e)
+            if not (direct and complete and reached):
+                break
+            if set(chosen["levels"]) < set(levels):  # the choice at every level, the watched ones first
+                chosen = probe(scene, settings, 2.0**x, h, levels=order(), views=views, viewing=viewing,
+                               options=options, ingest_options=ingest_options, edge_scale=e, prepared=prepared,
+                               stop_below=(float(target_psnr), statistic), clusters=clusters)
+                probes[(x, e)] = chosen
+                if progress is not None:
+                    progress(chosen)
+            if passes(chosen):
+                whole = True
+                break
+            # it missed a level nobody watched: watch it too, and search again
+            missed = chosen["levels"][-1]
+            if missed in watch:
+                break
+            watch.append(missed)
         confirmation = None
         same = confirm is not None and _same_harness(confirm, views, resolution)
-        if reached and confirm is not None and not same:
+        if reached and confirm is not None and not same and not direct:
             confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
                                     edges=search == "kf+edge" and bool(settings.edges), levels=levels,
                                     viewing=viewing, options=options, ingest_options=ingest_options,
                                     progress=progress, run_reduced=run, dry=dry, prepared=prepared,
-                                    confirm_levels=confirm_levels)
+                                    confirm_levels=confirm_levels, clusters=clusters)
             reached = confirmation["passed"]
             chosen = confirmation.pop("chosen")
             confirmation.pop("chosen_knobs")
+        if direct and complete:
+            reached = reached and whole
     curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
     return {
         "target_psnr": float(target_psnr),
@@ -636,6 +767,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         "log2_range": [lo, hi],
         "tolerance": float(tolerance),
         "confirmation": confirmation,
+        "watch": None if watch is None else [int(b) for b in watch],
+        "complete": bool(chosen.get("complete", True)),
         "seconds": round(time.perf_counter() - t0, 3),
     }
 
@@ -703,7 +836,7 @@ def format_calibration(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_LEVELS", "cap_memory", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_LEVELS", "WATCH_DB", "stop_rule", "cap_memory", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
            "SLOPE_DB", "MODEL_STEPS", "probe", "model_search", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
 

@@ -170,16 +170,23 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                         depth[v].append(hits[v][1])
                     continue
                 ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
-                outs = {}
+                fbox = getattr(h, "last_float_box", None)
+                outs, boxes = {}, {}
                 for v in variants:  # a variant whose draws equal an earlier one's gives its images
                     same = next((u for u in outs if vkeys[u] is not None and vkeys[u] == vkeys[v]), None)
-                    outs[v] = outs[same] if same is not None else h.renderer.draw(drawn[v][0], cam, shading,
-                                                                                  decoded=drawn[v][1])
+                    if same is not None:
+                        outs[v], boxes[v] = outs[same], boxes[same]
+                    else:
+                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1])
+                        boxes[v] = getattr(h.renderer, "last_box", None)
                 seconds["render"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
+                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])) if fbox is None else
+                                    int(np.count_nonzero(ref_rgba[fbox[0]:fbox[1], fbox[2]:fbox[3], 3])))
                 for v in variants:
-                    colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1])
+                    # the pass over the pixels either render drew (outside: background in both)
+                    box = None if fbox is None or boxes[v] is None else _union(fbox, boxes[v])
+                    colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1], box=box)
                     per_view[v].append(colour)
                     depth[v].append(order)
                     if vkeys[v] is not None:
@@ -211,6 +218,14 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         if stop is not None and stop(per_view[variants[0]]):
             break
     return rows, images
+
+
+def _union(a, b) -> tuple:
+    """The smallest (row0, row1, col0, col1) holding two such boxes (an empty one adds nothing)."""
+    boxes = [x for x in (a, b) if x[1] > x[0] and x[3] > x[2]]
+    if not boxes:
+        return (0, 0, 0, 0)
+    return (min(x[0] for x in boxes), max(x[1] for x in boxes), min(x[2] for x in boxes), max(x[3] for x in boxes))
 
 
 def variant_key(items, decoded: bool, shading) -> bytes | None:

@@ -221,15 +221,31 @@ _ABS_DIFF = np.abs(_CODES[:, None] - _CODES[None, :]).ravel()  # float32, index 
 _SQ_DIFF = _ABS_DIFF.astype(np.float64) ** 2
 
 
-def view_metrics(reference, test, reference_ids, test_ids) -> tuple[dict, dict]:
+def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[dict, dict]:
     """``(image_metrics(reference, test), depth_order_errors(reference_ids, test_ids))`` in one pass
     over the pixels where the two renders differ (module doc: same definitions; every count, the
     maximum error and the share off are identical; ``sum_sq`` is the same sum of the same float64
     terms without its zero terms, so it agrees to the last bits of a double).
 
-    reference, test : (h, w, 4) uint8 RGBA, C-contiguous; reference_ids, test_ids : (h, w) uint32."""
+    reference, test : (h, w, 4) uint8 RGBA, C-contiguous; reference_ids, test_ids : (h, w) uint32.
+    box : (row0, row1, col0, col1) outside which both renders are background (RGBA 0, part ID 0),
+    e.g. the union of the regions the renderer drew (``Renderer.last_box``); the pass is then
+    limited to it, widened by one pixel so that every 3 x 3 neighbourhood of the depth-order test
+    sees what it sees in the whole frame: the same numbers."""
     ref, tst = np.asarray(reference), np.asarray(test)
     rid, tid = np.asarray(reference_ids), np.asarray(test_ids)
+    if box is not None and ref.ndim == 3 and ref.shape == tst.shape and rid.shape == tid.shape == ref.shape[:2]:
+        hh, ww = ref.shape[:2]
+        r0, r1, c0, c1 = (int(v) for v in box)
+        if r1 <= r0 or c1 <= c0:  # nothing drawn in either: background everywhere
+            r0 = r1 = c0 = c1 = 0
+        else:
+            r0, r1, c0, c1 = max(0, r0 - 1), min(hh, r1 + 1), max(0, c0 - 1), min(ww, c1 + 1)
+        ref, tst = ref[r0:r1, c0:c1], tst[r0:r1, c0:c1]
+        rid, tid = rid[r0:r1, c0:c1], tid[r0:r1, c0:c1]
+        if ref.size == 0:
+            ref, tst = np.zeros((1, 1, 4), np.uint8), np.zeros((1, 1, 4), np.uint8)
+            rid, tid = np.zeros((1, 1), np.uint32), np.zeros((1, 1), np.uint32)
     if ref.shape != tst.shape or ref.ndim != 3 or ref.shape[2] != 4 or ref.dtype != np.uint8 or tst.dtype != np.uint8:
         return image_metrics(ref, tst), depth_order_errors(rid, tid)
     if rid.shape != tid.shape:

@@ -573,6 +573,8 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
         self.resolve_vao.render(moderngl.TRIANGLES, vertices=3)
         w, h = self.size
         x0, y0, rw, rh = region
+        #: (row0, row1, col0, col1) of the image outside which this draw left background
+        self.last_box = (h - y0 - rh, h - y0, x0, x0 + rw)
         rgba = np.zeros((h, w, 4), np.uint8)
         ids = np.zeros((h, w), np.uint32)
         got = np.frombuffer(self.fbo_colour.read(viewport=region, components=4, dtype="f1"), np.uint8)
@@ -743,8 +745,12 @@ class Harness:
         (hashable: camera matrix, eye and shading) the result is computed once and reused."""
         if self.cache_float and key is not None and key in self.float_cache:
             entry = self.float_cache[key]
+            box = entry[0]
+            self.last_float_box = (0, 0, 0, 0) if box is None else tuple(box)
             return _expand(entry if len(entry) == 3 else _unpack(entry), self.renderer.size)
         out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
+        #: (row0, row1, col0, col1) outside which the last float render is background
+        self.last_float_box = self.renderer.last_box
         if self.cache_float and key is not None:
             entry = _crop(*out)
             size = entry[1].nbytes + entry[2].nbytes
@@ -911,11 +917,13 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     file, normals normalised per vertex; a placement's mapped by A^-T). Attribute VBOs and index
     buffers come from ``attr_cache``.
 
-    Each item carries ``digest``: the content key (``digest``) of everything its draw reads -- part
+    Each item carries ``digest``: the content key (``digest``) of what its draw depends on -- part
     index, index buffer, attribute arrays as uploaded, flags, texture content digest, culling box,
-    packed words, VertexId/BitId tables, cluster records, level, origin and half cell of the grid it
-    is decoded on, and a placement's transform -- so two items with equal digests, drawn with the
-    same camera and shading, give the same pixels."""
+    and the float32 world positions its vertex shader computes (the reference decode of the packed
+    words at the level on its grid, mapped by a placement's transform: bit for bit what either
+    decoder gives, ``lopcook verify --decoders``) -- so two items with equal digests, drawn with the
+    same camera and shading, give the same pixels, whatever layout (clustered or binned) or minimum
+    levels gave those positions."""
     from ..emit.placement import split
     from ..emit.reader import ClusteredGpuBuffer, part_grid, placement_transform, world_normals
     from .buffers import resident_levels
@@ -1004,14 +1012,10 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         cover = Coverage(ctx, prog, specs, index_words,
                          _decoded_positions(buf, p_level, p_origin, p_half, extra.get("place")))
         owned += [ssbo, ubo, vao, cover]
-        if clusters is None:
-            tables = (np.asarray(buf.vertex_id, np.int64), np.asarray(buf.bit_id, np.int64))
-        else:
-            cl = buf.clusters
-            tables = (np.asarray(cl.vertex_id, np.int64), np.asarray(cl.cluster_id, np.int64), int(cl.size),
-                      np.asarray(rec, np.uint32))
-        key = digest(attr_key, words, *tables, int(p_level), np.asarray(p_origin, np.float64), float(p_half),
-                     extra.get("place"))
+        # named by what the vertex shader outputs: the decoded world positions (the reference decode,
+        # bit-exact with both decoders), so two buffers that decode alike at this level -- clustered
+        # or not, minimum levels that differ only at or below it -- share their renders
+        key = digest(attr_key, cover.positions)
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
                       "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, "digest": key,
