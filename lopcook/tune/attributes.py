@@ -60,6 +60,30 @@ back toward the anchor (the choice's bits at the anchor's k_f, then halfway to t
 then the anchor), the first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
 misses too, so the search never ends below the default cook's quality.
 
+Direct search (``allocate(..., watch=...)``, ``cook --target-psnr``'s default, after the direct k_f
+calibration of ``lopcook.tune.calibrate``, "Watched levels"): the reduced harness *is* the gate's
+(20 views at 1280 x 720, levels 6..11), a probe renders the watched levels only (the calibration's,
+least margin first) and stops at the first that misses the target, and the confirmation renders
+the choice's other levels (the watched ones are memoised). A level the choice misses there is
+watched from then on, and ``refine_on_gate`` / ``fallbacks`` go on as above, each gated
+allocation rendered at every level. Nothing the search sees can differ from the gate.
+
+Predicted steps (``_best_predicted``, the target search's rounds). Each round of bit-reduce
+predicts every step at the current objective plus its knob's last measured effect of one step
+(dB; a knob never measured is rendered first), renders the steps in that order, and ends the
+round once a rendered step passes and no step left is predicted within ``PREDICT_TOL`` dB of it:
+the least-error step of Purnomo's operator as far as the measured effects tell, without rendering
+the steps that cannot win (a knob whose step missed by several dB is not rendered again until
+every likelier step has missed).
+
+Jumps (``_jump``): after a passing step of a knob whose effect per step is small against the
+margin left (positions on textured assets move by tenths of a dB per half step of log2 k_f), the
+knob is tried ``n`` steps further at once, n = min(``MAX_JUMP``, (objective - target -
+``JUMP_MARGIN_DB``) / max(-effect, ``JUMP_MIN_DB``)); a passing jump is taken (the steps it
+passed over join the path, unrendered, so ``refine_on_gate`` can still stop between them) and the
+next jump is tried at the effect it measured; a failing one is not taken, and the greedy steps go
+on. Measured effects are not guarantees: every choice is confirmed by the gate as above.
+
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
 renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
 allocation and writes the same bytes. Every probe is recorded (``probes``: allocation, bits per

@@ -843,15 +843,19 @@ __all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_L
 
 def calibration_record(cal: dict) -> dict:
     """What the container records of a calibration (``options.calibration``): target, the chosen
-    k_f (scale sigma, eps, per-attribute k_f) and the curve (memory vs PSNR over k_f)."""
+    k_f (scale sigma, eps, per-attribute k_f), the curve (memory vs PSNR over k_f; each probe's
+    ``levels`` are those it rendered: a direct search's probes stop at the first level that misses
+    and otherwise render the watched levels) and the watched levels (``watch``, None for a search on
+    a reduced harness)."""
     keep = ("sigma", "log2_sigma", "eps", "edge_eps", "kf", "kf_normal", "psnr_min", "psnr_mean", "psnr_min_per_level",
-            "psnr_mean_per_level", "cap_percent")
+            "psnr_mean_per_level", "cap_percent", "levels")
     return {"target_psnr": cal["target_psnr"], "statistic": cal["statistic"], "reached": cal["reached"],
             "kf": cal["kf_normal"], "kf_per_attribute": cal["kf"], "kf_scale": cal["sigma"], "eps": cal["eps"],
             "edge_eps": cal["edge_eps"],
             "base_eps": cal["base_eps"], "levels": cal["levels"], "views": cal["views"],
-            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep} for p in cal["curve"]],
+            "resolution": cal["resolution"], "curve": [{k: p[k] for k in keep if k in p} for p in cal["curve"]],
+            "watch": cal.get("watch"),
             "confirmation": None if not cal.get("confirmation") else {
                 "views": cal["confirmation"]["views"], "resolution": cal["confirmation"]["resolution"],
                 "passed": cal["confirmation"]["passed"],
-                "probes": [{k: p[k] for k in keep} for p in cal["confirmation"]["probes"]]}}
+                "probes": [{k: p[k] for k in keep if k in p} for p in cal["confirmation"]["probes"]]}}
