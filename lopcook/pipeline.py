@@ -300,12 +300,14 @@ def analyse_lods(scene: Scene, parts_chain, settings=DEFAULTS.analyse, grid: Gri
     return grid, analyses, levels, raised
 
 
-def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, progress: Progress) -> CookResult:
-    """No LODs, no viewing savings: one analysis, one build."""
+def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, progress: Progress,
+           analysis=None) -> CookResult:
+    """No LODs, no viewing savings: one analysis (or the one given), one build."""
     timings: dict = {}
     t0 = time.perf_counter()
     with progress.stage("analyse", total=1) as st:
-        analysis = analyse(scene, settings.analyse)
+        if analysis is None:
+            analysis = analyse(scene, settings.analyse)
         st.advance()
     timings["analyse"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -443,18 +445,30 @@ def _account(result: CookResult) -> None:
             row.index_bytes = e.index_bytes
 
 
+def plain(settings: Settings, max_level: int | None = None) -> bool:
+    """Whether ``run`` cooks ``settings`` on its plain path (one analysis of the scene as given, one
+    build: no LODs, no copies stored once, no viewing savings)."""
+    return (not settings.simplify.instances and settings.simplify.lods is None and settings.viewing.nearest_m is None
+            and max_level is None)
+
+
 def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = None, max_level: int | None = None,
-        keep_buffers: bool = False, progress: Progress = NONE) -> CookResult:
+        keep_buffers: bool = False, progress: Progress = NONE, analysis=None) -> CookResult:
     """Cook ``scene`` with ``settings`` (see module doc). ``options``: the manifest's options
     record (default ``settings.to_manifest()["options"]``). ``max_level``: highest plane to
     write (default from ``viewing.nearest_m``, 24 when unknown); given explicitly it is used as
     is (vertices above it are clamped and counted). ``keep_buffers``: also return the kept
-    BufferInputs (for the byte-budget fit). ``progress``: stage reporting (``lopcook.progress``)."""
+    BufferInputs (for the byte-budget fit). ``progress``: stage reporting (``lopcook.progress``).
+    ``analysis``: on the plain path (``plain``), the Analysis of ``scene`` and ``settings.analyse``
+    already made (e.g. ``lopcook.analyse.prepared.PreparedAnalysis.analyse``, the same minimum
+    levels as ``analyse``); ValueError on another path."""
     options = settings.to_manifest()["options"] if options is None else options
+    if analysis is not None and not plain(settings, max_level):
+        raise ValueError("an analysis can be given only for a cook without LODs, copies or viewing savings")
     if settings.simplify.instances:
         return _instanced(scene, settings, options, max_level, keep_buffers, progress)
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
-        return _plain(scene, settings, options, keep_buffers, progress)
+        return _plain(scene, settings, options, keep_buffers, progress, analysis)
     timings: dict = {}
     parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
     t0 = time.perf_counter()

@@ -99,3 +99,25 @@ def test_the_built_buffers_are_the_same_bytes(rng):
         opts = {"analyse": t.to_record()}
         assert build(scene, prep.analyse(t.eps, t.edge_eps), options=opts) == build(scene, analyse(scene, t),
                                                                                        options=opts)
+
+
+def test_a_cook_with_a_prepared_analysis_writes_the_same_bytes(rng):
+    """``pipeline.run(..., analysis=...)`` (the attribute search's probes): the container of a fresh
+    cook, byte for byte, for eps, edge_eps and per-part attribute bits a search moves, clustered
+    or not; refused off the plain path."""
+    from lopcook.pipeline import run
+    from lopcook.settings import AttributeSettings, EmitSettings, Settings, SimplifySettings
+
+    scene = clustered_scene(rng)
+    base = Settings()
+    prep = PreparedAnalysis(scene, base.analyse)
+    bits = tuple((9, None, 6) if p.normals is not None else (None, None, 5 if p.colors is not None else None)
+                 for p in scene.parts)
+    for x, e, clusters in ((0.0, 0.0, 64), (-3.0, -2.0, None), (2.0, 1.0, 16)):
+        s = base.with_(analyse={"eps": base.analyse.eps / 2.0**x,
+                                "edge_eps": min(1.0, base.analyse.edge_eps / 2.0**e)},
+                       attributes=AttributeSettings(parts=bits), emit=EmitSettings(clusters=clusters))
+        fresh = run(scene, s).container.data
+        assert run(scene, s, analysis=prep.analyse(s.analyse.eps, s.analyse.edge_eps)).container.data == fresh
+    with pytest.raises(ValueError):
+        run(scene, base.with_(simplify=SimplifySettings(instances=True)), analysis=prep.analyse(base.analyse.eps))

@@ -261,6 +261,7 @@ class Search:
         # decoded draws are reused: ``shared_harness``)
         self.h = shared_harness(scene, self.resolution).harness
         self.costs: dict = {}
+        self._prepared = None
         self.quality_memo: dict = {}
         self.probes: list = []
         self.path: list = []
@@ -271,13 +272,22 @@ class Search:
         self.h = None
 
     def cook(self, alloc: Allocation):
-        """The container of ``alloc`` (the last one is kept)."""
-        from ..pipeline import run
+        """The container of ``alloc`` (the last one is kept). On the plain path the analysis comes
+        from one ``PreparedAnalysis`` of the search (only what eps changes is recomputed: the same
+        minimum levels, so the same bytes, as a fresh cook)."""
+        from ..pipeline import plain, run
 
         if self._last[0] == alloc.key():
             return self._last[1]
         s = cook_settings(self.settings, alloc)
-        c = run(self.scene, s, options=s.to_manifest()["options"]).container
+        analysis = None
+        if plain(s):
+            if self._prepared is None:
+                from ..analyse.prepared import PreparedAnalysis
+
+                self._prepared = PreparedAnalysis(self.scene, self.settings.analyse)
+            analysis = self._prepared.analyse(s.analyse.eps, s.analyse.edge_eps)
+        c = run(self.scene, s, options=s.to_manifest()["options"], analysis=analysis).container
         self._last = (alloc.key(), c)
         return c
 
@@ -297,14 +307,15 @@ class Search:
         t0 = time.perf_counter()
         c = self.cook(alloc)
         cost = self.cost(alloc)
-        levels, stop = self.levels, None
+        levels, stop, stop_view = self.levels, None, None
         if self.watch is not None and self.goal is not None:
-            from .calibrate import stop_rule
+            from .calibrate import stop_rule, view_rule
 
             levels = self.watch + [b for b in self.levels if b not in self.watch]
             stop = stop_rule(self.goal, self.statistic, len(self.watch))
+            stop_view = view_rule(self.goal, self.statistic)
         res = self.h.evaluate(c, levels=levels, views=self.views, variants=("cap",), attributes="container",
-                              stop=stop)
+                              stop=stop, stop_view=stop_view)
         per = [r["cap"][f"psnr_{self.statistic}"] for r in res["levels"]]
         obj = min(INF_DB if v is None else float(v) for v in per)
         p = {"allocation": alloc.record(), "bits_per_vertex": round(cost, 4), "objective_db": round(obj, 4),
@@ -612,14 +623,15 @@ def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | 
     (the levels in the order given)."""
     from ..verify.renderer import shared_harness
 
-    stop = None
+    stop = stop_view = None
     if stop_below is not None:
-        from .calibrate import stop_rule
+        from .calibrate import stop_rule, view_rule
 
-        stop = stop_rule(float(stop_below), statistic)
+        stop, stop_view = stop_rule(float(stop_below), statistic), view_rule(float(stop_below), statistic)
     # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
     with shared_harness(scene, tuple(confirm[1])) as h:
-        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container", stop=stop)
+        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container", stop=stop,
+                         stop_view=stop_view)
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
     return {"views": confirm[0], "resolution": list(confirm[1]), "levels": [int(r["level"]) for r in res["levels"]],
             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),

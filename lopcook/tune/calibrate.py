@@ -214,6 +214,16 @@ def stop_rule(target: float, statistic: str, watch: int | None = None):
     return stop
 
 
+def view_rule(target: float, statistic: str):
+    """The ``stop_view(metrics)`` of ``Harness.evaluate`` for a probe that must reach ``target`` dB on
+    the minimum over views: true at the first view below it (the level, and the probe, miss
+    whatever the other views give; the level's recorded minimum is then that view's, an upper
+    bound of the minimum over every view). None for the "mean" statistic, which needs every view."""
+    if statistic != "min":
+        return None
+    return lambda m: m["psnr"] is not None and m["psnr"] < float(target)
+
+
 def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, levels, views,
           viewing: Viewing, options: dict | None = None, ingest_options: dict | None = None,
           edge_scale: float = 0.0, stop_below: tuple[float, str] | None = None, prepared=None,
@@ -229,8 +239,9 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     the order of ``levels``: the PSNR lists follow it)}``.
 
     ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
-    misses the target (the probe fails whatever the other levels give); the per-level lists then
-    hold the levels rendered and ``complete`` is False. ``watch`` = k (with ``stop_below``): the
+    misses the target (the probe fails whatever the other levels give; with "min", at the first view
+    below it, ``view_rule``); the per-level lists then hold the levels rendered and ``complete`` is
+    False. ``watch`` = k (with ``stop_below``): the
     renders also end once the first k levels of ``levels`` have passed (the watched levels of a
     direct search, ``calibrate``; the probe passes provisionally). ``stop``: another rule of that
     kind (``scout_rule``). ``clusters`` = (cluster size or None, cluster_all): the position layout
@@ -260,7 +271,8 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
         stop = stop_rule(float(stop_below[0]), stop_below[1], watch)
     # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
     # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
-    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop)
+    stop_view = None if stop_below is None else view_rule(float(stop_below[0]), stop_below[1])
+    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view)
     from ..verify.buffers import position_bytes
 
     lods = [0] * len(c.manifest["parts"])
@@ -836,7 +848,7 @@ def format_calibration(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_LEVELS", "WATCH_DB", "stop_rule", "cap_memory", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
+__all__ = ["CAL_VIEWS", "CAL_RESOLUTION", "CONFIRM", "CONFIRM_STEPS", "CONFIRM_LEVELS", "WATCH_DB", "stop_rule", "view_rule", "cap_memory", "LOG2_RANGE", "TOLERANCE", "SEARCHES", "EDGE_RANGE",
            "SLOPE_DB", "MODEL_STEPS", "probe", "model_search", "calibrate",
            "calibrated_settings", "require_reached", "format_calibration"]
 

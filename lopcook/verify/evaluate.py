@@ -132,13 +132,15 @@ def camera_rows(lv, cl, distance_m, extent, viewing) -> list[tuple[int, int, flo
 
 
 def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, variants, keep_images,
-                 image_view, seconds, stop=None) -> tuple[list, dict | None]:
+                 image_view, seconds, stop=None, stop_view=None) -> tuple[list, dict | None]:
     """The per-level render loop shared by ``evaluate`` and ``evaluate_scene``.
 
     plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned GL
     objects released after the level); stop(per_view) -> bool, called after each level with the
     first variant's per-view ``metrics.image_metrics`` dicts: True ends the loop there (the rows
-    rendered so far are returned). Returns (rows without the variants' bytes: per variant
+    rendered so far are returned); stop_view(metrics) -> bool, called after each view with the
+    first variant's ``image_metrics`` dict: True ends that level's views there (the row holds the
+    views rendered; ``stop`` is then called as after any level, and must end the loop). Returns (rows without the variants' bytes: per variant
     ``(per_view metrics, depth metrics)`` under ``"_raw"``, images or None)."""
     rows = []
     images = None
@@ -168,6 +170,8 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     for v in variants:
                         per_view[v].append(hits[v][0])
                         depth[v].append(hits[v][1])
+                    if stop_view is not None and stop_view(per_view[variants[0]][-1]):
+                        break
                     continue
                 ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
                 fbox = getattr(h, "last_float_box", None)
@@ -191,6 +195,8 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     depth[v].append(order)
                     if vkeys[v] is not None:
                         memo[(vkeys[v], key)] = (colour, order, float_pixels[-1])
+                if stop_view is not None and stop_view(per_view[variants[0]][-1]):
+                    break
                 seconds["metrics"] += time.perf_counter() - t0
                 if images_here:
                     score = per_view[variants[0]][-1]["sum_sq"]
@@ -264,7 +270,8 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container") -> dict:
+                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container",
+                     stop_view=None) -> dict:
     """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
     ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order)."""
     if attributes not in ATTRIBUTE_SOURCES:
@@ -318,7 +325,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     try:
         rows, images = render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,
                                     shading=shading, draws=draws, variants=variants, keep_images=keep_images,
-                                    image_view=image_view, seconds=seconds, stop=stop)
+                                    image_view=image_view, seconds=seconds, stop=stop, stop_view=stop_view)
     finally:
         for entry in attr_cache.values():
             for b in entry[2]:
