@@ -181,6 +181,13 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
             calibration, record, settings = _calibrate(scene, given, progress, complete=True)
             search, search_rec, settings = _attribute_search(scene, settings, progress, calibration.get("watch"))
         timings["attribute_search"] = time.perf_counter() - t0
+    if calibration is not None or search is not None:
+        # the searches' renders and prepared analysis are not needed by the cook that follows
+        from .analyse.prepared import release_shared as release_prepared
+        from .verify.renderer import release_shared as release_harnesses
+
+        release_prepared()
+        release_harnesses()
     options = settings.to_manifest()["options"]
     if record is not None:
         options["calibration"] = record

@@ -182,4 +182,27 @@ class PreparedAnalysis:
                         colocated_raised=int(np.count_nonzero(shared > alll)))
 
 
-__all__ = ["PreparedAnalysis"]
+#: the last ``shared`` analysis: (scene, settings with eps and edge_eps cleared, PreparedAnalysis)
+_SHARED: list = []
+
+
+def shared(scene: Scene, settings: AnalyseSettings) -> PreparedAnalysis:
+    """A ``PreparedAnalysis`` of ``scene`` (the same object) and ``settings`` (up to eps and edge_eps,
+    which it does not depend on), kept for the next caller: the k_f calibration and the attribute
+    search of one cook prepare the scene once. Asking for another scene or other settings replaces
+    it (one is held at a time)."""
+    key = replace(settings, eps=1.0, edge_eps=1.0)  # what the preparation depends on
+    if _SHARED and _SHARED[0][0] is scene and _SHARED[0][1] == key:
+        return _SHARED[0][2]
+    _SHARED.clear()
+    prep = PreparedAnalysis(scene, settings)
+    _SHARED.append((scene, key, prep))
+    return prep
+
+
+def release_shared() -> None:
+    """Drop the analysis ``shared`` holds."""
+    _SHARED.clear()
+
+
+__all__ = ["PreparedAnalysis", "shared", "release_shared"]

@@ -282,10 +282,10 @@ class Search:
         s = cook_settings(self.settings, alloc)
         analysis = None
         if plain(s):
-            if self._prepared is None:
-                from ..analyse.prepared import PreparedAnalysis
+            if self._prepared is None:  # the k_f calibration's, when it ran on this scene
+                from ..analyse.prepared import shared
 
-                self._prepared = PreparedAnalysis(self.scene, self.settings.analyse)
+                self._prepared = shared(self.scene, self.settings.analyse)
             analysis = self._prepared.analyse(s.analyse.eps, s.analyse.edge_eps)
         c = run(self.scene, s, options=s.to_manifest()["options"], analysis=analysis).container
         self._last = (alloc.key(), c)

@@ -610,9 +610,9 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     dry_cache: dict = {}
     targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
     start = min(hi, max(lo, 0.0))  # the default cook's k_f
-    from ..analyse.prepared import PreparedAnalysis
+    from ..analyse.prepared import shared
 
-    prepared = PreparedAnalysis(scene, settings)  # what no probe changes, computed once
+    prepared = shared(scene, settings)  # what no probe changes, computed once (and kept for the attribute search)
     direct = watch_db is not None
     watch: list | None = None  # the watched levels, in render order (direct search)
     with shared_harness(scene, resolution) as h:
