@@ -261,6 +261,8 @@ class Search:
         # decoded draws are reused: ``shared_harness``)
         self.h = shared_harness(scene, self.resolution).harness
         self.costs: dict = {}
+        self._position_bits: dict = {}  # x -> positions' bits per vertex at COST_LEVEL
+        self._vertices = None  # LOD-0 vertices per part
         self._prepared = None
         self.quality_memo: dict = {}
         self.probes: list = []
@@ -292,10 +294,23 @@ class Search:
         return c
 
     def cost(self, alloc: Allocation) -> float:
-        """Bits per vertex at ``COST_LEVEL`` (``vertex_bits``), from the cook alone (no render)."""
+        """Bits per vertex at ``COST_LEVEL`` (``vertex_bits``), from the cook alone (no render). The
+        position bits depend on ``x`` alone and the record bits on the attribute bits alone
+        (``S = 2 b_n + 2 b_u + 4 b_c`` per vertex): once an allocation of the same ``x`` was cooked,
+        another is costed without cooking it (the sum is checked against the cook's own each time
+        one is cooked)."""
         k = alloc.key()
         if k not in self.costs:
-            self.costs[k] = vertex_bits(self.cook(alloc))["total"]
+            x = float(alloc.x)
+            if x in self._position_bits and self._vertices is not None:
+                self.costs[k] = self._position_bits[x] + _record_bits(alloc, self._vertices)
+            else:
+                vb = vertex_bits(self.cook(alloc))
+                self._vertices = [p["vertices"] for p in vb["per_part"]]
+                self._position_bits[x] = vb["positions"]
+                if abs(vb["positions"] + _record_bits(alloc, self._vertices) - vb["total"]) > 1e-9:
+                    raise AssertionError(f"record bits of {alloc.record()} are not the cook's")
+                self.costs[k] = vb["total"]
         return self.costs[k]
 
     def quality(self, alloc: Allocation, step_name: str = "") -> float:
@@ -339,6 +354,14 @@ class Search:
 
     def full(self) -> bool:
         return len(self.probes) >= MAX_PROBES
+
+
+def _record_bits(alloc: Allocation, vertices: list) -> float:
+    """The attribute records' bits per vertex of ``alloc`` (vertex-weighted over the parts, as
+    ``vertex_bits``): 2 b_n + 2 b_u + 4 b_c per part, 0 for an attribute it does not store."""
+    total = sum(int(n) * sum(COMPONENTS[a] * int(b or 0) for a, b in zip(ATTRIBUTES, bits))
+                for n, bits in zip(vertices, alloc.parts))
+    return total / max(sum(int(n) for n in vertices), 1)
 
 
 def _min_db(values):

@@ -345,6 +345,7 @@ class Coverage:
         self.triangles = np.ascontiguousarray(np.asarray(triangles).reshape(-1, 3), dtype=np.int32)
         self._columns = None
         self._positions = positions
+        self._box = None  # (lo, hi) of the positions, or False when there are none
         self._ibo = self._vao = None
 
     @property
@@ -360,6 +361,21 @@ class Coverage:
         m = self.triangles.shape[0]
         if m < COVER_MIN_TRIANGLES:
             return None
+        if self._box is None:
+            p = self.positions
+            self._box = (p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)) if p.size else False
+        if self._box is False:
+            return None
+        # the projected box first (8 corners): most items of a close view are not worth testing
+        corners = np.array([[x, y, z] for x in (self._box[0][0], self._box[1][0]) for y in (self._box[0][1],
+                            self._box[1][1]) for z in (self._box[0][2], self._box[1][2])], np.float32)
+        cx, cy, cok = window_coordinates(corners, camera.mvp, size)
+        if cok.all():
+            w, h = float(size[0]), float(size[1])
+            area = max(0.0, min(w, float(cx.max())) - max(0.0, float(cx.min())) + 2.0) * \
+                max(0.0, min(h, float(cy.max())) - max(0.0, float(cy.min())) + 2.0)
+            if m < COVER_DENSITY * max(area, 1.0):
+                return None
         px, py, ok = window_coordinates(self.positions, camera.mvp, size)
         if not ok.all():
             return None
