@@ -271,3 +271,8 @@ def test_refine_on_gate_freezes_what_the_reduced_harness_misjudged():
     assert best.parts[0][1] == 10 and (best.x < start.x or best.parts[0][0] < 16)
     # a gate nothing passes: None
     assert TA.refine_on_gate(model, choice, target, lambda a, role: False) is None
+
+
+def test_progress_text_folds_runs_of_equal_parts():
+    rec = TA.Allocation(-1.0, ((8, 6, None),) * 49 + ((None, None, 5), (8, 6, None))).record()
+    assert TA._alloc_text(rec) == "k_f 2^-1, n/uv/c 8/6/- x49 -/-/5 8/6/-"

@@ -814,8 +814,15 @@ def require_reached(result: dict, path: str | None = None) -> None:
 
 
 def _alloc_text(rec: dict) -> str:
+    """``k_f 2^x, n/uv/c 8/12/- 7/-/-``: the bits per part, runs of equal parts as ``8/6/- x49``."""
     parts = ["/".join("-" if p[a] is None else str(p[a]) for a in ATTRIBUTES) for p in rec["parts"]]
-    return f"k_f 2^{rec['log2_kf_scale']:g}, n/uv/c " + " ".join(parts)
+    runs: list = []
+    for t in parts:
+        if runs and runs[-1][0] == t:
+            runs[-1][1] += 1
+        else:
+            runs.append([t, 1])
+    return f"k_f 2^{rec['log2_kf_scale']:g}, n/uv/c " + " ".join(t if n == 1 else f"{t} x{n}" for t, n in runs)
 
 
 def format_probe(p: dict) -> str:
