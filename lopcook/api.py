@@ -51,16 +51,18 @@ def budget_target(text: str, float_size: int | None = None) -> int | None:
     return None if float_size is None else int(value * float_size)
 
 
-def calibration(scene: Scene, settings: Settings, progress: Progress = NONE, complete: bool = True) -> dict:
+def calibration(scene: Scene, settings: Settings, progress: Progress = NONE, complete: bool = True,
+                loosen_edges: bool = True) -> dict:
     """``lopcook calibrate``: the k_f search of ``settings.tune`` (``lopcook.tune.calibrate``);
     its result says whether the target was reached. ``complete`` False: a direct search does not
-    render its choice at every level (the attribute search that follows does)."""
+    render its choice at every level (the attribute search that follows does); ``loosen_edges``
+    False: the edges are loosened by the attribute search that follows (one of its knobs)."""
     with progress.stage("calibrate (probes)") as st:
         def on_probe(p):
             st.advance()
             progress(p)
 
-        return _search(scene, settings, on_probe, complete)
+        return _search(scene, settings, on_probe, complete, loosen_edges)
 
 
 def search_harness(settings: Settings) -> tuple:
@@ -78,7 +80,8 @@ def search_harness(settings: Settings) -> tuple:
     return t.calibration.views, tuple(t.calibration.resolution), tuple(t.calibration.levels), False
 
 
-def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True) -> dict:
+def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True, loosen_edges: bool = True) -> dict:
+    """The k_f calibration of ``settings.tune`` (``calibration``)."""
     from .tune.calibrate import WATCH_DB, calibrate
 
     t = settings.tune
@@ -90,16 +93,17 @@ def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True) -
                     statistic=t.psnr_stat.value, search=None if t.search is None else t.search.value,
                     confirm=confirm, watch_db=WATCH_DB if direct else None,
                     complete=complete and t.confirm is not None,
-                    clusters=(settings.emit.clusters, bool(settings.emit.cluster_all)))
+                    clusters=(settings.emit.clusters, bool(settings.emit.cluster_all)),
+                    loosen_edges=loosen_edges)
     return cal
 
 
-def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True):
+def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True, loosen_edges: bool = True):
     """``tune.target_psnr``: the calibration, its manifest record and the settings it chose;
     LopcookError (exit 1) when the target is not reached."""
     from .tune.calibrate import calibration_record, require_reached
 
-    cal = calibration(scene, settings, progress, complete)
+    cal = calibration(scene, settings, progress, complete, loosen_edges)
     require_reached(cal, scene.source)
     chosen = settings.with_(analyse={"eps": cal["eps"], "edge_eps": cal["edge_eps"]})
     return cal, calibration_record(cal), chosen
@@ -165,7 +169,9 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
     given = settings
     if settings.tune.target_psnr is not None:
         t0 = time.perf_counter()
-        calibration, record, settings = _calibrate(scene, given, progress, complete=not leave)
+        # the edges are a knob of the attribute search when it follows: loosened there, not here
+        calibration, record, settings = _calibrate(scene, given, progress, complete=not leave,
+                                                   loosen_edges=not attributes)
         timings["calibrate"] = time.perf_counter() - t0
     search = search_rec = None
     if attributes:
@@ -178,7 +184,8 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
                 raise
             # even the k_f choice missed a level nobody watched: the calibration completes its own
             # choice (moving toward the default cook), and the attribute search starts again from it
-            calibration, record, settings = _calibrate(scene, given, progress, complete=True)
+            calibration, record, settings = _calibrate(scene, given, progress, complete=True,
+                                                       loosen_edges=not attributes)
             search, search_rec, settings = _attribute_search(scene, settings, progress, calibration.get("watch"))
         timings["attribute_search"] = time.perf_counter() - t0
     if calibration is not None or search is not None:

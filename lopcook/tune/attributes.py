@@ -81,8 +81,8 @@ margin left (positions on textured assets move by tenths of a dB per half step o
 knob is tried ``n`` steps further at once, n = min(``MAX_JUMP``, (objective - target -
 ``JUMP_MARGIN_DB``) / max(-effect, ``JUMP_MIN_DB``)); a passing jump is taken (the steps it
 passed over join the path, unrendered, so ``refine_on_gate`` can still stop between them) and the
-next jump is tried at the effect it measured; a failing one is not taken, and the greedy steps go
-on. Measured effects are not guarantees: every choice is confirmed by the gate as above.
+next jump is tried at the effect it measured; a failing one (it stops at its first view below the
+target: a few draws) is tried again half as far, and then the greedy steps go on. Measured effects are not guarantees: every choice is confirmed by the gate as above.
 
 Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
 renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
@@ -108,6 +108,8 @@ COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
 #: the positions' knob: log2 of the k_f scale, its grid step and range (as ``lopcook.tune.calibrate``)
 POSITION_STEP = 0.5
 POSITION_RANGE = (-8.0, 8.0)
+#: the edges' knob (target searches with the edge constraint on): whole steps of x_e, its range
+EDGE_STEPS = (-8.0, 8.0)
 #: the level whose bits per vertex the budget counts
 COST_LEVEL = 11
 #: at most this many parts get their own knob per attribute (more: one knob for all of them)
@@ -122,7 +124,7 @@ INF_DB = 200.0
 PREDICT_TOL = 0.25
 #: jumps (``_jump``): at most this many steps at once, aiming this far above the target, with at
 #: least this loss per step assumed (dB)
-MAX_JUMP = 8
+MAX_JUMP = 16
 JUMP_MARGIN_DB = 0.5
 JUMP_MIN_DB = 0.25
 MODES = ("budget", "target")
@@ -135,14 +137,21 @@ class Allocation:
 
     x: float
     parts: tuple
+    #: the edge constraint's strictness x_e (``edge_eps / 2^e`` of the search's settings, at most 1;
+    #: whole steps, as ``lopcook.tune.calibrate``), None: not a knob (edges off, or a bit budget)
+    e: float | None = None
 
     def key(self) -> tuple:
-        return (float(self.x), tuple(tuple(p) for p in self.parts))
+        return (float(self.x), tuple(tuple(p) for p in self.parts), self.e)
 
     def record(self) -> dict:
-        """JSON form: {"log2_kf_scale", "parts": [{"normals", "uvs", "colors"}]}."""
-        return {"log2_kf_scale": float(self.x),
-                "parts": [dict(zip(ATTRIBUTES, (None if b is None else int(b) for b in p))) for p in self.parts]}
+        """JSON form: {"log2_kf_scale", "parts": [{"normals", "uvs", "colors"}]} and, when edges are
+        a knob, "edge_scale"."""
+        out = {"log2_kf_scale": float(self.x),
+               "parts": [dict(zip(ATTRIBUTES, (None if b is None else int(b) for b in p))) for p in self.parts]}
+        if self.e is not None:
+            out["edge_scale"] = float(self.e)
+        return out
 
 
 @dataclass(frozen=True)
@@ -155,15 +164,18 @@ class Knob:
 
     @property
     def name(self) -> str:
-        if self.attribute == "positions":
-            return "positions"
+        if self.attribute in ("positions", "edges"):
+            return self.attribute
         return f"{self.attribute}[{','.join(map(str, self.parts)) if len(self.parts) <= MAX_PART_KNOBS else 'all'}]"
 
 
 def knobs(alloc: Allocation) -> list[Knob]:
-    """The knobs of an allocation (module doc): positions first, then per attribute its parts' knobs
-    (or one for all of them past ``MAX_PART_KNOBS``), in part order."""
+    """The knobs of an allocation (module doc): positions first, edges (when ``alloc.e`` is not
+    None), then per attribute its parts' knobs (or one for all of them past ``MAX_PART_KNOBS``), in
+    part order."""
     out = [Knob("positions")]
+    if alloc.e is not None:
+        out.append(Knob("edges"))
     for a, attr in enumerate(ATTRIBUTES):
         have = tuple(i for i, p in enumerate(alloc.parts) if p[a] is not None)
         if not have:
@@ -182,6 +194,10 @@ def step(alloc: Allocation, knob: Knob, delta: int) -> Allocation | None:
         x = alloc.x + delta * POSITION_STEP
         lo, hi = POSITION_RANGE
         return None if not lo <= x <= hi else replace(alloc, x=x)
+    if knob.attribute == "edges":
+        e = float(alloc.e) + delta
+        lo, hi = EDGE_STEPS
+        return None if not lo <= e <= hi else replace(alloc, e=e)
     a = ATTRIBUTES.index(knob.attribute)
     lo, hi = RANGES[knob.attribute]
     parts = [list(p) for p in alloc.parts]
@@ -232,12 +248,15 @@ def container_allocation(c, x: float = 0.0) -> Allocation:
 
 
 def cook_settings(settings, alloc: Allocation):
-    """``settings`` with ``alloc`` applied: eps divided by 2^x, and ``attributes.parts`` set."""
+    """``settings`` with ``alloc`` applied: eps divided by 2^x, edge_eps by 2^e (at most 1) when
+    edges are a knob, and ``attributes.parts`` set."""
     from ..settings import AttributeSettings
 
     base = getattr(settings, "attributes", None) or AttributeSettings()
-    return settings.with_(analyse={"eps": settings.analyse.eps / 2.0**float(alloc.x)},
-                          attributes=replace(base, parts=tuple(tuple(p) for p in alloc.parts)))
+    analyse = {"eps": settings.analyse.eps / 2.0**float(alloc.x)}
+    if alloc.e is not None:
+        analyse["edge_eps"] = min(1.0, float(settings.analyse.edge_eps) / 2.0**float(alloc.e))
+    return settings.with_(analyse=analyse, attributes=replace(base, parts=tuple(tuple(p) for p in alloc.parts)))
 
 
 class Search:
@@ -261,7 +280,8 @@ class Search:
         # decoded draws are reused: ``shared_harness``)
         self.h = shared_harness(scene, self.resolution).harness
         self.costs: dict = {}
-        self._position_bits: dict = {}  # x -> positions' bits per vertex at COST_LEVEL
+        self._margin: dict = {}  # level -> PSNR of the last passing probe (a direct search's render order)
+        self._position_bits: dict = {}  # (x, e) -> positions' bits per vertex at COST_LEVEL
         self._vertices = None  # LOD-0 vertices per part
         self._prepared = None
         self.quality_memo: dict = {}
@@ -295,13 +315,13 @@ class Search:
 
     def cost(self, alloc: Allocation) -> float:
         """Bits per vertex at ``COST_LEVEL`` (``vertex_bits``), from the cook alone (no render). The
-        position bits depend on ``x`` alone and the record bits on the attribute bits alone
-        (``S = 2 b_n + 2 b_u + 4 b_c`` per vertex): once an allocation of the same ``x`` was cooked,
+        position bits depend on ``x`` and ``e`` alone and the record bits on the attribute bits alone
+        (``S = 2 b_n + 2 b_u + 4 b_c`` per vertex): once an allocation of the same ``x``, ``e`` was cooked,
         another is costed without cooking it (the sum is checked against the cook's own each time
         one is cooked)."""
         k = alloc.key()
         if k not in self.costs:
-            x = float(alloc.x)
+            x = (float(alloc.x), alloc.e)
             if x in self._position_bits and self._vertices is not None:
                 self.costs[k] = self._position_bits[x] + _record_bits(alloc, self._vertices)
             else:
@@ -326,7 +346,10 @@ class Search:
         if self.watch is not None and self.goal is not None:
             from .calibrate import stop_rule, view_rule
 
-            levels = self.watch + [b for b in self.levels if b not in self.watch]
+            # the watched levels, least margin first as the last passing probe measured them (a step
+            # that misses usually misses where the margin was least: the miss is then found first)
+            watch = sorted(self.watch, key=lambda b: (self._margin.get(b, -INF_DB), self.watch.index(b)))
+            levels = watch + [b for b in self.levels if b not in self.watch]
             stop = stop_rule(self.goal, self.statistic, len(self.watch))
             stop_view = view_rule(self.goal, self.statistic)
         res = self.h.evaluate(c, levels=levels, views=self.views, variants=("cap",), attributes="container",
@@ -340,6 +363,8 @@ class Search:
              "psnr_mean": _min_db(r["cap"]["psnr_mean"] for r in res["levels"]),
              "step": step_name, "seconds": round(time.perf_counter() - t0, 3)}
         self.quality_memo[k] = dict(p, objective=obj)
+        if self.goal is not None and obj >= self.goal:
+            self._margin = {int(r["level"]): (INF_DB if v is None else float(v)) for r, v in zip(res["levels"], per)}
         self.probes.append(p)
         if self.progress is not None:
             self.progress(p)
@@ -417,31 +442,32 @@ def _jump(search, cur: Allocation, knob: Knob, q: float, effect: dict, target: f
     """After a passing step down of ``knob`` to ``cur`` (objective ``q``): when its effect per
     step is small against the margin left, try that knob ``n`` steps further at once (module doc,
     "Jumps"), n = min(``MAX_JUMP``, (q - target - ``JUMP_MARGIN_DB``) / max(-effect,
-    ``JUMP_MIN_DB``)); a passing jump is taken (added to the path), a failing one is not, and the
-    greedy steps go on from where they are; after a passing jump the next is tried at once, with
-    the effect per step that jump measured."""
+    ``JUMP_MIN_DB``)); a passing jump is taken (added to the path), a failing one is tried again
+    half as far (while that is 2 steps or more), and then the greedy steps go on from where they
+    are; after a passing jump the next is tried at once, with the effect per step that jump
+    measured."""
     if knob.name in frozen:
         return cur
     per = max(-float(effect.get(knob.name, 0.0)), JUMP_MIN_DB)
     n = int(min(MAX_JUMP, math.floor((q - target - JUMP_MARGIN_DB) / per)))
-    if n < 2 or search.full():
-        return cur
-    a, between = cur, []
-    for _ in range(n):
-        nxt = step(a, knob, -1)
-        if nxt is None:
-            break
-        a = nxt
-        between.append(a)
-    if a == cur or search.cost(a) >= search.cost(cur):
-        return cur
-    qa = search.quality(a, f"jump {knob.name}")
-    if qa >= target:
-        effect[knob.name] = (qa - q) / len(between)
-        # the steps jumped over join the path unrendered (they pass if the end does, as the
-        # verdict falls along a knob): ``refine_on_gate`` can still stop at any of them
-        search.path.extend(between)
-        return _jump(search, a, knob, qa, effect, target, frozen)  # on, at the effect now measured
+    while n >= 2 and not search.full():
+        a, between = cur, []
+        for _ in range(n):
+            nxt = step(a, knob, -1)
+            if nxt is None:
+                break
+            a = nxt
+            between.append(a)
+        if a == cur or search.cost(a) >= search.cost(cur):
+            return cur
+        qa = search.quality(a, f"jump {knob.name}")
+        if qa >= target:
+            effect[knob.name] = (qa - q) / len(between)
+            # the steps jumped over join the path unrendered (they pass if the end does, as the
+            # verdict falls along a knob): ``refine_on_gate`` can still stop at any of them
+            search.path.extend(between)
+            return _jump(search, a, knob, qa, effect, target, frozen)  # on, at the effect now measured
+        n = min(n, len(between)) // 2  # a miss (usually a few views of one level): half as far
     return cur
 
 
@@ -567,8 +593,8 @@ def moved_knobs(a: Allocation, b: Allocation) -> list[str]:
     """Names (``Knob.name``) of the knobs of ``a`` whose quantities differ in ``b``, in knob order."""
     out = []
     for k in knobs(a):
-        if k.attribute == "positions":
-            if a.x != b.x:
+        if k.attribute in ("positions", "edges"):
+            if (a.x if k.attribute == "positions" else a.e) != (b.x if k.attribute == "positions" else b.e):
                 out.append(k.name)
             continue
         i = ATTRIBUTES.index(k.attribute)
@@ -624,11 +650,11 @@ def _gate_record(search, a, gate, goal, conf, role, gated) -> bool:
 
 def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocation]]:
     """The allocations a target search confirms on the gate, in order, after its choice missed
-    there: (1) "anchor positions": the choice's attribute bits with the anchor's k_f scale (the
+    there: (1) "anchor positions": the choice's attribute bits with the anchor's k_f scale and edges (the
     k_f calibration already chose it on the gate; the reduced harness flatters position error
     most), (2) "halfway": that with every attribute's bits halfway back to the anchor's (rounded
     up), (3) "anchor". Duplicates and the choice itself are left out."""
-    pos = replace(choice, x=start.x)
+    pos = replace(choice, x=start.x, e=start.e)
     half = replace(pos, parts=tuple(tuple(None if c is None else (c + s + 1) // 2 for c, s in zip(pc, ps))
                                      for pc, ps in zip(choice.parts, start.parts)))
     out, seen = [], {choice.key()}
@@ -726,6 +752,8 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
 
     base = run(scene, settings, options=settings.to_manifest()["options"]).container
     start = container_allocation(base, 0.0)
+    if mode == "target" and settings.analyse.edges:  # the edge constraint's strictness is a knob too
+        start = replace(start, e=0.0)
     direct = watch is not None and mode == "target"
     search = Search(scene, settings, harness=harness, statistic=statistic, progress=progress,
                     watch=watch if direct else None, goal=goal if direct else None)
@@ -822,7 +850,8 @@ def _alloc_text(rec: dict) -> str:
             runs[-1][1] += 1
         else:
             runs.append([t, 1])
-    return f"k_f 2^{rec['log2_kf_scale']:g}, n/uv/c " + " ".join(t if n == 1 else f"{t} x{n}" for t, n in runs)
+    edges = "" if rec.get("edge_scale") is None else f", edges {rec['edge_scale']:+g}"
+    return f"k_f 2^{rec['log2_kf_scale']:g}{edges}, n/uv/c " + " ".join(t if n == 1 else f"{t} x{n}" for t, n in runs)
 
 
 def format_probe(p: dict) -> str:

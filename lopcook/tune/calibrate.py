@@ -562,7 +562,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
               log2_range=LOG2_RANGE, tolerance: float = TOLERANCE, options: dict | None = None,
               ingest_options: dict | None = None, progress=None, statistic: str = "min",
               search: str | None = None, confirm=CONFIRM, confirm_levels=CONFIRM_LEVELS,
-              watch_db: float | None = None, complete: bool = True, clusters: tuple | None = None) -> dict:
+              watch_db: float | None = None, complete: bool = True, clusters: tuple | None = None,
+              loosen_edges: bool = True) -> dict:
     """Search the smallest k_f scale sigma whose CAP renders reach ``target_psnr`` dB (module doc).
 
     Parameters: ``scene`` (the ingested source), ``settings`` (the analysis settings to scale),
@@ -581,7 +582,9 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     ``views``/``resolution``/``levels`` and ``confirm=None``), ``complete`` (direct search: render
     the choice at every level before returning it, and search again watching the level it missed;
     False leaves that to the caller: ``lopcook.tune.attributes`` completes its own choice),
-    ``clusters`` (the cook's position layout, as ``probe``).
+    ``clusters`` (the cook's position layout, as ``probe``), ``loosen_edges`` (False: steps 2a and 2c
+    are left out -- the edges are loosened only by the attribute search that follows, which has
+    them as a knob -- while 2b, stricter edges where the given ones cannot pass, stays).
 
     Returns a JSON-ready dict: ``target_psnr``, ``statistic``, ``reached`` (bool), ``sigma`` / ``log2_sigma`` /
     ``eps`` / ``edge_eps`` / ``edge_scale`` / ``edges`` / ``kf`` / ``kf_normal`` of the choice (the
@@ -681,7 +684,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
             candidates = [] if x is None else [(x, e)]
             if search == "kf+edge" and settings.edges:
                 loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
-                if x is not None and loosest < 0:
+                if x is not None and loosest < 0 and loosen_edges:
                     # (2a) loosen the edges while the target holds at the chosen k_f
                     e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
                     candidates.append((x, e1))

@@ -159,7 +159,7 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         vkeys = {v: (None if memo is None else variant_key(drawn[v][0], drawn[v][1], shading)) for v in variants}
         try:
             for view in view_ids:
-                cam = make_camera(view, h.lo, h.hi, distance, viewing)
+                cam = _camera(h, view, distance, viewing)
                 cams.append(cam)
                 t0 = time.perf_counter()
                 key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
@@ -232,6 +232,16 @@ def _union(a, b) -> tuple:
     if not boxes:
         return (0, 0, 0, 0)
     return (min(x[0] for x in boxes), max(x[1] for x in boxes), min(x[2] for x in boxes), max(x[3] for x in boxes))
+
+
+def _camera(h: Harness, view: int, distance: float, viewing):
+    """``make_camera(view, h.lo, h.hi, distance, viewing)``, made once per harness (a camera is a
+    pure function of these: the searches evaluate the same (level, view) cameras many times)."""
+    cache = h.__dict__.setdefault("_cameras", {})
+    key = (int(view), float(distance), viewing)
+    if key not in cache:
+        cache[key] = make_camera(view, h.lo, h.hi, distance, viewing)
+    return cache[key]
 
 
 def variant_key(items, decoded: bool, shading) -> bytes | None:
