@@ -213,7 +213,7 @@ def test_coverage_cull_draws_the_same_bits(gl, monkeypatch, tmp_path, which):
                             assert got[0][..., 3].any() or level == 2  # level 2: AP may collapse it all
                             for it in its:
                                 picked = it["cover"].select(cam, res, h.renderer.sample_offsets)
-                                n = it["cover"].triangles.shape[0]
+                                n = it["cover"].count
                                 k = n if picked is None else picked[1] // 3  # None: every triangle drawn
                                 if level == 2:  # the far views
                                     kept += k

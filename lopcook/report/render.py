@@ -26,6 +26,10 @@ import numpy as np
 
 from ..progress import NONE
 
+#: the float-render cache's uncompressed share in the report's harness (the rest zlib-compressed:
+#: about 2 ms per megabyte to expand; ``lopcook.verify.renderer.Harness``)
+REPORT_RAW_BYTES = 16 << 20
+
 
 def _merge(parts: list[dict], levels: list[int]) -> dict:
     """One evaluation from single-level evaluations ``parts`` (coarsest first): the rows in the order
@@ -116,7 +120,10 @@ def render_for_report(container, scene, *, levels, views, resolution,
     # one level at a time: the container and the uniform 16-bit baseline share that level's float
     # renders (the same cameras and shading: the cache gives the same arrays a fresh render would),
     # and the cache holds one level's views only
-    with Harness(scene, resolution, cache_float=True) as h, progress.stage("render", total=2 * len(order) + 2) as st:
+    # (a level's float renders are read twice, so all but the first REPORT_RAW_BYTES are kept
+    # compressed: the close-up levels of a large scene fill the frame, some 5 MB a view)
+    with Harness(scene, resolution, cache_float=True, raw_bytes=REPORT_RAW_BYTES) as h, \
+            progress.stage("render", total=2 * len(order) + 2) as st:
         def baseline(b: int) -> None:
             u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
                                               shading=shading))

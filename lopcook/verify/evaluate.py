@@ -211,6 +211,8 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         finally:
             for r in owned_all:
                 r.release()
+            del drawn, owned_all
+            trim_heap()  # the level's buffers and decoded positions: back to the system before the next
         rows.append({
             "level": int(level),
             "camera_level": int(cam_level),

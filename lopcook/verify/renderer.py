@@ -335,30 +335,40 @@ def window_coordinates(positions: np.ndarray, mvp: np.ndarray, size):
 
 
 class Coverage:
-    """What the coverage cull needs of one draw item: its triangles (m, 3) in draw order, the positions
-    (n, 3) float32 metres its vertex shader computes (an array, or a function giving it once, on
-    first use), and the program and vertex specs its VAO was made with (a second VAO reads the
-    kept triangles from a scratch index buffer, made on first use). ``release`` frees the two."""
+    """What the coverage cull needs of one draw item: its triangles (m, 3) in draw order (the caller's
+    array, kept by reference), the positions (n, 3) float32 metres its vertex shader computes (an
+    array, or a function giving it once, on first use), and the program and vertex specs its VAO
+    was made with (a second VAO reads the kept triangles from a scratch index buffer, made on first
+    use and grown to the most triangles kept). ``release`` frees the two."""
 
     def __init__(self, ctx, program, specs, triangles, positions):
         self.ctx, self.program, self.specs = ctx, program, list(specs)
-        self.triangles = np.ascontiguousarray(np.asarray(triangles).reshape(-1, 3), dtype=np.int32)
-        self._columns = None
+        self._triangles = triangles  # the caller's index array, not copied
+        self.count = int(np.asarray(triangles).size // 3)
         self._positions = positions
         self._box = None  # (lo, hi) of the positions, or False when there are none
-        self._ibo = self._vao = None
+        self._ibo = self._vao = None  # the scratch buffer the VAO reads, and the VAO
+        self._own = None  # a Scratch of this item's own, when select() is given none
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(m, 3) vertex indices in draw order (a view of the caller's array)."""
+        return np.asarray(self._triangles).reshape(-1, 3)
 
     @property
     def positions(self) -> np.ndarray:
+        """(n, 3) positions, metres (float32 as uploaded, or the float64 they were rounded from)."""
         if callable(self._positions):
             self._positions = np.asarray(self._positions(), np.float32)
         return self._positions
 
-    def select(self, camera: Camera, size, offsets) -> tuple | None:
+    def select(self, camera: Camera, size, offsets, scratch: "Scratch | None" = None) -> tuple | None:
         """(VAO, index count) drawing only the triangles that may cover a sample from ``camera``, or
         None when the test would not pay (``COVER_MIN_TRIANGLES``, ``COVER_DENSITY``: the item then
-        draws its own VAO)."""
-        m = self.triangles.shape[0]
+        draws its own VAO). ``scratch``: the renderer's index buffer shared by every item (GL
+        keeps a draw's indices whatever is written to its buffer after it), else one of this item's
+        own."""
+        m = self.count
         if m < COVER_MIN_TRIANGLES:
             return None
         if self._box is None:
@@ -384,23 +394,47 @@ class Coverage:
             max(0.0, min(h, float(py.max())) - max(0.0, float(py.min())) + 2.0)
         if m < COVER_DENSITY * max(area, 1.0):
             return None
-        if self._columns is None:
-            self._columns = tuple(np.ascontiguousarray(self.triangles[:, i]) for i in range(3))
-        keep = covering_triangles(px, py, ok, self._columns, size, offsets)
-        kept = self.triangles[keep]  # int32 >= 0: the bytes of the uint32 indices
-        if self._ibo is None:
-            self._ibo = self.ctx.buffer(reserve=max(12, self.triangles.nbytes))
-            self._vao = self.ctx.vertex_array(self.program, self.specs, index_buffer=self._ibo,
-                                              index_element_size=4)
+        t = self.triangles
+        keep = covering_triangles(px, py, ok, (t[:, 0], t[:, 1], t[:, 2]), size, offsets)
+        kept = np.ascontiguousarray(t[keep], dtype="<u4")
+        if scratch is None:
+            scratch = self._own = self._own or Scratch(self.ctx)
+        ibo = scratch.fit(kept.nbytes)
+        if self._vao is None or self._ibo is not ibo:  # a VAO on the scratch buffer as it is now
+            if self._vao is not None:
+                self._vao.release()
+            self._ibo = ibo
+            self._vao = self.ctx.vertex_array(self.program, self.specs, index_buffer=ibo, index_element_size=4)
         if kept.size:
-            self._ibo.write(kept.tobytes())
+            ibo.write(kept.tobytes())
         return self._vao, int(kept.size)
 
     def release(self) -> None:
-        for o in (self._vao, self._ibo):
-            if o is not None:
-                o.release()
-        self._ibo = self._vao = None
+        if self._vao is not None:
+            self._vao.release()
+        if self._own is not None:
+            self._own.release()
+        self._ibo = self._vao = self._own = None
+
+
+class Scratch:
+    """One index buffer the coverage cull writes each item's kept triangles to, grown (replaced) to
+    the most bytes asked for; ``fit(n)`` returns it, at least ``n`` bytes long."""
+
+    def __init__(self, ctx):
+        self.ctx, self.buffer = ctx, None
+
+    def fit(self, nbytes: int):
+        if self.buffer is None or self.buffer.size < nbytes:
+            if self.buffer is not None:
+                self.buffer.release()
+            self.buffer = self.ctx.buffer(reserve=max(12, int(nbytes) + int(nbytes) // 4))
+        return self.buffer
+
+    def release(self) -> None:
+        if self.buffer is not None:
+            self.buffer.release()
+            self.buffer = None
 
 
 # ---- the renderer -----------------------------------------------------------------------------------
@@ -439,6 +473,8 @@ class Renderer:
                            self.fbo_colour, self._colour, self.fbo_ids, self._ids]
         #: the sample offsets the coverage cull tests against (None: every triangle is drawn)
         self.sample_offsets = sample_positions(ctx, samples)
+        #: the index buffer the cull writes every item's kept triangles to
+        self.scratch = Scratch(ctx)
 
     @property
     def cluster_decode_program(self):
@@ -546,7 +582,7 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
             vao, count = it["vao"], None
             cover = it.get("cover")
             if cover is not None and self.sample_offsets is not None:
-                picked = cover.select(camera, self.size, self.sample_offsets)
+                picked = cover.select(camera, self.size, self.sample_offsets, self.scratch)
                 if picked is not None:
                     vao, count = picked
                     if count == 0:  # no triangle covers a sample: nothing to draw
@@ -609,6 +645,7 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
         for r in self._resources:
             r.release()
         self._resources = []
+        self.scratch.release()
 
 
 class Textures:
@@ -691,8 +728,7 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
         if p.positions.size:
             f = np.asarray(p.positions, np.float32).astype(np.float64)
             box = (f.min(axis=0), f.max(axis=0))
-        cover = Coverage(ctx, program, [(pos, "3f", "in_position"), *specs], p.indices,
-                         np.asarray(p.positions, np.float32))
+        cover = Coverage(ctx, program, [(pos, "3f", "in_position"), *specs], p.indices, p.positions)
         owned.append(cover)
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
                       "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box,
@@ -707,7 +743,7 @@ class Harness:
     calibration or the byte-budget fit). A cached render keeps only the box of its object pixels
     (outside it the image is background: RGBA 0 and part ID 0, exactly what the renderer clears to),
     at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; once the cache holds
-    ``RAW_CACHE_BYTES`` further entries are zlib-compressed (``_pack``: 10-50x on these images, about
+    ``raw_bytes`` (default ``RAW_CACHE_BYTES``) further entries are zlib-compressed (``_pack``: 10-50x on these images, about
     2 ms per megabyte to expand, which only a large cache is worth); renders past ``cache_bytes``
     (default ``FLOAT_CACHE_BYTES``, counted as stored) are not cached. A hit returns the same arrays a fresh render would (re-expanded to the full size).
 
@@ -718,7 +754,7 @@ class Harness:
     deterministic: the same inputs give the same pixels)."""
 
     def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False,
-                 cache_bytes: int | None = None):
+                 cache_bytes: int | None = None, raw_bytes: int | None = None):
         from . import gpu
 
         self.ctx = gpu.context()
@@ -728,6 +764,7 @@ class Harness:
         self.cache_float = cache_float
         self.float_cache: dict = {}
         self.cache_bytes = FLOAT_CACHE_BYTES if cache_bytes is None else int(cache_bytes)
+        self.raw_bytes = RAW_CACHE_BYTES if raw_bytes is None else int(raw_bytes)
         self.cached_bytes = 0
         #: results callers keep by what they rendered (the calibration: probes whose containers have
         #: the same minimum levels, so the same decoded positions, render the same)
@@ -770,7 +807,7 @@ class Harness:
         if self.cache_float and key is not None:
             entry = _crop(*out)
             size = entry[1].nbytes + entry[2].nbytes
-            if self.cached_bytes + size > RAW_CACHE_BYTES:  # past the raw share: compressed
+            if self.cached_bytes + size > self.raw_bytes:  # past the raw share: compressed
                 entry = _pack(entry)
                 size = _packed_bytes(entry)
             if self.cached_bytes + size <= self.cache_bytes:
@@ -1041,6 +1078,6 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
 
 __all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "COVER_MARGIN", "COVER_DENSITY", "COVER_MIN_TRIANGLES",
-           "SAMPLE_LATTICE", "sample_positions", "covering_triangles", "window_coordinates", "Coverage", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+           "SAMPLE_LATTICE", "sample_positions", "covering_triangles", "window_coordinates", "Coverage", "Scratch", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
            "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "Harness",
            "shared_harness", "release_shared", "digest", "trim_heap"]
