@@ -195,6 +195,9 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
 
         release_prepared()
         release_harnesses()
+        from .memory import release_free_memory
+
+        release_free_memory()
     options = settings.to_manifest()["options"]
     if record is not None:
         options["calibration"] = record

@@ -79,6 +79,9 @@ FLOAT_CACHE_BYTES = 384 << 20
 FINISH_TRIANGLES = 1 << 18
 #: the bytes of a float-render cache held uncompressed; entries past them are compressed (``_pack``)
 RAW_CACHE_BYTES = 64 << 20
+#: the raw share of a shared harness's float cache (``shared_harness``: the searches of a cook read
+#: the watched levels' renders, small ones, at every probe; the close-ups once or twice)
+SHARED_RAW_BYTES = 16 << 20
 #: a draw item is culled only when its box is beyond a clip plane by this share of |w| (float32 slack)
 CULL_MARGIN = 1e-4
 #: pixels a triangle's screen box is widened by before the coverage test (``covering_triangles``)
@@ -920,7 +923,7 @@ def shared_harness(scene, resolution=RESOLUTION, samples: int = SAMPLES) -> _Bor
     if h is None or h.scene is not scene:
         if any(v.scene is not scene for v in _SHARED.values()) or h is not None:
             release_shared()
-        h = Harness(scene, res, samples, cache_float=True)
+        h = Harness(scene, res, samples, cache_float=True, raw_bytes=SHARED_RAW_BYTES)
         _SHARED[key] = h
     h.memo = {}
     return _Borrowed(h)
