@@ -462,8 +462,8 @@ def _tune_settings(args):
     views, res, lv = (cal.views if given[0] is None else given[0],
                       cal.resolution_text if given[1] is None else given[1],
                       _levels_text(cal.levels) if given[2] is None else given[2])
-    calibration = RenderSettings(views=_views(views, f"{prefix}views"), resolution=_resolution(res, f"{prefix}resolution"),
-                                 levels=tuple(parse_levels(lv)))
+    calibration = RenderSettings(views=_views(views, f"{prefix}views"),
+                                 resolution=_resolution(res, f"{prefix}resolution"), levels=tuple(parse_levels(lv)))
     direct = all(v is None for v in given)  # no reduced harness asked for: search on the gate's
     kw = {}
     if getattr(args, "target_bytes", None) is not None:

@@ -241,19 +241,20 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     ``stop_below`` = (target dB, statistic): the renders end after the first level whose statistic
     misses the target (the probe fails whatever the other levels give; with "min", at the first view
     below it, ``view_rule``); the per-level lists then hold the levels rendered and ``complete`` is
-    False. ``watch`` = k (with ``stop_below``): the
-    renders also end once the first k levels of ``levels`` have passed (the watched levels of a
-    direct search, ``calibrate``; the probe passes provisionally). ``stop``: another rule of that
+    False. ``watch`` = k (with ``stop_below``): the renders also end once the first k levels of
+    ``levels`` have passed (the watched levels of a direct search, ``calibrate``; the probe passes
+    provisionally). ``stop``: another rule of that
     kind (``scout_rule``). ``clusters`` = (cluster size or None, cluster_all): the position layout
     of the cook (``lopcook.settings.EmitSettings``; default unclustered), so that memory is counted
-    as the cook will store it and a probe draws what the cook of the same knobs draws. A probe that draws exactly what an earlier
-    one drew on the same harness (e.g. edge_eps 1 and 0.5 when no vertex's bound tells them apart:
-    the same buffers and attribute bits) takes the earlier renders' numbers (``Harness.view_memo``,
-    keyed by the content of every draw). (Until this was keyed by content, probes with the same
-    minimum levels shared renders even when eps gave them different attribute bits.)
-    ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and ``settings``
-    (the same minimum levels as ``analyse``, without recomputing what does not depend on eps and
-    edge_eps); None analyses from scratch."""
+    as the cook will store it and a probe draws what the cook of the same knobs draws. A probe that
+    draws exactly what an earlier one drew on the same harness (e.g. edge_eps 1 and 0.5 when no
+    vertex's bound tells them apart: the same buffers and attribute bits) takes the earlier renders'
+    numbers (``Harness.view_memo``, keyed by the content of every draw). (Until this was keyed by
+    content, probes with the same minimum levels shared renders even when eps gave them different
+    attribute bits.) ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and
+    ``settings`` (the same minimum levels as ``analyse``, without recomputing what does not depend
+    on eps and edge_eps); None analyses from scratch.
+    """
     from ..analyse import analyse
     from ..emit import build
     from ..emit.container import from_bytes

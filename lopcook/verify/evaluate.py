@@ -135,13 +135,15 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                  image_view, seconds, stop=None, stop_view=None) -> tuple[list, dict | None]:
     """The per-level render loop shared by ``evaluate`` and ``evaluate_scene``.
 
-    plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned GL
-    objects released after the level); stop(per_view) -> bool, called after each level with the
+    plan : [(level, camera level, distance m)]; draws(level) -> ({variant: (items, decoded)}, owned
+    GL objects released after the level); stop(per_view) -> bool, called after each level with the
     first variant's per-view ``metrics.image_metrics`` dicts: True ends the loop there (the rows
-    rendered so far are returned); stop_view(metrics) -> bool, called after each view with the
-    first variant's ``image_metrics`` dict: True ends that level's views there (the row holds the
-    views rendered; ``stop`` is then called as after any level, and must end the loop). Returns (rows without the variants' bytes: per variant
-    ``(per_view metrics, depth metrics)`` under ``"_raw"``, images or None)."""
+    rendered so far are returned); stop_view(metrics) -> bool, called after each view with the first
+    variant's ``image_metrics`` dict: True ends that level's views there (the row holds the views
+    rendered; ``stop`` is then called as after any level, and must end the loop). Returns (rows
+    without the variants' bytes: per variant ``(per_view metrics, depth metrics)`` under ``"_raw"``,
+    images or None).
+    """
     rows = []
     images = None
     coarsest = min(b for b, _, _ in plan)
