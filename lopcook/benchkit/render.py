@@ -48,7 +48,7 @@ def _items(h, scene, variant: Variant, own_attributes: bool = False):
     output vertex takes the attributes of its matched source vertex (any part); with
     ``own_attributes`` the variant's own normals / UVs / colours where it has them (the source's,
     matched, for an attribute the tool dropped)."""
-    from lopcook.verify.renderer import attribute_buffers, attribute_vbos
+    from lopcook.verify.renderer import Coverage, attribute_buffers, attribute_vbos
 
     ctx = h.ctx
     attrs = {n: _global_attribute(scene, n, w) for n, w in (("normals", 3), ("uvs", 2), ("colors", 4))}
@@ -69,9 +69,12 @@ def _items(h, scene, variant: Variant, own_attributes: bool = False):
             specs, bufs = attribute_buffers(ctx, view, match)
         vao = ctx.vertex_array(h.renderer.float_program, [(vbo, "3f", "in_position"), *specs],
                                index_buffer=ibo, index_element_size=4)
-        owned += [vbo, ibo, *bufs, vao]
+        # the coverage cull (lopcook.verify.renderer): the same pixels, fewer triangles drawn
+        cover = Coverage(ctx, h.renderer.float_program, [(vbo, "3f", "in_position"), *specs], idx, pos)
+        owned += [vbo, ibo, *bufs, vao, cover]
         items.append({"vao": vao, "part": int(part), "has_normal": src.normals is not None,
-                      "has_color": src.colors is not None, "texture": h.textures.get(src.texture)})
+                      "has_color": src.colors is not None, "texture": h.textures.get(src.texture),
+                      "triangles": int(np.asarray(idx).size // 3), "cover": cover})
     return items, owned
 
 
