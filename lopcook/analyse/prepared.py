@@ -182,7 +182,7 @@ class PreparedAnalysis:
                         colocated_raised=int(np.count_nonzero(shared > alll)))
 
 
-#: the last ``shared`` analysis: (scene, settings with eps and edge_eps cleared, PreparedAnalysis)
+#: the last ``shared`` analysis: (scene, its settings with eps and edge_eps set to 1, PreparedAnalysis)
 _SHARED: list = []
 
 

@@ -28,10 +28,11 @@ sample, so such a triangle changes no pixel, depth or part ID: the images are th
 (``tests/test_render_cull.py``). The sample positions are read off the context once
 (``sample_positions``: one tiny triangle around each candidate point on a 1/16-pixel lattice);
 a context whose positions are not found there draws every triangle. The vertices are projected on
-the CPU in float64 from the float32 positions the vertex shader reads (a decoded item's positions
-from the reference decoder, ``lopcook.emit.bitplane.decode``), with the float32 matrix it is
-given; ``COVER_MARGIN`` (1/32 px) covers the float32 arithmetic of the shader and the
-rasteriser's snapping (llvmpipe: 1/256 px). It runs where it pays: an item of at least
+the CPU in float32 from the positions the vertex shader reads (a decoded item's from the reference
+decoder, ``lopcook.emit.bitplane.decode``, bit-exact with the shaders) and the float32 matrix it
+is given; ``COVER_MARGIN`` (1/32 px) covers the difference between the two float32 evaluations and
+the rasteriser's snapping (llvmpipe: 1/256 px). The kept triangles are written to one index
+buffer of the renderer (``Scratch``) and drawn from it. It runs where it pays: an item of at least
 ``COVER_MIN_TRIANGLES`` triangles and ``COVER_DENSITY`` triangles per pixel of its projected box (a
 far, small object: llvmpipe's cost there is vertex and setup work per triangle, not pixels).
 
@@ -265,8 +266,8 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
     px, py : (n,) window coordinates of the vertices, pixels (x right, y up, the viewport's lower
     left corner at 0); ok : (n,) bool, False for a vertex whose projection is not trusted (behind
     the eye, not finite): a triangle with such a vertex is kept. triangles : (m, 3) vertex indices,
-    or a tuple of its three contiguous columns. offsets : (k, 2) sample offsets within a pixel, multiples of 1 / ``SAMPLE_LATTICE``
-    (``sample_positions``). A triangle is dropped only when its box, widened by ``margin`` on every
+    or a tuple of its three columns. offsets : (k, 2) sample offsets within a pixel, multiples of
+    1 / ``SAMPLE_LATTICE`` (``sample_positions``). A triangle is dropped only when its box, widened by ``margin`` on every
     side, holds no point (i + sx, j + sy) with pixel (i, j) in the viewport: such a triangle covers
     no sample (it lies inside its box).
 
@@ -341,8 +342,8 @@ class Coverage:
     """What the coverage cull needs of one draw item: its triangles (m, 3) in draw order (the caller's
     array, kept by reference), the positions (n, 3) float32 metres its vertex shader computes (an
     array, or a function giving it once, on first use), and the program and vertex specs its VAO
-    was made with (a second VAO reads the kept triangles from a scratch index buffer, made on first
-    use and grown to the most triangles kept). ``release`` frees the two."""
+    was made with (a second VAO reads the kept triangles from a scratch index buffer: the
+    renderer's ``Scratch``, or one of its own). ``release`` frees what it made."""
 
     def __init__(self, ctx, program, specs, triangles, positions):
         self.ctx, self.program, self.specs = ctx, program, list(specs)
