@@ -73,6 +73,28 @@ def test_spatial_index_equals_reference(seed, n_parts):
         np.testing.assert_array_equal(np.maximum(a, f), np.maximum(b, f))
 
 
+@pytest.mark.parametrize("seed", [3, 11])
+def test_tree_budget_changes_no_result(monkeypatch, seed):
+    """Trees evicted under a small budget and built again give the same levels, distances, nearest
+    parts, touching and intersecting pairs; uint32 indices (the ingest's dtype) as int64 ones."""
+    import lopcook.analyse.depth as depth
+
+    pos, idx = _random_scene(seed, 8)
+    pos.append(pos[0] + [0.0, 0.0, 0.01])  # a near copy: touching and intersecting pairs
+    idx.append(idx[0])
+    extent = float(np.max(np.max([p.max(0) for p in pos], 0) - np.min([p.min(0) for p in pos], 0)))
+    full = depth_levels(pos, idx, extent, ceiling=24)
+    assert full.trees_built <= len(pos)
+    monkeypatch.setattr(depth, "TREE_BUDGET_TRIANGLES", 1)  # every new tree evicts the last one
+    small = depth_levels(pos, [i.astype(np.uint32) for i in idx], extent, ceiling=24)
+    assert small.trees_built > full.trees_built
+    for name in ("level", "distance", "nearest", "capped"):
+        for a, b in zip(getattr(full, name), getattr(small, name)):
+            np.testing.assert_array_equal(a, b)
+    assert (full.touching, full.intersecting, full.queries) == (small.touching, small.intersecting, small.queries)
+    assert full.intersecting
+
+
 def test_touching_parts_are_capped_and_reported():
     parts = fx.two_plates(gap=1e-9)
     res = depth_levels([p.positions for p in parts], [p.indices for p in parts], 1.0, ceiling=16)

@@ -50,6 +50,7 @@ them).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,6 +58,11 @@ import numpy as np
 from ..grid import BITS, dx
 
 DEFAULT_CEILING = 16
+
+#: the most triangles whose distance trees ``depth_levels`` keeps at once (a libigl AABB tree and
+#: its int64 triangles take about 264 bytes per triangle); a tree evicted and needed again is built
+#: again, with the same distances. A part larger than this has its tree alone.
+TREE_BUDGET_TRIANGLES = 1 << 19
 
 
 @dataclass
@@ -68,7 +74,8 @@ class DepthResult:
     that part (-1 if none), ``capped`` (n,) bool. ``touching``: sorted list of (part i, part j) pairs
     with capped vertices; ``intersecting``: pairs (i < j) where a vertex of one lies behind the
     nearest face of the other (inside it, when it is closed). ``queries``: number of exact
-    point-to-part distance queries made (a cost measure)."""
+    point-to-part distance queries made (a cost measure); ``trees_built``: distance trees built
+    (one per queried part, more where ``TREE_BUDGET_TRIANGLES`` evicted one that was needed again)."""
 
     level: list[np.ndarray]
     distance: list[np.ndarray]
@@ -77,6 +84,7 @@ class DepthResult:
     touching: list[tuple[int, int]] = field(default_factory=list)
     intersecting: list[tuple[int, int]] = field(default_factory=list)
     queries: int = 0
+    trees_built: int = 0
 
 
 def level_from_distance(distance: np.ndarray, extent: float) -> np.ndarray:
@@ -200,7 +208,7 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
 
     n_parts = len(positions)
     pos = [np.ascontiguousarray(p, dtype=np.float64) for p in positions]
-    tris = [np.ascontiguousarray(t, dtype=np.int64) for t in indices]
+    tris = list(indices)  # int64 copies are made per part with its tree, and freed with it
     bounds = [_bounds(p) for p in pos]
     lo = np.array([b[0] for b in bounds]).reshape(n_parts, 3)
     hi = np.array([b[1] for b in bounds]).reshape(n_parts, 3)
@@ -212,7 +220,9 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
         radius = [2.0 * dx(np.maximum(np.asarray(f), 1), extent) for f in fl]
     best = [np.full(p.shape[0], np.inf) for p in pos]
     nearest = [np.full(p.shape[0], -1, dtype=np.int64) for p in pos]
-    trees: dict[int, object] = {}
+    # part -> (igl.AABB, its (m, 3) int64 triangles), least recently used first
+    trees: OrderedDict[int, tuple] = OrderedDict()
+    builds = [0]
     inside_pairs: set[tuple[int, int]] = set()
     queries = 0
     rmax = np.array([r.max() if r.size else 0.0 for r in radius])
@@ -220,13 +230,21 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     def query(i: int, j: int, cand: np.ndarray, rank: np.ndarray) -> None:
         """Exact distances from vertices ``cand`` of part i to part j; keep the smaller."""
         nonlocal queries
-        tree = trees.get(j)
-        if tree is None:
+        if j in trees:
+            trees.move_to_end(j)
+        else:
+            # least recently used trees go first while the new one would pass the budget
+            alive = sum(t[1].shape[0] for t in trees.values())
+            while trees and alive + tris[j].shape[0] > TREE_BUDGET_TRIANGLES:
+                alive -= trees.popitem(last=False)[1][1].shape[0]
+            tj = np.ascontiguousarray(tris[j], dtype=np.int64)
             tree = igl.AABB()
-            tree.init(pos[j], tris[j])
-            trees[j] = tree
+            tree.init(pos[j], tj)
+            trees[j] = (tree, tj)
+            builds[0] += 1
+        tree, tj = trees[j]
         points = pos[i][cand]
-        d2, face, closest = tree.squared_distance(pos[j], tris[j], points)
+        d2, face, closest = tree.squared_distance(pos[j], tj, points)
         queries += cand.size
         d = np.sqrt(d2)
         cur = best[i][cand]
@@ -238,16 +256,28 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
         best[i][cand[better]] = d[better]
         nearest[i][cand[better]] = j
         if detect_intersections and (min(i, j), max(i, j)) not in inside_pairs:
-            if _any_inside(points, face, closest, pos[j], tris[j]):
+            if _any_inside(points, face, closest, pos[j], tj):
                 inside_pairs.add((min(i, j), max(i, j)))
 
-    for i in range(n_parts if n_parts >= 2 else 0):
-        # other parts ordered by box-to-box distance, nearest first (the tie-break for `nearest`)
+    def box_distances(i: int) -> np.ndarray:
         gap = np.maximum(np.maximum(lo - hi[i], lo[i] - hi), 0.0)
         box_d = np.sqrt((gap * gap).sum(axis=1))
         box_d[i] = np.inf
+        return box_d
+
+    # the last part whose loop may query part j (its box within that part's largest radius): part
+    # j's tree and int64 triangles are freed once that part is done, the same distances either way
+    last_user = np.full(n_parts, -1, dtype=np.int64)
+    for i in range(n_parts if n_parts >= 2 else 0):
+        last_user[box_distances(i) <= rmax[i]] = i
+
+    for i in range(n_parts if n_parts >= 2 else 0):
+        # other parts ordered by box-to-box distance, nearest first (the tie-break for `nearest`)
+        box_d = box_distances(i)
         order = np.argsort(box_d, kind="stable")
         order = order[box_d[order] <= rmax[i]]
+        for j in [j for j in trees if last_user[j] <= i - 1]:
+            del trees[j]
         if order.size == 0:
             continue
         rank = np.empty(n_parts, dtype=np.int64)
@@ -285,10 +315,10 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
         raw = [np.where(b < threshold, 2, 1).astype(np.int64) for b in best]
         level = [r - 1 for r in raw]  # 1 = critical, 0 = not
         capped = [np.zeros(p.shape[0], bool) for p in pos]
-        return DepthResult(level, best, nearest, capped, [], sorted(inside_pairs), queries)
+        return DepthResult(level, best, nearest, capped, [], sorted(inside_pairs), queries, builds[0])
     raw = [level_from_distance(b, extent) for b in best]
     level, capped, touching, inter = _finish(raw, best, nearest, ceiling, n_parts, inside_pairs)
-    return DepthResult(level, best, nearest, capped, touching, inter, queries)
+    return DepthResult(level, best, nearest, capped, touching, inter, queries, builds[0])
 
 
 def _unit_face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
