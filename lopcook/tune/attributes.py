@@ -751,9 +751,15 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
     if mode not in MODES:
         raise ValueError(f"mode {mode!r}")
     t0 = time.perf_counter()
-    from ..pipeline import run
+    from ..pipeline import plain, run
 
-    base = run(scene, settings, options=settings.to_manifest()["options"]).container
+    analysis = None
+    if plain(settings):  # the prepared analysis the search's probes use (the same buffers)
+        from ..analyse.prepared import shared
+
+        analysis = shared(scene, settings.analyse).analyse(settings.analyse.eps, settings.analyse.edge_eps)
+    base = run(scene, settings, options=settings.to_manifest()["options"], analysis=analysis).container
+    del analysis
     start = container_allocation(base, 0.0)
     if mode == "target" and settings.analyse.edges:  # the edge constraint's strictness is a knob too
         start = replace(start, e=0.0)
