@@ -23,7 +23,10 @@ be the other parts whose bounding box lies within the binding radius of v (box d
 The distance reported for v is the exact minimum over S(v) of its distance to their surfaces (inf
 if S(v) is empty); the nearest part is the one reaching it (on equal distances, the first in i's
 visiting order: other parts by box-to-box distance, nearest first, then by index). Exact distances
-come from one libigl AABB tree per part, built on demand. For each part i:
+come from one libigl AABB tree per part, built on demand; at most ``TREE_BUDGET_TRIANGLES``
+triangles' trees are kept at once (a part's tree is freed after the last part that may query it,
+and the least recently used first when the budget is reached), which changes no distance. For each
+part i:
 
 1. the (vertex, part) pairs of S: for each other part j, the vertices whose ``bd`` to j's box is
    within their binding radius. This must not cost a pass over all vertices of i per j (a board
@@ -60,8 +63,9 @@ from ..grid import BITS, dx
 DEFAULT_CEILING = 16
 
 #: the most triangles whose distance trees ``depth_levels`` keeps at once (a libigl AABB tree and
-#: its int64 triangles take about 264 bytes per triangle); a tree evicted and needed again is built
-#: again, with the same distances. A part larger than this has its tree alone.
+#: its int64 triangles: a few hundred bytes per triangle, docs/performance.md); the least recently
+#: used go first, and one needed again is built again, with the same distances. A part larger than
+#: this has its tree alone.
 TREE_BUDGET_TRIANGLES = 1 << 19
 
 
