@@ -85,7 +85,7 @@ def test_tree_budget_changes_no_result(monkeypatch, seed):
     extent = float(np.max(np.max([p.max(0) for p in pos], 0) - np.min([p.min(0) for p in pos], 0)))
     full = depth_levels(pos, idx, extent, ceiling=24)
     assert full.trees_built <= len(pos)
-    monkeypatch.setattr(depth, "TREE_BUDGET_TRIANGLES", 1)  # every new tree evicts the last one
+    monkeypatch.setattr(depth, "TREE_BUDGET_TRIANGLES", 1)  # every tree not pinned is evicted at first
     small = depth_levels(pos, [i.astype(np.uint32) for i in idx], extent, ceiling=24)
     assert small.trees_built > full.trees_built
     for name in ("level", "distance", "nearest", "capped"):
@@ -93,6 +93,38 @@ def test_tree_budget_changes_no_result(monkeypatch, seed):
             np.testing.assert_array_equal(a, b)
     assert (full.touching, full.intersecting, full.queries) == (small.touching, small.intersecting, small.queries)
     assert full.intersecting
+
+
+def _tiles(k, n):
+    """k x k square tiles of n x n quads on a wavy height field, each a part, touching at borders."""
+    parts = []
+    for ix in range(k):
+        for iy in range(k):
+            xs, ys = np.linspace(ix, ix + 1, n + 1), np.linspace(iy, iy + 1, n + 1)
+            x, y = np.meshgrid(xs, ys, indexing="ij")
+            p = np.stack([x.ravel(), y.ravel(), (0.02 * np.sin(7 * x) * np.cos(5 * y)).ravel()], 1)
+            a = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+            f = np.concatenate([np.stack([a, a + n + 1, a + 1], 1), np.stack([a + 1, a + n + 1, a + n + 2], 1)])
+            parts.append((p, f.astype(np.uint32)))
+    return [p for p, _ in parts], [f for _, f in parts]
+
+
+@pytest.mark.parametrize("k,n", [(3, 20), (5, 8)])
+def test_tree_budget_rebuilds_are_bounded(monkeypatch, k, n):
+    """Touching tiles whose neighbourhoods do not fit the budget: the same result, and the rebuilds
+    raise the budget, so at most 2 n + T / t trees are built (here 3 per tile)."""
+    import lopcook.analyse.depth as depth
+
+    pos, idx = _tiles(k, n)
+    floors = [np.full(p.shape[0], 12) for p in pos]
+    full = depth_levels(pos, idx, float(k), floors=floors)
+    monkeypatch.setattr(depth, "TREE_BUDGET_TRIANGLES", 1)
+    small = depth_levels(pos, idx, float(k), floors=floors)
+    assert len(pos) < small.trees_built <= 3 * len(pos)
+    assert full.trees_built == len(pos)
+    for a, b in zip(full.level + full.distance + full.nearest, small.level + small.distance + small.nearest):
+        np.testing.assert_array_equal(a, b)
+    assert full.touching == small.touching and full.touching
 
 
 def test_touching_parts_are_capped_and_reported():

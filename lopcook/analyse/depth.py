@@ -25,8 +25,8 @@ if S(v) is empty); the nearest part is the one reaching it (on equal distances, 
 visiting order: other parts by box-to-box distance, nearest first, then by index). Exact distances
 come from one libigl AABB tree per part, built on demand; at most ``TREE_BUDGET_TRIANGLES``
 triangles' trees are kept at once (a part's tree is freed after the last part that may query it,
-and the least recently used first when the budget is reached), which changes no distance. For each
-part i:
+and the least recently used first when the budget is reached, except the trees part i's step 3 may
+still query), which changes no distance. For each part i:
 
 1. the (vertex, part) pairs of S: for each other part j, the vertices whose ``bd`` to j's box is
    within their binding radius. This must not cost a pass over all vertices of i per j (a board
@@ -62,10 +62,13 @@ from ..grid import BITS, dx
 
 DEFAULT_CEILING = 16
 
-#: the most triangles whose distance trees ``depth_levels`` keeps at once (a libigl AABB tree and
-#: its int64 triangles: a few hundred bytes per triangle, docs/performance.md); the least recently
-#: used go first, and one needed again is built again, with the same distances. A part larger than
-#: this has its tree alone.
+#: the most triangles whose distance trees ``depth_levels`` keeps at once, to begin with (a libigl
+#: AABB tree and its int64 triangles: a few hundred bytes per triangle, docs/performance.md); the
+#: least recently used go first, and one needed again is built again, with the same distances. Each
+#: tree built again raises the budget by its triangles, so at most 2 n + T / t trees are built (n
+#: parts, T triangles in all, t in the smallest part queried) and a scene whose neighbourhoods do
+#: not fit the budget soon stops rebuilding. Trees the current part may still query are never
+#: evicted: the budget can be exceeded.
 TREE_BUDGET_TRIANGLES = 1 << 19
 
 
@@ -227,6 +230,9 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     # part -> (igl.AABB, its (m, 3) int64 triangles), least recently used first
     trees: OrderedDict[int, tuple] = OrderedDict()
     builds = [0]
+    pinned: set[int] = set()  # parts whose trees the current part's pass (c) may still query
+    evicted: set[int] = set()  # parts whose trees were evicted before their last user
+    budget = [TREE_BUDGET_TRIANGLES]
     inside_pairs: set[tuple[int, int]] = set()
     queries = 0
     rmax = np.array([r.max() if r.size else 0.0 for r in radius])
@@ -237,10 +243,18 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
         if j in trees:
             trees.move_to_end(j)
         else:
-            # least recently used trees go first while the new one would pass the budget
+            # least recently used trees go first while the new one would pass the budget, except
+            # those this part's pass (c) may still query (evicting them would build them again).
+            # A tree built again raises the budget by its size, so a scene whose neighbourhoods do
+            # not fit the budget stops rebuilding.
+            if j in evicted:
+                budget[0] += tris[j].shape[0]
             alive = sum(t[1].shape[0] for t in trees.values())
-            while trees and alive + tris[j].shape[0] > TREE_BUDGET_TRIANGLES:
-                alive -= trees.popitem(last=False)[1][1].shape[0]
+            for k in [k for k in trees if k not in pinned]:
+                if alive + tris[j].shape[0] <= budget[0]:
+                    break
+                alive -= trees.pop(k)[1].shape[0]
+                evicted.add(k)
             tj = np.ascontiguousarray(tris[j], dtype=np.int64)
             tree = igl.AABB()
             tree.init(pos[j], tj)
@@ -305,15 +319,21 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
             closer = bd < first_bd[verts]
             first_bd[verts[closer]] = bd[closer]
             first[verts[closer]] = j
+        pinned.clear()
         for j, verts, bd in pairs:
             cand = verts[first[verts] == j]
             if cand.size:
                 query(i, j, cand, rank)
+                # pass (c) queries j only where bd <= best, and best only falls: if no vertex is
+                # there now, none will be, and j's tree may be evicted
+                if np.any((bd <= best[i][verts]) & (first[verts] != j)):
+                    pinned.add(j)
         # (c) ... then every other part whose box is not farther than the best distance so far
         for j, verts, bd in pairs:
             cand = verts[(bd <= best[i][verts]) & (first[verts] != j)]
             if cand.size:
                 query(i, j, cand, rank)
+            pinned.discard(j)
 
     if threshold is not None:
         raw = [np.where(b < threshold, 2, 1).astype(np.int64) for b in best]
