@@ -67,8 +67,8 @@ DEFAULT_CEILING = 16
 #: least recently used go first, and one needed again is built again, with the same distances. Each
 #: tree built again raises the budget by its triangles, so at most 2 n + T / t trees are built (n
 #: parts, T triangles in all, t in the smallest part queried) and a scene whose neighbourhoods do
-#: not fit the budget soon stops rebuilding. Trees the current part may still query are never
-#: evicted: the budget can be exceeded.
+#: not fit the budget soon stops rebuilding. Trees the current part's step 3 (module doc) may still
+#: query are never evicted: the budget can be exceeded.
 TREE_BUDGET_TRIANGLES = 1 << 19
 
 
