@@ -194,7 +194,25 @@ def test_query_near_equals_query(corpus, monkeypatch):
     v = rng.integers(0, part.n_vertices, 3000)
     pts = part.positions[v] + rng.normal(0.0, 1e-3, (v.size, 3))
     bound = ((pts - part.positions[v]) ** 2).sum(axis=1)
+    import igl
+
+    groups = []
+    whole = igl.point_mesh_squared_distance
+
+    def counted(q, p, f):
+        assert f.shape[0] <= 4096  # each group's faces within the chunk size
+        groups.append(q.shape[0])
+        return whole(q, p, f)
+
+    def no_sweep(*_a, **_k):
+        raise AssertionError("query_near fell back to the chunked sweep")
+
+    monkeypatch.setattr(igl, "point_mesh_squared_distance", counted)
+    monkeypatch.setattr(ref, "query_bounded", no_sweep)
     d, f, c = ref.query_near(pts, bound)
+    monkeypatch.undo()
+    # 3000 points' faces are more than 4096: split into groups, every point in exactly one
+    assert len(groups) > 1 and sum(groups) == pts.shape[0]
     d0, _, _ = ref.query(pts)
     np.testing.assert_allclose(d, d0, rtol=1e-12, atol=1e-30)
     tri = part.positions[ref.faces[f]]

@@ -111,10 +111,9 @@ def test_inside_out_result_is_a_backend_failure():
         X.transfer_attributes(res, ref, cube, work, "ignore", 1.0)
 
 
-def test_chunks_partition_the_faces_box_them_and_home_their_centroids(monkeypatch):
+def test_chunks_partition_the_faces_and_box_them(monkeypatch):
     """``Reference.chunks``: every face in exactly one chunk, each chunk's box holding its faces'
-    corners exactly (min and max attained), and ``_home`` of a face's centroid is that face's chunk
-    (the median splits send ties left, as ``_home`` does)."""
+    corners exactly (min and max attained)."""
     s = F.unit_sphere(5)[0]
     rng = np.random.default_rng(11)
     pos = s.positions * (1.0 + 0.03 * rng.standard_normal(s.positions.shape[0]))[:, None]
@@ -130,8 +129,3 @@ def test_chunks_partition_the_faces_box_them_and_home_their_centroids(monkeypatc
         corners = ref.positions[ref.faces[ids].ravel()]
         assert np.array_equal(lo, corners.min(axis=0)) and np.array_equal(hi, corners.max(axis=0))
     assert (owner >= 0).all()
-    p, f = ref.positions, ref.faces
-    cen = p[f[:, 0]] + p[f[:, 1]]
-    cen += p[f[:, 2]]
-    cen /= 3.0
-    assert np.array_equal(ref._home(cen), owner)

@@ -110,28 +110,24 @@ class Reference:
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
 
-    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, _sweep_only: bool = False,
-                      closest: bool = True):
+    def query_bounded(self, points: np.ndarray, bound2: np.ndarray, closest: bool = True):
         """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
         to LOD 0 is known to be at most ``bound2`` (q,), without a tree over all of LOD 0.
 
         Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
         cut into chunks by median splits (``chunks``); one libigl tree per chunk is built, queried
-        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). Each
-        point is queried first in its *home* chunk (the cell of the splits that holds the point),
-        then in every later chunk whose bounding box is within
-        its best distance so far; the earlier chunks it could still reach are checked afterwards
-        (``query_near``: the faces within reach), so every chunk that can hold its closest face is
-        searched and the distance is the exact closest one, as ``query``'s (the face may differ
-        where several are equally close). Costs a tree build per call. ``closest=False``: the
-        third value is None (the closest points are neither kept nor returned).
+        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). The
+        chunks are swept once, in order; a point is queried in every chunk whose bounding box is
+        within its best distance so far (its bound before its first query). The chunk that holds
+        its closest face is always within that distance, so the distance is the exact closest one,
+        as ``query``'s (the face may differ where several are equally close). ``closest=False``:
+        the third value is None (the closest points are neither kept nor returned).
 
         With two LOD workers (``lopcook.simplify.parallel.workers``) and at least
         ``PARALLEL_POINTS`` points, a forked child sweeps the first half of the chunks while this
-        process sweeps the second (its points homed in the first half searched with their
-        ``bound2``, a superset of what the serial sweep searches); the sweep is then replayed in
-        chunk order with the serial rule on those results, so the answer is the serial one, bit
-        for bit."""
+        process sweeps the second (starting from ``bound2``, a superset of what the serial sweep
+        searches); the sweep is then replayed in chunk order with the serial rule on those
+        results, so the answer is the serial one, bit for bit."""
         if self.faces.shape[0] <= CHUNK_FACES:
             return self.query(points)
         pts = np.ascontiguousarray(points, dtype=np.float64)
@@ -140,28 +136,27 @@ class Reference:
         face = np.full(pts.shape[0], -1, dtype=np.int64)
         near = np.zeros_like(pts) if closest else None
         chunks = self.chunks
-        home = np.zeros(pts.shape[0], dtype=np.int64) if _sweep_only else self._home(pts)
         n = len(chunks)
         if pts.shape[0] >= PARALLEL_POINTS and n >= 2 and _workers() >= 2:
             from .. import isolate
 
             half = n // 2
-            front = isolate.start(self._sweep, pts, best.copy(), home, range(half), closest)
+            front = isolate.start(self._sweep, pts, best.copy(), range(half), closest)
             try:
-                records = self._sweep(pts, best.copy(), home, range(half, n), closest)
+                records = self._sweep(pts, best.copy(), range(half, n), closest)
             except BaseException:
                 front.cancel()
                 raise
             records = front.result() + records
         else:
-            records = self._sweep(pts, best.copy(), home, range(n), closest)
+            records = self._sweep(pts, best.copy(), range(n), closest)
         records.reverse()
         while records:  # the serial sweep, replayed on the queried distances (each freed after use)
             c, sel_q, d, f, cp = records.pop()
-            sel = self._visits(c, pts, best, home)
-            if sel.size == 0:
+            at = np.flatnonzero(self._reaches(c, pts[sel_q], best[sel_q]))  # the serial rule's subset
+            if at.size == 0:
                 continue
-            at = np.searchsorted(sel_q, sel)  # sel is a subset of sel_q (both sorted)
+            sel = sel_q[at]
             dd = d[at]
             better = dd <= best[sel]
             hit = sel[better]
@@ -170,49 +165,28 @@ class Reference:
             if closest:
                 near[hit] = cp[at[better]]
             del sel_q, d, f, cp
-        if not _sweep_only:
-            # chunks before a point's home were not searched for it: where it can reach one, search
-            # the faces within its reach
-            left = np.zeros(pts.shape[0], dtype=bool)
-            for c in range(n - 1):
-                left[self._reach(c, pts, np.flatnonzero(home > c), best)] = True
-            left = np.flatnonzero(left)
-            if left.size:
-                d, f2, cp = self.query_near(pts[left], best[left], _fallback_sweep=True)
-                better = d <= best[left]
-                at = left[better]
-                best[at], face[at] = d[better], f2[better]
-                if closest:
-                    near[at] = cp[better]
         if (face < 0).any():  # a bound below the true distance: not a caller of this contract
             raise ValueError("query_bounded: a bound below the distance to LOD 0")
         return best, face, near
 
-    def _reach(self, c: int, pts: np.ndarray, idx: np.ndarray, best: np.ndarray) -> np.ndarray:
-        """The points ``idx`` whose best distance reaches chunk ``c``'s box."""
+    def _reaches(self, c: int, q: np.ndarray, best: np.ndarray) -> np.ndarray:
+        """(len(q),) bool: whether each point's best squared distance reaches chunk ``c``'s box."""
         lo, hi = self.chunks[c][1], self.chunks[c][2]
-        q = pts[idx]
         gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
-        return idx[np.einsum("ij,ij->i", gap, gap) <= best[idx]]
+        return np.einsum("ij,ij->i", gap, gap) <= best
 
-    def _visits(self, c: int, pts: np.ndarray, best: np.ndarray, home: np.ndarray) -> np.ndarray:
-        """The sweep's rule: the points (sorted ids) chunk ``c`` is searched for, given ``best``."""
-        if self.chunks[c][0].size == 0:
-            return np.zeros(0, dtype=np.int64)
-        pick = home == c
-        pick[self._reach(c, pts, np.flatnonzero(home < c), best)] = True
-        return np.flatnonzero(pick)  # sorted, distinct
-
-    def _sweep(self, pts: np.ndarray, best: np.ndarray, home: np.ndarray, cs, closest: bool = True) -> list:
+    def _sweep(self, pts: np.ndarray, best: np.ndarray, cs, closest: bool = True) -> list:
         """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point or
-        None)`` of the points ``_visits`` picks, ``best`` (this call's own copy) lowered as they are
-        found."""
+        None)`` of the points whose ``best`` reaches the chunk's box, ``best`` (this call's own
+        copy) lowered as they are found."""
         import igl
 
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
         out = []
         for c in cs:
-            sel = self._visits(c, pts, best, home)
+            if self.chunks[c][0].size == 0:
+                continue
+            sel = np.flatnonzero(self._reaches(c, pts, best))
             if sel.size == 0:
                 continue
             ch = self.chunks[c][0]
@@ -227,43 +201,52 @@ class Reference:
             del cp
         return out
 
-    def _home(self, pts: np.ndarray) -> np.ndarray:
-        """(q,) the chunk whose cell of the median splits (``chunks``) holds each point."""
-        splits, n_levels = self._chunk_codes
-        node = np.zeros(pts.shape[0], dtype=np.int64)
-        for _ in range(n_levels):  # descend: node k has children 2k+1, 2k+2
-            axis, value = splits[node, 0].astype(np.int64), splits[node, 1]
-            right = pts[np.arange(pts.shape[0]), axis] > value
-            node = 2 * node + 1 + right
-        return node - ((1 << n_levels) - 1)
-
-    def query_near(self, points: np.ndarray, bound2: np.ndarray, _fallback_sweep: bool = False):
+    def query_near(self, points: np.ndarray, bound2: np.ndarray):
         """``query_bounded`` for a few points with small bounds: only the LOD 0 faces that can
         hold a closest point are put in a libigl tree.
 
         The closest point p* of q lies on a face T* whose nearest vertex to p* is at most
         ``max_edge`` from p*, so within ``sqrt(bound2) + max_edge`` of q: the faces around the LOD 0
         vertices in that ball (a KD-tree over the vertices, built once) hold T*, and the distance
-        is the exact closest one. Falls back to ``query_bounded`` when they are more than
-        ``CHUNK_FACES`` faces."""
+        is the exact closest one. Where the points' faces are more than ``CHUNK_FACES``, the points
+        are split in two at the median of their longest axis, again until each group's faces are
+        at most ``CHUNK_FACES`` (one tree per group); a single point with more faces than that is
+        queried with ``query_bounded``."""
         import igl
 
         pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
-            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
+            return self.query_bounded(pts, bound2)
+        bound2 = np.asarray(bound2, dtype=np.float64)
         kd, used, max_edge = self.near_index
-        r = np.sqrt(np.asarray(bound2, dtype=np.float64)) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
+        r = np.sqrt(bound2) * (1.0 + 1e-9) + max_edge * (1.0 + 1e-9)
         hits = kd.query_ball_point(pts, r)
-        near = np.zeros(self.positions.shape[0], dtype=bool)
-        near[used[np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64)]] = True
-        faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
-        del near
-        if faces.size > CHUNK_FACES or faces.size == 0:
-            return self.query_bounded(pts, bound2, _sweep_only=_fallback_sweep)
-        sub = np.ascontiguousarray(self.faces[faces])
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
-        d, i, c = igl.point_mesh_squared_distance(pts, pos, sub)
-        return np.asarray(d), faces[np.asarray(i, dtype=np.int64)], np.asarray(c)
+        d = np.empty(pts.shape[0])
+        face = np.empty(pts.shape[0], dtype=np.int64)
+        near_pt = np.empty_like(pts)
+        near = np.zeros(self.positions.shape[0], dtype=bool)
+        todo = [np.arange(pts.shape[0])]
+        while todo:
+            idx = todo.pop()
+            near[:] = False
+            near[used[np.fromiter(itertools.chain.from_iterable(hits[i] for i in idx.tolist()),
+                                  dtype=np.int64)]] = True
+            faces = np.flatnonzero(near[self.faces].any(axis=1))  # the faces around those vertices
+            if faces.size > CHUNK_FACES and idx.size > 1:
+                q = pts[idx]
+                axis = int(np.argmax(q.max(axis=0) - q.min(axis=0)))
+                order = np.argsort(q[:, axis], kind="stable")
+                half = idx.size // 2
+                todo += [idx[order[half:]], idx[order[:half]]]
+                continue
+            if faces.size > CHUNK_FACES or faces.size == 0:
+                d[idx], face[idx], near_pt[idx] = self.query_bounded(pts[idx], bound2[idx])
+                continue
+            sub = np.ascontiguousarray(self.faces[faces])
+            dd, i, c = igl.point_mesh_squared_distance(np.ascontiguousarray(pts[idx]), pos, sub)
+            d[idx], face[idx], near_pt[idx] = np.asarray(dd), faces[np.asarray(i, dtype=np.int64)], np.asarray(c)
+        return d, face, near_pt
 
     @property
     def near_index(self):
@@ -309,9 +292,7 @@ class Reference:
                 c /= 3.0
                 cen.append(c)
             n_levels = max(1, int(np.ceil(np.log2(f.shape[0] / CHUNK_FACES))))
-            splits = np.zeros(((1 << n_levels) - 1, 2), dtype=np.float64)  # (axis, value) per node
             level = [np.arange(f.shape[0], dtype=np.int64)]
-            node = 0
             for _ in range(n_levels):
                 nxt = []
                 for ids in level:
@@ -322,12 +303,9 @@ class Reference:
                         c = cs[axis]
                         part = np.argpartition(c, half - 1 if half else 0)
                         value = float(c[part[max(half - 1, 0)]])
-                        # ties at the median go to the left cell, as ``_home``'s "> value" sends points
-                        left = c <= value
+                        left = c <= value  # ties at the median go to the left cell
                     else:
-                        axis, value, left = 0, 0.0, np.zeros(0, dtype=bool)
-                    splits[node] = (axis, value)
-                    node += 1
+                        left = np.zeros(0, dtype=bool)
                     nxt += [ids[left], ids[~left]]
                 level = nxt
             del cen
@@ -343,7 +321,6 @@ class Reference:
                     out.append((ids, np.full(3, np.inf), np.full(3, -np.inf)))
             del lo, hi
             self._chunks = out
-            self._chunk_codes = (splits, n_levels)
         return self._chunks
 
     @property
