@@ -111,9 +111,10 @@ def test_inside_out_result_is_a_backend_failure():
         X.transfer_attributes(res, ref, cube, work, "ignore", 1.0)
 
 
-def test_chunks_partition_the_faces_and_box_them(monkeypatch):
+def test_chunks_partition_the_faces_and_box_them_and_candidates_hold_every_reach(monkeypatch):
     """``Reference.chunks``: every face in exactly one chunk, each chunk's box holding its faces'
-    corners exactly (min and max attained)."""
+    corners exactly (min and max attained); ``_candidates`` holds every point whose distance bound
+    reaches a chunk's box, and few others where the chunks are spatially apart."""
     s = F.unit_sphere(5)[0]
     rng = np.random.default_rng(11)
     pos = s.positions * (1.0 + 0.03 * rng.standard_normal(s.positions.shape[0]))[:, None]
@@ -129,3 +130,30 @@ def test_chunks_partition_the_faces_and_box_them(monkeypatch):
         corners = ref.positions[ref.faces[ids].ravel()]
         assert np.array_equal(lo, corners.min(axis=0)) and np.array_equal(hi, corners.max(axis=0))
     assert (owner >= 0).all()
+    # points around the sphere, some far off it, with bounds from tiny to the whole sphere
+    pts = rng.standard_normal((5000, 3)) * rng.uniform(0.2, 3.0, (5000, 1))
+    best = rng.uniform(0.0, 1.0, 5000) ** 4
+    for scale in (4.0, 1e-3):  # balls up to the sphere's size, then small ones
+        b = best * scale
+        cand = ref._candidates(pts, b)
+        for c, (_, lo, hi) in enumerate(chunks):
+            gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
+            reach = np.flatnonzero((gap ** 2).sum(axis=1) <= b)
+            assert np.isin(reach, cand[c]).all() and np.unique(cand[c]).size == cand[c].size
+    # a flat 128 x 128 grid in 8 chunks, points just above it with small balls: a point is a
+    # candidate of its own chunk and at most its neighbours'
+    k = 129
+    gx, gy = np.meshgrid(np.arange(k, dtype=np.float64), np.arange(k, dtype=np.float64))
+    grid_pos = np.stack([gx.ravel(), gy.ravel(), np.zeros(k * k)], axis=1)
+    v = (np.arange(k - 1)[None, :] + k * np.arange(k - 1)[:, None]).ravel()
+    quads = np.stack([v, v + 1, v + k + 1, v + k], axis=1)
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    flat = X.Reference(MeshPart("flat", grid_pos.astype(np.float32), tris.astype(np.uint32)))
+    monkeypatch.setattr(X, "CHUNK_FACES", tris.shape[0] // 7)
+    assert len(flat.chunks) == 8
+    q = np.concatenate([rng.uniform(0, k - 1, (5000, 2)), rng.uniform(0, 0.5, (5000, 1))], axis=1)
+    cand = flat._candidates(q, np.ones(5000))
+    for c, (_, lo, hi) in enumerate(flat.chunks):
+        gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
+        assert np.isin(np.flatnonzero((gap ** 2).sum(axis=1) <= 1.0), cand[c]).all()
+    assert sum(x.size for x in cand) <= 1.5 * q.shape[0]

@@ -26,6 +26,10 @@ NUDGE = 0.25
 #: faces (a tree over 1.1M faces takes about 265 MB)
 CHUNK_FACES = 1 << 18
 
+#: ``Reference.query_bounded`` groups its points by the cells of a grid of this many cells per axis
+#: (at most 40, so that a cell's number fits 16 bits) to find the chunks each group can reach
+CANDIDATE_GRID = 32
+
 #: ``Reference.query_bounded`` on at least this many points sweeps its chunks in two processes
 PARALLEL_POINTS = 20_000
 
@@ -137,19 +141,20 @@ class Reference:
         near = np.zeros_like(pts) if closest else None
         chunks = self.chunks
         n = len(chunks)
+        cand = self._candidates(pts, best)
         if pts.shape[0] >= PARALLEL_POINTS and n >= 2 and _workers() >= 2:
             from .. import isolate
 
             half = n // 2
-            front = isolate.start(self._sweep, pts, best.copy(), range(half), closest)
+            front = isolate.start(self._sweep, pts, best.copy(), cand, range(half), closest)
             try:
-                records = self._sweep(pts, best.copy(), range(half, n), closest)
+                records = self._sweep(pts, best.copy(), cand, range(half, n), closest)
             except BaseException:
                 front.cancel()
                 raise
             records = front.result() + records
         else:
-            records = self._sweep(pts, best.copy(), range(n), closest)
+            records = self._sweep(pts, best.copy(), cand, range(n), closest)
         records.reverse()
         while records:  # the serial sweep, replayed on the queried distances (each freed after use)
             c, sel_q, d, f, cp = records.pop()
@@ -175,10 +180,10 @@ class Reference:
         gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
         return np.einsum("ij,ij->i", gap, gap) <= best
 
-    def _sweep(self, pts: np.ndarray, best: np.ndarray, cs, closest: bool = True) -> list:
+    def _sweep(self, pts: np.ndarray, best: np.ndarray, cand: list, cs, closest: bool = True) -> list:
         """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point or
-        None)`` of the points whose ``best`` reaches the chunk's box, ``best`` (this call's own
-        copy) lowered as they are found."""
+        None)`` of the points whose ``best`` reaches the chunk's box (tested among the chunk's
+        ``cand``), ``best`` (this call's own copy) lowered as they are found."""
         import igl
 
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
@@ -186,7 +191,7 @@ class Reference:
         for c in cs:
             if self.chunks[c][0].size == 0:
                 continue
-            sel = np.flatnonzero(self._reaches(c, pts, best))
+            sel = cand[c][self._reaches(c, pts[cand[c]], best[cand[c]])]
             if sel.size == 0:
                 continue
             ch = self.chunks[c][0]
@@ -322,6 +327,38 @@ class Reference:
             del lo, hi
             self._chunks = out
         return self._chunks
+
+    def _candidates(self, pts: np.ndarray, best: np.ndarray) -> list:
+        """[(point ids, distinct, grouped by cell)] per chunk: a superset of the points whose
+        ``best`` reaches the chunk's box. The points are grouped by the cell of a
+        ``CANDIDATE_GRID``^3 grid over their box that holds them: the box of a group's points
+        widened by the group's largest ``sqrt(best)`` holds each of their balls, so a group is a
+        candidate only for the chunks whose boxes meet that widened box (one or a few)."""
+        chunks = self.chunks
+        n = len(chunks)
+        g = CANDIDATE_GRID
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        scale = np.where(hi > lo, g / np.where(hi > lo, hi - lo, 1.0), 0.0)
+        key = np.zeros(pts.shape[0], dtype=np.uint16)
+        for a in range(3):
+            cell = np.minimum(((pts[:, a] - lo[a]) * scale[a]).astype(np.int64), g - 1)
+            key = key * np.uint16(g) + cell.astype(np.uint16)
+        order = np.argsort(key, kind="stable")  # a radix sort of 16-bit keys
+        key = key[order]
+        at = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
+        del key
+        reach = np.sqrt(np.maximum(np.maximum.reduceat(best[order], at), 0.0)) * (1.0 + 1e-9)
+        grouped = pts[order]
+        group_lo = np.minimum.reduceat(grouped, at, axis=0) - reach[:, None]
+        group_hi = np.maximum.reduceat(grouped, at, axis=0) + reach[:, None]
+        del grouped
+        ends = np.append(at[1:], pts.shape[0])
+        out = []
+        for c in range(n):
+            meet = np.flatnonzero(((group_lo <= chunks[c][2]) & (group_hi >= chunks[c][1])).all(axis=1))
+            out.append(np.concatenate([order[at[h]:ends[h]] for h in meet.tolist()]) if meet.size
+                       else np.zeros(0, dtype=np.int64))
+        return out
 
     @property
     def samples(self) -> np.ndarray:
