@@ -6,8 +6,10 @@ Not a test. Usage::
         [--levels 6-11] [--grid -3:1:0.25] [--verify]
 
 Each ``CAL.lop`` is a container cooked with ``cook --target-psnr 40`` from ``SOURCE``; its
-``options.calibration`` record gives the calibrated knobs (log2 sigma = log2 of the k_f scale,
-edge strictness x_e = log2(0.125 / edge_eps)). For every candidate default (log2 sigma on
+``options.analyse`` record gives the knobs it was cooked with, after the k_f calibration and the
+attribute search (log2 sigma = log2(default eps / eps), edge strictness x_e = log2(default
+edge_eps / edge_eps)), and ``options.clusters`` its cluster size, which every candidate is built
+with too. For every candidate default (log2 sigma on
 ``--grid``, x_e = the largest calibrated x_e, so no asset's edges are looser than it needed) the
 script cooks every source with that model (analysis and build only, no render) and prints, per
 asset, the mean CAP memory over ``--levels`` as a multiple of the calibrated container's. A
@@ -42,10 +44,11 @@ def mean_cap(c, levels) -> float:
     return sum(position_bytes(c, lods, b)["cap"] for b in levels) / len(levels)
 
 
-def cook(scene, x: float, e: float):
+def cook(scene, x: float, e: float, clusters: int | None = None):
     s = replace(DEFAULT_ANALYSE, eps=DEFAULT_ANALYSE.eps / 2.0**x,
                 edge_eps=min(1.0, DEFAULT_ANALYSE.edge_eps / 2.0**e))
-    return from_bytes(build(scene, analyse(scene, s), options={"analyse": s.to_record()}), None), s
+    data = build(scene, analyse(scene, s), options={"analyse": s.to_record()}, cluster_size=clusters)
+    return from_bytes(data, None), s
 
 
 def main(argv=None) -> int:
@@ -64,11 +67,15 @@ def main(argv=None) -> int:
     for pair in a.pairs:
         lop, src = pair.split(":", 1)
         c = read(lop)
-        cal = c.manifest["options"]["calibration"]
-        x = math.log2(float(cal["kf_scale"]))
-        e = math.log2(DEFAULT_ANALYSE.edge_eps / float(cal["edge_eps"]))
-        t = {"name": Path(src).name, "scene": load(src), "x": x, "e": e, "cal_bytes": mean_cap(c, levels), "src": src}
-        again = mean_cap(cook(t["scene"], x, e)[0], levels)
+        opts = c.manifest["options"]
+        if "calibration" not in opts:
+            raise SystemExit(f"{lop}: not cooked with --target-psnr (no calibration record)")
+        x = math.log2(DEFAULT_ANALYSE.eps / float(opts["analyse"]["eps"]))
+        e = math.log2(DEFAULT_ANALYSE.edge_eps / float(opts["analyse"]["edge_eps"]))
+        n = int(opts.get("clusters") or 0) or None
+        t = {"name": Path(src).name, "scene": load(src), "x": x, "e": e, "cal_bytes": mean_cap(c, levels), "src": src,
+             "clusters": n}
+        again = mean_cap(cook(t["scene"], x, e, n)[0], levels)
         assert again == t["cal_bytes"], f"{src}: the calibrated knobs give {again} B here, {t['cal_bytes']} B in {lop}"
         assets.append(t)
     e_d = max(t["e"] for t in assets) if a.edge is None else float(a.edge)
@@ -81,19 +88,19 @@ def main(argv=None) -> int:
     print("|" + "---|" * (len(assets) + 2))
     best = None
     for x in sorted(set(grid) | {0.0}):
-        ratios = [mean_cap(cook(t["scene"], x, e_d)[0], levels) / t["cal_bytes"] for t in assets]
+        ratios = [mean_cap(cook(t["scene"], x, e_d, t["clusters"])[0], levels) / t["cal_bytes"] for t in assets]
         tag = "" if x >= x_need and e_d >= max(t["e"] for t in assets) else " (looser than a calibrated knob)"
         print(f"| {x:+.2f}{tag} | " + " | ".join(f"{r:.3f}" for r in ratios) + f" | {max(ratios):.3f} |")
         if not tag and max(ratios) <= 1.15 and best is None:
             best = x
     # today's default for reference
-    ratios = [mean_cap(cook(t["scene"], 0.0, 0.0)[0], levels) / t["cal_bytes"] for t in assets]
+    ratios = [mean_cap(cook(t["scene"], 0.0, 0.0, t["clusters"])[0], levels) / t["cal_bytes"] for t in assets]
     print("| today's default (0, x_e 0) | " + " | ".join(f"{r:.3f}" for r in ratios) + f" | {max(ratios):.3f} |")
     print("one default for every asset:", "none" if best is None else f"log2 sigma {best:+.2f}, x_e {e_d:+.0f}")
     if a.verify and best is not None:
         from lopcook.verify.evaluate import evaluate
         for t in assets:
-            c, _ = cook(t["scene"], best, e_d)
+            c, _ = cook(t["scene"], best, e_d, t["clusters"])
             r = evaluate(c, t["scene"], levels=levels, views=20, resolution=(1280, 720), variants=("cap",))
             print(t["name"], [None if row["cap"]["psnr_min"] is None else round(row["cap"]["psnr_min"], 2)
                               for row in r["levels"]])
