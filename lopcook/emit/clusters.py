@@ -224,11 +224,16 @@ def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.nda
     ends = np.cumsum(widths)
     total = int(ends[-1]) if ends.size else 0
     offsets = ends - widths
-    stream = np.zeros(max(1, (total + 31) // 32) * 32, dtype=np.uint8)
-    for i in range(LEVELS):  # bit i of every field at least i + 1 bits wide
-        sel = widths > i
-        stream[offsets[sel] + i] = (fields[sel] >> i) & 1
-    return np.packbits(stream, bitorder="little").view("<u4").astype(np.uint32)
+    n_words = max(1, (total + 31) // 32)
+    # a field (at most 24 bits) at bit offset o lands in word o // 32 and, past its end, in the
+    # next one. The fields' bits are disjoint, so a word is the sum of its pieces: each piece is
+    # below 2^32, and so is each word's sum, which float64 sums exactly.
+    shifted = fields.astype(np.uint64) << (offsets & 31).astype(np.uint64)
+    word = offsets >> 5
+    # (an empty field at the very end may sit one word past the last: it adds 0 there)
+    low = np.bincount(word, weights=(shifted & np.uint64(0xFFFFFFFF)).astype(np.float64), minlength=n_words + 2)
+    high = np.bincount(word + 1, weights=(shifted >> np.uint64(32)).astype(np.float64), minlength=n_words + 2)
+    return (low[:n_words] + high[:n_words]).astype(np.uint32)
 
 
 def decode_clustered(words: np.ndarray, clusters: Clusters, level: int,
