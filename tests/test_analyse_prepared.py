@@ -13,7 +13,7 @@ import pytest
 from conftest import FIXTURES
 from lopcook import fixtures as fx
 from lopcook.analyse import analyse
-from lopcook.analyse.prepared import PreparedAnalysis
+from lopcook.analyse.prepared import LOOKAHEAD, PreparedAnalysis
 from lopcook.emit import build
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
@@ -86,7 +86,10 @@ def test_depth_is_only_queried_again_below_the_floors_seen(rng):
     n = prep.depth_queries
     prep.analyse(AnalyseSettings().eps)  # higher floors everywhere: every distance is known
     assert prep.depth_queries == n
-    prep.analyse(AnalyseSettings().eps / 2.0**-8)  # lower floors: more look-ups
+    # floors down to LOOKAHEAD levels lower were looked up with the first probe
+    prep.analyse(AnalyseSettings().eps / 2.0**(-4 - LOOKAHEAD))
+    assert prep.depth_queries == n
+    prep.analyse(AnalyseSettings().eps / 2.0**(-6 - LOOKAHEAD))  # lower floors: more look-ups
     assert prep.depth_queries > n
 
 

@@ -16,10 +16,14 @@ edge_eps; of ``lopcook.analyse.analyse``'s steps
   the distance is exact, beyond it the level it gives is <= the floor. The prepared analysis keeps,
   per vertex, the exact distance found at the lowest floor seen so far; a probe whose floor of a
   vertex is not below it reuses it (any distance up to the smaller radius is the same exact
-  minimum, a larger one gives a level <= the floor either way), and only the vertices whose floor
-  is lower than any before are queried again (``lopcook.analyse.depth.depth_levels`` with the other
-  vertices' radius at its smallest, 2 dx(24)). ``FIXED`` and ``off`` depth do not depend on the
-  floors at all.
+  minimum, a larger one gives a level <= the floor either way). A distance at most the radius it
+  was found within is the exact nearest distance to any other part, at every floor. When some
+  vertex's floor is lower than any before (and its distance is not known exactly), every vertex
+  not known exactly is looked up again at ``LOOKAHEAD`` levels below its floor
+  (``lopcook.analyse.depth.depth_levels`` with the other vertices' radius at its smallest,
+  2 dx(24)): building the parts' trees is most of a look-up's cost, and a search that lowers k_f
+  step by step then looks up once every few steps. ``FIXED`` and ``off`` depth do not depend on
+  the floors at all.
 
 Guarantee (``tests/test_analyse_prepared.py``): ``PreparedAnalysis(scene, s).analyse(eps, edge_eps)``
 gives the same ``min_level``, ``reason``, ``attribute_level``, ``e_v``, ``kf`` and ``quantized``
@@ -37,7 +41,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..grid import BITS, Grid
+from ..grid import BITS, Grid, dx
 from ..settings import AnalyseSettings, DepthMode
 from ..types import Scene
 from . import attribute_kf, attribute_levels, colocated_max
@@ -46,6 +50,13 @@ from .depth import depth_levels, level_from_distance
 from .discontinuity import (base_colours, boundary_vertices, colocated_groups, fold_levels, required_level,
                             seam_jumps)
 from .result import REASON_CODE, Analysis, PartAnalysis
+
+
+#: when a probe's floors fall below every floor seen, the depth distances are looked up for this many
+#: levels lower still (docs/performance.md: on the chess set one look-up at 4 levels below costs
+#: about 1.25 of one at the floor, and a k_f search then needs one every 4 steps of log2 k_f, not
+#: every step)
+LOOKAHEAD = 4
 
 
 class PreparedAnalysis:
@@ -103,15 +114,27 @@ class PreparedAnalysis:
         """(levels, distances, capped) per part for the auto depth mode at ``floors`` (module doc)."""
         parts = self.scene.parts
         ceiling = int(self.settings.depth_ceiling)
-        need = [f < s for f, s in zip(floors, self._floor_seen)]
-        if len(parts) >= 2 and any(n.any() for n in need):
-            ask = [np.where(n, f, BITS) for n, f in zip(need, floors)]
+        # a distance found within the binding radius of the floor it was looked up at is the exact
+        # nearest distance to any other part (a part farther than that radius from the vertex's box
+        # test is farther than the distance): a lower floor cannot change it (the 1e-9 is slack for
+        # the rounding of the box distances against libigl's)
+        exact = [b <= 2.0 * dx(np.minimum(s, BITS), self.grid.extent) * (1.0 - 1e-9)
+                 for b, s in zip(self._best, self._floor_seen)]
+        if len(parts) >= 2 and any(((f < s) & ~e).any() for f, s, e in zip(floors, self._floor_seen, exact)):
+            # some vertex's floor is below any seen: look up every vertex not known exactly at
+            # LOOKAHEAD levels below its floor (the trees, not the look-ups, are most of the cost,
+            # and the searches lower k_f step by step)
+            ahead = [np.maximum(np.asarray(f, dtype=np.int64) - LOOKAHEAD, 1) for f in floors]
+            ask = [(a < s) & ~e for a, s, e in zip(ahead, self._floor_seen, exact)]
             res = depth_levels([p.positions for p in parts], [p.indices for p in parts], self.grid.extent,
-                               floors=ask, ceiling=ceiling, detect_intersections=False)
+                               floors=[np.where(n, a, BITS) for n, a in zip(ask, ahead)], ceiling=ceiling,
+                               detect_intersections=False)
             self.depth_queries += res.queries
-            for k, n in enumerate(need):
+            for k, n in enumerate(ask):
                 self._best[k] = np.where(n, res.distance[k], self._best[k])
-                self._floor_seen[k] = np.minimum(self._floor_seen[k], floors[k])
+                self._floor_seen[k] = np.where(n, ahead[k], self._floor_seen[k])
+        for k in range(len(parts)):  # the exact ones hold at every lower floor too
+            self._floor_seen[k] = np.minimum(self._floor_seen[k], floors[k])
         levels, capped = [], []
         for b in self._best:
             raw = level_from_distance(b, self.grid.extent)
