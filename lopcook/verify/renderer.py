@@ -282,7 +282,10 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
     else:
         t = np.asarray(triangles)
         a, b, c = (np.ascontiguousarray(t[:, i]) for i in range(3))
-    hit = ~(np.take(ok, a) & np.take(ok, b) & np.take(ok, c))
+    if ok.all():  # (``Coverage.select`` tests only such items)
+        hit = np.zeros(a.shape[0], dtype=bool)
+    else:
+        hit = ~(np.take(ok, a) & np.take(ok, b) & np.take(ok, c))
 
     def span(v, n_px):
         va, vb, vc = np.take(v, a), np.take(v, b), np.take(v, c)
