@@ -212,7 +212,11 @@ class Speculation:
         self._children: dict = {0: (tuple(scene.parts), isolate.start(analyse, scene, settings.analyse, grid))}
 
     def started(self, k: int, part) -> None:
-        """The one-part chain accepted ``part`` as its LOD ``k``: start its analysis."""
+        """The one-part chain has ``part`` for its LOD ``k`` (a candidate, or the LOD it accepted):
+        start its analysis, unless it was started on that very part already."""
+        old = self._children.get(k)
+        if old is not None and len(old[0]) == 1 and old[0][0] is part:
+            return
         old = self._children.pop(k, None)
         if old is not None:
             old[1].cancel()

@@ -130,6 +130,9 @@ def test_a_lod_cook_in_two_processes_writes_the_one_process_bytes(monkeypatch):
         result = pipeline.run(scene, settings)
         out[w] = result.container.data
         assert set(started) == ({"analyse", "_sweep", "_map"} if w == "2" else set())
+        # one analysis per level: each LOD's, started as soon as its mesh existed, is kept when the
+        # chain accepts that mesh
+        assert started.count("analyse") == (3 if w == "2" else 0)
     assert [r["backend"] for r in result.lod_reports[0]["lods"]][1:] == ["meshopt", "meshopt"]
     assert out["1"] == out["2"]
 
@@ -160,6 +163,9 @@ def test_analyse_lods_uses_a_speculative_analysis_only_on_its_own_grid_and_parts
     # LOD 1 inside LOD 0's box: both levels taken from the children
     spec = pipeline.Speculation(scene, settings, own)
     spec.started(1, half)
+    child = spec._children[1][1]
+    spec.started(1, half)  # the same part again: the same child goes on
+    assert spec._children[1][1] is child
     took = []
     real_take = pipeline.Speculation.take
 

@@ -313,14 +313,16 @@ def _better(a: Lod, b: Lod) -> bool:
 
 
 def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: Reference,
-                   preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+                   preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
+                   on_part=None) -> tuple[Lod, int]:
     """``backend="auto"``: meshoptimizer; on inputs of at most ``AUTO_BOTH_TRIANGLES`` triangles
     pymeshlab too (falling back to fast as usual when ``fallback``), keeping the better
     (``_better``) with a note giving both errors."""
     t0 = time.perf_counter()
+    alone = part.n_triangles > AUTO_BOTH_TRIANGLES  # meshopt's LOD is the only candidate
     lod, used = _simplify(part, ratio, target, "meshopt", seams, ref, preserve_boundary, fallback,
-                          max_flipped_fraction)
-    if part.n_triangles > AUTO_BOTH_TRIANGLES or lod.backend == "source":
+                          max_flipped_fraction, on_part=on_part if alone else None)
+    if alone or lod.backend == "source":
         return lod, used
     # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
     other, used2 = _simplify(part, ratio, target, "pymeshlab", seams, ref, preserve_boundary, fallback,
@@ -343,13 +345,14 @@ def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: R
 
 
 def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Reference,
-                preserve_boundary: bool, fallback: bool, max_flipped_fraction: float) -> tuple[Lod, int]:
+                preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
+                on_part=None) -> tuple[Lod, int]:
     """``seams="auto"``: ``"simplify"``; where that misses its target by more than
     ``TARGET_TOLERANCE`` (seam vertices the backend will not collapse) also ``"ignore"``, keeping
     the better (``_better``) with a note."""
     t0 = time.perf_counter()
     lod, used = _simplify(part, ratio, target, backend, "simplify", ref, preserve_boundary, fallback,
-                          max_flipped_fraction)
+                          max_flipped_fraction, on_part=on_part if part.uvs is None else None)
     if part.uvs is None or lod.backend == "source" or (
             not lod.failed and abs(lod.triangles - target) <= TARGET_TOLERANCE * target):
         return lod, used
@@ -367,16 +370,20 @@ def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Re
 
 def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: str, ref: Reference,
               preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
-              _retry: bool = False) -> tuple[Lod, int]:
-    """One LOD; returns (lod, fallbacks used)."""
+              _retry: bool = False, on_part=None) -> tuple[Lod, int]:
+    """One LOD; returns (lod, fallbacks used). ``on_part(part)``: called with the LOD's mesh as
+    soon as its attributes are transferred, before its error is measured (the cook starts the
+    LOD's analysis then; the chain may still drop or replace it)."""
     t0 = time.perf_counter()
     notes: list = []
     if backend not in SELECTABLE:
         raise ValueError(f"backend must be one of {SELECTABLE}, got {backend!r}")
     if backend == "auto":
-        return _simplify_auto(part, ratio, target, seams, ref, preserve_boundary, fallback, max_flipped_fraction)
+        return _simplify_auto(part, ratio, target, seams, ref, preserve_boundary, fallback, max_flipped_fraction,
+                              on_part)
     if seams == "auto":
-        return _seams_auto(part, ratio, target, backend, ref, preserve_boundary, fallback, max_flipped_fraction)
+        return _seams_auto(part, ratio, target, backend, ref, preserve_boundary, fallback, max_flipped_fraction,
+                           on_part)
     if seams not in SEAM_MODES:
         raise ValueError(f"seams must be one of {SEAM_MODES}, got {seams!r}")
     if part.n_triangles < MIN_SIMPLIFY_TRIANGLES:
@@ -451,6 +458,8 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
         if info["flipped"]:
             notes.append(f"{info['flipped']} faces face against the source surface (under the "
                          f"{max_flipped_fraction:.0%} threshold; kept)")
+        if on_part is not None:
+            on_part(lod_part)
         ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part)
         release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
@@ -518,7 +527,9 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
     chain : ``"previous"`` simplifies each LOD from the one before, ``"source"`` from LOD 0
     parametrise : give a part without UVs an xatlas atlas first (LOD 0 then has UVs)
     on_lod : ``on_lod(k, part)`` is called as LOD k (k >= 1) joins the chain, before the next is
-        made (the cook starts its analysis then)
+        made; it may also be called earlier with a candidate for LOD k, as soon as that mesh
+        exists (before its error is measured, so the chain may still drop or replace it): the cook
+        starts its analysis then
     Other arguments as for ``simplify``. ``error_m`` is non-decreasing along the returned chain.
     """
     if chain not in ("previous", "source"):
@@ -554,8 +565,11 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
                 report.stop_reason = f"target {target} below min_triangles {min_triangles}"
                 break
             start = lods[-1].part if chain == "previous" else part
+            # the cook's analysis of this LOD starts as soon as its mesh exists (``on_lod`` again
+            # below keeps that start when the chain accepts the same mesh)
+            early = None if on_lod is None else (lambda p, k=len(lods): on_lod(k, p))
             lod, used = _simplify(start, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                  max_flipped_fraction)
+                                  max_flipped_fraction, on_part=early)
             report.fallbacks += used
             missed = start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target)
             # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
@@ -565,7 +579,7 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
                 # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
                 # make it from LOD 0 as well
                 again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                         max_flipped_fraction)
+                                         max_flipped_fraction, on_part=early)
                 nearer = missed and not again.failed and (
                     lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
                 # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
