@@ -153,9 +153,7 @@ def buffer_clusters(c: Container, part: int, lod: int) -> Clusters | None:
 def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) uint32 top bits and (n,) widths of every vertex at per-buffer level B (binned order):
     the mandatory bits (the buffer packed at level 1), then one bit per refinement plane 2..B for
-    the vertices whose minimum level is below that plane. The container keeps the last level's
-    values per buffer (a placement's are its owner's), and a higher level goes on from them one
-    plane at a time: the same values as reading every plane from 2."""
+    the vertices whose minimum level is below that plane."""
     if not 1 <= level <= LEVELS:
         raise LopcookError("usage", c.path, f"level {level} is outside [1, 24]")
     if level > c.available_level:
@@ -163,27 +161,17 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
                            f"{c.available_level})", hint="use a lower --level or the complete file")
     e = lod_entry(c, part, lod)
     vid = np.asarray(e["vertex_id"], dtype=np.int64)
+    off, count = e["mandatory_words"]
+    mandatory = np.frombuffer(c.section(c.manifest["positions"]["mandatory"]), dtype="<u4")
+    if off + count > mandatory.size:
+        raise LopcookError("container", c.path, "mandatory position words out of range")
+    words = mandatory[off:off + count]
     cl = buffer_clusters(c, part, lod)
-    cache = c.__dict__.setdefault("_top_cache", {})
-    key = (owner(c, part), lod)
-    got = cache.get(key)
-    if got is not None and got[0] <= level:
-        done, values = got[0], got[1].copy()
-    else:
-        off, count = e["mandatory_words"]
-        mandatory = np.frombuffer(c.section(c.manifest["positions"]["mandatory"]), dtype="<u4")
-        if off + count > mandatory.size:
-            raise LopcookError("container", c.path, "mandatory position words out of range")
-        words = mandatory[off:off + count]
-        if cl is not None:
-            values = decode_clustered(words, cl, 1)[0].astype(np.uint32)
-        else:
-            values = decode(words, vid, table_bit_id(vid, 1), 1)[0].astype(np.uint32)
-        done = 1
-    for p in range(done + 1, level + 1):
-        if cl is not None:
-            _clustered_plane(c, part, lod, p, values, cl)
-            continue
+    if cl is not None:
+        return _clustered_top_values(c, part, lod, level, words, cl)
+    values, widths = decode(words, vid, table_bit_id(vid, 1), 1)
+    values = values.astype(np.uint32)
+    for p in range(2, level + 1):
         g = int(vid[p - 1])
         if g == 0:
             continue
@@ -193,27 +181,31 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
             raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
         bits = stream[start:start + 3 * g].reshape(g, 3).astype(np.uint32)
         values[:g] = (values[:g] << np.uint32(1)) | bits
-    cache[key] = (level, values.copy())
     return values, vertex_widths(vid, level)
 
 
-def _clustered_plane(c: Container, part: int, lod: int, p: int, values: np.ndarray, cl: Clusters) -> None:
-    """Plane p of a clustered buffer into ``values`` (uint32, in place): the stored bit of every
-    component with k_t < p and the anchor's bit of every other (vertices with m_v < p)."""
-    g = int(cl.vertex_id[p - 1])
-    if g == 0:
-        return
-    _, ci, _ = vertex_clusters(cl, np.arange(g, dtype=np.int64))
-    kt = cl.k[ci].astype(np.int64)
-    bit = (cl.anchor[ci].astype(np.int64) >> np.maximum(kt - p, 0)) & 1
-    keep = kt < p
-    want = int(keep.sum())
-    stream = _plane_bits(c, p)
-    start = _plane_offsets(c, p)[(owner(c, part), lod)]  # a placement reads its owner's slice
-    if start + want > stream.size:
-        raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
-    bit[keep] = stream[start:start + want]
-    values[:g] = (values[:g] << np.uint32(1)) | bit.astype(np.uint32)
+def _clustered_top_values(c: Container, part: int, lod: int, level: int, words: np.ndarray,
+                          cl: Clusters) -> tuple[np.ndarray, np.ndarray]:
+    """``top_values`` of a clustered buffer: the level-1 decode, then per plane p the stored bit of
+    every component with k_t < p and the anchor's bit of every other (vertices with m_v < p)."""
+    values = decode_clustered(words, cl, 1)[0].astype(np.int64)
+    vid = cl.vertex_id
+    for p in range(2, level + 1):
+        g = int(vid[p - 1])
+        if g == 0:
+            continue
+        _, ci, _ = vertex_clusters(cl, np.arange(g, dtype=np.int64))
+        kt = cl.k[ci].astype(np.int64)
+        bit = (cl.anchor[ci].astype(np.int64) >> np.maximum(kt - p, 0)) & 1
+        keep = kt < p
+        want = int(keep.sum())
+        stream = _plane_bits(c, p)
+        start = _plane_offsets(c, p)[(owner(c, part), lod)]  # a placement reads its owner's slice
+        if start + want > stream.size:
+            raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
+        bit[keep] = stream[start:start + want]
+        values[:g] = (values[:g] << 1) | bit
+    return values.astype(np.uint32), vertex_widths(vid, level)
 
 
 def gpu_buffer(c: Container, part: int, lod: int, level: int) -> GpuBuffer:
