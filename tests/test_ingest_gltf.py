@@ -193,6 +193,44 @@ def test_instanced_mesh_gives_one_part_per_placement(tmp_path):
     assert a.source.startswith("node 0 'axle'") and c.source.startswith("node 1 'axle'")
 
 
+@pytest.mark.parametrize("required", [False, True])
+def test_gpu_instancing_places_every_instance(tmp_path, required):
+    """EXT_mesh_gpu_instancing: one part per instance at node world @ T @ R @ S (ROTATION as
+    normalized SHORTs), sharing the mesh; used or required alike."""
+    b = Builder()
+    m = single_triangle(b, name="leaf")
+    t = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 0.0, -3.0]])
+    s = np.sqrt(0.5)
+    q = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, s, s], [0.0, 0.0, 0.0, 1.0]])  # +90 deg about Z
+    sc = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
+    attrs = {"TRANSLATION": b.accessor(t), "ROTATION": b.accessor(np.round(q * 32767), SHORT, normalized=True),
+             "SCALE": b.accessor(sc)}
+    b.scene(b.node(mesh=m, translation=[0.0, 10.0, 0.0], name="tree",
+                   extensions={"EXT_mesh_gpu_instancing": {"attributes": attrs}}))
+    b.doc["extensionsUsed"] = ["EXT_mesh_gpu_instancing"]
+    if required:
+        b.doc["extensionsRequired"] = ["EXT_mesh_gpu_instancing"]
+    scene = load(b.write_gltf(tmp_path / "instancing.gltf"))
+    assert [p.name for p in scene.parts] == ["tree/leaf/instance0", "tree/leaf/instance1", "tree/leaf/instance2"]
+    assert len({p.mesh_key for p in scene.parts}) == 1
+    up = np.array([0.0, 10.0, 0.0])
+    np.testing.assert_allclose(scene.parts[0].positions, TRI + up, atol=1e-12)
+    rot = TRI[:, [1, 0, 2]] * [-1.0, 1.0, 1.0]  # (x, y) -> (-y, x)
+    np.testing.assert_allclose(scene.parts[1].positions, rot + [5.0, 0.0, 0.0] + up, atol=1e-4)
+    np.testing.assert_allclose(scene.parts[2].positions, 2.0 * TRI + [0.0, 0.0, -3.0] + up, atol=1e-12)
+    assert scene.parts[1].source.endswith("/ instance 1")
+
+
+def test_gpu_instancing_with_mismatched_counts_is_an_error(tmp_path):
+    b = Builder()
+    m = single_triangle(b)
+    attrs = {"TRANSLATION": b.accessor(np.zeros((3, 3))), "SCALE": b.accessor(np.ones((2, 3)))}
+    b.scene(b.node(mesh=m, extensions={"EXT_mesh_gpu_instancing": {"attributes": attrs}}))
+    with pytest.raises(LopcookError) as exc:
+        load(b.write_gltf(tmp_path / "bad_instancing.gltf"))
+    assert "different counts" in str(exc.value)
+
+
 @pytest.mark.parametrize("scale", [[-1.0, 1.0, 1.0], [1.0, 1.0, -1.0], [-1.0, -1.0, -1.0]])
 def test_mirrored_transform_flips_winding(tmp_path, scale):
     b = Builder()
@@ -400,6 +438,26 @@ def test_color_0_ubyte_normalized_and_ushort_rgba(tmp_path):
     np.testing.assert_allclose(c.colors, rgba / 65535.0, atol=1e-7)
 
 
+def test_color_0_integers_without_normalized_are_read_as_normalized_with_a_warning(tmp_path):
+    b = Builder()
+    rgb = np.array([[255, 0, 0], [0, 128, 0], [0, 0, 51]], np.uint8)
+    m = b.mesh({"attributes": {"POSITION": b.accessor(TRI), "COLOR_0": b.accessor(rgb, UBYTE, stride=4)}})
+    b.scene(b.node(mesh=m))
+    scene = load(b.write_gltf(tmp_path / "colors_unnormalized.gltf"))
+    np.testing.assert_allclose(scene.parts[0].colors[:, :3], rgb / 255.0, atol=1e-7)
+    assert any("COLOR_0 accessor" in w and "without normalized" in w for w in scene.warnings)
+
+
+def test_positions_far_beyond_the_limit_give_the_position_error(tmp_path):
+    """1e300 m: the coordinate limit's message, not an overflow in the normals computed for it."""
+    b = Builder()
+    m = b.mesh(b.prim(TRI, [0, 1, 2]))
+    b.scene(b.node(mesh=m, scale=[1e300, 1e300, 1e300]))
+    with pytest.raises(LopcookError) as exc:
+        load(b.write_gltf(tmp_path / "far.gltf"))
+    assert "from the origin, beyond the" in str(exc.value)
+
+
 def test_points_and_lines_skipped_with_warning(tmp_path):
     b = Builder()
     m = b.mesh(b.prim(TRI, mode=0), b.prim(TRI, [0, 1, 1, 2], mode=1), b.prim(TRI, [0, 1, 2]))
@@ -458,6 +516,20 @@ def test_textures_shared_missing_and_embedded(tmp_path):
     assert t[4] is None and any("remote.png" in w for w in scene.warnings)
     assert t[5] is None
     assert all(p.uvs is not None for p in scene.parts)
+
+
+def test_a_texture_transform_is_reported_not_silently_ignored(tmp_path):
+    b = Builder()
+    (tmp_path / "albedo.png").write_bytes(png_bytes())
+    b.doc["images"] = [{"uri": "albedo.png"}]
+    b.doc["textures"] = [{"source": 0}]
+    ref = {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [4.0, 4.0]}}}
+    b.doc["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": ref}}]
+    uv = np.array([[0, 0], [1, 0], [0, 1]], float)
+    b.scene(b.node(mesh=b.mesh(dict(b.prim(TRI, [0, 1, 2], TEXCOORD_0=uv), material=0))))
+    scene = load(b.write_gltf(tmp_path / "transformed.gltf"))
+    np.testing.assert_allclose(scene.parts[0].uvs, uv)  # cooked as stored
+    assert any("KHR_texture_transform" in w and "not applied" in w for w in scene.warnings)
 
 
 # ---------------------------------------------------------------------- errors

@@ -48,6 +48,10 @@ What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.
   A Draco primitive or a meshopt-compressed bufferView / buffer that is used but not required is
   rejected too: its "fallback" is all lopcook could read, and files in the wild point it at the
   compressed bytes, which would be read as plain data.
+* ``EXT_mesh_gpu_instancing`` (required or not): a node's instances are placed as copies of its
+  mesh, one part per instance and primitive (named ``.../instance<i>``), each at the node's world transform
+  times the instance's TRANSLATION @ ROTATION @ SCALE (float, or KHR_mesh_quantization's
+  normalized integers for ROTATION). Copies share their mesh, so ``cook --instances`` stores it once.
 
 Hostile input (issue 17): integers (``byteLength`` >= 1, ``byteOffset`` >= 0, ``byteStride`` a
 multiple of 4 in [4, 252], ``count`` >= 1) are JSON integers, not floats or booleans; every
@@ -80,6 +84,7 @@ import json
 import os
 import struct
 import urllib.parse
+from dataclasses import replace
 
 import numpy as np
 
@@ -110,7 +115,7 @@ MODE_NAMES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 4: "TRIA
               5: "TRIANGLE_STRIP", 6: "TRIANGLE_FAN"}
 
 #: extensions that may appear in extensionsRequired and are handled (or harmless) here
-SUPPORTED_REQUIRED = frozenset({"KHR_mesh_quantization"})
+SUPPORTED_REQUIRED = frozenset({"KHR_mesh_quantization", "EXT_mesh_gpu_instancing"})
 SUPPORTED_REQUIRED_PREFIXES = ("KHR_materials_",)
 
 #: accepted componentTypes per attribute (core glTF + KHR_mesh_quantization); UNSIGNED_INT never
@@ -119,7 +124,14 @@ ATTR_COMPONENTS = {
     "NORMAL": (5126, 5120, 5122),
     "TEXCOORD": (5126, 5120, 5121, 5122, 5123),
     "COLOR": (5126, 5121, 5123),
+    # EXT_mesh_gpu_instancing: float, or KHR_mesh_quantization's types (ROTATION normalized)
+    "TRANSLATION": (5126, 5120, 5121, 5122, 5123),
+    "ROTATION": (5126, 5120, 5122),
+    "SCALE": (5126, 5120, 5121, 5122, 5123),
 }
+
+#: the node extension whose per-instance TRANSLATION / ROTATION / SCALE place a mesh many times
+GPU_INSTANCING = "EXT_mesh_gpu_instancing"
 
 #: an accessor without a bufferView (all zeros) may declare at most this many elements, or as many
 #: as the file and its external buffers have bytes, whichever is larger
@@ -579,6 +591,10 @@ class _GltfReader:
         if not isinstance(ref, dict) or "index" not in ref:
             return None, 0
         tex_coord = int(ref.get("texCoord", 0))
+        if "KHR_texture_transform" in (ref.get("extensions") or {}):
+            self.warn(f"material {material_index}: KHR_texture_transform on the base colour texture is not "
+                      f"applied: the UVs are cooked as stored, and the texture's precision estimate (--texture-kf "
+                      f"image) does not see the transform's scale")
         tex = self.item("textures", ref["index"], "texture")
         src = tex.get("source")
         if src is None:
@@ -646,7 +662,13 @@ class _GltfReader:
             self.where = f"node {ni}"
             world = parent @ _local_matrix(node, ni)
             if "mesh" in node:
-                parts.extend(self._node_parts(ni, node, world))
+                instances = self._instance_matrices(ni, node)
+                if instances is None:
+                    parts.extend(self._node_parts(ni, node, world))
+                else:  # one placed copy of the mesh per instance: node world @ instance TRS
+                    for i, local in enumerate(instances):
+                        parts.extend(replace(p, name=f"{p.name}/instance{i}", source=f"{p.source} / instance {i}")
+                                     for p in self._node_parts(ni, node, world @ local))
             for c in reversed(list(node.get("children") or [])):
                 stack.append((c, world))
         self.where = ""
@@ -674,8 +696,9 @@ class _GltfReader:
                     and 0 <= mi < len(meshes) and isinstance(meshes[mi], dict):
                 prims = meshes[mi].get("primitives") or []
                 if isinstance(prims, list):
-                    reached += len(prims)
-                    triangles += sum(self._declared_triangles(p) for p in prims)
+                    copies = self._declared_instances(node)
+                    reached += copies * len(prims)
+                    triangles += copies * sum(self._declared_triangles(p) for p in prims)
             if reached > MAX_PARTS:
                 raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x primitives); "
                                  f"lopcook accepts at most {MAX_PARTS:,} parts", "merge meshes or split the scene")
@@ -684,6 +707,50 @@ class _GltfReader:
                 raise _Malformed(f"the scene places more than {cap:,} triangles (declared counts); "
                                  f"lopcook accepts at most {cap:,}", "simplify or split the scene, or raise "
                                  "--max-triangles")
+
+    def _declared_instances(self, node: dict) -> int:
+        """How many copies a node's ``EXT_mesh_gpu_instancing`` declares (the largest count of its
+        attribute accessors), 1 without it."""
+        ext = (node.get("extensions") or {}) if isinstance(node.get("extensions"), dict) else {}
+        attrs = (ext.get(GPU_INSTANCING) or {}).get("attributes") if isinstance(ext.get(GPU_INSTANCING), dict) \
+            else None
+        if not isinstance(attrs, dict) or not attrs:
+            return 1
+        accessors = self.gltf.get("accessors") or []
+        counts = [accessors[a].get("count") for a in attrs.values()
+                  if isinstance(a, int) and not isinstance(a, bool) and isinstance(accessors, list)
+                  and 0 <= a < len(accessors) and isinstance(accessors[a], dict)]
+        counts = [c for c in counts if isinstance(c, int) and not isinstance(c, bool)]
+        return max(counts, default=1)
+
+    def _instance_matrices(self, ni: int, node: dict) -> list[np.ndarray] | None:
+        """The (4, 4) local transforms T @ R @ S of a node's ``EXT_mesh_gpu_instancing`` instances,
+        applied in the node's space before its world transform (the extension's order), or None
+        when the node has no such extension. Attributes it does not use (custom ``_ID`` and the
+        like) are ignored."""
+        ext = node.get("extensions")
+        if not isinstance(ext, dict) or GPU_INSTANCING not in ext:
+            return None
+        where = f"node {ni} {GPU_INSTANCING}"
+        attrs = ext[GPU_INSTANCING].get("attributes") if isinstance(ext[GPU_INSTANCING], dict) else None
+        if not isinstance(attrs, dict):
+            raise _Malformed(f"{where}: attributes is not a JSON object")
+        trs = {}
+        for name, width in (("TRANSLATION", 3), ("ROTATION", 4), ("SCALE", 3)):
+            if name in attrs:
+                trs[name] = self.floats(attrs[name], name, (width,), where)
+        counts = {a.shape[0] for a in trs.values()}
+        if len(counts) > 1:
+            raise _Malformed(f"{where}: TRANSLATION, ROTATION and SCALE have different counts {sorted(counts)}",
+                             "every instance attribute must have one value per instance")
+        if not trs:
+            self.warn(f"{where}: no TRANSLATION, ROTATION or SCALE; the mesh is placed once")
+            return None
+        n = counts.pop()
+        t = trs.get("TRANSLATION", np.zeros((n, 3)))
+        q = trs.get("ROTATION", np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)))
+        sc = trs.get("SCALE", np.ones((n, 3)))
+        return [_trs(t[i], q[i], sc[i], f"{where} instance {i}") for i in range(n)]
 
     def _declared_triangles(self, prim) -> int:
         """Triangles a primitive declares (from its index or POSITION count), 0 when unknown."""
@@ -811,6 +878,15 @@ class _GltfReader:
         uvs = attribute(uv_name, (2,))
         colors = attribute("COLOR_0", (3, 4))
         if colors is not None:
+            cacc = attrs["COLOR_0"]
+            _, normalized, ctype = self.accessor(cacc)
+            if ctype != 5126 and not normalized:
+                # the spec requires normalized integer colours; exporters that forget the flag mean
+                # 0..255 (0..65535), not 0..1: read them as normalized, as viewers do
+                scale = float(np.iinfo(COMPONENT_DTYPES[ctype]).max)
+                colors = colors / scale
+                self.warn(f"{what}: COLOR_0 accessor {cacc} is {COMPONENT_NAMES.get(ctype, ctype)} without "
+                          f"normalized: true (required by glTF); read as normalized (value / {scale:g})")
             colors = np.clip(colors, 0.0, 1.0)
 
         if "indices" in prim:
@@ -867,22 +943,33 @@ def _local_matrix(node: dict, index: int) -> np.ndarray:
         s = np.asarray(node.get("scale", (1.0, 1.0, 1.0)), dtype=np.float64)
         if t.shape != (3,) or q.shape != (4,) or s.shape != (3,):
             raise _Malformed(f"node {index}: translation/rotation/scale must have 3/4/3 values")
-        qn = np.linalg.norm(q)
-        if not np.isfinite(qn) or qn == 0.0:
-            raise _Malformed(f"node {index}: rotation quaternion {q.tolist()} is not a unit quaternion",
-                             "fix the node transform in the authoring tool")
-        x, y, z, w = q / qn
-        r = np.array([
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ])
-        out = np.eye(4)
-        out[:3, :3] = r * s[None, :]
-        out[:3, 3] = t
+        out = _trs(t, q, s, f"node {index}")
     if not np.isfinite(out).all():
         raise _Malformed(f"node {index}: transform contains NaN or Inf",
                          "fix the node transform in the authoring tool")
+    return out
+
+
+def _trs(t: np.ndarray, q: np.ndarray, s: np.ndarray, what: str) -> np.ndarray:
+    """(4, 4) float64 T @ R @ S from a translation (3,), a quaternion (4,) x, y, z, w (normalised
+    here) and a scale (3,); ``what`` names it in the error for a quaternion of zero or non-finite
+    length."""
+    q = np.asarray(q, dtype=np.float64)
+    qn = np.linalg.norm(q)
+    if not np.isfinite(qn) or qn == 0.0:
+        raise _Malformed(f"{what}: rotation quaternion {q.tolist()} is not a unit quaternion",
+                         "fix the transform in the authoring tool")
+    x, y, z, w = q / qn
+    r = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+    out = np.eye(4)
+    out[:3, :3] = r * np.asarray(s, dtype=np.float64)[None, :]
+    out[:3, 3] = np.asarray(t, dtype=np.float64)
+    if not np.isfinite(out).all():
+        raise _Malformed(f"{what}: transform contains NaN or Inf", "fix the transform in the authoring tool")
     return out
 
 
