@@ -172,6 +172,35 @@ def test_z_up_centimetres_become_y_up_metres(tmp_path):
     assert np.allclose(ground.normals, [0, 1, 0], atol=1e-6)
 
 
+def test_a_mesh_under_a_zero_scale_is_skipped_with_a_warning(tmp_path):
+    """As the glTF reader: a singular world transform draws nothing, so its mesh is left out (it
+    would otherwise collapse to a point and stretch the scene's grid)."""
+    f = tmp_path / "zero.usda"
+    st = new_stage(f)
+    add_mesh(st, "/Real", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    m = add_mesh(st, "/Flat", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    UsdGeom.Xformable(m).AddTranslateOp().Set(Gf.Vec3d(50, 50, 50))
+    UsdGeom.Xformable(m).AddScaleOp().Set(Gf.Vec3f(0, 0, 0))
+    scene = save_and_load(st, f)
+    assert [p.name for p in scene.parts] == ["/Real"]
+    assert any("/Flat: world transform is singular" in w for w in scene.warnings)
+
+
+def test_authored_subdivision_warns_that_the_control_mesh_is_cooked(tmp_path):
+    f = tmp_path / "subdiv.usda"
+    st = new_stage(f)
+    poly = add_mesh(st, "/Poly", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    poly.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    add_mesh(st, "/Plain", [(2, 0, 0), (3, 0, 0), (2, 1, 0)], [3], [0, 1, 2])  # unauthored: no warning
+    sub = add_mesh(st, "/Smooth", [(0, 0, 1), (1, 0, 1), (0, 1, 1)], [3], [0, 1, 2])
+    sub.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.loop)
+    scene = save_and_load(st, f)
+    assert len(scene.parts) == 3
+    assert [w for w in scene.warnings if "subdivisionScheme" in w] == [
+        "/Smooth: subdivisionScheme is loop: its control mesh is cooked, not the subdivided surface (lopcook "
+        "does not subdivide; re-export it subdivided, or set subdivisionScheme to none if the mesh is polygonal)"]
+
+
 def test_unauthored_meters_per_unit_uses_usd_fallback_and_warns(tmp_path):
     f = tmp_path / "nompu.usda"
     st = Usd.Stage.CreateNew(str(f))
@@ -710,4 +739,5 @@ def test_utah_teapot_usd_extension_with_ascii_content(corpus, corpus_meta):
     assert np.allclose(scene.bounds(), meta["bounds"], rtol=0, atol=1e-6)
     # 1286 points become 1455 vertices: faceVarying st splits the points on UV seams
     assert part.n_vertices == 1455 > meta["vertices"]
-    assert not scene.warnings
+    # its authored catmullClark scheme: the control mesh is cooked, and the warning says so
+    assert len(scene.warnings) == 1 and "subdivisionScheme is catmullClark" in scene.warnings[0]

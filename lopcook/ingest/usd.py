@@ -582,6 +582,13 @@ class _Loader:
         counts = np.asarray(counts, dtype=np.int64).ravel()
         fvi = np.asarray(fvi, dtype=np.int64).ravel()
         n_points, n_faces = points.shape[0], counts.size
+        scheme_attr = mesh.GetSubdivisionSchemeAttr()
+        if scheme_attr and scheme_attr.HasAuthoredValue():
+            scheme = str(scheme_attr.Get())
+            if scheme != UsdGeom.Tokens.none:
+                self.warnings.append(f"{where}: subdivisionScheme is {scheme}: its control mesh is cooked, not the "
+                                     f"subdivided surface (lopcook does not subdivide; re-export it subdivided, or "
+                                     f"set subdivisionScheme to none if the mesh is polygonal)")
         finite = np.isfinite(points).all(axis=1)
         if not finite.all():
             self.fail(f"{where}: {int((~finite).sum())} of {n_points} points are NaN or Inf "
@@ -787,6 +794,10 @@ class _Loader:
         names = unique_names([n for n, _, _, _ in self.parts])
         parts: list[MeshPart] = []
         for name, (_, source, local, m) in zip(names, self.parts):
+            det = float(np.linalg.det(m[:3, :3]))
+            if det == 0.0 or not np.isfinite(det):  # as the glTF reader: nothing to draw, no grid to stretch
+                self.warnings.append(f"{source}: world transform is singular (zero scale); its mesh is skipped")
+                continue
             parts.append(_place(name, source, local, m, self.settings))
         return Scene(parts=tuple(parts), source=self.path, format=self.fmt, unit_scale=self.meters_per_unit,
                      up_axis=self.up_axis, warnings=tuple(dict.fromkeys(self.warnings)),
