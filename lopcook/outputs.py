@@ -38,7 +38,9 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
     writable, not a regular file where it exists, one of ``inputs``, ending in one of
     ``forbidden``, or (``required``) without one of ``extensions`` (the first is the one to
     use). Returns ``path``."""
-    if not path or path.endswith(("/", os.sep)) or os.path.isdir(path):
+    if not path:
+        raise LopcookError("usage", None, f"{flag} is empty", hint=f"name the file, e.g. {flag} out{extensions[0]}")
+    if path.endswith(("/", os.sep)) or os.path.isdir(path):
         raise LopcookError("usage", path or None, f"{flag} is a directory, not a file",
                            hint=f"name the file, e.g. {flag} out{extensions[0]}")
     if path.lower().endswith(forbidden) and not path.lower().endswith(extensions):
@@ -53,11 +55,13 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
         raise LopcookError("usage", path, f"directory {os.path.dirname(path) or '.'!r} does not exist",
                            hint="create it first")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise LopcookError("usage", path, f"directory {os.path.dirname(path) or '.'!r} is not writable")
+        raise LopcookError("usage", path, f"directory {os.path.dirname(path) or '.'!r} is not writable",
+                           hint="write somewhere you may create files, or fix the directory's permissions")
     if os.path.lexists(path) and not os.path.isfile(path):
         raise LopcookError("usage", path, f"{flag} exists and is not a regular file")
     if os.path.isfile(path) and not os.access(path, os.W_OK):
-        raise LopcookError("usage", path, f"{flag} exists and is not writable")
+        raise LopcookError("usage", path, f"{flag} exists and is not writable",
+                           hint="make it writable, or choose another output path")
     check_not_input(path, flag, inputs)
     return path
 

@@ -146,7 +146,9 @@ class MeshPart:
                 fail(f"{name} must be ({n}, {width}) float32, got {getattr(arr, 'dtype', type(arr))} "
                      f"{getattr(arr, 'shape', '')}")
             if not np.isfinite(arr).all():
-                fail(f"{name} contain NaN or Inf")
+                rows = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+                fail(f"{name} are NaN or Inf at {rows.size} of {n} vertices (first at vertex {int(rows[0])})",
+                     "fix or remove the attribute in the authoring tool")
         if self.normals is not None:
             length = np.linalg.norm(self.normals, axis=1)
             if np.abs(length - 1.0).max() > 1e-3:
@@ -217,7 +219,9 @@ class Scene:
         ``FLOAT32_RESOLUTION`` times its extent (1 m for a scene of one point), so float32 decoders
         can resolve it; return self."""
         if not self.parts:
-            raise LopcookError("ingest", self.source, "the scene has no triangle meshes",
+            why = f" ({self.warnings[0]}" + (f"; and {len(self.warnings) - 1} more" if len(self.warnings) > 1 else "") \
+                + ")" if self.warnings else ""
+            raise LopcookError("ingest", self.source, f"the scene has no triangle meshes{why}",
                                hint="export at least one mesh with triangles or polygons")
         if len(self.parts) > MAX_PARTS:
             raise LopcookError("ingest", self.source, f"the scene has {len(self.parts):,} parts, more than "

@@ -33,8 +33,10 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
     computed = False
     if colors is not None and colors.shape[1] == 3:
         colors = np.concatenate([colors, np.ones((colors.shape[0], 1), colors.dtype)], axis=1)
+    # (positions beyond MAX_COORDINATE, or not finite, are refused by Scene.validate with their own
+    # message: their cross products would overflow into NaN normals first)
     if normals is None and indices.size and positions.size and np.isfinite(positions).all() \
-            and int(indices.max()) < positions.shape[0]:
+            and float(np.abs(positions).max()) <= MAX_COORDINATE and int(indices.max()) < positions.shape[0]:
         res = compute_normals(positions, indices, settings.crease_angle_deg)
         sv = res.source_vertex
         if sv.size != positions.shape[0] or not np.array_equal(sv, np.arange(sv.size)):
