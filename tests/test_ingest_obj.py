@@ -488,3 +488,11 @@ def test_corpus_spot(corpus, corpus_meta):
     default = load(corpus / "spot.obj")
     assert default.parts[0].n_vertices >= 3225
     assert_bounds(default, meta)
+
+
+def test_zero_length_vn_is_replaced_with_a_warning(tmp_path):
+    path = write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 0\nf 1//1 2//2 3//1\n")
+    scene = load(path)
+    (part,) = scene.parts
+    assert np.allclose(part.normals[part.indices[0, 1]], [0.0, 1.0, 0.0])
+    assert any("1 vn records have zero length (first on line 5)" in w for w in scene.warnings)

@@ -517,6 +517,10 @@ def _read_vn(ctx, blob, line_ids):
         ctx.fail(f"vn needs 3 values (x y z), got {int(cnt[i])}", line=line_ids[i])
     N = vals.reshape(-1, 3)
     _check_finite(ctx, N, line_ids, "vn")
+    zero = ~(np.linalg.norm(N, axis=1) > 1e-20)
+    if zero.any():  # as the glTF reader: said, not silently replaced
+        ctx.warnings.append(f"{int(zero.sum())} vn records have zero length (first on line "
+                            f"{int(line_ids[np.argmax(zero)]) + 1}); the vertices using them get +Y")
     return N
 
 
