@@ -186,6 +186,16 @@ def test_a_mesh_under_a_zero_scale_is_skipped_with_a_warning(tmp_path):
     assert any("/Flat: world transform is singular" in w for w in scene.warnings)
 
 
+def test_zero_normals_are_replaced_with_a_warning(tmp_path):
+    f = tmp_path / "zero_normals.usda"
+    st = new_stage(f)
+    m = add_mesh(st, "/Tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    m.CreateNormalsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 1), Gf.Vec3f(0, 0, 0), Gf.Vec3f(0, 0, 1)]))
+    m.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    scene = save_and_load(st, f)
+    assert any("/Tri: 1 normals are zero or not finite" in w for w in scene.warnings)
+
+
 def test_authored_subdivision_warns_that_the_control_mesh_is_cooked(tmp_path):
     f = tmp_path / "subdiv.usda"
     st = new_stage(f)

@@ -641,6 +641,11 @@ class _Loader:
                 if value is not None:
                     normals, nvary = self.spread("normals", np.asarray(value), None,
                                                  str(mesh.GetNormalsInterpolation()), 3, **geom)
+        if normals is not None:
+            length = np.linalg.norm(np.asarray(normals, dtype=np.float64), axis=1)
+            bad = int((~(length > 1e-20)).sum())
+            if bad:  # as the glTF and OBJ readers: said, not silently replaced
+                self.warnings.append(f"{where}: {bad} normals are zero or not finite (replaced by +Y)")
         uv_pv = self.uv_primvar(api)
         if uv_pv is not None:
             uvs, uvvary = self.corner_values(uv_pv, uv_pv.GetName(), 2, **geom)
