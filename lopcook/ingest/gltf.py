@@ -700,7 +700,7 @@ class _GltfReader:
                     reached += copies * len(prims)
                     triangles += copies * sum(self._declared_triangles(p) for p in prims)
             if reached > MAX_PARTS:
-                raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x primitives); "
+                raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x GPU instances x primitives); "
                                  f"lopcook accepts at most {MAX_PARTS:,} parts", "merge meshes or split the scene")
             if triangles > self.settings.max_triangles:
                 cap = self.settings.max_triangles
