@@ -30,6 +30,11 @@ from ..progress import NONE
 #: about 2 ms per megabyte to expand; ``lopcook.verify.renderer.Harness``)
 REPORT_RAW_BYTES = 16 << 20
 
+#: the report's draws finish the GL queue after this many triangles (``Renderer.finish_triangles``;
+#: the default is 2^18): llvmpipe's binned scene is then smaller where the report peaks, in its
+#: renders. The chess set's report: 792 -> 778 MB peak, 140.7 -> 143.7 s (docs/performance.md)
+REPORT_FINISH_TRIANGLES = 3 << 16
+
 
 def _merge(parts: list[dict], levels: list[int]) -> dict:
     """One evaluation from single-level evaluations ``parts`` (coarsest first): the rows in the order
@@ -124,6 +129,8 @@ def render_for_report(container, scene, *, levels, views, resolution,
     # compressed: the close-up levels of a large scene fill the frame, some 5 MB a view)
     with Harness(scene, resolution, cache_float=True, raw_bytes=REPORT_RAW_BYTES) as h, \
             progress.stage("render", total=2 * len(order) + 2) as st:
+        h.renderer.finish_triangles = REPORT_FINISH_TRIANGLES
+
         def baseline(b: int) -> None:
             u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
                                               shading=shading))

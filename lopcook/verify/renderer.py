@@ -482,6 +482,8 @@ class Renderer:
         self.sample_offsets = sample_positions(ctx, samples)
         #: the index buffer the cull writes every item's kept triangles to
         self.scratch = Scratch(ctx)
+        #: ``draw``'s finish threshold: None for ``FINISH_TRIANGLES`` (a caller may bound memory further)
+        self.finish_triangles = None
 
     @property
     def cluster_decode_program(self):
@@ -562,7 +564,7 @@ class Renderer:
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
         not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``) leaves
 out the triangles that cover no sample (module doc, "Coverage cull"). Before an item, once
-        ``FINISH_TRIANGLES`` triangles (items' ``triangles``) have been drawn since the last one, the
+        ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items' ``triangles``) have been drawn since the last one, the
         context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
         the read-back (about 200 MB for 1.4M triangles), holds about that many. Leaves the context's
@@ -594,7 +596,7 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
                     vao, count = picked
                     if count == 0:  # no triangle covers a sample: nothing to draw
                         continue
-            if queued >= FINISH_TRIANGLES:
+            if queued >= (FINISH_TRIANGLES if self.finish_triangles is None else self.finish_triangles):
                 ctx.finish()
                 queued = 0
             queued += int(it.get("triangles", 0)) if count is None else count // 3
