@@ -700,8 +700,9 @@ class _GltfReader:
                     reached += copies * len(prims)
                     triangles += copies * sum(self._declared_triangles(p) for p in prims)
             if reached > MAX_PARTS:
-                raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x GPU instances x primitives); "
-                                 f"lopcook accepts at most {MAX_PARTS:,} parts", "merge meshes or split the scene")
+                raise _Malformed(f"the scene places more than {MAX_PARTS:,} primitives (nodes x GPU instances x "
+                                 f"primitives); lopcook accepts at most {MAX_PARTS:,} parts",
+                                 "merge meshes or split the scene")
             if triangles > self.settings.max_triangles:
                 cap = self.settings.max_triangles
                 raise _Malformed(f"the scene places more than {cap:,} triangles (declared counts); "
@@ -711,9 +712,7 @@ class _GltfReader:
     def _declared_instances(self, node: dict) -> int:
         """How many copies a node's ``EXT_mesh_gpu_instancing`` declares (the largest count of its
         attribute accessors), 1 without it."""
-        ext = (node.get("extensions") or {}) if isinstance(node.get("extensions"), dict) else {}
-        attrs = (ext.get(GPU_INSTANCING) or {}).get("attributes") if isinstance(ext.get(GPU_INSTANCING), dict) \
-            else None
+        attrs = _instancing_attributes(node)
         if not isinstance(attrs, dict) or not attrs:
             return 1
         accessors = self.gltf.get("accessors") or []
@@ -732,7 +731,7 @@ class _GltfReader:
         if not isinstance(ext, dict) or GPU_INSTANCING not in ext:
             return None
         where = f"node {ni} {GPU_INSTANCING}"
-        attrs = ext[GPU_INSTANCING].get("attributes") if isinstance(ext[GPU_INSTANCING], dict) else None
+        attrs = _instancing_attributes(node)
         if not isinstance(attrs, dict):
             raise _Malformed(f"{where}: attributes is not a JSON object")
         trs = {}
@@ -948,6 +947,14 @@ def _local_matrix(node: dict, index: int) -> np.ndarray:
         raise _Malformed(f"node {index}: transform contains NaN or Inf",
                          "fix the node transform in the authoring tool")
     return out
+
+
+def _instancing_attributes(node: dict):
+    """The ``attributes`` value of a node's ``EXT_mesh_gpu_instancing`` as written (any JSON value),
+    or None when the node has no such object."""
+    ext = node.get("extensions")
+    inst = ext.get(GPU_INSTANCING) if isinstance(ext, dict) else None
+    return inst.get("attributes") if isinstance(inst, dict) else None
 
 
 def _trs(t: np.ndarray, q: np.ndarray, s: np.ndarray, what: str) -> np.ndarray:

@@ -32,7 +32,7 @@ REPORT_RAW_BYTES = 16 << 20
 
 #: the report's draws finish the GL queue after this many triangles (``Renderer.finish_triangles``;
 #: the default is 2^18): llvmpipe's binned scene is then smaller where the report peaks, in its
-#: renders. The chess set's report: 792 -> 778 MB peak, 140.7 -> 143.7 s (docs/performance.md)
+#: renders. The chess set's report: 792 -> 780 MB peak, 140.7 -> 143.7 s (docs/performance.md)
 REPORT_FINISH_TRIANGLES = 3 << 16
 
 

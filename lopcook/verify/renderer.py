@@ -564,8 +564,8 @@ class Renderer:
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
         not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``) leaves
 out the triangles that cover no sample (module doc, "Coverage cull"). Before an item, once
-        ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items' ``triangles``) have been drawn since the last one, the
-        context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
+        ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items'
+        ``triangles``) have been drawn since the last one, the context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
         the read-back (about 200 MB for 1.4M triangles), holds about that many. Leaves the context's
         default 1x1 framebuffer bound."""
