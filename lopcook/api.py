@@ -156,6 +156,18 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
 def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
     """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
     (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes."""
+    t = settings.tune
+    if t.target_psnr is None and t.vertex_bits is None:
+        return _cook(scene, settings, progress)
+    from .emit.attributes import code_memo
+
+    # the searches cook the scene again and again, mostly with some attribute's bits unchanged
+    with code_memo():
+        return _cook(scene, settings, progress)
+
+
+def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
+    """``cook``'s body."""
     from .emit.container import from_bytes
     from .pipeline import run
 

@@ -414,3 +414,53 @@ def test_specs_are_json_data():
     specs["normals"]["bits"] = None
     assert attribute_specs()["normals"]["bits"] == [4, 16]  # a fresh copy
     assert index_width(65535) == 2 and index_width(65536) == 4
+
+
+def _attributes(n: int, seed: int = 5):
+    rng = np.random.default_rng(seed)
+    normals = rng.normal(size=(n, 3))
+    uvs = rng.uniform(-0.5, 2.0, size=(n, 2))
+    colors = rng.uniform(0.0, 1.0, size=(n, 4))
+    return normals, uvs, colors
+
+
+def test_record_codes_commute_with_a_permutation_of_the_vertices():
+    """The binned record is packed from the codes of the source order permuted (emit's
+    ``_encode_buffer``): every code depends on its own vertex alone and the UV range on the set
+    of values, so it must equal the record of the permuted attributes."""
+    from lopcook.emit.attributes import record_codes
+
+    normals, uvs, colors = _attributes(997)
+    bits = AttributeBits(normals=9, uvs=11, colors=5)
+    order = np.random.default_rng(1).permutation(997)
+    codes, meta = record_codes(normals, uvs, colors, bits)
+    words, meta_p = encode_record(normals[order], uvs[order], colors[order], bits)
+    np.testing.assert_array_equal(pack_record({k: v[order] for k, v in codes.items()}, 997, bits), words)
+    assert meta == meta_p
+
+
+def test_code_memo_gives_the_same_codes_and_stays_bounded():
+    from lopcook.emit import attributes as A
+
+    normals, uvs, colors = _attributes(500)
+    bits = AttributeBits(normals=8, uvs=10, colors=None)
+    plain = A.record_codes(normals, uvs, None, bits)
+    with A.code_memo(max_bytes=3 * 500 * 2 * 2):
+        assert len(A._MEMO) == 1
+        first = A.record_codes(normals, uvs, None, bits)
+        again = A.record_codes(normals.copy(), uvs.copy(), None, bits)  # the same content, other arrays
+        assert again[0]["normals"] is first[0]["normals"]  # taken from the memo
+        changed = normals.copy()
+        changed[7] = -changed[7]  # another content: encoded again
+        other = A.record_codes(changed, uvs, None, bits)
+        assert not np.array_equal(other[0]["normals"][7], first[0]["normals"][7])
+        np.testing.assert_array_equal(np.delete(other[0]["normals"], 7, 0), np.delete(first[0]["normals"], 7, 0))
+        for b in (4, 5, 6, 7):  # more codes than the memo holds: the oldest are dropped
+            A.record_codes(normals, uvs, None, AttributeBits(normals=b, uvs=10, colors=None))
+        memo = A._MEMO[0]
+        assert memo.held <= memo.max_bytes
+        assert memo.held == sum(v.nbytes for e in memo.entries.values() for v in e if isinstance(v, np.ndarray))
+    assert not A._MEMO  # closed with its context
+    for k in plain[0]:
+        np.testing.assert_array_equal(first[0][k], plain[0][k])
+    assert first[1] == plain[1]

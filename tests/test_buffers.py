@@ -103,3 +103,15 @@ def test_lod0_is_source_unless_the_budget_chose_a_simplified_lod():
     assert B.lod0_is_source(_Fake([1]))
     assert B.lod0_is_source(_Fake([1], {"budget": {"chosen": {"lod": 0, "level": 9}}}))
     assert not B.lod0_is_source(_Fake([1], {"budget": {"chosen": {"lod": 2, "level": 9}}}))
+
+
+def test_source_order_is_kept_on_the_container_per_scene_object(crease):
+    """A report evaluates one container level by level: the order (and its check against the
+    source, which reads every plane) is computed once per scene object."""
+    s, c = crease
+    first = B.source_order(c, s)
+    assert B.source_order(c, s) is first
+    same = Scene(s.parts, "same parts", "glb")  # another scene object: checked again, the same order
+    again = B.source_order(c, same)
+    assert again is not first
+    np.testing.assert_array_equal(again[0], first[0])

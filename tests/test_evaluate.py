@@ -206,3 +206,21 @@ def test_fixed_camera_distance(gl, crease):
     with pytest.raises(LopcookError, match="distance"):
         E.evaluate(c, s, levels=[8], views=1, resolution=(64, 36), distance_m=-1.0)
 
+
+
+def test_check_source_off_only_for_a_container_cooked_from_the_harness_scene(gl, crease):
+    """A search's probes are cooked from the harness's own scene, so ``check_source=False`` skips the
+    check that they were; with the check on (the default), another source is refused."""
+    from lopcook.types import MeshPart, Scene
+    from lopcook.verify.renderer import Harness
+
+    s, c = crease
+    p = s.parts[0]
+    moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, p.normals),), "moved", "glb")
+    with Harness(moved, resolution=(64, 36)) as h:
+        with pytest.raises(LopcookError, match="positions differ"):
+            h.evaluate(c, levels=[6], views=1, variants=("cap",))
+        r = h.evaluate(c, levels=[6], views=1, variants=("cap",), check_source=False)
+        assert [row["level"] for row in r["levels"]] == [6]
+        with pytest.raises(LopcookError, match="positions differ"):  # the source's attributes need the order
+            h.evaluate(c, levels=[6], views=1, variants=("cap",), attributes="source", check_source=False)

@@ -110,10 +110,15 @@ def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int |
     per-cluster anchors, the entry's ``cluster_size``) when it is smaller (``clustering_wins``),
     else the unclustered layout, chosen per buffer and deterministically (``cluster_all``: always
     clustered); None: unclustered."""
+    codes = None
+    bits = buf.bits()
+    if bits.record_bits:  # the attribute codes in source order, for either layout's order
+        codes = attr.record_codes(buf.normals, buf.uvs, buf.colors, bits)
     if cluster_size is not None:
-        e = _encode_buffer(buf, max_level, cluster_size)
-        return e if cluster_all or clustering_wins(e.clusters, e.vertex_id) else _encode_buffer(buf, max_level, None)
-    return _encode_buffer(buf, max_level, None)
+        e = _encode_buffer(buf, max_level, cluster_size, codes)
+        if cluster_all or clustering_wins(e.clusters, e.vertex_id):
+            return e
+    return _encode_buffer(buf, max_level, None, codes)
 
 
 class PositionSizer:
@@ -159,8 +164,9 @@ class PositionSizer:
         return int(buffer_bytes(vid, b)) if cl is None else int(clustered_bytes(cl, b))
 
 
-def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None) -> EncodedBuffer:
-    """``encode_buffer`` in the layout asked for (no choice)."""
+def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, codes=None) -> EncodedBuffer:
+    """``encode_buffer`` in the layout asked for (no choice); ``codes``: ``attr.record_codes`` of the
+    buffer's attributes (computed here when None)."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)
     clamped = int(np.count_nonzero(raw_levels > max_level))
     if cluster_size is None:
@@ -182,12 +188,10 @@ def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None) -
     entry["attribute_bits"] = bits.as_dict()
     entry["record_bits"] = bits.record_bits
     if bits.record_bits:
-        order = bins.order
-
-        def pick(a):
-            return None if a is None else np.asarray(a)[order]
-
-        words, meta = attr.encode_record(pick(buf.normals), pick(buf.uvs), pick(buf.colors), bits)
+        # the codes in source order (memoised by content inside a ``code_memo``), then binned:
+        # every code depends on its own vertex alone (``record_codes``)
+        codes, meta = codes if codes is not None else attr.record_codes(buf.normals, buf.uvs, buf.colors, bits)
+        words = attr.pack_record({k: v[bins.order] for k, v in codes.items()}, n, bits)
         attributes.append(("attributes", words.tobytes()))
         if meta["uv_range"] is not None:
             entry["uv_range"] = meta["uv_range"]

@@ -138,7 +138,8 @@ __all__ = [
     "AttributeBits", "bits_for", "default_bits", "worst_case_bits", "part_default_bits",
     "normal_pixel_rms", "uv_pixel_rms", "normal_rms_error_deg", "NORMAL_RMS_ERROR_DEG", "part_bits", "normal_error_deg", "uv_error_bound", "color_error_bound",
     "encode_normals", "decode_normals", "encode_uvs", "uv_step", "decode_uvs",
-    "encode_colors", "decode_colors", "encode_record", "decode_record", "record_fields",
+    "encode_colors", "decode_colors", "encode_record", "record_codes", "code_memo", "with_code_memo", "CODE_MEMO_BYTES",
+    "pack_record", "decode_record", "record_fields",
     "record_waste", "aligned_waste", "record_words",
     "encode_indices", "decode_indices", "index_width", "attribute_specs",
 ]
@@ -607,14 +608,98 @@ def aligned_waste(bits: AttributeBits) -> int:
     return 32 * len(bins) - bits.record_bits
 
 
-def encode_record(normals, uvs, colors, bits: AttributeBits) -> tuple[np.ndarray, dict]:
-    """Pack one buffer's attributes (binned order) into its record section.
+class _CodeMemo:
+    """The codes of ``record_codes`` by content (attribute, bits, dtype, shape, BLAKE2b of the
+    bytes), least recently used dropped past ``max_bytes`` of codes."""
 
-    normals (n, 3), uvs (n, 2), colors (n, 4) or None each, matching which of ``bits``'s fields
-    are set (an attribute given with bits None, or bits given without the attribute, is an
-    error). Returns ``(words (ceil(n S / 32),) "<u4", meta)`` with meta ``{"record_bits": S,
-    "uv_range": [[lo_u, lo_v], [hi_u, hi_v]] | None, "uv_step": [su, sv] | None, "wasted_bits"}``
-    (JSON floats of the float32 values). ``words.tobytes()`` is the section payload."""
+    def __init__(self, max_bytes: int):
+        self.max_bytes, self.held, self.entries = int(max_bytes), 0, {}
+
+    @staticmethod
+    def key(name: str, bits: int, a) -> tuple:
+        import hashlib
+
+        arr = np.ascontiguousarray(a)
+        return (name, int(bits), arr.dtype.str, arr.shape, hashlib.blake2b(memoryview(arr).cast("B"),
+                                                                         digest_size=20).digest())
+
+    def get(self, key):
+        got = self.entries.pop(key, None)
+        if got is not None:
+            self.entries[key] = got  # most recently used last
+        return got
+
+    def put(self, key, value) -> None:
+        size = sum(v.nbytes for v in value if isinstance(v, np.ndarray))
+        if size > self.max_bytes:
+            return
+        self.entries[key] = value
+        self.held += size
+        while self.held > self.max_bytes:
+            old = self.entries.pop(next(iter(self.entries)))
+            self.held -= sum(v.nbytes for v in old if isinstance(v, np.ndarray))
+
+
+_MEMO: list = []  # the active memo (``code_memo``), innermost last
+
+#: the most bytes of codes a ``code_memo`` holds
+CODE_MEMO_BYTES = 24 << 20
+
+
+class code_memo:
+    """Context manager: inside it, ``record_codes`` keeps the codes it computes (by content, at most
+    ``max_bytes``), so cooking the same scene again with some attribute's bits unchanged encodes
+    that attribute once. A search that cooks many probes of one scene (``lopcook.tune``) opens
+    one; nested, the outer memo is used. The codes are the same with or without it."""
+
+    def __init__(self, max_bytes: int = CODE_MEMO_BYTES):
+        self.max_bytes = int(max_bytes)
+        self._opened = False
+
+    def __enter__(self):
+        if not _MEMO:
+            _MEMO.append(_CodeMemo(self.max_bytes))
+            self._opened = True
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._opened:
+            _MEMO.clear()
+            self._opened = False
+
+
+def with_code_memo(f):
+    """Decorator: ``f`` runs inside a ``code_memo`` (a search that cooks one scene many times)."""
+    import functools
+
+    @functools.wraps(f)
+    def wrapped(*args, **kwargs):
+        with code_memo():
+            return f(*args, **kwargs)
+
+    return wrapped
+
+
+def _memoised(name: str, bits: int, a, encode):
+    """``encode()`` (a tuple of arrays and values), through the active ``code_memo`` if any."""
+    if not _MEMO:
+        return encode()
+    memo = _MEMO[-1]
+    key = memo.key(name, bits, a)
+    got = memo.get(key)
+    if got is None:
+        got = encode()
+        memo.put(key, got)
+    return got
+
+
+def record_codes(normals, uvs, colors, bits: AttributeBits) -> tuple[dict, dict]:
+    """The integer codes of one buffer's attributes and the record's meta, as ``encode_record``
+    computes them: ``({"normals": (n, 2), "uvs": (n, 2), "colors": (n, 4)}`` (uint16, present
+    attributes only), meta)``. Every code depends on its own vertex alone (and the UVs' range on the
+    set of values), so the codes of a permutation of the vertices are the same permutation of
+    these: ``pack_record(codes[order])`` is ``encode_record(attributes[order])``'s words. Checks as
+    ``encode_record``; memoised inside a ``code_memo``."""
     arrays = {"normals": normals, "uvs": uvs, "colors": colors}
     n = None
     for name, a in arrays.items():
@@ -631,17 +716,31 @@ def encode_record(normals, uvs, colors, bits: AttributeBits) -> tuple[np.ndarray
     codes = {}
     meta = {"record_bits": bits.record_bits, "uv_range": None, "uv_step": None}
     if normals is not None:
-        codes["normals"] = encode_normals(normals, bits.normals)
+        codes["normals"] = _memoised("normals", bits.normals, normals,
+                                     lambda: (encode_normals(normals, bits.normals),))[0]
     if uvs is not None:
-        q, lo, hi, step = encode_uvs(uvs, bits.uvs)
+        q, lo, hi, step = _memoised("uvs", bits.uvs, uvs, lambda: encode_uvs(uvs, bits.uvs))
         codes["uvs"] = q
         meta["uv_range"] = [[float(lo[0]), float(lo[1])], [float(hi[0]), float(hi[1])]]
         meta["uv_step"] = [float(step[0]), float(step[1])]
     if colors is not None:
-        codes["colors"] = encode_colors(colors, bits.colors)
-    words = pack_record({k: v.astype(np.int64) for k, v in codes.items()}, n, bits)
+        codes["colors"] = _memoised("colors", bits.colors, colors,
+                                    lambda: (encode_colors(colors, bits.colors),))[0]
     meta["wasted_bits"] = record_waste(n, bits)
-    return words, meta
+    return codes, meta
+
+
+def encode_record(normals, uvs, colors, bits: AttributeBits) -> tuple[np.ndarray, dict]:
+    """Pack one buffer's attributes (binned order) into its record section.
+
+    normals (n, 3), uvs (n, 2), colors (n, 4) or None each, matching which of ``bits``'s fields
+    are set (an attribute given with bits None, or bits given without the attribute, is an
+    error). Returns ``(words (ceil(n S / 32),) "<u4", meta)`` with meta ``{"record_bits": S,
+    "uv_range": [[lo_u, lo_v], [hi_u, hi_v]] | None, "uv_step": [su, sv] | None, "wasted_bits"}``
+    (JSON floats of the float32 values). ``words.tobytes()`` is the section payload."""
+    codes, meta = record_codes(normals, uvs, colors, bits)
+    n = next((int(np.asarray(a).shape[0]) for a in (normals, uvs, colors) if a is not None), 0)
+    return pack_record({k: v.astype(np.int64) for k, v in codes.items()}, n, bits), meta
 
 
 def pack_record(codes: dict, n: int, bits: AttributeBits) -> np.ndarray:

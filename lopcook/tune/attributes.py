@@ -97,6 +97,7 @@ import math
 import time
 from dataclasses import dataclass, replace
 
+from ..emit.attributes import with_code_memo
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 
 NORMAL_BITS = (4, 16)
@@ -355,7 +356,7 @@ class Search:
             stop = stop_rule(self.goal, self.statistic, len(self.watch))
             stop_view = view_rule(self.goal, self.statistic)
         res = self.h.evaluate(c, levels=levels, views=self.views, variants=("cap",), attributes="container",
-                              stop=stop, stop_view=stop_view)
+                              stop=stop, stop_view=stop_view, check_source=self.h.scene is not self.scene)
         per = [r["cap"][f"psnr_{self.statistic}"] for r in res["levels"]]
         obj = min(INF_DB if v is None else float(v) for v in per)
         p = {"allocation": alloc.record(), "bits_per_vertex": round(cost, 4), "objective_db": round(obj, 4),
@@ -668,11 +669,13 @@ def fallbacks(choice: Allocation, start: Allocation) -> list[tuple[str, Allocati
     return out
 
 
-def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | None = None) -> dict:
+def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | None = None,
+                 cooked_here: bool = False) -> dict:
     """Render ``c`` quantized on the gate's harness ``confirm`` = (views, (w, h)): {"psnr_min",
     "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level", "levels"
     (those rendered)}. ``stop_below`` (dB): the renders end after the first level that misses it
-    (the levels in the order given)."""
+    (the levels in the order given). ``cooked_here``: ``c`` was cooked from ``scene`` by the caller
+    (the harness then skips checking that it was: ``Harness.evaluate``'s ``check_source``)."""
     from ..verify.renderer import shared_harness
 
     stop = stop_view = None
@@ -683,7 +686,7 @@ def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | 
     # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
     with shared_harness(scene, tuple(confirm[1])) as h:
         res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container", stop=stop,
-                         stop_view=stop_view)
+                         stop_view=stop_view, check_source=not (cooked_here and h.scene is scene))
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
     return {"views": confirm[0], "resolution": list(confirm[1]), "levels": [int(r["level"]) for r in res["levels"]],
             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),
@@ -734,6 +737,7 @@ def attribute_errors(c, scene) -> list[dict]:
     return out
 
 
+@with_code_memo
 def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, statistic: str = "mean",
              progress=None, watch=None) -> dict:
     """Run one search (module doc). ``mode`` "budget" (``goal`` bits per vertex) or "target"
@@ -774,9 +778,9 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
         """The gate's verdict on container ``c``: every level; a direct search renders the watched
         levels first, stops at the first miss and watches the level it missed from then on."""
         if not direct:
-            return gate_quality(scene, c, confirm, all_levels, statistic)
+            return gate_quality(scene, c, confirm, all_levels, statistic, cooked_here=True)
         order = search.watch + [b for b in all_levels if b not in search.watch]
-        g = gate_quality(scene, c, confirm, order, statistic, stop_below=float(goal))
+        g = gate_quality(scene, c, confirm, order, statistic, stop_below=float(goal), cooked_here=True)
         if g["objective_db"] < float(goal) and g["levels"] and g["levels"][-1] not in search.watch:
             search.watch.append(g["levels"][-1])
         return g

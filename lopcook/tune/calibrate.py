@@ -114,6 +114,7 @@ import time
 from dataclasses import replace
 
 
+from ..emit.attributes import with_code_memo
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
@@ -273,7 +274,9 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
     # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
     stop_view = None if stop_below is None else view_rule(float(stop_below[0]), stop_below[1])
-    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view)
+    # cooked here from the harness's own scene: the check that it was is skipped (check_source)
+    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view,
+                           check_source=harness.scene is not scene)
     from ..verify.buffers import position_bytes
 
     lods = [0] * len(c.manifest["parts"])
@@ -558,6 +561,7 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
     return out
 
 
+@with_code_memo
 def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr: float,
               levels=DEFAULT_LEVELS, views=CAL_VIEWS, resolution=CAL_RESOLUTION, viewing: Viewing | None = None,
               log2_range=LOG2_RANGE, tolerance: float = TOLERANCE, options: dict | None = None,

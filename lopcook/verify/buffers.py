@@ -63,7 +63,20 @@ def source_order(c, scene, lod: int = LOD) -> list[np.ndarray]:
     """Per part: ``order`` (n,) int64 with ``order[j]`` = the source vertex of container vertex j
     (binned order), recovered from the index buffers (emit keeps the triangle order and only remaps
     indices) and checked against the quantized positions (the top bits of both must agree).
-    Raises LopcookError (exit 2) when the container was not cooked from this source."""
+    Raises LopcookError (exit 2) when the container was not cooked from this source. The result is
+    kept on the container for this scene object and LOD (a report evaluates one container level
+    by level): a second call with the same ``scene`` returns it without reading the planes again."""
+    memo = c.__dict__.setdefault("_source_orders", {})
+    held = memo.get((id(scene), int(lod)))
+    if held is not None and held[0] is scene:
+        return held[1]
+    out = _source_order(c, scene, lod)
+    memo[(id(scene), int(lod))] = (scene, out)
+    return out
+
+
+def _source_order(c, scene, lod: int) -> list[np.ndarray]:
+    """``source_order`` without the memo."""
     parts = c.manifest["parts"]
     if len(parts) != len(scene.parts):
         raise LopcookError("verify", c.path, f"the container has {len(parts)} parts, the source "
