@@ -327,17 +327,23 @@ def window_coordinates(positions: np.ndarray, mvp: np.ndarray, size):
     ``COVER_MARGIN`` at any viewport this harness renders."""
     m = np.asarray(mvp, np.float64).astype(np.float32)
     p = np.asarray(positions, np.float32)
-    q = p @ m[(0, 1, 3), :3].T
-    q += m[(0, 1, 3), 3]
+    q = m[(0, 1, 3), :3] @ p.T  # (3, n): x, y and w of the clip coordinates, each row contiguous
+    q += m[(0, 1, 3), 3][:, None]
     with np.errstate(all="ignore"):
-        cw = q[:, 2]
+        cw = q[2]
         ok = cw > np.float32(0.0)
-        inv = np.float32(1.0) / np.where(ok, cw, np.float32(1.0))
-        px = (q[:, 0] * inv + np.float32(1.0)) * np.float32(0.5 * float(size[0]))
-        py = (q[:, 1] * inv + np.float32(1.0)) * np.float32(0.5 * float(size[1]))
+        inv = np.float32(1.0) / (cw if ok.all() else np.where(ok, cw, np.float32(1.0)))
+        px, py = q[0], q[1]  # (x / w + 1) * w_px / 2, in place, in that order (float32)
+        px *= inv
+        px += np.float32(1.0)
+        px *= np.float32(0.5 * float(size[0]))
+        py *= inv
+        py += np.float32(1.0)
+        py *= np.float32(0.5 * float(size[1]))
         ok &= (np.abs(px) < np.float32(1e30)) & (np.abs(py) < np.float32(1e30))  # finite, and not huge
-    px[~ok] = 0.0
-    py[~ok] = 0.0
+    if not ok.all():
+        px[~ok] = 0.0
+        py[~ok] = 0.0
     return px, py, ok
 
 
@@ -354,6 +360,7 @@ class Coverage:
         self.count = int(np.asarray(triangles).size // 3)
         self._positions = positions
         self._box = None  # (lo, hi) of the positions, or False when there are none
+        self._corners = None  # (8, 3) float32 corners of the box
         self._ibo = self._vao = None  # the scratch buffer the VAO reads, and the VAO
         self._own = None  # a Scratch of this item's own, when select() is given none
 
@@ -381,12 +388,14 @@ class Coverage:
         if self._box is None:
             p = self.positions
             self._box = (p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)) if p.size else False
+            if self._box is not False:  # its 8 corners, float32
+                lo, hi = self._box
+                self._corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                                          for z in (lo[2], hi[2])], np.float32)
         if self._box is False:
             return None
         # the projected box first (8 corners): most items of a close view are not worth testing
-        corners = np.array([[x, y, z] for x in (self._box[0][0], self._box[1][0]) for y in (self._box[0][1],
-                            self._box[1][1]) for z in (self._box[0][2], self._box[1][2])], np.float32)
-        cx, cy, cok = window_coordinates(corners, camera.mvp, size)
+        cx, cy, cok = window_coordinates(self._corners, camera.mvp, size)
         if cok.all():
             w, h = float(size[0]), float(size[1])
             area = max(0.0, min(w, float(cx.max())) - max(0.0, float(cx.min())) + 2.0) * \
