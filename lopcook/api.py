@@ -200,13 +200,23 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
                                                        loosen_edges=not attributes)
             search, search_rec, settings = _attribute_search(scene, settings, progress, calibration.get("watch"))
         timings["attribute_search"] = time.perf_counter() - t0
+    analysis = None
     if calibration is not None or search is not None:
-        # the searches' renders and prepared analysis are not needed by the cook that follows
+        # the searches' renders are not needed by the cook that follows, nor their prepared analysis
+        # once it gave the chosen thresholds' levels (the same as a fresh analysis: the same bytes)
+        from .analyse.prepared import held
         from .analyse.prepared import release_shared as release_prepared
+        from .pipeline import plain
         from .verify.renderer import release_shared as release_harnesses
 
-        release_prepared()
         release_harnesses()
+        prepared = held(scene, settings.analyse)
+        if prepared is not None and plain(settings) and settings.tune.target_bytes is None:
+            t0 = time.perf_counter()
+            analysis = prepared.analyse(settings.analyse.eps, settings.analyse.edge_eps)
+            timings["analyse.prepared"] = time.perf_counter() - t0
+        del prepared
+        release_prepared()
         from .memory import release_free_memory
 
         release_free_memory()
@@ -223,7 +233,7 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
                                                      if k != "cook"})
         container = from_bytes(data, None)
     else:
-        result = run(scene, settings, options=options, progress=progress)
+        result = run(scene, settings, options=options, progress=progress, analysis=analysis)
         container = result.container
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration

@@ -223,9 +223,18 @@ def shared(scene: Scene, settings: AnalyseSettings) -> PreparedAnalysis:
     return prep
 
 
+def held(scene: Scene, settings: AnalyseSettings) -> PreparedAnalysis | None:
+    """The analysis ``shared`` holds for ``scene`` and ``settings`` (up to eps and edge_eps), or None;
+    prepares nothing."""
+    key = replace(settings, eps=1.0, edge_eps=1.0)
+    if _SHARED and _SHARED[0][0] is scene and _SHARED[0][1] == key:
+        return _SHARED[0][2]
+    return None
+
+
 def release_shared() -> None:
     """Drop the analysis ``shared`` holds."""
     _SHARED.clear()
 
 
-__all__ = ["PreparedAnalysis", "shared", "release_shared"]
+__all__ = ["PreparedAnalysis", "shared", "held", "release_shared"]
