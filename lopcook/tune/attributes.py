@@ -107,6 +107,8 @@ RANGES = {"normals": NORMAL_BITS, "uvs": UV_BITS, "colors": COLOR_BITS}
 ATTRIBUTES = ("normals", "uvs", "colors")
 #: record bits per unit of each attribute's bits: 2 components, 2 components, 4 channels
 COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
+#: containers a search keeps cooked (``Search.cook``)
+KEEP_COOKED = 2
 #: the positions' knob: log2 of the k_f scale, its grid step and range (as ``lopcook.tune.calibrate``)
 POSITION_STEP = 0.5
 POSITION_RANGE = (-8.0, 8.0)
@@ -289,20 +291,25 @@ class Search:
         self.quality_memo: dict = {}
         self.probes: list = []
         self.path: list = []
-        self._last = (None, None)
+        self._recent: list = []  # (key, container) of the last ``KEEP_COOKED`` cooks, the latest last
 
     def close(self) -> None:
-        """Nothing to release: the harness is shared (``lopcook.verify.renderer.release_shared``)."""
+        """Drops the containers kept; the harness is shared (``lopcook.verify.renderer.release_shared``)."""
         self.h = None
+        self._recent = []
 
     def cook(self, alloc: Allocation):
-        """The container of ``alloc`` (the last one is kept). On the plain path the analysis comes
-        from one ``PreparedAnalysis`` of the search (only what eps changes is recomputed: the same
-        minimum levels, so the same bytes, as a fresh cook)."""
+        """The container of ``alloc`` (the last ``KEEP_COOKED`` are kept: a round costs its candidates
+        before it renders them). On the plain path the analysis comes from one ``PreparedAnalysis``
+        of the search (only what eps changes is recomputed: the same minimum levels, so the same
+        bytes, as a fresh cook)."""
         from ..pipeline import plain, run
 
-        if self._last[0] == alloc.key():
-            return self._last[1]
+        k = alloc.key()
+        for i, (key, kept) in enumerate(self._recent):
+            if key == k:
+                self._recent.append(self._recent.pop(i))
+                return kept
         s = cook_settings(self.settings, alloc)
         analysis = None
         if plain(s):
@@ -312,7 +319,7 @@ class Search:
                 self._prepared = shared(self.scene, self.settings.analyse)
             analysis = self._prepared.analyse(s.analyse.eps, s.analyse.edge_eps)
         c = run(self.scene, s, options=s.to_manifest()["options"], analysis=analysis).container
-        self._last = (alloc.key(), c)
+        self._recent = (self._recent + [(k, c)])[-KEEP_COOKED:]
         return c
 
     def cost(self, alloc: Allocation) -> float:
