@@ -446,7 +446,7 @@ def test_code_memo_gives_the_same_codes_and_stays_bounded():
     bits = AttributeBits(normals=8, uvs=10, colors=None)
     plain = A.record_codes(normals, uvs, None, bits)
     with A.code_memo(max_bytes=3 * 500 * 2 * 2):
-        assert len(A._MEMO) == 1
+        assert A._ACTIVE.memo is not None
         first = A.record_codes(normals, uvs, None, bits)
         again = A.record_codes(normals.copy(), uvs.copy(), None, bits)  # the same content, other arrays
         assert again[0]["normals"] is first[0]["normals"]  # taken from the memo
@@ -457,10 +457,10 @@ def test_code_memo_gives_the_same_codes_and_stays_bounded():
         np.testing.assert_array_equal(np.delete(other[0]["normals"], 7, 0), np.delete(first[0]["normals"], 7, 0))
         for b in (4, 5, 6, 7):  # more codes than the memo holds: the oldest are dropped
             A.record_codes(normals, uvs, None, AttributeBits(normals=b, uvs=10, colors=None))
-        memo = A._MEMO[0]
+        memo = A._ACTIVE.memo
         assert memo.held <= memo.max_bytes
         assert memo.held == sum(v.nbytes for e in memo.entries.values() for v in e if isinstance(v, np.ndarray))
-    assert not A._MEMO  # closed with its context
+    assert A._ACTIVE.memo is None  # closed with its context
     for k in plain[0]:
         np.testing.assert_array_equal(first[0][k], plain[0][k])
     assert first[1] == plain[1]

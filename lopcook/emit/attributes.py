@@ -126,6 +126,7 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -640,7 +641,11 @@ class _CodeMemo:
             self.held -= sum(v.nbytes for v in old if isinstance(v, np.ndarray))
 
 
-_MEMO: list = []  # the active memo (``code_memo``), innermost last
+class _Active(threading.local):
+    memo = None  # this thread's open ``_CodeMemo``, or None
+
+
+_ACTIVE = _Active()
 
 #: the most bytes of codes a ``code_memo`` holds
 CODE_MEMO_BYTES = 24 << 20
@@ -650,21 +655,22 @@ class code_memo:
     """Context manager: inside it, ``record_codes`` keeps the codes it computes (by content, at most
     ``max_bytes``), so cooking the same scene again with some attribute's bits unchanged encodes
     that attribute once. A search that cooks many probes of one scene (``lopcook.tune``) opens
-    one; nested, the outer memo is used. The codes are the same with or without it."""
+    one; nested, the outer memo is used; each thread has its own. The codes are the same with or
+    without it."""
 
     def __init__(self, max_bytes: int = CODE_MEMO_BYTES):
         self.max_bytes = int(max_bytes)
         self._opened = False
 
     def __enter__(self):
-        if not _MEMO:
-            _MEMO.append(_CodeMemo(self.max_bytes))
+        if _ACTIVE.memo is None:
+            _ACTIVE.memo = _CodeMemo(self.max_bytes)
             self._opened = True
         return self
 
     def __exit__(self, *exc) -> None:
         if self._opened:
-            _MEMO.clear()
+            _ACTIVE.memo = None
             self._opened = False
 
 
@@ -682,9 +688,9 @@ def with_code_memo(f):
 
 def _memoised(name: str, bits: int, a, encode):
     """``encode()`` (a tuple of arrays and values), through the active ``code_memo`` if any."""
-    if not _MEMO:
+    memo = _ACTIVE.memo
+    if memo is None:
         return encode()
-    memo = _MEMO[-1]
     key = memo.key(name, bits, a)
     got = memo.get(key)
     if got is None:
