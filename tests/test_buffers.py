@@ -115,3 +115,29 @@ def test_source_order_is_kept_on_the_container_per_scene_object(crease):
     again = B.source_order(c, same)
     assert again is not first
     np.testing.assert_array_equal(again[0], first[0])
+
+
+@pytest.mark.parametrize("cluster_all", [False, True])
+def test_buffers_carry_what_the_reference_decoder_gives(crease, cluster_all):
+    """The render harness projects a buffer's positions for the coverage cull and names its draws
+    by them: the ``decoded`` values a buffer carries must be the reference decode of its words."""
+    from lopcook.emit import build
+    from lopcook.emit.clusters import decode_clustered
+    from lopcook.emit.container import from_bytes
+    from lopcook.emit.reader import ClusteredGpuBuffer
+
+    s, c = crease
+    if cluster_all:
+        an = analyse(s, AnalyseSettings())
+        c = from_bytes(build(s, an, options={"analyse": AnalyseSettings().to_record()}, cluster_size=16,
+                             cluster_all=True), None)
+    for level in (1, 6, 11, 17, 24):
+        for make in (B.ap_buffer, B.cap_buffer):
+            buf = make(c, 0, 0, level)
+            assert isinstance(buf, ClusteredGpuBuffer) == (cluster_all and make is B.cap_buffer)
+            if isinstance(buf, ClusteredGpuBuffer):
+                want = decode_clustered(buf.words, buf.clusters, level)
+            else:
+                want = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+            np.testing.assert_array_equal(buf.decoded[0], want[0])
+            np.testing.assert_array_equal(np.asarray(buf.decoded[1], np.int64), np.asarray(want[1], np.int64))

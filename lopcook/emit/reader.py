@@ -27,24 +27,29 @@ from .container import Container
 
 @dataclass
 class GpuBuffer:
-    """words (w,) uint32: packed P; vertex_id, bit_id (25,) int64 tables; level: per-buffer B."""
+    """words (w,) uint32: packed P; vertex_id, bit_id (25,) int64 tables; level: per-buffer B;
+    decoded: None, or (values (n, 3) uint32, widths (n,)), the values the words were packed from,
+    which is what the reference decoder (``bitplane.decode``) gives for them at B."""
 
     words: np.ndarray
     vertex_id: np.ndarray
     bit_id: np.ndarray
     level: int
+    decoded: tuple | None = None
 
 
 @dataclass
 class ClusteredGpuBuffer:
     """A clustered buffer as a renderer uploads it at level B: words (w,) uint32 clustered P,
     clusters (its ``Clusters``: VertexId, ClusterId, anchors), records (n_c, 4) uint32 (the
-    ``LopClusters`` SSBO at B), level B."""
+    ``LopClusters`` SSBO at B), level B; decoded: None, or (values, widths) as ``GpuBuffer``'s
+    (what ``clusters.decode_clustered`` gives for the words)."""
 
     words: np.ndarray
     clusters: Clusters
     records: np.ndarray
     level: int
+    decoded: tuple | None = None
 
 
 def lod_entry(c: Container, part: int, lod: int) -> dict:
@@ -210,9 +215,10 @@ def _clustered_top_values(c: Container, part: int, lod: int, level: int, words: 
 
 def gpu_buffer(c: Container, part: int, lod: int, level: int) -> GpuBuffer:
     """The packed buffer P (uint32 words) at per-buffer level B with its VertexId/BitId tables."""
-    values, _ = top_values(c, part, lod, level)
+    values, widths = top_values(c, part, lod, level)
     vid = np.asarray(lod_entry(c, part, lod)["vertex_id"], dtype=np.int64)
-    return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=level)
+    return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=level,
+                     decoded=(values, widths))
 
 
 def clustered_gpu_buffer(c: Container, part: int, lod: int, level: int) -> ClusteredGpuBuffer:
@@ -222,9 +228,9 @@ def clustered_gpu_buffer(c: Container, part: int, lod: int, level: int) -> Clust
     if cl is None:
         raise LopcookError("usage", c.path, f"part {part} LOD {lod} is not clustered",
                            hint="cook with --clusters N")
-    values, _ = top_values(c, part, lod, level)
+    values, widths = top_values(c, part, lod, level)
     return ClusteredGpuBuffer(words=pack_clustered(values, cl, level), clusters=cl, records=records(cl, level),
-                              level=level)
+                              level=level, decoded=(values, widths))
 
 
 def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: bool = True):

@@ -44,7 +44,8 @@ def ap_buffer(c, part: int, lod: int, level: int) -> GpuBuffer:
     n = values.shape[0]
     vid = np.full(LEVELS + 1, n, dtype=np.int64)
     vid[0] = 0
-    return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=int(level))
+    return GpuBuffer(words=pack(values, vid, level), vertex_id=vid, bit_id=table_bit_id(vid, level), level=int(level),
+                     decoded=(values, np.full(n, int(level), dtype=np.int64)))
 
 
 def cap_buffer(c, part: int, lod: int, level: int):

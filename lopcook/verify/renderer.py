@@ -962,18 +962,22 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     """A function giving the (n, 3) float32 positions the decoding vertex shader computes for ``buf``
     (a ``GpuBuffer`` or ``ClusteredGpuBuffer``) at ``level`` on the grid (``origin``, ``half_cell``),
     mapped by the placement rows ``place`` when given: the reference decoder's (``decode`` /
-    ``decode_clustered``, ``reconstruct_float32``, ``placement.to_world``)."""
+    ``decode_clustered``, ``reconstruct_float32``, ``placement.to_world``). The decoded integers
+    are the buffer's ``decoded`` where it carries them (the values its words were packed from:
+    the pack and the reference decode round-trip exactly, ``tests/test_clusters.py`` and
+    ``tests/test_bitplane.py``), else the reference decode of its words."""
     def positions():
         from ..emit.bitplane import decode, reconstruct_float32
         from ..emit.clusters import decode_clustered
         from ..emit.placement import to_world
         from ..emit.reader import ClusteredGpuBuffer
 
-        words = np.asarray(buf.words, np.uint32)
-        if isinstance(buf, ClusteredGpuBuffer):
-            values, widths = decode_clustered(words, buf.clusters, int(level))
+        if getattr(buf, "decoded", None) is not None:
+            values, widths = buf.decoded
+        elif isinstance(buf, ClusteredGpuBuffer):
+            values, widths = decode_clustered(np.asarray(buf.words, np.uint32), buf.clusters, int(level))
         else:
-            values, widths = decode(words, buf.vertex_id, buf.bit_id, int(level))
+            values, widths = decode(np.asarray(buf.words, np.uint32), buf.vertex_id, buf.bit_id, int(level))
         pos = reconstruct_float32(values, widths, origin, 2.0 * float(half_cell))
         if place is not None:
             pos = to_world(pos, np.asarray(place, np.float64).reshape(3, 4))
