@@ -28,8 +28,9 @@ sample, so such a triangle changes no pixel, depth or part ID: the images are th
 (``tests/test_render_cull.py``). The sample positions are read off the context once
 (``sample_positions``: one tiny triangle around each candidate point on a 1/16-pixel lattice);
 a context whose positions are not found there draws every triangle. The vertices are projected on
-the CPU in float32 from the positions the vertex shader reads (a decoded item's from the reference
-decoder, ``lopcook.emit.bitplane.decode``, bit-exact with the shaders) and the float32 matrix it
+the CPU in float32 from the positions the vertex shader reads (a decoded item's from the grid
+integers its words were packed from, which the reference decoder, bit-exact with the shaders, gives
+back exactly: ``_decoded_positions``) and the float32 matrix it
 is given; ``COVER_MARGIN`` (1/32 px) covers the difference between the two float32 evaluations and
 the rasteriser's snapping (llvmpipe: 1/256 px). The kept triangles are written to one index
 buffer of the renderer (``Scratch``) and drawn from it. It runs where it pays: an item of at least
@@ -1000,7 +1001,8 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     Each item carries ``digest``: the content key (``digest``) of what its draw depends on -- part
     index, index buffer, attribute arrays as uploaded, flags, texture content digest, culling box,
     and the float32 world positions its vertex shader computes (the reference decode of the packed
-    words at the level on its grid, mapped by a placement's transform: bit for bit what either
+    words at the level on its grid, i.e. the values they were packed from (``_decoded_positions``),
+    mapped by a placement's transform: bit for bit what either
     decoder gives, ``lopcook verify --decoders``) -- so two items with equal digests, drawn with the
     same camera and shading, give the same pixels, whatever layout (clustered or binned) or minimum
     levels gave those positions."""
