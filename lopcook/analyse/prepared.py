@@ -214,22 +214,26 @@ def shared(scene: Scene, settings: AnalyseSettings) -> PreparedAnalysis:
     which it does not depend on), kept for the next caller: the k_f calibration and the attribute
     search of one cook prepare the scene once. Asking for another scene or other settings replaces
     it (one is held at a time)."""
-    key = replace(settings, eps=1.0, edge_eps=1.0)  # what the preparation depends on
-    if _SHARED and _SHARED[0][0] is scene and _SHARED[0][1] == key:
-        return _SHARED[0][2]
+    prep = held(scene, settings)
+    if prep is not None:
+        return prep
     _SHARED.clear()
     prep = PreparedAnalysis(scene, settings)
-    _SHARED.append((scene, key, prep))
+    _SHARED.append((scene, _key(settings), prep))
     return prep
 
 
 def held(scene: Scene, settings: AnalyseSettings) -> PreparedAnalysis | None:
     """The analysis ``shared`` holds for ``scene`` and ``settings`` (up to eps and edge_eps), or None;
     prepares nothing."""
-    key = replace(settings, eps=1.0, edge_eps=1.0)
-    if _SHARED and _SHARED[0][0] is scene and _SHARED[0][1] == key:
+    if _SHARED and _SHARED[0][0] is scene and _SHARED[0][1] == _key(settings):
         return _SHARED[0][2]
     return None
+
+
+def _key(settings: AnalyseSettings) -> AnalyseSettings:
+    """What a preparation depends on: the settings without eps and edge_eps."""
+    return replace(settings, eps=1.0, edge_eps=1.0)
 
 
 def release_shared() -> None:
