@@ -164,9 +164,9 @@ class PositionSizer:
         return int(buffer_bytes(vid, b)) if cl is None else int(clustered_bytes(cl, b))
 
 
-def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, codes=None) -> EncodedBuffer:
+def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, codes) -> EncodedBuffer:
     """``encode_buffer`` in the layout asked for (no choice); ``codes``: ``attr.record_codes`` of the
-    buffer's attributes (computed here when None)."""
+    buffer's attributes in source order (None when it stores no record)."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)
     clamped = int(np.count_nonzero(raw_levels > max_level))
     if cluster_size is None:
@@ -190,7 +190,7 @@ def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, c
     if bits.record_bits:
         # the codes in source order (memoised by content inside a ``code_memo``), then binned:
         # every code depends on its own vertex alone (``record_codes``)
-        codes, meta = codes if codes is not None else attr.record_codes(buf.normals, buf.uvs, buf.colors, bits)
+        codes, meta = codes
         words = attr.pack_record({k: v[bins.order] for k, v in codes.items()}, n, bits)
         attributes.append(("attributes", words.tobytes()))
         if meta["uv_range"] is not None:
