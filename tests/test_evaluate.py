@@ -208,9 +208,9 @@ def test_fixed_camera_distance(gl, crease):
 
 
 
-def test_check_source_off_only_for_a_container_cooked_from_the_harness_scene(gl, crease):
-    """A search's probes are cooked from the harness's own scene, so ``check_source=False`` skips the
-    check that they were; with the check on (the default), another source is refused."""
+def test_source_check_skipped_only_for_a_container_cooked_from_the_harness_scene(gl, crease):
+    """A search's probes are cooked from the harness's own scene (``cooked_from``), so the check that
+    they were is skipped; otherwise (the default, or another scene named) another source is refused."""
     from lopcook.types import MeshPart, Scene
     from lopcook.verify.renderer import Harness
 
@@ -220,7 +220,9 @@ def test_check_source_off_only_for_a_container_cooked_from_the_harness_scene(gl,
     with Harness(moved, resolution=(64, 36)) as h:
         with pytest.raises(LopcookError, match="positions differ"):
             h.evaluate(c, levels=[6], views=1, variants=("cap",))
-        r = h.evaluate(c, levels=[6], views=1, variants=("cap",), check_source=False)
+        with pytest.raises(LopcookError, match="positions differ"):  # not the harness's scene: checked
+            h.evaluate(c, levels=[6], views=1, variants=("cap",), cooked_from=s)
+        r = h.evaluate(c, levels=[6], views=1, variants=("cap",), cooked_from=moved)
         assert [row["level"] for row in r["levels"]] == [6]
         with pytest.raises(LopcookError, match="positions differ"):  # the source's attributes need the order
-            h.evaluate(c, levels=[6], views=1, variants=("cap",), attributes="source", check_source=False)
+            h.evaluate(c, levels=[6], views=1, variants=("cap",), attributes="source", cooked_from=moved)

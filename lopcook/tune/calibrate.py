@@ -274,9 +274,8 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
     # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
     stop_view = None if stop_below is None else view_rule(float(stop_below[0]), stop_below[1])
-    # cooked here from the harness's own scene: the check that it was is skipped (check_source)
     res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view,
-                           check_source=harness.scene is not scene)
+                           cooked_from=scene)
     from ..verify.buffers import position_bytes
 
     lods = [0] * len(c.manifest["parts"])

@@ -285,10 +285,10 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
 
 def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
                      image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container",
-                     stop_view=None, check_source: bool = True) -> dict:
+                     stop_view=None, cooked_from=None) -> dict:
     """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
     ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order);
-    ``check_source`` as in ``Harness.evaluate``."""
+    ``cooked_from`` as in ``Harness.evaluate``."""
     if attributes not in ATTRIBUTE_SOURCES:
         raise LopcookError("usage", c.path, f"attributes={attributes!r}: expected one of {ATTRIBUTE_SOURCES}")
     t_start = time.perf_counter()
@@ -310,7 +310,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     # colours at their packed bits), so its PSNR includes their quantisation (issue 15);
     # attributes="source": LOD 0 with the source's (only positions differ)
     orders = [None] * len(lods)
-    if lod0_is_source(c) and any(k == 0 for k in lods) and (check_source or attributes == "source"):
+    if lod0_is_source(c) and any(k == 0 for k in lods) and (cooked_from is not scene or attributes == "source"):
         src_orders = source_order(c, scene)  # the container must have been cooked from this source (LopcookError)
         if attributes == "source":
             orders = [o if k == 0 else None for o, k in zip(src_orders, lods)]

@@ -842,20 +842,21 @@ class Harness:
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
                  keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
                  distance_m: float | None = None, stop=None, attributes: str = "container", stop_view=None,
-                 check_source: bool = True) -> dict:
+                 cooked_from=None) -> dict:
         """See ``lopcook.verify.evaluate.evaluate``; ``stop(per_view) -> bool`` after each level ends
         the render early (``lopcook.verify.evaluate.render_rows``: only the levels rendered are in
         the result); ``stop_view(metrics) -> bool`` after each view ends that level's views (and,
         with a ``stop`` that sees the miss, the render); ``attributes`` "source" draws LOD 0 with the source's attributes.
-        ``check_source`` False: the caller cooked ``container`` from this harness's scene itself (a
-        search's probe), so the check that it was (``source_order``, which reads every plane) is
-        skipped where nothing else needs the vertex order."""
+        ``cooked_from``: the scene the caller cooked ``container`` from itself (a search's probe);
+        when it is this harness's scene, the check that the container comes from it
+        (``source_order``, which reads every plane) is skipped where nothing else needs the vertex
+        order."""
         from .evaluate import harness_evaluate
 
         return harness_evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
                          variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
                          image_view=image_view, lod=lod, distance_m=distance_m, stop=stop, stop_view=stop_view,
-                         attributes=attributes, check_source=check_source)
+                         attributes=attributes, cooked_from=cooked_from)
 
     def evaluate_scene(self, test_scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                        distance_m: float | None = None, extent: float | None = None,
@@ -973,7 +974,7 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
         from ..emit.placement import to_world
         from ..emit.reader import ClusteredGpuBuffer
 
-        if getattr(buf, "decoded", None) is not None:
+        if buf.decoded is not None:
             values, widths = buf.decoded
         elif isinstance(buf, ClusteredGpuBuffer):
             values, widths = decode_clustered(np.asarray(buf.words, np.uint32), buf.clusters, int(level))
