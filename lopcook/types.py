@@ -96,6 +96,10 @@ class MeshPart:
         Base-colour texture, if the source names one for this part.
     mesh_key : str
         Identity of the source mesh data: parts that instance the same mesh share it.
+    double_sided : bool
+        True when the source marks the surface two-sided (glTF material ``doubleSided``, USD
+        ``doubleSided``). Otherwise only its front faces (counter-clockwise) are visible, as in
+        glTF and USD renderers: the render harness culls back faces of single-sided parts.
     """
 
     name: str
@@ -108,6 +112,7 @@ class MeshPart:
     normals_computed: bool = False
     texture: Texture | None = None
     mesh_key: str = ""
+    double_sided: bool = False
 
     @property
     def n_vertices(self) -> int:

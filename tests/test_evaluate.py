@@ -41,7 +41,11 @@ def test_harness_sanity_cap_at_level_24_matches_float(gl, name):
     assert row["camera_level"] == 9 and row["selected_level"] == 9
     assert all(p is None or p >= 60.0 for p in row["cap"]["psnr_views"]), row["cap"]["psnr_views"]
     assert row["cap"]["depth_order_errors"] == 0
-    assert min(row["float_object_pixels"]) > 100  # the object is there
+    pixels = row["float_object_pixels"]
+    if name in ("two_plates.glb", "concave_ngon.gltf"):  # flat, single-sided: seen from behind, culled
+        assert sum(n > 100 for n in pixels) >= 3 and 0 in pixels, pixels
+    else:
+        assert min(pixels) > 100  # the object is there
 
 
 def test_glossy_crease_ap_errs_at_the_crease_and_cap_removes_it(gl, crease):

@@ -93,7 +93,7 @@ def test_float_cache_crop_keeps_everything_that_is_not_background(rng):
 # ---- the coverage cull: triangles that cover no sample are left out, the images stay the same bits ----
 
 def _every_triangle(its):
-    """The items without culling of any kind (no box, no coverage)."""
+    """The items without culling of any kind (no box, no coverage); GL culls back faces as each item says."""
     return [dict(it, box=None, cull_box=None, cover=None) for it in its]
 
 
@@ -145,6 +145,39 @@ def test_covering_triangles_equals_a_sample_by_sample_count(rng):
                     want[t] = True
     assert np.array_equal(got, want)
     assert 0.1 < got.mean() < 0.9  # both verdicts are exercised
+
+
+def test_back_faces_left_out_are_back_faces_under_any_snapping(rng):
+    """With ``cull_back`` a triangle is left out only when it covers no sample or faces away (clockwise
+    in the window) for every move of its vertices by up to ``COVER_MARGIN`` pixels (checked in float64
+    at the corners of that move); a counter-clockwise or nearly edge-on one is kept as without it."""
+    from lopcook.verify.renderer import COVER_MARGIN, covering_triangles
+
+    offsets = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0.875]])
+    size = (64, 48)
+    n = 6000
+    centre = rng.uniform(0.0, 64.0, (n // 3, 2)).repeat(3, axis=0)
+    spread = 10.0 ** rng.uniform(-3.0, 1.0, (n // 3, 1)).repeat(3, axis=0)
+    xy = (centre + rng.normal(0.0, 1.0, (n, 2)) * spread).astype(np.float32)
+    ok = np.ones(n, bool)
+    tri = np.arange(n).reshape(-1, 3)
+    plain = covering_triangles(xy[:, 0], xy[:, 1], ok, tri, size, offsets)
+    culled = covering_triangles(xy[:, 0], xy[:, 1], ok, tri, size, offsets, cull_back=True)
+    assert not np.any(culled & ~plain)
+    p = xy.astype(np.float64)[tri]
+    u, v = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    m = float(COVER_MARGIN)
+    worst = area + 2.0 * m * (np.abs(u).sum(1) + np.abs(v).sum(1)) + 8.0 * m * m  # the largest area within the move
+    gone = plain & ~culled
+    assert gone.sum() > 100 and np.all(worst[gone] < 0.0)
+    assert np.all(culled[plain & (area >= 0.0)])
+    edge_on = plain & (area < 0.0) & (worst >= 0.0)
+    assert edge_on.any() and np.all(culled[edge_on])
+    # an untrusted vertex keeps its triangle whatever its (meaningless) area
+    ok[tri[gone][:5, 0]] = False
+    again = covering_triangles(xy[:, 0], xy[:, 1], ok, tri, size, offsets, cull_back=True)
+    assert np.all(again[np.flatnonzero(gone)[:5]])
 
 
 def test_window_coordinates_distrust_vertices_behind_the_eye(gl):

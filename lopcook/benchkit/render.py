@@ -74,7 +74,8 @@ def _items(h, scene, variant: Variant, own_attributes: bool = False):
         owned += [vbo, ibo, *bufs, vao, cover]
         items.append({"vao": vao, "part": int(part), "has_normal": src.normals is not None,
                       "has_color": src.colors is not None, "texture": h.textures.get(src.texture),
-                      "triangles": int(np.asarray(idx).size // 3), "cover": cover})
+                      "triangles": int(np.asarray(idx).size // 3), "cover": cover,
+                      "two_sided": bool(src.double_sided)})
     return items, owned
 
 

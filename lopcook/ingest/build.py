@@ -15,7 +15,7 @@ from .normals import compute_normals
 def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings: IngestSettings,
               normals: np.ndarray | None = None, uvs: np.ndarray | None = None,
               colors: np.ndarray | None = None, source: str = "", texture: Texture | None = None,
-              mesh_key: str = "") -> MeshPart:
+              mesh_key: str = "", double_sided: bool = False) -> MeshPart:
     """Build a MeshPart from loader arrays.
 
     Parameters
@@ -62,6 +62,7 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
         normals_computed=computed,
         texture=texture,
         mesh_key=mesh_key,
+        double_sided=bool(double_sided),
     )
 
 

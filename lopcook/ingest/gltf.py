@@ -582,6 +582,13 @@ class _GltfReader:
 
     # ------------------------------------------------------------------ textures
 
+    def double_sided(self, material_index) -> bool:
+        """The material's ``doubleSided`` (glTF's default, false, without a material or the key; a
+        value other than true counts as false)."""
+        if material_index is None:
+            return False
+        return self.item("materials", material_index, "material").get("doubleSided") is True
+
     def base_color(self, material_index) -> tuple[Texture | None, int]:
         """(shared Texture or None, texCoord set) for a material's base-colour texture."""
         if material_index is None:
@@ -808,7 +815,8 @@ class _GltfReader:
             mlabel = f"mesh {mi}" + (f" {mesh['name']!r}" if mesh.get("name") else "")
             out.append(make_part(name, pos, tri, settings=self.settings, normals=normals, uvs=geom["uvs"],
                                  colors=geom["colors"], source=f"{label} / {mlabel} / primitive {k}",
-                                 texture=geom["texture"], mesh_key=f"mesh{mi}/prim{k}"))
+                                 texture=geom["texture"], mesh_key=f"mesh{mi}/prim{k}",
+                                 double_sided=geom["double_sided"]))
         return out
 
     def _geometry_of(self, mi: int, k: int, prim: dict, mesh: dict) -> dict | None:
@@ -904,7 +912,7 @@ class _GltfReader:
             self.warn(f"{what}: no triangles; skipped")
             return None
         return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
-                "colors": colors, "texture": texture}
+                "colors": colors, "texture": texture, "double_sided": self.double_sided(prim.get("material"))}
 
 
 # ---------------------------------------------------------------------- pure functions

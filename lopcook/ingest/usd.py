@@ -110,6 +110,7 @@ class _LocalMesh:
     normals : (n, 3) float32 object-space normals, or None
     uvs : (n, 2) float32, origin top-left (USD ``v`` flipped), or None
     colors : (n, 4) float32 linear RGBA, or None
+    double_sided : the Mesh's ``doubleSided`` (USD's default: false)
     """
 
     key: str
@@ -119,6 +120,7 @@ class _LocalMesh:
     uvs: np.ndarray | None
     colors: np.ndarray | None
     texture: Texture | None
+    double_sided: bool = False
 
 
 @dataclass(frozen=True)
@@ -680,6 +682,7 @@ class _Loader:
             uvs=None if uvs is None else uvs[first],
             colors=None if colors is None else colors[first],
             texture=self.texture(prim),
+            double_sided=self.get(mesh.GetDoubleSidedAttr()) is True,
         )
 
     def uv_primvar(self, api):
@@ -841,7 +844,8 @@ def _place(name: str, source: str, local: _LocalMesh, m: np.ndarray, settings: I
     if local.normals is not None and det != 0 and np.isfinite(det):
         normals = local.normals.astype(np.float64) @ np.linalg.inv(lin).T
     return make_part(name, positions, tris, settings=settings, normals=normals, uvs=local.uvs,
-                     colors=local.colors, source=source, texture=local.texture, mesh_key=local.key)
+                     colors=local.colors, source=source, texture=local.texture, mesh_key=local.key,
+                     double_sided=local.double_sided)
 
 
 def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:

@@ -88,7 +88,7 @@ def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshP
     return MeshPart(name=like.name, positions=np.ascontiguousarray(part.positions @ a.T + t, dtype=np.float64),
                     indices=part.indices, normals=None if part.normals is None else map_normals(part.normals, a),
                     uvs=part.uvs, colors=part.colors, source=like.source, normals_computed=like.normals_computed,
-                    texture=like.texture, mesh_key=like.mesh_key)
+                    texture=like.texture, mesh_key=like.mesh_key, double_sided=like.double_sided)
 
 
 #: a part is compared with at most this many groups of its signature (the affine fit is O(n) per

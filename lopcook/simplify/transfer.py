@@ -734,6 +734,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         normals_computed=input_part.normals_computed,
         texture=input_part.texture,
         mesh_key=input_part.mesh_key,
+        double_sided=input_part.double_sided,
     )
     return out, {"lod_to_ref": lod_to_ref, "flipped": flipped}
 

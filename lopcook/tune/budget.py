@@ -225,7 +225,8 @@ def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
         pos = grid.reconstruct(b.quantized, LEVELS)
         parts.append(MeshPart(p.name, pos, np.asarray(b.indices, np.uint32), b.normals, b.uvs, b.colors,
                               source=p.source, normals_computed=p.normals_computed,
-                              texture=p.texture if b.uvs is not None else None, mesh_key=p.mesh_key))
+                              texture=p.texture if b.uvs is not None else None, mesh_key=p.mesh_key,
+                              double_sided=p.double_sided))
     return replace(scene, parts=tuple(parts))
 
 

@@ -99,7 +99,7 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
     hi = int(allv.max()) if hi is None else int(hi)
     parts = tuple(MeshPart(name=p.name, positions=pos, indices=np.asarray(ind, np.uint32), normals=nrm, uvs=None,
                            colors=level_colours(lv, lo, hi), source=p.source, normals_computed=p.normals_computed,
-                           texture=None, mesh_key=p.mesh_key)
+                           texture=None, mesh_key=p.mesh_key, double_sided=p.double_sided)
                   for p, (pos, ind, nrm), lv in zip(scene.parts, geometry, per_part))
     return replace(scene, parts=parts, source=f"{scene.source} (minimum levels)"), lo, hi
 

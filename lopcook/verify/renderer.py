@@ -18,14 +18,20 @@ direction = from the box centre to the eye); ambient 0.15, diffuse 0.65, ks and 
 container's analysis options (``manifest["options"]["analyse"]``; defaults 0.5 and 32) so the
 k_f = ks * n the analysis assumed is the one rendered. Base-colour textures are sampled with
 trilinear mipmaps and repeat wrap, texel values used as they are (no sRGB decoding); vertex colours
-are linear RGB as stored; grey 0.8 when a part has neither. No back-face culling (quantization may
-flip a tiny triangle's winding; the paper does not cull either), depth test on.
+are linear RGB as stored; grey 0.8 when a part has neither. Depth test on. Back faces
+(clockwise in the window) of a single-sided part are culled, as glTF and USD renderers do for
+a surface not marked ``doubleSided`` (``MeshPart.double_sided``); a double-sided part draws both
+sides. The float reference and every decoded variant of a part are culled alike, so a tiny
+triangle whose winding quantization flips is missing from the decoded render, as it would be
+in an engine, and the metrics count it.
 
 Coverage cull (``Coverage``, ``covering_triangles``): before a draw, an item's triangles whose
 screen bounding box, widened by ``COVER_MARGIN`` pixels, holds no sample position of any pixel
 of the viewport are left out of the draw. GL produces a fragment only where a triangle covers a
 sample, so such a triangle changes no pixel, depth or part ID: the images are the same bit for bit
-(``tests/test_render_cull.py``). The sample positions are read off the context once
+(``tests/test_render_cull.py``). Where the item's back faces are culled, the triangles that face
+away by more than moving their vertices by ``COVER_MARGIN`` could change are left out as well (GL
+would cull them: the same pixels again), which also spares their vertices the vertex shader. The sample positions are read off the context once
 (``sample_positions``: one tiny triangle around each candidate point on a 1/16-pixel lattice);
 a context whose positions are not found there draws every triangle. The vertices are projected on
 the CPU in float32 from the positions the vertex shader reads (a decoded item's from the grid
@@ -186,10 +192,11 @@ class Shading:
                    shininess=float(a.get("shininess", 32.0) if shininess is None else shininess))
 
     def as_dict(self) -> dict:
-        """JSON-ready record of the shading: model, light, ks, shininess, ambient, diffuse, base grey."""
+        """JSON-ready record of the shading: model, light, ks, shininess, ambient, diffuse, base grey, and
+        which faces are drawn (the renderer's rule, module doc)."""
         return {"model": "phong", "light": "directional headlight (from the scene centre to the eye)",
                 "ks": self.ks, "shininess": self.shininess, "ambient": self.ambient, "diffuse": self.diffuse,
-                "base_grey": self.base}
+                "base_grey": self.base, "back_faces": "culled unless the part is double-sided (glTF or USD doubleSided)"}
 
 
 #: the placement rows of a part on the scene grid (the harness vertex shader's u_place0..2)
@@ -261,8 +268,9 @@ def sample_positions(ctx, samples: int):
 
 
 def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles: np.ndarray, size,
-                       offsets: np.ndarray, margin: float = COVER_MARGIN) -> np.ndarray:
-    """(m,) bool: the triangles that may cover a sample of a ``size`` = (w, h) pixel viewport.
+                       offsets: np.ndarray, margin: float = COVER_MARGIN, cull_back: bool = False) -> np.ndarray:
+    """(m,) bool: the triangles that may cover a sample of a ``size`` = (w, h) pixel viewport
+    (and, with ``cull_back``, may face the viewer).
 
     px, py : (n,) window coordinates of the vertices, pixels (x right, y up, the viewport's lower
     left corner at 0); ok : (n,) bool, False for a vertex whose projection is not trusted (behind
@@ -275,7 +283,14 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
     In lattice units (1 / L pixel, L = ``SAMPLE_LATTICE``) the box holds the integers lo..hi of each
     axis (clipped to the viewport's), and a sample column at offset a (a lattice integer, 0 <= a < L)
     lies in it exactly when ``(a - lo) mod L <= hi - lo``; rows likewise, and columns and rows are
-    independent."""
+    independent.
+
+    ``cull_back`` (a draw with back faces culled, counter-clockwise front): a triangle with trusted
+    vertices is also dropped when it faces away beyond what moving each vertex by ``margin`` pixels
+    could change: twice its signed window area, ``A = (b - a) x (c - a)``, below
+    ``-(2 margin (|b - a|_1 + |c - a|_1) + 8 margin^2)`` less a 2^-20 relative allowance for the
+    float32 products. GL culls it too, whatever its own rounding and snapping (within the margin);
+    a triangle nearly edge-on is left to GL."""
     w, h = int(size[0]), int(size[1])
     lat = SAMPLE_LATTICE
     if isinstance(triangles, tuple):
@@ -288,8 +303,34 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
     else:
         hit = ~(np.take(ok, a) & np.take(ok, b) & np.take(ok, c))
 
-    def span(v, n_px):
-        va, vb, vc = np.take(v, a), np.take(v, b), np.take(v, c)
+    gx = np.take(px, a), np.take(px, b), np.take(px, c)
+    gy = np.take(py, a), np.take(py, b), np.take(py, c)
+    back = None
+    if cull_back:
+        ux, uy = gx[1] - gx[0], gy[1] - gy[0]
+        vx, vy = gx[2] - gx[0], gy[2] - gy[0]
+        uv, vu = ux * vy, uy * vx
+        area = uv - vu
+        e = np.float32(margin)
+        for d in (ux, uy, vx, vy):
+            np.abs(d, out=d)
+        slack = ux + uy
+        slack += vx
+        slack += vy
+        slack *= np.float32(2.0) * e
+        slack += np.float32(8.0) * e * e
+        np.abs(uv, out=uv)
+        np.abs(vu, out=vu)
+        uv += vu
+        uv *= np.float32(2.0 ** -20)
+        slack += uv
+        back = area < -slack
+        del ux, uy, vx, vy, uv, vu, area, slack
+        if not ok.all():  # a triangle with an untrusted vertex (hit so far) is kept
+            back &= ~hit
+
+    def span(g, n_px):
+        va, vb, vc = g
         lo = np.minimum(np.minimum(va, vb), vc)
         hi = np.maximum(np.maximum(va, vb), vc)
         del va, vb, vc
@@ -305,8 +346,9 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
         hi -= lo  # the span, negative when the box misses the viewport
         return lo.astype(np.int32), hi.astype(np.int32)
 
-    x_lo, x_span = span(px, w)
-    y_lo, y_span = span(py, h)
+    x_lo, x_span = span(gx, w)
+    y_lo, y_span = span(gy, h)
+    del gx, gy
     k = np.rint(np.asarray(offsets, np.float64) * lat).astype(np.int32)
     d = np.empty_like(x_lo)
     for ax, ay in k:
@@ -317,6 +359,8 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
         d &= lat - 1
         inx &= d <= y_span
         hit |= inx
+    if back is not None:
+        hit &= ~back
     return hit
 
 
@@ -377,12 +421,14 @@ class Coverage:
             self._positions = np.asarray(self._positions(), np.float32)
         return self._positions
 
-    def select(self, camera: Camera, size, offsets, scratch: "Scratch | None" = None) -> tuple | None:
+    def select(self, camera: Camera, size, offsets, scratch: "Scratch | None" = None,
+               cull_back: bool = False) -> tuple | None:
         """(VAO, index count) drawing only the triangles that may cover a sample from ``camera``, or
         None when the test would not pay (``COVER_MIN_TRIANGLES``, ``COVER_DENSITY``: the item then
         draws its own VAO). ``scratch``: the renderer's index buffer shared by every item (GL
         keeps a draw's indices whatever is written to its buffer after it), else one of this item's
-        own."""
+        own. ``cull_back``: the draw culls back faces, so clearly back-facing triangles are left
+        out too (``covering_triangles``)."""
         m = self.count
         if m < COVER_MIN_TRIANGLES:
             return None
@@ -412,7 +458,7 @@ class Coverage:
         if m < COVER_DENSITY * max(area, 1.0):
             return None
         t = self.triangles
-        keep = covering_triangles(px, py, ok, (t[:, 0], t[:, 1], t[:, 2]), size, offsets)
+        keep = covering_triangles(px, py, ok, (t[:, 0], t[:, 1], t[:, 2]), size, offsets, cull_back=cull_back)
         kept = np.ascontiguousarray(t[keep], dtype="<u4")
         if scratch is None:
             scratch = self._own = self._own or Scratch(self.ctx)
@@ -566,14 +612,16 @@ class Renderer:
         ``ssbo`` / ``ubo`` when ``decoded``; a clustered item also ``clusters`` (the records SSBO,
         binding 3) and ``program`` (the program its ``vao`` was made with); optional ``box``) from
         ``camera`` with ``shading``, depth
-        test on, no culling. Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first:
+        test on, back faces culled unless the item is ``two_sided`` (default True: both sides drawn).
+        Returns ``(rgba (h, w, 4) uint8, ids (h, w) uint32)``, top row first:
         the MSAA-averaged colour (alpha = coverage, background 0) and sample 0 of the part-ID target
         (part index + 1, 0 = background). Clear, draw, resolve and read-back are limited to
         ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
         whole-viewport render would give, filled in on the CPU). An item whose ``cull_box`` (world
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
         not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``) leaves
-out the triangles that cover no sample (module doc, "Coverage cull"). Before an item, once
+        out the triangles that cover no sample, and those GL would cull as back faces (module doc,
+        "Coverage cull"). Before an item, once
         ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items'
         ``triangles``) have been drawn since the last one, the context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
@@ -594,14 +642,20 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
         self.fbo_ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=None if rect is None else rect)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
+        ctx.front_face, ctx.cull_face = "ccw", "back"
+        culling = False  # the context's CULL_FACE as set
         queued = 0  # triangles drawn since the last finish
         for it in items:
             if self.outside(camera, it.get("cull_box", it.get("box"))):
                 continue
+            cull = not it.get("two_sided", True)
+            if cull != culling:
+                (ctx.enable if cull else ctx.disable)(moderngl.CULL_FACE)
+                culling = cull
             vao, count = it["vao"], None
             cover = it.get("cover")
             if cover is not None and self.sample_offsets is not None:
-                picked = cover.select(camera, self.size, self.sample_offsets, self.scratch)
+                picked = cover.select(camera, self.size, self.sample_offsets, self.scratch, cull_back=cull)
                 if picked is not None:
                     vao, count = picked
                     if count == 0:  # no triangle covers a sample: nothing to draw
@@ -634,6 +688,8 @@ out the triangles that cover no sample (module doc, "Coverage cull"). Before an 
                 vao.render(moderngl.TRIANGLES)
             else:
                 vao.render(moderngl.TRIANGLES, vertices=count)
+        if culling:
+            ctx.disable(moderngl.CULL_FACE)
         # resolve: colour by a blit (average of samples), part IDs by sample 0
         self.fbo_colour.use()
         ctx.copy_framebuffer(self.fbo_colour, self.fbo_ms_colour)
@@ -751,7 +807,7 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
         owned.append(cover)
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
                       "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box,
-                      "triangles": int(p.n_triangles), "cover": cover})
+                      "triangles": int(p.n_triangles), "cover": cover, "two_sided": bool(p.double_sided)})
     return items, owned
 
 
@@ -1000,7 +1056,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     buffers come from ``attr_cache``.
 
     Each item carries ``digest``: the content key (``digest``) of what its draw depends on -- part
-    index, index buffer, attribute arrays as uploaded, flags, texture content digest, culling box,
+    index, index buffer, attribute arrays as uploaded, flags, texture content digest, culling box, sidedness,
     and the float32 world positions its vertex shader computes (the reference decode of the packed
     words at the level on its grid, i.e. the values they were packed from (``_decoded_positions``),
     mapped by a placement's transform: bit for bit what either
@@ -1044,7 +1100,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
                 src_box = (f.min(axis=0), f.max(axis=0))
             key = digest(i, index_words, *[x for name, arr, fmt in arrays for x in (name, fmt, arr)],
                          bool(flags[0]), bool(flags[1]), None if tex is None else tex.digest,
-                         None if src_box is None else np.asarray(src_box, np.float64))
+                         None if src_box is None else np.asarray(src_box, np.float64), bool(p.double_sided))
             attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]), index_words)
         ibo, specs, _, (has_normal, has_color, texture), src_box, attr_key, n_tri, index_words = attr_cache[i]
         cull_box = None
@@ -1102,7 +1158,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         items.append({"vao": vao, "ssbo": ssbo, "ubo": ubo, "part": i, "has_normal": has_normal,
                       "has_color": has_color, "texture": texture, "program": prog, "clusters": clusters,
                       "box": grid_box if cull_box is None else cull_box, "cull_box": cull_box, "digest": key,
-                      "triangles": n_tri, "cover": cover, **extra})
+                      "triangles": n_tri, "cover": cover, "two_sided": bool(p.double_sided), **extra})
     return items, owned
 
 
