@@ -52,3 +52,18 @@ def test_a_flat_curve_that_passes_everywhere_ends_at_the_low_end_in_few_probes()
     got, probed = search(curves()["flat"], 40.0)  # 48 dB at the low end
     assert got == LO
     assert probed[-1] == LO and len(probed) <= 4
+
+
+def test_levels_that_k_f_does_not_move_end_the_walk():
+    """A level whose PSNR is exactly the same at two probes (the same renders: edge-limited, or
+    identical) sets no bound when it passes, so a curve flat at every level and passing by a hair
+    ends at the low end in three probes (the slope's clip alone would walk it down a grid step at
+    a time); one that fails there sends the next probe to the top of the range."""
+    passing = lambda x: [40.015, 43.36]  # noqa: E731
+    got, probed = search(passing, 40.0)
+    assert got == LO and probed == [0.0, -0.25, LO]
+    assert C._predict([(0.0, [40.015, 43.36]), (-0.25, [40.015, 43.36])], [40.1, 40.1]) == -math.inf  # within the margin
+    assert C._predict([(0.0, [39.0, 43.36]), (-0.25, [39.0, 43.36])], [40.1, 40.1]) == math.inf
+    # a level that moves still bounds it: the flat one is left out, not the whole prediction
+    got = C._predict([(0.0, [40.015, 43.0]), (-0.25, [40.015, 41.5])], [40.1, 40.1])
+    assert got == pytest.approx(-0.25 + (40.1 - 41.5) / 6.0)

@@ -33,11 +33,17 @@ def _gate(container, scene, levels) -> list:
     return [row["cap"]["psnr_min"] for row in r["levels"]]
 
 
+def _same(a, b) -> bool:
+    """Two lists of PSNRs equal to 1e-12 relative, None (identical renders) only against None."""
+    return len(a) == len(b) and all((x is None) == (y is None) and (x is None or y == pytest.approx(x, rel=1e-12))
+                                    for x, y in zip(a, b))
+
+
 def _passes(psnrs) -> bool:
     return all(p is None or p >= TARGET for p in psnrs)
 
 
-def _check(scene, levels=LEVELS, direct=False):
+def _check(scene, levels=LEVELS, direct=False, edge_limited=False):
     search, gate_h = (RenderSettings(views=h.views, resolution=h.resolution, levels=tuple(levels)) for h in (SEARCH, GATE))
     # the k_f calibration alone (the attribute search, lopcook.tune.attributes, is tested in
     # test_attribute_search.py): the gate renders below use the source attributes
@@ -59,12 +65,14 @@ def _check(scene, levels=LEVELS, direct=False):
         assert cal["watch"] and set(cal["watch"]) <= set(levels)
         assert sorted(cal["chosen"]["levels"]) == sorted(levels)
         by_level = dict(zip(cal["chosen"]["levels"], cal["chosen"]["psnr_min_per_level"]))
-        assert gate == pytest.approx([by_level[b] for b in levels], rel=1e-12)
-        assert len(cal["curve"]) <= 16
+        assert _same(gate, [by_level[b] for b in levels])
+        # an edge-limited input (the thin parts: k_f moves no render, the edge strictness decides)
+        # walks k_f once per round of watched levels: 24 probes, measured 2026-12-04
+        assert len(cal["curve"]) <= (28 if edge_limited else 16)
         return c, default
     assert cal["reached"] and cal["confirmation"] is not None
     # the gate's numbers are the confirmation's: the same harness and levels, the chosen probe
-    assert gate == pytest.approx(cal["chosen"]["psnr_min_per_level"], rel=1e-12)
+    assert _same(gate, cal["chosen"]["psnr_min_per_level"])
     # far fewer probes than a bisection (each bisection of log2 sigma over [-8, 8] to 0.25 is 8)
     assert len(cal["curve"]) <= 12 and len(cal["confirmation"]["probes"]) <= 4
     return c, default
@@ -149,7 +157,7 @@ def written(tmp_path_factory):
 def test_generated_unseen_inputs(gl, written, name, direct):
     scene = load(str(written[name]))
     assert all(p.normals_computed or p.normals is None for p in scene.parts)
-    _check(scene, direct=direct)
+    _check(scene, direct=direct, edge_limited=name == "thin")
 
 
 @pytest.mark.parametrize("direct", [False, True], ids=["reduced", "direct"])

@@ -362,7 +362,10 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
     Per level: PSNR is taken as linear in log2 sigma through the two probes nearest the level's
     crossing (the highest failing and the lowest passing one when both exist), its slope clipped
     to [``SLOPE_MIN``, ``SLOPE_MAX``] dB per doubling (a flat curve sends the next probe far: to the range's end); with one probe the slope is ``SLOPE_DB``
-    (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB)."""
+    (MSE falls 4x per doubling of sigma: 10 log10 4 = 6.02 dB). A level that two probes at different
+    sigma give exactly the same PSNR (the same renders: k_f does not move it) sets no bound when it
+    passes (``targets`` are the search's, ``MODEL_MARGIN_DB`` above the pass line), and makes the
+    prediction +inf (no sigma reaches it) when it fails; -inf when no level sets a bound."""
     need = -math.inf
     for li, target in enumerate(targets):
         # the probes that rendered this level (a probe of a direct search may have stopped before it)
@@ -378,6 +381,13 @@ def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> f
             (xa, pa), (xb, pb) = sorted((x, ps[li]) for x, ps in near)
         else:
             (xa, pa) = (xb, pb) = (pts[0][0], pts[0][1][li])
+        if xb > xa and pb == pa:
+            # two probes render this level alike (k_f does not reach it: its error is edges' or none):
+            # passing (the target less the model's margin), it sets no bound; failing, no k_f in the
+            # range reaches it
+            if pa >= target - MODEL_MARGIN_DB:
+                continue
+            return math.inf
         slope = (pb - pa) / (xb - xa) if xb > xa else SLOPE_DB
         slope = min(SLOPE_MAX, max(SLOPE_MIN, slope))
         ref_x, ref_p = (xa, pa) if abs(pa - target) <= abs(pb - target) else (xb, pb)
@@ -453,7 +463,8 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
             predictions += 1
             widths.append(width)
             x_star = _predict([(xk(j), psnrs(p)) for j, (_, p) in seen.items()], targets)
-            k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else low
+            k_star = int(math.ceil((x_star - lo) / tol - 1e-9)) if math.isfinite(x_star) else (
+                high if x_star > 0 else low)
         else:
             widths = []
             k_star = (low + high) // 2
