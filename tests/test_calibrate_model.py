@@ -62,7 +62,8 @@ def test_levels_that_k_f_does_not_move_end_the_walk():
     passing = lambda x: [40.015, 43.36]  # noqa: E731
     got, probed = search(passing, 40.0)
     assert got == LO and probed == [0.0, -0.25, LO]
-    assert C._predict([(0.0, [40.015, 43.36]), (-0.25, [40.015, 43.36])], [40.1, 40.1]) == -math.inf  # within the margin
+    flat = [(0.0, [40.015, 43.36]), (-0.25, [40.015, 43.36])]
+    assert C._predict(flat, [40.1, 40.1]) == -math.inf  # 40.015 passes 40: within the model's margin
     assert C._predict([(0.0, [39.0, 43.36]), (-0.25, [39.0, 43.36])], [40.1, 40.1]) == math.inf
     # a level that moves still bounds it: the flat one is left out, not the whole prediction
     got = C._predict([(0.0, [40.015, 43.0]), (-0.25, [40.015, 41.5])], [40.1, 40.1])

@@ -31,9 +31,10 @@ of the viewport are left out of the draw. GL produces a fragment only where a tr
 sample, so such a triangle changes no pixel, depth or part ID: the images are the same bit for bit
 (``tests/test_render_cull.py``). Where the item's back faces are culled, the triangles that face
 away by more than moving their vertices by ``COVER_MARGIN`` could change are left out as well (GL
-would cull them: the same pixels again), which also spares their vertices the vertex shader. The sample positions are read off the context once
-(``sample_positions``: one tiny triangle around each candidate point on a 1/16-pixel lattice);
-a context whose positions are not found there draws every triangle. The vertices are projected on
+would cull them: the same pixels again), which also spares their vertices the vertex shader. The
+sample positions are read off the context once (``sample_positions``: one tiny triangle around each
+candidate point on a 1/16-pixel lattice); a context whose positions are not found there draws every
+triangle. The vertices are projected on
 the CPU in float32 from the positions the vertex shader reads (a decoded item's from the grid
 integers its words were packed from, which the reference decoder, bit-exact with the shaders, gives
 back exactly: ``_decoded_positions``) and the float32 matrix it
@@ -196,7 +197,8 @@ class Shading:
         which faces are drawn (the renderer's rule, module doc)."""
         return {"model": "phong", "light": "directional headlight (from the scene centre to the eye)",
                 "ks": self.ks, "shininess": self.shininess, "ambient": self.ambient, "diffuse": self.diffuse,
-                "base_grey": self.base, "back_faces": "culled unless the part is double-sided (glTF or USD doubleSided)"}
+                "base_grey": self.base,
+                "back_faces": "culled unless the part is double-sided (glTF or USD doubleSided)"}
 
 
 #: the placement rows of a part on the scene grid (the harness vertex shader's u_place0..2)
@@ -268,7 +270,8 @@ def sample_positions(ctx, samples: int):
 
 
 def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles: np.ndarray, size,
-                       offsets: np.ndarray, margin: float = COVER_MARGIN, cull_back: bool = False) -> np.ndarray:
+                       offsets: np.ndarray, margin: float = COVER_MARGIN,
+                       cull_back: bool = False) -> np.ndarray:
     """(m,) bool: the triangles that may cover a sample of a ``size`` = (w, h) pixel viewport
     (and, with ``cull_back``, may face the viewer).
 
@@ -287,10 +290,10 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
 
     ``cull_back`` (a draw with back faces culled, counter-clockwise front): a triangle with trusted
     vertices is also dropped when it faces away beyond what moving each vertex by ``margin`` pixels
-    could change: twice its signed window area, ``A = (b - a) x (c - a)``, below
-    ``-(2 margin (|b - a|_1 + |c - a|_1) + 8 margin^2)`` less a 2^-20 relative allowance for the
-    float32 products. GL culls it too, whatever its own rounding and snapping (within the margin);
-    a triangle nearly edge-on is left to GL."""
+    could change: twice its signed window area, ``A = u x v`` with ``u = b - a``, ``v = c - a``, below
+    ``-(2 margin (|u|_1 + |v|_1) + 8 margin^2 + 2^-20 (|u_x v_y| + |u_y v_x|))`` (the last term for
+    the float32 products). GL culls it too, whatever its own rounding and snapping (within the
+    margin); a triangle nearly edge-on is left to GL."""
     w, h = int(size[0]), int(size[1])
     lat = SAMPLE_LATTICE
     if isinstance(triangles, tuple):
