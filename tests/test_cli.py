@@ -188,3 +188,20 @@ def test_decode_lod_uses_the_coarsest_lod_of_shorter_chains(tmp_path, capsys):
     assert corners(got.parts[1].positions, got.parts[1].indices) == corners(quad.positions, quad.indices)
     assert main(["decode", str(lop), "--level", "12", "--lod", "3", "-o", str(tmp_path / "no.glb")]) == 2
     assert "LODs 0..2" in capsys.readouterr().err and not (tmp_path / "no.glb").exists()
+
+
+def test_inspect_says_which_parts_are_double_sided(tmp_path):
+    schema = json.loads((REPO / "schema" / "inspect.source.schema.json").read_text())
+    from lopcook import fixtures as fx
+
+    path = fx.write_textured_gltf(tmp_path / "textured.glb")[0]  # its material is double-sided
+    proc = run("inspect", path, "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    jsonschema.validate(data, schema)
+    assert [p["double_sided"] for p in data["parts"]] == [True, True]
+    text = run("inspect", path).stdout
+    assert " 2S" in text and "2S = double-sided" in text
+    plain = json.loads(run("inspect", FIXTURES / "seamed_cube.glb", "--json").stdout)
+    assert plain["parts"][0]["double_sided"] is False  # no material: glTF's default
+    assert "2S" not in run("inspect", FIXTURES / "seamed_cube.glb").stdout

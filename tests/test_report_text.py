@@ -51,9 +51,9 @@ def test_warnings_section_has_no_reprs_and_collapses_long_lists():
     assert "not re-run" in warnings_html(dict(NONE, available=False))
 
 
-def _part(name, normals):
+def _part(name, normals, double_sided=False):
     return {"name": name, "vertices": 3, "triangles": 1, "normals": normals, "uvs": False, "colors": False,
-            "texture": None}
+            "texture": None, "double_sided": double_sided}
 
 
 def test_n_star_legend_only_when_a_part_has_computed_normals():
@@ -64,3 +64,11 @@ def test_n_star_legend_only_when_a_part_has_computed_normals():
     assert "N* = normals computed by lopcook" in comp
     many = parts_html({"scene_parts": [_part(f"p{i}", "source") for i in range(30)]})
     assert "<details><summary>show the 30 parts</summary>" in many and "30 parts in the source" in many
+
+
+def test_double_sided_parts_are_labelled_and_the_culling_is_said():
+    one = parts_html({"scene_parts": [_part("a", "source"), _part("b", "source", double_sided=True)]})
+    assert re.search(r"<td class=\"name\">N 2S</td>", one) and "2S = double-sided" in one
+    assert "cull the back faces of single-sided parts" in one
+    none = parts_html({"scene_parts": [_part("a", "source")]})
+    assert "2S" not in none and "cull the back faces of single-sided parts" in none

@@ -32,6 +32,7 @@ def describe_scene(scene: Scene) -> dict:
             "uvs": p.uvs is not None,
             "colors": p.colors is not None,
             "texture": None if p.texture is None else p.texture.name,
+            "double_sided": bool(p.double_sided),
             "bounds_m": [[_r(v) for v in lo], [_r(v) for v in hi]],
             "degenerate_triangles": degenerate_triangles(p.positions, p.indices),
             "duplicated_positions": duplicated_positions(p.positions),
@@ -63,8 +64,8 @@ def describe_scene(scene: Scene) -> dict:
 
 def attribute_labels(q: dict, texture: str = "tex={}") -> list[str]:
     """Short labels of a part's attributes in ``describe_scene``'s record: ``N`` (``N*`` when
-    lopcook computed the normals), ``UV``, ``C`` (colours) and the texture (``texture`` formats its
-    name)."""
+    lopcook computed the normals), ``UV``, ``C`` (colours), the texture (``texture`` formats its
+    name) and ``2S`` for a double-sided surface."""
     attrs = []
     if q["normals"]:
         attrs.append("N*" if q["normals"] == "computed" else "N")
@@ -74,6 +75,8 @@ def attribute_labels(q: dict, texture: str = "tex={}") -> list[str]:
         attrs.append("C")
     if q["texture"]:
         attrs.append(texture.format(q["texture"]))
+    if q.get("double_sided"):
+        attrs.append("2S")
     return attrs
 
 
@@ -98,6 +101,8 @@ def format_scene(d: dict, max_parts: int = 40) -> str:
         lines.append(f"  … {len(d['parts']) - max_parts} more parts (use --json for all)")
     if any(q["normals"] == "computed" for q in d["parts"][:max_parts]):
         lines.append("  (N* = normals computed by lopcook: area-weighted, split at creases)")
+    if any(q.get("double_sided") for q in d["parts"][:max_parts]):
+        lines.append("  (2S = double-sided: verify and report draw both sides; other parts' back faces are culled)")
     for w in d["warnings"]:
         lines.append(f"  warning: {w}")
     return "\n".join(lines)

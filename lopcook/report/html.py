@@ -271,6 +271,9 @@ def parts_html(rep: dict) -> str:
     if any(q["normals"] == "computed" for q in parts):
         keys.append("N* = normals computed by lopcook (area-weighted, split at creases)")
     keys += ["UV = texture coordinates", "C = vertex colours"]
+    if any(q.get("double_sided") for q in parts):
+        keys.append("2S = double-sided: both sides drawn")
+    keys.append("the renders cull the back faces of single-sided parts, as glTF and USD renderers do")
     out.append(f'<p class="note" id="parts-legend">{e("; ".join(keys))}.</p>')
     return "".join(out)
 

@@ -89,11 +89,13 @@ def analysis_warnings(scene, analysis) -> dict:
 
 def scene_parts(scene) -> list[dict]:
     """Per part of ``scene``: ``name``, ``vertices``, ``triangles``, ``normals`` ("source", "computed":
-    by lopcook, shown as N*, or None), ``uvs``, ``colors`` (bool) and ``texture`` (its name or None)."""
+    by lopcook, shown as N*, or None), ``uvs``, ``colors`` (bool), ``texture`` (its name or None) and
+    ``double_sided`` (bool: both sides drawn; the renders cull the back faces of the other parts)."""
     return [{"name": str(p.name), "vertices": int(p.n_vertices), "triangles": int(p.n_triangles),
              "normals": None if p.normals is None else ("computed" if p.normals_computed else "source"),
              "uvs": p.uvs is not None, "colors": p.colors is not None,
-             "texture": None if p.texture is None else str(p.texture.name)} for p in scene.parts]
+             "texture": None if p.texture is None else str(p.texture.name),
+             "double_sided": bool(p.double_sided)} for p in scene.parts]
 
 
 def level_image_record(images: dict) -> dict:
