@@ -41,3 +41,9 @@ def test_columns_line_up():
     head = lines[2].index("distance")
     for ln in lines[3:5]:
         assert ln[head - 2:head] == "  " and ln[head] != " "
+
+
+def test_the_header_says_when_back_faces_are_culled():
+    culled = dict(RESULT, shading=dict(RESULT["shading"], back_faces="culled unless the part is double-sided"))
+    line = format_table(culled).split("\n")[1]
+    assert line.startswith("  2 views, 320x180, 4x MSAA, Phong ks 0.5 n 32, single-sided back faces culled; PSNR")

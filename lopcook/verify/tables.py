@@ -14,7 +14,7 @@ def _fmt_psnr(v) -> str:
 
 def format_table(result: dict) -> str:
     """Table-1-like text of an ``evaluate`` result: a two-line header (paths; views, resolution,
-    MSAA, Phong parameters, float32 bytes), a column line, then one line per level row: level
+    MSAA, Phong parameters, whether back faces are culled (``shading.back_faces``), float32 bytes), a column line, then one line per level row: level
     (``B@C`` when the camera level C differs), AP memory % of float32, AP PSNR min / mean over views
     (dB, one decimal, ``inf`` = identical), the same for CAP, depth-order error pixels AP / CAP
     (``-`` for a variant not rendered) and the camera distance in metres (4 significant digits); a
@@ -22,7 +22,8 @@ def format_table(result: dict) -> str:
     w, hgt = result["resolution"]
     lines = [f"render check: {result['source']} vs {result['container']}",
              f"  {len(result['views'])} views, {w}x{hgt}, {result['samples']}x MSAA, "
-             f"Phong ks {result['shading']['ks']:g} n {result['shading']['shininess']:g}; "
+             f"Phong ks {result['shading']['ks']:g} n {result['shading']['shininess']:g}"
+             f"{', single-sided back faces culled' if result['shading'].get('back_faces') else ''}; "
              f"PSNR in dB over object pixels (min / mean over views); memory vs float32 "
              f"({result['float32_bytes']:,} bytes)",
              "  level  AP mem  AP PSNR min/mean  CAP mem  CAP PSNR min/mean  depth-order px AP/CAP  distance m"]
