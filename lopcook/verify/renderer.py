@@ -301,7 +301,8 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
     else:
         t = np.asarray(triangles)
         a, b, c = (np.ascontiguousarray(t[:, i]) for i in range(3))
-    if ok.all():  # (``Coverage.select`` tests only such items)
+    trusted = bool(ok.all())
+    if trusted:  # (``Coverage.select`` tests only such items)
         hit = np.zeros(a.shape[0], dtype=bool)
     else:
         hit = ~(np.take(ok, a) & np.take(ok, b) & np.take(ok, c))
@@ -329,7 +330,7 @@ def covering_triangles(px: np.ndarray, py: np.ndarray, ok: np.ndarray, triangles
         slack += uv
         back = area < -slack
         del ux, uy, vx, vy, uv, vu, area, slack
-        if not ok.all():  # a triangle with an untrusted vertex (hit so far) is kept
+        if not trusted:  # a triangle with an untrusted vertex (hit so far) is kept
             back &= ~hit
 
     def span(g, n_px):
