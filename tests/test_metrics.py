@@ -145,3 +145,25 @@ def test_heatmap():
     assert tuple(hm[1, 1]) == (0, 0, 0)  # object, no error
     assert tuple(hm[2, 2]) == (255, 255, 255)  # full scale
     assert tuple(M.colormap(np.array([0.0]))[0]) == (0, 0, 0)
+
+
+@pytest.mark.parametrize("vmax", [0.25, 1.0, 0.05])
+def test_heatmap_of_8bit_images_equals_the_float_path(vmax):
+    """Every (reference, test) code pair in every channel: the table over ranks gives the colours of
+    the float32 differences (``colormap(max |a - b| / vmax)``), background where both are."""
+    pairs = np.arange(1 << 16)
+    ref = np.zeros((256, 256, 4), np.uint8)
+    tst = np.zeros_like(ref)
+    for ch in range(3):  # every pair in each channel, shifted: the max is a mix ...
+        ref[..., ch] = np.roll(pairs >> 8, 4099 * ch).reshape(256, 256)
+        tst[..., ch] = np.roll(pairs & 255, 4099 * ch).reshape(256, 256)
+    tst[128:, :, 1:] = ref[128:, :, 1:]  # ... and in the bottom half the first channel's alone
+    ref[..., 3] = 255
+    ref[:3, :, 3] = 0  # three rows of background in both
+    want = M.colormap(np.abs(M._as_float_rgb(ref) - M._as_float_rgb(tst)).max(axis=2) / vmax)
+    want[:3] = 24
+    got = M.difference_heatmap(ref, tst, vmax)
+    assert np.array_equal(got, want)
+    assert len(np.unique(got.reshape(-1, 3), axis=0)) > 10  # many colours, not one
+    # images that are not 8-bit take the float path
+    assert np.array_equal(M.difference_heatmap(ref.astype(np.float32) / 255, tst.astype(np.float32) / 255, vmax), want)

@@ -197,11 +197,40 @@ def difference_heatmap(reference, test, vmax: float = HEATMAP_VMAX, background=(
     (default 0.25) at full scale (``colormap``); pixels that are background in both images are
     drawn in ``background`` (dark grey), so an error-free object shows black on grey."""
     ref, tst = np.asarray(reference), np.asarray(test)
-    diff = np.abs(_as_float_rgb(ref) - _as_float_rgb(tst)).max(axis=2)
-    out = colormap(diff / float(vmax))
+    if ref.dtype == np.uint8 and tst.dtype == np.uint8 and ref.shape == tst.shape and ref.ndim == 3 \
+            and ref.shape[2] in (3, 4):
+        # 8-bit codes: the largest channel difference is one of 256 x 256 float32 values, so the
+        # colours come from a table over their ranks (the same colour for the same value, bit for bit)
+        ranks, colours = _heatmap_tables(float(vmax))
+        r = None
+        for ch in range(3):
+            code = ref[..., ch].astype(np.uint16)
+            code <<= 8
+            code |= tst[..., ch]
+            k = np.take(ranks, code)
+            r = k if r is None else np.maximum(r, k, out=r)
+        out = np.take(colours, r, axis=0)
+    else:
+        diff = np.abs(_as_float_rgb(ref) - _as_float_rgb(tst)).max(axis=2)
+        out = colormap(diff / float(vmax))
     mask = object_mask(ref) | object_mask(tst)
     out[~mask] = np.asarray(background, dtype=np.uint8)
     return out
+
+
+_HEATMAP_TABLES: dict = {}
+
+
+def _heatmap_tables(vmax: float) -> tuple[np.ndarray, np.ndarray]:
+    """(ranks, colours) for ``difference_heatmap`` of 8-bit images at full scale ``vmax``: ranks
+    (65536,) uint16, the rank of ``_ABS_DIFF[a * 256 + b]`` among its distinct values (the same order
+    as the values); colours (distinct values, 3) uint8, ``colormap(value / vmax)`` of each, computed
+    as the float path does (float32 / float)."""
+    got = _HEATMAP_TABLES.get(vmax)
+    if got is None:
+        values, ranks = np.unique(_ABS_DIFF, return_inverse=True)
+        got = _HEATMAP_TABLES[vmax] = (ranks.astype(np.uint16).reshape(-1), colormap(values / vmax))
+    return got
 
 
 __all__ = ["OFF_THRESHOLD", "HEATMAP_VMAX", "psnr_from_mse", "object_mask", "image_metrics", "depth_order_errors",
