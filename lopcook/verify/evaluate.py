@@ -209,7 +209,10 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                         for v in variants:
                             images[v] = outs[v][0]
                             images[f"{v}_ids"] = outs[v][1]
-                            images[f"{v}_heatmap"] = M.difference_heatmap(ref_rgba, outs[v][0])
+            if images_here and images is not None and images["level"] == level:
+                # the heatmaps of the view kept (once, not for every view that led on the way)
+                for v in variants:
+                    images[f"{v}_heatmap"] = M.difference_heatmap(images["float"], images[v])
         finally:
             for r in owned_all:
                 r.release()
