@@ -259,3 +259,104 @@ def test_coverage_cull_draws_the_same_bits(gl, monkeypatch, tmp_path, which):
     assert dropped > 0 and kept > 0
     if which == 0:  # 2,240 triangles a few pixels across: most cover no sample
         assert dropped > kept
+
+
+# ---- shared culls: a test scene near the source draws the float draws' culls ----
+
+def test_projected_slack_bounds_every_move(gl, rng):
+    """Moving any point of an item's box by up to ``slack_m`` per axis moves its window coordinates
+    by no more than ``projected_slack`` (float64, random points, moves at the corners of the cube)."""
+    from lopcook.verify.renderer import Coverage, window_coordinates
+
+    scene = row_of_spheres()
+    p = scene.parts[2].positions
+    cover = Coverage(None, None, [], scene.parts[2].indices, p)
+    cover._box = (p.min(axis=0), p.max(axis=0))  # (select sets it on its first call)
+    size = (320, 180)
+    viewing = render_viewing({"viewing": None}, size)
+    checked = False
+    for view, dist in ((0, 1.5), (5, 4.0), (11, 30.0)):
+        cam = make_camera(view, p.min(axis=0), p.max(axis=0), dist, viewing)
+        for s in (1e-4, 1e-2, 0.2):
+            cover.slack_m = s
+            px, py, ok = window_coordinates(p, cam.mvp, size)
+            bound = cover.projected_slack(cam, size, px, py)
+            if bound is None:
+                continue
+            mvp = np.asarray(cam.mvp, np.float64)
+
+            def ndc(q):
+                c = np.c_[q, np.ones(len(q))] @ mvp.T
+                return c[:, :2] / c[:, 3:]
+
+            pts = p[rng.integers(0, len(p), 200)]
+            for d in np.array([[x, y, z] for x in (-s, s) for y in (-s, s) for z in (-s, s)]):
+                shift = np.abs(ndc(pts + d) - ndc(pts)) * 0.5 * np.asarray(size, np.float64)
+                assert shift.max() <= bound * (1 + 1e-9) + 1e-9
+                checked = True
+    assert checked
+    # a move that reaches the eye plane has no bound
+    cam = make_camera(0, p.min(axis=0), p.max(axis=0), 0.5, viewing)
+    cover.slack_m = 1e3
+    px, py, ok = window_coordinates(p, cam.mvp, size)
+    assert cover.projected_slack(cam, size, px, py) is None
+
+
+@pytest.mark.parametrize("slack", [2e-4, 0.03])
+def test_shared_culls_draw_the_same_bits(gl, monkeypatch, rng, slack):
+    """A test scene whose positions differ from the source's by up to ``slack`` m per axis, drawn with
+    the float draws' remembered culls (``Harness.share_culls``), equals its draw of every triangle bit
+    for bit, and never computed a cull of its own; the float draws keep their own bits too."""
+    from dataclasses import replace
+
+    from lopcook.verify import renderer as RR
+    from lopcook.verify.renderer import float_items
+
+    monkeypatch.setattr(RR, "COVER_MIN_TRIANGLES", 0)
+    monkeypatch.setattr(RR, "COVER_DENSITY", 0.0)
+    scene = row_of_spheres()
+    moved = replace(scene, parts=tuple(replace(p, positions=p.positions + rng.uniform(-slack, slack, p.positions.shape))
+                                       for p in scene.parts))
+    res = (160, 90)
+    with Harness(scene, res) as h:
+        h.share_culls(moved)
+        items, owned = float_items(h.ctx, h.renderer.float_program, moved, h.textures)
+        assert h.link_culls(moved, items) == len(scene.parts)
+        viewing = render_viewing({"viewing": None}, res)
+        shading = Shading()
+        used = 0
+        for dist in (2.0, 12.0, 60.0):
+            for view in (0, 6, 13):
+                cam = make_camera(view, h.lo, h.hi, dist, viewing)
+                got = h.renderer.draw(h.float_items, cam, shading, False)
+                every = h.renderer.draw(_every_triangle(h.float_items), cam, shading, False)
+                assert np.array_equal(got[0], every[0]) and np.array_equal(got[1], every[1])
+                got = h.renderer.draw(items, cam, shading, False)
+                every = h.renderer.draw(_every_triangle(items), cam, shading, False)
+                assert np.array_equal(got[0], every[0]) and np.array_equal(got[1], every[1])
+                used += sum(len(it["cover"].twin.memo) for it in items)
+                h.clear_float_cache()
+        assert used > 0
+        assert all(it["cover"]._box is None for it in items)  # drew the twins' culls, computed none
+        for r in owned:
+            r.release()
+
+
+def test_covering_triangles_in_chunks_equals_one_pass(monkeypatch, rng):
+    """Triangles tested in chunks of equal size (``COVER_CHUNK``) get the verdicts of one pass, with and
+    without back faces and with untrusted vertices."""
+    from lopcook.verify import renderer as RR
+
+    offsets = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0.875]])
+    n, m = 5000, 20011
+    centre = rng.uniform(-5.0, 90.0, (n // 8, 2)).repeat(8, axis=0)  # groups of 8 vertices ...
+    px, py = (centre + rng.normal(0.0, 0.3, (n, 2))).astype(np.float32).T  # ... about a pixel across
+    group = rng.integers(0, n // 8, m) * 8
+    tri = (group[:, None] + rng.integers(0, 8, (m, 3))).astype(np.uint32)  # triangles within a group
+    for ok in (np.ones(n, bool), rng.random(n) > 0.01):
+        for back in (False, True):
+            monkeypatch.setattr(RR, "COVER_CHUNK", 1 << 30)
+            whole = RR.covering_triangles(px, py, ok, tri, (85, 55), offsets, cull_back=back)
+            monkeypatch.setattr(RR, "COVER_CHUNK", 997)
+            parts = RR.covering_triangles(px, py, ok, tri, (85, 55), offsets, cull_back=back)
+            assert np.array_equal(whole, parts) and 0.05 < whole.mean() < 0.95, whole.mean()

@@ -247,3 +247,32 @@ def test_a_calibrated_cook_with_shared_harnesses_writes_the_same_bytes_and_reuse
     assert alone.data == shared.data
     assert draws["decoded"] > shared_draws["decoded"] and draws["float"] > shared_draws["float"]
 
+
+
+def test_kept_attributes_give_the_same_evaluations_and_follow_the_container(gl):
+    """``Harness.keep_attributes`` (the report: one container, one level at a time) keeps one
+    container's attribute buffers between evaluations: the same numbers and images as uploading
+    them again, none uploaded twice, and another container object replaces them."""
+    scene = spheres()
+    c = cook_container(scene)
+    other = cook_container(scene)
+    with Harness(scene, RES) as fresh, Harness(scene, RES) as kept:
+        kept.keep_attributes = True
+        for level in (6, 9, 11):
+            a = fresh.evaluate(c, levels=[level], views=3, keep_images=True)
+            b = kept.evaluate(c, levels=[level], views=3, keep_images=True)
+            ia, ib = a.pop("images"), b.pop("images")
+            assert strip(a) == strip(b)
+            assert all(np.array_equal(ia[k], ib[k]) for k in ia if isinstance(ia[k], np.ndarray))
+            assert kept.kept_attributes[0] is c
+            entries = dict(kept.kept_attributes[2])
+            if level > 6:  # the same buffers as the level before
+                assert all(entries[i][0] is first[i][0] for i in entries)
+            first = entries
+        assert strip(kept.evaluate(other, levels=[9], views=3)) == strip(fresh.evaluate(other, levels=[9], views=3))
+        assert kept.kept_attributes[0] is other
+    assert kept.kept_attributes is None  # released with the harness
+    # off by default: nothing is kept
+    with Harness(scene, RES) as h:
+        h.evaluate(c, levels=[9], views=2)
+        assert h.kept_attributes is None

@@ -130,11 +130,13 @@ def render_for_report(container, scene, *, levels, views, resolution,
     with Harness(scene, resolution, cache_float=True, raw_bytes=REPORT_RAW_BYTES) as h, \
             progress.stage("render", total=2 * len(order) + 2) as st:
         h.renderer.finish_triangles = REPORT_FINISH_TRIANGLES
+        h.keep_attributes = True  # the container's attributes are uploaded once, not once per level
+        h.share_culls(u16_scene)  # the baseline draws the float renders' coverage culls
 
         def baseline(b: int) -> None:
             u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
                                               shading=shading))
-            h.float_cache, h.cached_bytes = {}, 0
+            h.clear_float_cache()
             st.advance()
 
         first = h.evaluate(container, levels=[order[0]], views=views, keep_images=True)

@@ -326,7 +326,17 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     f32 = 12 * sum(int(lod_entry(c, i, 0)["vertices"]) for i in range(len(c.manifest["parts"])))
     builders = {"ap": ap_buffer, "cap": cap_buffer}  # CAP in the buffer's own layout (clustered or binned)
     ctx = h.ctx
-    attr_cache: dict = {}
+    # a harness that keeps attributes (``Harness.keep_attributes``: the report evaluates one container
+    # level by level) reuses the last evaluation's when it drew the same container object the same way
+    sig = (tuple(lods), attributes, tuple(o is None for o in orders))
+    kept = getattr(h, "kept_attributes", None)
+    if kept is not None and kept[0] is c and kept[1] == sig:
+        attr_cache = kept[2]
+    else:
+        h.release_kept_attributes()
+        attr_cache = {}
+        if getattr(h, "keep_attributes", False):
+            h.kept_attributes = (c, sig, attr_cache)
     seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
     plan = camera_rows(lv, cl, distance_m, extent, viewing)
 
@@ -345,9 +355,10 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
                                     shading=shading, draws=draws, variants=variants, keep_images=keep_images,
                                     image_view=image_view, seconds=seconds, stop=stop, stop_view=stop_view)
     finally:
-        for entry in attr_cache.values():
-            for b in entry[2]:
-                b.release()
+        if getattr(h, "kept_attributes", None) is None or h.kept_attributes[2] is not attr_cache:
+            for entry in attr_cache.values():
+                for b in entry[2]:
+                    b.release()
         trim_heap()
     for row in rows:
         raw = row.pop("_raw")
@@ -398,6 +409,7 @@ def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, di
     plan = camera_rows(lv, cl, distance_m, extent, viewing)
     t0 = time.perf_counter()
     items, owned = float_items(h.ctx, h.renderer.float_program, test, h.textures)
+    h.link_culls(test, items)  # after Harness.share_culls(test): the float draws' culls serve these
     seconds["upload"] += time.perf_counter() - t0
     try:
         rows, images = render_rows(h, plan=plan, view_ids=view_ids, viewing=viewing, extent=extent,

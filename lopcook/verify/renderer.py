@@ -417,7 +417,14 @@ class Coverage:
     array, kept by reference), the positions (n, 3) float32 metres its vertex shader computes (an
     array, or a function giving it once, on first use), and the program and vertex specs its VAO
     was made with (a second VAO reads the kept triangles from a scratch index buffer: the
-    renderer's ``Scratch``, or one of its own). ``release`` frees what it made."""
+    renderer's ``Scratch``, or one of its own). ``release`` frees what it made.
+
+    Shared culls (``Harness.share_culls``): with ``slack_m`` > 0 every cull of this item also holds
+    each triangle that a copy of the item with every position moved by up to ``slack_m`` metres per
+    axis could need (the margin grows by a bound on how far such a move projects,
+    ``projected_slack``), and is remembered in ``memo`` (camera key -> packed bits). An item whose
+    ``twin`` is such a Coverage -- the same triangles, positions within the twin's ``slack_m`` --
+    draws the twin's remembered cull for that camera instead of computing its own."""
 
     def __init__(self, ctx, program, specs, triangles, positions):
         self.ctx, self.program, self.specs = ctx, program, list(specs)
@@ -428,6 +435,12 @@ class Coverage:
         self._corners = None  # (8, 3) float32 corners of the box
         self._ibo = self._vao = None  # the scratch buffer the VAO reads, and the VAO
         self._own = None  # a Scratch of this item's own, when select() is given none
+        #: metres per axis that a twin's positions may differ by (0: culls are not shared)
+        self.slack_m = 0.0
+        #: {(camera matrix bytes, size, cull_back): np.packbits(keep)} of culls a twin may read, or None
+        self.memo = None
+        #: a Coverage whose remembered culls this item draws (same triangles, positions within its slack)
+        self.twin = None
 
     @property
     def triangles(self) -> np.ndarray:
@@ -441,6 +454,31 @@ class Coverage:
             self._positions = np.asarray(self._positions(), np.float32)
         return self._positions
 
+    def projected_slack(self, camera: Camera, size, px, py) -> float | None:
+        """Pixels (a bound, in x and y alike) by which moving any position of this item by up to
+        ``slack_m`` metres per axis moves its window coordinates from ``camera`` in a ``size``
+        viewport; None when no bound holds (the box reaches within that move of the eye plane).
+
+        With clip coordinates X = r0 . p + t0, W = r3 . p + t3 and a move d (|d_i| <= s), the
+        normalised x moves by |(r0 . d - x_ndc r3 . d) / (W + r3 . d)| <= (a + |x_ndc| b) / (W_min - b),
+        a = |r0|_1 s, b = |r3|_1 s, W_min the least W over the box's corners (W is affine), |x_ndc| at
+        most its largest over the vertices (from ``px``; likewise y): times half the viewport."""
+        s = float(self.slack_m)
+        mvp = np.asarray(camera.mvp, np.float64)
+        lo, hi = self._box
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        b = float(np.abs(mvp[3, :3]).sum()) * s
+        w_min = float((corners @ mvp[3, :3]).min() + mvp[3, 3]) - b
+        if not w_min > 0.0:
+            return None
+        out = 0.0
+        for row, coords, n_px in ((0, px, size[0]), (1, py, size[1])):
+            half = 0.5 * float(n_px)
+            ndc = max(abs(float(coords.max()) / half - 1.0), abs(float(coords.min()) / half - 1.0))
+            a = float(np.abs(mvp[row, :3]).sum()) * s
+            out = max(out, half * (a + ndc * b) / w_min)
+        return out if math.isfinite(out) else None
+
     def select(self, camera: Camera, size, offsets, scratch: "Scratch | None" = None,
                cull_back: bool = False) -> tuple | None:
         """(VAO, index count) drawing only the triangles that may cover a sample from ``camera``, or
@@ -448,10 +486,18 @@ class Coverage:
         draws its own VAO). ``scratch``: the renderer's index buffer shared by every item (GL
         keeps a draw's indices whatever is written to its buffer after it), else one of this item's
         own. ``cull_back``: the draw culls back faces, so clearly back-facing triangles are left
-        out too (``covering_triangles``)."""
+        out too (``covering_triangles``). A ``twin``'s remembered cull from this camera is drawn
+        as it is (class doc)."""
         m = self.count
         if m < COVER_MIN_TRIANGLES:
             return None
+        key = (np.asarray(camera.mvp).tobytes(), tuple(size), bool(cull_back))
+        twin = self.twin
+        if twin is not None and twin.memo is not None and twin.count == m:
+            bits = twin.memo.get(key)
+            if bits is not None:
+                keep = np.unpackbits(bits, count=m).view(bool)
+                return self._upload(np.compress(keep, self.triangles, axis=0), scratch)
         if self._box is None:
             p = self.positions
             self._box = (p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)) if p.size else False
@@ -478,8 +524,20 @@ class Coverage:
         if m < COVER_DENSITY * max(area, 1.0):
             return None
         t = self.triangles
-        keep = covering_triangles(px, py, ok, (t[:, 0], t[:, 1], t[:, 2]), size, offsets, cull_back=cull_back)
-        kept = np.ascontiguousarray(t[keep], dtype="<u4")
+        margin, remember = COVER_MARGIN, False
+        if self.slack_m > 0.0 and self.memo is not None:
+            extra = self.projected_slack(camera, size, px, py)
+            if extra is not None:
+                margin, remember = COVER_MARGIN + extra, True
+        keep = covering_triangles(px, py, ok, t, size, offsets, margin=margin, cull_back=cull_back)
+        if remember:
+            self.memo[key] = np.packbits(keep)
+        return self._upload(np.compress(keep, t, axis=0), scratch)  # (compress: a tenth of t[keep]'s time)
+
+    def _upload(self, kept: np.ndarray, scratch: "Scratch | None") -> tuple:
+        """(VAO, index count) drawing the (k, 3) triangles ``kept`` from the scratch index buffer."""
+        if kept.dtype != np.dtype("<u4"):
+            kept = kept.astype("<u4")
         if scratch is None:
             scratch = self._own = self._own or Scratch(self.ctx)
         ibo = scratch.fit(kept.nbytes)
@@ -869,9 +927,24 @@ class Harness:
         lo, hi = scene.bounds()
         self.lo, self.hi = lo, hi
         self.float_items, self._buffers = float_items(self.ctx, self.renderer.float_program, scene, self.textures)
+        #: keep a container's attribute and index buffers from one ``evaluate`` to the next of the
+        #: same container object (``lopcook report``: one level at a time); off by default, as a
+        #: search evaluates a new container at every probe
+        self.keep_attributes = False
+        #: (container, how it was drawn, {part: attribute entry}) kept, or None
+        self.kept_attributes = None
+
+    def release_kept_attributes(self) -> None:
+        """Release the attribute buffers kept for ``keep_attributes`` (and the container reference)."""
+        kept, self.kept_attributes = getattr(self, "kept_attributes", None), None
+        if kept is not None:
+            for entry in kept[2].values():
+                for b in entry[2]:
+                    b.release()
 
     def release(self) -> None:
         """Release the GL objects this holds; it is unusable afterwards."""
+        self.release_kept_attributes()
         for b in self._buffers:
             b.release()
         self._buffers = []
@@ -911,8 +984,52 @@ class Harness:
         return out
 
     def clear_float_cache(self) -> None:
-        """Empty the float-render cache (its bytes are freed)."""
+        """Empty the float-render cache (its bytes are freed), and the float draws' remembered culls
+        (``share_culls``)."""
         self.float_cache, self.cached_bytes = {}, 0
+        for it in self.float_items:
+            cover = it.get("cover")
+            if cover is not None and cover.memo is not None:
+                cover.memo = {}
+
+    def share_culls(self, test_scene) -> None:
+        """Let ``evaluate_scene(test_scene)`` draw the coverage culls of the source's float draws
+        (``Coverage`` "Shared culls"; the images are the same). Part i of ``test_scene`` shares part
+        i's culls where it has the same triangles, sidedness and vertex count: each such float draw's
+        cull then also holds what part i's float32 positions (within the largest difference from
+        the source's, per axis) could need, and is remembered until ``clear_float_cache``. Meant
+        for a test scene close to the source (a uniform 16-bit baseline: a small fraction of a
+        pixel at the cameras that matter); a far one only widens the float draws' culls."""
+        shared = {}
+        for i, (p, q, it) in enumerate(zip(self.scene.parts, test_scene.parts, self.float_items)):
+            cover = it.get("cover")
+            if cover is None or p.positions.shape != q.positions.shape or bool(p.double_sided) != bool(q.double_sided):
+                continue
+            if p.indices is not q.indices and not np.array_equal(p.indices, q.indices):
+                continue
+            if p.positions.size == 0:
+                continue
+            d = np.asarray(q.positions, np.float32).astype(np.float64) - np.asarray(p.positions, np.float32)
+            slack = float(np.abs(d).max())
+            if not math.isfinite(slack):
+                continue
+            cover.slack_m, cover.memo = slack, {}
+            shared[i] = cover
+        #: (test scene, {part: the float draw's Coverage it may share})
+        self.cull_twins = (test_scene, shared)
+
+    def link_culls(self, test_scene, items) -> int:
+        """Give ``items`` (``float_items`` of ``test_scene``, in part order) the float draws' culls
+        when ``share_culls(test_scene)`` was called (the same scene object); returns how many."""
+        twins = getattr(self, "cull_twins", None)
+        if twins is None or twins[0] is not test_scene:
+            return 0
+        n = 0
+        for i, it in enumerate(items):
+            if i in twins[1] and it.get("cover") is not None:
+                it["cover"].twin = twins[1][i]
+                n += 1
+        return n
 
     def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
                  variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
