@@ -276,3 +276,30 @@ def test_kept_attributes_give_the_same_evaluations_and_follow_the_container(gl):
     with Harness(scene, RES) as h:
         h.evaluate(c, levels=[9], views=2)
         assert h.kept_attributes is None
+
+
+def test_a_test_scene_draws_the_sources_index_and_attribute_buffers_it_shares(gl):
+    """``evaluate_scene`` of a scene that replaces only the positions (the uniform 16-bit baseline)
+    uploads its positions alone and draws the source's other buffers: the same numbers as a copy of
+    it that shares no array, whose every buffer is its own."""
+    from dataclasses import replace
+
+    from lopcook.verify.baselines import uniform_quantized_scene
+    from lopcook.verify.renderer import float_items
+
+    scene = spheres()
+    u16 = uniform_quantized_scene(scene)
+    apart = replace(u16, parts=tuple(replace(p, indices=p.indices.copy(), normals=p.normals.copy()) for p in u16.parts))
+    with Harness(scene, RES) as h:
+        shared, owned = float_items(h.ctx, h.renderer.float_program, u16, h.textures, like=(h.scene, h.float_items))
+        own, owned2 = float_items(h.ctx, h.renderer.float_program, apart, h.textures, like=(h.scene, h.float_items))
+        for a, b, src in zip(shared, own, h.float_items):
+            assert a["buffers"][0] is src["buffers"][0] and a["buffers"][1] == src["buffers"][1]
+            assert b["buffers"][0] is not src["buffers"][0]
+            assert all(x[0] is not y[0] for x, y in zip(b["buffers"][1], src["buffers"][1]))
+        assert not any(o is src["buffers"][0] for o in owned for src in h.float_items)  # not the items' to release
+        for o in owned + owned2:
+            o.release()
+        a = h.evaluate_scene(u16, levels=[8, 12], views=3)
+        b = h.evaluate_scene(apart, levels=[8, 12], views=3)
+        assert strip(a)["levels"] == strip(b)["levels"]

@@ -408,7 +408,8 @@ def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, di
     seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
     plan = camera_rows(lv, cl, distance_m, extent, viewing)
     t0 = time.perf_counter()
-    items, owned = float_items(h.ctx, h.renderer.float_program, test, h.textures)
+    # the source's index and attribute buffers where the test scene shares those arrays
+    items, owned = float_items(h.ctx, h.renderer.float_program, test, h.textures, like=(h.scene, h.float_items))
     h.link_culls(test, items)  # after Harness.share_culls(test): the float draws' culls serve these
     seconds["upload"] += time.perf_counter() - t0
     try:

@@ -867,16 +867,37 @@ def attribute_buffers(ctx, part, order=None) -> tuple[list, list]:
     return attribute_vbos(ctx, part.normals, part.uvs, part.colors, order)
 
 
-def float_items(ctx, program, scene, textures) -> tuple[list, list]:
-    """Draw items (float32 positions) of every part of ``scene`` and the GL objects to release."""
+def float_items(ctx, program, scene, textures, like=None) -> tuple[list, list]:
+    """Draw items (float32 positions) of every part of ``scene`` and the GL objects to release.
+
+    ``like``: (scene, items) of float items already uploaded (the harness's source draws); part i
+    then draws their index buffer and attribute buffers where its arrays are the very same objects
+    (a test scene that replaces only the positions, ``uniform_quantized_scene``): only its positions
+    are uploaded, and the shared buffers stay the other items' to release."""
     items, owned = [], []
     for i, p in enumerate(scene.parts):
+        src = None
+        if like is not None and i < len(like[0].parts):
+            q, it = like[0].parts[i], like[1][i]
+            if "buffers" in it:
+                src = it["buffers"]
+                same_ibo = q.indices is p.indices
+                same_attr = q.normals is p.normals and q.uvs is p.uvs and q.colors is p.colors
+                src = (src[0] if same_ibo else None, src[1] if same_attr else None)
         pos = ctx.buffer(np.ascontiguousarray(p.positions, dtype="<f4").tobytes())
-        ibo = ctx.buffer(np.ascontiguousarray(p.indices, dtype="<u4").tobytes())
-        specs, bufs = attribute_buffers(ctx, p)
+        if src is not None and src[0] is not None:
+            ibo = src[0]
+        else:
+            ibo = ctx.buffer(np.ascontiguousarray(p.indices, dtype="<u4").tobytes())
+            owned.append(ibo)
+        if src is not None and src[1] is not None:
+            specs = src[1]
+        else:
+            specs, bufs = attribute_buffers(ctx, p)
+            owned += bufs
         vao = ctx.vertex_array(program, [(pos, "3f", "in_position"), *specs], index_buffer=ibo,
                                index_element_size=4)
-        owned += [pos, ibo, *bufs, vao]
+        owned += [pos, vao]
         box = None
         if p.positions.size:
             f = np.asarray(p.positions, np.float32).astype(np.float64)
@@ -885,7 +906,8 @@ def float_items(ctx, program, scene, textures) -> tuple[list, list]:
         owned.append(cover)
         items.append({"vao": vao, "part": i, "has_normal": p.normals is not None,
                       "has_color": p.colors is not None, "texture": textures.get(p.texture), "box": box,
-                      "triangles": int(p.n_triangles), "cover": cover, "two_sided": bool(p.double_sided)})
+                      "triangles": int(p.n_triangles), "cover": cover, "two_sided": bool(p.double_sided),
+                      "buffers": (ibo, list(specs))})
     return items, owned
 
 
