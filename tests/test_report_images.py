@@ -104,3 +104,26 @@ def test_depth_error_mask_counts_what_the_metric_counts(rng):
                          mask)
     assert over.shape == (40, 60, 3)
     assert (over[mask] == (255, 0, 255)).all() and (over[ref == 0] == 255).all()
+
+
+def test_packed_images_round_trip_exactly(rng):
+    """The report keeps later levels' images compressed while it renders: unpacked, every array is
+    the same values, dtype and shape, and other values pass through."""
+    from lopcook.report.render import _Packed, pack_images, unpack_images
+
+    images = {"level": 7, "view": 3, "float": rng.integers(0, 256, (9, 13, 4), dtype=np.uint8),
+              "float_ids": rng.integers(0, 300, (9, 13)).astype(np.uint16),
+              "cap_ids": rng.integers(0, 2 ** 31, (9, 13)).astype(np.uint32),
+              "x": rng.normal(size=(5, 2)).astype(np.float32)[:, ::-1], "empty": np.zeros((0, 4), np.uint8)}
+    packed = pack_images(images)
+    assert not any(isinstance(v, np.ndarray) for v in packed.values())
+    assert all(isinstance(packed[k], _Packed) for k in images if isinstance(images[k], np.ndarray))
+    back = unpack_images(packed)
+    assert back.keys() == images.keys()
+    for k, v in images.items():
+        if isinstance(v, np.ndarray):
+            assert back[k].dtype == v.dtype and back[k].shape == v.shape and np.array_equal(back[k], v)
+            assert back[k].flags.writeable
+        else:
+            assert back[k] == v
+    assert pack_images(None) is None and unpack_images({}) == {}

@@ -22,6 +22,8 @@ image.
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 
 from ..progress import NONE
@@ -31,9 +33,10 @@ from ..progress import NONE
 REPORT_RAW_BYTES = 16 << 20
 
 #: the report's draws finish the GL queue after this many triangles (``Renderer.finish_triangles``;
-#: the default is 2^18): llvmpipe's binned scene is then smaller where the report peaks, in its
-#: renders. The chess set's report: 792 -> 780 MB peak, 140.7 -> 143.7 s (docs/performance.md)
-REPORT_FINISH_TRIANGLES = 3 << 16
+#: the default is 2^18): fewer, larger batches for llvmpipe's rasteriser cost time less, and the
+#: binned scene (about 140 bytes a triangle) fits beside the report's other memory now that the
+#: levels' images are kept compressed (docs/performance.md)
+REPORT_FINISH_TRIANGLES = 1 << 19
 
 
 def _merge(parts: list[dict], levels: list[int]) -> dict:
@@ -97,6 +100,34 @@ def compact_ids(images: dict | None) -> dict | None:
     return out
 
 
+class _Packed:
+    """One kept image, zlib-compressed while later levels render (``render_for_report``): the page
+    needs every level's images, but only after the renders, when llvmpipe's memory is back."""
+
+    __slots__ = ("shape", "dtype", "data")
+
+    def __init__(self, a: np.ndarray):
+        a = np.ascontiguousarray(a)
+        self.shape, self.dtype, self.data = a.shape, a.dtype, zlib.compress(a.tobytes(), 1)
+
+    def array(self) -> np.ndarray:
+        return np.frombuffer(zlib.decompress(self.data), self.dtype).reshape(self.shape).copy()
+
+
+def pack_images(images: dict | None) -> dict | None:
+    """``images`` with every array compressed (``_Packed``); ``unpack_images`` gives them back."""
+    if not images:
+        return images
+    return {k: _Packed(v) if isinstance(v, np.ndarray) else v for k, v in images.items()}
+
+
+def unpack_images(images: dict | None) -> dict | None:
+    """The arrays ``pack_images`` compressed, as they were (the same values, dtypes and shapes)."""
+    if not images:
+        return images
+    return {k: v.array() if isinstance(v, _Packed) else v for k, v in images.items()}
+
+
 def render_for_report(container, scene, *, levels, views, resolution,
                       progress=NONE) -> tuple[dict, dict, tuple[int, int] | None]:
     """All renders of a report in one GL harness (module doc). Returns (evaluation, uniform16
@@ -112,7 +143,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
     from ..tune.budget import frame_distance
     from ..verify.baselines import level_scene, uniform_quantized_scene
     from ..verify.cameras import render_viewing, select_views
-    from ..verify.renderer import Harness, Shading
+    from ..verify.renderer import Harness, Shading, trim_heap
 
     m = container.manifest
     order = sorted(int(b) for b in levels)
@@ -169,7 +200,10 @@ def render_for_report(container, scene, *, levels, views, resolution,
         per_level = {order[0]: imgs}
         for b in order[1:]:
             e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
-            e["images"] = per_level[b] = compact_ids(e.get("images"))
+            # kept compressed until the renders end (the first level's stay as they are: choose_view
+            # and the page's crops read them); the evaluation itself keeps none
+            per_level[b] = pack_images(compact_ids(e.pop("images", None)))
+            e["images"] = None
             parts.append(e)
             st.advance()
             baseline(b)
@@ -178,7 +212,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
         level_range = None
         if imgs:
             imgs = dict(imgs)
-            imgs["per_level"] = [per_level[int(b)] for b in levels]
+            imgs["per_level"] = None  # (every level's, once the renders are done: below)
             imgs["view_parts"] = None if visible is None else [n - 1 for n in visible]  # background is not a part
             target = depth_target(ev["levels"])
             imgs["depth"] = None
@@ -186,7 +220,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
                 lv, vi, variant, n = target
                 vid = view_ids[vi]
                 if vid == image_view:
-                    dimgs = per_level[lv]
+                    dimgs = None  # that level's kept images (below)
                 else:
                     dimgs = h.evaluate(container, levels=[lv], views=[vid], keep_images=True,
                                        image_view=vid)["images"]
@@ -205,6 +239,14 @@ def render_for_report(container, scene, *, levels, views, resolution,
             st.advance()
         else:
             st.advance(2)
+    trim_heap()  # the harness's GL buffers and llvmpipe's scenes, freed: back to the system first
+    if ev.get("images"):
+        # the harness is gone (llvmpipe's memory with it): every level's images as arrays again
+        kept = {b: unpack_images(x) for b, x in per_level.items()}
+        ev["images"]["per_level"] = [kept[int(b)] for b in levels]
+        depth = ev["images"]["depth"]
+        if depth is not None and depth["images"] is None:
+            depth["images"] = kept[depth["level"]]
     return ev, u16, level_range
 
 
