@@ -36,7 +36,7 @@ REPORT_RAW_BYTES = 16 << 20
 #: the default is 2^18): fewer, larger batches for llvmpipe's rasteriser cost time less, and the
 #: binned scene (about 140 bytes a triangle) fits beside the report's other memory now that the
 #: levels' images are kept compressed (docs/performance.md)
-REPORT_FINISH_TRIANGLES = 1 << 19
+REPORT_FINISH_TRIANGLES = 1 << 20
 
 
 def _merge(parts: list[dict], levels: list[int]) -> dict:
