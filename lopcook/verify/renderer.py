@@ -42,7 +42,9 @@ is given; ``COVER_MARGIN`` (1/32 px) covers the difference between the two float
 the rasteriser's snapping (llvmpipe: 1/256 px). The kept triangles are written to one index
 buffer of the renderer (``Scratch``) and drawn from it. It runs where it pays: an item of at least
 ``COVER_MIN_TRIANGLES`` triangles and ``COVER_DENSITY`` triangles per pixel of its projected box (a
-far, small object: llvmpipe's cost there is vertex and setup work per triangle, not pixels).
+far, small object: llvmpipe's cost there is vertex and setup work per triangle, not pixels). A
+test scene whose positions lie near the source's (the report's uniform 16-bit baseline) can draw
+the source's culls instead of computing its own (``Harness.share_culls``, ``Coverage``).
 
 Framebuffer: ``SAMPLES`` x MSAA (4, or the context's maximum when lower), colour RGBA8 (alpha = 1
 where a sample saw the object; the background is cleared to 0, 0, 0, 0), a part-ID target R32UI
