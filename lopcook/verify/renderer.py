@@ -527,8 +527,8 @@ class Coverage:
             return None
         t = self.triangles
         margin, remember = COVER_MARGIN, False
-        if self.slack_m > 0.0 and self.memo is not None:
-            extra = self.projected_slack(camera, size, px, py)
+        if self.memo is not None:
+            extra = self.projected_slack(camera, size, px, py) if self.slack_m > 0.0 else 0.0
             if extra is not None:
                 margin, remember = COVER_MARGIN + extra, True
         keep = covering_triangles(px, py, ok, t, size, offsets, margin=margin, cull_back=cull_back)
