@@ -59,7 +59,8 @@ from ..viewing import Viewing, required_level
 from . import metrics as M
 from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
-from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items, trim_heap
+from .renderer import (RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items,
+                       release_attributes, trim_heap)
 
 #: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
 ATTRIBUTE_SOURCES = ("container", "source")
@@ -356,9 +357,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
                                     image_view=image_view, seconds=seconds, stop=stop, stop_view=stop_view)
     finally:
         if getattr(h, "kept_attributes", None) is None or h.kept_attributes[2] is not attr_cache:
-            for entry in attr_cache.values():
-                for b in entry[2]:
-                    b.release()
+            release_attributes(attr_cache)
         trim_heap()
     for row in rows:
         raw = row.pop("_raw")

@@ -386,6 +386,12 @@ def _covering_chunk(px, py, ok, trusted: bool, triangles, size, offsets, margin,
     return hit
 
 
+def box_corners(lo, hi) -> np.ndarray:
+    """(8, 3) float64 corners of the box ``lo``..``hi`` (x slowest, z fastest)."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
 def window_coordinates(positions: np.ndarray, mvp: np.ndarray, size):
     """(px, py, ok) of ``positions`` (n, 3) float32 metres under ``mvp`` (4, 4), both in float32 as
     the vertex shader has them, in a ``size`` viewport: window x, y (float32 pixels, origin lower
@@ -468,7 +474,7 @@ class Coverage:
         s = float(self.slack_m)
         mvp = np.asarray(camera.mvp, np.float64)
         lo, hi = self._box
-        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        corners = box_corners(lo, hi)
         b = float(np.abs(mvp[3, :3]).sum()) * s
         w_min = float((corners @ mvp[3, :3]).min() + mvp[3, 3]) - b
         if not w_min > 0.0:
@@ -505,8 +511,7 @@ class Coverage:
             self._box = (p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)) if p.size else False
             if self._box is not False:  # its 8 corners, float32
                 lo, hi = self._box
-                self._corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                                          for z in (lo[2], hi[2])], np.float32)
+                self._corners = box_corners(lo, hi).astype(np.float32)
         if self._box is False:
             return None
         # the projected box first (8 corners): most items of a close view are not worth testing
@@ -653,7 +658,7 @@ class Renderer:
             return None
         lo = np.min([b[0] for b in boxes], axis=0).astype(np.float64)
         hi = np.max([b[1] for b in boxes], axis=0).astype(np.float64)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        corners = np.c_[box_corners(lo, hi), np.ones(8)]
         clip = corners @ np.asarray(camera.mvp, np.float64).T
         if not np.all(clip[:, 3] > 1e-6 * np.abs(clip[:, :3]).max(initial=1.0)) or not np.all(np.isfinite(clip)):
             return None
@@ -676,7 +681,7 @@ class Renderer:
         if box is None:
             return False
         lo, hi = (np.asarray(b, np.float64) for b in box)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        corners = np.c_[box_corners(lo, hi), np.ones(8)]
         clip = corners @ np.asarray(camera.mvp, np.float64).T
         if not np.all(np.isfinite(clip)):
             return False
@@ -960,11 +965,9 @@ class Harness:
 
     def release_kept_attributes(self) -> None:
         """Release the attribute buffers kept for ``keep_attributes`` (and the container reference)."""
-        kept, self.kept_attributes = getattr(self, "kept_attributes", None), None
+        kept, self.kept_attributes = self.kept_attributes, None
         if kept is not None:
-            for entry in kept[2].values():
-                for b in entry[2]:
-                    b.release()
+            release_attributes(kept[2])
 
     def release(self) -> None:
         """Release the GL objects this holds; it is unusable afterwards."""
@@ -1205,6 +1208,13 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     return positions
 
 
+def release_attributes(attr_cache: dict) -> None:
+    """Release the GL buffers of a ``decoded_items`` attribute cache (each entry's third field)."""
+    for entry in attr_cache.values():
+        for b in entry[2]:
+            b.release()
+
+
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
@@ -1324,6 +1334,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
 
 __all__ = ["RESOLUTION", "SAMPLES", "RECT_MARGIN", "COVER_MARGIN", "COVER_DENSITY", "COVER_MIN_TRIANGLES",
-           "SAMPLE_LATTICE", "sample_positions", "covering_triangles", "window_coordinates", "Coverage", "Scratch", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
-           "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "Harness",
+           "SAMPLE_LATTICE", "sample_positions", "covering_triangles", "box_corners", "window_coordinates", "Coverage", "Scratch", "FLOAT_CACHE_BYTES", "RAW_CACHE_BYTES", "FINISH_TRIANGLES", "CULL_MARGIN", "AMBIENT", "DIFFUSE", "BASE_GREY", "Shading", "Renderer", "Textures",
+           "attribute_vbos", "attribute_buffers", "vbo_arrays", "float_items", "decoded_items", "release_attributes",
+           "Harness",
            "shared_harness", "release_shared", "digest", "trim_heap"]
