@@ -69,11 +69,14 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     del h1, h2, cb1, cb2, same_dir
     g = coo_matrix((np.ones(u.size, dtype=np.int8), (u, v)), shape=(3 * m, 3 * m))
     del u, v
-    _, lab = connected_components(g, directed=False)
+    n_fans, lab = connected_components(g, directed=False)
     del g
-    fans = sorted_unique(a.astype(np.int64) * np.int64(3 * m) + lab)
+    # every link joins two corners at one vertex, so each fan (component) lies at one vertex: the
+    # fans per vertex are a count of the fans' vertices (no sort of (vertex, fan) pairs)
+    fan_vertex = np.empty(n_fans, dtype=a.dtype)
+    fan_vertex[lab] = a
     del lab
-    per_vertex = np.bincount(fans // np.int64(3 * m), minlength=n)
+    per_vertex = np.bincount(fan_vertex, minlength=n)
     return {
         "degenerate_faces": int(degenerate.sum()),
         "boundary_edges": int((sizes == 1).sum()),
