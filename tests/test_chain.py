@@ -439,62 +439,7 @@ def test_deterministic(spot, backend):
     assert timeless(ra) == timeless(rb)
 
 
-# ---------------------------------------------------------------- backend runs begun early (_Ahead)
-
-
-def _untimed(lods):
-    return [(lod.triangles, lod.error_m, lod.hausdorff_m, lod.error_bound_m, lod.one_sided_m, lod.backend,
-             lod.seams, lod.notes, lod.flipped,
-             [None if getattr(lod.part, n) is None else getattr(lod.part, n).tobytes()
-              for n in ("positions", "indices", "normals", "uvs", "colors")]) for lod in lods]
-
-
-@pytest.mark.parametrize("backend", ["meshopt", "fast"])
-def test_next_lod_begun_early_gives_the_same_chain(bunny, monkeypatch, backend):
-    """A chain whose next backend run is forked as soon as its LOD exists equals the chain that
-    begins every run in turn, and the early runs are the ones used (not vacuous)."""
-    from lopcook import isolate
-
-    monkeypatch.setattr(isolate, "MIN_FACES", 1000)  # the bunny's LODs fork, as large parts do
-    taken = []
-    take = L._Ahead.take
-
-    def spy(self, *a):
-        got = take(self, *a)
-        taken.append(got is not None)
-        return got
-
-    monkeypatch.setattr(L._Ahead, "take", spy)
-    ratios = [0.5, 0.25, 0.125]
-    early, report_e = L.lod_chain(bunny, ratios=ratios, backend=backend)
-    assert taken.count(True) == len(ratios) - 1  # every LOD after the first took its early run
-    monkeypatch.setattr(L._Ahead, "begin", lambda self, *a: None)
-    plain, report_p = L.lod_chain(bunny, ratios=ratios, backend=backend)
-    assert len(early) == len(ratios) + 1
-    assert _untimed(early) == _untimed(plain)
-    assert report_e.defects == report_p.defects and report_e.stop_reason == report_p.stop_reason
-
-
-def test_early_run_for_another_target_is_cancelled(bunny, monkeypatch):
-    from lopcook import isolate
-
-    monkeypatch.setattr(isolate, "MIN_FACES", 1000)
-    ahead = L._Ahead()
-    ahead.next_target = bunny.n_triangles // 2
-    ahead.begin(bunny, "meshopt", "lock", True)
-    assert ahead._held is not None and ahead._held[4].forked
-    work_mode = L._work_mode("lock", "meshopt", bunny.uvs is not None)[1]
-    other = _icosphere(3)
-    assert ahead.take(other, "meshopt", work_mode, ahead.next_target, True) is None  # another part's run
-    assert ahead._held is not None  # kept: it may still be asked for
-    assert ahead.take(bunny, "meshopt", work_mode, ahead.next_target - 100, True) is None  # another target
-    assert ahead._held is None  # cancelled
-    ahead.begin(bunny, "meshopt", "lock", True)
-    work, dropped, job = ahead.take(bunny, "meshopt", work_mode, ahead.next_target, True)
-    assert dropped == 0 and abs(job.result().faces.shape[0] - ahead.next_target) <= 0.05 * ahead.next_target
-    ahead.next_target = None
-    ahead.begin(bunny, "pymeshlab", "lock", True)  # pymeshlab takes the topology flag: not begun early
-    assert ahead._held is None
+# ------------------------------------------------- defects counted while a forked backend runs
 
 
 @pytest.mark.parametrize("backend", ["meshopt", "fast"])

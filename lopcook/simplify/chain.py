@@ -314,14 +314,14 @@ def _better(a: Lod, b: Lod) -> bool:
 
 def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: Reference,
                    preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
-                   on_part=None, ahead: _Ahead | None = None) -> tuple[Lod, int]:
+                   on_part=None) -> tuple[Lod, int]:
     """``backend="auto"``: meshoptimizer; on inputs of at most ``AUTO_BOTH_TRIANGLES`` triangles
     pymeshlab too (falling back to fast as usual when ``fallback``), keeping the better
     (``_better``) with a note giving both errors."""
     t0 = time.perf_counter()
     alone = part.n_triangles > AUTO_BOTH_TRIANGLES  # meshopt's LOD is the only candidate
     lod, used = _simplify(part, ratio, target, "meshopt", seams, ref, preserve_boundary, fallback,
-                          max_flipped_fraction, on_part=on_part if alone else None, ahead=ahead if alone else None)
+                          max_flipped_fraction, on_part=on_part if alone else None)
     if alone or lod.backend == "source":
         return lod, used
     # pymeshlab with its usual fallback (fast), as a pymeshlab chain would make this LOD
@@ -346,18 +346,18 @@ def _simplify_auto(part: MeshPart, ratio: float, target: int, seams: str, ref: R
 
 def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Reference,
                 preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
-                on_part=None, ahead: _Ahead | None = None) -> tuple[Lod, int]:
+                on_part=None) -> tuple[Lod, int]:
     """``seams="auto"``: ``"simplify"``; where that misses its target by more than
     ``TARGET_TOLERANCE`` (seam vertices the backend will not collapse) also ``"ignore"``, keeping
     the better (``_better``) with a note."""
     t0 = time.perf_counter()
     lod, used = _simplify(part, ratio, target, backend, "simplify", ref, preserve_boundary, fallback,
-                          max_flipped_fraction, on_part=on_part if part.uvs is None else None, ahead=ahead)
+                          max_flipped_fraction, on_part=on_part if part.uvs is None else None)
     if part.uvs is None or lod.backend == "source" or (
             not lod.failed and abs(lod.triangles - target) <= TARGET_TOLERANCE * target):
         return lod, used
     other, used2 = _simplify(part, ratio, target, backend, "ignore", ref, preserve_boundary, fallback,
-                             max_flipped_fraction, ahead=ahead)
+                             max_flipped_fraction)
     if not _better(other, lod):
         return lod, used
     what = "failed" if lod.failed else f"stopped at {lod.triangles} triangles ({lod.hausdorff_m:.3g} m)"
@@ -372,83 +372,22 @@ def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Re
 TOPOLOGY_BLIND = ("meshopt", "fast")
 
 
-def _work_mode(seams: str, name: str, has_uvs: bool) -> tuple[str, str]:
-    """(mode, work mode) of backend ``name`` for a part with or without UVs (see ``_simplify``)."""
-    mode = seams if has_uvs else "-"
-    if mode == "simplify" and name == "fast":
-        mode = "ignore"
-    return mode, "ignore" if mode in ("-", "xatlas") else mode
-
-
-class _Ahead:
-    """A chain's next backend run, begun as soon as the LOD it starts from exists (``lod_chain``
-    with ``chain="previous"``): while this process measures that LOD's error, the child already
-    simplifies it to the next target. ``take`` hands the run to the ``_simplify`` call that would
-    begin the very same one (same part object, backend, work mode, target and flags); any other
-    is cancelled. The result is the one beginning it then would give (the backends are
-    deterministic and see the same input). One run at a time; ``cancel`` ends it."""
-
-    def __init__(self):
-        self.next_target: int | None = None
-        self._held = None  # (part, key, work, dropped, job)
-
-    def begin(self, part: MeshPart, name: str, seams: str, preserve_boundary: bool) -> None:
-        """Begin ``name`` on ``part`` towards ``next_target`` where ``_simplify`` would fork it
-        (at least ``isolate.MIN_FACES`` faces) and it ignores the topology flag."""
-        self.cancel()
-        target = self.next_target
-        if (target is None or name not in TOPOLOGY_BLIND or part.n_triangles < MIN_SIMPLIFY_TRIANGLES
-                or target >= part.n_triangles or part.n_triangles < isolate.MIN_FACES):
-            return
-        _, work_mode = _work_mode(seams, name, part.uvs is not None)
-        work, dropped = prepare(part, work_mode)
-        if work.faces.shape[0] < max(MIN_SIMPLIFY_TRIANGLES, isolate.MIN_FACES):
-            return
-        tgt = min(target, work.faces.shape[0] - 1)
-        job = isolate.begin(run_backend, name, work, tgt, preserve_boundary, topology=True,
-                            faces=work.faces.shape[0])
-        if not job.forked:
-            job.cancel()
-            return
-        self._held = (part, (name, work_mode, tgt, preserve_boundary), work, dropped, job)
-
-    def take(self, part: MeshPart, name: str, work_mode: str, target: int, preserve_boundary: bool):
-        """``(work, dropped, job)`` begun for exactly this run, else None (and any held run is
-        cancelled when it was for ``part``: that run will not be asked for)."""
-        held = self._held
-        if held is None or held[0] is not part:
-            return None
-        self._held = None
-        work = held[2]
-        if held[1] != (name, work_mode, min(target, work.faces.shape[0] - 1), preserve_boundary):
-            held[4].cancel()
-            return None
-        return work, held[3], held[4]
-
-    def cancel(self) -> None:
-        if self._held is not None:
-            self._held[4].cancel()
-            self._held = None
-
-
 def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: str, ref: Reference,
               preserve_boundary: bool, fallback: bool, max_flipped_fraction: float,
-              _retry: bool = False, on_part=None, ahead: _Ahead | None = None) -> tuple[Lod, int]:
+              _retry: bool = False, on_part=None) -> tuple[Lod, int]:
     """One LOD; returns (lod, fallbacks used). ``on_part(part)``: called with the LOD's mesh as
     soon as its attributes are transferred, before its error is measured (the cook starts the
-    LOD's analysis then; the chain may still drop or replace it). ``ahead``: the chain's
-    ``_Ahead``, whose run this call takes where it is the one it would begin, and which it begins
-    on the LOD it makes (unless ``_retry``)."""
+    LOD's analysis then; the chain may still drop or replace it)."""
     t0 = time.perf_counter()
     notes: list = []
     if backend not in SELECTABLE:
         raise ValueError(f"backend must be one of {SELECTABLE}, got {backend!r}")
     if backend == "auto":
         return _simplify_auto(part, ratio, target, seams, ref, preserve_boundary, fallback, max_flipped_fraction,
-                              on_part, ahead)
+                              on_part)
     if seams == "auto":
         return _seams_auto(part, ratio, target, backend, ref, preserve_boundary, fallback, max_flipped_fraction,
-                           on_part, ahead)
+                           on_part)
     if seams not in SEAM_MODES:
         raise ValueError(f"seams must be one of {SEAM_MODES}, got {seams!r}")
     if part.n_triangles < MIN_SIMPLIFY_TRIANGLES:
@@ -478,24 +417,23 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
     used_fallbacks = 0
     input_seams = None
     for i, name in enumerate(attempts):
-        mode, work_mode = _work_mode(seams, name, part.uvs is not None)
-        if mode == "ignore" and seams == "simplify" and part.uvs is not None:
+        mode = seams if part.uvs is not None else "-"
+        if mode == "simplify" and name == "fast":
             notes.append("fast cannot simplify seams with the mesh: seams='ignore' used")
+            mode = "ignore"
+        work_mode = "ignore" if mode in ("-", "xatlas") else mode
         try:
-            got = ahead.take(part, name, work_mode, target, preserve_boundary) if ahead is not None else None
-            work, dropped = got[:2] if got is not None else prepare(part, work_mode, degenerate)
+            work, dropped = prepare(part, work_mode, degenerate)
             msg = f"{dropped} zero-area faces dropped before simplification"
             if dropped and msg not in notes:
                 notes.append(msg)
             if work.faces.shape[0] < MIN_SIMPLIFY_TRIANGLES:
                 raise BackendFailure(f"only {work.faces.shape[0]} non-degenerate triangles")
             tgt = min(target, work.faces.shape[0] - 1)
-            # large inputs: in a child process (its memory is freed on return; a crash is a failure),
-            # begun already where the chain's previous LOD began it (``_Ahead``)
-            job = got[2] if got is not None else isolate.begin(
-                run_backend, name, work, tgt, preserve_boundary,
-                topology=True if name in TOPOLOGY_BLIND else not nonmanifold(), faces=work.faces.shape[0])
-            del got
+            # large inputs: in a child process (its memory is freed on return; a crash is a failure)
+            job = isolate.begin(run_backend, name, work, tgt, preserve_boundary,
+                                topology=True if name in TOPOLOGY_BLIND else not nonmanifold(),
+                                faces=work.faces.shape[0])
             try:  # forked: the defect counts and LOD 0's search structures, made while this process would only wait
                 nonmanifold()  # first: its temporaries are freed before the structures are built
                 if job.forked:
@@ -536,8 +474,6 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
                          f"{max_flipped_fraction:.0%} threshold; kept)")
         if on_part is not None:
             on_part(lod_part)
-        if ahead is not None and not _retry:  # the next LOD's backend, while this one is measured
-            ahead.begin(lod_part, name, seams, preserve_boundary)
         ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part)
         release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
@@ -628,88 +564,80 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
                seconds=0.0, seam_stats=ref.seams)
     lods = [lod0]
     n0 = part.n_triangles
-    ahead = _Ahead() if chain == "previous" else None
-    try:
-        if n0 < MIN_SIMPLIFY_TRIANGLES:
-            report.stop_reason = f"{n0} triangles (< {MIN_SIMPLIFY_TRIANGLES}): LOD 0 only"
-            report.notes.append(report.stop_reason)
-        else:
-            if ratios is None:
-                ratios = halvings(max_levels, n0, min_triangles)
-                if not ratios:
-                    report.stop_reason = f"no target of at least {min_triangles} triangles"
-            ratios = sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)
-            for j, ratio in enumerate(ratios):
-                target = int(round(ratio * n0))
-                if target < min_triangles:
-                    report.stop_reason = f"target {target} below min_triangles {min_triangles}"
-                    break
-                start = lods[-1].part if chain == "previous" else part
-                # the cook's analysis of this LOD starts as soon as its mesh exists (``on_lod`` again
-                # below keeps that start when the chain accepts the same mesh)
-                early = None if on_lod is None else (lambda p, k=len(lods): on_lod(k, p))
-                if ahead is not None:  # the next LOD's target, for its backend run begun early
-                    nxt = int(round(ratios[j + 1] * n0)) if j + 1 < len(ratios) else None
-                    ahead.next_target = nxt if nxt is not None and nxt >= min_triangles else None
-                lod, used = _simplify(start, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                      max_flipped_fraction, on_part=early, ahead=ahead)
-                report.fallbacks += used
-                missed = start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target)
-                # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
-                # LOD 0's own collapse order can do much better (fandisk at 6 triangles: docs/lod.md)
-                tiny = start is not part and backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
-                if missed or tiny:
-                    # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
-                    # make it from LOD 0 as well
-                    again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                             max_flipped_fraction, on_part=early, ahead=ahead)
-                    nearer = missed and not again.failed and (
-                        lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
-                    # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
-                    # a tiny target is not "near" it, yet no worse a LOD)
-                    lower = not nearer and tiny and (_better(again, lod) or (
-                        not again.failed and again.triangles <= lod.triangles and again.hausdorff_m < lod.hausdorff_m))
-                    if missed or lower:
-                        report.fallbacks += used2
-                    if nearer:
-                        again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
-                                              f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
-                    elif lower:
-                        again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
-                                              f"{lod.hausdorff_m:.3g} m from the previous LOD")
-                    if nearer or lower:
-                        lod = again
-                if lod.failed:
-                    report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
-                    report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                    break
-                if lod.triangles >= lods[-1].triangles:
-                    report.stop_reason = (f"LOD {ratio:g} has {lod.triangles} triangles, no fewer than the previous "
-                                          f"LOD's {lods[-1].triangles}; dropped")
-                    report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                    break
-                if lod.hausdorff_m < lods[-1].error_m:
-                    lod.notes.append(f"measured error {lod.hausdorff_m:.3g} m below the previous LOD's "
-                                     f"{lods[-1].error_m:.3g} m: error_m raised to keep the chain monotone")
-                lod.error_m = max(lod.hausdorff_m, lods[-1].error_m)
-                if max_error_m is not None and lod.error_m > max_error_m:
-                    report.stop_reason = (f"LOD {ratio:g} error {lod.error_m:.3g} m exceeds max_error_m "
-                                          f"{max_error_m:.3g} m; dropped")
-                    report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                    break
-                if lod.triangles < min_triangles:
-                    report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
-                    break
-                lods.append(lod)
-                if on_lod is not None:
-                    on_lod(len(lods) - 1, lod.part)
+    if n0 < MIN_SIMPLIFY_TRIANGLES:
+        report.stop_reason = f"{n0} triangles (< {MIN_SIMPLIFY_TRIANGLES}): LOD 0 only"
+        report.notes.append(report.stop_reason)
+    else:
+        if ratios is None:
+            ratios = halvings(max_levels, n0, min_triangles)
+            if not ratios:
+                report.stop_reason = f"no target of at least {min_triangles} triangles"
+        ratios = sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)
+        for ratio in ratios:
+            target = int(round(ratio * n0))
+            if target < min_triangles:
+                report.stop_reason = f"target {target} below min_triangles {min_triangles}"
+                break
+            start = lods[-1].part if chain == "previous" else part
+            # the cook's analysis of this LOD starts as soon as its mesh exists (``on_lod`` again
+            # below keeps that start when the chain accepts the same mesh)
+            early = None if on_lod is None else (lambda p, k=len(lods): on_lod(k, p))
+            lod, used = _simplify(start, ratio, target, backend, seams, ref, preserve_boundary, fallback,
+                                  max_flipped_fraction, on_part=early)
+            report.fallbacks += used
+            missed = start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target)
+            # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
+            # LOD 0's own collapse order can do much better (fandisk at 6 triangles: docs/lod.md)
+            tiny = start is not part and backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
+            if missed or tiny:
+                # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
+                # make it from LOD 0 as well
+                again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
+                                         max_flipped_fraction, on_part=early)
+                nearer = missed and not again.failed and (
+                    lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
+                # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
+                # a tiny target is not "near" it, yet no worse a LOD)
+                lower = not nearer and tiny and (_better(again, lod) or (
+                    not again.failed and again.triangles <= lod.triangles and again.hausdorff_m < lod.hausdorff_m))
+                if missed or lower:
+                    report.fallbacks += used2
+                if nearer:
+                    again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
+                                          f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
+                elif lower:
+                    again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
+                                          f"{lod.hausdorff_m:.3g} m from the previous LOD")
+                if nearer or lower:
+                    lod = again
+            if lod.failed:
+                report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
                 report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-            else:
-                if not report.stop_reason:
-                    report.stop_reason = "all ratios done"
-    finally:
-        if ahead is not None:
-            ahead.cancel()  # a run begun for a LOD the chain did not keep
+                break
+            if lod.triangles >= lods[-1].triangles:
+                report.stop_reason = (f"LOD {ratio:g} has {lod.triangles} triangles, no fewer than the previous "
+                                      f"LOD's {lods[-1].triangles}; dropped")
+                report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+                break
+            if lod.hausdorff_m < lods[-1].error_m:
+                lod.notes.append(f"measured error {lod.hausdorff_m:.3g} m below the previous LOD's "
+                                 f"{lods[-1].error_m:.3g} m: error_m raised to keep the chain monotone")
+            lod.error_m = max(lod.hausdorff_m, lods[-1].error_m)
+            if max_error_m is not None and lod.error_m > max_error_m:
+                report.stop_reason = (f"LOD {ratio:g} error {lod.error_m:.3g} m exceeds max_error_m "
+                                      f"{max_error_m:.3g} m; dropped")
+                report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+                break
+            if lod.triangles < min_triangles:
+                report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
+                break
+            lods.append(lod)
+            if on_lod is not None:
+                on_lod(len(lods) - 1, lod.part)
+            report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+        else:
+            if not report.stop_reason:
+                report.stop_reason = "all ratios done"
     report.defects = dict(ref.defects)  # counted during the first LOD's backend run where it forks
     report.lods = [lod.summary() for lod in lods]
     report.seconds = time.perf_counter() - t0
