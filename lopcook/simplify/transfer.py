@@ -262,18 +262,19 @@ class Reference:
 
             f, p = self.faces, self.positions
             # one contiguous 1-D array per axis and corner ((m,) temporaries; strided (m, 3) gathers
-            # are several times slower); the same squared lengths, summed in the same order
+            # are several times slower); the longest edge within a rounding of an (m, 3) einsum's
+            # (its sum order may differ), far inside query_near's relative slack of 1e-9
             corner = [np.ascontiguousarray(f[:, j]) for j in range(3)]
+            cols = [np.ascontiguousarray(p[:, axis]) for axis in range(3)]
             max_edge = 0.0
             for a, b in ((0, 1), (1, 2), (2, 0)):
                 e2 = None
-                for axis in range(3):
-                    col = np.ascontiguousarray(p[:, axis])
+                for col in cols:
                     d = col[corner[b]] - col[corner[a]]
                     d *= d
                     e2 = d if e2 is None else e2 + d
                 max_edge = max(max_edge, float(e2.max()))
-            del corner, e2, d
+            del corner, cols, e2, d
             used = self.sample_vertices
             # unbalanced, uncompacted: several times faster to build, and a ball query finds the
             # same vertices (query_near uses them as a set)
