@@ -157,3 +157,39 @@ def test_chunks_partition_the_faces_and_box_them_and_candidates_hold_every_reach
         gap = np.maximum(np.maximum(lo - q, q - hi), 0.0)
         assert np.isin(np.flatnonzero((gap ** 2).sum(axis=1) <= 1.0), cand[c]).all()
     assert sum(x.size for x in cand) <= 1.5 * q.shape[0]
+
+
+def test_query_any_equals_the_whole_tree_without_building_it(monkeypatch):
+    """``Reference.query_any`` above ``CHUNK_FACES``: the same squared distances and closest points
+    as ``query``'s tree over all of LOD 0, for points on, near and far from the surface, with no
+    whole tree built; at most ``CHUNK_FACES`` faces it is ``query`` itself."""
+    s = F.unit_sphere(5)[0]
+    rng = np.random.default_rng(5)
+    pos = s.positions * (1.0 + 0.03 * rng.standard_normal(s.positions.shape[0]))[:, None]
+    part = MeshPart("bumpy", pos.astype(np.float32), s.indices.astype(np.uint32))
+    pts = np.concatenate([rng.standard_normal((3000, 3)) * rng.uniform(0.2, 3.0, (3000, 1)),
+                          part.positions[:500].astype(np.float64)])  # vertices: distance 0
+    d_all, f_all, c_all = X.Reference(part).query(pts)
+    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
+    ref = X.Reference(part)
+    calls = {"near": 0, "bounded": 0}
+    for name in calls:
+        method = getattr(X.Reference, f"query_{name}")
+        monkeypatch.setattr(X.Reference, f"query_{name}",
+                            lambda self, *a, _m=method, _n=name, **k: (calls.__setitem__(_n, calls[_n] + 1), _m(self, *a, **k))[1])
+    # many points: the chunk sweep; one per NEAR_POINTS_PER_FACE faces or fewer: the faces near them
+    for sel in (slice(None), slice(2900, 2900 + part.n_triangles // X.NEAR_POINTS_PER_FACE)):
+        d, f, c = ref.query_any(pts[sel])
+        assert ref._tree is None  # no tree over all faces
+        assert np.array_equal(d, d_all[sel]) and np.array_equal(c, c_all[sel])
+        # another face only where it is as close: the same closest point lies on it
+        tie = np.flatnonzero(f != f_all[sel])
+        tri = ref.positions[ref.faces[f[tie]]].astype(np.float64)
+        bary = X.barycentric(c[tie], tri, clamp=False)
+        assert (bary > -1e-6).all()
+        assert tie.size == 0 or np.abs(np.einsum("qk,qkd->qd", bary, tri) - c[tie]).max() < 1e-9
+    assert calls["near"] == 1 and calls["bounded"] >= 1
+    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles)
+    small = X.Reference(part)
+    assert all(np.array_equal(u, v) for u, v in zip(small.query_any(pts), (d_all, f_all, c_all)))
+    assert small._tree is not None

@@ -30,6 +30,11 @@ CHUNK_FACES = 1 << 18
 #: (at most 40, so that a cell's number fits 16 bits) to find the chunks each group can reach
 CANDIDATE_GRID = 32
 
+#: ``Reference.query_any`` searches only the faces near its points (``query_near``) when there is at
+#: most one point per this many LOD 0 faces; more points: the chunk sweep (``query_bounded``),
+#: whose cost is mostly building the chunks' trees (docs/performance.md)
+NEAR_POINTS_PER_FACE = 256
+
 #: ``Reference.query_bounded`` on at least this many points sweeps its chunks in two processes
 PARALLEL_POINTS = 20_000
 
@@ -113,6 +118,25 @@ class Reference:
             self._tree.init(self._pos, self._fac)
         d, i, c = self._tree.squared_distance(self._pos, self._fac, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
+
+    def query_any(self, points: np.ndarray):
+        """``query``'s (squared distance, face, point) for any ``points`` (q, 3), without a tree
+        over all of LOD 0 above ``CHUNK_FACES`` faces (there a tree takes about 240 bytes a face:
+        about 1 GB at 4.4M faces). Each point's distance is at most its distance to the nearest
+        vertex of LOD 0's faces (a point of the surface), found in ``near_index``'s KD-tree; with
+        that bound ``query_bounded`` (``query_near`` for at most one point per
+        ``NEAR_POINTS_PER_FACE`` faces) gives the exact closest distance and point (the face may
+        differ where several are equally close). At most ``CHUNK_FACES`` faces: ``query``."""
+        if self.faces.shape[0] <= CHUNK_FACES:
+            return self.query(points)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if pts.shape[0] == 0:
+            return np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        kd, _, _ = self.near_index
+        dist = np.asarray(kd.query(pts, k=1)[0], dtype=np.float64)
+        if pts.shape[0] * NEAR_POINTS_PER_FACE <= self.faces.shape[0]:  # few points: the faces near them
+            return self.query_near(pts, dist * dist)
+        return self.query_bounded(pts, dist * dist)
 
     def query_bounded(self, points: np.ndarray, bound2: np.ndarray, closest: bool = True):
         """``query``'s (squared distance, face, point) for ``points`` (q, 3) whose squared distance
@@ -614,7 +638,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     else:
         tri = P[F]
         centroid = tri.mean(axis=1)
-        d2, fid, closest = ref.query(np.concatenate([P, centroid]))
+        d2, fid, closest = ref.query_any(np.concatenate([P, centroid]))
         fv, fc = fid[:k], fid[k:]
         del tri
     lod_to_ref = float(np.sqrt(d2.max()))
@@ -636,7 +660,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             hb = 0.25 * ((tri_c - centroid[cand][:, None, :]) ** 2).sum(axis=2)
             fh = ref.query_near(half.reshape(-1, 3), hb.reshape(-1))[1].reshape(-1, 3)
         else:
-            fh = ref.query(half.reshape(-1, 3))[1].reshape(-1, 3)
+            fh = ref.query_any(half.reshape(-1, 3))[1].reshape(-1, 3)
         votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
         flipped = int((votes >= 2).sum())
     if flipped > max_flipped_fraction * m and flipped > 0:
@@ -683,7 +707,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             # phase 2: only for corners that look split, find their side near the corner itself
             q = P[vid[cs]]
             q = q + NUDGE * (centroid[face_of_corner[cs]] - q)
-            g2 = ref.query(q)[1]
+            g2 = ref.query_any(q)[1]
             g[cs] = g2
             pv_cs = P[vid[cs]]
             tri2 = ref.positions[ref.faces[g2]]
