@@ -454,3 +454,23 @@ def test_defects_counted_during_a_forked_run_keep_the_note_first(backend, monkey
     assert report.defects["nonmanifold_edges"] == 1 and report.defects["nonmanifold_vertices"] == 1
     assert len(lods) == 3
     assert lods[1].notes[0].startswith("non-manifold input: 1 edges")
+
+
+@pytest.mark.parametrize("n0_limit, fallback_from_lod0", [(10 ** 9, True), (100, False)])
+def test_retry_from_lod0_falls_back_only_on_small_lod0(ico, monkeypatch, n0_limit, fallback_from_lod0):
+    """A LOD whose target the previous LOD missed is made again from LOD 0, with the other
+    backends as fallbacks only where LOD 0 has at most ``RETRY_FALLBACK_TRIANGLES`` triangles."""
+    monkeypatch.setattr(L, "RETRY_FALLBACK_TRIANGLES", n0_limit)
+    simplify, seen = L._simplify, []
+
+    def spy(part, ratio, target, backend, seams, ref, preserve_boundary, fallback, *a, **k):
+        if part is not ref.part:  # from the previous LOD: it fails, so the chain goes back to LOD 0
+            return L._unchanged(part, ref, ratio, target, 0.0, [], seams, failed=True, backend="none"), 0
+        if ratio < 0.5:
+            seen.append(fallback)
+        return simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback, *a, **k)
+
+    monkeypatch.setattr(L, "_simplify", spy)
+    lods, report = L.lod_chain(ico, ratios=[0.5, 0.25], backend="meshopt")
+    assert seen == [fallback_from_lod0]
+    assert len(lods) == 3 and "simplified from LOD 0" in lods[2].notes[0]

@@ -189,6 +189,12 @@ AUTO_BOTH_TRIANGLES = 100_000
 AUTO_TINY_TARGET = 64
 AUTO_TINY_LOD0 = 20_000
 
+#: a LOD the chain makes again from LOD 0 (its target missed from the previous LOD) falls back to
+#: the other backends only where LOD 0 has at most this many triangles; above it they would spend
+#: minutes (pymeshlab: 88 s on 4.4M triangles) on a LOD the same backends have just failed to make
+#: from the previous LOD (docs/lod.md)
+RETRY_FALLBACK_TRIANGLES = 100_000
+
 
 
 
@@ -592,8 +598,9 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             if missed or tiny:
                 # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
                 # make it from LOD 0 as well
-                again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                         max_flipped_fraction, on_part=early)
+                again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary,
+                                         fallback and n0 <= RETRY_FALLBACK_TRIANGLES, max_flipped_fraction,
+                                         on_part=early)
                 nearer = missed and not again.failed and (
                     lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
                 # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
