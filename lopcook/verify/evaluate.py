@@ -59,8 +59,7 @@ from ..viewing import Viewing, required_level
 from . import metrics as M
 from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
-from .renderer import (RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items,
-                       release_attributes, trim_heap)
+from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items, trim_heap
 
 #: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
 ATTRIBUTE_SOURCES = ("container", "source")
@@ -329,15 +328,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
     ctx = h.ctx
     # a harness that keeps attributes (``Harness.keep_attributes``: the report evaluates one container
     # level by level) reuses the last evaluation's when it drew the same container object the same way
-    sig = (tuple(lods), attributes, tuple(o is None for o in orders))
-    kept = getattr(h, "kept_attributes", None)
-    if kept is not None and kept[0] is c and kept[1] == sig:
-        attr_cache = kept[2]
-    else:
-        h.release_kept_attributes()
-        attr_cache = {}
-        if getattr(h, "keep_attributes", False):
-            h.kept_attributes = (c, sig, attr_cache)
+    attr_cache = h.attribute_cache(c, (tuple(lods), attributes, tuple(o is None for o in orders)))
     seconds = {"upload": 0.0, "render": 0.0, "metrics": 0.0}
     plan = camera_rows(lv, cl, distance_m, extent, viewing)
 
@@ -356,8 +347,7 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
                                     shading=shading, draws=draws, variants=variants, keep_images=keep_images,
                                     image_view=image_view, seconds=seconds, stop=stop, stop_view=stop_view)
     finally:
-        if getattr(h, "kept_attributes", None) is None or h.kept_attributes[2] is not attr_cache:
-            release_attributes(attr_cache)
+        h.release_attribute_cache(attr_cache)
         trim_heap()
     for row in rows:
         raw = row.pop("_raw")

@@ -962,12 +962,33 @@ class Harness:
         self.keep_attributes = False
         #: (container, how it was drawn, {part: attribute entry}) kept, or None
         self.kept_attributes = None
+        #: (test scene, {part: the float draw's Coverage it may share}) from ``share_culls``, or None
+        self.cull_twins = None
 
     def release_kept_attributes(self) -> None:
         """Release the attribute buffers kept for ``keep_attributes`` (and the container reference)."""
         kept, self.kept_attributes = self.kept_attributes, None
         if kept is not None:
             release_attributes(kept[2])
+
+    def attribute_cache(self, container, sig) -> dict:
+        """The ``decoded_items`` attribute cache for an evaluation of ``container`` drawn the way
+        ``sig`` says: the one kept from the last evaluation of the same container object drawn the
+        same way, else a new one (kept in turn when ``keep_attributes``; any other kept one is
+        released). Give it back with ``release_attribute_cache``."""
+        kept = self.kept_attributes
+        if kept is not None and kept[0] is container and kept[1] == sig:
+            return kept[2]
+        self.release_kept_attributes()
+        cache: dict = {}
+        if self.keep_attributes:
+            self.kept_attributes = (container, sig, cache)
+        return cache
+
+    def release_attribute_cache(self, cache: dict) -> None:
+        """Release the buffers of an ``attribute_cache`` unless this harness keeps them."""
+        if self.kept_attributes is None or self.kept_attributes[2] is not cache:
+            release_attributes(cache)
 
     def release(self) -> None:
         """Release the GL objects this holds; it is unusable afterwards."""
@@ -1042,13 +1063,12 @@ class Harness:
                 continue
             cover.slack_m, cover.memo = slack, {}
             shared[i] = cover
-        #: (test scene, {part: the float draw's Coverage it may share})
         self.cull_twins = (test_scene, shared)
 
     def link_culls(self, test_scene, items) -> int:
         """Give ``items`` (``float_items`` of ``test_scene``, in part order) the float draws' culls
         when ``share_culls(test_scene)`` was called (the same scene object); returns how many."""
-        twins = getattr(self, "cull_twins", None)
+        twins = self.cull_twins
         if twins is None or twins[0] is not test_scene:
             return 0
         n = 0
