@@ -159,6 +159,10 @@ def prepare(part: MeshPart, mode: str, degenerate: np.ndarray | None = None) -> 
     return Work(p, f, None, mode), int(bad.sum())
 
 
+#: backends that ignore ``run_backend``'s topology flag (only pymeshlab takes it)
+TOPOLOGY_BLIND = ("meshopt", "fast")
+
+
 def run_backend(backend: str, work: Work, target: int, lock_border: bool, topology: bool) -> BackendResult:
     if backend == "fast":
         lock = lock_border if work.mode not in ("lock",) else True

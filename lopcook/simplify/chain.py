@@ -151,7 +151,8 @@ from ..memory import release_free_memory
 from ..mesh import degenerate_mask
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
-from .backends import BACKENDS, SELECTABLE, BackendFailure, check_result, parametrise_xatlas, prepare, run_backend
+from .backends import (BACKENDS, SELECTABLE, TOPOLOGY_BLIND, BackendFailure, check_result, parametrise_xatlas,
+                       prepare, run_backend)
 from .error import hausdorff, sampled_ref_to_lod
 from .topology import mesh_defects, seam_stats
 from .transfer import Reference, transfer_attributes
@@ -372,10 +373,6 @@ def _seams_auto(part: MeshPart, ratio: float, target: int, backend: str, ref: Re
         f"({other.hausdorff_m:.3g} m), its UVs transferred from LOD 0 (kept)"]
     other.seconds = time.perf_counter() - t0
     return other, used + used2
-
-
-#: backends that ignore ``run_backend``'s topology flag (only pymeshlab takes it)
-TOPOLOGY_BLIND = ("meshopt", "fast")
 
 
 def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: str, ref: Reference,
