@@ -94,10 +94,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hierarchy", action="store_true",
                    help="also write each part's view-dependent vertex hierarchy (coded connectivity, read by "
                         "lopcook refine; docs/hierarchy.md)")
-    p.add_argument("--instances", action="store_true",
-                   help="store each group of copies of one mesh once, on a grid of its own, with one transform "
-                        "per placement; copies that share a vertex with another part stay on the scene grid "
-                        "(docs/format.md, Placements)")
+    copies = p.add_mutually_exclusive_group()
+    copies.add_argument("--instances", action="store_true", default=None,
+                        help="store each group of copies of one mesh once, on a grid of its own, with one "
+                             "transform per placement; copies that share a vertex with another part stay on the "
+                             "scene grid (docs/instances.md). Default: wherever the scene has copies, except "
+                             "with --hierarchy or --target-bytes (given with those: exit 2)")
+    copies.add_argument("--no-instances", dest="instances", action="store_false",
+                        help="store every placed copy as a part of its own on the scene grid")
     p.add_argument("--clusters", default=None, metavar="N",
                    help="clustered position buffers of N vertices per cluster, N in [16, 1024]: per-cluster "
                         "anchors store the top bits a cluster's vertices share once (container version 3.0; "
@@ -503,8 +507,8 @@ def settings_from_args(args):
                                     seams=getattr(args, "lod_seams", DEFAULTS.simplify.seams.value))
     if getattr(args, "hierarchy", False):
         simplify = replace(simplify, hierarchy=True)
-    if getattr(args, "instances", False):
-        simplify = replace(simplify, instances=True)
+    if getattr(args, "instances", None) is not None:
+        simplify = replace(simplify, instances=bool(args.instances))
     return Settings(ingest=_ingest_settings(args), simplify=simplify, analyse=_analyse_settings(args),
                     viewing=_viewing(args) if hasattr(args, "viewport") else DEFAULTS.viewing,
                     tune=_tune_settings(args) if hasattr(args, "target_psnr") else DEFAULTS.tune,

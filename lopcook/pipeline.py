@@ -449,11 +449,37 @@ def _account(result: CookResult) -> None:
             row.index_bytes = e.index_bytes
 
 
+def resolve_instances(scene: Scene, settings: Settings, *, budget: bool = False) -> Settings:
+    """``settings`` with ``simplify.instances`` decided: the default (None) becomes True where the
+    scene has copies of one mesh (``lopcook.simplify.instances.copies``: a group with a second
+    member), at least two of which share no LOD 0 scene-grid cell with another part (the rest stay
+    on the scene grid: ``placement_groups``), and the cook can store them once (no
+    ``simplify.hierarchy``, no byte budget: ``budget`` or ``tune.target_bytes``); False otherwise.
+    True and False are kept as given. Deterministic: it depends on the parts' contents only. (The
+    cook's own grouping also looks at the LODs; where it then stores nothing once, the default
+    writes what False writes: ``run``.)"""
+    if settings.simplify.instances is not None:
+        return settings
+    want = (len(scene.parts) >= 2 and not settings.simplify.hierarchy and not budget
+            and settings.tune.target_bytes is None)
+    if want:
+        from .emit.placement import touching_parts
+        from .simplify.instances import copies
+
+        groups = [[lead] + [i for i, _, _ in members] for lead, members in copies(scene.parts) if members]
+        if groups:
+            grid = Grid.fit([p.positions for p in scene.parts])
+            touching = touching_parts([grid.quantize(p.positions) for p in scene.parts], list(range(len(scene.parts))))
+            want = any(int(np.count_nonzero(~touching[g])) >= 2 for g in groups)
+        else:
+            want = False
+    return replace(settings, simplify=replace(settings.simplify, instances=want))
+
+
 def plain(settings: Settings, max_level: int | None = None) -> bool:
-    """Whether ``run`` cooks ``settings`` on its plain path (one analysis of the scene as given, one
-    build: no LODs, no copies stored once, no viewing savings)."""
-    return (not settings.simplify.instances and settings.simplify.lods is None and settings.viewing.nearest_m is None
-            and max_level is None)
+    """Whether ``run`` cooks ``settings`` from one analysis of the scene as given (no LODs, no
+    viewing savings; copies stored once or not): then ``run`` can take that analysis."""
+    return settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None
 
 
 def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = None, max_level: int | None = None,
@@ -465,12 +491,24 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
     BufferInputs (for the byte-budget fit). ``progress``: stage reporting (``lopcook.progress``).
     ``analysis``: on the plain path (``plain``), the Analysis of ``scene`` and ``settings.analyse``
     already made (e.g. ``lopcook.analyse.prepared.PreparedAnalysis.analyse``, the same minimum
-    levels as ``analyse``); ValueError on another path."""
+    levels as ``analyse``); ValueError on another path. ``simplify.instances`` None (the default) is
+    decided here (``resolve_instances``; ``keep_buffers`` counts as a byte budget); where it stores
+    copies once, ``options`` gets ``instances: true``."""
     options = settings.to_manifest()["options"] if options is None else options
+    auto = settings.simplify.instances is None
+    settings = resolve_instances(scene, settings, budget=keep_buffers)
+    if auto and settings.simplify.instances:
+        options = dict(options, instances=True)  # the default stores copies once: the record says so
     if analysis is not None and not plain(settings, max_level):
-        raise ValueError("an analysis can be given only for a cook without LODs, copies or viewing savings")
+        raise ValueError("an analysis can be given only for a cook without LODs or viewing savings")
     if settings.simplify.instances:
-        return _instanced(scene, settings, options, max_level, keep_buffers, progress)
+        result = _instanced(scene, settings, options, max_level, keep_buffers, progress, auto=auto,
+                            analysis=analysis)
+        if result is not None:
+            return result
+        # the default, and the cook's grouping stored nothing once: the bytes of instances False
+        settings = replace(settings, simplify=replace(settings.simplify, instances=False))
+        options = {k: v for k, v in options.items() if k != "instances"}
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
         return _plain(scene, settings, options, keep_buffers, progress, analysis)
     timings: dict = {}
@@ -532,13 +570,17 @@ def placement_groups(scene: Scene, parts_chain, quantized, rows) -> list[dict]:
 
 
 def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int | None, keep_buffers: bool,
-               progress: Progress) -> CookResult:
+               progress: Progress, auto: bool = False, analysis=None) -> CookResult | None:
     """``run`` with ``simplify.instances``: steps (1)-(4) as without it, then every group of copies
     (``placement_groups``) encoded once on its mesh grid, its minimum levels the maximum over its
     placements of the converted world levels (``lopcook.emit.placement`` states the bound), and
     every placement written as a part entry naming the group's buffers (attribute bits: the most
     any placement chose, ``_max_bits``). Parts not grouped are
-    encoded on the scene grid exactly as without ``--instances``. No savings record is written."""
+    encoded on the scene grid exactly as without ``--instances``. No savings record is written.
+    ``auto`` (the default decided ``instances``): None when no group is stored once, for ``run`` to
+    cook the scene as without ``--instances``. ``analysis``: ``run``'s, on its ``plain`` path (LOD 0
+    only): used for the scene's levels instead of analysing it again (the same levels: the
+    co-located sharing ``analyse_lods`` applies is the one ``analyse`` made)."""
     from .emit.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
                                  transform_f32)
     from .analyse import colocated_max
@@ -550,11 +592,16 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
         raise LopcookError("usage", scene.source, "--instances does not combine with a byte budget (--target-bytes)",
                            hint="cook without --instances")
     timings: dict = {}
-    parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
-    t0 = time.perf_counter()
-    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
-                                                  first=first)
-    timings["analyse"] = time.perf_counter() - t0
+    if analysis is not None:
+        parts_chain, errors, reports, cap = [[p] for p in scene.parts], [[0.0] for _ in scene.parts], [], None
+        grid, analyses, raised = analysis.grid, [analysis], 0
+        levels = [[pa.min_level] for pa in analysis.parts]
+    else:
+        parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
+        t0 = time.perf_counter()
+        grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
+                                                      first=first)
+        timings["analyse"] = time.perf_counter() - t0
     all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
     t0 = time.perf_counter()
     groups = placement_groups(scene, parts_chain, [[b.quantized for b in bufs] for bufs in all_buffers], rows)
@@ -594,6 +641,8 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
         shifts_of[owner] = [s for _, _, s in members]
         for i, tf, s in members:
             placement[i] = (owner, tf, s)
+    if auto and not placement:
+        return None
     kept = [[b for b, r in zip(bufs, rs) if r.kept] for bufs, rs in zip(all_buffers, rows)]
     for owner, bufs in group_buffers.items():
         kept[owner] = [b for b, r in zip(bufs, rows[owner]) if r.kept]

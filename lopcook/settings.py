@@ -201,15 +201,17 @@ class SimplifySettings:
         mesh welded by position where that stops short; docs/lod.md)
     hierarchy : bool  also write each part's view-dependent vertex hierarchy, built from LOD 0's
         full collapse sequence (``lopcook.hierarchy.container``; default False)
-    instances : bool  store each group of copies of one mesh once, on a grid of its own, with one
-        transform per placement (``lopcook.emit.placement``, docs/format.md; default False)
+    instances : bool | None  store each group of copies of one mesh once, on a grid of its own, with
+        one transform per placement (``lopcook.emit.placement``, docs/format.md). None (the default):
+        wherever the scene has copies and the cook allows it (no hierarchy, no byte budget;
+        ``lopcook.pipeline.resolve_instances``); True: always (a usage error with those); False: never
     """
 
     lods: LodSpec | None = None
     backend: LodBackend = LodBackend.AUTO
     seams: SeamMode = SeamMode.AUTO
     hierarchy: bool = False
-    instances: bool = False
+    instances: bool | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "backend", _enum(LodBackend, self.backend, "LOD backend"))
@@ -545,8 +547,9 @@ class Settings:
     def to_manifest(self) -> dict:
         """``{"options": ..., "viewing": ...}`` as the container records them (JSON types only).
         ``options.lods`` is present only when a LOD chain is asked for, ``options.hierarchy``
-        (true) only with ``simplify.hierarchy``, ``options.instances`` (true) only with
-        ``simplify.instances``, ``options.attributes`` only when attribute bits
+        (true) only with ``simplify.hierarchy``, ``options.instances`` only when ``simplify.instances``
+        is given (true or false; the default, None, writes none, and ``lopcook.pipeline.run`` adds
+        true where the default stored copies once), ``options.attributes`` only when attribute bits
         are asked for: default containers keep their options record."""
         options = {"analyse": self.analyse.to_record(), "ingest": {"crease_angle_deg": self.ingest.crease_angle_deg}}
         if self.simplify.lods is not None:
@@ -554,8 +557,8 @@ class Settings:
                                "seams": self.simplify.seams.value}
         if self.simplify.hierarchy:
             options["hierarchy"] = True
-        if self.simplify.instances:
-            options["instances"] = True
+        if self.simplify.instances is not None:
+            options["instances"] = bool(self.simplify.instances)
         if not self.attributes.is_default:
             options["attributes"] = self.attributes.to_record()
         if self.emit.clusters is not None:
@@ -583,10 +586,12 @@ class Settings:
                 if options["hierarchy"] is not True:
                     raise ValueError(f"options.hierarchy must be true when present, got {options['hierarchy']!r}")
                 simplify = replace(simplify, hierarchy=True)
-            if options.get("instances", False) is not False:
-                if options["instances"] is not True:
-                    raise ValueError(f"options.instances must be true when present, got {options['instances']!r}")
-                simplify = replace(simplify, instances=True)
+            # absent: the default (copies stored once wherever the scene has them, and then recorded
+            # true; containers of an older lopcook without the record kept copies apart)
+            instances = options.get("instances")
+            if instances is not None and instances is not False and instances is not True:
+                raise ValueError(f"options.instances must be true or false when present, got {instances!r}")
+            simplify = replace(simplify, instances=instances)
             attributes = AttributeSettings()
             if options.get("attributes") is not None:
                 attributes = AttributeSettings.from_record(options["attributes"])

@@ -154,7 +154,8 @@ def test_version_rule_clusters_or_placements_make_3_0(cooked):
     from lopcook.pipeline import run as cook
 
     scene, c, u, _ = cooked
-    plain = cook(procedural_scene(), Settings(emit=EmitSettings(clusters=None))).data
+    plain = cook(procedural_scene(), Settings(simplify=SimplifySettings(instances=False),
+                                              emit=EmitSettings(clusters=None))).data
     assert struct.unpack_from("<HH", plain, 4) == (2, 0)
     assert from_bytes(_relabel(plain, 3, 0)).manifest == from_bytes(plain).manifest
     assert from_bytes(_relabel(u.data, 2, 1)).manifest == u.manifest

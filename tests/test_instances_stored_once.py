@@ -6,6 +6,7 @@ the chess set's 49 placements over 8 distinct meshes, and bad manifests refused.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,8 @@ from lopcook.simplify.instances import RTOL
 from lopcook.types import MeshPart, Scene
 
 INSTANCES = Settings(simplify=SimplifySettings(instances=True))
+#: every copy a part of its own on the scene grid (--no-instances; the default before copies were stored once)
+SEPARATE = Settings(simplify=SimplifySettings(instances=False))
 
 
 def _rot(axis, angle):
@@ -69,7 +72,7 @@ def procedural_scene(touching_first: bool = False) -> Scene:
 @pytest.fixture(scope="module")
 def cooked():
     scene = procedural_scene()
-    plain = run(scene, Settings())
+    plain = run(scene, SEPARATE)
     inst = run(scene, INSTANCES)
     return scene, plain, inst
 
@@ -77,7 +80,7 @@ def cooked():
 @pytest.fixture(scope="module", params=[False, True], ids=["rep-first", "touching-first"])
 def cooked_both(request):
     scene = procedural_scene(touching_first=request.param)
-    return scene, run(scene, Settings()), run(scene, INSTANCES)
+    return scene, run(scene, SEPARATE), run(scene, INSTANCES)
 
 
 def source_order(c, i: int, part: MeshPart) -> np.ndarray:
@@ -195,14 +198,43 @@ def test_memory_counts_each_distinct_buffer_once(cooked):
     assert describe_container(plain.container)["totals"]["buffers"] == 6
 
 
-def test_bytes_are_deterministic_and_the_default_cook_is_unchanged(cooked):
+def test_bytes_are_deterministic_and_the_default_stores_copies_once(cooked):
     scene, plain, inst = cooked
     assert run(scene, INSTANCES).data == inst.data
-    assert run(scene, Settings()).data == plain.data
-    assert "instances" not in plain.container.manifest["options"]
+    assert run(scene, SEPARATE).data == plain.data
+    assert plain.container.manifest["options"]["instances"] is False
     assert int.from_bytes(plain.data[6:8], "little") == VERSION[1]
     assert inst.container.manifest["options"]["instances"] is True
     assert Settings.from_manifest(inst.container.manifest).simplify.instances is True
+    assert Settings.from_manifest(plain.container.manifest).simplify.instances is False
+    # the default (instances None) stores this scene's copies once: the bytes of instances=True,
+    # and its record reads back as True (so a re-cook from the record writes the same bytes)
+    assert run(scene, Settings()).data == inst.data
+
+
+def test_the_default_stores_nothing_once_without_copies_or_where_the_cook_cannot():
+    """A scene without copies, or a cook with a hierarchy or a byte budget, takes the default
+    cook's bytes of before (no options.instances); forcing instances there is still a usage error."""
+    from lopcook.errors import LopcookError
+    from lopcook.pipeline import resolve_instances
+    from lopcook.settings import TuneSettings
+
+    scene = procedural_scene()
+    alone = Scene(parts=scene.parts[-2:], source="procedural", format="obj").validate()  # "touching", "plate"
+    default = run(alone, Settings()).container
+    assert "instances" not in default.manifest["options"] and Settings.from_manifest(default.manifest) == Settings()
+    # the same bytes as instances=False but for its record
+    separate = run(alone, SEPARATE).container
+    assert separate.manifest["options"].pop("instances") is False
+    assert separate.manifest == default.manifest and separate.sections == default.sections
+    hier = Settings(simplify=SimplifySettings(hierarchy=True))
+    assert resolve_instances(scene, hier).simplify.instances is False
+    assert resolve_instances(scene, Settings(tune=TuneSettings(target_bytes="10000"))).simplify.instances is False
+    assert resolve_instances(scene, Settings(), budget=True).simplify.instances is False
+    assert resolve_instances(scene, Settings()).simplify.instances is True
+    assert resolve_instances(alone, Settings()).simplify.instances is False
+    with pytest.raises(LopcookError, match="does not combine with --hierarchy"):
+        run(scene, Settings(simplify=SimplifySettings(instances=True, hierarchy=True)))
 
 
 def test_placements_keep_their_guarantee_with_lod_chains():
@@ -425,3 +457,36 @@ def test_report_of_an_instanced_gltf_says_what_sharing_saves(tmp_path, gl):
         assert row["cap_bytes_all_copies"] > row["cap_bytes"] and \
             row["cap_saved_by_sharing_bytes"] == row["cap_bytes_all_copies"] - row["cap_bytes"]
     assert 'id="copies"' in html.read_text()
+
+
+def test_the_default_writes_the_separate_bytes_where_its_grouping_stores_nothing_once(monkeypatch):
+    """The default decides from LOD 0 that copies can be stored once; the cook's grouping (which
+    also looks at the LODs and the mesh-grid levels) may still keep every copy on the scene grid.
+    Then the default writes what ``instances=False`` writes, with no options.instances record;
+    ``instances=True`` records true whatever the grouping found."""
+    import lopcook.pipeline as pipeline
+
+    scene = procedural_scene()
+    separate = run(scene, SEPARATE).data
+    monkeypatch.setattr(pipeline, "placement_groups", lambda *a, **k: [])
+    default = run(scene, Settings())
+    assert "instances" not in default.container.manifest["options"]
+    assert default.container.sections == from_bytes(separate).sections
+    forced = run(scene, INSTANCES)
+    assert forced.container.manifest["options"]["instances"] is True
+    assert forced.container.entries.cap_bytes(12) == default.container.entries.cap_bytes(12)
+
+
+def test_a_given_analysis_gives_the_same_copies_stored_once():
+    """The searches of ``--target-psnr`` hand ``run`` the scene's analysis (a prepared one: the same
+    levels as ``analyse``); storing copies once from it writes the bytes of a fresh cook."""
+    from lopcook.analyse import analyse
+    from lopcook.analyse.prepared import PreparedAnalysis
+
+    scene = procedural_scene()
+    for st in (Settings(), INSTANCES):
+        fresh = run(scene, st).data
+        assert run(scene, st, analysis=analyse(scene, st.analyse)).data == fresh
+        prepared = PreparedAnalysis(scene, st.analyse).analyse(st.analyse.eps / 4, st.analyse.edge_eps)
+        looser = replace(st, analyse=replace(st.analyse, eps=st.analyse.eps / 4))
+        assert run(scene, looser, analysis=prepared).data == run(scene, looser).data

@@ -43,10 +43,14 @@ def test_containers_without_a_seam_record_were_cooked_with_locked_seams():
     Settings(simplify=SimplifySettings(lods=LodSpec()), analyse=AnalyseSettings(depth="off", texture_kf="off")),
     Settings(attributes=AttributeSettings(normal_bits=9, uv_bits=None, color_bits=4)),
     Settings(attributes=AttributeSettings(uv_bits=12, parts=((8, None, 5), (None, 16, None), (16, 6, 8)))),
+    Settings(simplify=SimplifySettings(instances=True)),
+    Settings(simplify=SimplifySettings(instances=False)),
 ])
 def test_manifest_round_trip_is_exact(settings):
     record = settings.to_manifest()
     assert Settings.from_manifest(record) == settings
+    # the default (None: stored once where the scene has copies) writes no record
+    assert record["options"].get("instances") is settings.simplify.instances
     # the record is plain JSON data: enums appear as their strings
     import json
 
