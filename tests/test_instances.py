@@ -53,6 +53,20 @@ def test_similarity_copy_found_and_mapped_exactly(rng):
     assert I.affine_map(rep, replace(copy, normals=rep.normals)) is None
 
 
+def test_copies_answers_again_for_the_same_parts_only(rng, monkeypatch):
+    """The last answer is reused for the very same part objects (one cook asks several times),
+    never for other objects, even of equal content, and its arrays cannot be changed."""
+    rep = _sphere("a")
+    copy = replace(rep, name="b", positions=rep.positions @ _rotation(rng).T + 1.0)
+    first = I.copies((rep, copy))
+    calls = []
+    monkeypatch.setattr(I, "affine_map", lambda *a, **k: calls.append(1))  # would find no copy
+    again = I.copies([rep, copy])
+    assert not calls and [(g, [m[0] for m in ms]) for g, ms in again] == [(0, [1])]
+    assert again[0][1][0][1] is first[0][1][0][1] and not again[0][1][0][1].flags.writeable
+    assert I.copies([rep, replace(copy)]) == [(0, []), (1, [])] and calls  # new objects: asked again
+
+
 def test_placed_chain_errors_scale_and_match_measurement(rng):
     rep = _with_normals(_sphere("a"))
     a = 2.0 * _rotation(rng)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import time
+import weakref
 from dataclasses import replace
 
 import numpy as np
@@ -96,11 +97,33 @@ def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshP
 MAX_CANDIDATES = 16
 
 
+#: the last ``copies`` answer: (weak references to its parts, the answer). One cook asks for the
+#: same parts several times (the default's decision, the LOD chains, the grouping, and every probe
+#: of a search); the parts are not kept alive by it
+_LAST: list = []
+
+
 def copies(parts) -> list[tuple[int, list[tuple[int, np.ndarray, np.ndarray]]]]:
     """``parts`` grouped into copies: ``[(lead, [(i, A, t), ...]), ...]`` in part order, each lead
     the first part of its group and every member ``i`` a copy of it by ``x -> A x + t``
     (``affine_map``). A part that copies no earlier part leads a group of its own. Each part is
-    tried against the first ``MAX_CANDIDATES`` groups with its signature."""
+    tried against the first ``MAX_CANDIDATES`` groups with its signature. Asked again for the very
+    same part objects (MeshParts are frozen), the last answer is returned (a fresh list; the
+    arrays are shared, read-only)."""
+    parts = list(parts)
+    if _LAST and len(_LAST[0]) == len(parts) and all(r() is p for r, p in zip(_LAST[0], parts)):
+        return [(lead, list(members)) for lead, members in _LAST[1]]
+    out = _copies(parts)
+    for _, members in out:
+        for _, a, t in members:
+            a.setflags(write=False)
+            t.setflags(write=False)
+    _LAST[:] = [[weakref.ref(p) for p in parts], [(lead, list(members)) for lead, members in out]]
+    return out
+
+
+def _copies(parts) -> list:
+    """``copies`` without the memory of the last answer."""
     by_sig: dict = {}
     out: list = []
     for i, p in enumerate(parts):
