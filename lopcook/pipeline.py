@@ -456,8 +456,8 @@ def resolve_instances(scene: Scene, settings: Settings, *, budget: bool = False)
     on the scene grid: ``placement_groups``), and the cook can store them once (no
     ``simplify.hierarchy``, no byte budget: ``budget`` or ``tune.target_bytes``); False otherwise.
     True and False are kept as given. Deterministic: it depends on the parts' contents only. (The
-    cook's own grouping also looks at the LODs; where it then stores nothing once, the default
-    writes what False writes: ``run``.)"""
+    cook's own grouping also looks at the LODs; where it then stores nothing once, ``run`` writes
+    every copy as a part of its own, with no ``options.instances`` record.)"""
     if settings.simplify.instances is not None:
         return settings
     want = (len(scene.parts) >= 2 and not settings.simplify.hierarchy and not budget
@@ -506,7 +506,8 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
                             analysis=analysis)
         if result is not None:
             return result
-        # the default, and the cook's grouping stored nothing once: the bytes of instances False
+        # the default, and the cook's grouping stored nothing once: every copy a part of its own,
+        # no record (the bytes of the default before copies were stored once)
         settings = replace(settings, simplify=replace(settings.simplify, instances=False))
         options = {k: v for k, v in options.items() if k != "instances"}
     if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
