@@ -10,8 +10,6 @@ float64 coordinates are identical (``-0.0`` equals ``0.0``).
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 
 def weld_exact(positions: np.ndarray) -> tuple[np.ndarray, int]:
@@ -335,6 +333,9 @@ def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     cid = np.int32 if size < (1 << 31) - 1 else np.int64  # node ids of the face-vertex graph
     f = np.repeat(np.arange(n_faces, dtype=cid), 3)
     v = faces.ravel().astype(cid) + cid(n_faces)
+    from scipy.sparse import coo_matrix  # here: a cook without LODs never needs scipy.sparse (0.2 s to import)
+    from scipy.sparse.csgraph import connected_components
+
     g = coo_matrix((np.ones(f.size, dtype=np.int8), (f, v)), shape=(size, size))
     _, lab = connected_components(g, directed=False)
     lab = lab[:n_faces]

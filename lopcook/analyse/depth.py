@@ -211,8 +211,6 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
         metres are depth-critical; ``level`` is then 1/0-valued "critical" (the caller assigns
         the user's fixed level), and floors are ignored.
     """
-    import igl
-
     n_parts = len(positions)
     pos = [np.ascontiguousarray(p, dtype=np.float64) for p in positions]
     tris = list(indices)  # int64 copies are made per part with its tree, and freed with it
@@ -256,6 +254,8 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
                 alive -= trees.pop(k)[1].shape[0]
                 evicted.add(k)
             tj = np.ascontiguousarray(tris[j], dtype=np.int64)
+            import igl  # here: a scene whose parts never come near each other builds no tree (0.1 s to import)
+
             tree = igl.AABB()
             tree.init(pos[j], tj)
             trees[j] = (tree, tj)

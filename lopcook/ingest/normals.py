@@ -26,8 +26,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..mesh import weld_labels
 
@@ -277,6 +275,9 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         link_u = np.concatenate([h1, cb1])
         link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
         del h1, h2, cb1, cb2, same_dir
+        from scipy.sparse import coo_matrix  # here: only this branch needs scipy.sparse (0.2 s to import)
+        from scipy.sparse.csgraph import connected_components
+
         graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(c, c))
         del link_u, link_v
         _, lab = connected_components(graph, directed=False)

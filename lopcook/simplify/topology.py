@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 import numpy as np
 
 from ..mesh import components, degenerate_mask, edge_groups, sorted_unique, unique_rows, weld_exact, weld_labels
@@ -67,6 +65,9 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     u = np.concatenate([h1, cb1])
     v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
     del h1, h2, cb1, cb2, same_dir
+    from scipy.sparse import coo_matrix  # here: a cook without LODs never needs scipy.sparse
+    from scipy.sparse.csgraph import connected_components
+
     g = coo_matrix((np.ones(u.size, dtype=np.int8), (u, v)), shape=(3 * m, 3 * m))
     del u, v
     n_fans, lab = connected_components(g, directed=False)
