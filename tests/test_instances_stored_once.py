@@ -490,3 +490,24 @@ def test_a_given_analysis_gives_the_same_copies_stored_once():
         prepared = PreparedAnalysis(scene, st.analyse).analyse(st.analyse.eps / 4, st.analyse.edge_eps)
         looser = replace(st, analyse=replace(st.analyse, eps=st.analyse.eps / 4))
         assert run(scene, looser, analysis=prepared).data == run(scene, looser).data
+
+
+def test_touching_parts_answers_again_only_for_the_same_cells(monkeypatch):
+    """``placement.touching_parts`` keeps its last answer for the same grid integers (the probes
+    of a search ask again); other cells or owners are sorted again, and the answer handed out is a
+    copy the caller may change."""
+    import lopcook.emit.placement as P
+
+    a = np.array([[0, 0, 0], [5, 5, 5]], np.uint32)
+    b = np.array([[5, 5, 5], [9, 9, 9]], np.uint32)  # shares cell (5, 5, 5) with a
+    c = np.array([[7, 7, 7]], np.uint32)
+    first = P.touching_parts([a, b, c], [0, 1, 2])
+    assert first.tolist() == [True, True, False]
+    first[:] = False  # the caller's copy
+    calls = []
+    real = P._touching
+    monkeypatch.setattr(P, "_touching", lambda *x: calls.append(1) or real(*x))
+    assert P.touching_parts([a.copy(), b.copy(), c.copy()], [0, 1, 2]).tolist() == [True, True, False]
+    assert not calls  # the same cells: no sort
+    assert P.touching_parts([a, b, c], [0, 0, 1]).tolist() == [False, False]  # a and b one part now
+    assert P.touching_parts([a, c + 1, b], [0, 1, 2]).tolist() == [True, False, True] and len(calls) == 2

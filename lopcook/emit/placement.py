@@ -54,6 +54,7 @@ Cracks
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -138,15 +139,36 @@ def resident_level(world_level: int, shifts) -> int:
     return int(max(int(local_level(world_level, s)) for s in shifts))
 
 
+#: the last ``touching_parts`` answer: (digest of its inputs, the answer). A search's probes ask
+#: again for the same cells (a scene's grid integers do not depend on the knobs they move)
+_LAST_TOUCHING: list = []
+
+
 def touching_parts(quantized: list[np.ndarray], part_of: list[int]) -> np.ndarray:
     """Which parts share a scene-grid cell with another part: ``quantized`` a list of (n_k, 3)
     uint32 grid integers (every LOD of every part), ``part_of[k]`` the part array k belongs to.
-    Returns a bool array over ``max(part_of) + 1`` parts. Vectorised: one ``np.unique`` over all
-    cells, then the smallest and largest part per cell."""
+    Returns a bool array over ``max(part_of) + 1`` parts (a fresh copy). Vectorised: one sort over
+    all cells, then the smallest and largest part per cell. The same inputs as the last call (a
+    SHA-1 of every array and of ``part_of``) give the last answer without sorting again."""
     n_parts = max(part_of) + 1 if part_of else 0
     if not quantized:
         return np.zeros(n_parts, dtype=bool)
-    q = np.concatenate([np.asarray(a, np.uint32).reshape(-1, 3) for a in quantized]).astype(np.uint64)
+    arrays = [np.ascontiguousarray(a, dtype=np.uint32).reshape(-1, 3) for a in quantized]
+    h = hashlib.sha1(np.asarray(part_of, np.int64).tobytes())
+    for a in arrays:
+        h.update(np.int64(a.shape[0]).tobytes())
+        h.update(a.data)
+    key = h.digest()
+    if _LAST_TOUCHING and _LAST_TOUCHING[0] == key:
+        return _LAST_TOUCHING[1].copy()
+    out = _touching(arrays, part_of, n_parts)
+    _LAST_TOUCHING[:] = [key, out.copy()]
+    return out
+
+
+def _touching(quantized: list[np.ndarray], part_of: list[int], n_parts: int) -> np.ndarray:
+    """``touching_parts`` without the memory of the last answer."""
+    q = np.concatenate(quantized).astype(np.uint64)
     owner = np.concatenate([np.full(np.asarray(a).reshape(-1, 3).shape[0], p, np.int64)
                             for a, p in zip(quantized, part_of)])
     order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
