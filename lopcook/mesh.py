@@ -333,7 +333,8 @@ def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     cid = np.int32 if size < (1 << 31) - 1 else np.int64  # node ids of the face-vertex graph
     f = np.repeat(np.arange(n_faces, dtype=cid), 3)
     v = faces.ravel().astype(cid) + cid(n_faces)
-    from scipy.sparse import coo_matrix  # here: a cook without LODs never needs scipy.sparse (0.2 s to import)
+    # imported here: a cook without LODs never needs scipy.sparse (docs/performance.md, "Start-up")
+    from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     g = coo_matrix((np.ones(f.size, dtype=np.int8), (f, v)), shape=(size, size))

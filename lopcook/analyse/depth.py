@@ -254,7 +254,9 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
                 alive -= trees.pop(k)[1].shape[0]
                 evicted.add(k)
             tj = np.ascontiguousarray(tris[j], dtype=np.int64)
-            import igl  # here: a scene whose parts never come near each other builds no tree (0.1 s to import)
+            # imported here: a scene whose parts never come near each other builds no tree
+            # (docs/performance.md, "Start-up")
+            import igl
 
             tree = igl.AABB()
             tree.init(pos[j], tj)

@@ -275,7 +275,8 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         link_u = np.concatenate([h1, cb1])
         link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
         del h1, h2, cb1, cb2, same_dir
-        from scipy.sparse import coo_matrix  # here: only this branch needs scipy.sparse (0.2 s to import)
+        # imported here: only this branch needs scipy.sparse (docs/performance.md, "Start-up")
+        from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
         graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(c, c))
