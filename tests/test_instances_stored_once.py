@@ -345,6 +345,49 @@ def test_harness_vertex_shader_applies_the_placement_bit_exactly(cooked, gl):
         prog.release()
 
 
+def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_its_reference(cooked, gl,
+                                                                                            monkeypatch):
+    """The render harness builds and uploads one buffer per distinct mesh and level (the placements
+    of one owner share it), and each placement still draws exactly the reference decode of that
+    buffer mapped by its own transform (``decode_positions`` at the resident level)."""
+    import lopcook.verify.evaluate as ev
+    import lopcook.verify.renderer as rd
+    from lopcook.verify.buffers import resident_levels
+
+    scene, _, inst = cooked
+    c = inst.container
+    built, drawn = [], []
+    real_cap, real_draw = ev.cap_buffer, rd.Renderer.draw
+
+    def counting(c_, part, lod, level):
+        built.append((owner(c_, part), lod, level))
+        return real_cap(c_, part, lod, level)
+
+    def spy(self, items, camera, shading, decoded):
+        if decoded:
+            drawn.append([(int(it["part"]), it["ssbo"], np.asarray(it["cover"].positions)) for it in items])
+        return real_draw(self, items, camera, shading, decoded)
+
+    monkeypatch.setattr(ev, "cap_buffer", counting)
+    monkeypatch.setattr(rd.Renderer, "draw", spy)
+    levels = [6, 11]
+    ev.evaluate(c, scene, levels=levels, views=1, resolution=(64, 48), variants=("cap",))
+    n = len(c.manifest["parts"])
+    # one build per distinct buffer (owner, LOD) at its resident level, for each scene level drawn
+    expected = [(o, k, lv) for level in levels for (o, k), lv in resident_levels(c, [0] * n, level).items()]
+    assert sorted(built) == sorted(expected)
+    assert len({o for o, _, _ in built}) < n  # copies exist in this scene: fewer buffers than parts
+    for items, level in zip(drawn, levels):
+        resident = resident_levels(c, [0] * n, level)
+        by_owner: dict = {}
+        for part, ssbo, pos in items:
+            want = decode_positions(c, part, 0, resident[(owner(c, part), 0)])[2]
+            assert np.array_equal(pos.view(np.uint32), want.view(np.uint32)), (part, level)
+            by_owner.setdefault(owner(c, part), set()).add(id(ssbo))
+        assert all(len(ids) == 1 for ids in by_owner.values())
+        assert any(sum(owner(c, p) == o for p, _, _ in items) > 1 for o in by_owner)
+
+
 def test_decoders_check_each_distinct_buffer_on_its_own_grid(cooked, gl):
     from lopcook.verify.decoders import verify_decoders
 

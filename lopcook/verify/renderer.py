@@ -1228,6 +1228,30 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     return positions
 
 
+def _placed_positions(local, place):
+    """A function giving ``local()`` (a ``_decoded_positions`` function without placement, whose
+    result is computed once and shared by every caller) mapped by the placement rows ``place``
+    (``placement.to_world``, float32), or ``local()`` itself when ``place`` is None: the positions
+    ``_decoded_positions(..., place)`` gives, one decode for all the placements of a buffer."""
+    if not hasattr(local, "held"):
+        def once(f=local):
+            if once.held is None:
+                once.held = f()
+            return once.held
+
+        once.held = None
+        local = once
+    if place is None:
+        return local
+
+    def positions():
+        from ..emit.placement import to_world
+
+        return to_world(local(), np.asarray(place, np.float64).reshape(3, 4))
+
+    return positions
+
+
 def release_attributes(attr_cache: dict) -> None:
     """Release the GL buffers of a ``decoded_items`` attribute cache (each entry's third field)."""
     for entry in attr_cache.values():
@@ -1240,7 +1264,9 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
     gives the GpuBuffer (AP or CAP) or, for a clustered buffer, the ``ClusteredGpuBuffer``
     (``lopcook.verify.buffers.cap_buffer``), drawn with ``cluster_program`` (the ``LOP_CLUSTERED``
-    build; ValueError when it is needed and None); ``lods[i]`` is part i's LOD index. Part i's attributes are the
+    build; ValueError when it is needed and None); for a placement it must give its owner's buffer
+    (``emit.reader.owner``; as every reader function does), which is built, uploaded and decoded
+    once for all the placements of that owner at one level; ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
     file, normals normalised per vertex; a placement's mapped by A^-T). Attribute VBOs and index
@@ -1255,11 +1281,12 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     same camera and shading, give the same pixels, whatever layout (clustered or binned) or minimum
     levels gave those positions."""
     from ..emit.placement import split
-    from ..emit.reader import ClusteredGpuBuffer, part_grid, placement_transform, world_normals
+    from ..emit.reader import ClusteredGpuBuffer, owner, part_grid, placement_transform, world_normals
     from .buffers import resident_levels
     from .gpu import check_cluster_tables, cluster_decode_block, decode_block
 
     items, owned = [], []
+    shared: dict = {}  # (owner, LOD, level, grid) -> GL buffers, program and local positions of one buffer
     # every decoded position lies in the grid's cube (24-bit integers, at most 2^24 - 1, plus half a cell)
     lo = np.asarray(origin, np.float64)
     grid_box = (lo, lo + float(half_cell) * 2.0 * float(1 << 24))
@@ -1305,8 +1332,6 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         if tf is not None:
             # a placement: its shared buffer at the resident level, on its mesh grid, mapped by
             # its transform; the boxes are the mapped mesh-grid cube
-            from ..emit.reader import owner
-
             p_level = resident[(owner(c, i), k)]
             p_origin, p_extent = part_grid(c, i)
             p_half = np.float32(p_extent / float(1 << 24) / 2.0)
@@ -1318,30 +1343,36 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             span = float(np.abs(world).max()) * 2.0 ** -20
             cull_box = (world.min(axis=0) - span, world.max(axis=0) + span)
             extra["place"] = tuple(tuple(float(v) for v in np.asarray(tf, np.float64).reshape(3, 4)[r]) for r in range(3))
-        buf = buffers_of(c, i, k, p_level)
-        words = np.ascontiguousarray(buf.words, dtype="<u4")
-        ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
-        prog, clusters = program, None
-        if isinstance(buf, ClusteredGpuBuffer):
-            if cluster_program is None:
-                raise ValueError("a clustered buffer needs the LOP_CLUSTERED program (cluster_program)")
-            cl = buf.clusters
-            try:
-                rec, _, _ = check_cluster_tables(buf.records, cl.cluster_id, cl.vertex_id, cl.size)
-            except ValueError as exc:
-                raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take this "
-                                   f"buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
-            clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
-            ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, p_level, p_origin, p_half, words.size,
-                                                  cl.size))
-            prog = cluster_program
-            owned.append(clusters)
-        else:
-            ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
+        # the placements of one mesh read one buffer (their owner's, ``buffers_of`` contract): it is
+        # built, uploaded and decoded once per level; each placement has its own VAO and positions
+        share_key = (owner(c, i), k, int(p_level), tuple(float(v) for v in p_origin), float(p_half))
+        if share_key not in shared:
+            buf = buffers_of(c, i, k, p_level)
+            words = np.ascontiguousarray(buf.words, dtype="<u4")
+            ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
+            prog, clusters = program, None
+            if isinstance(buf, ClusteredGpuBuffer):
+                if cluster_program is None:
+                    raise ValueError("a clustered buffer needs the LOP_CLUSTERED program (cluster_program)")
+                cl = buf.clusters
+                try:
+                    rec, _, _ = check_cluster_tables(buf.records, cl.cluster_id, cl.vertex_id, cl.size)
+                except ValueError as exc:
+                    raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take "
+                                       f"this buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
+                clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
+                ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, p_level, p_origin, p_half,
+                                                      words.size, cl.size))
+                prog = cluster_program
+                owned.append(clusters)
+            else:
+                ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
+            owned += [ssbo, ubo]
+            shared[share_key] = (ssbo, ubo, prog, clusters, _decoded_positions(buf, p_level, p_origin, p_half, None))
+        ssbo, ubo, prog, clusters, local = shared[share_key]
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
-        cover = Coverage(ctx, prog, specs, index_words,
-                         _decoded_positions(buf, p_level, p_origin, p_half, extra.get("place")))
-        owned += [ssbo, ubo, vao, cover]
+        cover = Coverage(ctx, prog, specs, index_words, _placed_positions(local, extra.get("place")))
+        owned += [vao, cover]
         # named by what the vertex shader outputs: the decoded world positions (the reference decode,
         # bit-exact with both decoders), so two buffers that decode alike at this level -- clustered
         # or not, minimum levels that differ only at or below it -- share their renders
