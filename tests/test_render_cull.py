@@ -66,6 +66,37 @@ def test_a_box_is_outside_only_beyond_a_clip_plane(gl):
         assert Renderer.outside(cam, (behind - 0.1, behind + 0.1))  # behind the eye
 
 
+def test_outside_all_gives_each_box_the_clip_plane_test(gl):
+    """``outside_all`` over many boxes (with None among them) gives, box by box, the rule of
+    ``outside``'s doc written out corner by corner: all 8 corners beyond one clip plane by more than
+    ``CULL_MARGIN`` of their |w|; boxes on every side of the view, some straddling a plane."""
+    from lopcook.verify.renderer import CULL_MARGIN, box_corners
+
+    scene = row_of_spheres()
+    rng = np.random.default_rng(3)
+    with Harness(scene, (64, 36)) as h:
+        cam = make_camera(0, h.lo, h.hi, 1.0, render_viewing({"viewing": None}, (64, 36)))
+        centre = np.asarray(cam.centre, float)
+        lo = centre + rng.normal(scale=3.0, size=(400, 3))
+        hi = lo + rng.uniform(0.0, 2.0, size=(400, 3))
+        boxes = [(a, b) for a, b in zip(lo, hi)]
+        boxes[::37] = [None] * len(boxes[::37])
+        got = Renderer.outside_all(cam, boxes)
+        mvp = np.asarray(cam.mvp, float)
+        want = []
+        for box in boxes:
+            if box is None:
+                want.append(False)
+                continue
+            clip = np.c_[box_corners(*box), np.ones(8)] @ mvp.T
+            w = clip[:, 3]
+            slack = CULL_MARGIN * np.abs(w) + 1e-12
+            want.append(any(np.all(clip[:, k] - w > slack) or np.all(-clip[:, k] - w > slack) for k in range(3)))
+        assert got.tolist() == want
+        assert 0 < got.sum() < len(boxes) - len(boxes[::37])  # both verdicts occur
+        assert [Renderer.outside(cam, b) for b in boxes[:50]] == want[:50]
+
+
 def test_float_cache_crop_keeps_everything_that_is_not_background(rng):
     """The cropped float render re-expands to the same bits: a pixel with colour but alpha 0 outside
     the object (not the clear colour) keeps the whole frame, an ID without coverage counts as object."""

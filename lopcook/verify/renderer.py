@@ -678,19 +678,30 @@ class Renderer:
         all 8 corners lie beyond one clip plane (-w <= x, y, z <= w) by more than ``CULL_MARGIN`` of
         their |w| (the box is convex, so every point of it, and every triangle drawn inside it, is
         clipped away whole: a draw that skips it gives the same pixels). False for no box."""
-        if box is None:
-            return False
-        lo, hi = (np.asarray(b, np.float64) for b in box)
-        corners = np.c_[box_corners(lo, hi), np.ones(8)]
-        clip = corners @ np.asarray(camera.mvp, np.float64).T
-        if not np.all(np.isfinite(clip)):
-            return False
-        w = clip[:, 3]
+        return bool(Renderer.outside_all(camera, [box])[0])
+
+    @staticmethod
+    def outside_all(camera: Camera, boxes) -> np.ndarray:
+        """(k,) bool: ``outside(camera, box)`` of each of the k ``boxes`` (each (lo, hi) or None), in
+        one pass (a draw asks it of every item)."""
+        out = np.zeros(len(boxes), dtype=bool)
+        have = [i for i, b in enumerate(boxes) if b is not None]
+        if not have:
+            return out
+        lo = np.array([np.asarray(boxes[i][0], np.float64) for i in have])  # (m, 3)
+        hi = np.array([np.asarray(boxes[i][1], np.float64) for i in have])
+        pick = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)  # box_corners' order
+        corners = np.where(pick[None], hi[:, None, :], lo[:, None, :])  # (m, 8, 3)
+        mvp = np.asarray(camera.mvp, np.float64)
+        clip = corners @ mvp[:, :3].T + mvp[:, 3]  # (m, 8, 4), as [corner, 1] @ mvp.T
+        finite = np.isfinite(clip).all(axis=(1, 2))
+        w = clip[..., 3]
         slack = CULL_MARGIN * np.abs(w) + 1e-12
+        beyond = np.zeros(len(have), dtype=bool)
         for k in range(3):
-            if np.all(clip[:, k] - w > slack) or np.all(-clip[:, k] - w > slack):
-                return True
-        return False
+            beyond |= np.all(clip[..., k] - w > slack, axis=1) | np.all(-clip[..., k] - w > slack, axis=1)
+        out[np.asarray(have)] = beyond & finite
+        return out
 
     def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
         """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
@@ -730,8 +741,9 @@ class Renderer:
         ctx.front_face, ctx.cull_face = "ccw", "back"
         culling = False  # the context's CULL_FACE as set
         queued = 0  # triangles drawn since the last finish
-        for it in items:
-            if self.outside(camera, it.get("cull_box", it.get("box"))):
+        gone = self.outside_all(camera, [it.get("cull_box", it.get("box")) for it in items])
+        for it, skip in zip(items, gone):
+            if skip:
                 continue
             cull = not it.get("two_sided", True)
             if cull != culling:
