@@ -162,3 +162,28 @@ def test_edge_reason_in_counts_and_schema():
     schema = json.loads((Path(__file__).resolve().parents[1] / "schema" / "analysis.schema.json").read_text())
     jsonschema.validate(json.loads(json.dumps(d)), schema)
     assert d["settings"]["edges"] is True and d["settings"]["edge_level"] == 12
+
+
+@pytest.mark.parametrize("span", [1 << 24, 1 << 30], ids=["24-bit", "wider"])
+def test_colocated_groups_give_the_maximum_of_each_group_for_any_values(span):
+    """``ColocatedGroups(q).max(values)`` equals the maximum over each set of equal rows, by a plain
+    dictionary, for several value arrays on one grouping (the 24-bit path and the row sort)."""
+    from lopcook.analyse import ColocatedGroups, colocated_max
+
+    rng = np.random.default_rng(7)
+    distinct = rng.integers(0, span, size=(300, 3), dtype=np.int64)
+    distinct[:40, :2] = distinct[40:80, :2]  # rows that share x and y (and z's top bits) but not z
+    distinct[:40, 2] = distinct[40:80, 2] ^ 1
+    q = distinct[rng.integers(0, 300, size=2000)].astype(np.uint32 if span <= 1 << 32 else np.int64)
+    groups = ColocatedGroups(q)
+    for _ in range(3):
+        values = rng.integers(1, 25, size=2000)
+        best: dict = {}
+        for row, v in zip(map(tuple, q.tolist()), values.tolist()):
+            best[row] = max(best.get(row, 0), v)
+        want = np.array([best[row] for row in map(tuple, q.tolist())])
+        np.testing.assert_array_equal(groups.max(values), want)
+        np.testing.assert_array_equal(colocated_max(q, values), want)
+    with pytest.raises(ValueError):
+        groups.max(values[:-1])
+    assert ColocatedGroups(np.zeros((0, 3), np.uint32)).max(np.zeros(0)).shape == (0,)

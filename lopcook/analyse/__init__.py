@@ -45,46 +45,67 @@ def attribute_kf(part, settings: AnalyseSettings) -> dict:
 
 def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:
     """(N,) int64: the maximum of ``values`` (N,) over each group of equal rows of ``q`` (N, 3) uint32
-    grid integers (co-located vertices), for every row.
+    grid integers (co-located vertices), for every row (``ColocatedGroups(q).max(values)``)."""
+    return ColocatedGroups(q).max(values)
+
+
+class ColocatedGroups:
+    """The groups of equal rows of ``q`` (N, 3) grid integers (co-located vertices), found once:
+    ``max(values)`` is ``colocated_max(q, values)`` for any (N,) ``values``, at the cost of two
+    gathers and one reduction (a prepared analysis asks it once per probe of a search).
 
     Sorts one int64 key holding x, y (24 bits each) and the top 16 bits of z, then, inside each run
-    of equal keys, the low 8 bits of z: two integer sorts instead of a sort of 12-byte rows."""
-    n = q.shape[0]
-    if n == 0:
-        return np.zeros(0, dtype=np.int64)
-    values = np.asarray(values, dtype=np.int64)
-    if int(q.min()) < 0 or int(q.max()) >= 1 << BITS:  # not 24-bit grid integers: sort the rows
-        rows = np.ascontiguousarray(q).view(np.dtype((np.void, q.dtype.itemsize * 3))).ravel()
-        _, inverse = np.unique(rows, return_inverse=True)
-        inverse = inverse.ravel()
-        group_max = np.zeros(inverse.max() + 1, dtype=np.int64)
-        np.maximum.at(group_max, inverse, values)
-        return group_max[inverse]
-    # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
-    # peak (docs/performance.md, "Memory at 1.1M and 4.4M")
-    key = q[:, 0].astype(np.int64) << 40
-    key |= q[:, 1].astype(np.int64) << 16
-    key |= q[:, 2].astype(np.int64) >> 8
-    order = np.argsort(key)
-    key = key[order]
-    run = np.zeros(n, dtype=np.int64)
-    np.cumsum(key[1:] != key[:-1], out=run[1:])
-    del key
-    run <<= 8
-    run |= (q[:, 2] & 0xFF)[order]  # (run, low 8 bits of z): equal exactly for co-located rows
-    within = np.argsort(run, kind="stable")  # nearly sorted already
-    order = order[within]
-    run = run[within]
-    del within
-    start = np.ones(n, dtype=bool)
-    start[1:] = run[1:] != run[:-1]
-    del run
-    group_max = np.maximum.reduceat(values[order], np.flatnonzero(start))
-    group = np.cumsum(start) - 1
-    del start
-    out = np.empty(n, dtype=np.int64)
-    out[order] = group_max[group]
-    return out
+    of equal keys, the low 8 bits of z: two integer sorts instead of a sort of 12-byte rows (rows
+    that are not 24-bit grid integers: one sort of the rows)."""
+
+    def __init__(self, q: np.ndarray):
+        q = np.asarray(q)
+        n = self.n = int(q.shape[0])
+        if n == 0:
+            self.order = self.starts = self.group = np.zeros(0, dtype=np.int64)
+            return
+        if int(q.min()) < 0 or int(q.max()) >= 1 << BITS:  # not 24-bit grid integers: sort the rows
+            rows = np.ascontiguousarray(q).view(np.dtype((np.void, q.dtype.itemsize * 3))).ravel()
+            _, inverse = np.unique(rows, return_inverse=True)
+            self.group = inverse.ravel().astype(np.int64)
+            self.order = np.argsort(self.group, kind="stable")
+            start = np.ones(n, dtype=bool)
+            start[1:] = self.group[self.order][1:] != self.group[self.order][:-1]
+            self.starts = np.flatnonzero(start)
+            return
+        # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
+        # peak (docs/performance.md, "Memory at 1.1M and 4.4M")
+        key = q[:, 0].astype(np.int64) << 40
+        key |= q[:, 1].astype(np.int64) << 16
+        key |= q[:, 2].astype(np.int64) >> 8
+        order = np.argsort(key)
+        key = key[order]
+        run = np.zeros(n, dtype=np.int64)
+        np.cumsum(key[1:] != key[:-1], out=run[1:])
+        del key
+        run <<= 8
+        run |= (q[:, 2] & 0xFF)[order]  # (run, low 8 bits of z): equal exactly for co-located rows
+        within = np.argsort(run, kind="stable")  # nearly sorted already
+        order = order[within]
+        run = run[within]
+        del within
+        start = np.ones(n, dtype=bool)
+        start[1:] = run[1:] != run[:-1]
+        del run
+        self.order, self.starts = order, np.flatnonzero(start)
+        group = np.cumsum(start) - 1
+        del start
+        self.group = np.empty(n, dtype=np.int64)
+        self.group[order] = group
+
+    def max(self, values: np.ndarray) -> np.ndarray:
+        """(N,) int64: the maximum of ``values`` (N,) over each row's group, for every row."""
+        values = np.asarray(values, dtype=np.int64)
+        if values.shape != (self.n,):
+            raise ValueError(f"values {values.shape}: expected ({self.n},)")
+        if self.n == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.maximum.reduceat(values[self.order], self.starts)[self.group]
 
 
 

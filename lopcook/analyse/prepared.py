@@ -44,7 +44,7 @@ import numpy as np
 from ..grid import BITS, Grid, dx
 from ..settings import AnalyseSettings, DepthMode
 from ..types import Scene
-from . import attribute_kf, attribute_levels, colocated_max
+from . import ColocatedGroups, attribute_kf, attribute_levels
 from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
 from .depth import depth_levels, level_from_distance
 from .discontinuity import (base_colours, boundary_vertices, colocated_groups, fold_levels, required_level,
@@ -53,10 +53,10 @@ from .result import REASON_CODE, Analysis, PartAnalysis
 
 
 #: when a probe's floors fall below every floor seen, the depth distances are looked up for this many
-#: levels lower still (docs/performance.md: on the chess set one look-up at 4 levels below costs
-#: about 1.25 of one at the floor, and a k_f search then needs one every 4 steps of log2 k_f, not
-#: every step)
-LOOKAHEAD = 4
+#: levels lower still: a k_f search lowers the floors one level per step of log2 k_f, and one look-up
+#: then serves the next LOOKAHEAD steps (the choice, measured: docs/performance.md, "Depth look-ups
+#: ahead of the floors" and "The chess set's calibration under 90 s")
+LOOKAHEAD = 6
 
 
 class PreparedAnalysis:
@@ -96,7 +96,9 @@ class PreparedAnalysis:
             self.fold = fold_levels(q, normals, has_normal, boundary, settings.edge_level, settings.edge_angle_deg)
             self.jump = seam_jumps(groups, base_colours(parts, None))
             self.seam = self.jump > 0
-        self.allq = np.concatenate(self.quantized) if parts else np.zeros((0, 3), np.uint32)
+        allq = np.concatenate(self.quantized) if parts else np.zeros((0, 3), np.uint32)
+        self.colocated = ColocatedGroups(allq)  # the co-located groups every analyse() takes the maximum over
+        del allq
         # depth: per vertex the exact distance at the lowest floor seen (BITS + 1: none yet)
         self._floor_seen = [np.full(n, BITS + 1, np.int64) for n in sizes]
         self._best = [np.full(n, np.inf) for n in sizes]
@@ -187,7 +189,7 @@ class PreparedAnalysis:
             reason[by_depth] = np.where(capped[k][by_depth], REASON_CODE["depth-capped"], REASON_CODE["depth"])
             reasons.append(reason)
         alll = np.concatenate(combined) if combined else np.zeros(0, np.int64)
-        shared = colocated_max(self.allq, alll)
+        shared = self.colocated.max(alll)
         timings["co_located"] = time.perf_counter() - t0
         out = []
         for k, part in enumerate(parts):
