@@ -368,14 +368,28 @@ def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_i
             drawn.append([(int(it["part"]), it["ssbo"], np.asarray(it["cover"].positions)) for it in items])
         return real_draw(self, items, camera, shading, decoded)
 
+    decodes = []
+    real_decoded = rd._decoded_positions
+
+    def counted_decode(buf, level, origin, half_cell, place):
+        f = real_decoded(buf, level, origin, half_cell, place)
+
+        def positions():
+            decodes.append(level)
+            return f()
+
+        return positions
+
     monkeypatch.setattr(ev, "cap_buffer", counting)
     monkeypatch.setattr(rd.Renderer, "draw", spy)
+    monkeypatch.setattr(rd, "_decoded_positions", counted_decode)
     levels = [6, 11]
     ev.evaluate(c, scene, levels=levels, views=1, resolution=(64, 48), variants=("cap",))
     n = len(c.manifest["parts"])
     # one build per distinct buffer (owner, LOD) at its resident level, for each scene level drawn
     expected = [(o, k, lv) for level in levels for (o, k), lv in resident_levels(c, [0] * n, level).items()]
     assert sorted(built) == sorted(expected)
+    assert len(decodes) == len(built)  # one reference decode per buffer, shared by its placements
     assert len({o for o, _, _ in built}) < n  # copies exist in this scene: fewer buffers than parts
     for items, level in zip(drawn, levels):
         resident = resident_levels(c, [0] * n, level)

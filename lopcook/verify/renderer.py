@@ -1240,19 +1240,23 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     return positions
 
 
-def _placed_positions(local, place):
-    """A function giving ``local()`` (a ``_decoded_positions`` function without placement, whose
-    result is computed once and shared by every caller) mapped by the placement rows ``place``
-    (``placement.to_world``, float32), or ``local()`` itself when ``place`` is None: the positions
-    ``_decoded_positions(..., place)`` gives, one decode for all the placements of a buffer."""
-    if not hasattr(local, "held"):
-        def once(f=local):
-            if once.held is None:
-                once.held = f()
-            return once.held
+def _once(f):
+    """``f`` (a function of no arguments) called at most once: later calls return its first result."""
+    held = []
 
-        once.held = None
-        local = once
+    def once():
+        if not held:
+            held.append(f())
+        return held[0]
+
+    return once
+
+
+def _placed_positions(local, place):
+    """A function giving ``local()`` (the positions of a ``_decoded_positions`` function without
+    placement, through ``_once``: one decode shared by every caller) mapped by the placement rows
+    ``place`` (``placement.to_world``, float32), or ``local`` itself when ``place`` is None: the
+    positions ``_decoded_positions(..., place)`` gives."""
     if place is None:
         return local
 
@@ -1380,7 +1384,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             else:
                 ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
             owned += [ssbo, ubo]
-            shared[share_key] = (ssbo, ubo, prog, clusters, _decoded_positions(buf, p_level, p_origin, p_half, None))
+            shared[share_key] = (ssbo, ubo, prog, clusters, _once(_decoded_positions(buf, p_level, p_origin, p_half, None)))
         ssbo, ubo, prog, clusters, local = shared[share_key]
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
         cover = Coverage(ctx, prog, specs, index_words, _placed_positions(local, extra.get("place")))
