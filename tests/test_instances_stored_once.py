@@ -348,8 +348,9 @@ def test_harness_vertex_shader_applies_the_placement_bit_exactly(cooked, gl):
 def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_its_reference(cooked, gl,
                                                                                             monkeypatch):
     """The render harness builds and uploads one buffer per distinct mesh and level (the placements
-    of one owner share it), and each placement still draws exactly the reference decode of that
-    buffer mapped by its own transform (``decode_positions`` at the resident level)."""
+    of one owner share it, and its attribute record is decoded once), and each placement still
+    draws exactly the reference decode of that buffer mapped by its own transform
+    (``decode_positions`` at the resident level)."""
     import lopcook.verify.evaluate as ev
     import lopcook.verify.renderer as rd
     from lopcook.verify.buffers import resident_levels
@@ -380,9 +381,17 @@ def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_i
 
         return positions
 
+    read_records = []
+    real_attributes = rd.lod_attributes
+
+    def counted_attributes(c_, part, lod, **kw):
+        read_records.append(owner(c_, part))
+        return real_attributes(c_, part, lod, **kw)
+
     monkeypatch.setattr(ev, "cap_buffer", counting)
     monkeypatch.setattr(rd.Renderer, "draw", spy)
     monkeypatch.setattr(rd, "_decoded_positions", counted_decode)
+    monkeypatch.setattr(rd, "lod_attributes", counted_attributes)
     levels = [6, 11]
     ev.evaluate(c, scene, levels=levels, views=1, resolution=(64, 48), variants=("cap",))
     n = len(c.manifest["parts"])
@@ -390,6 +399,7 @@ def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_i
     expected = [(o, k, lv) for level in levels for (o, k), lv in resident_levels(c, [0] * n, level).items()]
     assert sorted(built) == sorted(expected)
     assert len(decodes) == len(built)  # one reference decode per buffer, shared by its placements
+    assert sorted(read_records) == sorted(set(read_records))  # each owner's attribute record decoded once
     assert len({o for o, _, _ in built}) < n  # copies exist in this scene: fewer buffers than parts
     for items, level in zip(drawn, levels):
         resident = resident_levels(c, [0] * n, level)

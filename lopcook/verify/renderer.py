@@ -1303,6 +1303,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
 
     items, owned = [], []
     shared: dict = {}  # (owner, LOD, level, grid) -> GL buffers, program and local positions of one buffer
+    decoded_attributes: dict = {}  # (owner, LOD) -> lod_attributes (read only here)
     # every decoded position lies in the grid's cube (24-bit integers, at most 2^24 - 1, plus half a cell)
     lo = np.asarray(origin, np.float64)
     grid_box = (lo, lo + float(half_cell) * 2.0 * float(1 << 24))
@@ -1313,7 +1314,10 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         if i not in attr_cache:
             # unit normals, as a vertex shader normalises the octahedral decode before the
             # interpolation (an unnormalised one would weight the vertices by its length)
-            a = lod_attributes(c, i, k, unit_normals=True)
+            o = (owner(c, i), k)  # a placement's LOD entry is its owner's: one decode for all of them
+            if o not in decoded_attributes:
+                decoded_attributes[o] = lod_attributes(c, i, k, unit_normals=True)
+            a = decoded_attributes[o]
             index_words = np.ascontiguousarray(a["indices"], dtype="<u4")
             ibo = ctx.buffer(index_words.tobytes())
             if orders[i] is not None:
