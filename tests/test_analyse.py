@@ -174,7 +174,7 @@ def test_colocated_groups_give_the_maximum_of_each_group_for_any_values(span):
     distinct = rng.integers(0, span, size=(300, 3), dtype=np.int64)
     distinct[:40, :2] = distinct[40:80, :2]  # rows that share x and y (and z's top bits) but not z
     distinct[:40, 2] = distinct[40:80, 2] ^ 1
-    q = distinct[rng.integers(0, 300, size=2000)].astype(np.uint32 if span <= 1 << 32 else np.int64)
+    q = distinct[rng.integers(0, 300, size=2000)].astype(np.uint32)
     groups = ColocatedGroups(q)
     for _ in range(3):
         values = rng.integers(1, 25, size=2000)
