@@ -324,6 +324,17 @@ def edge_groups(a: np.ndarray, b: np.ndarray, n: int):
     return order, starts, sizes
 
 
+def graph_components(u: np.ndarray, v: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """(count, (n,) label per node) of the connected components of the undirected graph on ``n``
+    nodes with edges ``u[k]`` -- ``v[k]`` (scipy's ``connected_components``)."""
+    # imported here: a cook without LODs never needs scipy.sparse (docs/performance.md, "Start-up")
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    g = coo_matrix((np.ones(np.asarray(u).size, dtype=np.int8), (u, v)), shape=(n, n))
+    return connected_components(g, directed=False)
+
+
 def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """(m,) component label of each face, faces connected through shared vertex ids (labels by
     first face)."""
@@ -333,12 +344,7 @@ def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     cid = np.int32 if size < (1 << 31) - 1 else np.int64  # node ids of the face-vertex graph
     f = np.repeat(np.arange(n_faces, dtype=cid), 3)
     v = faces.ravel().astype(cid) + cid(n_faces)
-    # imported here: a cook without LODs never needs scipy.sparse (docs/performance.md, "Start-up")
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    g = coo_matrix((np.ones(f.size, dtype=np.int8), (f, v)), shape=(size, size))
-    _, lab = connected_components(g, directed=False)
+    _, lab = graph_components(f, v, size)
     lab = lab[:n_faces]
     # renumber by first appearance for determinism
     _, first, inv = np.unique(lab, return_index=True, return_inverse=True)

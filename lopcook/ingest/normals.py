@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import weld_labels
+from ..mesh import graph_components, weld_labels
 
 
 @dataclass(frozen=True)
@@ -275,14 +275,8 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         link_u = np.concatenate([h1, cb1])
         link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
         del h1, h2, cb1, cb2, same_dir
-        # imported here: only this branch needs scipy.sparse (docs/performance.md, "Start-up")
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-
-        graph = coo_matrix((np.ones(link_u.size, dtype=np.int8), (link_u, link_v)), shape=(c, c))
+        _, lab = graph_components(link_u, link_v, c)  # (scipy.sparse, imported only on this branch)
         del link_u, link_v
-        _, lab = connected_components(graph, directed=False)
-        del graph
         _, first = np.unique(lab, return_index=True)  # labels are numbered by smallest corner
         low = first.astype(cid)[lab]
         del lab, first

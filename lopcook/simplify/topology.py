@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import components, degenerate_mask, edge_groups, sorted_unique, unique_rows, weld_exact, weld_labels
+from ..mesh import (components, degenerate_mask, edge_groups, graph_components, sorted_unique, unique_rows,
+                    weld_exact, weld_labels)
 from ..types import MeshPart
 
 
@@ -65,13 +66,8 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     u = np.concatenate([h1, cb1])
     v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
     del h1, h2, cb1, cb2, same_dir
-    from scipy.sparse import coo_matrix  # here: a cook without LODs never needs scipy.sparse
-    from scipy.sparse.csgraph import connected_components
-
-    g = coo_matrix((np.ones(u.size, dtype=np.int8), (u, v)), shape=(3 * m, 3 * m))
+    n_fans, lab = graph_components(u, v, 3 * m)
     del u, v
-    n_fans, lab = connected_components(g, directed=False)
-    del g
     # every link joins two corners at one vertex, so each fan (component) lies at one vertex: the
     # fans per vertex are a count of the fans' vertices (no sort of (vertex, fan) pairs)
     fan_vertex = np.empty(n_fans, dtype=a.dtype)
