@@ -510,7 +510,7 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
         # no record (the bytes of the default before copies were stored once)
         settings = replace(settings, simplify=replace(settings.simplify, instances=False))
         options = {k: v for k, v in options.items() if k != "instances"}
-    if settings.simplify.lods is None and settings.viewing.nearest_m is None and max_level is None:
+    if plain(settings, max_level):
         return _plain(scene, settings, options, keep_buffers, progress, analysis)
     timings: dict = {}
     parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)

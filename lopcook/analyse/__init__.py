@@ -69,8 +69,9 @@ class ColocatedGroups:
             _, inverse = np.unique(rows, return_inverse=True)
             self.group = inverse.ravel().astype(np.int64)
             self.order = np.argsort(self.group, kind="stable")
+            ranked = self.group[self.order]
             start = np.ones(n, dtype=bool)
-            start[1:] = self.group[self.order][1:] != self.group[self.order][:-1]
+            start[1:] = ranked[1:] != ranked[:-1]
             self.starts = np.flatnonzero(start)
             return
         # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
