@@ -335,6 +335,43 @@ def graph_components(u: np.ndarray, v: np.ndarray, n: int) -> tuple[int, np.ndar
     return connected_components(g, directed=False)
 
 
+def next_corner(h: np.ndarray) -> np.ndarray:
+    """Corner at the end of half-edge h (corner h = 3f + k goes to corner 3f + (k + 1) % 3)."""
+    nxt = h + 1
+    nxt[nxt - 3 * (nxt // 3) == 0] -= 3
+    return nxt
+
+
+def single_fans(succ: np.ndarray, a: np.ndarray, fan: np.ndarray, clean: np.ndarray, cid,
+                max_walk: int = 64) -> np.ndarray:
+    """(nv,) bool: the ``clean`` vertices whose corners form one cycle around them (one fan).
+
+    ``a`` (3m,): the vertex of each corner; ``fan`` (nv,): corners per vertex; ``succ`` (3m,): the
+    next corner around a corner's vertex (across its outgoing half-edge to the twin's face), defined
+    at every corner of a clean vertex (the caller marks a vertex clean only when every half-edge
+    into and out of it has a twin). From one corner of each clean vertex with at most ``max_walk``
+    corners the walk must come back after exactly ``fan[v]`` steps, not before; a vertex that is
+    not walked is False (its corners go to the caller's general grouping). Vertices are walked in
+    blocks of equal fan size (no per-step compaction: one gather per corner in all)."""
+    nw = fan.size
+    start = np.empty(nw, dtype=cid)
+    start[a] = np.arange(a.size, dtype=cid)  # any corner of each vertex (which one does not matter)
+    cand = clean & (fan > 0) & (fan <= max_walk)
+    out = np.zeros(nw, dtype=bool)
+    sizes = np.bincount(fan[cand], minlength=max_walk + 1)
+    for k in np.flatnonzero(sizes).tolist():
+        verts = np.flatnonzero(cand & (fan == k))
+        s0 = start[verts]
+        cur = s0
+        early = np.zeros(verts.size, dtype=bool)
+        for _ in range(k - 1):
+            cur = succ[cur]
+            early |= cur == s0
+        cur = succ[cur]
+        out[verts[(cur == s0) & ~early]] = True
+    return out
+
+
 def components(n_faces: int, faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """(m,) component label of each face, faces connected through shared vertex ids (labels by
     first face)."""

@@ -84,6 +84,56 @@ def test_defects_fin_bowtie_and_zero_area():
                     "nonmanifold_vertices": 0, "closed": False}
 
 
+def _fans_direct(positions, faces) -> int:
+    """Bow-tie vertices counted directly: per welded vertex, its non-degenerate faces joined when
+    they share an edge at that vertex (a union-find per vertex); more than one group is a bow-tie."""
+    _, key = np.unique(np.asarray(positions), axis=0, return_inverse=True)
+    w = key.ravel()[np.asarray(faces)]
+    area = np.linalg.norm(np.cross(positions[faces[:, 1]] - positions[faces[:, 0]],
+                                   positions[faces[:, 2]] - positions[faces[:, 0]]), axis=1)
+    faces_at: dict = {}
+    for f, tri in enumerate(w.tolist()):
+        if area[f] > 0 and len(set(tri)) == 3:
+            for v in tri:
+                faces_at.setdefault(v, []).append(f)
+    bowties = 0
+    for v, fs in faces_at.items():
+        parent = {f: f for f in fs}
+
+        def root(f):
+            while parent[f] != f:
+                f = parent[f]
+            return f
+        for i, f in enumerate(fs):
+            for g in fs[i + 1:]:
+                if len(set(w[f].tolist()) & set(w[g].tolist())) >= 2:  # an edge at v
+                    parent[root(f)] = root(g)
+        bowties += len({root(f) for f in fs}) > 1
+    return bowties
+
+
+def test_bowties_of_closed_fans_and_random_soups_match_a_direct_count():
+    # two tetrahedra touching at one vertex: every edge has two oppositely oriented faces, yet the
+    # shared vertex has two closed fans (the walk around it comes back after half its corners)
+    tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]], float)
+    two = np.concatenate([tet, np.array([[0, 4, 5], [0, 6, 4], [4, 6, 5], [0, 5, 6]])])
+    assert T.mesh_defects(p, tet)["nonmanifold_vertices"] == 0
+    d = T.mesh_defects(p, two)
+    assert d == {"degenerate_faces": 0, "boundary_edges": 0, "nonmanifold_edges": 0, "nonmanifold_vertices": 1,
+                 "closed": True}
+    rng = np.random.default_rng(7)
+    seen = 0
+    for _ in range(200):
+        n, m = int(rng.integers(4, 30)), int(rng.integers(1, 60))
+        pos = rng.integers(0, 3, size=(n, 3)).astype(float)
+        fac = rng.integers(0, n, size=(m, 3))
+        want = _fans_direct(pos, fac)
+        assert T.mesh_defects(pos, fac)["nonmanifold_vertices"] == want
+        seen += want > 0
+    assert seen > 50  # the soups do have bow-ties
+
+
 def test_signed_volume(cube):
     f = cube.indices.astype(np.int64)
     assert T.signed_volume(cube.positions, f) == pytest.approx(1.0, rel=1e-15)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import graph_components, weld_labels
+from ..mesh import graph_components, next_corner as _next_corner, single_fans, weld_labels
 
 
 @dataclass(frozen=True)
@@ -64,13 +64,6 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(s, out=s)
 
 
-def _next_corner(h: np.ndarray) -> np.ndarray:
-    """Corner at the end of half-edge h (corner h = 3f + k goes to corner 3f + (k + 1) % 3)."""
-    nxt = h + 1
-    nxt[nxt - 3 * (nxt // 3) == 0] -= 3
-    return nxt
-
-
 def _prev_corner(h: np.ndarray) -> np.ndarray:
     """Start corner of the half-edge that ends at corner h (3f + (k + 2) % 3)."""
     prv = h - 1
@@ -97,33 +90,8 @@ def _orbit_min(succ: np.ndarray, pred: np.ndarray, rounds: int) -> np.ndarray:
 #: bits of a packed sort key (int64 without its sign); wider keys fall back to an argsort
 _PACK_BITS = 63
 
-#: fans with more corners than this go through the general grouping
+#: fans with more corners than this go through the general grouping (``mesh.single_fans``)
 _MAX_WALK = 64
-
-
-def _single_fans(succ: np.ndarray, a: np.ndarray, fan: np.ndarray, clean: np.ndarray, cid) -> np.ndarray:
-    """(nw,) bool: clean vertices (every incident half-edge has a smooth, oppositely oriented twin)
-    whose corners form one cycle. ``succ[x]`` is the next corner around x's vertex (across x's
-    outgoing edge); from one corner of each vertex the walk must come back after exactly
-    ``fan[v]`` steps, not before. Vertices are walked in blocks of equal fan size (no
-    per-step compaction: one gather per corner in all)."""
-    nw = fan.size
-    start = np.empty(nw, dtype=cid)
-    start[a] = np.arange(a.size, dtype=cid)  # any corner of each vertex (which one does not matter)
-    cand = clean & (fan > 0) & (fan <= _MAX_WALK)
-    out = np.zeros(nw, dtype=bool)
-    sizes = np.bincount(fan[cand], minlength=_MAX_WALK + 1)
-    for k in np.flatnonzero(sizes).tolist():
-        verts = np.flatnonzero(cand & (fan == k))
-        s0 = start[verts]
-        cur = s0
-        early = np.zeros(verts.size, dtype=bool)
-        for _ in range(k - 1):
-            cur = succ[cur]
-            early |= cur == s0
-        cur = succ[cur]
-        out[verts[(cur == s0) & ~early]] = True
-    return out
 
 
 def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg: float = 60.0) -> NormalResult:
@@ -251,7 +219,7 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         clean[a[broken]] = False
         clean[a[_next_corner(broken)]] = False
         del broken
-        simple_v = _single_fans(succ, a, fan, clean, cid)
+        simple_v = single_fans(succ, a, fan, clean, cid, _MAX_WALK)
         del clean
         cplx = np.flatnonzero(~simple_v[a]).astype(cid, copy=False)  # corners of the other vertices
         if cplx.size:

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import (components, degenerate_mask, edge_groups, graph_components, sorted_unique, unique_rows,
-                    weld_exact, weld_labels)
+from ..mesh import (components, degenerate_mask, edge_groups, graph_components, next_corner, single_fans,
+                    sorted_unique, unique_rows, weld_exact, weld_labels)
 from ..types import MeshPart
 
 
@@ -56,29 +56,58 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     # link consecutive half-edges of one edge: corners at the same vertex
     same = np.ones(order.size, dtype=bool)
     same[starts] = False
+    pair_size = np.repeat(sizes, sizes)[same]  # the size of each link's edge group
     del starts
     h2 = order[same].astype(cid)
     h1 = order[np.flatnonzero(same) - 1].astype(cid)
     del order, same
-    cb1 = h1 - h1 % 3 + (h1 % 3 + 1) % 3
-    cb2 = h2 - h2 % 3 + (h2 % 3 + 1) % 3
     same_dir = a[h1] == a[h2]
-    u = np.concatenate([h1, cb1])
-    v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
-    del h1, h2, cb1, cb2, same_dir
-    n_fans, lab = graph_components(u, v, 3 * m)
-    del u, v
-    # every link joins two corners at one vertex, so each fan (component) lies at one vertex: the
-    # fans per vertex are a count of the fans' vertices (no sort of (vertex, fan) pairs)
-    fan_vertex = np.empty(n_fans, dtype=a.dtype)
-    fan_vertex[lab] = a
-    del lab
-    per_vertex = np.bincount(fan_vertex, minlength=n)
+    # around a vertex whose every half-edge in and out has one oppositely oriented twin, its
+    # corners form cycles (succ: the next corner around); one cycle is one fan (mesh.single_fans)
+    twin = np.flatnonzero((pair_size == 2) & ~same_dir)
+    del pair_size
+    succ = np.full(3 * m, -1, dtype=cid)
+    succ[h1[twin]] = next_corner(h2[twin])
+    succ[h2[twin]] = next_corner(h1[twin])
+    del twin
+    broken = np.flatnonzero(succ < 0).astype(cid, copy=False)
+    clean = np.ones(n, dtype=bool)
+    clean[a[broken]] = False
+    clean[a[next_corner(broken)]] = False
+    del broken
+    fan = np.bincount(a, minlength=n)
+    one_fan = single_fans(succ, a, fan, clean, cid)
+    del succ, clean, fan
+    # the other vertices' corners (open, non-manifold, inconsistently oriented, several cycles):
+    # their fans are the connected components of the links between their corners
+    cplx = np.flatnonzero(~one_fan[a]).astype(cid, copy=False)
+    del one_fan
+    bowties = 0
+    if cplx.size:
+        cb1 = next_corner(h1)
+        cb2 = next_corner(h2)
+        u = np.concatenate([h1, cb1])
+        v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
+        del h1, h2, cb1, cb2, same_dir
+        at = np.zeros(3 * m, dtype=bool)
+        at[cplx] = True
+        keep = at[u]  # a link joins two corners of one vertex: both complex or neither
+        del at
+        u, v = u[keep], v[keep]
+        del keep
+        n_fans, lab = graph_components(np.searchsorted(cplx, u), np.searchsorted(cplx, v), cplx.size)
+        del u, v
+        # every link joins two corners at one vertex, so each fan (component) lies at one vertex: the
+        # fans per vertex are a count of the fans' vertices (no sort of (vertex, fan) pairs)
+        fan_vertex = np.empty(n_fans, dtype=a.dtype)
+        fan_vertex[lab] = a[cplx]
+        del lab
+        bowties = int((np.bincount(fan_vertex, minlength=n) > 1).sum())
     return {
         "degenerate_faces": int(degenerate.sum()),
         "boundary_edges": int((sizes == 1).sum()),
         "nonmanifold_edges": int((sizes > 2).sum()),
-        "nonmanifold_vertices": int((per_vertex > 1).sum()),
+        "nonmanifold_vertices": bowties,
         "closed": bool((sizes == 2).all()),
     }
 
