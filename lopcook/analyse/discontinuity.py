@@ -189,39 +189,128 @@ def _morton(c: np.ndarray) -> np.ndarray:
 
 class _Fields(NamedTuple):
     """Per-vertex inputs of the fold test, in one sorted order: weighted normals (N, 3), unit
-    normals (N, 3), has_normal (N,) bool, boundary (N,) bool."""
+    normals (N, 3), has_normal (N,) bool (None where every vertex has a normal: then the weighted
+    normals are the normals), boundary (N,) bool."""
 
     weighted: np.ndarray
     normals: np.ndarray
-    has_normal: np.ndarray
+    has_normal: np.ndarray | None
     boundary: np.ndarray
 
 
+_ROW = np.dtype((np.void, 24))  # one row of an (N, 3) float64 array
+
+
+def _take_rows(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a[rows]`` for a C-contiguous (N, 3) float64 ``a``, gathered as 24-byte items (several
+    times faster than fancy indexing of the rows)."""
+    return np.take(a.view(_ROW).reshape(-1), rows).view(np.float64).reshape(-1, 3)
+
+
 def _sorted_fields(order: np.ndarray, normals, has_normal, boundary) -> _Fields:
-    n = normals[order]
-    h = has_normal[order]
-    # n * 1.0 is n bit for bit: where every vertex has a normal the product is skipped
-    return _Fields(n if h.all() else n * h[:, None], n, h, boundary[order])
+    n = _take_rows(normals, order)
+    b = np.take(boundary, order)
+    if has_normal is None:  # n * 1.0 is n bit for bit: the product is skipped
+        return _Fields(n, n, None, b)
+    h = np.take(has_normal, order)
+    return _Fields(n * h[:, None], n, h, b)
 
 
-def _edge_runs(starts: np.ndarray, f: _Fields, cos_half: float) -> np.ndarray:
-    """(N,) bool in the sorted order of ``f``: the vertex's cell holds an open-boundary vertex or a
+def _take_fields(f: _Fields, rows: np.ndarray) -> _Fields:
+    """The rows ``rows`` of ``f``."""
+    n = _take_rows(f.normals, rows)
+    if f.has_normal is None:
+        return _Fields(n, n, None, np.take(f.boundary, rows))
+    return _Fields(_take_rows(f.weighted, rows), n, np.take(f.has_normal, rows), np.take(f.boundary, rows))
+
+
+def _any_runs(flag: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(C,) bool: whether each run (first indices ``starts``) of the (N,) bool ``flag`` holds a True."""
+    at = np.flatnonzero(flag)
+    if 8 * at.size > flag.size:
+        return np.logical_or.reduceat(flag, starts)
+    edge = np.zeros(starts.size, dtype=bool)
+    edge[np.searchsorted(starts, at, side="right") - 1] = True
+    return edge
+
+
+def _edge_runs(starts: np.ndarray, counts: np.ndarray, f: _Fields, cos_half: float) -> np.ndarray:
+    """(C,) bool per cell, in the sorted order of ``f``: the cell holds an open-boundary vertex or a
     normal deviating from the cell's mean normal by more than the angle whose cosine is
-    ``cos_half``. ``starts``: first sorted index of every cell (cells are contiguous runs)."""
-    size = f.normals.shape[0]
+    ``cos_half``. ``starts``: first sorted index of every cell (cells are contiguous runs),
+    ``counts``: the cell's number of vertices."""
     mean = np.add.reduceat(f.weighted, starts, axis=0)
     length = np.linalg.norm(mean, axis=1)
     mean /= np.where(length > 0, length, 1.0)[:, None]
-    cell = np.repeat(np.arange(starts.size), np.diff(np.append(starts, size)))
-    dots = np.where(f.has_normal, np.einsum("ij,ij->i", f.normals, mean[cell]), 1.0)
-    edge = np.minimum.reduceat(dots, starts) < cos_half
-    edge |= np.logical_or.reduceat(f.boundary, starts)
-    return edge[cell]
+    dots = np.einsum("ij,ij->i", f.normals, np.repeat(mean, counts, axis=0))
+    if f.has_normal is not None:
+        dots = np.where(f.has_normal, dots, 1.0)
+    if np.isnan(dots).any():  # the smallest dot of a cell holding a NaN is NaN: no fold
+        edge = np.minimum.reduceat(dots, starts) < cos_half
+        edge |= np.logical_or.reduceat(f.boundary, starts)
+        return edge
+    flag = dots < cos_half  # without NaNs, the smallest dot is below it exactly when one dot is
+    flag |= f.boundary
+    return _any_runs(flag, starts)
+
+
+def _alone_edges(f: _Fields, cos_half: float) -> np.ndarray:
+    """(N,) bool: ``_edge_runs`` of a cell holding only that vertex (its mean normal is its own)."""
+    length = np.linalg.norm(f.weighted, axis=1)
+    mean = f.weighted / np.where(length > 0, length, 1.0)[:, None]
+    dots = np.einsum("ij,ij->i", f.normals, mean)
+    if f.has_normal is not None:
+        dots = np.where(f.has_normal, dots, 1.0)
+    edge = dots < cos_half
+    edge |= f.boundary
+    return edge
+
+
+def _lattice_edges(order: np.ndarray, starts: np.ndarray, fields: _Fields | None, source: tuple,
+                   alone: np.ndarray, cos_half: float) -> np.ndarray:
+    """(N,) bool in the order ``order`` (vertex ids, cells contiguous from ``starts``): ``_edge_runs``
+    of the vertex's cell. ``fields``: the fields in that order, or None to gather them from
+    ``source`` (normals, has_normal, boundary). ``alone`` (N,) bool, vertex order: ``_alone_edges``.
+    Where most vertices are alone in their cell, only the cells of several vertices are reduced."""
+    size = order.size
+    counts = np.diff(starts, append=size)
+    several = counts > 1
+    n_several = size - starts.size + int(np.count_nonzero(several))
+    if 2 * n_several > size:
+        if fields is None:
+            fields = _sorted_fields(order, *source)
+        return np.repeat(_edge_runs(starts, counts, fields, cos_half), counts)
+    edge = np.take(alone, np.take(order, starts))
+    if n_several:
+        rows = np.flatnonzero(np.repeat(several, counts))
+        sub_counts = counts[several]
+        sub_starts = np.cumsum(sub_counts) - sub_counts
+        sub = _sorted_fields(np.take(order, rows), *source) if fields is None else _take_fields(fields, rows)
+        edge[several] = _edge_runs(sub_starts, sub_counts, sub, cos_half)
+    return np.repeat(edge, counts)
 
 
 def _run_starts(sorted_keys: np.ndarray) -> np.ndarray:
     """First index of every run of equal values in a sorted (N,) array."""
     return np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+
+
+def _radix_argsort(key: np.ndarray, bits: int) -> np.ndarray:
+    """``np.argsort(key, kind="stable")`` for a 1-D integer ``key`` in [0, 2^bits): one stable sort
+    per digit of at most 16 bits, the least significant first (numpy radix-sorts 8- and 16-bit
+    integers)."""
+    passes = max(1, -(-bits // 16))
+    width = -(-bits // passes)
+    order = None
+    for p in range(passes):
+        k = key if order is None else np.take(key, order)
+        if p:
+            k = k >> (p * width)
+        if p < passes - 1:
+            k = k & ((1 << width) - 1)
+        o = np.argsort(k.astype(np.uint8 if width <= 8 else np.uint16), kind="stable")
+        order = o if order is None else np.take(order, o)
+    return order
 
 
 def _cell_runs(c: np.ndarray, bits: int) -> tuple[np.ndarray, np.ndarray]:
@@ -236,12 +325,31 @@ def _cell_runs(c: np.ndarray, bits: int) -> tuple[np.ndarray, np.ndarray]:
     return order, np.flatnonzero(np.r_[True, np.any(s[1:] != s[:-1], axis=1)])
 
 
-def _edges_on(c: np.ndarray, bits: int, normals, has_normal, boundary, cos_half: float) -> np.ndarray:
-    """(N,) bool, vertex order: ``_edge_runs`` on the cells ``c`` (N, 3) of ``bits`` bits."""
-    order, starts = _cell_runs(c, bits)
-    out = np.empty(c.shape[0], dtype=bool)
-    out[order] = _edge_runs(starts, _sorted_fields(order, normals, has_normal, boundary), cos_half)
-    return out
+def _lattice_runs(q: np.ndarray, cols: list | None, lo: list, hi: list, shift: int,
+                  offset: int) -> tuple[np.ndarray, np.ndarray]:
+    """(order, starts) grouping the rows of ``q`` (N, 3) by their cell ``(q + offset) >> shift``, as
+    ``_cell_runs`` does (vertex order within a cell; the order of the cells differs, which no
+    per-cell result depends on). ``cols``: the columns of ``q`` as int32, None where ``q`` is off
+    the grid (``_cell_runs`` itself groups those); ``lo``, ``hi``: their bounds. The key is the
+    cell's row-major index in the cells' bounding box, sorted by ``_radix_argsort``."""
+    c_lo = [(a + offset) >> shift for a in lo]
+    ext = [((b + offset) >> shift) - a + 1 for a, b in zip(c_lo, hi)]
+    span = ext[0] * ext[1] * ext[2]
+    if cols is None or span > 1 << 62:
+        return _cell_runs((q + offset) >> shift, BITS + int(offset > 0) - shift)
+    wide = span > (1 << 31) - 1
+    key = None
+    for ax in range(3):
+        c = cols[ax] + offset if offset else cols[ax].copy()
+        c >>= shift
+        c -= c_lo[ax]
+        if key is None:
+            key = c.astype(np.int64) if wide else c
+        else:
+            key *= ext[ax]
+            key += c
+    order = _radix_argsort(key, max(1, (span - 1).bit_length()))
+    return order, _run_starts(np.take(key, order))
 
 
 def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boundary: np.ndarray, top: int,
@@ -253,37 +361,49 @@ def fold_levels(q: np.ndarray, normals: np.ndarray, has_normal: np.ndarray, boun
 
     Cells are grouped by sorting: the unshifted lattices of all levels share one sort by the Morton
     code of the finest one (a coarser cell is a run of finer ones); each shifted lattice sorts its
-    own cells. Per cell: the mean normal (``np.add.reduceat``), the smallest dot product with it and
-    whether a boundary vertex is inside (``reduceat`` over the runs)."""
+    own cells (a radix sort of the cell's index in their bounding box). A cell's vertices are
+    reduced in that order: the Morton order of the finest cells in the unshifted lattices, vertex
+    order in the shifted ones. Per cell: the mean normal (``np.add.reduceat``), whether a dot
+    product with it is below the cosine of half the angle and whether a boundary vertex is inside.
+    A vertex alone in its cell has its own result, computed once for all lattices."""
     n = q.shape[0]
     out = np.zeros(n, dtype=np.int64)
     if n == 0:
         return out
     q = np.asarray(q, dtype=np.int64)
-    normals = np.asarray(normals, dtype=np.float64)
+    normals = np.ascontiguousarray(normals, dtype=np.float64)
     has_normal = np.asarray(has_normal, dtype=bool)
     boundary = np.asarray(boundary, dtype=bool)
+    source = (normals, None if has_normal.all() else has_normal, boundary)
     cos_half = math.cos(math.radians(float(angle_deg)) / 2.0)
     levels = list(range(int(top), max(1, int(top) - FOLD_LEVEL_SPAN) - 1, -1))
     finest = _cell_shift(levels[0])  # the finest cells: the highest level
     morton_ok = BITS - finest <= 21
     if morton_ok:
         order0, code_sorted = stable_argsort(_morton(q >> finest))
-        fields0 = _sorted_fields(order0, normals, has_normal, boundary)
+        fields0 = _sorted_fields(order0, *source)
+    lo, hi = [int(v) for v in q.min(axis=0)], [int(v) for v in q.max(axis=0)]
+    on_grid = min(lo) >= 0 and max(hi) < 1 << BITS  # then q + 2^23 fits int32
+    cols = [np.ascontiguousarray(q[:, ax], dtype=np.int32) for ax in range(3)] if on_grid else None
+    alone = _alone_edges(_Fields(normals if source[1] is None else normals * has_normal[:, None], normals,
+                                 source[1], boundary), cos_half)
     pending = np.ones(n, dtype=bool)
+    hit = np.empty(n, dtype=bool)
+    shifted = np.empty(n, dtype=bool)
     for level in levels:
         shift = _cell_shift(level)
         if morton_ok:
-            hit = np.empty(n, dtype=bool)
-            hit[order0] = _edge_runs(_run_starts(code_sorted >> (3 * (shift - finest))), fields0, cos_half)
+            order, starts, fields = order0, _run_starts(code_sorted >> (3 * (shift - finest))), fields0
         else:
-            hit = _edges_on(q >> shift, BITS - shift, normals, has_normal, boundary, cos_half)
+            (order, starts), fields = _lattice_runs(q, cols, lo, hi, shift, 0), None
+        hit[order] = _lattice_edges(order, starts, fields, source, alone, cos_half)
         if shift > 0:  # the lattice moved by half a cell
-            hit |= _edges_on((q + (1 << (shift - 1))) >> shift, BITS + 1 - shift, normals, has_normal, boundary,
-                             cos_half)
-        new = hit & pending
-        out[new] = level
-        pending &= ~hit
+            order, starts = _lattice_runs(q, cols, lo, hi, shift, 1 << (shift - 1))
+            shifted[order] = _lattice_edges(order, starts, None, source, alone, cos_half)
+            hit |= shifted
+        hit &= pending
+        out[hit] = level
+        pending ^= hit
         if not pending.any():
             break
     return out
