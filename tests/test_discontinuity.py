@@ -290,3 +290,49 @@ def test_calibration_searches_edge_eps(gl):
     assert all(p["psnr_min"] is not None and p["psnr_min"] < 40.0 for p in looser)  # the loosest passing one
     s = calibrated_settings(AnalyseSettings(), cal)
     assert s.edge_eps == cal["edge_eps"] and s.eps == pytest.approx(cal["eps"])
+
+
+def _fold_levels_direct(q, normals, has_normal, boundary, top, angle_deg):
+    """The module doc's fold rule, cell by cell with dictionaries: per level from ``top`` down, a
+    vertex's one-pixel cell in either lattice (the second moved by half a cell) is an edge when it
+    holds a boundary vertex or a normal more than half the angle from the cell's mean normal."""
+    cos_half = math.cos(math.radians(angle_deg) / 2.0)
+    n = q.shape[0]
+    out = np.zeros(n, dtype=np.int64)
+    pending = np.ones(n, dtype=bool)
+    for level in range(top, max(1, top - D.FOLD_LEVEL_SPAN) - 1, -1):
+        shift = D._cell_shift(level)
+        hit = np.zeros(n, dtype=bool)
+        for offset in ([0] + ([1 << (shift - 1)] if shift > 0 else [])):
+            cells: dict = {}
+            for i, key in enumerate(map(tuple, ((q + offset) >> shift).tolist())):
+                cells.setdefault(key, []).append(i)
+            for members in cells.values():
+                s = sum((normals[i] for i in members if has_normal[i]), np.zeros(3))
+                mean = s / np.linalg.norm(s) if np.linalg.norm(s) > 0 else s
+                dots = [float(normals[i] @ mean) if has_normal[i] else 1.0 for i in members]
+                if min(dots) < cos_half or any(boundary[i] for i in members):
+                    hit[members] = True
+        new = hit & pending
+        out[new] = level
+        pending &= ~hit
+    return out
+
+
+def test_fold_levels_match_the_rule_cell_by_cell():
+    # axis-aligned normals: every cell's sum is exact, so any summation order gives the same mean
+    rng = np.random.default_rng(5)
+    axes = np.concatenate([np.eye(3), -np.eye(3)])
+    for case in range(60):
+        n = int(rng.integers(1, 400))
+        scale = int(rng.integers(8, 24))
+        q = rng.integers(0, 1 << scale, size=(n, 3)) + int(rng.integers(0, (1 << 24) - (1 << scale)))
+        if case % 3 == 0:  # clusters and repeated points
+            q = q[rng.integers(0, max(1, n // 4), size=n)] + rng.integers(0, 3, size=(n, 3))
+        q = np.clip(q, 0, (1 << 24) - 1).astype(np.uint32)
+        nrm = axes[rng.integers(0, 6 if case % 2 else 2, size=n)]
+        has = rng.random(n) < (1.0 if case % 4 else 0.8)
+        bnd = rng.random(n) < (0.0 if case % 5 else 0.02)
+        top, angle = int(rng.integers(1, 25)), float(rng.choice([40.0, 100.0, 170.0]))
+        got = D.fold_levels(q, nrm, has, bnd, top, angle)
+        np.testing.assert_array_equal(got, _fold_levels_direct(q.astype(np.int64), nrm, has, bnd, top, angle))
