@@ -142,8 +142,8 @@ def test_chain_envelope_when_measured_error_drops(ico, monkeypatch):
     real = E.sampled_ref_to_lod
     calls = iter([0.05, 0.001, 0.001, 0.001])
 
-    def raised(ref, part):
-        m, bound, n = real(ref, part)
+    def raised(ref, part, **kw):
+        m, bound, n = real(ref, part, **kw)
         extra = next(calls)
         return max(m, extra), max(bound, extra), n
 

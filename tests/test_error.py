@@ -152,6 +152,29 @@ def test_sampled_ref_to_lod_brackets_the_vertex_maximum(corpus):
         assert E.sampled_ref_to_lod(ref, lod, 10**9)[:2] == (exact, exact)
 
 
+def test_vertices_on_the_lod_need_no_query_and_change_nothing(corpus, monkeypatch):
+    # meshoptimizer's LOD vertices are LOD 0 vertices: the transfer marks the ones it copied, and
+    # the sampled measurement gives them 0 without a query -- the values of querying them
+    bunny = load(corpus / "stanford-bunny.obj").parts[0]
+    seen = []
+    real = E.sampled_ref_to_lod
+
+    def spy(ref, part, count=None, on_ref=None):
+        seen.append((ref, part, on_ref))
+        return real(ref, part, count, on_ref=on_ref)
+
+    monkeypatch.setattr(L, "sampled_ref_to_lod", spy)
+    L.simplify(bunny, 1 / 4, backend="meshopt", seams="ignore")
+    ref, lod, on_ref = seen[-1]
+    assert on_ref is not None and on_ref.shape == (bunny.n_vertices,)
+    on_lod = {tuple(p) for p in lod.positions.tolist()}
+    marked = np.flatnonzero(on_ref)
+    assert marked.size >= lod.n_vertices // 2
+    assert all(tuple(p) in on_lod for p in ref.positions[marked].tolist())
+    for count in (500, 4000, 10**9):
+        assert E.sampled_ref_to_lod(ref, lod, count, on_ref=on_ref) == E.sampled_ref_to_lod(ref, lod, count)
+
+
 def test_sampled_bound_covers_a_spike_the_sample_misses():
     # LOD 0: a 65 x 65 grid in z = 0 with one vertex raised by 0.2; the LOD: the flat square
     n = 65

@@ -477,7 +477,7 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
                          f"{max_flipped_fraction:.0%} threshold; kept)")
         if on_part is not None:
             on_part(lod_part)
-        ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part)
+        ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part, on_ref=info.pop("on_ref", None))
         release_free_memory()  # the transfer's and the LOD tree's temporaries
         h = max(info["lod_to_ref"], ref_to_lod)
         tri = lod_part.n_triangles

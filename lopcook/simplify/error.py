@@ -170,7 +170,8 @@ class SampleOrder:
         return pick
 
 
-def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) -> tuple[float, float, int]:
+def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
+                       on_ref: np.ndarray | None = None) -> tuple[float, float, int]:
     """LOD 0 -> LOD distance measured at a deterministic sample of LOD 0's vertices, metres:
     ``(measured, bound, samples)``.
 
@@ -182,7 +183,11 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) 
     queried is at most ``d(s) + |v - s|`` from the LOD, s being the sampled vertex before it in
     the order (in v's cell of the finest complete level); ``bound`` is the largest such value,
     computed for every vertex (no query). With every vertex queried, both equal the vertex
-    maximum. What sampling can miss is at most ``bound - measured`` (docs/lod.md)."""
+    maximum. What sampling can miss is at most ``bound - measured`` (docs/lod.md).
+
+    ``on_ref``: (LOD 0 vertices,) bool or None; where True the vertex is known to be a vertex of
+    the LOD (``transfer_attributes``' ``info["on_ref"]``): its distance is 0 and is not queried.
+    The values are those of querying it."""
     import igl
 
     order = ref.sample_order
@@ -195,7 +200,19 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) 
     fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
     tree = igl.AABB()
     tree.init(pos, fac)
-    d = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[sel]))[0]))
+
+    def distances(rows: np.ndarray) -> np.ndarray:
+        """Distances of the sample points ``rows`` (indices into ``pts``): 0 without a query for
+        vertices ``on_ref`` marks (a point at a vertex of the LOD, where the query gives 0 too)."""
+        if on_ref is None:
+            return np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows]))[0]))
+        out = np.zeros(rows.size)
+        ask = np.flatnonzero(~on_ref[ref.sample_vertices[rows]])
+        if ask.size:
+            out[ask] = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows[ask]]))[0]))
+        return out
+
+    d = distances(sel)
     measured = float(d.max()) if d.size else 0.0
     if sel.size == order.n:
         return measured, measured, int(sel.size)
@@ -206,7 +223,7 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None) 
     near = np.flatnonzero(~pick & (dist[owner] >= REFINE_FRACTION * measured) & (dist[owner] > 0))
     queried = int(sel.size)
     if near.size:
-        d2 = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[order.order[near]]))[0]))
+        d2 = distances(order.order[near])
         measured = max(measured, float(d2.max()))
         queried += int(near.size)
     del tree  # (about 120 bytes per LOD face) before the bound's (n, 3) temporaries

@@ -611,6 +611,9 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     (transferred) UVs of one LOD 0 vertex at its position, bit for bit (``exact_corner_sources``
     picks among co-located LOD 0 vertices); the LOD -> LOD 0 distance is exactly 0 at the vertices,
     so only the face centroids are queried and ``lod_to_ref`` is their largest distance.
+    ``info["on_ref"]``: (LOD 0 vertices,) bool, True at LOD 0 vertices known to be vertices of the
+    LOD (those the exact copy read; ``error.sampled_ref_to_lod`` needs no query for them), None
+    for the closest-point transfer.
 
     **Closest-point transfer** (otherwise; ``exact=False`` forces it, for comparisons): every LOD
     vertex takes LOD 0's attributes at its closest point. A face corner whose own side
@@ -771,7 +774,11 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         mesh_key=input_part.mesh_key,
         double_sided=input_part.double_sided,
     )
-    return out, {"lod_to_ref": lod_to_ref, "flipped": flipped}
+    on_ref = None
+    if found is not None:  # the LOD 0 vertices the corners copy lie on the LOD: at distance 0
+        on_ref = np.zeros(ref.positions.shape[0], dtype=bool)
+        on_ref[srcv if srcv is not None else found[2][found[1][vid]]] = True
+    return out, {"lod_to_ref": lod_to_ref, "flipped": flipped, "on_ref": on_ref}
 
 
 def lock_uvs(res: BackendResult, input_part: MeshPart, work: Work) -> np.ndarray:
