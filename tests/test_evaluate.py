@@ -230,3 +230,35 @@ def test_source_check_skipped_only_for_a_container_cooked_from_the_harness_scene
         assert [row["level"] for row in r["levels"]] == [6]
         with pytest.raises(LopcookError, match="positions differ"):  # the source's attributes need the order
             h.evaluate(c, levels=[6], views=1, variants=("cap",), attributes="source", cooked_from=moved)
+
+
+def test_a_view_stop_keeps_the_views_before_it_whatever_was_cached(gl, crease):
+    """A stop_view that ends the level at view k gives exactly views 0..k of the full render: on a
+    fresh harness, with the float renders cached and with views remembered (``view_memo``)."""
+    from lopcook.verify.renderer import Harness
+
+    s, c = crease
+
+    def stopped_at(k):
+        calls = []
+
+        def rule(metrics):
+            calls.append(metrics["psnr"])
+            return len(calls) == k + 1
+        return rule, calls
+
+    def psnrs(r, v):
+        return r["levels"][0][v]["psnr_views"]
+
+    with Harness(s, SMALL) as h:
+        full_cap = psnrs(h.evaluate(c, levels=[6], views=6, variants=("cap",)), "cap")
+    with Harness(s, SMALL) as h:
+        got = {}
+        for variant, k in (("cap", 2), ("ap", 3), ("cap", 4)):  # fresh; floats cached; remembered
+            rule, calls = stopped_at(k)
+            got[variant, k] = psnrs(h.evaluate(c, levels=[6], views=6, variants=(variant,), stop_view=rule), variant)
+            assert len(got[variant, k]) == k + 1 and len(calls) == k + 1
+    with Harness(s, SMALL) as h:
+        full_ap = psnrs(h.evaluate(c, levels=[6], views=6, variants=("ap",)), "ap")
+    assert got["cap", 2] == full_cap[:3] and got["cap", 4] == full_cap[:5] and got["ap", 3] == full_ap[:4]
+    assert full_ap != full_cap  # the variants differ, so each comparison is with its own

@@ -391,3 +391,29 @@ def test_covering_triangles_in_chunks_equals_one_pass(monkeypatch, rng):
             monkeypatch.setattr(RR, "COVER_CHUNK", 997)
             parts = RR.covering_triangles(px, py, ok, tri, (85, 55), offsets, cull_back=back)
             assert np.array_equal(whole, parts) and 0.05 < whole.mean() < 0.95, whole.mean()
+
+
+def test_flushing_after_each_item_draws_the_same_bits(gl, monkeypatch):
+    # the renderer flushes after every item so llvmpipe rasterises while the next one is prepared;
+    # the images must be those of one unflushed frame (GL keeps the order of commands)
+    from lopcook.verify import gpu
+
+    assert gpu._resolve_flush() is not False  # Mesa's EGL gives glFlush: the overlap is in use
+    calls = []
+    real = gpu.flush
+    monkeypatch.setattr(gpu, "flush", lambda: (calls.append(1), real()))
+    scene = row_of_spheres()
+    res = (160, 90)
+    with Harness(scene, res) as h:
+        shading = Shading()
+        viewing = render_viewing({}, res)
+        for view in (0, 5, 11):
+            cam = make_camera(view, h.lo, h.hi, 6.0, viewing)
+            calls.clear()
+            flushed = h.renderer.draw(h.float_items, cam, shading, False)
+            assert len(calls) >= 2  # one flush per drawn item
+            monkeypatch.setattr(gpu, "_FLUSH", False)  # glFlush unavailable: the same draw, unflushed
+            plain = h.renderer.draw(h.float_items, cam, shading, False)
+            monkeypatch.setattr(gpu, "_FLUSH", None)
+            assert np.array_equal(flushed[0], plain[0]) and np.array_equal(flushed[1], plain[1])
+            assert flushed[0][..., 3].any()

@@ -112,6 +112,36 @@ def use_default_framebuffer() -> None:
         _FRAMEBUFFER.use()
 
 
+_FLUSH = None
+
+
+def flush() -> None:
+    """``glFlush`` on the current context: the commands issued so far start executing, without
+    waiting for them (llvmpipe hands its binned scene to its rasteriser threads and returns, so the
+    caller's own work overlaps the rasterisation). The results are those without the call (GL
+    keeps the order of commands). Resolved once through ``eglGetProcAddress`` (moderngl has no
+    flush); a no-op where that is not available. ctypes releases the GIL during the call."""
+    global _FLUSH
+    if _FLUSH is None:
+        _FLUSH = _resolve_flush()
+    if _FLUSH is not False:
+        _FLUSH()
+
+
+def _resolve_flush():
+    import ctypes
+    import ctypes.util
+
+    try:
+        egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        addr = egl.eglGetProcAddress(b"glFlush")
+    except (OSError, AttributeError):
+        return False
+    return ctypes.CFUNCTYPE(None)(addr) if addr else False
+
+
 def context_info() -> dict:
     """Renderer, vendor and version strings of the context (llvmpipe or the GPU's driver)."""
     info = context().info

@@ -721,9 +721,13 @@ class Renderer:
         ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items'
         ``triangles``) have been drawn since the last one, the context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
-        the read-back (about 200 MB for 1.4M triangles), holds about that many. Leaves the context's
-        default 1x1 framebuffer bound."""
+        the read-back (about 200 MB for 1.4M triangles), holds about that many. After every item
+        the context is flushed (``gpu.flush``: llvmpipe rasterises that item while this process
+        culls and binds the next; the pixels are the same). Leaves the context's default 1x1
+        framebuffer bound."""
         import moderngl
+
+        from . import gpu
 
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
@@ -785,6 +789,7 @@ class Renderer:
                 vao.render(moderngl.TRIANGLES)
             else:
                 vao.render(moderngl.TRIANGLES, vertices=count)
+            gpu.flush()  # llvmpipe rasterises it while the next item is culled and bound
         if culling:
             ctx.disable(moderngl.CULL_FACE)
         # resolve: colour by a blit (average of samples), part IDs by sample 0
@@ -807,8 +812,6 @@ class Renderer:
         ids[h - y0 - rh:h - y0, x0:x0 + rw] = got.reshape(rh, rw)[::-1]
         for fbo in (self.fbo_ms, self.fbo_ms_colour, self.fbo_colour, self.fbo_ids):
             fbo.scissor = None
-        from . import gpu
-
         gpu.use_default_framebuffer()  # leave the context as gpu.py expects it (1x1 default target)
         return rgba, ids
 
