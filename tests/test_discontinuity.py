@@ -336,3 +336,18 @@ def test_fold_levels_match_the_rule_cell_by_cell():
         top, angle = int(rng.integers(1, 25)), float(rng.choice([40.0, 100.0, 170.0]))
         got = D.fold_levels(q, nrm, has, bnd, top, angle)
         np.testing.assert_array_equal(got, _fold_levels_direct(q.astype(np.int64), nrm, has, bnd, top, angle))
+
+
+def test_seam_jumps_are_the_largest_difference_within_each_group():
+    # brute force over every pair of a group; one group of 600 co-located vertices (a file of
+    # duplicated faces) is one pass of minima and maxima, not a pass per member
+    rng = np.random.default_rng(3)
+    groups = np.concatenate([np.zeros(600, np.int64), rng.integers(1, 40, size=300)])
+    rng.shuffle(groups)
+    colours = rng.random((groups.size, 3))
+    want = np.zeros(groups.size)
+    for i in range(groups.size):
+        same = groups == groups[i]
+        want[i] = np.abs(colours[same] - colours[i]).max()
+    np.testing.assert_array_equal(D.seam_jumps(groups, colours), want)
+    assert D.seam_jumps(np.zeros(0, np.int64), np.zeros((0, 3))).shape == (0,)
