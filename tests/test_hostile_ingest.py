@@ -231,6 +231,18 @@ def test_fifo_source_is_refused_without_blocking(tmp_path):
     refused(tmp_path / "a.obj", "not a regular file")
 
 
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+@pytest.mark.parametrize("command", ["inspect", "cook"])
+def test_cli_refuses_a_fifo_source_without_blocking(tmp_path, command):
+    import subprocess
+    import sys
+
+    os.mkfifo(tmp_path / "scene.obj")
+    args = [command, str(tmp_path / "scene.obj")] + (["-o", str(tmp_path / "a.lop")] if command == "cook" else [])
+    r = subprocess.run([sys.executable, "-m", "lopcook", *args], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "not a regular file" in r.stderr and "Traceback" not in r.stderr
+
+
 def test_absolute_buffer_uri_is_refused(tmp_path, cube):
     doc = copy.deepcopy(cube[0])
     doc["buffers"][0]["uri"] = "/etc/passwd"
