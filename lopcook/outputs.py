@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .atomic import name_max
 from .errors import LopcookError
 
 #: extensions of the sources lopcook reads: a container or depfile must never be named like one
@@ -35,7 +36,7 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
                  inputs: tuple[str, ...] = (), forbidden: tuple[str, ...] = (), required: bool = True) -> str:
     """Refuse (LopcookError "usage", exit 2) an output path that cannot or must not be written:
     empty, a directory (or ending in a separator), in a directory that does not exist or is not
-    writable, not a regular file where it exists, one of ``inputs``, ending in one of
+    writable, a name longer than the file system allows, not a regular file where it exists, one of ``inputs``, ending in one of
     ``forbidden``, or (``required``) without one of ``extensions`` (the first is the one to
     use). Returns ``path``."""
     if not path:
@@ -57,6 +58,10 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
     if not os.access(parent, os.W_OK | os.X_OK):
         raise LopcookError("usage", path, f"directory {os.path.dirname(path) or '.'!r} is not writable",
                            hint="write somewhere you may create files, or fix the directory's permissions")
+    limit = name_max(parent)
+    if len(os.fsencode(os.path.basename(path))) > limit:
+        raise LopcookError("usage", path, f"{flag}'s file name is {len(os.fsencode(os.path.basename(path)))} bytes "
+                           f"long; this file system allows {limit}", hint="choose a shorter name")
     if os.path.lexists(path) and not os.path.isfile(path):
         raise LopcookError("usage", path, f"{flag} exists and is not a regular file")
     if os.path.isfile(path) and not os.access(path, os.W_OK):

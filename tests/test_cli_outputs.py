@@ -44,6 +44,18 @@ def test_cook_output_refused_before_any_work(work, capsys, out, words):
     assert sorted(p.name for p in work.iterdir()) == ["two_plates.glb"]
 
 
+def test_a_name_too_long_is_refused_first_and_the_longest_allowed_one_is_written(work, capsys):
+    from lopcook.atomic import name_max
+
+    limit = name_max(work)
+    too_long = "a" * (limit - 3) + ".lop"
+    assert main(["cook", "two_plates.glb", "-o", too_long]) == 2
+    assert "allows" in _err(capsys)
+    longest = "b" * (limit - 4) + ".lop"  # its temporary file's name would be too long: a short one is used
+    assert main(["cook", "two_plates.glb", "-o", longest, "-q"]) == 0
+    assert sorted(p.name for p in work.iterdir()) == sorted(["two_plates.glb", longest])
+
+
 def test_output_under_a_file_is_refused(work, capsys):
     (work / "afile").write_text("x")
     assert main(["cook", "two_plates.glb", "-o", "afile/x.lop"]) == 2
