@@ -50,8 +50,17 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout instead of text")
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), like lopcook's own errors:
+    ``lopcook cook: error: the following arguments are required: -o (see lopcook cook --help)``.
+    Subcommand parsers are made of this class too."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="lopcook",
         description="Cook glTF/OBJ/USD scenes into level-of-precision (LOP) vertex containers.",
     )

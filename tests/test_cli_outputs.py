@@ -122,8 +122,8 @@ def test_wording(work, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["cook", "two_plates.glb", "-o", "y.lop", "--bogus"])
     assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "usage: lopcook cook" in err and "--bogus" in err
+    err = _err(capsys)  # one line, naming the command and where its usage is
+    assert err.startswith("lopcook cook: error:") and "--bogus" in err and "lopcook cook --help" in err
     sphere = FIXTURES / "unit_sphere.glb"
     assert main(["cook", str(sphere), "-o", "s.lop", "--nearest", "50"]) == 0
     out = capsys.readouterr().out
@@ -160,3 +160,13 @@ def test_container_read_errors_are_not_emit_errors(work, capsys):
     assert main(["inspect", "junk.lop"]) == 2
     err = _err(capsys)
     assert "emit:" not in err and err.startswith("lopcook: error: container: junk.lop: ")
+
+
+@pytest.mark.parametrize("args", [["cook", "two_plates.glb"], ["cook", "two_plates.glb", "-o", "x.lop", "--lods", "-1/2"],
+                                  ["nosuch"], [], ["verify"]])
+def test_argument_errors_are_one_line(work, capsys, args):
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    assert exc.value.code == 2
+    err = _err(capsys)  # one line, no traceback
+    assert "error:" in err and "--help" in err
