@@ -983,8 +983,9 @@ def cmd_report(args) -> int:
     views = _views(args.views, "--views")
     resolution = _resolution(args.resolution, "--resolution")
     levels = parse_levels(args.levels, args.container) if args.levels is not None else list(D.render.levels)
-    if not os.path.isfile(args.source):
-        raise LopcookError("usage", args.source, "source file not found")
+    from .ingest import sniff
+
+    sniff(args.source)  # a missing file, a directory, a FIFO or device: its own one-line reason
     c = read(args.container, allow_prefix=True)
     crease = args.crease_angle
     if crease is None:

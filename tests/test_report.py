@@ -114,8 +114,11 @@ def test_bad_input(tmp_path, capsys):
     assert main(["report", "x.lop", "--source", src, "-o", str(tmp_path / "no" / "r.html")]) == 2
     assert main(["report", "x.lop", "--source", src, "-o", str(tmp_path / "r.html"), "--views", "0"]) == 2
     assert main(["report", "x.lop", "--source", src, "-o", str(tmp_path / "r.txt")]) == 2
+    (tmp_path / "dir.glb").mkdir()  # a source that is a directory is named as one, not "not found"
+    assert main(["report", "x.lop", "--source", str(tmp_path / "dir.glb"), "-o", str(tmp_path / "r.html")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 4 and all(line.startswith("lopcook: error:") for line in err)
+    assert len(err) == 5 and all(line.startswith("lopcook: error:") for line in err)
+    assert "is a directory" in err[-1]
     assert not list(tmp_path.glob("*.html")) and not list(tmp_path.glob("*.json"))
 
 
