@@ -54,6 +54,14 @@ def test_culled_draws_equal_drawing_everything(gl):
     assert culled > 0  # the close-ups culled parts
 
 
+def test_a_render_target_the_driver_cannot_make_is_a_usage_error(gl):
+    from lopcook.errors import LopcookError
+
+    with pytest.raises(LopcookError) as exc:  # llvmpipe: framebuffer incomplete; elsewhere memory
+        Renderer((16384, 16384))
+    assert exc.value.exit_code == 2 and "--resolution" in str(exc.value.hint)
+
+
 def test_a_box_is_outside_only_beyond_a_clip_plane(gl):
     scene = row_of_spheres()
     with Harness(scene, (64, 36)) as h:

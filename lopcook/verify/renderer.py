@@ -607,15 +607,28 @@ class Renderer:
         self.decode_program = ctx.program(vertex_shader=vertex_shader_source(True), fragment_shader=FS)
         self.resolve_program = ctx.program(vertex_shader=RESOLVE_VS, fragment_shader=RESOLVE_FS)
         self.resolve_vao = ctx.vertex_array(self.resolve_program, [])
-        self._colour_ms = ctx.renderbuffer((w, h), 4, samples=samples)
-        self._ids_ms = ctx.texture((w, h), 1, dtype="u4", samples=samples)
-        self._depth_ms = ctx.depth_renderbuffer((w, h), samples=samples)
-        self.fbo_ms = ctx.framebuffer([self._colour_ms, self._ids_ms], self._depth_ms)
-        self.fbo_ms_colour = ctx.framebuffer([self._colour_ms])  # the blit source (same renderbuffer)
-        self._colour = ctx.renderbuffer((w, h), 4)
-        self.fbo_colour = ctx.framebuffer([self._colour])
-        self._ids = ctx.texture((w, h), 1, dtype="u4")
-        self.fbo_ids = ctx.framebuffer([self._ids])
+        # colour, part IDs and depth at every sample, then the resolved colour and IDs: 4 bytes each
+        need = w * h * (12 * samples + 8)
+        from ..memory import available_bytes
+
+        avail = available_bytes()
+        if avail is not None and need > avail:
+            raise LopcookError("usage", None, f"a {w}x{h} render with {samples}x MSAA needs {need / 1e9:.1f} GB of "
+                               f"framebuffers; {avail / 1e9:.1f} GB are available", hint="use a smaller --resolution")
+        try:
+            self._colour_ms = ctx.renderbuffer((w, h), 4, samples=samples)
+            self._ids_ms = ctx.texture((w, h), 1, dtype="u4", samples=samples)
+            self._depth_ms = ctx.depth_renderbuffer((w, h), samples=samples)
+            self.fbo_ms = ctx.framebuffer([self._colour_ms, self._ids_ms], self._depth_ms)
+            self.fbo_ms_colour = ctx.framebuffer([self._colour_ms])  # the blit source (same renderbuffer)
+            self._colour = ctx.renderbuffer((w, h), 4)
+            self.fbo_colour = ctx.framebuffer([self._colour])
+            self._ids = ctx.texture((w, h), 1, dtype="u4")
+            self.fbo_ids = ctx.framebuffer([self._ids])
+        except Exception as exc:  # noqa: BLE001 - the driver's limit (framebuffer incomplete, out of memory)
+            raise LopcookError("usage", None, f"OpenGL ({ctx.info.get('GL_RENDERER', '?')}) cannot make a {w}x{h} "
+                               f"render target with {samples}x MSAA ({exc})",
+                               hint="use a smaller --resolution") from None
         self._resources = [self.float_program, self.decode_program, self.resolve_program, self.resolve_vao,
                            self.fbo_ms, self.fbo_ms_colour, self._colour_ms, self._ids_ms, self._depth_ms,
                            self.fbo_colour, self._colour, self.fbo_ids, self._ids]
