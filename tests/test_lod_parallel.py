@@ -63,3 +63,25 @@ def test_workers_setting(monkeypatch):
     assert P.workers() == 1
     monkeypatch.delenv("LOPCOOK_LOD_WORKERS")
     assert 1 <= P.workers() <= P.MAX_WORKERS
+
+
+def _dies(part, **kw):
+    import os
+    import signal
+
+    if part.name.endswith("1"):  # one worker is killed, as the memory killer would
+        os.kill(os.getpid(), signal.SIGKILL)
+    return [], None
+
+
+def test_a_worker_that_dies_is_an_error_not_a_hang(monkeypatch):
+    from lopcook import fixtures as fx
+    from lopcook.errors import LopcookError
+    from lopcook.types import MeshPart
+
+    monkeypatch.setattr(P, "MIN_TRIANGLES", 0)
+    base = fx.unit_sphere(3)[0]
+    parts = [MeshPart(f"s{k}", base.positions + [3.0 * k, 0.0, 0.0], base.indices) for k in range(3)]
+    with pytest.raises(LopcookError, match="worker process died") as exc:
+        P.run_chains(parts, 2, chain=_dies)
+    assert exc.value.exit_code == 2 and "LOPCOOK_LOD_WORKERS=1" in exc.value.hint

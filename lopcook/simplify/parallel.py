@@ -3,7 +3,7 @@
 ``run_chains(parts, workers, **kwargs)`` returns ``[lod_chain(p, **kwargs) for p in parts]``,
 exactly (every chain is deterministic and computed whole in one process; results are placed by
 part index, whatever order the workers finish in). With ``workers > 1`` on Linux the chains run
-in a pool of forked processes, largest part first; the parts reach the workers through the fork
+in a pool of forked processes, largest part first (a worker that dies raises LopcookError); the parts reach the workers through the fork
 (copy on write, not pickled) and each chain comes back pickled, with texture references that are
 the input's own restored in the parent (a texture is not sent back per LOD). Elsewhere, with one
 worker, one part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ..errors import LopcookError
 from ..isolate import cpus
 from .chain import lod_chain
 
@@ -88,22 +89,35 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
                 progress()
         return out
     import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     global _JOBS
     _JOBS = [(p, chain, kwargs) for p in parts]
     order = sorted(range(n), key=lambda i: -parts[i].n_triangles)
     out: list = [None] * n
     try:
-        with multiprocessing.get_context("fork").Pool(min(k, n)) as pool:
-            for i, lods, report, own in pool.imap_unordered(_one, order, chunksize=1):
-                for lod, o in zip(lods, own):
-                    if o == "input":
-                        lod.part = parts[i]
-                    elif o == "texture":
-                        lod.part = replace(lod.part, texture=parts[i].texture)
-                out[i] = (lods, report)
-                if progress:
-                    progress()
+        # an executor, not a multiprocessing Pool: a worker that dies (the memory killer, a crash in
+        # a simplifier) breaks it and raises here, where a Pool would wait for its task forever
+        with ProcessPoolExecutor(min(k, n), mp_context=multiprocessing.get_context("fork")) as pool:
+            pending = {pool.submit(_one, i) for i in order}
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:  # results are placed by part index, whatever order they finish in
+                    i, lods, report, own = fut.result()
+                    for lod, o in zip(lods, own):
+                        if o == "input":
+                            lod.part = parts[i]
+                        elif o == "texture":
+                            lod.part = replace(lod.part, texture=parts[i].texture)
+                    out[i] = (lods, report)
+                    if progress:
+                        progress()
+    except BrokenProcessPool:
+        raise LopcookError("simplify", None, "a LOD worker process died without a result (killed: out of memory, "
+                           "or a crash in a simplifier)",
+                           hint="give the cook more memory, or run the chains in one process with "
+                                "LOPCOOK_LOD_WORKERS=1") from None
     finally:
         _JOBS = []
     return out
