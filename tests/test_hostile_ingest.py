@@ -326,3 +326,12 @@ def test_only_degenerate_triangles_beyond_the_sample_are_refused(tmp_path):
     verts = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
     with pytest.raises(LopcookError, match="degenerate"):
         load(str(_obj(tmp_path / "all_degenerate.obj", verts, [(0, 0, 0), (1, 1, 1)] * 5_000)))
+
+
+@pytest.mark.parametrize("faces", [[(0, 1, 2), (1, 2, 3), (0, 2, 3)],      # collinear corners
+                                   [(0, 0, 0), (1, 1, 1), (0, 1, 0)]])      # repeated indices
+def test_triangles_that_span_cells_but_have_no_area_are_refused(tmp_path, faces):
+    verts = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (2.0, 0.0, 0.0), (3.0, 0.0, 0.0)]
+    with pytest.raises(LopcookError, match="no area") as exc:
+        load(str(_obj(tmp_path / "flat.obj", verts, faces)))
+    assert exc.value.exit_code == 2

@@ -152,29 +152,36 @@ _DEGENERATE_SAMPLE = 4096
 
 
 def _refuse_all_degenerate(scene: Scene) -> None:
-    """Refuse a scene none of whose triangles spans two cells of its 24-bit grid (every corner
-    of every triangle falls in one cell: all indices equal, all positions identical, a polygon
-    with no area...): there is no surface to cook and no edge to analyse. One such triangle among
-    good ones is cooked as usual (``inspect`` counts degenerate triangles)."""
+    """Refuse a scene none of whose triangles has area and spans two cells of its 24-bit grid
+    (``mesh.degenerate_mask``: repeated indices, coincident or collinear corners; or every corner
+    in one cell): there is no surface to cook and no edge to analyse. Such triangles among good
+    ones are cooked as usual (``inspect`` counts degenerate triangles)."""
     from ..grid import Grid
+    from ..mesh import degenerate_mask
 
     grid = Grid.fit([p.positions for p in scene.parts])
 
-    def spans(q: np.ndarray) -> bool:  # q: (k, 3 corners, 3) grid integers
-        return bool((np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)).any())
+    def surface(positions: np.ndarray, tris: np.ndarray) -> bool:
+        """Whether one of ``tris`` (k, 3) has area and spans two grid cells."""
+        if tris.size == 0:
+            return False
+        q = grid.quantize(positions[tris.ravel()]).reshape(-1, 3, 3)
+        spans = np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)
+        if not spans.any():
+            return False
+        return bool((spans & ~degenerate_mask(positions, tris.astype(np.int64))).any())
 
-    # a sample of each part's first triangles settles every ordinary scene without quantising it
+    # a sample of each part's first triangles settles every ordinary scene without testing it
     # whole; only a scene whose sampled triangles all collapse pays for the full pass
     for part in scene.parts:
-        tris = part.indices[:_DEGENERATE_SAMPLE]
-        if spans(grid.quantize(part.positions[tris.ravel()]).reshape(-1, 3, 3)):
+        if surface(part.positions, np.asarray(part.indices[:_DEGENERATE_SAMPLE])):
             return
     for part in scene.parts:
-        if spans(grid.quantize(part.positions)[part.indices]):
+        if surface(part.positions, np.asarray(part.indices)):
             return
-    raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: the corners "
-                       "of each fall in one cell of the 24-bit grid (coincident positions or indices)",
-                       hint="export a mesh whose triangles have area")
+    raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: each has no "
+                       "area (repeated, coincident or collinear corners) or its corners fall in one cell of "
+                       "the 24-bit grid", hint="export a mesh whose triangles have area")
 
 
 __all__ = ["load", "sniff", "LOADERS", "EXTENSIONS", "MAX_TRIANGLES", "MAX_PARTS", "MAX_TEXTURE_PIXELS"]
