@@ -297,6 +297,12 @@ def test_a_bad_asset_fails_alone(tree, tmp_path):
         assert err.startswith("ingest: ") and str(root / rel) in err and "\n" not in err
     # no partial output, and the old output of the now-corrupt asset is gone (it no longer matches)
     assert not (out / "glossy.lop").exists() and not (out / "broken.lop").exists()
+    # a killed batch's scratch folder is removed by the next batch on that OUTDIR
+    stale = out / ".lopcook-batch-tmp" / "cook-stale"
+    stale.mkdir(parents=True)
+    (stale / "task.json").write_text("{}")
+    assert batch(root, "-o", out, "--config", cfg, "-q").returncode == 2
+    assert not (out / ".lopcook-batch-tmp").exists()
     assert sorted(p.name for p in out.rglob("*") if p.is_file()) == [".lopcook-batch.json", ".lopcook-batch.lock", "cube.lop",
                                                                        "plates.lop", "sphere.lop"]
     # the text summary names each failure with its error; -q keeps only those lines, on stderr

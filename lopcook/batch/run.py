@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import time
 from dataclasses import dataclass
 
@@ -118,6 +119,8 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
             todo.append(p)
     todo.sort(key=lambda p: (-_input_bytes(p, state), p.asset.output))
     scratch_root = os.path.join(outdir, SCRATCH_DIR)
+    # what a killed earlier batch left there (its cooks' scratch folders): no batch holds it now
+    shutil.rmtree(scratch_root, ignore_errors=True)
     tasks = [{"source": p.asset.source, "output": p.asset.output, "relpath": p.asset.relpath,
               "options": list(p.options), "resolved": p.resolved, "memory_cap": memory_cap,
               "scratch_root": scratch_root} for p in todo]
