@@ -24,8 +24,6 @@ def release_free_memory() -> None:
         _LIBC.malloc_trim(0)
 
 
-
-
 def available_bytes() -> int | None:
     """The system's ``MemAvailable`` (Linux ``/proc/meminfo``; within a cgroup limit
     ``memory.max`` minus ``memory.current`` when that is lower), bytes; None where unknown."""
@@ -51,4 +49,16 @@ def available_bytes() -> int | None:
     return avail
 
 
-__all__ = ["available_bytes", "release_free_memory"]
+def address_space_limit() -> int | None:
+    """This process's address-space limit (``ulimit -v``, ``RLIMIT_AS``; what ``lopcook batch
+    --worker-memory`` sets), bytes; None when there is none or it cannot be read."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, OSError, ValueError, AttributeError):
+        return None
+    return None if soft == resource.RLIM_INFINITY or soft < 0 else int(soft)
+
+
+__all__ = ["address_space_limit", "available_bytes", "release_free_memory"]

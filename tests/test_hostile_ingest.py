@@ -335,3 +335,22 @@ def test_triangles_that_span_cells_but_have_no_area_are_refused(tmp_path, faces)
     with pytest.raises(LopcookError, match="no area") as exc:
         load(str(_obj(tmp_path / "flat.obj", verts, faces)))
     assert exc.value.exit_code == 2
+
+
+@pytest.mark.parametrize("cap", [None, 700_000_000])
+def test_a_usd_crash_under_a_memory_cap_names_the_cap(monkeypatch, cap):
+    from conftest import FIXTURES
+    from lopcook import isolate, memory
+
+    def crash(*args, **kwargs):
+        raise isolate.ChildFailed("the worker process ended without a result (killed by signal 11)")
+
+    monkeypatch.setattr(isolate, "call", crash)
+    monkeypatch.setattr(isolate, "call_fresh", crash)
+    monkeypatch.setattr(memory, "address_space_limit", lambda: cap)
+    src = next(iter(sorted(FIXTURES.glob("*.usda"))))
+    with pytest.raises(LopcookError) as exc:
+        load(str(src))
+    text = str(exc.value)
+    assert exc.value.exit_code == 2 and "signal 11" in text
+    assert ("0.7 GB address-space limit" in text) == (cap is not None) and ("corrupt" in text)

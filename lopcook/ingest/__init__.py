@@ -8,6 +8,7 @@ GLB bytes), calls the loader from ``LOADERS`` and validates the result.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 
 import numpy as np
@@ -133,6 +134,13 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
                            hint="flatten the hierarchy or re-export the file") from None
     except Exception as exc:  # a parser failure we did not anticipate: still one clear line
         detail = " ".join(str(exc).split())[:200] or "malformed data"
+        from ..memory import address_space_limit
+
+        cap = address_space_limit()
+        if cap is not None and re.search(r"map segment|[Cc]annot allocate memory|out of memory", detail):
+            raise LopcookError("ingest", path, f"reading the file ran out of memory under a {cap / 1e9:.2g} GB "
+                               f"address-space limit ({detail})", hint="raise the limit (ulimit -v, lopcook batch "
+                               "--worker-memory)") from None
         raise LopcookError("ingest", path, f"cannot read the {fmt} file ({detail})",
                            hint="the file is malformed; re-export it (run with --debug for details)") from exc
     release_free_memory()  # the parsers' and normal computation's temporaries

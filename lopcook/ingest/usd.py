@@ -883,6 +883,14 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
         return isolate.call(_load_in_child, path, fmt, settings, faces=isolate.MIN_FACES)
     except isolate.ChildFailed as exc:
         why = str(exc).rsplit("(", 1)[-1].rstrip(")")
+        from ..memory import address_space_limit
+
+        cap = address_space_limit()
+        if cap is not None:  # under a memory cap the USD library crashes when an allocation fails
+            raise LopcookError("ingest", path, f"USD crashed while reading the file ({why}) under a "
+                               f"{cap / 1e9:.2g} GB address-space limit: the file may need more memory than "
+                               "that, or be corrupt", hint="raise the limit (ulimit -v, lopcook batch "
+                               "--worker-memory), or check the file with usdchecker") from None
         raise LopcookError("ingest", path, f"USD crashed while reading the file ({why}); the file is corrupt "
                            "or nests its hierarchy too deeply for the USD library",
                            hint="check the file with usdchecker, or flatten and re-export it") from None
