@@ -3,10 +3,11 @@
 ``run_chains(parts, workers, **kwargs)`` returns ``[lod_chain(p, **kwargs) for p in parts]``,
 exactly (every chain is deterministic and computed whole in one process; results are placed by
 part index, whatever order the workers finish in). With ``workers > 1`` on Linux the chains run
-in a pool of forked processes, largest part first (a worker that dies raises LopcookError); the parts reach the workers through the fork
+in a pool of forked processes, largest part first; the parts reach the workers through the fork
 (copy on write, not pickled) and each chain comes back pickled, with texture references that are
-the input's own restored in the parent (a texture is not sent back per LOD). Elsewhere, with one
-worker, one part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
+the input's own restored in the parent (a texture is not sent back per LOD). A worker that dies
+(the memory killer, a crash in a simplifier) raises LopcookError. Elsewhere, with one worker, one
+part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
 
 ``workers()`` is ``$LOPCOOK_LOD_WORKERS`` when set (1 = serial), else the CPUs this process may
 use, at most ``MAX_WORKERS``; 1 inside a worker, so the work a chain splits over two
@@ -66,6 +67,26 @@ def _one(i: int):
     return i, lods, report, own
 
 
+def _collect(pending: set, parts, out: list, progress) -> None:
+    """Place each finished chain at its part's index (whatever order they finish in), with LOD 0
+    and textures the input's own again."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+    from dataclasses import replace
+
+    while pending:
+        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in done:
+            i, lods, report, own = fut.result()
+            for lod, o in zip(lods, own):
+                if o == "input":
+                    lod.part = parts[i]
+                elif o == "texture":
+                    lod.part = replace(lod.part, texture=parts[i].texture)
+            out[i] = (lods, report)
+            if progress:
+                progress()
+
+
 def _without_texture(part):
     from dataclasses import replace
 
@@ -76,8 +97,6 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
     """``[chain(p, **kwargs) for p in parts]`` (``chain``: ``lod_chain`` or a function of its
     signature, reaching the workers through the fork; see the module doc); ``progress()`` is
     called once per finished chain."""
-    from dataclasses import replace
-
     n = len(parts)
     k = workers() if n_workers is None else max(1, int(n_workers))
     total = sum(p.n_triangles for p in parts)
@@ -89,7 +108,7 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
                 progress()
         return out
     import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
     global _JOBS
@@ -101,18 +120,11 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
         # a simplifier) breaks it and raises here, where a Pool would wait for its task forever
         with ProcessPoolExecutor(min(k, n), mp_context=multiprocessing.get_context("fork")) as pool:
             pending = {pool.submit(_one, i) for i in order}
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in done:  # results are placed by part index, whatever order they finish in
-                    i, lods, report, own = fut.result()
-                    for lod, o in zip(lods, own):
-                        if o == "input":
-                            lod.part = parts[i]
-                        elif o == "texture":
-                            lod.part = replace(lod.part, texture=parts[i].texture)
-                    out[i] = (lods, report)
-                    if progress:
-                        progress()
+            try:
+                _collect(pending, parts, out, progress)
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)  # the chains not started are dropped
+                raise
     except BrokenProcessPool:
         raise LopcookError("simplify", None, "a LOD worker process died without a result (killed: out of memory, "
                            "or a crash in a simplifier)",
