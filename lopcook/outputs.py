@@ -36,9 +36,9 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
                  inputs: tuple[str, ...] = (), forbidden: tuple[str, ...] = (), required: bool = True) -> str:
     """Refuse (LopcookError "usage", exit 2) an output path that cannot or must not be written:
     empty, a directory (or ending in a separator), in a directory that does not exist or is not
-    writable, a name longer than the file system allows, not a regular file where it exists, one of ``inputs``, ending in one of
-    ``forbidden``, or (``required``) without one of ``extensions`` (the first is the one to
-    use). Returns ``path``."""
+    writable, a name longer than the file system allows, not a regular file where it exists, one
+    of ``inputs``, ending in one of ``forbidden``, or (``required``) without one of ``extensions``
+    (the first is the one to use). Returns ``path``."""
     if not path:
         raise LopcookError("usage", None, f"{flag} is empty", hint=f"name the file, e.g. {flag} out{extensions[0]}")
     if path.endswith(("/", os.sep)) or os.path.isdir(path):

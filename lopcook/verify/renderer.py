@@ -607,11 +607,14 @@ class Renderer:
         self.decode_program = ctx.program(vertex_shader=vertex_shader_source(True), fragment_shader=FS)
         self.resolve_program = ctx.program(vertex_shader=RESOLVE_VS, fragment_shader=RESOLVE_FS)
         self.resolve_vao = ctx.vertex_array(self.resolve_program, [])
-        # colour, part IDs and depth at every sample, then the resolved colour and IDs: 4 bytes each
+        # colour, part IDs and depth at every sample, then the resolved colour and IDs: 4 bytes each,
+        # in the process's own memory where the renderer is software (llvmpipe)
         need = w * h * (12 * samples + 8)
         from ..memory import available_bytes
 
-        avail = available_bytes()
+        renderer = str(ctx.info.get("GL_RENDERER", "")).lower()
+        software = any(name in renderer for name in ("llvmpipe", "softpipe", "swrast"))
+        avail = available_bytes() if software else None
         if avail is not None and need > avail:
             raise LopcookError("usage", None, f"a {w}x{h} render with {samples}x MSAA needs {need / 1e9:.1f} GB of "
                                f"framebuffers; {avail / 1e9:.1f} GB are available", hint="use a smaller --resolution")
