@@ -579,14 +579,13 @@ def _is_container(path: str) -> bool:
     """Whether ``path`` names a container: a ``.lop`` name, or a regular file that starts with the
     container's magic (a FIFO or device is not opened here: reading it could block; the loaders
     reject it with their own message)."""
-    import os
-    import stat
+    from .ingest.build import regular_file_problem
 
     if path.lower().endswith(".lop"):
         return True
+    if regular_file_problem(path) is not None:
+        return False
     try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            return False
         with open(path, "rb") as fh:
             return fh.read(4) == b"LOPC"
     except OSError:

@@ -342,6 +342,23 @@ def next_corner(h: np.ndarray) -> np.ndarray:
     return nxt
 
 
+def fan_successors(h1: np.ndarray, h2: np.ndarray, a: np.ndarray, nv: int, cid) -> tuple[np.ndarray, np.ndarray]:
+    """``(succ, clean)`` around the vertices of a triangle mesh, from its twin half-edges:
+    ``h1[k]``, ``h2[k]`` are the two oppositely oriented half-edges (corner ids, h = 3f + k) of one
+    edge, ``a`` (3m,) the vertex of each corner. ``succ`` (3m,) ``cid``: the next corner around a
+    corner's vertex across its outgoing half-edge (the twin's corner at that vertex), -1 where the
+    half-edge has no twin; ``clean`` (nv,) bool: the vertices all of whose half-edges in and out
+    have one (``single_fans`` walks those)."""
+    succ = np.full(a.size, -1, dtype=cid)
+    succ[h1] = next_corner(h2)
+    succ[h2] = next_corner(h1)
+    broken = np.flatnonzero(succ < 0).astype(cid, copy=False)
+    clean = np.ones(nv, dtype=bool)
+    clean[a[broken]] = False
+    clean[a[next_corner(broken)]] = False
+    return succ, clean
+
+
 def single_fans(succ: np.ndarray, a: np.ndarray, fan: np.ndarray, clean: np.ndarray, cid,
                 max_walk: int = 64) -> np.ndarray:
     """(nv,) bool: the ``clean`` vertices whose corners form one cycle around them (one fan).

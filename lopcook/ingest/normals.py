@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import graph_components, next_corner as _next_corner, single_fans, weld_labels
+from ..mesh import fan_successors, graph_components, next_corner as _next_corner, single_fans, weld_labels
 
 
 @dataclass(frozen=True)
@@ -210,15 +210,9 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     fan = np.bincount(a, minlength=nw).astype(cid, copy=False)  # corners per welded vertex
     if not same_dir.any():
         del same_dir
-        succ = np.full(c, -1, dtype=cid)  # next corner around the vertex, -1 at a break
-        succ[h1] = _next_corner(h2)
-        succ[h2] = _next_corner(h1)
+        # next corner around the vertex (-1 at a break: a half-edge without a smooth twin)
+        succ, clean = fan_successors(h1, h2, a, nw, cid)
         del h1, h2
-        broken = np.flatnonzero(succ < 0).astype(cid, copy=False)  # half-edges without smooth twin
-        clean = np.ones(nw, dtype=bool)
-        clean[a[broken]] = False
-        clean[a[_next_corner(broken)]] = False
-        del broken
         simple_v = single_fans(succ, a, fan, clean, cid, _MAX_WALK)
         del clean
         cplx = np.flatnonzero(~simple_v[a]).astype(cid, copy=False)  # corners of the other vertices

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import (components, degenerate_mask, edge_groups, graph_components, next_corner, single_fans,
-                    sorted_unique, unique_rows, weld_exact, weld_labels)
+from ..mesh import (components, degenerate_mask, edge_groups, fan_successors, graph_components, next_corner,
+                    single_fans, sorted_unique, unique_rows, weld_exact, weld_labels)
 from ..types import MeshPart
 
 
@@ -66,15 +66,8 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
     # corners form cycles (succ: the next corner around); one cycle is one fan (mesh.single_fans)
     twin = np.flatnonzero((pair_size == 2) & ~same_dir)
     del pair_size
-    succ = np.full(3 * m, -1, dtype=cid)
-    succ[h1[twin]] = next_corner(h2[twin])
-    succ[h2[twin]] = next_corner(h1[twin])
+    succ, clean = fan_successors(h1[twin], h2[twin], a, n, cid)
     del twin
-    broken = np.flatnonzero(succ < 0).astype(cid, copy=False)
-    clean = np.ones(n, dtype=bool)
-    clean[a[broken]] = False
-    clean[a[next_corner(broken)]] = False
-    del broken
     fan = np.bincount(a, minlength=n)
     one_fan = single_fans(succ, a, fan, clean, cid)
     del succ, clean, fan

@@ -386,10 +386,15 @@ def _covering_chunk(px, py, ok, trusted: bool, triangles, size, offsets, margin,
     return hit
 
 
+#: which corner of a box takes the high end of each axis (x slowest, z fastest)
+_CORNER_HIGH = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)
+
+
 def box_corners(lo, hi) -> np.ndarray:
-    """(8, 3) float64 corners of the box ``lo``..``hi`` (x slowest, z fastest)."""
+    """(..., 8, 3) float64 corners of the boxes ``lo``..``hi`` ((..., 3) each; one box: (8, 3)),
+    x slowest, z fastest."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return np.where(_CORNER_HIGH, hi[..., None, :], lo[..., None, :])
 
 
 def window_coordinates(positions: np.ndarray, mvp: np.ndarray, size):
@@ -706,8 +711,7 @@ class Renderer:
             return out
         lo = np.array([np.asarray(boxes[i][0], np.float64) for i in have])  # (m, 3)
         hi = np.array([np.asarray(boxes[i][1], np.float64) for i in have])
-        pick = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)  # box_corners' order
-        corners = np.where(pick[None], hi[:, None, :], lo[:, None, :])  # (m, 8, 3)
+        corners = box_corners(lo, hi)  # (m, 8, 3)
         mvp = np.asarray(camera.mvp, np.float64)
         clip = corners @ mvp[:, :3].T + mvp[:, 3]  # (m, 8, 4), as [corner, 1] @ mvp.T
         finite = np.isfinite(clip).all(axis=(1, 2))
