@@ -169,23 +169,25 @@ def _refuse_all_degenerate(scene: Scene) -> None:
 
     grid = Grid.fit([p.positions for p in scene.parts])
 
-    def surface(positions: np.ndarray, tris: np.ndarray) -> bool:
-        """Whether one of ``tris`` (k, 3) has area and spans two grid cells."""
+    def surface(q: np.ndarray, positions: np.ndarray, tris: np.ndarray) -> bool:
+        """Whether one of ``tris`` (k, 3), with corners on the grid ``q`` (k, 3, 3), has area and
+        spans two grid cells."""
         if tris.size == 0:
             return False
-        q = grid.quantize(positions[tris.ravel()]).reshape(-1, 3, 3)
         spans = np.any(q[:, 0] != q[:, 1], axis=1) | np.any(q[:, 1] != q[:, 2], axis=1)
         if not spans.any():
             return False
         return bool((spans & ~degenerate_mask(positions, tris.astype(np.int64))).any())
 
-    # a sample of each part's first triangles settles every ordinary scene without testing it
+    # a sample of each part's first triangles settles every ordinary scene without quantising it
     # whole; only a scene whose sampled triangles all collapse pays for the full pass
     for part in scene.parts:
-        if surface(part.positions, np.asarray(part.indices[:_DEGENERATE_SAMPLE])):
+        tris = np.asarray(part.indices[:_DEGENERATE_SAMPLE])
+        if surface(grid.quantize(part.positions[tris.ravel()]).reshape(-1, 3, 3), part.positions, tris):
             return
     for part in scene.parts:
-        if surface(part.positions, np.asarray(part.indices)):
+        tris = np.asarray(part.indices)
+        if surface(grid.quantize(part.positions)[tris], part.positions, tris):
             return
     raise LopcookError("ingest", scene.source, f"all {scene.n_triangles:,} triangles are degenerate: each has no "
                        "area (repeated, coincident or collinear corners) or its corners fall in one cell of "
