@@ -16,6 +16,7 @@ from fractions import Fraction
 from .emit.container import Container
 from .emit.container import read as _read
 from .errors import EXIT_VERIFY_FAILED, LopcookError
+from .memory import small_pages
 from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
 from .types import Scene
@@ -25,7 +26,8 @@ def load(path, settings: Settings = DEFAULTS) -> Scene:
     """Load a glTF/GLB, OBJ or USD file into a validated Scene (``settings.ingest``)."""
     from .ingest import load as _load
 
-    return _load(str(path), settings.ingest)
+    with small_pages():
+        return _load(str(path), settings.ingest)
 
 
 def read(path, *, allow_prefix: bool = False) -> Container:
@@ -155,15 +157,17 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
 
 def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
     """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
-    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes."""
+    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes. numpy allocates without
+    huge pages meanwhile (``lopcook.memory.small_pages``)."""
     t = settings.tune
-    if t.target_psnr is None and t.vertex_bits is None:
-        return _cook(scene, settings, progress)
-    from .emit.attributes import code_memo
+    with small_pages():
+        if t.target_psnr is None and t.vertex_bits is None:
+            return _cook(scene, settings, progress)
+        from .emit.attributes import code_memo
 
-    # the searches cook the scene again and again, mostly with some attribute's bits unchanged
-    with code_memo():
-        return _cook(scene, settings, progress)
+        # the searches cook the scene again and again, mostly with some attribute's bits unchanged
+        with code_memo():
+            return _cook(scene, settings, progress)
 
 
 def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from .batch.cli import add_batch_parser, cmd_batch
 from .errors import EXIT_OK, LopcookError
+from .memory import small_pages
 from .progress import MODES
 from .settings import DEFAULTS as D
 from .settings import BudgetScope, LodBackend, PsnrStat, SearchKnobs, SeamMode
@@ -1101,7 +1102,8 @@ def main(argv: list[str] | None = None) -> int:
         sub = parser._subparsers._group_actions[0].choices[args.command]
         sub.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
-        return COMMANDS[args.command](args)
+        with small_pages():
+            return COMMANDS[args.command](args)
     except LopcookError as exc:
         if args.debug:
             raise

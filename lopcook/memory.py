@@ -4,8 +4,38 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
+from contextlib import contextmanager
 
 _LIBC = None
+
+
+@contextmanager
+def small_pages():
+    """Within the block numpy allocates its large arrays without ``madvise(MADV_HUGEPAGE)``; the
+    previous setting comes back on exit (forked children inherit the block's). Where the user set
+    ``$NUMPY_MADVISE_HUGEPAGE`` numpy keeps that choice.
+
+    numpy asks for transparent huge pages on every array of 4 MiB or more. Under the kernel's
+    ``defrag=madvise`` policy (the default of common distributions) a first touch of such memory
+    may compact memory synchronously before it returns, and the cook allocates and frees hundreds
+    of megabytes of temporaries per stage, so it pays that again and again, as system time
+    (docs/performance.md). The bytes written do not depend on it."""
+    setter = None
+    if "NUMPY_MADVISE_HUGEPAGE" not in os.environ:
+        try:
+            from numpy._core.multiarray import _set_madvise_hugepage as setter
+        except ImportError:  # numpy 1.x
+            try:
+                from numpy.core.multiarray import _set_madvise_hugepage as setter
+            except ImportError:
+                setter = None
+    before = setter(False) if setter is not None else None
+    try:
+        yield
+    finally:
+        if setter is not None:
+            setter(before)
 
 
 def release_free_memory() -> None:
