@@ -116,6 +116,7 @@ def child(args) -> dict:
     import lopcook.pipeline as pl
     from lopcook.emit.container import write_atomic
     from lopcook.ingest import load
+    from lopcook.memory import small_pages
     from lopcook.settings import Settings, SimplifySettings, parse_lods
 
     rec = Recorder()
@@ -143,7 +144,7 @@ def child(args) -> dict:
     settings = Settings(simplify=SimplifySettings(lods=parse_lods(args.lods), backend=args.lod_backend))
     out = tempfile.mktemp(suffix=".lop", dir=args.tmp)
     import_hwm = _hwm_kb()
-    with rec.stage("total"):
+    with rec.stage("total"), small_pages():  # as the CLI runs (lopcook.memory.small_pages)
         with rec.stage("ingest"):
             scene = load(args.source)
         data = pl.run(scene, settings).data
