@@ -157,8 +157,8 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
 
 def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
     """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
-    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes. numpy allocates without
-    huge pages meanwhile (``lopcook.memory.small_pages``)."""
+    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes.
+    numpy allocates without huge pages meanwhile (``lopcook.memory.small_pages``)."""
     t = settings.tune
     with small_pages():
         if t.target_psnr is None and t.vertex_bits is None:

@@ -16,11 +16,11 @@ def small_pages():
     previous setting comes back on exit (forked children inherit the block's). Where the user set
     ``$NUMPY_MADVISE_HUGEPAGE`` numpy keeps that choice.
 
-    numpy asks for transparent huge pages on every array of 4 MiB or more. Under the kernel's
-    ``defrag=madvise`` policy (the default of common distributions) a first touch of such memory
-    may compact memory synchronously before it returns, and the cook allocates and frees hundreds
-    of megabytes of temporaries per stage, so it pays that again and again, as system time
-    (docs/performance.md). The bytes written do not depend on it."""
+    numpy asks for transparent huge pages for every array of 4 MiB or more. The cook allocates and
+    frees hundreds of megabytes of temporaries per stage and forks children beside them (a write
+    to a shared page after a fork copies the whole page), and with the advice the kernel's share
+    of a cook grew several times over (docs/performance.md, "numpy's huge pages off"). The bytes
+    written do not depend on it."""
     setter = None
     if "NUMPY_MADVISE_HUGEPAGE" not in os.environ:
         try:
