@@ -364,10 +364,10 @@ def test_harness_builds_each_distinct_buffer_once_and_draws_every_placement_at_i
         built.append((owner(c_, part), lod, level))
         return real_cap(c_, part, lod, level)
 
-    def spy(self, items, camera, shading, decoded):
+    def spy(self, items, camera, shading, decoded, **kw):
         if decoded:
             drawn.append([(int(it["part"]), it["ssbo"], np.asarray(it["cover"].positions)) for it in items])
-        return real_draw(self, items, camera, shading, decoded)
+        return real_draw(self, items, camera, shading, decoded, **kw)
 
     decodes = []
     real_decoded = rd._decoded_positions

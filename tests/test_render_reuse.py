@@ -37,12 +37,12 @@ class Counting:
         self.decoded = self.float = 0
         draw = h.renderer.draw
 
-        def counted(items, camera, shading, decoded):
+        def counted(items, camera, shading, decoded, **kw):
             if decoded:
                 self.decoded += 1
             else:
                 self.float += 1
-            return draw(items, camera, shading, decoded)
+            return draw(items, camera, shading, decoded, **kw)
 
         monkeypatch.setattr(h.renderer, "draw", counted)
 
@@ -214,9 +214,9 @@ def test_a_calibrated_cook_with_shared_harnesses_writes_the_same_bytes_and_reuse
     draws = {"decoded": 0, "float": 0}
     real_draw = R.Renderer.draw
 
-    def counted(self, items, camera, shading, decoded):
+    def counted(self, items, camera, shading, decoded, **kw):
         draws["decoded" if decoded else "float"] += 1
-        return real_draw(self, items, camera, shading, decoded)
+        return real_draw(self, items, camera, shading, decoded, **kw)
 
     monkeypatch.setattr(R.Renderer, "draw", counted)
     at_probe = []
@@ -303,3 +303,56 @@ def test_a_test_scene_draws_the_sources_index_and_attribute_buffers_it_shares(gl
         a = h.evaluate_scene(u16, levels=[8, 12], views=3)
         b = h.evaluate_scene(apart, levels=[8, 12], views=3)
         assert strip(a)["levels"] == strip(b)["levels"]
+
+
+@pytest.mark.parametrize("packed", [False, True])
+def test_cropped_renders_and_their_metrics_equal_the_whole_images(gl, monkeypatch, packed):
+    """``draw(crop=True)`` and ``render_float(crop=True)`` (drawn, from the cache, packed or not)
+    are the whole image's ``last_box`` region, with background outside it; ``_crop_metrics`` of
+    two crops gives ``view_metrics`` of the two whole images (another shading and a part left out,
+    so colours and part IDs differ)."""
+    from lopcook.verify import metrics as M
+    from lopcook.verify.evaluate import _crop_metrics
+
+    if packed:
+        monkeypatch.setattr(R, "RAW_CACHE_BYTES", 0)
+    scene = spheres()
+    c = cook_container(scene)
+    with Harness(scene, RES) as plain, Harness(scene, RES, cache_float=True) as cached:
+        viewing = render_viewing(c.manifest, RES)
+        shading = Shading.from_manifest(c.manifest)
+        other = Shading(ks=0.1, shininess=8.0)
+        checked = mismatched = 0
+        scratch: dict = {}
+        for level in (6, 10):
+            for view in (0, 3, 11):
+                cam = make_camera(view, plain.lo, plain.hi, camera_distance(level, float(c.manifest["grid"]["extent"]),
+                                                                             viewing), viewing)
+                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+                whole = plain.render_float(cam, shading)
+                for _ in range(2):  # drawn, then from the cache
+                    crop = cached.render_float(cam, shading, key=key, crop=True)
+                    r0, r1, c0, c1 = cached.last_float_box
+                    np.testing.assert_array_equal(crop[0], whole[0][r0:r1, c0:c1])
+                    np.testing.assert_array_equal(crop[1], whole[1][r0:r1, c0:c1])
+                    outside = np.ones(whole[1].shape, bool)
+                    outside[r0:r1, c0:c1] = False
+                    assert not whole[0][outside].any() and not whole[1][outside].any()
+                assert key in cached.float_cache
+                fbox = cached.last_float_box
+                # one sphere left out, the others with each other's part IDs
+                items = [dict(it, part=(int(it["part"]) + 1) % 3) for it in plain.float_items[1:]]
+                test_whole = plain.renderer.draw(items, cam, other, decoded=False)
+                tbox = plain.renderer.last_box
+                test_crop = plain.renderer.draw(items, cam, other, decoded=False, crop=True)
+                assert plain.renderer.last_box == tbox
+                np.testing.assert_array_equal(test_crop[0], test_whole[0][tbox[0]:tbox[1], tbox[2]:tbox[3]])
+                np.testing.assert_array_equal(test_crop[1], test_whole[1][tbox[0]:tbox[1], tbox[2]:tbox[3]])
+                got = _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox)
+                want = M.view_metrics(whole[0], test_whole[0], whole[1], test_whole[1])
+                assert got == want
+                # with buffers reused from view to view (other sizes, other contents before)
+                assert _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox, scratch) == want
+                checked += want[0]["sum_sq"] > 0
+                mismatched += want[1]["part_mismatch"] > 0
+        assert checked >= 3 and mismatched >= 1

@@ -175,7 +175,10 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     if stop_view is not None and stop_view(per_view[variants[0]][-1]):
                         break
                     continue
-                ref_rgba, ref_ids = h.render_float(cam, shading, key=key)
+                # without images to keep, the renders are the regions drawn (no whole-image arrays)
+                crop = not images_here and hasattr(h, "last_float_box")
+                ref_rgba, ref_ids = (h.render_float(cam, shading, key=key, crop=True) if crop
+                                     else h.render_float(cam, shading, key=key))
                 fbox = getattr(h, "last_float_box", None)
                 outs, boxes = {}, {}
                 for v in variants:  # a variant whose draws equal an earlier one's gives its images
@@ -183,16 +186,21 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     if same is not None:
                         outs[v], boxes[v] = outs[same], boxes[same]
                     else:
-                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1])
+                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1],
+                                                  **({"crop": True} if crop else {}))
                         boxes[v] = getattr(h.renderer, "last_box", None)
                 seconds["render"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])) if fbox is None else
+                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])) if fbox is None or crop else
                                     int(np.count_nonzero(ref_rgba[fbox[0]:fbox[1], fbox[2]:fbox[3], 3])))
                 for v in variants:
                     # the pass over the pixels either render drew (outside: background in both)
-                    box = None if fbox is None or boxes[v] is None else _union(fbox, boxes[v])
-                    colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1], box=box)
+                    if crop:
+                        colour, order = _crop_metrics(h.renderer.size, (ref_rgba, ref_ids), fbox, outs[v], boxes[v],
+                                                      h.__dict__.setdefault("_metric_scratch", {}))
+                    else:
+                        box = None if fbox is None or boxes[v] is None else _union(fbox, boxes[v])
+                        colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1], box=box)
                     per_view[v].append(colour)
                     depth[v].append(order)
                     if vkeys[v] is not None:
@@ -231,6 +239,41 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
         if stop is not None and stop(per_view[variants[0]]):
             break
     return rows, images
+
+
+def _crop_metrics(size, ref, ref_box, test, test_box, scratch: dict | None = None) -> tuple[dict, dict]:
+    """``metrics.view_metrics`` of two whole images given as the regions drawn: ``ref`` and
+    ``test`` are (rgba, ids) crops of an image of ``size`` (w, h) at ``ref_box`` and ``test_box``
+    ((row0, row1, col0, col1); background outside). The same numbers as ``view_metrics`` of the
+    whole images with ``box`` = the union of the two: its pass over that union widened by one
+    pixel is made on arrays of that size, the crops pasted in. ``scratch``: a dict kept by the
+    caller whose whole-image buffers those arrays reuse (no fresh pages for every view)."""
+    w, h = size
+    r0, r1, c0, c1 = _union(ref_box, test_box)
+    if r1 <= r0 or c1 <= c0:  # nothing drawn in either: background everywhere
+        r0 = r1 = c0 = c1 = 0
+    else:
+        r0, r1, c0, c1 = max(0, r0 - 1), min(h, r1 + 1), max(0, c0 - 1), min(w, c1 + 1)
+    shape = (max(r1 - r0, 1), max(c1 - c0, 1))
+    pixels = shape[0] * shape[1]
+    if scratch is None or scratch.get("pixels", 0) < pixels:
+        buffers = [(np.empty(max(pixels, w * h) * 4, np.uint8), np.empty(max(pixels, w * h), np.uint32))
+                   for _ in range(2)]
+        if scratch is not None:
+            scratch.update(pixels=max(pixels, w * h), buffers=buffers)
+    else:
+        buffers = scratch["buffers"]
+    out = []
+    for ((rgba, ids), (b0, b1, b2, b3)), (flat_rgba, flat_ids) in zip(((ref, ref_box), (test, test_box)), buffers):
+        full_rgba = flat_rgba[:pixels * 4].reshape(shape + (4,))  # C-contiguous views of the buffers
+        full_ids = flat_ids[:pixels].reshape(shape)
+        full_rgba.fill(0)
+        full_ids.fill(0)
+        if b1 > b0 and b3 > b2:
+            full_rgba[b0 - r0:b1 - r0, b2 - c0:b3 - c0] = rgba
+            full_ids[b0 - r0:b1 - r0, b2 - c0:b3 - c0] = ids
+        out.append((full_rgba, full_ids))
+    return M.view_metrics(out[0][0], out[1][0], out[0][1], out[1][1])
 
 
 def _union(a, b) -> tuple:

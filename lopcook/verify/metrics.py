@@ -263,6 +263,12 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
     sees what it sees in the whole frame: the same numbers."""
     ref, tst = np.asarray(reference), np.asarray(test)
     rid, tid = np.asarray(reference_ids), np.asarray(test_ids)
+    words = (ref.ndim == 3 and ref.shape == tst.shape and ref.shape[2:] == (4,) and ref.dtype == np.uint8
+             and tst.dtype == np.uint8)
+    r32 = t32 = None
+    if words:  # RGBA pixels as little-endian uint32 words of the whole frame (a view), cropped below
+        ref, tst = np.ascontiguousarray(ref), np.ascontiguousarray(tst)
+        r32, t32 = ref.view("<u4")[..., 0], tst.view("<u4")[..., 0]
     if box is not None and ref.ndim == 3 and ref.shape == tst.shape and rid.shape == tid.shape == ref.shape[:2]:
         hh, ww = ref.shape[:2]
         r0, r1, c0, c1 = (int(v) for v in box)
@@ -272,22 +278,23 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
             r0, r1, c0, c1 = max(0, r0 - 1), min(hh, r1 + 1), max(0, c0 - 1), min(ww, c1 + 1)
         ref, tst = ref[r0:r1, c0:c1], tst[r0:r1, c0:c1]
         rid, tid = rid[r0:r1, c0:c1], tid[r0:r1, c0:c1]
+        if words:
+            r32, t32 = r32[r0:r1, c0:c1], t32[r0:r1, c0:c1]
         if ref.size == 0:
             ref, tst = np.zeros((1, 1, 4), np.uint8), np.zeros((1, 1, 4), np.uint8)
             rid, tid = np.zeros((1, 1), np.uint32), np.zeros((1, 1), np.uint32)
-    if ref.shape != tst.shape or ref.ndim != 3 or ref.shape[2] != 4 or ref.dtype != np.uint8 or tst.dtype != np.uint8:
+            r32 = t32 = np.zeros((1, 1), "<u4")
+    if not words:
         return image_metrics(ref, tst), depth_order_errors(rid, tid)
     if rid.shape != tid.shape:
         raise ValueError(f"ID image shapes differ: {rid.shape} vs {tid.shape}")
     h, w = ref.shape[:2]
-    ra, ta = ref[..., 3], tst[..., 3]
-    mask = (ra | ta) != 0
-    n = int(np.count_nonzero(mask))
-    ni = int(np.count_nonzero((ra == 255) & (ta == 255)))
-    r32 = np.ascontiguousarray(ref).view(np.uint32).reshape(h, w)
-    t32 = np.ascontiguousarray(tst).view(np.uint32).reshape(h, w)
+    # alpha is the top byte of a word: covered in either (alpha != 0), fully covered in both (255)
+    n = int(np.count_nonzero((r32 | t32) > np.uint32(0x00FFFFFF)))
+    ni = int(np.count_nonzero((r32 & t32) >= np.uint32(0xFF000000)))
     where = np.flatnonzero(r32 != t32)  # row-major, as boolean indexing of the box visits them
-    rf, tf = ref.reshape(-1, 4)[where], tst.reshape(-1, 4)[where]
+    rf = ref.reshape(-1, 4)[where] if ref.flags.c_contiguous else ref[np.divmod(where, w)]
+    tf = tst.reshape(-1, 4)[where] if tst.flags.c_contiguous else tst[np.divmod(where, w)]
     obj = (rf[:, 3] | tf[:, 3]) != 0
     full = (rf[:, 3] == 255) & (tf[:, 3] == 255)
     idx = rf[:, :3].astype(np.intp) * 256 + tf[:, :3]
@@ -307,15 +314,16 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
                   "psnr_interior": psnr_from_mse(interior_mse)}
     # part IDs: pixels covered in both whose part differs, and of those the ones whose reference
     # 3x3 neighbourhood (clipped at the border) holds one part only
-    ridf, tidf = rid.ravel(), tid.ravel()
-    covered_both = int(np.count_nonzero((ridf != 0) & (tidf != 0)))
-    cand = np.flatnonzero(ridf != tidf)
-    cand = cand[(ridf[cand] != 0) & (tidf[cand] != 0)]
+    covered = (rid != 0) & (tid != 0)
+    covered_both = int(np.count_nonzero(covered))
+    covered &= rid != tid
+    cand = np.flatnonzero(covered)
+    del covered
     mismatch = int(cand.size)
     depth_errors = 0
     if cand.size:
         y, x = np.divmod(cand, w)
-        centre = ridf[cand]
+        centre = rid[y, x]
         uniform = np.ones(cand.size, dtype=bool)
         for dy in (-1, 0, 1):
             yy = np.clip(y + dy, 0, h - 1)

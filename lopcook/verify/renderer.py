@@ -723,7 +723,7 @@ class Renderer:
         out[np.asarray(have)] = beyond & finite
         return out
 
-    def draw(self, items, camera: Camera, shading: Shading, decoded: bool):
+    def draw(self, items, camera: Camera, shading: Shading, decoded: bool, crop: bool = False):
         """Render ``items`` (dicts with ``vao``, ``part``, ``has_normal``, ``has_color``, ``texture``, and
         ``ssbo`` / ``ubo`` when ``decoded``; a clustered item also ``clusters`` (the records SSBO,
         binding 3) and ``program`` (the program its ``vao`` was made with); optional ``box``) from
@@ -744,7 +744,9 @@ class Renderer:
         the read-back (about 200 MB for 1.4M triangles), holds about that many. After every item
         the context is flushed (``gpu.flush``: llvmpipe rasterises that item while this process
         culls and binds the next; the pixels are the same). Leaves the context's default 1x1
-        framebuffer bound."""
+        framebuffer bound. ``crop``: only the region read back, ``(rgba (r1 - r0, c1 - c0, 4), ids)``
+        for ``last_box`` = (r0, r1, c0, c1) (outside it the whole image is background), with no
+        whole-image arrays made (read-only views of the read-back, not C-contiguous)."""
         import moderngl
 
         from . import gpu
@@ -824,15 +826,18 @@ class Renderer:
         x0, y0, rw, rh = region
         #: (row0, row1, col0, col1) of the image outside which this draw left background
         self.last_box = (h - y0 - rh, h - y0, x0, x0 + rw)
-        rgba = np.zeros((h, w, 4), np.uint8)
-        ids = np.zeros((h, w), np.uint32)
-        got = np.frombuffer(self.fbo_colour.read(viewport=region, components=4, dtype="f1"), np.uint8)
-        rgba[h - y0 - rh:h - y0, x0:x0 + rw] = got.reshape(rh, rw, 4)[::-1]
-        got = np.frombuffer(self.fbo_ids.read(viewport=region, components=1, dtype="u4"), "<u4")
-        ids[h - y0 - rh:h - y0, x0:x0 + rw] = got.reshape(rh, rw)[::-1]
+        got_rgba = np.frombuffer(self.fbo_colour.read(viewport=region, components=4, dtype="f1"),
+                                 np.uint8).reshape(rh, rw, 4)[::-1]
+        got_ids = np.frombuffer(self.fbo_ids.read(viewport=region, components=1, dtype="u4"), "<u4").reshape(rh, rw)[::-1]
         for fbo in (self.fbo_ms, self.fbo_ms_colour, self.fbo_colour, self.fbo_ids):
             fbo.scissor = None
         gpu.use_default_framebuffer()  # leave the context as gpu.py expects it (1x1 default target)
+        if crop:  # views of the read-back bytes, rows flipped (no copy)
+            return got_rgba, got_ids
+        rgba = np.zeros((h, w, 4), np.uint8)
+        ids = np.zeros((h, w), np.uint32)
+        rgba[h - y0 - rh:h - y0, x0:x0 + rw] = got_rgba
+        ids[h - y0 - rh:h - y0, x0:x0 + rw] = got_ids
         return rgba, ids
 
     def release(self) -> None:
@@ -1044,19 +1049,26 @@ class Harness:
     def __exit__(self, *exc):
         self.release()
 
-    def render_float(self, camera: Camera, shading: Shading, key=None):
+    def render_float(self, camera: Camera, shading: Shading, key=None, crop: bool = False):
         """``draw`` of the source's float items from ``camera``; with ``cache_float`` and a ``key``
-        (hashable: camera matrix, eye and shading) the result is computed once and reused."""
+        (hashable: camera matrix, eye and shading) the result is computed once and reused.
+        ``crop``: only the pixels in ``last_float_box`` (as ``draw(crop=True)``; the part IDs may
+        then be uint16), no whole-image arrays."""
         if self.cache_float and key is not None and key in self.float_cache:
             entry = self.float_cache[key]
             box = entry[0]
             self.last_float_box = (0, 0, 0, 0) if box is None else tuple(box)
-            return _expand(entry if len(entry) == 3 else _unpack(entry), self.renderer.size)
-        out = self.renderer.draw(self.float_items, camera, shading, decoded=False)
+            entry = entry if len(entry) == 3 else _unpack(entry)
+            return (entry[1], entry[2]) if crop else _expand(entry, self.renderer.size)
+        out = self.renderer.draw(self.float_items, camera, shading, decoded=False, crop=crop)
         #: (row0, row1, col0, col1) outside which the last float render is background
         self.last_float_box = self.renderer.last_box
         if self.cache_float and key is not None:
             entry = _crop(*out)
+            if crop and entry[0] is not None:  # the crop's box in the whole image
+                r0, c0 = self.last_float_box[0], self.last_float_box[2]
+                b = entry[0]
+                entry = ((b[0] + r0, b[1] + r0, b[2] + c0, b[3] + c0), entry[1], entry[2])
             size = entry[1].nbytes + entry[2].nbytes
             if self.cached_bytes + size > self.raw_bytes:  # past the raw share: compressed
                 entry = _pack(entry)
