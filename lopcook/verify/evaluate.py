@@ -60,6 +60,7 @@ from . import metrics as M
 from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
 from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items, trim_heap
+from .renderer import _expand  # a cropped render as the whole image
 
 #: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
 ATTRIBUTE_SOURCES = ("container", "source")
@@ -175,8 +176,9 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     if stop_view is not None and stop_view(per_view[variants[0]][-1]):
                         break
                     continue
-                # without images to keep, the renders are the regions drawn (no whole-image arrays)
-                crop = not images_here and hasattr(h, "last_float_box")
+                # the renders are the regions drawn (no whole-image arrays; whole images only for
+                # the view whose images are kept)
+                crop = hasattr(h, "last_float_box")
                 ref_rgba, ref_ids = (h.render_float(cam, shading, key=key, crop=True) if crop
                                      else h.render_float(cam, shading, key=key))
                 fbox = getattr(h, "last_float_box", None)
@@ -213,10 +215,12 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     chosen = view == image_view if image_view is not None else score > best_score
                     if chosen:
                         best_score = score
-                        images = {"level": level, "view": int(view), "float": ref_rgba, "float_ids": ref_ids}
+                        whole = ((lambda pair, b: _expand((b, pair[0], pair[1]), h.renderer.size)) if crop
+                                 else (lambda pair, b: pair))
+                        ref_whole = whole((ref_rgba, ref_ids), fbox)
+                        images = {"level": level, "view": int(view), "float": ref_whole[0], "float_ids": ref_whole[1]}
                         for v in variants:
-                            images[v] = outs[v][0]
-                            images[f"{v}_ids"] = outs[v][1]
+                            images[v], images[f"{v}_ids"] = whole(outs[v], boxes[v])
             if images_here and images is not None and images["level"] == level:
                 # the heatmaps of the view kept (once, not for every view that led on the way)
                 for v in variants:
