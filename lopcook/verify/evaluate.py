@@ -178,7 +178,7 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     continue
                 # the renders are the regions drawn (no whole-image arrays; whole images only for
                 # the view whose images are kept)
-                crop = hasattr(h, "last_float_box")
+                crop = isinstance(h, Harness)
                 ref_rgba, ref_ids = (h.render_float(cam, shading, key=key, crop=True) if crop
                                      else h.render_float(cam, shading, key=key))
                 fbox = getattr(h, "last_float_box", None)
