@@ -25,6 +25,16 @@ def spheres(n: int = 3) -> Scene:
     return Scene(parts=tuple(parts), source="spheres", format="obj").validate()
 
 
+def some_cameras(h: Harness, c, shading: Shading):
+    """(camera, float-cache key) of views 0, 3 and 11 at camera levels 6 and 10 of container ``c``."""
+    viewing = render_viewing(c.manifest, RES)
+    for level in (6, 10):
+        for view in (0, 3, 11):
+            cam = make_camera(view, h.lo, h.hi, camera_distance(level, float(c.manifest["grid"]["extent"]), viewing),
+                              viewing)
+            yield cam, (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
+
+
 def strip(res: dict) -> dict:
     """An evaluation without its timings (the only machine-dependent keys)."""
     return {k: v for k, v in res.items() if k != "seconds"}
@@ -147,19 +157,14 @@ def test_compressed_float_cache_gives_the_same_renders(gl, monkeypatch):
     c = cook_container(scene)
     monkeypatch.setattr(R, "RAW_CACHE_BYTES", 0)  # every entry compressed
     with Harness(scene, RES) as plain, Harness(scene, RES, cache_float=True) as cached:
-        viewing = render_viewing(c.manifest, RES)
         shading = Shading.from_manifest(c.manifest)
-        for level in (6, 10):
-            for view in (0, 3, 11):
-                cam = make_camera(view, plain.lo, plain.hi, camera_distance(level, float(c.manifest["grid"]["extent"]),
-                                                                             viewing), viewing)
-                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
-                want = plain.render_float(cam, shading)
-                first = cached.render_float(cam, shading, key=key)
-                assert len(cached.float_cache[key]) == 6  # a packed entry
-                hit = cached.render_float(cam, shading, key=key)
-                for x, y, z in zip(want, first, hit):
-                    assert np.array_equal(x, y) and np.array_equal(x, z) and x.dtype == z.dtype
+        for cam, key in some_cameras(plain, c, shading):
+            want = plain.render_float(cam, shading)
+            first = cached.render_float(cam, shading, key=key)
+            assert len(cached.float_cache[key]) == 6  # a packed entry
+            hit = cached.render_float(cam, shading, key=key)
+            for x, y, z in zip(want, first, hit):
+                assert np.array_equal(x, y) and np.array_equal(x, z) and x.dtype == z.dtype
         assert 0 < cached.cached_bytes < sum(RES[0] * RES[1] * 6 for _ in range(6))
 
 
@@ -319,40 +324,35 @@ def test_cropped_renders_and_their_metrics_equal_the_whole_images(gl, monkeypatc
     scene = spheres()
     c = cook_container(scene)
     with Harness(scene, RES) as plain, Harness(scene, RES, cache_float=True) as cached:
-        viewing = render_viewing(c.manifest, RES)
         shading = Shading.from_manifest(c.manifest)
         other = Shading(ks=0.1, shininess=8.0)
         checked = mismatched = 0
         scratch: dict = {}
-        for level in (6, 10):
-            for view in (0, 3, 11):
-                cam = make_camera(view, plain.lo, plain.hi, camera_distance(level, float(c.manifest["grid"]["extent"]),
-                                                                             viewing), viewing)
-                key = (cam.mvp.tobytes(), cam.eye.tobytes(), shading)
-                whole = plain.render_float(cam, shading)
-                for _ in range(2):  # drawn, then from the cache
-                    crop = cached.render_float(cam, shading, key=key, crop=True)
-                    r0, r1, c0, c1 = cached.last_float_box
-                    np.testing.assert_array_equal(crop[0], whole[0][r0:r1, c0:c1])
-                    np.testing.assert_array_equal(crop[1], whole[1][r0:r1, c0:c1])
-                    outside = np.ones(whole[1].shape, bool)
-                    outside[r0:r1, c0:c1] = False
-                    assert not whole[0][outside].any() and not whole[1][outside].any()
-                assert key in cached.float_cache
-                fbox = cached.last_float_box
-                # one sphere left out, the others with each other's part IDs
-                items = [dict(it, part=(int(it["part"]) + 1) % 3) for it in plain.float_items[1:]]
-                test_whole = plain.renderer.draw(items, cam, other, decoded=False)
-                tbox = plain.renderer.last_box
-                test_crop = plain.renderer.draw(items, cam, other, decoded=False, crop=True)
-                assert plain.renderer.last_box == tbox
-                np.testing.assert_array_equal(test_crop[0], test_whole[0][tbox[0]:tbox[1], tbox[2]:tbox[3]])
-                np.testing.assert_array_equal(test_crop[1], test_whole[1][tbox[0]:tbox[1], tbox[2]:tbox[3]])
-                got = _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox)
-                want = M.view_metrics(whole[0], test_whole[0], whole[1], test_whole[1])
-                assert got == want
-                # with buffers reused from view to view (other sizes, other contents before)
-                assert _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox, scratch) == want
-                checked += want[0]["sum_sq"] > 0
-                mismatched += want[1]["part_mismatch"] > 0
+        for cam, key in some_cameras(plain, c, shading):
+            whole = plain.render_float(cam, shading)
+            for _ in range(2):  # drawn, then from the cache
+                crop = cached.render_float(cam, shading, key=key, crop=True)
+                r0, r1, c0, c1 = cached.last_float_box
+                np.testing.assert_array_equal(crop[0], whole[0][r0:r1, c0:c1])
+                np.testing.assert_array_equal(crop[1], whole[1][r0:r1, c0:c1])
+                outside = np.ones(whole[1].shape, bool)
+                outside[r0:r1, c0:c1] = False
+                assert not whole[0][outside].any() and not whole[1][outside].any()
+            assert key in cached.float_cache
+            fbox = cached.last_float_box
+            # one sphere left out, the others with each other's part IDs
+            items = [dict(it, part=(int(it["part"]) + 1) % 3) for it in plain.float_items[1:]]
+            test_whole = plain.renderer.draw(items, cam, other, decoded=False)
+            tbox = plain.renderer.last_box
+            test_crop = plain.renderer.draw(items, cam, other, decoded=False, crop=True)
+            assert plain.renderer.last_box == tbox
+            np.testing.assert_array_equal(test_crop[0], test_whole[0][tbox[0]:tbox[1], tbox[2]:tbox[3]])
+            np.testing.assert_array_equal(test_crop[1], test_whole[1][tbox[0]:tbox[1], tbox[2]:tbox[3]])
+            got = _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox)
+            want = M.view_metrics(whole[0], test_whole[0], whole[1], test_whole[1])
+            assert got == want
+            # with buffers reused from view to view (other sizes, other contents before)
+            assert _crop_metrics(plain.renderer.size, crop, fbox, test_crop, tbox, scratch) == want
+            checked += want[0]["sum_sq"] > 0
+            mismatched += want[1]["part_mismatch"] > 0
         assert checked >= 3 and mismatched >= 1
