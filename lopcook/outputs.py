@@ -59,9 +59,10 @@ def check_output(path: str, flag: str, *, extensions: tuple[str, ...], what: str
         raise LopcookError("usage", path, f"directory {os.path.dirname(path) or '.'!r} is not writable",
                            hint="write somewhere you may create files, or fix the directory's permissions")
     limit = name_max(parent)
-    if len(os.fsencode(os.path.basename(path))) > limit:
-        raise LopcookError("usage", path, f"{flag}'s file name is {len(os.fsencode(os.path.basename(path)))} bytes "
-                           f"long; this file system allows {limit}", hint="choose a shorter name")
+    length = len(os.fsencode(os.path.basename(path)))
+    if length > limit:
+        raise LopcookError("usage", path, f"{flag}'s file name is {length} bytes long; this file system allows "
+                           f"{limit}", hint="choose a shorter name")
     if os.path.lexists(path) and not os.path.isfile(path):
         raise LopcookError("usage", path, f"{flag} exists and is not a regular file")
     if os.path.isfile(path) and not os.access(path, os.W_OK):

@@ -178,31 +178,23 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     continue
                 # the renders are the regions drawn (no whole-image arrays; whole images only for
                 # the view whose images are kept)
-                crop = isinstance(h, Harness)
-                ref_rgba, ref_ids = (h.render_float(cam, shading, key=key, crop=True) if crop
-                                     else h.render_float(cam, shading, key=key))
-                fbox = getattr(h, "last_float_box", None)
+                ref_rgba, ref_ids = h.render_float(cam, shading, key=key, crop=True)
+                fbox = h.last_float_box
                 outs, boxes = {}, {}
                 for v in variants:  # a variant whose draws equal an earlier one's gives its images
                     same = next((u for u in outs if vkeys[u] is not None and vkeys[u] == vkeys[v]), None)
                     if same is not None:
                         outs[v], boxes[v] = outs[same], boxes[same]
                     else:
-                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1],
-                                                  **({"crop": True} if crop else {}))
-                        boxes[v] = getattr(h.renderer, "last_box", None)
+                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1], crop=True)
+                        boxes[v] = h.renderer.last_box
                 seconds["render"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])) if fbox is None or crop else
-                                    int(np.count_nonzero(ref_rgba[fbox[0]:fbox[1], fbox[2]:fbox[3], 3])))
+                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
                 for v in variants:
                     # the pass over the pixels either render drew (outside: background in both)
-                    if crop:
-                        colour, order = _crop_metrics(h.renderer.size, (ref_rgba, ref_ids), fbox, outs[v], boxes[v],
-                                                      h.__dict__.setdefault("_metric_scratch", {}))
-                    else:
-                        box = None if fbox is None or boxes[v] is None else _union(fbox, boxes[v])
-                        colour, order = M.view_metrics(ref_rgba, outs[v][0], ref_ids, outs[v][1], box=box)
+                    colour, order = _crop_metrics(h.renderer.size, (ref_rgba, ref_ids), fbox, outs[v], boxes[v],
+                                                  h.__dict__.setdefault("_metric_scratch", {}))
                     per_view[v].append(colour)
                     depth[v].append(order)
                     if vkeys[v] is not None:
@@ -215,12 +207,11 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     chosen = view == image_view if image_view is not None else score > best_score
                     if chosen:
                         best_score = score
-                        whole = ((lambda pair, b: _expand((b, pair[0], pair[1]), h.renderer.size)) if crop
-                                 else (lambda pair, b: pair))
-                        ref_whole = whole((ref_rgba, ref_ids), fbox)
+                        size = h.renderer.size
+                        ref_whole = _expand((fbox, ref_rgba, ref_ids), size)
                         images = {"level": level, "view": int(view), "float": ref_whole[0], "float_ids": ref_whole[1]}
                         for v in variants:
-                            images[v], images[f"{v}_ids"] = whole(outs[v], boxes[v])
+                            images[v], images[f"{v}_ids"] = _expand((boxes[v], *outs[v]), size)
             if images_here and images is not None and images["level"] == level:
                 # the heatmaps of the view kept (once, not for every view that led on the way)
                 for v in variants:
