@@ -448,6 +448,11 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
             del job  # it holds the result too
             res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
             del raw  # check_result copied what it keeps: the result's arrays are freed here
+            if work.mode != "lock":
+                # only the locked seams' UVs (transfer.lock_uvs) read the work mesh past the
+                # backend: otherwise its arrays (welded positions, int64 faces) are freed before
+                # the transfer and measurement, where the LOD's peak is
+                work = replace(work, positions=None, faces=None, uvs=None)
             if dropped_out:
                 notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
             lod_part, info = transfer_attributes(res, ref, part, work, mode, max_flipped_fraction)
