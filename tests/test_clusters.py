@@ -105,6 +105,27 @@ def test_clusters_follow_the_contract(rng):
     assert C.clustered_bytes(cl, 9) == 4 * C.words_at(cl, 9) + 16 * cl.n_clusters + 128
 
 
+@pytest.mark.parametrize("mesh", ["random", "surface", "one_level"])
+def test_packing_in_blocks_gives_the_words_of_one_pass(mesh, monkeypatch):
+    # blocks that cut clusters, bins and words anywhere (1, 7 and 1000 vertices) against one block
+    # over every vertex; the values' bins and clusters span the block boundaries
+    rng = np.random.default_rng(7)
+    q, lv = MESHES[mesh](rng)
+    bins, qb, cl = clustered(q, lv, 64)
+    for level in (1, 9, 17, 24):
+        values = bp.top_bits(qb, vertex_widths(bins.vertex_id, level))
+        monkeypatch.setattr(C, "PACK_BLOCK", qb.shape[0] + 1)
+        whole = C.pack_clustered(values, cl, level)
+        for block in (1, 7, 1000):
+            monkeypatch.setattr(C, "PACK_BLOCK", block)
+            np.testing.assert_array_equal(C.pack_clustered(values, cl, level), whole)
+        bad = values.copy()
+        bad[-1, 0] |= np.uint32(1 << 24)  # wider than any field, in the last block only
+        monkeypatch.setattr(C, "PACK_BLOCK", 1000)
+        with pytest.raises(ValueError, match="exceed"):
+            C.pack_clustered(bad, cl, level)
+
+
 def test_morton_code_interleaves_x_lowest():
     q = np.array([[1 << 3, 0, 0], [0, 1 << 3, 0], [0, 0, 1 << 3], [(1 << 24) - 1] * 3], np.uint32)
     np.testing.assert_array_equal(C.morton_codes(q), np.array([1, 2, 4, (1 << 63) - 1], np.uint64))

@@ -196,6 +196,10 @@ def words_at(clusters: Clusters, level: int) -> int:
     return max(1, (int(cluster_bit(clusters, level)[-1]) + 31) // 32)
 
 
+#: vertices per block of ``pack_clustered`` (its temporaries are a few int64 arrays of this many rows)
+PACK_BLOCK = 1 << 18
+
+
 def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.ndarray:
     """Pack per-vertex top-bit values into the clustered layout at per-buffer level B.
 
@@ -206,34 +210,53 @@ def pack_clustered(values: np.ndarray, clusters: Clusters, level: int) -> np.nda
     An independent code path from ``decode_clustered``: one bit stream built from the running sum
     of every field's width (vertex after vertex, x, y, z), not from ClusterBit."""
     _check_level(level)
-    v = np.asarray(values, dtype=np.int64).reshape(-1, 3)
+    values = np.asarray(values).reshape(-1, 3)
     n = clusters.n
-    if v.shape[0] != n:
-        raise ValueError(f"{v.shape[0]} values for {n} vertices")
-    kv = np.repeat(np.arange(LEVELS + 1, dtype=np.int64), np.diff(clusters.vertex_id, prepend=0))  # bin of each vertex
-    b = np.maximum(kv, int(level))[:, None]
-    kt = np.repeat(clusters.k.astype(np.int64), clusters.count, axis=0)
-    at = np.repeat(clusters.anchor.astype(np.int64), clusters.count, axis=0)
-    if np.any(v >> b):
-        raise ValueError(f"values exceed max(m_v, {level}) bits")
-    w = np.maximum(0, b - kt)
-    if np.any((v >> w) != np.where(b <= kt, at >> np.maximum(kt - b, 0), at)):  # the bits the anchor holds
-        raise ValueError("values disagree with their cluster's anchor")
-    fields = (v & ((np.int64(1) << w) - 1)).ravel()
-    widths = w.ravel()
-    ends = np.cumsum(widths)
-    total = int(ends[-1]) if ends.size else 0
-    offsets = ends - widths
+    if values.shape[0] != n:
+        raise ValueError(f"{values.shape[0]} values for {n} vertices")
+    # a block of vertices at a time (temporaries of PACK_BLOCK rows: the whole buffer's (n, 3)
+    # int64 arrays were the encode's peak); each block's words are summed into the whole stream
+    # at its first word, so the words are those of one pass over all vertices
+    pieces = []
+    total = 0
+    for s in range(0, n, PACK_BLOCK):
+        rows = np.arange(s, min(n, s + PACK_BLOCK), dtype=np.int64)
+        v = values[s:s + rows.size].astype(np.int64)
+        kv = np.searchsorted(clusters.vertex_id, rows, side="right")  # bin of each vertex
+        b = np.maximum(kv, int(level))[:, None]
+        c = np.searchsorted(clusters.start, rows, side="right") - 1  # cluster of each vertex
+        kt = clusters.k[c].astype(np.int64)
+        at = clusters.anchor[c].astype(np.int64)
+        del kv, c
+        if np.any(v >> b):
+            raise ValueError(f"values exceed max(m_v, {level}) bits")
+        w = np.maximum(0, b - kt)
+        if np.any((v >> w) != np.where(b <= kt, at >> np.maximum(kt - b, 0), at)):  # the bits the anchor holds
+            raise ValueError("values disagree with their cluster's anchor")
+        del b, kt, at
+        fields = (v & ((np.int64(1) << w) - 1)).ravel()
+        widths = w.ravel()
+        del v, w
+        offsets = np.cumsum(widths)
+        offsets += total - widths
+        total += int(widths.sum())
+        # a field (at most 24 bits) at bit offset o lands in word o // 32 and, past its end, in the
+        # next one. The fields' bits are disjoint, so a word is the sum of its pieces: each piece is
+        # below 2^32, and so is each word's sum, which float64 sums exactly.
+        shifted = fields.astype(np.uint64) << (offsets & 31).astype(np.uint64)
+        word = offsets >> 5
+        first = int(word[0]) if word.size else 0
+        word -= first
+        span = int(word[-1]) + 2 if word.size else 0
+        low = np.bincount(word, weights=(shifted & np.uint64(0xFFFFFFFF)).astype(np.float64), minlength=span)
+        low += np.bincount(word + 1, weights=(shifted >> np.uint64(32)).astype(np.float64), minlength=span)
+        pieces.append((first, low))
     n_words = max(1, (total + 31) // 32)
-    # a field (at most 24 bits) at bit offset o lands in word o // 32 and, past its end, in the
-    # next one. The fields' bits are disjoint, so a word is the sum of its pieces: each piece is
-    # below 2^32, and so is each word's sum, which float64 sums exactly.
-    shifted = fields.astype(np.uint64) << (offsets & 31).astype(np.uint64)
-    word = offsets >> 5
     # (an empty field at the very end may sit one word past the last: it adds 0 there)
-    low = np.bincount(word, weights=(shifted & np.uint64(0xFFFFFFFF)).astype(np.float64), minlength=n_words + 2)
-    high = np.bincount(word + 1, weights=(shifted >> np.uint64(32)).astype(np.float64), minlength=n_words + 2)
-    return (low[:n_words] + high[:n_words]).astype(np.uint32)
+    out = np.zeros(n_words + 2, dtype=np.float64)
+    for first, low in pieces:
+        out[first:first + low.size] += low
+    return out[:n_words].astype(np.uint32)
 
 
 def decode_clustered(words: np.ndarray, clusters: Clusters, level: int,
