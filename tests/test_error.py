@@ -152,6 +152,20 @@ def test_sampled_ref_to_lod_brackets_the_vertex_maximum(corpus):
         assert E.sampled_ref_to_lod(ref, lod, 10**9)[:2] == (exact, exact)
 
 
+def test_sampled_bound_in_blocks_equals_one_pass(corpus, monkeypatch):
+    # the bound is computed a block of rows at a time: blocks of 1, 777 rows and one block over
+    # every vertex give the same (measured, bound, queried), bit for bit
+    bunny = load(corpus / "stanford-bunny.obj").parts[0]
+    ref = X.Reference(bunny)
+    lod = L.simplify(bunny, 1 / 8, backend="fast").part
+    monkeypatch.setattr(E, "_BOUND_BLOCK", bunny.n_vertices + 1)
+    whole = E.sampled_ref_to_lod(ref, lod, 2000)
+    assert whole[1] > whole[0]  # a bound above the sampled maximum: the blocks matter
+    for block in (1, 777):
+        monkeypatch.setattr(E, "_BOUND_BLOCK", block)
+        assert E.sampled_ref_to_lod(ref, lod, 2000) == whole
+
+
 def test_vertices_on_the_lod_need_no_query_and_change_nothing(corpus, monkeypatch):
     # meshoptimizer's LOD vertices are LOD 0 vertices: the transfer marks the ones it copied, and
     # the sampled measurement gives them 0 without a query -- the values of querying them

@@ -100,6 +100,9 @@ REFINE_FRACTION = 0.5
 
 _MORTON_BITS = 21
 
+#: rows per block of ``sampled_ref_to_lod``'s queries and bound (its (n, 3) arrays, a block at a time)
+_BOUND_BLOCK = 1 << 18
+
 
 def _spread3(v: np.ndarray) -> np.ndarray:
     """21-bit integers with two zero bits inserted after every bit (Morton interleave helper)."""
@@ -203,13 +206,14 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
 
     def distances(rows: np.ndarray) -> np.ndarray:
         """Distances of the sample points ``rows`` (indices into ``pts``): 0 without a query for
-        vertices ``on_ref`` marks (a point at a vertex of the LOD, where the query gives 0 too)."""
-        if on_ref is None:
-            return np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows]))[0]))
+        vertices ``on_ref`` marks (a point at a vertex of the LOD, where the query gives 0 too).
+        Queried ``_BOUND_BLOCK`` points at a time (libigl returns each point's closest point too:
+        (block, 3) arrays, not (rows, 3))."""
         out = np.zeros(rows.size)
-        ask = np.flatnonzero(~on_ref[ref.sample_vertices[rows]])
-        if ask.size:
-            out[ask] = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows[ask]]))[0]))
+        ask = np.arange(rows.size) if on_ref is None else np.flatnonzero(~on_ref[ref.sample_vertices[rows]])
+        for s in range(0, ask.size, _BOUND_BLOCK):
+            at = ask[s:s + _BOUND_BLOCK]
+            out[at] = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows[at]]))[0]))
         return out
 
     d = distances(sel)
@@ -226,9 +230,13 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
         d2 = distances(order.order[near])
         measured = max(measured, float(d2.max()))
         queried += int(near.size)
-    del tree  # (about 120 bytes per LOD face) before the bound's (n, 3) temporaries
-    gap = pts[order.order] - pts[order.order[owner]]
-    bound = dist[owner] + np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    del tree  # (about 120 bytes per LOD face) before the bound's temporaries
+    bound = np.empty(order.n)
+    for s in range(0, order.n, _BOUND_BLOCK):  # (block, 3) temporaries: the same values as one pass
+        own = owner[s:s + _BOUND_BLOCK]
+        gap = pts[order.order[s:s + own.size]] - pts[order.order[own]]
+        bound[s:s + own.size] = dist[own] + np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    del gap, own
     if near.size:
         bound[near] = d2  # measured
     bound[pick] = d

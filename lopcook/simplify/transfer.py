@@ -324,11 +324,10 @@ class Reference:
             # one contiguous 1-D array per axis (gathers and reductions along (n, 3) columns are
             # strided and several times slower); the same values as the (n, 3) forms
             cols = [np.ascontiguousarray(p[:, a]) for a in range(3)]
-            corner = [[col[f[:, j]] for j in range(3)] for col in cols]
             cen = []
-            for a in range(3):
-                c = corner[a][0] + corner[a][1]
-                c += corner[a][2]
+            for col in cols:  # the centroids, an axis at a time ((m,) temporaries)
+                c = col[f[:, 0]] + col[f[:, 1]]
+                c += col[f[:, 2]]
                 c /= 3.0
                 cen.append(c)
             n_levels = max(1, int(np.ceil(np.log2(f.shape[0] / CHUNK_FACES))))
@@ -349,17 +348,17 @@ class Reference:
                     nxt += [ids[left], ids[~left]]
                 level = nxt
             del cen
-            lo = [np.minimum(np.minimum(c[0], c[1]), c[2]) for c in corner]  # per face and axis
-            hi = [np.maximum(np.maximum(c[0], c[1]), c[2]) for c in corner]
-            del corner
             out = []
-            for ids in level:
+            for ids in level:  # each chunk's box from its own faces' corners (no per-face boxes kept)
                 if ids.size:
-                    out.append((ids, np.array([x[ids].min() for x in lo], dtype=p.dtype),
-                                np.array([x[ids].max() for x in hi], dtype=p.dtype)))
+                    fc = f[ids]
+                    corner = [[col[fc[:, j]] for j in range(3)] for col in cols]
+                    out.append((ids, np.array([min(x.min() for x in c) for c in corner], dtype=p.dtype),
+                                np.array([max(x.max() for x in c) for c in corner], dtype=p.dtype)))
+                    del fc, corner
                 else:
                     out.append((ids, np.full(3, np.inf), np.full(3, -np.inf)))
-            del lo, hi
+            del cols
             self._chunks = out
         return self._chunks
 
@@ -415,7 +414,10 @@ class Reference:
         if self._sample_order is None:
             from .error import SampleOrder
 
-            self._sample_order = SampleOrder(self.positions[self.sample_vertices])
+            used = self.sample_vertices
+            # every vertex referenced (the usual case): the positions themselves, not a copy
+            whole = used.size == self.positions.shape[0]
+            self._sample_order = SampleOrder(self.positions if whole else self.positions[used])
         return self._sample_order
 
     @property
