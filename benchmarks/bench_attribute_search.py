@@ -60,7 +60,7 @@ def cook(src: Path, out: Path, extra: list) -> dict:
 
 
 def quality(lop: Path, scene, views, resolution, levels) -> dict:
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
     from lopcook.verify.evaluate import evaluate
 
     c = read(lop)
@@ -77,7 +77,7 @@ def quality(lop: Path, scene, views, resolution, levels) -> dict:
 def main(argv=None) -> int:
     from lopcook.ingest import load
     from lopcook.tune.attributes import vertex_bits
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
     from lopcook.verify.decoders import parse_levels
 
     ap = argparse.ArgumentParser()

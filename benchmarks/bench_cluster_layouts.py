@@ -11,7 +11,7 @@ them), the position bits per vertex at per-buffer level B (every vertex decoded 
 as % of float32 (96 bits), for:
 
 * ``unclustered``: 3 max(B, m_v) bits per vertex (the 2.0 layout, no table words);
-* ``morton prefix``: what ``lopcook.emit.clusters`` writes: runs of N vertices in Morton order
+* ``morton prefix``: what ``lopcook.lop.clusters`` writes: runs of N vertices in Morton order
   inside each bin, each component's longest common prefix stored once (checked against
   ``clustered_bytes`` of the real encoder, records included, to within its padding to words);
 * ``hilbert prefix``: the same runs cut from a Hilbert order inside each bin (no jumps between
@@ -117,11 +117,11 @@ def octree_depth(codes: np.ndarray, size: int) -> np.ndarray:
 
 
 def layouts(path: str, size: int, level: int) -> dict:
-    from lopcook.emit.binning import LEVELS
-    from lopcook.emit.bitplane import to_grid
-    from lopcook.emit.clusters import cluster_order, clustered_bytes, make_clusters, morton_codes
-    from lopcook.emit.container import read
-    from lopcook.emit.reader import top_values
+    from lopcook.lop.binning import LEVELS
+    from lopcook.lop.bitplane import to_grid
+    from lopcook.lop.clusters import cluster_order, clustered_bytes, make_clusters, morton_codes
+    from lopcook.lop.container import read
+    from lopcook.lop.reader import top_values
 
     c = read(path)
     bits = dict.fromkeys(["unclustered", "morton prefix", "hilbert prefix", "hilbert offset", "octree cells"], 0.0)

@@ -8,7 +8,7 @@ Not a test. Usage::
 For every asset: one ``lopcook cook`` (unclustered, with the extra flags) in a fresh process, then
 for every N the clustered layout of exactly the same buffers (the container's LOD 0 grid
 integers at 24 bits and its minimum levels: what ``cook --clusters N`` encodes, since clustering
-changes no level) through ``lopcook.emit.clusters``. GPU-resident position bytes as % of
+changes no level) through ``lopcook.lop.clusters``. GPU-resident position bytes as % of
 float32 per level: words of P + 16 B per cluster record + 128 B ClusterId per buffer. ``--check N``
 also cooks ``--clusters N`` and asserts that its manifest accounting equals the re-encoding.
 Prints a Markdown table; CPU times (user + sys of the children and this process) and the load
@@ -42,10 +42,10 @@ def clustered_memory(c, sizes, levels) -> dict:
     """{N: {level: bytes}} of LOD 0 of every part, re-encoded clustered; plus the k histogram."""
     import numpy as np
 
-    from lopcook.emit.binning import LEVELS
-    from lopcook.emit.clusters import cluster_order, clustered_bytes, k_histogram, make_clusters
-    from lopcook.emit.bitplane import to_grid
-    from lopcook.emit.reader import top_values
+    from lopcook.lop.binning import LEVELS
+    from lopcook.lop.clusters import cluster_order, clustered_bytes, k_histogram, make_clusters
+    from lopcook.lop.bitplane import to_grid
+    from lopcook.lop.reader import top_values
 
     out = {n: {b: 0 for b in levels} for n in sizes}
     hist = {n: np.zeros(LEVELS + 1, np.int64) for n in sizes}
@@ -75,8 +75,8 @@ def main() -> int:
     ap.add_argument("--check", type=int, default=None, help="also cook --clusters N and compare its accounting")
     ap.add_argument("extra", nargs="*", help="extra cook flags, e.g. --target-psnr 40")
     args = ap.parse_args()
-    from lopcook.emit.container import read
-    from lopcook.emit.summary import memory_rows
+    from lopcook.lop.container import read
+    from lopcook.lop.summary import memory_rows
     from lopcook.verify.decoders import parse_levels
 
     sizes = [int(v) for v in args.sizes.split(",")]

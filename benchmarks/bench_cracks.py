@@ -30,9 +30,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lopcook import api  # noqa: E402
-from lopcook.emit.binning import LEVELS  # noqa: E402
-from lopcook.emit.bitplane import to_grid  # noqa: E402
-from lopcook.emit.reader import buffer_clusters, part_grid, top_values  # noqa: E402
+from lopcook.lop.binning import LEVELS  # noqa: E402
+from lopcook.lop.bitplane import to_grid  # noqa: E402
+from lopcook.lop.reader import buffer_clusters, part_grid, top_values  # noqa: E402
 from lopcook.verify.decoders import _manifest_viewing, buffer_level, decode_crack_free, view_tables  # noqa: E402
 
 
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
             B = buffer_level(cam, lo, hi, level_dist)
             v, w = top_values(c, i, j, B)
             if a.naive:
-                from lopcook.emit.bitplane import reconstruct_float32
+                from lopcook.lop.bitplane import reconstruct_float32
                 p32 = reconstruct_float32(v, w, origin, cell)
             else:
                 _g, p32, _lv = decode_crack_free(v, w, bins, B, origin, cell, cam, level_dist, radius)

@@ -12,7 +12,7 @@ the paper's worst-case bound, unclustered) and, per candidate ``M:EDGE_EPS``, ``
 attribute bits), then ``lopcook verify --min-psnr 40 --levels 6-11`` on the candidate (20 views at
 1280 x 720, every attribute drawn as the container decodes it). It prints one JSON row per run:
 CAP min PSNR per level, depth-order errors, and the mean GPU-resident position bytes over
-``--memory-levels`` (``lopcook.emit.summary.memory_rows``: clusters' records and tables counted)
+``--memory-levels`` (``lopcook.lop.summary.memory_rows``: clusters' records and tables counted)
 as a multiple of the earlier default's.
 """
 
@@ -29,8 +29,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from lopcook.emit.container import read  # noqa: E402
-from lopcook.emit.summary import memory_rows  # noqa: E402
+from lopcook.lop.container import read  # noqa: E402
+from lopcook.lop.summary import memory_rows  # noqa: E402
 from lopcook.verify.decoders import parse_levels  # noqa: E402
 
 ASSETS = ("stanford-bunny.obj,fandisk.obj,spot.obj,DamagedHelmet/DamagedHelmet.gltf,CesiumMilkTruck.glb,"

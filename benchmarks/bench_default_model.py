@@ -32,7 +32,7 @@ sys.path.insert(0, str(REPO))
 
 from lopcook.analyse import analyse  # noqa: E402
 from lopcook.emit import build  # noqa: E402
-from lopcook.emit.container import from_bytes, read  # noqa: E402
+from lopcook.lop.container import from_bytes, read  # noqa: E402
 from lopcook.ingest import load  # noqa: E402
 from lopcook.settings import DEFAULT_ANALYSE  # noqa: E402
 from lopcook.verify.buffers import position_bytes  # noqa: E402

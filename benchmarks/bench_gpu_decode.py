@@ -17,7 +17,7 @@ is timed to ``ctx.finish()``; the best of ``--repeat`` frames is reported, after
 ratio = decode time / passthrough time (> 1: decoding is slower).
 
 Clustered (``--clustered N``, issue 16): every buffer is also re-ordered and cut into clusters of N
-vertices by the cluster layout's CPU reference (lopcook.emit.clusters once merged; until then the
+vertices by the cluster layout's CPU reference (lopcook.lop.clusters once merged; until then the
 reference in tests/test_gpu_clusters.py), packed at each level and decoded by the ``LOP_CLUSTERED``
 vertex shader, frames of both layouts alternating (both see the same machine load);
 ``{lang}_clustered_ratio`` = best clustered frame / best unclustered frame (the issue's target:
@@ -43,9 +43,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from lopcook.emit.binning import LEVELS  # noqa: E402
-from lopcook.emit.bitplane import decode, reconstruct_float32  # noqa: E402
-from lopcook.emit.reader import gpu_buffer  # noqa: E402
+from lopcook.lop.binning import LEVELS  # noqa: E402
+from lopcook.lop.bitplane import decode, reconstruct_float32  # noqa: E402
+from lopcook.lop.reader import gpu_buffer  # noqa: E402
 from lopcook.verify import gpu  # noqa: E402
 from lopcook.verify.decoders import plane_source  # noqa: E402
 
@@ -75,7 +75,7 @@ LopBenchOut lop_bench_vs(uint j : SV_VertexID)
 def container(path: str | None):
     from lopcook.analyse import analyse
     from lopcook.emit import build
-    from lopcook.emit.container import from_bytes, read
+    from lopcook.lop.container import from_bytes, read
     from lopcook.ingest import load
 
     if path is None:
@@ -98,10 +98,10 @@ def decode_program(ctx, language: str, clustered: bool = False):
 
 
 def cluster_reference():
-    """The cluster layout's CPU reference: lopcook.emit.clusters once merged, else the copy in
+    """The cluster layout's CPU reference: lopcook.lop.clusters once merged, else the copy in
     tests/test_gpu_clusters.py."""
     try:
-        from lopcook.emit import clusters as ref  # noqa: F401
+        from lopcook.lop import clusters as ref  # noqa: F401
     except ImportError:
         sys.path.insert(0, str(REPO / "tests"))
         import test_gpu_clusters as ref
@@ -111,7 +111,7 @@ def cluster_reference():
 def clustered_buffers(c, buffers, size: int):
     """Per buffer: (q in clustered order, Clusters) from the container's level-24 grid integers and
     minimum levels (VertexId)."""
-    from lopcook.emit.bitplane import to_grid
+    from lopcook.lop.bitplane import to_grid
 
     ref = cluster_reference()
     out = []
@@ -199,7 +199,7 @@ def bench_decode(c, levels, repeat: int, clustered: int = 0) -> list[dict]:
                "passthrough_s": t_pass}
         cres = []
         if clustered:
-            from lopcook.emit.bitplane import top_bits
+            from lopcook.lop.bitplane import top_bits
 
             for qb, cl in cbufs:
                 widths = np.maximum(np.repeat(np.arange(1, LEVELS + 1), np.diff(cl.vertex_id)), level)
@@ -259,8 +259,8 @@ def bench_decode(c, levels, repeat: int, clustered: int = 0) -> list[dict]:
 def synthetic(c, n: int, seed: int = 20111011):
     """A buffer of ``n`` vertices whose minimum levels follow the container's histogram, random grid
     integers: (vertex_id, words_at(level), plane(p))."""
-    from lopcook.emit.binning import make_bins, vertex_widths
-    from lopcook.emit.bitplane import pack, plane_bits, top_bits
+    from lopcook.lop.binning import make_bins, vertex_widths
+    from lopcook.lop.bitplane import pack, plane_bits, top_bits
 
     rng = np.random.default_rng(seed)
     hist = np.zeros(LEVELS + 1)

@@ -6,7 +6,7 @@
 
 Per asset: the cook's wall time with and without ``--hierarchy`` (in-process, default settings),
 the container bytes it adds, ``inspect``'s per-part figures summed over parts
-(``lopcook.emit.summary.hierarchy_stats``), then for the harness cameras of ``--levels``
+(``lopcook.lop.summary.hierarchy_stats``), then for the harness cameras of ``--levels``
 (icosahedron view 0, ``lopcook.verify.cameras.make_camera``) the cut of ``refine`` (wall time,
 triangles against LOD 0, position level) rendered against the float source with the harness
 (``evaluate_scene``: same shading and metrics as the render check; textures and UVs kept).
@@ -33,7 +33,7 @@ LEVELS = (6, 8, 10)
 
 def run_asset(path, pixel_error, resolution, levels=LEVELS, backface=True):
     import lopcook
-    from lopcook.emit.summary import hierarchy_stats
+    from lopcook.lop.summary import hierarchy_stats
     from lopcook.hierarchy.container import refine
     from lopcook.settings import DEFAULTS, Settings, SimplifySettings
     from lopcook.types import MeshPart, Scene

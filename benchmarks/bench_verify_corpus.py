@@ -54,7 +54,7 @@ import numpy as np  # noqa: E402
 
 from lopcook.analyse import analyse  # noqa: E402
 from lopcook.emit import build  # noqa: E402
-from lopcook.emit.container import from_bytes  # noqa: E402
+from lopcook.lop.container import from_bytes  # noqa: E402
 from lopcook.ingest import load  # noqa: E402
 from lopcook.settings import DEFAULT_ANALYSE, DEFAULT_INGEST  # noqa: E402
 from lopcook.tune.calibrate import calibrate, calibrated_settings, format_calibration  # noqa: E402

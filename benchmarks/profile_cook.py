@@ -114,7 +114,7 @@ def child(args) -> dict:
     """One cook in this process, stages recorded; returns the result dict."""
     import lopcook.analyse as an
     import lopcook.pipeline as pl
-    from lopcook.emit.container import write_atomic
+    from lopcook.lop.container import write_atomic
     from lopcook.ingest import load
     from lopcook.memory import small_pages
     from lopcook.settings import Settings, SimplifySettings, parse_lods

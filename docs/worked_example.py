@@ -11,7 +11,7 @@ number that docs/format.md ("Worked example") shows. Float32 arithmetic uses num
 scalars so that each operation is rounded to float32 exactly once, as a shader does.
 
 At the end the hand-decoded values are cross-checked against lopcook's own reader
-(``lopcook.emit.reader``); the script fails loudly if they disagree. ``tests/test_container_schema.py``
+(``lopcook.lop.reader``); the script fails loudly if they disagree. ``tests/test_container_schema.py``
 runs this script and checks that its output and the block in docs/format.md agree.
 
 Output: ``key: value`` lines; lines whose value depends on the whole manifest (its size and
@@ -325,12 +325,12 @@ def main() -> int:
               f"uv_step {e['uv_step']} -> ({uv[0]!r}, {uv[1]!r})")
 
     # ---- cross-check against lopcook's own reader ---------------------------------------------
-    from lopcook.emit.container import from_bytes
-    from lopcook.emit.reader import decode_positions, gpu_buffer, lod_attributes
+    from lopcook.lop.container import from_bytes
+    from lopcook.lop.reader import decode_positions, gpu_buffer, lod_attributes
 
     cont = from_bytes(data)
     buf = gpu_buffer(cont, PART, LOD, LEVEL_B)
-    assert [int(w) for w in buf.words] == P, "hand-packed P differs from lopcook.emit.reader.gpu_buffer"
+    assert [int(w) for w in buf.words] == P, "hand-packed P differs from lopcook.lop.reader.gpu_buffer"
     assert [int(v) for v in buf.bit_id] == t12
     _, _, ref = decode_positions(cont, PART, LOD, LEVEL_B)
     assert [float(v) for v in ref[j]] == [float(v) for v in pos], (ref[j], pos)
@@ -338,7 +338,7 @@ def main() -> int:
     assert [int(v) for v in attrs["indices"][0]] == list(tri)
     assert [float(v) for v in attrs["normals"][j]] == normal
     assert [float(v) for v in attrs["uvs"][j]] == uv
-    out("check", "hand decode == lopcook.emit.reader (P words, BitId, float32 position, attributes)")
+    out("check", "hand decode == lopcook.lop.reader (P words, BitId, float32 position, attributes)")
 
     # ---- a hand-made buffer with several bins ------------------------------------------------
     levels = [3, 3, 5, 5, 5, 8]
@@ -354,7 +354,7 @@ def main() -> int:
                                  f"{3 * bb * (jj - hv[kk - 1]) + bit_id(hv, 6)[kk - 1]}")
     out("handmade.plane_counts", ", ".join(f"p{p}: {hv[p - 1]}" for p in range(2, 10)))
 
-    from lopcook.emit.binning import table_bit_id, table_vertex_id
+    from lopcook.lop.binning import table_bit_id, table_vertex_id
 
     assert [int(v) for v in table_vertex_id(np.array(levels))] == hv
     for level in (4, 6):

@@ -15,7 +15,7 @@ GPU-Rendering", VMV 2011.
 from .version import __version__  # noqa: E402
 
 from .api import cook, load, read  # noqa: E402
-from .emit.container import Container  # noqa: E402
+from .lop.container import Container  # noqa: E402
 from .settings import DEFAULTS, Settings  # noqa: E402
 
 __all__ = ["__version__", "load", "cook", "read", "Container", "Settings", "DEFAULTS"]

@@ -13,8 +13,8 @@ from __future__ import annotations
 import time
 from fractions import Fraction
 
-from .emit.container import Container
-from .emit.container import read as _read
+from .lop.container import Container
+from .lop.container import read as _read
 from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .memory import small_pages
 from .progress import NONE, Progress
@@ -163,7 +163,7 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
     with small_pages():
         if t.target_psnr is None and t.vertex_bits is None:
             return _cook(scene, settings, progress)
-        from .emit.attributes import code_memo
+        from .lop.memo import code_memo
 
         # the searches cook the scene again and again, mostly with some attribute's bits unchanged
         with code_memo():
@@ -172,7 +172,7 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
 
 def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     """``cook``'s body."""
-    from .emit.container import from_bytes
+    from .lop.container import from_bytes
     from .pipeline import run
 
     say = progress

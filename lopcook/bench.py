@@ -8,7 +8,7 @@ Steps, per asset (``bench_asset``):
    colours; no textures) and ``parts.npz`` (for Draco): every peer reads the same mesh.
 2. lopcook: ``python -m lopcook cook SOURCE --json`` in a child process (default options; with
    ``--calibrated`` also ``--target-psnr 40``), then AP and CAP at each level: GPU bytes
-   (``lopcook.emit.summary.memory_rows``), position error and cracks (CPU reference decoder,
+   (``lopcook.lop.summary.memory_rows``), position error and cracks (CPU reference decoder,
    vertices matched by order), masked PSNR (``lopcook.verify.evaluate.evaluate``).
 3. Each peer configuration in a child process; its output ingested back with lopcook's reader
    (Draco: decoded by DracoPy), matched to the source by nearest neighbour, measured, and
@@ -163,8 +163,8 @@ def run_cook(source, out_lop, extra=(), timeout_s=ASSET_TIMEOUT_S) -> tuple[P.Me
 def _lopcook_positions(c, src: Source, orders, level: int, variant: str) -> tuple[np.ndarray, np.ndarray]:
     """Decoded positions (float32 as the shaders compute them) of every vertex at ``level`` for AP or
     CAP, and the source vertex of each (the container keeps the source's vertices; binned order)."""
-    from .emit.bitplane import decode, reconstruct_float32
-    from .emit.reader import gpu_buffer
+    from .lop.bitplane import decode, reconstruct_float32
+    from .lop.reader import gpu_buffer
     from .verify.buffers import ap_buffer
 
     g = c.manifest["grid"]
@@ -180,8 +180,8 @@ def _lopcook_positions(c, src: Source, orders, level: int, variant: str) -> tupl
 
 def lopcook_rows(asset: str, source_path, src: Source, adir: Path, opts, *, calibrated=False) -> tuple[list, dict]:
     """Rows for lopcook AP and CAP at each level, and {"stages": {...}, "cook": measured dict}."""
-    from .emit.container import read
-    from .emit.summary import memory_rows
+    from .lop.container import read
+    from .lop.summary import memory_rows
     from .verify.buffers import source_order
     from .verify.evaluate import evaluate
 

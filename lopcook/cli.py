@@ -337,28 +337,26 @@ def _viewing(args):
 
 
 def add_attribute_options(p: argparse.ArgumentParser) -> None:
-    """``--normal-bits``, ``--uv-bits``, ``--color-bits`` (lopcook.settings.AttributeSettings)."""
-    from .settings import COLOR_BITS_RANGE, NORMAL_BITS_RANGE, UV_BITS_RANGE
+    """``--<codec>-bits`` for every attribute codec (``--normal-bits``, ``--uv-bits``, ``--color-bits``, ...:
+    lopcook.lop.codecs.CODECS, lopcook.settings.AttributeSettings)."""
+    from .lop.codecs import CODECS
 
     g = p.add_argument_group("vertex attributes (docs/format.md section 7.2; Purnomo et al. 2005)")
-    for flag, (lo, hi), what in (("--normal-bits", NORMAL_BITS_RANGE, "octahedral bits per normal component"),
-                                 ("--uv-bits", UV_BITS_RANGE, "bits per UV component over each buffer's range"),
-                                 ("--color-bits", COLOR_BITS_RANGE, "bits per vertex-colour channel")):
-        g.add_argument(flag, type=int, default=None, metavar="B",
-                       help=f"{what}, {lo}..{hi} (default: the bound-based choice per part: the fewest bits "
-                            "whose error keeps the shading change within --eps)")
+    for c in CODECS:
+        g.add_argument(f"--{c.singular}-bits", type=int, default=None, metavar="B",
+                       help=f"{c.description}, {c.bits[0]}..{c.bits[1]} (default: the bound-based choice per part: "
+                            "the fewest bits whose error keeps the shading change within --eps)")
 
 
 def _attribute_settings(args):
-    """``--normal-bits/--uv-bits/--color-bits`` -> AttributeSettings; out of range: usage error."""
+    """``--<codec>-bits`` -> AttributeSettings; out of range: usage error naming the flag."""
+    from .lop.codecs import CODECS
     from .settings import AttributeSettings
 
     try:
-        return AttributeSettings(normal_bits=getattr(args, "normal_bits", None), uv_bits=getattr(args, "uv_bits", None),
-                                 color_bits=getattr(args, "color_bits", None))
+        return AttributeSettings(bits=tuple(getattr(args, f"{c.singular}_bits", None) for c in CODECS))
     except ValueError as exc:
-        flag = {"normal": "--normal-bits", "uv": "--uv-bits", "color": "--color-bits"}[str(exc).split(" ", 1)[0]]
-        raise LopcookError("usage", None, f"{flag}: {exc}") from None
+        raise LopcookError("usage", None, f"--{str(exc).split(' ', 1)[0]}-bits: {exc}") from None
 
 
 def add_analyse_options(p: argparse.ArgumentParser) -> None:
@@ -673,7 +671,7 @@ def _warn(args, lines: list[str]) -> None:
 def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
     """``cook --json``: the container's description, stage timings, warnings, touching and
     intersecting part pairs, and the calibration and budget records when those ran."""
-    from .emit.summary import describe_container
+    from .lop.summary import describe_container
 
     result = container.result
     an = result.analysis
@@ -700,7 +698,7 @@ def _cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
 
 
 def _print_cook(args, desc: dict, result) -> None:
-    from .emit.summary import format_container
+    from .lop.summary import format_container
 
     if args.json:
         print(json.dumps(desc, indent=1, sort_keys=True))
@@ -755,9 +753,10 @@ def _check_gltf_output(args) -> None:
 
 
 def cmd_decode(args) -> int:
-    from .emit.container import read
+    from .lop.container import read
     from .emit.gltf_writer import write_gltf
-    from .emit.reader import decode_positions, lod_attributes, world_normals
+    from .lop.codecs import CODECS
+    from .lop.reader import decode_positions, lod_attributes, world_attributes
 
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
@@ -784,10 +783,9 @@ def cmd_decode(args) -> int:
         if lod != args.lod:
             coarsest.append(part["name"])
         _, _, pos = decode_positions(c, i, lod, args.level)
-        a = lod_attributes(c, i, lod, unit_normals=True)
+        a = lod_attributes(c, i, lod, unit_directions=True)
         meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"],
-                       "normals": world_normals(c, i, a["normals"]),
-                       "uvs": a["uvs"], "colors": a["colors"]})
+                       **world_attributes(c, i, {x.name: a[x.name] for x in CODECS})})
     if coarsest and not args.quiet and not args.json:
         print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "
               f"used ({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
@@ -824,7 +822,7 @@ def _xyz(text: str, flag: str):
 def cmd_refine(args) -> int:
     import math
 
-    from .emit.container import read
+    from .lop.container import read
     from .emit.gltf_writer import write_gltf
     from .hierarchy.container import refine
 
@@ -860,8 +858,8 @@ def cmd_inspect(args) -> int:
     if _is_container(args.source):
         import os
 
-        from .emit.container import read
-        from .emit.summary import describe_container, format_container
+        from .lop.container import read
+        from .lop.summary import describe_container, format_container
 
         c = read(args.source)
         desc = describe_container(c, file_bytes=os.path.getsize(args.source))
@@ -923,7 +921,7 @@ def cmd_verify(args) -> int:
         raise LopcookError("usage", args.container, "nothing to verify: give --decoders and/or --source SOURCE",
                            hint="lopcook verify OUT.lop --decoders checks the GLSL/HLSL decoders bit for bit; "
                                 "--source SOURCE renders AP and CAP against the float source")
-    from .emit.container import read
+    from .lop.container import read
     from .verify.decoders import format_report, parse_levels, verify_decoders
 
     levels = parse_levels(args.levels, args.container) if args.levels is not None else None
@@ -966,8 +964,8 @@ def cmd_report(args) -> int:
     import os
     import time
 
-    from .emit.container import read
-    from .emit.summary import describe_container
+    from .lop.container import read
+    from .lop.summary import describe_container
     from .ingest import load
     from .report import analysis_warnings, build_report, render_for_report, write_html
     from .settings import IngestSettings

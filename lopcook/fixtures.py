@@ -124,7 +124,7 @@ class FixturePart:
         from .types import MeshPart
 
         return MeshPart(name=self.name, positions=self.positions, indices=self.indices,
-                        normals=self.normals, uvs=self.uvs, source=source)
+                        attributes={"normals": self.normals, "uvs": self.uvs}, source=source)
 
 
 def _part(name, positions, indices, uvs=None, normals=None, polygons=None) -> FixturePart:

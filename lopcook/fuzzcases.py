@@ -854,14 +854,14 @@ def _lop_split(data: bytes) -> tuple[dict, bytes, bytes]:
 def _lop_pack(mbytes: bytes, payload: bytes, *, total: int | None = None) -> bytes:
     """A container with this manifest and payload, every CRC and size recomputed (the lie passes)."""
     total = 32 + len(mbytes) + len(payload) if total is None else total
-    from .emit.container import VERSION
+    from .lop.container import VERSION
 
     head = struct.pack("<4sHHIIIQ", b"LOPC", VERSION[0], VERSION[1], 32, len(mbytes), zlib.crc32(mbytes), total)
     return head + struct.pack("<I", zlib.crc32(head)) + mbytes + payload
 
 
 def _lop_with(manifest: dict, payload: bytes) -> bytes:
-    from .emit.container import manifest_bytes
+    from .lop.container import manifest_bytes
 
     try:
         mb = manifest_bytes(manifest)
@@ -999,7 +999,7 @@ def _lop_cases(w: _Writer, rng) -> None:
     # header lies
     lop("total_size_small", _lop_pack(mbytes, payload, total=100), "refuse")
     lop("total_size_huge", _lop_pack(mbytes, payload, total=1 << 60), "refuse")
-    from .emit.container import READABLE_MAJORS, VERSION
+    from .lop.container import READABLE_MAJORS, VERSION
 
     future = struct.pack("<H", max(READABLE_MAJORS) + 1)  # the first major no reader knows
     lop("header_major_next", data[:4] + future + data[6:28] + struct.pack(

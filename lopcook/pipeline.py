@@ -41,9 +41,10 @@ import numpy as np
 from . import isolate
 from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
+from .analyse.attribute_bits import part_bits
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
-from .emit.attributes import part_bits
-from .emit.container import Container, built, file_size, section_table
+from .lop.codecs import CODECS, AttributeBits
+from .lop.container import Container, built, file_size, section_table
 from .errors import LopcookError
 from .grid import BITS, Grid
 from .hierarchy.container import add_hierarchy
@@ -84,7 +85,7 @@ def view_level(extent: float, viewing: Viewing) -> int | None:
 class LodRow:
     """One buffer of the cook: triangles, vertices, ``error_m`` (metres from LOD 0),
     ``min_distance_m`` (None: dropped, no distance selects it), and, for kept buffers, its stored
-    bytes (``lopcook.emit.manifest.LodEntry``'s accounting)."""
+    bytes (``lopcook.lop.manifest.LodEntry``'s accounting)."""
 
     triangles: int
     vertices: int
@@ -315,8 +316,8 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
         st.advance()
     timings["analyse"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
-                            uvs=p.uvs, colors=p.colors, attribute_bits=part_bits(settings, i, p, pa))]
+    buffers = [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices,
+                            attributes=dict(p.attributes), attribute_bits=part_bits(settings, i, p, pa))]
                for i, (p, pa) in enumerate(zip(scene.parts, analysis.parts))]
     encoded = [[encode_buffer(b, BITS, settings.emit.clusters, cluster_all=settings.emit.cluster_all) for b in bufs]
                for bufs in buffers]
@@ -381,7 +382,7 @@ def _select(parts_chain, errors, analyses, levels, settings: Settings):
         ranges[0] = 0.0
         bits = part_bits(settings, i, chain[0], first.get(i))  # one allocation for all LODs of a part
         all_buffers.append([BufferInput(quantized=quantized[i][k], min_level=levels[i][k], indices=p.indices,
-                                        normals=p.normals, uvs=p.uvs, colors=p.colors, attribute_bits=bits,
+                                        attributes=dict(p.attributes), attribute_bits=bits,
                                         geometric_error_m=errors[i][k],
                                         min_distance_m=ranges[k] if with_lods else None)
                             for k, p in enumerate(chain)])
@@ -438,7 +439,7 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
 
 def _account(result: CookResult) -> None:
     """Fill every kept LodRow's byte counts from the container's typed manifest (the one
-    accounting, ``lopcook.emit.manifest.LodEntry``)."""
+    accounting, ``lopcook.lop.manifest.LodEntry``)."""
     entries = result.container.entries
     for part, rows in zip(entries.parts, result.lods):
         for k, (row, e) in enumerate(zip([r for r in rows if r.kept], part.lods)):
@@ -463,7 +464,7 @@ def resolve_instances(scene: Scene, settings: Settings, *, budget: bool = False)
     want = (len(scene.parts) >= 2 and not settings.simplify.hierarchy and not budget
             and settings.tune.target_bytes is None)
     if want:
-        from .emit.placement import touching_parts
+        from .lop.placement import touching_parts
         from .simplify.instances import copies
 
         groups = [[lead] + [i for i, _, _ in members] for lead, members in copies(scene.parts) if members]
@@ -540,13 +541,13 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
 
 
 def placement_groups(scene: Scene, parts_chain, quantized, rows) -> list[dict]:
-    """The groups of copies ``--instances`` stores once (``lopcook.emit.placement``): per group
+    """The groups of copies ``--instances`` stores once (``lopcook.lop.placement``): per group
     ``{"lead": i, "members": [(part, A, t), ...]}`` (part order, at least two members; the lead's
     own entry is ``(lead, I, 0)`` when it is a member). A copy is left out (it stays on the scene
     grid) when one of its vertices shares a 24-bit scene-grid cell with another part's
     (``placement.touching_parts``, any LOD); members must have the same LOD chain length and the
     same kept LODs (``rows``), so that their LOD entries can name one buffer set."""
-    from .emit.placement import touching_parts
+    from .lop.placement import touching_parts
     from .simplify.instances import copies
 
     flat, owner = [], []
@@ -574,7 +575,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
                progress: Progress, auto: bool = False, analysis=None) -> CookResult | None:
     """``run`` with ``simplify.instances``: steps (1)-(4) as without it, then every group of copies
     (``placement_groups``) encoded once on its mesh grid, its minimum levels the maximum over its
-    placements of the converted world levels (``lopcook.emit.placement`` states the bound), and
+    placements of the converted world levels (``lopcook.lop.placement`` states the bound), and
     every placement written as a part entry naming the group's buffers (attribute bits: the most
     any placement chose, ``_max_bits``). Parts not grouped are
     encoded on the scene grid exactly as without ``--instances``. No savings record is written.
@@ -582,7 +583,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
     cook the scene as without ``--instances``. ``analysis``: ``run``'s, on its ``plain`` path (LOD 0
     only): used for the scene's levels instead of analysing it again (the same levels: the
     co-located sharing ``analyse_lods`` applies is the one ``analyse`` made)."""
-    from .emit.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
+    from .lop.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
                                  transform_f32)
     from .analyse import colocated_max
 
@@ -634,7 +635,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
             ref = all_buffers[owner][k]
             n = q.shape[0]
             bufs.append(replace(ref, quantized=q, min_level=shared[start:start + n].astype(np.uint8),
-                                indices=lod.indices, normals=lod.normals, uvs=lod.uvs, colors=lod.colors,
+                                indices=lod.indices, attributes=dict(lod.attributes),
                                 attribute_bits=bits))
             start += n
         group_buffers[owner] = bufs
@@ -679,15 +680,14 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
 
 def _max_bits(bits):
     """The attribute bits a group's shared buffers are packed with: per attribute the most bits any
-    placement chose (``lopcook.emit.attributes.AttributeBits``; copies have the same attributes, so
+    placement chose (``lopcook.lop.codecs.AttributeBits``; copies have the same attributes, so
     None for one is None for all)."""
-    from .emit.attributes import AttributeBits
 
     def top(key):
-        vals = [getattr(b, key) for b in bits if getattr(b, key) is not None]
+        vals = [b.get(key) for b in bits if b.get(key) is not None]
         return max(vals) if vals else None
 
-    return AttributeBits(normals=top("normals"), uvs=top("uvs"), colors=top("colors"))
+    return AttributeBits(**{c.name: top(c.name) for c in CODECS})
 
 
 def _placement_manifest(manifest: dict, placement: dict, mesh_grids: dict, kept, encoded) -> dict:

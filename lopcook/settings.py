@@ -17,11 +17,12 @@ from fractions import Fraction
 
 from .errors import LopcookError
 from .grid import BITS
+from .lop.codecs import CODECS
 from .types import MAX_TRIANGLES
 from .viewing import Viewing
 
 __all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
-           "LodSpec", "AttributeSettings", "NORMAL_BITS_RANGE", "UV_BITS_RANGE", "COLOR_BITS_RANGE", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
+           "LodSpec", "AttributeSettings", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
            "TuneSettings", "EmitSettings", "CLUSTER_SIZE_RANGE", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
            "parse_lods"]
 
@@ -202,7 +203,7 @@ class SimplifySettings:
     hierarchy : bool  also write each part's view-dependent vertex hierarchy, built from LOD 0's
         full collapse sequence (``lopcook.hierarchy.container``; default False)
     instances : bool | None  store each group of copies of one mesh once, on a grid of its own, with
-        one transform per placement (``lopcook.emit.placement``, docs/format.md). None (the default):
+        one transform per placement (``lopcook.lop.placement``, docs/format.md). None (the default):
         wherever the scene has copies and the cook allows it (no hierarchy, no byte budget;
         ``lopcook.pipeline.resolve_instances``); True: always (a usage error with those); False: never
     """
@@ -250,7 +251,7 @@ class AnalyseSettings:
         (PRODUCT.md invariant 3) holds with ``position_eps = eps * position_margin``, i.e.
         ``k_f * E_v * dx(m_v) <= eps * position_margin``. Default 1, the paper's worst-case bound
         (docs/analyse.md, Position margin, has the measured margins). The attribute bits
-        (``lopcook.emit.attributes.default_bits``) use ``eps`` itself.
+        (``lopcook.analyse.attribute_bits.default_bits``) use ``eps`` itself.
     """
 
     eps: float = 1.0 / 255.0
@@ -419,77 +420,85 @@ class TuneSettings:
             raise ValueError(f"vertex bits must be a positive finite number, got {self.vertex_bits}")
 
 
-#: Allowed bits per component of each packed vertex attribute (inclusive; issue 15).
-NORMAL_BITS_RANGE = (4, 16)
-UV_BITS_RANGE = (6, 16)
-COLOR_BITS_RANGE = (4, 8)
-
-
-def _bits_ok(v, lohi: tuple[int, int], what: str) -> None:
-    if v is None:
-        return
-    if isinstance(v, bool) or not isinstance(v, int) or not lohi[0] <= v <= lohi[1]:
-        raise ValueError(f"{what} bits must be an integer in [{lohi[0]}, {lohi[1]}], got {v!r}")
+def _bits_tuple(values, what: str) -> tuple:
+    """``values`` (a sequence in record order, shorter ones padded with None) checked against the
+    codecs' ranges: a tuple of ``len(CODECS)`` ints or Nones; ValueError otherwise."""
+    values = tuple(values)
+    if len(values) > len(CODECS):
+        raise ValueError(f"{what} must give at most {len(CODECS)} bits ({', '.join(c.singular for c in CODECS)}), "
+                         f"got {values!r}")
+    values = values + (None,) * (len(CODECS) - len(values))
+    for c, v in zip(CODECS, values):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not c.bits[0] <= v <= c.bits[1]):
+            raise ValueError(f"{c.singular} bits must be an integer in [{c.bits[0]}, {c.bits[1]}], got {v!r}")
+    return values
 
 
 @dataclass(frozen=True)
 class AttributeSettings:
-    """Bits per component of the packed vertex attributes (``lopcook.emit.attributes``).
+    """Bits per field of the packed vertex attributes, in the codecs' record order
+    (``lopcook.lop.codecs.CODECS``: normals, uvs, colors, ...; each codec's ``bits`` range).
 
-    normal_bits : int in [4, 16] or None, octahedral bits per component of normals.
-    uv_bits : int in [6, 16] or None, bits per UV component over each buffer's range.
-    color_bits : int in [4, 8] or None, bits per RGBA channel.
-    ``None`` is the bound-based default (``lopcook.emit.attributes.default_bits``).
-    parts : per scene part (in part order) ``(normal, uv, color)`` bits overriding the above for
-        that part (each int or None); empty: no per-part override. Used by the attribute search.
-    """
+    bits : per codec, int or None; None is the bound-based default
+        (``lopcook.analyse.attribute_bits.default_bits``). Shorter tuples are padded with None.
+    parts : per scene part (in part order) bits in the same form, overriding ``bits`` for that
+        part; empty: no per-part override. Used by the attribute search.
+    ``AttributeSettings.of(normal=8, uv=12)`` names codecs by their singular (the CLI flags'
+    ``--normal-bits``)."""
 
-    normal_bits: int | None = None
-    uv_bits: int | None = None
-    color_bits: int | None = None
-    parts: tuple[tuple[int | None, int | None, int | None], ...] = ()
+    bits: tuple = ()
+    parts: tuple = ()
 
     def __post_init__(self) -> None:
-        _bits_ok(self.normal_bits, NORMAL_BITS_RANGE, "normal")
-        _bits_ok(self.uv_bits, UV_BITS_RANGE, "uv")
-        _bits_ok(self.color_bits, COLOR_BITS_RANGE, "color")
-        parts = tuple(tuple(p) for p in self.parts)
-        for p in parts:
-            if len(p) != 3:
-                raise ValueError(f"each per-part attribute entry must be (normal, uv, color) bits, got {p!r}")
-            _bits_ok(p[0], NORMAL_BITS_RANGE, "normal")
-            _bits_ok(p[1], UV_BITS_RANGE, "uv")
-            _bits_ok(p[2], COLOR_BITS_RANGE, "color")
-        object.__setattr__(self, "parts", parts)
+        object.__setattr__(self, "bits", _bits_tuple(self.bits, "attribute bits"))
+        object.__setattr__(self, "parts", tuple(_bits_tuple(p, "each per-part attribute entry") for p in self.parts))
 
-    def requested(self, part: int) -> tuple[int | None, int | None, int | None]:
-        """The (normal, uv, color) bits asked for part ``part`` (None: the bound-based default)."""
+    @classmethod
+    def of(cls, parts=(), **by_singular) -> "AttributeSettings":
+        known = {c.singular for c in CODECS}
+        if set(by_singular) - known:
+            raise ValueError(f"unknown attributes {sorted(set(by_singular) - known)} (known: {sorted(known)})")
+        return cls(bits=tuple(by_singular.get(c.singular) for c in CODECS), parts=parts)
+
+    def requested(self, part: int) -> dict:
+        """``{codec name: bits or None}`` asked for part ``part`` (None: the bound-based default)."""
+        own = (None,) * len(CODECS)
         if self.parts:
             if not 0 <= part < len(self.parts):
                 raise ValueError(f"attribute bits are given for {len(self.parts)} parts, not for part {part}")
-            pn, pu, pc = self.parts[part]
-        else:
-            pn = pu = pc = None
-        return (pn if pn is not None else self.normal_bits, pu if pu is not None else self.uv_bits,
-                pc if pc is not None else self.color_bits)
+            own = self.parts[part]
+        return {c.name: o if o is not None else b for c, o, b in zip(CODECS, own, self.bits)}
 
     @property
     def is_default(self) -> bool:
         return self == AttributeSettings()
 
+    def _listed(self) -> int:
+        """How many codecs the record lists: those of the first format, and later ones up to the
+        last that any entry sets (so records without them keep their bytes)."""
+        used = [i for i, c in enumerate(CODECS) if c.format_major > 2
+                and any(row[i] is not None for row in (self.bits, *self.parts))]
+        return max([sum(c.format_major == 2 for c in CODECS)] + [i + 1 for i in used])
+
     def to_record(self) -> dict:
-        """The manifest's ``options.attributes`` record."""
-        return {"normal_bits": self.normal_bits, "uv_bits": self.uv_bits, "color_bits": self.color_bits,
-                "parts": [list(p) for p in self.parts]}
+        """The manifest's ``options.attributes`` record: ``<singular>_bits`` per listed codec and
+        ``parts`` as lists in record order."""
+        n = self._listed()
+        rec = {f"{c.singular}_bits": b for c, b in zip(CODECS[:n], self.bits)}
+        rec["parts"] = [list(p[:n]) for p in self.parts]
+        return rec
 
     @classmethod
     def from_record(cls, rec: dict) -> "AttributeSettings":
         """Inverse of ``to_record``; ValueError/TypeError/KeyError on a record that does not parse."""
-        if not isinstance(rec, dict) or set(rec) != {"normal_bits", "uv_bits", "color_bits", "parts"}:
-            raise ValueError(f"options.attributes must hold normal_bits, uv_bits, color_bits, parts, got {rec!r}")
-        if not isinstance(rec["parts"], list) or not all(isinstance(p, list) for p in rec["parts"]):
-            raise ValueError("options.attributes.parts must be a list of [normal, uv, color] lists")
-        return cls(normal_bits=rec["normal_bits"], uv_bits=rec["uv_bits"], color_bits=rec["color_bits"],
+        base = {f"{c.singular}_bits" for c in CODECS if c.format_major == 2}
+        allowed = {f"{c.singular}_bits" for c in CODECS} | {"parts"}
+        if not isinstance(rec, dict) or not (base | {"parts"}) <= set(rec) <= allowed:
+            raise ValueError(f"options.attributes must hold {', '.join(sorted(base))}, parts, got {rec!r}")
+        listed = sum(f"{c.singular}_bits" in rec for c in CODECS)
+        if not isinstance(rec["parts"], list) or not all(isinstance(p, list) and len(p) == listed for p in rec["parts"]):
+            raise ValueError(f"options.attributes.parts must be a list of lists of {listed} bits in record order")
+        return cls(bits=tuple(rec.get(f"{c.singular}_bits") for c in CODECS),
                    parts=tuple(tuple(p) for p in rec["parts"]))
 
 
@@ -504,7 +513,7 @@ class EmitSettings:
     """Options of the emit stage (how position buffers are laid out).
 
     clusters : int in [16, 1024] or None  vertices per cluster of clustered position buffers
-        (``lopcook.emit.clusters``: per-cluster anchors store the top bits a cluster's vertices
+        (``lopcook.lop.clusters``: per-cluster anchors store the top bits a cluster's vertices
         share once; docs/clusters.md), default ``DEFAULT_CLUSTER_SIZE``; None: the unclustered
         binned layout (``cook --clusters 0``).
     cluster_all : bool  cluster every buffer (``cook --cluster-all``); default False: a buffer is

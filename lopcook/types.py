@@ -9,16 +9,19 @@ Conventions (all importers normalise to these):
 * uvs: glTF convention, origin at the **top-left** of the image (OBJ/USD ``v`` is flipped to ``1 - v``).
 * normals: unit length, float32; ``normals_computed`` says whether the source supplied them.
 * colors: linear RGBA float32 in [0, 1].
+* attributes are keyed by codec name (``lopcook.lop.codecs``), absent ones have no key.
 """
 
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import LopcookError
+from .lop.codecs import CODECS
 
 
 #: Largest scene ingest accepts, in triangles over all placements (instances counted once per
@@ -68,7 +71,7 @@ class Texture:
         return hashlib.sha256(self.data).hexdigest()
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class MeshPart:
     """One drawable mesh: a glTF primitive under a node, an OBJ object/group, a placed USD Mesh.
 
@@ -80,12 +83,14 @@ class MeshPart:
         World-space positions in metres, +Y up.
     indices : (m, 3) uint32
         Counter-clockwise triangles, each index in [0, n).
-    normals : (n, 3) float32 or None
-        Unit normals (world space).
-    uvs : (n, 2) float32 or None
-        Texture coordinates, origin top-left (glTF convention).
-    colors : (n, 4) float32 or None
-        Linear RGBA in [0, 1].
+    attributes : Mapping[str, (n, k) float32]
+        The per-vertex attributes the source has, by codec name (``lopcook.lop.codecs.CODECS``;
+        k is the codec's ``components``): ``"normals"`` (n, 3) unit normals (world space),
+        ``"uvs"`` (n, 2) texture coordinates, origin top-left (glTF convention), ``"colors"``
+        (n, 4) linear RGBA in [0, 1], and any later codec's. An absent attribute has no key.
+        ``part.normals``, ``part.uvs``, ``part.colors`` read it (None when absent). The
+        constructor also takes each attribute as a keyword named as its codec
+        (``MeshPart(name, p, t, normals=n, uvs=u)``, None: absent), merged over ``attributes``.
     source : str
         Where it came from: glTF ``node/mesh/primitive``, OBJ ``o``/``g`` name, USD prim path
         (with ``[instance k]`` for instancer placements).
@@ -105,14 +110,41 @@ class MeshPart:
     name: str
     positions: np.ndarray
     indices: np.ndarray
-    normals: np.ndarray | None = None
-    uvs: np.ndarray | None = None
-    colors: np.ndarray | None = None
+    attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
     source: str = ""
     normals_computed: bool = False
     texture: Texture | None = None
     mesh_key: str = ""
     double_sided: bool = False
+
+    def __init__(self, name: str, positions: np.ndarray, indices: np.ndarray,
+                 attributes: Mapping[str, np.ndarray] | None = None, source: str = "", normals_computed: bool = False,
+                 texture: Texture | None = None, mesh_key: str = "", double_sided: bool = False,
+                 **by_name: np.ndarray | None) -> None:
+        if attributes is not None and not isinstance(attributes, Mapping):
+            raise TypeError(f"MeshPart attributes must be a mapping of codec name to array, got {type(attributes)}")
+        attrs = {**(attributes or {}), **by_name}
+        known = [c.name for c in CODECS]
+        unknown = sorted(set(attrs) - set(known))
+        if unknown:
+            raise TypeError(f"MeshPart got unknown attributes {unknown} (known: {known})")
+        for key, value in (("name", name), ("positions", positions), ("indices", indices), ("source", source),
+                           ("normals_computed", normals_computed), ("texture", texture), ("mesh_key", mesh_key),
+                           ("double_sided", double_sided),
+                           ("attributes", {k: attrs[k] for k in known if attrs.get(k) is not None})):
+            object.__setattr__(self, key, value)
+
+    @property
+    def normals(self) -> np.ndarray | None:
+        return self.attributes.get("normals")
+
+    @property
+    def uvs(self) -> np.ndarray | None:
+        return self.attributes.get("uvs")
+
+    @property
+    def colors(self) -> np.ndarray | None:
+        return self.attributes.get("colors")
 
     @property
     def n_vertices(self) -> int:
@@ -144,7 +176,8 @@ class MeshPart:
         if int(t.max()) >= p.shape[0]:
             fail(f"index {int(t.max())} out of range for {p.shape[0]} vertices")
         n = p.shape[0]
-        for name, arr, width in (("normals", self.normals, 3), ("uvs", self.uvs, 2), ("colors", self.colors, 4)):
+        for codec in CODECS:
+            arr, name, width = self.attributes.get(codec.name), codec.name, codec.components
             if arr is None:
                 continue
             if not isinstance(arr, np.ndarray) or arr.dtype != np.float32 or arr.shape != (n, width):
@@ -154,10 +187,9 @@ class MeshPart:
                 rows = np.flatnonzero(~np.isfinite(arr).all(axis=1))
                 fail(f"{name} are NaN or Inf at {rows.size} of {n} vertices (first at vertex {int(rows[0])})",
                      "fix or remove the attribute in the authoring tool")
-        if self.normals is not None:
-            length = np.linalg.norm(self.normals, axis=1)
-            if np.abs(length - 1.0).max() > 1e-3:
-                fail(f"normals are not unit length (max |len-1| = {np.abs(length - 1.0).max():.3g})")
+            problem = codec.problem(arr)
+            if problem:
+                fail(f"{name} {problem}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -107,10 +107,10 @@ def open_edges(ids, faces) -> set:
 
 def cook_container(scene, settings=None, viewing=None):
     """``scene`` analysed and built in memory with the analysis options recorded (as ``cook`` does,
-    without LODs): a ``lopcook.emit.container.Container`` for the render tests."""
+    without LODs): a ``lopcook.lop.container.Container`` for the render tests."""
     from lopcook.analyse import analyse
     from lopcook.emit import build
-    from lopcook.emit.container import from_bytes
+    from lopcook.lop.container import from_bytes
     from lopcook.settings import AnalyseSettings
 
     settings = AnalyseSettings() if settings is None else settings

@@ -1,4 +1,4 @@
-"""Attribute bits end to end: the worst-case bound (lopcook.emit.attributes.worst_case_bits) on
+"""Attribute bits end to end: the worst-case bound (lopcook.analyse.attribute_bits.worst_case_bits) on
 analytic cases (the average-case default is tests/test_attribute_bound.py), ``cook --normal-bits/--uv-bits/--color-bits`` (range errors exit 2), the manifest
 and ``inspect --json`` fields ``attribute_bits`` / ``vertex_bits``, and determinism."""
 
@@ -12,12 +12,24 @@ import numpy as np
 import pytest
 
 from lopcook.cli import main
-from lopcook.emit.attributes import (AttributeBits, color_error_bound, normal_error_deg, worst_case_bits,
-                                     uv_error_bound)
-from lopcook.emit.container import from_bytes
+from lopcook.analyse.attribute_bits import ImageModel
+from lopcook.analyse.attribute_bits import worst_case_bits as _worst_case_bits
+from lopcook.lop.codecs import AttributeBits
+from lopcook.lop.codecs.colors_unorm import color_error_bound
+from lopcook.lop.codecs.normals_oct import normal_error_deg
+from lopcook.lop.codecs.uvs_range import uv_error_bound
+from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
+
+
+def worst_case_bits(*, normals=False, uvs=None, colors=False, eps, normal_kf=0.0, uv_kf=0.0, color_kf=0.0):
+    """``worst_case_bits`` of a part that has normals / these UVs / colours (their values do not
+    matter to the bound, only the UVs' range)."""
+    one = np.ones((1, 3))
+    attrs = {"normals": one if normals else None, "uvs": uvs, "colors": np.ones((1, 4)) if colors else None}
+    return _worst_case_bits(attrs, ImageModel(eps=eps, direction_kf=normal_kf, texcoord_kf=uv_kf, color_kf=color_kf))
 
 
 def smallest(pred, lo, hi):

@@ -1,6 +1,6 @@
-"""The average-case bound behind the default attribute bits (issue 15 item 3):
+"""The average-case bound behind the default attribute bits:
 ``lopcook.analyse.attribute_bound`` (shading averages, texture gradients, mip level) and
-``lopcook.emit.attributes.default_bits`` / ``normal_pixel_rms`` / ``uv_pixel_rms`` on analytic
+``lopcook.analyse.attribute_bits.default_bits`` / ``normal_pixel_rms`` / ``uv_pixel_rms`` on analytic
 cases: closed-form integrals, the codec's measured error at b bits, monotonicity in b, and the
 untextured minimum."""
 
@@ -14,9 +14,41 @@ import pytest
 
 from lopcook.analyse import attribute_bound as AB
 from lopcook.analyse import bitlevel as BL
-from lopcook.emit import attributes as A
+from types import SimpleNamespace
+
+from lopcook.analyse import attribute_bits as AT
+from lopcook.lop.codecs import AttributeBits
+from lopcook.lop.codecs import normals_oct as NO
+from lopcook.lop.codecs import uvs_range as UR
 from lopcook.settings import DEFAULT_ANALYSE, AnalyseSettings
 from lopcook.types import MeshPart, Texture
+
+
+def _present(normals, uvs, colors) -> dict:
+    """The attribute mapping of a part with normals / these UVs / colours (only the UVs' values
+    matter to the bound)."""
+    return {"normals": np.ones((1, 3)) if normals else None, "uvs": uvs, "colors": np.ones((1, 4)) if colors else None}
+
+
+def _default_bits(*, normals=False, uvs=None, colors=False, eps, normal_slope_rms=0.0, uv_gradient_rms=(0.0, 0.0),
+                  lighting_rms=1.0, color_kf=0.0):
+    return AT.default_bits(_present(normals, uvs, colors),
+                           AT.ImageModel(eps=eps, slope_rms=normal_slope_rms, gradient_rms=uv_gradient_rms,
+                                         lighting_rms=lighting_rms, color_kf=color_kf))
+
+
+def _worst_case_bits(*, normals=False, uvs=None, colors=False, eps, normal_kf=0.0, uv_kf=0.0, color_kf=0.0):
+    return AT.worst_case_bits(_present(normals, uvs, colors),
+                              AT.ImageModel(eps=eps, direction_kf=normal_kf, texcoord_kf=uv_kf, color_kf=color_kf))
+
+
+#: the functions these tests use, by their short names
+A = SimpleNamespace(decode_normals=NO.decode_normals, encode_normals=NO.encode_normals,
+                    normal_rms_error_deg=NO.normal_rms_error_deg, normal_error_deg=NO.normal_error_deg,
+                    normal_pixel_rms=AT.normal_pixel_rms, uv_pixel_rms=AT.uv_pixel_rms, encode_uvs=UR.encode_uvs,
+                    decode_uvs=UR.decode_uvs, uv_step=UR.uv_step, default_bits=_default_bits,
+                    worst_case_bits=_worst_case_bits, part_default_bits=AT.part_default_bits,
+                    AttributeBits=AttributeBits)
 
 
 def _png(array: np.ndarray, mode: str = "L") -> Texture:

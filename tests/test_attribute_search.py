@@ -121,7 +121,7 @@ def budget_cooks(gl, tmp_path_factory):
     """unit_sphere cooked by default and twice with --vertex-bits N, N 6 bits under the default's (the
     default's 8-bit normals leave 2 x 4 bits per vertex to take; the least it can take is 47.03)."""
     from conftest import FIXTURES
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     d = tmp_path_factory.mktemp("vbits")
     src = FIXTURES / "unit_sphere.glb"
@@ -134,7 +134,7 @@ def budget_cooks(gl, tmp_path_factory):
 
 
 def test_vertex_bits_result_fits_and_is_recorded(budget_cooks):
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     src, d, n, default = budget_cooks
     c = read(d / "a.lop")
@@ -183,7 +183,7 @@ def test_report_shows_the_allocation_and_the_curve(budget_cooks):
                  "--views", "2", "--resolution", "160x90"]) == 0
     rep = json.loads(out.with_suffix(".json").read_text())
     a = rep["attributes"]
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     c = read(d / "a.lop")
     assert [p["bits"] for p in a["parts"]] == c.manifest["options"]["attribute_search"]["choice"]["parts"]
@@ -196,7 +196,7 @@ def test_report_shows_the_allocation_and_the_curve(budget_cooks):
 
 def test_target_psnr_chooses_attribute_bits_that_pass(gl, tmp_path):
     from conftest import FIXTURES
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     out = tmp_path / "t.lop"
     assert _cook(FIXTURES / "unit_sphere.glb", out, "--target-psnr", "35") == 0

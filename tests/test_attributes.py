@@ -1,4 +1,4 @@
-"""Attribute encodings (lopcook.emit.attributes): variable-bit normals, UVs and colours with
+"""Attribute encodings (lopcook.lop.codecs, lopcook.lop.record): variable-bit normals, UVs and colours with
 float32 decodes, their error bounds per bit count, the packed per-vertex record (fields crossing
 32-bit words), indices; exact round trips, determinism, bad input."""
 
@@ -7,32 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from lopcook.emit.attributes import (
-    CIGOLLE_MAX_ERROR_DEG,
-    AttributeBits,
-    aligned_waste,
-    attribute_specs,
-    color_error_bound,
-    decode_colors,
-    decode_indices,
-    decode_normals,
-    decode_record,
-    decode_uvs,
-    encode_colors,
-    encode_indices,
-    encode_normals,
-    encode_record,
-    encode_uvs,
-    index_width,
-    normal_error_deg,
-    pack_record,
-    record_fields,
-    record_waste,
-    record_words,
-    unpack_record,
-    uv_error_bound,
-    uv_step,
-)
+from lopcook.lop.codecs import AttributeBits
+from lopcook.lop.codecs.colors_unorm import color_error_bound, decode_colors, encode_colors
+from lopcook.lop.codecs.normals_oct import CIGOLLE_MAX_ERROR_DEG, decode_normals, encode_normals, normal_error_deg
+from lopcook.lop.codecs.uvs_range import decode_uvs, encode_uvs, uv_error_bound, uv_step
+from lopcook.lop.indices import decode_indices, encode_indices, index_width
+from lopcook.lop.record import aligned_waste, attribute_specs, decode_record, encode_record, pack_record, record_fields, record_waste, record_words, unpack_record
 from lopcook.errors import LopcookError
 
 F32 = np.float32
@@ -326,14 +306,14 @@ def test_encode_record_decodes_like_the_attribute_decoders_and_is_deterministic(
     nrm, uv, col = random_units(rng, n), rng.uniform(-2, 3, (n, 2)), rng.random((n, 4))
     for bits in (AttributeBits(8, 12, 6), AttributeBits(16, 16, 8), AttributeBits(5, None, None),
                  AttributeBits(None, 7, 4), AttributeBits(11, 9, None)):
-        words, meta = encode_record(nrm if bits.normals else None, uv if bits.uvs else None,
-                                    col if bits.colors else None, bits)
+        words, meta = encode_record(attrs(nrm if bits.normals else None, uv if bits.uvs else None,
+                                          col if bits.colors else None), bits)
         assert meta["record_bits"] == bits.record_bits and meta["wasted_bits"] == record_waste(n, bits)
         json.dumps(meta)
-        again, _ = encode_record(np.asfortranarray(nrm) if bits.normals else None, uv if bits.uvs else None,
-                                 col if bits.colors else None, bits)
+        again, _ = encode_record(attrs(np.asfortranarray(nrm) if bits.normals else None, uv if bits.uvs else None,
+                                       col if bits.colors else None), bits)
         assert words.tobytes() == again.tobytes()
-        out = decode_record(np.frombuffer(words.tobytes(), "<u4"), n, bits, meta["uv_range"], meta["uv_step"])
+        out = decode_record(np.frombuffer(words.tobytes(), "<u4"), n, bits, meta["lod"])
         if bits.normals:
             assert np.array_equal(out["normals"], decode_normals(encode_normals(nrm, bits.normals), bits.normals))
             assert angle_deg(nrm, out["normals"]).max() <= normal_error_deg(bits.normals)
@@ -341,7 +321,7 @@ def test_encode_record_decodes_like_the_attribute_decoders_and_is_deterministic(
             assert out["normals"] is None
         if bits.uvs:
             q, lo, hi, step = encode_uvs(uv, bits.uvs)
-            assert meta["uv_step"] == [float(step[0]), float(step[1])]
+            assert meta["lod"]["uv_step"] == [float(step[0]), float(step[1])]
             assert np.array_equal(out["uvs"], decode_uvs(q, lo, step, bits.uvs))
             assert (np.abs(out["uvs"] - uv) <= uv_error_bound(lo, hi, bits.uvs)).all()
         if bits.colors:
@@ -351,11 +331,11 @@ def test_encode_record_decodes_like_the_attribute_decoders_and_is_deterministic(
 def test_record_bad_input():
     bits = AttributeBits(8, None, None)
     with pytest.raises(LopcookError):
-        encode_record(None, None, None, bits)  # bits given without the attribute
+        encode_record(attrs(), bits)  # bits given without the attribute
     with pytest.raises(LopcookError):
-        encode_record(np.eye(3), np.zeros((3, 2)), None, bits)  # attribute without bits
+        encode_record(attrs(np.eye(3), np.zeros((3, 2))), bits)  # attribute without bits
     with pytest.raises(LopcookError):
-        encode_record(np.eye(3), np.zeros((2, 2)), None, AttributeBits(8, 8, None))  # lengths differ
+        encode_record(attrs(np.eye(3), np.zeros((2, 2))), AttributeBits(8, 8, None))  # lengths differ
     with pytest.raises(LopcookError):
         unpack_record(np.zeros(1, np.uint32), 3, bits)  # 3 x 16 bits need 2 words
     with pytest.raises(LopcookError):
@@ -416,6 +396,11 @@ def test_specs_are_json_data():
     assert index_width(65535) == 2 and index_width(65536) == 4
 
 
+def attrs(normals=None, uvs=None, colors=None) -> dict:
+    """The record encoder's attribute mapping (codec name -> values)."""
+    return {"normals": normals, "uvs": uvs, "colors": colors}
+
+
 def _attributes(n: int, seed: int = 5):
     rng = np.random.default_rng(seed)
     normals = rng.normal(size=(n, 3))
@@ -428,35 +413,36 @@ def test_record_codes_commute_with_a_permutation_of_the_vertices():
     """The binned record is packed from the codes of the source order permuted (emit's
     ``_encode_buffer``): every code depends on its own vertex alone and the UV range on the set
     of values, so it must equal the record of the permuted attributes."""
-    from lopcook.emit.attributes import record_codes
+    from lopcook.lop.record import record_codes
 
     normals, uvs, colors = _attributes(997)
     bits = AttributeBits(normals=9, uvs=11, colors=5)
     order = np.random.default_rng(1).permutation(997)
-    codes, meta = record_codes(normals, uvs, colors, bits)
-    words, meta_p = encode_record(normals[order], uvs[order], colors[order], bits)
+    codes, meta = record_codes(attrs(normals, uvs, colors), bits)
+    words, meta_p = encode_record(attrs(normals[order], uvs[order], colors[order]), bits)
     np.testing.assert_array_equal(pack_record({k: v[order] for k, v in codes.items()}, 997, bits), words)
     assert meta == meta_p
 
 
 def test_code_memo_gives_the_same_codes_and_stays_bounded():
-    from lopcook.emit import attributes as A
+    from lopcook.lop import memo as A
+    from lopcook.lop.record import record_codes
 
     normals, uvs, colors = _attributes(500)
     bits = AttributeBits(normals=8, uvs=10, colors=None)
-    plain = A.record_codes(normals, uvs, None, bits)
+    plain = record_codes(attrs(normals, uvs), bits)
     with A.code_memo(max_bytes=3 * 500 * 2 * 2):
         assert A._ACTIVE.memo is not None
-        first = A.record_codes(normals, uvs, None, bits)
-        again = A.record_codes(normals.copy(), uvs.copy(), None, bits)  # the same content, other arrays
+        first = record_codes(attrs(normals, uvs), bits)
+        again = record_codes(attrs(normals.copy(), uvs.copy()), bits)  # the same content, other arrays
         assert again[0]["normals"] is first[0]["normals"]  # taken from the memo
         changed = normals.copy()
         changed[7] = -changed[7]  # another content: encoded again
-        other = A.record_codes(changed, uvs, None, bits)
+        other = record_codes(attrs(changed, uvs), bits)
         assert not np.array_equal(other[0]["normals"][7], first[0]["normals"][7])
         np.testing.assert_array_equal(np.delete(other[0]["normals"], 7, 0), np.delete(first[0]["normals"], 7, 0))
         for b in (4, 5, 6, 7):  # more codes than the memo holds: the oldest are dropped
-            A.record_codes(normals, uvs, None, AttributeBits(normals=b, uvs=10, colors=None))
+            record_codes(attrs(normals, uvs), AttributeBits(normals=b, uvs=10, colors=None))
         memo = A._ACTIVE.memo
         assert memo.held <= memo.max_bytes
         assert memo.held == sum(v.nbytes for e in memo.entries.values() for v in e if isinstance(v, np.ndarray))

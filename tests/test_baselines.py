@@ -9,7 +9,7 @@ import pytest
 from conftest import FIXTURES
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.container import from_bytes
+from lopcook.lop.container import from_bytes
 from lopcook.ingest import load
 from lopcook.verify.baselines import (container_levels, level_colours, level_scene, uniform_quantize,
                                       uniform_quantized_scene)

@@ -63,7 +63,7 @@ def test_configs_sweep_one_attribute_at_a_time_around_each_default():
 
 def test_container_bytes_per_vertex_adds_the_attribute_sections(tmp_path):
     from lopcook.api import cook, load
-    from lopcook.emit.summary import memory_rows
+    from lopcook.lop.summary import memory_rows
     from lopcook.fixtures import seamed_cube, write_gltf
 
     write_gltf(seamed_cube(), tmp_path / "cube.gltf")

@@ -29,7 +29,7 @@ def test_identical_and_moved_variants(gl):
         assert out["same"][level]["depth_order_errors"] == 0
         assert out["moved"][level]["psnr_min"] is not None
     # the same float scene through evaluate_scene (same cameras, shading and metrics)
-    test = Scene((MeshPart(p.name, moved_pos, p.indices, p.normals),), "moved", "glb")
+    test = Scene((MeshPart(p.name, moved_pos, p.indices, normals=p.normals),), "moved", "glb")
     ref = evaluate_scene(test, s, levels=[6, 8], views=3, resolution=RES, extent=extent)
     for row in ref["levels"]:
         assert out["moved"][row["level"]]["psnr_views"] == row["scene"]["psnr_views"]

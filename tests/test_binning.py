@@ -1,4 +1,4 @@
-"""Bins and tables (lopcook.emit.binning) on the paper's small example and on random data.
+"""Bins and tables (lopcook.lop.binning) on the paper's small example and on random data.
 
 The paper's Figures 9/10 show a 2-D buffer of 5 vertices with minimum levels 1..4. We keep the
 same 5 vertices with minimum levels [2, 1, 4, 2, 3] (input order), adapted to 3 components.
@@ -15,7 +15,7 @@ Vertex j = 3 (bin 3) at B = 2 is read at 3*3*(3 - VertexId[2]) + BitId[2] = 0 + 
 import numpy as np
 import pytest
 
-from lopcook.emit.binning import (buffer_bits, buffer_bytes, make_bins, memory_table, table_bit_id,
+from lopcook.lop.binning import (buffer_bits, buffer_bytes, make_bins, memory_table, table_bit_id,
                                   vertex_widths)
 
 LEVELS = [2, 1, 4, 2, 3]

@@ -1,10 +1,10 @@
-"""Pack / decode / add / remove (lopcook.emit.bitplane) against an independent bit-by-bit reader."""
+"""Pack / decode / add / remove (lopcook.lop.bitplane) against an independent bit-by-bit reader."""
 
 import numpy as np
 import pytest
 
-from lopcook.emit.binning import make_bins, table_bit_id, vertex_widths
-from lopcook.emit.bitplane import (add_plane, decode, pack, plane_bits, reconstruct_float32,
+from lopcook.lop.binning import make_bins, table_bit_id, vertex_widths
+from lopcook.lop.bitplane import (add_plane, decode, pack, plane_bits, reconstruct_float32,
                                    reconstruct_float64, remove_plane, to_grid, top_bits)
 
 

@@ -19,8 +19,8 @@ FAST = Settings(simplify=SimplifySettings(backend="fast"))
 from lopcook import fixtures as F
 from lopcook.api import budget_target as _budget_target
 from lopcook.cli import main
-from lopcook.emit.container import from_bytes, read
-from lopcook.emit.summary import memory_rows
+from lopcook.lop.container import from_bytes, read
+from lopcook.lop.summary import memory_rows
 from lopcook.errors import LopcookError
 from lopcook.ingest.normals import compute_normals
 from lopcook.types import MeshPart, Scene
@@ -38,7 +38,7 @@ def _bumpy_sphere(subdivisions: int = 4) -> Scene:
     pos = p * r[:, None]
     nr = compute_normals(pos, sph.indices, 180.0)
     pos = pos[nr.source_vertex]
-    part = MeshPart("bumpy", pos, nr.indices, nr.normals)
+    part = MeshPart("bumpy", pos, nr.indices, normals=nr.normals)
     return Scene((part,), "bumpy_sphere", "glb").validate()
 
 

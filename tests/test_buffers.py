@@ -9,10 +9,10 @@ import pytest
 
 from conftest import FIXTURES
 from lopcook.analyse import analyse
-from lopcook.emit.binning import LEVELS, buffer_bytes
-from lopcook.emit.bitplane import decode, reconstruct_float32
-from lopcook.emit.reader import top_values
-from lopcook.emit.summary import memory_rows
+from lopcook.lop.binning import LEVELS, buffer_bytes
+from lopcook.lop.bitplane import decode, reconstruct_float32
+from lopcook.lop.reader import top_values
+from lopcook.lop.summary import memory_rows
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
@@ -38,7 +38,7 @@ def test_source_order_maps_binned_vertices_to_source_vertices(crease):
     (order,) = B.source_order(c, s)
     assert sorted(order.tolist()) == list(range(s.parts[0].n_vertices))
     an = analyse(s, AnalyseSettings())
-    from lopcook.emit.binning import make_bins
+    from lopcook.lop.binning import make_bins
 
     np.testing.assert_array_equal(order, make_bins(an.parts[0].min_level).order)
 
@@ -50,7 +50,7 @@ def test_source_order_rejects_another_source(crease):
         B.source_order(c, other)
     s, _ = crease
     p = s.parts[0]
-    moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, p.normals),), "moved", "glb")
+    moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, normals=p.normals),), "moved", "glb")
     with pytest.raises(LopcookError, match="positions differ"):
         B.source_order(c, moved)
 
@@ -122,9 +122,9 @@ def test_buffers_carry_what_the_reference_decoder_gives(crease, cluster_all):
     """The render harness projects a buffer's positions for the coverage cull and names its draws
     by them: the ``decoded`` values a buffer carries must be the reference decode of its words."""
     from lopcook.emit import build
-    from lopcook.emit.clusters import decode_clustered
-    from lopcook.emit.container import from_bytes
-    from lopcook.emit.reader import ClusteredGpuBuffer
+    from lopcook.lop.clusters import decode_clustered
+    from lopcook.lop.container import from_bytes
+    from lopcook.lop.reader import ClusteredGpuBuffer
 
     s, c = crease
     if cluster_all:

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from lopcook.emit.binning import LEVELS
+from lopcook.lop.binning import LEVELS
 from lopcook.errors import LopcookError
 from lopcook.verify import cameras as C
 from lopcook.viewing import Viewing, nearest_box_distance, required_level

@@ -122,7 +122,7 @@ def test_cook_lods_auto_is_the_default_chain(tmp_path):
     LODs no distance selects; ``--lods R1,R2`` keeps working and bad values are one-line usage errors."""
     from lopcook.simplify import lod_chain
     from lopcook.cli import main
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
     from lopcook.ingest import load
     from lopcook.selection import selection_ranges
     from lopcook.viewing import Viewing

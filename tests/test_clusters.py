@@ -1,4 +1,4 @@
-"""Clustered position buffers (lopcook.emit.clusters, cook --clusters N): the decode at every level
+"""Clustered position buffers (lopcook.lop.clusters, cook --clusters N): the decode at every level
 equals the unclustered (global grid) decode exactly, pack/decode and add/remove plane round-trip,
 the prefix property holds, co-located vertices decode identically, clusters collapse to their
 anchor's cell at B <= k, and bad --clusters values are usage errors."""
@@ -13,11 +13,11 @@ import pytest
 
 from conftest import FIXTURES, REPO
 from lopcook.cli import main as cli_main
-from lopcook.emit import bitplane as bp
-from lopcook.emit import clusters as C
-from lopcook.emit.binning import LEVELS, make_bins, table_bit_id, vertex_widths
-from lopcook.emit.container import from_bytes
-from lopcook.emit.reader import clustered_gpu_buffer, decode_positions, top_values
+from lopcook.lop import bitplane as bp
+from lopcook.lop import clusters as C
+from lopcook.lop.binning import LEVELS, make_bins, table_bit_id, vertex_widths
+from lopcook.lop.container import from_bytes
+from lopcook.lop.reader import clustered_gpu_buffer, decode_positions, top_values
 from lopcook.errors import LopcookError
 
 SIZES = [16, 64, 1024]
@@ -258,7 +258,7 @@ def test_prefix_of_a_clustered_file_decodes_at_the_available_level(tmp_path):
 def test_co_located_vertices_decode_identically_across_lods_and_clusters(tmp_path):
     """seamed_cube: 24 vertices at 8 positions in 2 clusters of 16; unit_sphere: 3 LODs sharing 63
     positions (co-located parts are the pipeline's shared grid, the same rule)."""
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     for fixture, flags in (("seamed_cube.glb", ()), ("unit_sphere.glb", ("--lods", "1/2,1/4"))):
         c = read(str(cook(FIXTURES / fixture, "--clusters", "16", *flags, tmp_path=tmp_path, name=f"{fixture}.lop")))
@@ -375,7 +375,7 @@ def test_default_cook_is_clustered_and_clusters_0_is_not(tmp_path):
     version 3.0, and records it; --clusters 0 writes the unclustered 2.0 file, which reads back
     as unclustered settings; all decode to the same grid integers and float32 positions."""
     from lopcook.emit import clustering_wins
-    from lopcook.emit.reader import buffer_clusters
+    from lopcook.lop.reader import buffer_clusters
     from lopcook.settings import DEFAULTS, Settings
 
     assert DEFAULTS.emit.clusters == 64
@@ -406,7 +406,7 @@ def test_default_cook_is_clustered_and_clusters_0_is_not(tmp_path):
 
 
 def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(tmp_path):
-    from lopcook.emit.summary import describe_container
+    from lopcook.lop.summary import describe_container
     from lopcook.report.html import _clusters_html
 
     c = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--clusters", "16", tmp_path=tmp_path).read_bytes())
@@ -449,7 +449,7 @@ def test_position_sizer_equals_the_encoded_buffers_bytes(mesh, rng):
     the manifest gives the buffer ``encode_buffer(buf, B, N)`` writes: every vertex clamped to B,
     the per-buffer clustered/unclustered choice included, for N = None, 16, 64 and cluster_all."""
     from lopcook.emit import BufferInput, PositionSizer, encode_buffer
-    from lopcook.emit.manifest import Manifest
+    from lopcook.lop.manifest import Manifest
 
     q, lv = MESHES[mesh](rng)
     buf = BufferInput(quantized=q, min_level=lv, indices=np.zeros((0, 3), np.int64))

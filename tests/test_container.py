@@ -14,10 +14,11 @@ import pytest
 from conftest import FIXTURES
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.attributes import normal_error_deg, uv_error_bound
-from lopcook.emit.binning import make_bins
-from lopcook.emit.container import READABLE_MAJORS, VERSION, from_bytes
-from lopcook.emit.reader import decode_positions, gpu_buffer, lod_attributes
+from lopcook.lop.codecs.normals_oct import normal_error_deg
+from lopcook.lop.codecs.uvs_range import uv_error_bound
+from lopcook.lop.binning import make_bins
+from lopcook.lop.container import READABLE_MAJORS, VERSION, from_bytes
+from lopcook.lop.reader import decode_positions, gpu_buffer, lod_attributes
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 
@@ -82,7 +83,7 @@ def test_attributes_round_trip(cooked):
     scene, an, _, c = cooked("fixtures/seamed_cube.glb")
     part, pa = scene.parts[0], an.parts[0]
     bins = make_bins(pa.min_level)
-    a = lod_attributes(c, 0, 0, unit_normals=True)
+    a = lod_attributes(c, 0, 0, unit_directions=True)
     np.testing.assert_array_equal(bins.order[a["indices"]], part.indices)
     # each attribute within the documented bound of the bits the manifest says it was stored at
     entry = c.manifest["parts"][0]["lods"][0]

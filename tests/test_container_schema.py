@@ -18,8 +18,9 @@ from jsonschema import Draft202012Validator
 
 from conftest import FIXTURES, REPO
 from lopcook.cli import main as cli_main
-from lopcook.emit import BufferInput, build, container
-from lopcook.emit.container import from_bytes
+from lopcook.emit import BufferInput, build
+from lopcook.lop import container
+from lopcook.lop.container import from_bytes
 
 SCHEMA_PATH = REPO / "schema" / "container.schema.json"
 KSY_PATH = REPO / "schema" / "container.ksy"
@@ -97,9 +98,9 @@ def test_api_manifest_with_lods_colours_and_max_level_validates(validator):
     part, pa = scene.parts[0], an.parts[0]
     colors = np.random.default_rng(7).random((part.n_vertices, 4)).astype(np.float32)
     lod0 = BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=part.indices,
-                       normals=part.normals, uvs=part.uvs, colors=colors)
+                       attributes={"normals": part.normals, "uvs": part.uvs, "colors": colors})
     lod1 = BufferInput(quantized=pa.quantized, min_level=np.minimum(pa.min_level, 5), indices=part.indices[:100],
-                       colors=colors, geometric_error_m=0.01)
+                       attributes={"colors": colors}, geometric_error_m=0.01)
     c = from_bytes(build(scene, an, lods=[[lod0, lod1]], max_level=9))
     m = c.manifest
     assert m["options"] == {} and m["positions"]["max_level"] == 9 and c.available_level == 9
@@ -238,7 +239,7 @@ def test_ksy_header_matches_the_code(ksy):
         assert re.match(rf"Offset {offset}\b", field["doc"]), (field["id"], field["doc"])
         offset += size
     assert offset == container.HEADER_SIZE == 32
-    # the same layout as lopcook.emit.container: its 28-byte struct, then the header CRC (uint32)
+    # the same layout as lopcook.lop.container: its 28-byte struct, then the header CRC (uint32)
     assert fmt == container._HEADER.format + "I"
     assert struct.calcsize(fmt) == 32
     names = [f["id"] for f in seq]
@@ -364,8 +365,8 @@ def ks_expr_to_python(expr: str) -> str:
 def test_ksy_random_access_agrees_with_the_decoder(ksy, rng):
     from types import SimpleNamespace
 
-    from lopcook.emit.binning import make_bins, table_bit_id, vertex_widths
-    from lopcook.emit.bitplane import decode, pack, reconstruct_float64, top_bits
+    from lopcook.lop.binning import make_bins, table_bit_id, vertex_widths
+    from lopcook.lop.bitplane import decode, pack, reconstruct_float64, top_bits
 
     vertex_t, field_t = ksy["types"]["packed_vertex"]["instances"], ksy["types"]["bit_field"]["instances"]
     py = {name: compile(ks_expr_to_python(" ".join(str(inst[key]).split())), name, "eval")
@@ -407,7 +408,8 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
     instances, evaluated in float32 one operation at a time, are bit-exact with decode_record."""
     from types import SimpleNamespace
 
-    from lopcook.emit.attributes import AttributeBits, decode_record, pack_record, record_fields, unpack_record
+    from lopcook.lop.codecs import AttributeBits
+    from lopcook.lop.record import decode_record, pack_record, record_fields, unpack_record
 
     inst = ksy["types"]["attribute_record"]["instances"]
     sec = ksy["types"]["attributes_section"]["instances"]
@@ -427,7 +429,8 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
         codes["normals"][:3] = [[0, 0], [1, (1 << bits.normals) - 1], [1 << (bits.normals - 1)] * 2]
         words = pack_record(codes, n, bits)
         lo, step = [f32(-0.25), f32(0.5)], [f32(1.75 / 65535), f32(0.001)]
-        ref = decode_record(words, n, bits, [[float(lo[0]), float(lo[1])], [0.0, 0.0]], [float(v) for v in step])
+        ref = decode_record(words, n, bits, {"uv_range": [[float(lo[0]), float(lo[1])], [0.0, 0.0]],
+                                             "uv_step": [float(v) for v in step]})
         unpacked = unpack_record(words, n, bits)
         parent = SimpleNamespace(bits_normal=bits.normals or 0, bits_uv=bits.uvs or 0, bits_color=bits.colors or 0,
                                  lo_u=lo[0], lo_v=lo[1], step_u=step[0], step_v=step[1])

@@ -247,7 +247,7 @@ EDGE_MARGIN_DB = 12.0
 
 def test_cap_with_edges_beats_cap_without(gl):
     from lopcook.emit import build
-    from lopcook.emit.container import from_bytes
+    from lopcook.lop.container import from_bytes
     from lopcook.verify.evaluate import evaluate
 
     scene = scene_of([flat_cube()])

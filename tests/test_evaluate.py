@@ -13,8 +13,8 @@ import pytest
 from conftest import FIXTURES, cook_container
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.container import from_bytes
-from lopcook.emit.summary import memory_rows
+from lopcook.lop.container import from_bytes
+from lopcook.lop.summary import memory_rows
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
@@ -190,7 +190,8 @@ def test_lod_k_renders_its_own_buffers(gl, sphere_lods):
     assert r["float32_bytes"] == 12 * s.parts[0].n_vertices  # relative to the source (LOD 0)
     b = info.buffers[0][1]
     grid = info.analysis.grid
-    lod1 = Scene((MeshPart("sphere", grid.reconstruct(b.quantized, 24), b.indices, b.normals),), "lod1", "glb")
+    lod1 = Scene((MeshPart("sphere", grid.reconstruct(b.quantized, 24), b.indices,
+                           normals=b.attributes.get("normals")),), "lod1", "glb")
     f = E.evaluate_scene(lod1, s, levels=[9], views=4, resolution=SMALL, extent=c.manifest["grid"]["extent"])
     assert f["levels"][0]["camera_distance_m"] == r["levels"][0]["camera_distance_m"]
     lod_psnr, float_psnr = r["levels"][0]["cap"]["psnr_mean"], f["levels"][0]["scene"]["psnr_mean"]
@@ -220,7 +221,7 @@ def test_source_check_skipped_only_for_a_container_cooked_from_the_harness_scene
 
     s, c = crease
     p = s.parts[0]
-    moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, p.normals),), "moved", "glb")
+    moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, normals=p.normals),), "moved", "glb")
     with Harness(moved, resolution=(64, 36)) as h:
         with pytest.raises(LopcookError, match="positions differ"):
             h.evaluate(c, levels=[6], views=1, variants=("cap",))

@@ -19,8 +19,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from lopcook import fuzzcases as fz
-from lopcook.emit import reader
-from lopcook.emit.container import from_bytes
+from lopcook.lop import reader
+from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 

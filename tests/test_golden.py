@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import golden_update as G
-from lopcook.emit.container import read
-from lopcook.emit.reader import decode_positions, lod_attributes
+from lopcook.lop.container import read
+from lopcook.lop.reader import decode_positions, lod_attributes
 from lopcook.grid import Grid
 from lopcook.ingest import load
 from lopcook.simplify.error import hausdorff

@@ -1,8 +1,8 @@
-"""shaders/decode_attributes.glsl and .hlsl against lopcook.emit.attributes.decode_record, bit for bit.
+"""shaders/decode_attributes.glsl and .hlsl against lopcook.lop.record.decode_record, bit for bit.
 
 The packed vertex attribute record (issue 15, Purnomo et al. 2005 sections 3-5: octahedral normals
 4..16 bits, UVs 6..16, colours 4..8 per component, fields crossing 32-bit words) is decoded in a
-vertex shader through transform feedback (lopcook.verify.gpu.AttributeDecoder); every float32 must
+vertex shader through transform feedback (lopcook.verify.attribute_gpu.AttributeDecoder); every float32 must
 equal the CPU reference's bits (0 ulp), the unnormalised normal included. Skips without EGL,
 glslangValidator or spirv-cross, except under CI=true, where it fails.
 """
@@ -18,9 +18,11 @@ import pytest
 from conftest import FIXTURES, require
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.attributes import AttributeBits, decode_record, encode_record
-from lopcook.emit.container import from_bytes
+from lopcook.lop.codecs import AttributeBits
+from lopcook.lop.record import decode_record, encode_record
+from lopcook.lop.container import from_bytes
 from lopcook.ingest import load
+from lopcook.verify import attribute_gpu as AG
 from lopcook.verify import gpu
 from lopcook.verify.decoders import attribute_record, verify_decoders
 
@@ -78,15 +80,16 @@ def test_random_words_every_bit_mix(language, rng):
     """Random words read as records of every width mix: every code appears (code 0 of the normals,
     read as -1, the fold region z < 0, fields that cross a word), and the last record either ends
     exactly at the end of the words (no padding word) or inside the last word."""
-    dec = gpu.attribute_decoder(language)
+    dec = AG.attribute_decoder(language)
     lo, step = np.float32([-3.7, 1000.1]), np.float32([1.0e-3, 0.7])
     for bits in bit_mixes(rng):
         s = record_bits(bits)
         for n in (4096, 4097):
             words = rng.integers(0, 2**32, -(-n * s // 32), dtype=np.uint64).astype(np.uint32)
             uv_range = [lo.tolist(), (lo + step * np.float32(2 ** (bits[1] or 6) - 1)).tolist()]
-            ref = decode_record(words, n, as_bits(bits), uv_range, step.tolist())
-            got = dec.decode(words, n, as_bits(bits), uv_range, step.tolist())
+            entry = {"uv_range": uv_range, "uv_step": step.tolist()}
+            ref = decode_record(words, n, as_bits(bits), entry)
+            got = dec.decode(words, n, as_bits(bits), entry)
             assert_same_bits(got, ref, f"{language} bits {bits} n={n}")
         if bits[0]:
             z = got["normals"][:, 2]
@@ -111,7 +114,7 @@ def test_encoded_records_every_bit_mix(language, rng, degenerate_uv):
     """encode_record's own words (axes, diagonals, fold, random directions; UVs over a range or a
     degenerate one; colours including 0 and 1) decode on the GPU to decode_record's bits, and the
     normalised GPU normals point where the inputs did (so the comparison is of meaningful data)."""
-    dec = gpu.attribute_decoder(language)
+    dec = AG.attribute_decoder(language)
     normals = special_normals(rng, 3000)
     n = len(normals)
     uvs = rng.uniform(-2.0, 5.0, (n, 2)).astype(np.float32)
@@ -120,12 +123,11 @@ def test_encoded_records_every_bit_mix(language, rng, degenerate_uv):
     colors = rng.uniform(0.0, 1.0, (n, 4)).astype(np.float32)
     colors[:4] = [[0, 0, 0, 0], [1, 1, 1, 1], [0, 1, 0, 1], [1, 0, 1, 0]]
     for bits in bit_mixes(rng):
-        words, meta = encode_record(normals if bits[0] else None, uvs if bits[1] else None,
-                                    colors if bits[2] else None, as_bits(bits))
+        words, meta = encode_record({"normals": normals if bits[0] else None, "uvs": uvs if bits[1] else None,
+                                     "colors": colors if bits[2] else None}, as_bits(bits))
         assert words.dtype == np.uint32 and words.size == -(-n * record_bits(bits) // 32)
-        uv_range, uv_step = meta["uv_range"], meta["uv_step"]
-        ref = decode_record(words, n, as_bits(bits), uv_range, uv_step)
-        got = dec.decode(words, n, as_bits(bits), uv_range, uv_step)
+        ref = decode_record(words, n, as_bits(bits), meta["lod"])
+        got = dec.decode(words, n, as_bits(bits), meta["lod"])
         assert_same_bits(got, ref, f"{language} bits {bits}")
         if bits[0]:
             v = got["normals"].astype(np.float64)
@@ -152,7 +154,7 @@ def test_corpus_attributes_both_languages(both_languages, corpus, name, bits):
     from lopcook.api import cook
     from lopcook.settings import AttributeSettings, Settings
 
-    c = cook(load(corpus / name), Settings(attributes=AttributeSettings(normal_bits=bits[0], uv_bits=bits[1])))
+    c = cook(load(corpus / name), Settings(attributes=AttributeSettings.of(normal=bits[0], uv=bits[1])))
     report = verify_decoders(c, [c.available_level], both_languages, adapt=False)
     n = sum(e["vertices"] for p in c.manifest["parts"] for e in p["lods"])
     assert report["attribute_buffers"] == report["buffers"] >= 1
@@ -161,7 +163,7 @@ def test_corpus_attributes_both_languages(both_languages, corpus, name, bits):
         assert s["attribute_vertices"] == n
         assert (s["normal_mismatches"], s["uv_mismatches"], s["color_mismatches"], s["attribute_max_ulp"]) == (0, 0, 0, 0)
     assert report["ok"] and report["examples"] == []
-    words, count, got_bits, _, _ = attribute_record(c, 0, 0)
+    words, count, got_bits, _ = attribute_record(c, 0, 0)
     assert got_bits.normals and got_bits.uvs and words.size == -(-count * got_bits.record_bits // 32)
     if bits[0]:
         assert (got_bits.normals, got_bits.uvs, got_bits.record_bits) == (11, 13, 48)
@@ -182,7 +184,7 @@ def test_cooked_colours_both_languages(both_languages, bits):
         parts.append(dataclasses.replace(p, colors=rng.uniform(0, 1, (n, 4)).astype(np.float32),
                                          uvs=rng.uniform(0, 1, (n, 2)).astype(np.float32)))
     scene = dataclasses.replace(scene, parts=tuple(parts))
-    settings = Settings(attributes=AttributeSettings(normal_bits=bits[0], uv_bits=bits[1], color_bits=bits[2]))
+    settings = Settings(attributes=AttributeSettings(bits=bits))
     c = cook(scene, settings)
     report = verify_decoders(c, [1], both_languages, adapt=False)
     e = c.manifest["parts"][0]["lods"][0]
@@ -246,23 +248,23 @@ def test_cli_verify_detects_a_broken_attribute_decoder(gl, cube_lop, tmp_path, m
 def test_hlsl_translation_keeps_precise(both_languages):
     """llvmpipe never fuses, so check the cross-compiled HLSL still marks the UV's product and sum
     (the one multiply-add of the record) and the colour product precise."""
-    src = gpu.attribute_shader_source("hlsl")
+    src = AG.attribute_shader_source("hlsl")
     ops = [ln for ln in src.splitlines() if ("lop_attr_uv" in ln or "lop_attr_scale.y" in ln)
            and ("*" in ln or "+" in ln) and "_data[" not in ln]
     assert len(ops) >= 2, src
     assert all(ln.strip().startswith("precise ") for ln in ops), ops
-    assert gpu.attribute_shader_source("glsl").count("precise ") >= 8
+    assert AG.attribute_shader_source("glsl").count("precise ") >= 8
 
 
 def test_bad_bits_and_short_words_are_errors(gl):
     with pytest.raises(ValueError, match=r"normals: 17 bits"):
-        gpu.attribute_block((17, None, None), (0, 0), (0, 0), 1)
+        AG.attribute_block((17, None, None), {}, 1)
     with pytest.raises(ValueError, match=r"colors: 3 bits"):
-        gpu.attribute_bits({"normals": None, "uvs": 8, "colors": 3})
+        AG.attribute_bits({"normals": None, "uvs": 8, "colors": 3})
     with pytest.raises(ValueError, match="need 4 words, got 3"):
-        gpu.attribute_decoder("glsl").decode(np.zeros(3, np.uint32), 2, (16, None, 8))
-    with pytest.raises(ValueError, match="UVs need their uv_range"):
-        gpu.attribute_decoder("glsl").decode(np.zeros(4, np.uint32), 2, (16, 16, None))
+        AG.attribute_decoder("glsl").decode(np.zeros(3, np.uint32), 2, (16, None, 8))
+    with pytest.raises(ValueError, match="uvs need their uv_range"):
+        AG.attribute_decoder("glsl").decode(np.zeros(4, np.uint32), 2, (16, 16, None))
 
 
 _BOTH_GLSL_MAIN = """
@@ -298,9 +300,9 @@ def test_position_and_attribute_decoders_in_one_shader(language, cube_lop):
     bindings: positions and attributes of the cooked cube decode to the CPU references together."""
     import moderngl
 
-    from lopcook.emit.bitplane import decode, reconstruct_float32
-    from lopcook.emit.container import read
-    from lopcook.emit.reader import gpu_buffer
+    from lopcook.lop.bitplane import decode, reconstruct_float32
+    from lopcook.lop.container import read
+    from lopcook.lop.reader import gpu_buffer
 
     c = read(str(cube_lop))
     varyings = ("lop_out_position", "lop_out_normal", "lop_out_uv")
@@ -318,10 +320,10 @@ def test_position_and_attribute_decoders_in_one_shader(language, cube_lop):
     g = c.manifest["grid"]
     cell = g["extent"] / 2**24
     buf = gpu_buffer(c, 0, 0, level)
-    words, n, bits, uv_range, uv_step = attribute_record(c, 0, 0)
+    words, n, bits, entry = attribute_record(c, 0, 0)
     res = [ctx.buffer(buf.words.tobytes()), ctx.buffer(gpu.decode_block(buf.vertex_id, buf.bit_id, level, g["origin"],
                                                                         np.float32(cell / 2), buf.words.size)),
-           ctx.buffer(words.tobytes()), ctx.buffer(gpu.attribute_block(bits, uv_range[0], uv_step, words.size))]
+           ctx.buffer(words.tobytes()), ctx.buffer(AG.attribute_block(bits, entry, words.size))]
     res[0].bind_to_storage_buffer(0)
     res[1].bind_to_uniform_block(0)
     res[2].bind_to_storage_buffer(1)
@@ -336,7 +338,7 @@ def test_position_and_attribute_decoders_in_one_shader(language, cube_lop):
         vao.release()
         prog.release()
     values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
-    ref = decode_record(words, n, bits, uv_range, uv_step)
+    ref = decode_record(words, n, bits, entry)
     np.testing.assert_array_equal(got["p"].view(np.uint32),
                                   reconstruct_float32(values, widths, g["origin"], cell).view(np.uint32))
     np.testing.assert_array_equal(got["n"].view(np.uint32), ref["normals"].view(np.uint32))

@@ -1,6 +1,6 @@
 """Clustered position buffers (issue 16) on the GPU: the GLSL and HLSL vertex decoders and
 adaption kernels with ``LOP_CLUSTERED`` against the CPU reference of the layout contract
-(lopcook.emit.clusters), bit for bit.
+(lopcook.lop.clusters), bit for bit.
 
 The vertex path runs through transform feedback (lopcook.verify.gpu.decode_clustered), the kernels
 through SSBOs (lopcook.verify.gpu.ClusteredAdapter). Every decode must equal the unclustered (global
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from conftest import require
 
-from lopcook.emit.binning import LEVELS
-from lopcook.emit.bitplane import reconstruct_float32, to_grid, top_bits
-from lopcook.emit.clusters import (
+from lopcook.lop.binning import LEVELS
+from lopcook.lop.bitplane import reconstruct_float32, to_grid, top_bits
+from lopcook.lop.clusters import (
     CLUSTER_ID_BYTES,
     add_plane_clustered,
     cluster_bit,
@@ -108,7 +108,7 @@ def gpu_decode(language, qb, clusters, level, view=None):
 # ---- the reference itself (CPU only) --------------------------------------------------------------
 
 def test_reference_layout_round_trips(rng):
-    """lopcook.emit.clusters decodes what it packs to the global grid's top max(B, m) bits; the crafted data
+    """lopcook.lop.clusters decodes what it packs to the global grid's top max(B, m) bits; the crafted data
     has the cluster kinds the tests rely on; a prefix of planes rebuilds every level."""
     qb, bins, cl = prepared(*analytic_data(rng, 16), 16)
     assert {24, 0} <= set(cl.k.ravel().tolist()) and 1 in cl.count.tolist()
@@ -415,9 +415,9 @@ def test_cooked_buffers_decode_as_the_unclustered_container(language, request, n
 
     from lopcook.analyse import analyse
     from lopcook.emit import build
-    from lopcook.emit.bitplane import decode
-    from lopcook.emit.container import from_bytes
-    from lopcook.emit.reader import gpu_buffer
+    from lopcook.lop.bitplane import decode
+    from lopcook.lop.container import from_bytes
+    from lopcook.lop.reader import gpu_buffer
     from lopcook.ingest import load
 
     path = FIXTURES / name.split("/", 1)[1] if name.startswith("fixtures/") else request.getfixturevalue("corpus") / name
@@ -481,7 +481,7 @@ def test_cli_verify_decoders_on_a_clustered_container(gl, clustered_lop, capsys)
     import json
 
     from lopcook.cli import main
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     require(gpu.hlsl_tools_available())
     c = read(str(clustered_lop))
@@ -511,7 +511,7 @@ def _wrong_anchor_vertices(c, levels):
     """{level: vertex decodes that go wrong at it (summed over buffers)} when bit 0 of every x
     anchor with k_x >= 1 is flipped: those with b = max(m, B) >= k_x (below k_x the bit is shifted
     out)."""
-    from lopcook.emit.reader import buffer_clusters
+    from lopcook.lop.reader import buffer_clusters
 
     total = dict.fromkeys(levels, 0)
     for part, p in enumerate(c.manifest["parts"]):
@@ -531,8 +531,8 @@ def test_cli_verify_catches_a_corrupted_cluster_record(gl, clustered_lop, monkey
     import json
 
     from lopcook.cli import main
-    from lopcook.emit import reader
-    from lopcook.emit.container import read
+    from lopcook.lop import reader
+    from lopcook.lop.container import read
 
     require(gpu.hlsl_tools_available())
     real = reader.records
@@ -580,8 +580,8 @@ def test_cli_verify_catches_a_broken_clustered_decoder(gl, clustered_lop, plain_
     import json
 
     from lopcook.cli import main
-    from lopcook.emit.container import read
-    from lopcook.emit.reader import buffer_clusters
+    from lopcook.lop.container import read
+    from lopcook.lop.reader import buffer_clusters
 
     monkeypatch.setenv("LOPCOOK_SHADERS", str(_broken_shaders(tmp_path)))
     c = read(str(clustered_lop))
@@ -608,8 +608,8 @@ def test_render_harness_draws_clustered_buffers_with_the_clustered_decoder(gl, c
     changes the clustered CAP image (not AP's, not the unclustered container's)."""
     from conftest import FIXTURES
 
-    from lopcook.emit.container import read
-    from lopcook.emit.reader import ClusteredGpuBuffer, GpuBuffer
+    from lopcook.lop.container import read
+    from lopcook.lop.reader import ClusteredGpuBuffer, GpuBuffer
     from lopcook.ingest import load
     from lopcook.verify.buffers import cap_buffer
     from lopcook.verify.evaluate import evaluate
@@ -645,7 +645,7 @@ def test_cli_verify_refuses_a_container_with_a_bad_cluster_record(clustered_lop,
     import zlib
 
     from lopcook.cli import main
-    from lopcook.emit.container import from_bytes
+    from lopcook.lop.container import from_bytes
 
     data = bytearray(clustered_lop.read_bytes())
     c = from_bytes(bytes(data))

@@ -17,10 +17,10 @@ import pytest
 from conftest import FIXTURES, require
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.binning import LEVELS, make_bins, table_bit_id, vertex_widths
-from lopcook.emit.bitplane import decode, pack, plane_bits, reconstruct_float32, to_grid, top_bits
-from lopcook.emit.container import from_bytes
-from lopcook.emit.reader import gpu_buffer
+from lopcook.lop.binning import LEVELS, make_bins, table_bit_id, vertex_widths
+from lopcook.lop.bitplane import decode, pack, plane_bits, reconstruct_float32, to_grid, top_bits
+from lopcook.lop.container import from_bytes
+from lopcook.lop.reader import gpu_buffer
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 from lopcook.verify import gpu

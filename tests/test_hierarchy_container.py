@@ -17,8 +17,8 @@ import pytest
 from conftest import FIXTURES
 from lopcook import api
 from lopcook.cli import main
-from lopcook.emit.container import from_bytes
-from lopcook.emit.summary import describe_container
+from lopcook.lop.container import from_bytes
+from lopcook.lop.summary import describe_container
 from lopcook.errors import LopcookError
 from lopcook.hierarchy.container import VARIANT_NAME, read_part, refine
 from lopcook.hierarchy.select import select_cut
@@ -79,7 +79,7 @@ def cooked(corpus):
 
 
 def _lod0(c, i):
-    from lopcook.emit.reader import lod_attributes
+    from lopcook.lop.reader import lod_attributes
 
     t = lod_attributes(c, i, 0)["indices"].astype(np.int64)
     return t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2])]
@@ -107,7 +107,7 @@ def test_corpus_triangles_round_trip_through_the_container(cooked, name):
 
 def test_node_positions_are_lod0_positions_at_every_level(cooked):
     """Nodes decode bit for bit as their LOD 0 vertex does, at every level (crack-free)."""
-    from lopcook.emit.reader import decode_positions
+    from lopcook.lop.reader import decode_positions
 
     _, c = cooked("fandisk.obj")
     for level in (1, 7, 24):
@@ -148,7 +148,7 @@ def test_manifest_matches_the_schema(cooked):
 def test_byte_flips_in_the_section_are_detected(cooked):
     """A flip anywhere in the section fails the container's CRC; with the container CRC mended,
     the blob's own CRC (or its shape checks) still refuses it."""
-    from lopcook.emit.container import to_bytes
+    from lopcook.lop.container import to_bytes
 
     _, c = cooked("spot.obj")
     entry = next(s for s in c.manifest["sections"] if s["name"] == "part0/lod0/hierarchy")

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from lopcook import fuzzcases as fz
-from lopcook.emit import reader
-from lopcook.emit.container import from_bytes
+from lopcook.lop import reader
+from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError
 
 EXC_NAME = re.compile(r"\b\w+(Error|Exception)\b")

@@ -9,10 +9,10 @@ import pytest
 from test_instances_stored_once import _reference_world, procedural_scene
 
 from lopcook.emit import clustering_wins
-from lopcook.emit.clusters import clustered_bytes
-from lopcook.emit.container import CLUSTERED_VERSION, from_bytes
-from lopcook.emit.placement import resident_level
-from lopcook.emit.reader import buffer_clusters, clustered_gpu_buffer, decode_positions, owner
+from lopcook.lop.clusters import clustered_bytes
+from lopcook.lop.container import CLUSTERED_VERSION, from_bytes
+from lopcook.lop.placement import resident_level
+from lopcook.lop.reader import buffer_clusters, clustered_gpu_buffer, decode_positions, owner
 from lopcook.pipeline import run
 from lopcook.settings import EmitSettings, Settings, SimplifySettings
 
@@ -67,7 +67,7 @@ def test_memory_counts_each_distinct_clustered_buffer_once_with_its_records(cook
             assert clustered_gpu_buffer(c, j, 0, b).words.size * 4 + 16 * cl.n_clusters + 128 == clustered_bytes(cl, b)
         assert m.cap_bytes(level) == want
         assert m.cap_bytes(level) < m.cap_bytes_all_copies(level)
-    from lopcook.emit.summary import cluster_stats, memory_rows
+    from lopcook.lop.summary import cluster_stats, memory_rows
 
     # inspect's rows: the unclustered comparison is the unclustered instanced cook's CAP bytes
     for r, ru in zip(memory_rows(c), memory_rows(u)):
@@ -119,7 +119,7 @@ def test_render_harness_draws_clustered_placements_like_unclustered(gl, cooked):
     """The harness draws each placement of the clustered shared buffer with the LOP_CLUSTERED
     decoder and its transform: PSNR rows and images equal, pixel for pixel, those of the same
     scene cooked with --instances unclustered."""
-    from lopcook.emit.reader import ClusteredGpuBuffer, GpuBuffer
+    from lopcook.lop.reader import ClusteredGpuBuffer, GpuBuffer
     from lopcook.verify.buffers import cap_buffer
     from lopcook.verify.evaluate import evaluate
 

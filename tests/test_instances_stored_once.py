@@ -1,4 +1,4 @@
-"""Copies stored once (``cook --instances``, lopcook.emit.placement, issue 16 item 5): groups found as
+"""Copies stored once (``cook --instances``, lopcook.lop.placement, issue 16 item 5): groups found as
 designed, world positions equal to the CPU reference (and, through transform feedback, to the
 harness vertex shader) at every level, within each placement's guarantee, deterministic bytes,
 the chess set's 49 placements over 8 distinct meshes, and bad manifests refused."""
@@ -11,9 +11,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from lopcook.emit.container import CLUSTERED_VERSION, VERSION, from_bytes, to_bytes
-from lopcook.emit.placement import float32_slack, level_shift, local_level, resident_level, to_world
-from lopcook.emit.reader import decode_positions, lod_attributes, owner, part_grid
+from lopcook.lop.container import CLUSTERED_VERSION, VERSION, from_bytes, to_bytes
+from lopcook.lop.placement import float32_slack, level_shift, local_level, resident_level, to_world
+from lopcook.lop.reader import decode_positions, lod_attributes, owner, part_grid
 from lopcook.errors import LopcookError
 from lopcook.fixtures import unit_sphere
 from lopcook.grid import dx
@@ -133,8 +133,8 @@ def _reference_world(c, i: int, level: int) -> np.ndarray:
 
 
 def decode_positions_local(c, i: int, level: int):
-    from lopcook.emit.bitplane import decode, reconstruct_float32
-    from lopcook.emit.reader import gpu_buffer
+    from lopcook.lop.bitplane import decode, reconstruct_float32
+    from lopcook.lop.reader import gpu_buffer
 
     buf = gpu_buffer(c, i, 0, level)
     values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
@@ -190,7 +190,7 @@ def test_memory_counts_each_distinct_buffer_once(cooked):
         "triangles_all_copies": sum(p.n_triangles for p in scene.parts)}
     assert m.cap_bytes(12) < plain.container.entries.cap_bytes(12)
     # inspect counts stored buffers: the group's once, plus "touching" and "plate"
-    from lopcook.emit.summary import describe_container, format_container
+    from lopcook.lop.summary import describe_container, format_container
 
     d = describe_container(inst.container)
     assert d["totals"]["parts"] == 6 and d["totals"]["buffers"] == len(groups) == 3
@@ -308,7 +308,7 @@ def test_harness_vertex_shader_applies_the_placement_bit_exactly(cooked, gl):
     feedback of ``v_pos``: bit-exact with ``placement.to_world`` at several levels."""
     import moderngl
 
-    from lopcook.emit.reader import gpu_buffer
+    from lopcook.lop.reader import gpu_buffer
     from lopcook.verify.glsl import vertex_shader_source
     from lopcook.verify.gpu import decode_block
 
@@ -466,13 +466,13 @@ def test_the_schema_accepts_the_instanced_manifest_and_rejects_a_bad_placement(c
 
 
 def test_world_normals_of_placements_match_the_source(cooked):
-    from lopcook.emit.reader import world_normals
+    from lopcook.lop.reader import world_normals
 
     scene, _, inst = cooked
     c = inst.container
     for i in range(4):
         order = source_order(c, i, scene.parts[i])
-        got = world_normals(c, i, lod_attributes(c, i, 0, unit_normals=True)["normals"])
+        got = world_normals(c, i, lod_attributes(c, i, 0, unit_directions=True)["normals"])
         want = np.asarray(scene.parts[i].normals, np.float64)[order]
         assert np.degrees(np.arccos(np.clip((got * want).sum(axis=1), -1, 1))).max() < 1.0
 
@@ -480,7 +480,7 @@ def test_world_normals_of_placements_match_the_source(cooked):
 def test_cli_instances_flag_and_its_usage_error(tmp_path, capsys):
     from conftest import FIXTURES
     from lopcook.cli import main
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     out = tmp_path / "t.lop"
     assert main(["cook", str(FIXTURES / "two_plates.glb"), "--instances", "-o", str(out), "-q"]) == 0
@@ -512,7 +512,7 @@ def test_report_of_an_instanced_gltf_says_what_sharing_saves(tmp_path, gl):
     write_gltf(sphere, src, binary=True, nodes=nodes)
     lop, html = tmp_path / "three.lop", tmp_path / "three.html"
     assert main(["-q", "cook", str(src), "--instances", "-o", str(lop)]) == 0
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     c = read(str(lop))
     assert sum("placement" in p for p in c.manifest["parts"]) == 3
@@ -563,7 +563,7 @@ def test_touching_parts_answers_again_only_for_the_same_cells(monkeypatch):
     """``placement.touching_parts`` keeps its last answer for the same grid integers (the probes
     of a search ask again); other cells or owners are sorted again, and the answer handed out is a
     copy the caller may change."""
-    import lopcook.emit.placement as P
+    import lopcook.lop.placement as P
 
     a = np.array([[0, 0, 0], [5, 5, 5]], np.uint32)
     b = np.array([[5, 5, 5], [9, 9, 9]], np.uint32)  # shares cell (5, 5, 5) with a

@@ -11,8 +11,8 @@ import pytest
 
 from conftest import open_edges, position_ids
 from lopcook import pipeline
-from lopcook.emit.container import from_bytes
-from lopcook.emit.reader import decode_positions
+from lopcook.lop.container import from_bytes
+from lopcook.lop.reader import decode_positions
 from lopcook.ingest import load
 from lopcook.settings import LodSpec, Settings, SimplifySettings
 from lopcook.simplify import chain as L

@@ -1,4 +1,4 @@
-"""lopcook.emit.manifest: the typed Manifest / PartEntry / LodEntry own the byte accounting, one
+"""lopcook.lop.manifest: the typed Manifest / PartEntry / LodEntry own the byte accounting, one
 definition each, and agree with the bytes actually written."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from conftest import FIXTURES
-from lopcook.emit.binning import buffer_bytes
-from lopcook.emit.container import from_bytes
-from lopcook.emit.manifest import Manifest
-from lopcook.emit.reader import gpu_buffer
-from lopcook.emit.summary import memory_rows
+from lopcook.lop.binning import buffer_bytes
+from lopcook.lop.container import from_bytes
+from lopcook.lop.manifest import Manifest
+from lopcook.lop.reader import gpu_buffer
+from lopcook.lop.summary import memory_rows
 from lopcook.ingest import load
 from lopcook.pipeline import run
 from lopcook.settings import LodSpec, Settings, SimplifySettings

@@ -44,7 +44,7 @@ def test_uv_seam_duplicates_share_the_normal():
         np.testing.assert_allclose(got[int(u)], ref.normals[int(u) % len(s.vertices)], atol=1e-6)
 
 
-def test_degenerate_triangles_give_finite_unit_normals():
+def test_degenerate_triangles_give_finite_unit_directions():
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [2, 0, 0]], float)
     f = np.array([[0, 1, 2], [1, 3, 4]])  # second triangle has zero area
     r = compute_normals(v, f, 60.0)

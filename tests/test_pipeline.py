@@ -13,10 +13,10 @@ from conftest import FIXTURES, REPO
 from lopcook import pipeline
 from lopcook.analyse import analyse
 from lopcook.emit import build
-from lopcook.emit.binning import make_bins
-from lopcook.emit.clusters import cluster_order
-from lopcook.emit.container import from_bytes
-from lopcook.emit.reader import decode_positions
+from lopcook.lop.binning import make_bins
+from lopcook.lop.clusters import cluster_order
+from lopcook.lop.container import from_bytes
+from lopcook.lop.reader import decode_positions
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 from lopcook.settings import DEFAULT_ANALYSE

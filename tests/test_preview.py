@@ -119,8 +119,8 @@ def test_gltf_materials_textures_and_instances_carried(tmp_path, capsys, suffix,
     np.testing.assert_allclose(right["translation"], [1.5, 0.25, -1.0], atol=1e-6)
 
     # the copy shows the lead's quantization moved by the node: close to its own decode
-    from lopcook.emit.container import read
-    from lopcook.emit.reader import decode_positions
+    from lopcook.lop.container import read
+    from lopcook.lop.reader import decode_positions
 
     c = read(str(lop))
     prim = doc["meshes"][0]["primitives"][0]

@@ -1,4 +1,4 @@
-"""lopcook.emit.reader: the GPU buffer rebuilt from a container is the paper's packed buffer
+"""lopcook.lop.reader: the GPU buffer rebuilt from a container is the paper's packed buffer
 (Meyer et al. 2011, section 5.3, Figures 9/10), every level decodes to the top bits of the grid
 integers, attributes round trip within their encodings' bounds, and bad requests are errors.
 
@@ -13,10 +13,13 @@ import pytest
 
 from lopcook.analyse import analyse
 from lopcook.emit import BufferInput, build
-from lopcook.emit.attributes import (DEFAULT_BITS, AttributeBits, color_error_bound, encode_record,
-                                     normal_error_deg, uv_error_bound)
-from lopcook.emit.container import from_bytes
-from lopcook.emit.reader import decode_positions, gpu_buffer, lod_attributes, top_values
+from lopcook.lop.codecs import bits_for, AttributeBits
+from lopcook.lop.codecs.colors_unorm import color_error_bound
+from lopcook.lop.codecs.normals_oct import normal_error_deg
+from lopcook.lop.codecs.uvs_range import uv_error_bound
+from lopcook.lop.record import encode_record
+from lopcook.lop.container import from_bytes
+from lopcook.lop.reader import decode_positions, gpu_buffer, lod_attributes, top_values
 from lopcook.errors import LopcookError
 from lopcook.types import MeshPart, Scene
 
@@ -40,7 +43,7 @@ def _example(rng, *, n_extra: int = 0, bits=None):
     scene = Scene(parts=(part,), source="test", format="obj").validate()
     an = analyse(scene)
     q = rng.integers(0, 1 << 24, (n, 3), dtype=np.uint32)
-    buf = BufferInput(quantized=q, min_level=levels, indices=idx, normals=nrm, uvs=uvs, colors=cols,
+    buf = BufferInput(quantized=q, min_level=levels, indices=idx, attributes=dict(part.attributes),
                       attribute_bits=bits)
     c = from_bytes(build(scene, an, lods=[[buf]]))
     return part, buf, c
@@ -121,15 +124,15 @@ def test_lod_attributes_round_trip(rng, bits):
     assert a["indices"].shape == part.indices.shape
     np.testing.assert_array_equal(order[a["indices"]], part.indices)
     e = c.manifest["parts"][0]["lods"][0]
-    want = bits or AttributeBits(*DEFAULT_BITS)
+    want = bits or bits_for(("normals", "uvs", "colors"))
     assert e["attribute_bits"] == want.as_dict() == c.manifest["parts"][0]["attribute_bits"]
     assert e["record_bits"] == want.record_bits and e["attributes"] == "part0/lod0/attributes"
     n = e["vertices"]
     assert c.entries.parts[0].lods[0].attribute_bytes == 4 * ((n * want.record_bits + 31) // 32)
     # the decode is exactly the codec's, in binned order
-    ref_words, meta = encode_record(part.normals[order], part.uvs[order], part.colors[order], want)
+    ref_words, meta = encode_record({k: v[order] for k, v in part.attributes.items()}, want)
     assert c.section(e["attributes"]) == ref_words.tobytes()
-    assert e["uv_range"] == meta["uv_range"] and e["uv_step"] == meta["uv_step"]
+    assert e["uv_range"] == meta["lod"]["uv_range"] and e["uv_step"] == meta["lod"]["uv_step"]
     # normals: unnormalised float32, angle below the bound (atan2 of cross and dot)
     assert a["normals"].dtype == np.float32
     dn, sn = a["normals"].astype(np.float64), part.normals[order].astype(np.float64)

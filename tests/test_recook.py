@@ -7,7 +7,7 @@ from dataclasses import asdict
 
 from conftest import FIXTURES
 from lopcook.cli import main
-from lopcook.emit.container import read
+from lopcook.lop.container import read
 from lopcook.ingest import load
 from lopcook.settings import AnalyseSettings
 from lopcook.settings import Settings

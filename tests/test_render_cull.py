@@ -9,7 +9,7 @@ import pytest
 
 from conftest import cook_container
 from lopcook import fixtures as fx
-from lopcook.emit.reader import gpu_buffer
+from lopcook.lop.reader import gpu_buffer
 from lopcook.types import MeshPart, Scene
 from lopcook.verify.buffers import source_order
 from lopcook.verify.cameras import camera_distance, make_camera, render_viewing

@@ -107,7 +107,7 @@ def test_digest_tells_dtype_shape_and_bytes_apart():
 def test_decoded_items_digest_follows_their_content(gl):
     scene = spheres(2)
     c = cook_container(scene)
-    from lopcook.emit.reader import gpu_buffer
+    from lopcook.lop.reader import gpu_buffer
     from lopcook.verify.buffers import ap_buffer
 
     g = c.manifest["grid"]

@@ -12,7 +12,7 @@ import pytest
 from conftest import cook_container
 from lopcook import fixtures as fx
 from lopcook.api import load
-from lopcook.emit.reader import gpu_buffer
+from lopcook.lop.reader import gpu_buffer
 from lopcook.types import MeshPart, Scene
 from lopcook.verify.buffers import source_order
 from lopcook.verify.cameras import icosahedron_directions, make_camera, render_viewing

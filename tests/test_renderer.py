@@ -48,7 +48,7 @@ def test_textured_part_samples_its_base_colour(gl):
     buf = io.BytesIO()
     Image.fromarray(img).save(buf, format="PNG")
     cube = F.seamed_cube()[0]
-    part = MeshPart("cube", cube.positions, cube.indices, cube.normals, cube.uvs,
+    part = MeshPart("cube", cube.positions, cube.indices, normals=cube.normals, uvs=cube.uvs,
                     texture=Texture("checker.png", buf.getvalue()))
     s = Scene((part,), "textured", "glb").validate()
     c = cook_container(s)

@@ -326,7 +326,7 @@ def lod_report(gl, tmp_path_factory):
 def test_lod_table(lod_report):
     import jsonschema
 
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     lop, html_path, rep = lod_report
     jsonschema.validate(rep, _schema(), cls=jsonschema.Draft202012Validator)

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lopcook.emit.container import from_bytes
+from lopcook.lop.container import from_bytes
 from lopcook import pipeline
 from lopcook.ingest import load
 from lopcook.selection import lod_threshold_m, select, selection_ranges, viewing_of

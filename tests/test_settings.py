@@ -9,6 +9,7 @@ import pytest
 
 from lopcook.cli import build_parser
 from lopcook.errors import LopcookError
+from lopcook.lop.codecs import CODECS
 from lopcook.settings import (DEFAULTS, AnalyseSettings, AttributeSettings, DepthMode, IngestSettings, LodBackend,
                               LodSpec, Settings, SeamMode, SimplifySettings, TextureSlope, halvings, parse_lods)
 from lopcook.viewing import Viewing
@@ -41,8 +42,8 @@ def test_containers_without_a_seam_record_were_cooked_with_locked_seams():
              viewing=Viewing(viewport=(640, 480), fov_y_deg=45.0, nearest_m=0.5, pixel_error=1.0)),
     Settings(analyse=AnalyseSettings(position_margin=16.0)),
     Settings(simplify=SimplifySettings(lods=LodSpec()), analyse=AnalyseSettings(depth="off", texture_kf="off")),
-    Settings(attributes=AttributeSettings(normal_bits=9, uv_bits=None, color_bits=4)),
-    Settings(attributes=AttributeSettings(uv_bits=12, parts=((8, None, 5), (None, 16, None), (16, 6, 8)))),
+    Settings(attributes=AttributeSettings.of(normal=9, uv=None, color=4)),
+    Settings(attributes=AttributeSettings.of(uv=12, parts=((8, None, 5), (None, 16, None), (16, 6, 8)))),
     Settings(simplify=SimplifySettings(instances=True)),
     Settings(simplify=SimplifySettings(instances=False)),
 ])
@@ -125,18 +126,21 @@ def test_cli_help_shows_the_defaults():
         assert shown in " ".join(text.split()), shown
 
 
-@pytest.mark.parametrize("bad", [dict(normal_bits=3), dict(normal_bits=17), dict(uv_bits=5), dict(uv_bits=17),
-                                 dict(color_bits=3), dict(color_bits=9), dict(normal_bits=8.0), dict(uv_bits=True),
-                                 dict(parts=((8, 8),)), dict(parts=((8, 5, None),))])
+@pytest.mark.parametrize("bad", [dict(normal=3), dict(normal=17), dict(uv=5), dict(uv=17),
+                                 dict(color=3), dict(color=9), dict(normal=8.0), dict(uv=True),
+                                 dict(parts=((8,) * (len(CODECS) + 1),)), dict(parts=((8, 5, None),)),
+                                 dict(normals=8)])
 def test_out_of_range_attribute_bits_are_refused(bad):
     with pytest.raises(ValueError):
-        AttributeSettings(**bad)
+        AttributeSettings.of(**bad)
 
 
 def test_attribute_requests_per_part():
-    a = AttributeSettings(normal_bits=10, color_bits=6, parts=((8, None, None), (None, 12, 4)))
-    assert a.requested(0) == (8, None, 6) and a.requested(1) == (10, 12, 4)
-    assert AttributeSettings().requested(5) == (None, None, None)
+    a = AttributeSettings.of(normal=10, color=6, parts=((8, None, None), (None, 12, 4)))
+    assert a.requested(0) == {"normals": 8, "uvs": None, "colors": 6, **{c.name: None for c in CODECS[3:]}}
+    assert a.requested(1) == {"normals": 10, "uvs": 12, "colors": 4, **{c.name: None for c in CODECS[3:]}}
+    assert AttributeSettings().requested(5) == {c.name: None for c in CODECS}
+    assert AttributeSettings(parts=((8,),)).parts == ((8,) + (None,) * (len(CODECS) - 1),)  # padded
     with pytest.raises(ValueError):
         a.requested(2)
     assert "attributes" not in Settings().to_manifest()["options"]  # default containers keep their options

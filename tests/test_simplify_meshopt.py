@@ -164,7 +164,7 @@ def test_cook_with_the_meshopt_backend(corpus, tmp_path):
     """``cook --lods ... --lod-backend meshopt`` writes a chain that reaches its targets, with the
     error growing along it; the fallback order of the other backends is unchanged."""
     from lopcook.cli import main
-    from lopcook.emit.container import read
+    from lopcook.lop.container import read
 
     assert B.BACKENDS == ("pymeshlab", "fast") and "meshopt" in B.SELECTABLE
     out = tmp_path / "spot.lop"

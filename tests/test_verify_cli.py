@@ -12,7 +12,7 @@ import pytest
 
 from conftest import FIXTURES
 from lopcook.cli import main
-from lopcook.emit.container import read
+from lopcook.lop.container import read
 
 CREASE = str(FIXTURES / "glossy_crease.glb")
 PLATES = str(FIXTURES / "two_plates.glb")

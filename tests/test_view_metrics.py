@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import FIXTURES, cook_container
-from lopcook.emit.reader import gpu_buffer
+from lopcook.lop.reader import gpu_buffer
 from lopcook.ingest import load
 from lopcook.verify import metrics as M
 from lopcook.verify import renderer as RR

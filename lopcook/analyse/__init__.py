@@ -17,30 +17,11 @@ import numpy as np
 from ..settings import DEFAULT_ANALYSE, AnalyseSettings, DepthMode
 from ..types import Scene
 from .attribute_error import triangle_frames, triangle_gradient_norms, vertex_max
-from .bitlevel import attribute_level, texture_slope
+from .bitlevel import attribute_kf, attribute_level, texture_slope
 from .depth import depth_levels
 from .discontinuity import discontinuity_levels
 from ..grid import BITS, Grid
 from .result import REASON_CODE, Analysis, PartAnalysis
-
-
-def attribute_kf(part, settings: AnalyseSettings) -> dict:
-    """k_f per attribute present on ``part`` (colour per attribute unit); 0 means ignored."""
-    kf = {}
-    if part.normals is not None:
-        kf["normal"] = settings.normal_kf
-    if part.uvs is not None and settings.texture_kf != "off":
-        if settings.kf is not None:
-            kf["uv"] = float(settings.kf)
-        elif isinstance(settings.texture_kf, (int, float)):
-            kf["uv"] = float(settings.texture_kf)
-        elif part.texture is not None:
-            kf["uv"] = texture_slope(part.texture)
-        else:
-            kf["uv"] = float(settings.untextured_uv_kf)
-    if part.colors is not None:
-        kf["color"] = float(settings.kf) if settings.kf is not None else settings.color_kf
-    return kf
 
 
 def colocated_max(q: np.ndarray, values: np.ndarray) -> np.ndarray:

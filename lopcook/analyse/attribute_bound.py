@@ -1,6 +1,6 @@
 """Inputs of the average-case (screen-space) bound on the bits of normals and UVs (issue 15, item 3).
 
-The bit choice itself is ``lopcook.emit.attributes.default_bits``; this module measures what it
+The bit choice itself is ``lopcook.analyse.attribute_bits.default_bits``; this module measures what it
 needs from the scene and the shading: how strongly the harness's lighting responds to a normal
 error and to a change of the base colour, and how steep a part's texture is where the surface
 samples it. Derivation and measurements: docs/attributes.md, "The average-case bound".

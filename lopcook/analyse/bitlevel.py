@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..settings import AnalyseSettings
 from ..types import Texture
 from ..grid import BITS, dx, smallest_level
 
@@ -75,4 +76,23 @@ def clear_slope_cache() -> None:
     clear_gradient_cache()
 
 
-__all__ = ["attribute_level", "texture_slope", "clear_slope_cache", "BITS"]
+def attribute_kf(part, settings: AnalyseSettings) -> dict:
+    """k_f per attribute present on ``part`` (colour per attribute unit); 0 means ignored."""
+    kf = {}
+    if part.normals is not None:
+        kf["normal"] = settings.normal_kf
+    if part.uvs is not None and settings.texture_kf != "off":
+        if settings.kf is not None:
+            kf["uv"] = float(settings.kf)
+        elif isinstance(settings.texture_kf, (int, float)):
+            kf["uv"] = float(settings.texture_kf)
+        elif part.texture is not None:
+            kf["uv"] = texture_slope(part.texture)
+        else:
+            kf["uv"] = float(settings.untextured_uv_kf)
+    if part.colors is not None:
+        kf["color"] = float(settings.kf) if settings.kf is not None else settings.color_kf
+    return kf
+
+
+__all__ = ["attribute_level", "attribute_kf", "texture_slope", "clear_slope_cache", "BITS"]

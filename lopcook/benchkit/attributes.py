@@ -31,7 +31,7 @@ GPU bytes per vertex (``gltf_attribute_bytes``): per glTF accessor, count times 
 rounded up to 4 bytes (the glTF 2.0 vertex attribute alignment; 8-bit normals 4 B, 16-bit 8 B;
 16-bit UVs 4 B; float UVs 8 B), summed over POSITION, NORMAL, TEXCOORD_0 and COLOR_0 of every
 primitive and divided by the vertices. lopcook: CAP positions at the chart's level (the largest of
-``--levels``; ``lopcook.emit.summary.memory_rows``) plus the bytes of every LOD-0 attribute section.
+``--levels``; ``lopcook.lop.summary.memory_rows``) plus the bytes of every LOD-0 attribute section.
 PSNR: min over views and levels of the masked PSNR (``lopcook.verify.metrics``), the same cameras as
 ``lopcook.verify.evaluate``.
 """
@@ -247,7 +247,7 @@ def container_bytes_per_vertex(c, level: int) -> dict:
     """GPU bytes per vertex of a container's LOD 0 at ``level``: {"positions" (CAP at level),
     "attributes" (every LOD-0 attribute section: ``attributes``, or the older ``normals`` / ``uvs`` /
     ``colors``), "total", "vertices"}."""
-    from ..emit.summary import memory_rows
+    from ..lop.summary import memory_rows
 
     lengths = {s["name"]: int(s["length"]) for s in c.manifest["sections"]}
     attr = verts = 0
@@ -307,7 +307,7 @@ def _log(opts, msg: str) -> None:
 def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
     """Table rows of one asset: every peer run and lopcook run, bytes per vertex and PSNR."""
     from ..bench import Source, asset_name, run_cook
-    from ..emit.container import read
+    from ..lop.container import read
     from ..ingest import load
     from ..verify.evaluate import evaluate
     from .render import render_variants

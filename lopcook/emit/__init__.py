@@ -2,34 +2,40 @@
 
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 5.3 and 6 (binned adaptive precision buffers). Steps: (1) one buffer per part and LOD,
-vertices binned by minimum level and indices remapped, (2) attribute sections (indices, normals,
-and one packed attribute record per vertex: normals, UVs, colours at their chosen bits; ``attributes.py``), (3) position sections: every buffer's mandatory bits (its packed
-buffer at level 1), then refinement planes 2..max_level, (4) manifest + header (``container.py``).
-Layout and order: docs/format.md.
+vertices binned by minimum level and indices remapped, (2) attribute sections (indices and one
+packed attribute record per vertex at the bits chosen per part: ``lopcook.lop.record``),
+(3) position sections: every buffer's mandatory bits (its packed buffer at level 1), then
+refinement planes 2..max_level, (4) manifest + header (``lopcook.lop.container``). Emit decides
+what to write; ``lopcook.lop`` writes the bytes. Layout and order: docs/format.md.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..analyse.attribute_bits import part_default_bits
+from ..lop.binning import LEVELS, buffer_bytes, make_bins, table_vertex_id, vertex_widths
+from ..lop.bitplane import pack, plane_bits, top_bits
+from ..lop.clusters import (Clusters, cluster_order, clustered_bytes, make_clusters, morton_codes, pack_clustered,
+                            plane_bit, plane_bits_clustered, words_at)
+from ..lop.codecs import AttributeBits, bits_for
+from ..lop.container import to_bytes
+from ..lop.indices import encode_indices
+from ..lop.manifest import FORMAT
+from ..lop.record import attribute_specs, pack_record, record_codes
 from ..version import __version__
 from ..viewing import Viewing
-from . import attributes as attr
-from .binning import LEVELS, make_bins, vertex_widths
-from .bitplane import pack, plane_bits, top_bits
-from .clusters import Clusters, cluster_order, make_clusters, pack_clustered, plane_bit, plane_bits_clustered, words_at
-from .container import to_bytes
-from .manifest import FORMAT
 
 
 @dataclass
 class BufferInput:
     """One GPU buffer to emit: a part's LOD. quantized (n, 3) uint32 grid integers, min_level (n,)
-    ints in [1, 24], indices (m, 3) into these vertices, optional normals/uvs/colors (float32),
+    ints in [1, 24], indices (m, 3) into these vertices, attributes: ``{codec name: (n, k) float32}``
+    (``MeshPart.attributes``; absent ones have no key),
     geometric_error_m: the LOD's deviation from LOD 0 in metres (0 for LOD 0); min_distance_m: the
     smallest camera distance (metres) at which a runtime selects this LOD (``lopcook.selection``; 0.0
     for LOD 0), written to the manifest only when given (None: the field is left out)."""
@@ -37,20 +43,17 @@ class BufferInput:
     quantized: np.ndarray
     min_level: np.ndarray
     indices: np.ndarray
-    normals: np.ndarray | None = None
-    uvs: np.ndarray | None = None
-    colors: np.ndarray | None = None
+    attributes: dict = field(default_factory=dict)
     geometric_error_m: float = 0.0
     min_distance_m: float | None = None
-    attribute_bits: attr.AttributeBits | None = None
+    attribute_bits: AttributeBits | None = None
 
-    def bits(self) -> attr.AttributeBits:
+    def bits(self) -> AttributeBits:
         """The attribute bits this buffer is packed with: ``attribute_bits`` when given (it must
-        match which attributes are present), else :data:`attributes.DEFAULT_BITS` for each
-        present attribute."""
+        match which attributes are present), else each present codec's ``default_bits``."""
         if self.attribute_bits is not None:
             return self.attribute_bits
-        return attr.bits_for(self.normals is not None, self.uvs is not None, self.colors is not None)
+        return bits_for(k for k, v in self.attributes.items() if v is not None)
 
 
 def _sha256_file(path: str) -> str | None:
@@ -95,9 +98,6 @@ def clustering_wins(clusters: Clusters, vertex_id) -> bool:
     per-buffer levels 6-12 (``CHOICE_LEVELS``) of its clustered GPU-resident bytes (P's words,
     16 B per cluster record, the 128-byte ClusterId table: ``clusters.clustered_bytes``) against
     the unclustered binned buffer's (``binning.buffer_bytes``; same bins). Ties stay unclustered."""
-    from .binning import buffer_bytes
-    from .clusters import clustered_bytes
-
     vid = np.asarray(vertex_id, dtype=np.int64)
     return sum(clustered_bytes(clusters, b) for b in CHOICE_LEVELS) < sum(buffer_bytes(vid, b) for b in CHOICE_LEVELS)
 
@@ -106,14 +106,14 @@ def encode_buffer(buf: BufferInput, max_level: int = LEVELS, cluster_size: int |
                   cluster_all: bool = False) -> EncodedBuffer:
     """Bins, remapped indices and attribute payloads of one buffer (steps (1)-(3a) of the module
     doc). Levels above ``max_level`` are stored at ``max_level`` and counted in ``clamped``.
-    ``cluster_size`` N: the clustered layout (``lopcook.emit.clusters``: vertices in cluster order,
+    ``cluster_size`` N: the clustered layout (``lopcook.lop.clusters``: vertices in cluster order,
     per-cluster anchors, the entry's ``cluster_size``) when it is smaller (``clustering_wins``),
     else the unclustered layout, chosen per buffer and deterministically (``cluster_all``: always
     clustered); None: unclustered."""
     codes = None
     bits = buf.bits()
     if bits.record_bits:  # the attribute codes in source order, for either layout's order
-        codes = attr.record_codes(buf.normals, buf.uvs, buf.colors, bits)
+        codes = record_codes(buf.attributes, bits)
     if cluster_size is not None:
         e = _encode_buffer(buf, max_level, cluster_size, codes)
         if cluster_all or clustering_wins(e.clusters, e.vertex_id):
@@ -139,9 +139,6 @@ class PositionSizer:
         self._layouts: dict = {}  # clamp level -> (VertexId, Clusters or None)
 
     def _layout(self, clamp: int):
-        from .binning import table_vertex_id
-        from .clusters import morton_codes
-
         if clamp not in self._layouts:
             lv = np.minimum(self.levels, clamp)
             vid, cl = table_vertex_id(lv), None
@@ -156,16 +153,13 @@ class PositionSizer:
         return self._layouts[clamp]
 
     def bytes_at(self, level: int) -> int:
-        from .binning import buffer_bytes
-        from .clusters import clustered_bytes
-
         b = int(level)
         vid, cl = self._layout(min(b, self._top))  # at or above the highest m_v nothing is clamped
         return int(buffer_bytes(vid, b)) if cl is None else int(clustered_bytes(cl, b))
 
 
 def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, codes) -> EncodedBuffer:
-    """``encode_buffer`` in the layout asked for (no choice); ``codes``: ``attr.record_codes`` of the
+    """``encode_buffer`` in the layout asked for (no choice); ``codes``: ``record_codes`` of the
     buffer's attributes in source order (None when it stores no record)."""
     raw_levels = np.asarray(buf.min_level, dtype=np.int64)
     clamped = int(np.count_nonzero(raw_levels > max_level))
@@ -180,7 +174,7 @@ def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, c
              "geometric_error_m": float(buf.geometric_error_m)}
     if buf.min_distance_m is not None:
         entry["min_distance_m"] = float(buf.min_distance_m)
-    data, width = attr.encode_indices(indices, n)
+    data, width = encode_indices(indices, n)
     attributes = [("indices", data.tobytes())]
     entry["index_width"] = int(width)
     bits = buf.bits()
@@ -191,11 +185,9 @@ def _encode_buffer(buf: BufferInput, max_level: int, cluster_size: int | None, c
         # the codes in source order (memoised by content inside a ``code_memo``), then binned:
         # every code depends on its own vertex alone (``record_codes``)
         codes, meta = codes
-        words = attr.pack_record({k: v[bins.order] for k, v in codes.items()}, n, bits)
+        words = pack_record({k: v[bins.order] for k, v in codes.items()}, n, bits)
         attributes.append(("attributes", words.tobytes()))
-        if meta["uv_range"] is not None:
-            entry["uv_range"] = meta["uv_range"]
-            entry["uv_step"] = meta["uv_step"]
+        entry.update(meta["lod"])
     top = top_bits(q, vertex_widths(bins.vertex_id, 1))
     clusters = None
     if cluster_size is None:
@@ -276,7 +268,7 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
         "options": options or {},
         "grid": {"origin": [float(v) for v in grid.origin], "extent": float(grid.extent), "bits": LEVELS},
         "viewing": viewing.as_dict(),
-        "encodings": attr.attribute_specs(),
+        "encodings": attribute_specs([AttributeBits.of(p["attribute_bits"] or {}) for p in parts_manifest]),
         "parts": parts_manifest,
         "positions": {"mandatory": "positions/mandatory", "planes": plane_names, "max_level": int(max_level),
                       "plane_order": "buffers in manifest order (parts, then LODs), vertices in binned order, "
@@ -296,11 +288,11 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
 
 def default_buffers(scene, analysis) -> list[list[BufferInput]]:
     """LOD 0 of every part as its only buffer, from the scene and its analysis; attribute bits the
-    bound-based default of each part (``attributes.part_default_bits`` with the analysis's
-    settings and k_f), as ``lopcook.pipeline`` chooses them without attribute settings."""
-    return [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices, normals=p.normals,
-                         uvs=p.uvs, colors=p.colors,
-                         attribute_bits=attr.part_default_bits(p, analysis.settings, pa.kf))]
+    bound-based default of each part (``analyse.attribute_bits.part_default_bits`` with the
+    analysis's settings and k_f), as ``lopcook.pipeline`` chooses them without attribute settings."""
+    return [[BufferInput(quantized=pa.quantized, min_level=pa.min_level, indices=p.indices,
+                         attributes=dict(p.attributes),
+                         attribute_bits=part_default_bits(p, analysis.settings, pa.kf))]
             for p, pa in zip(scene.parts, analysis.parts)]
 
 

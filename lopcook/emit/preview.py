@@ -61,7 +61,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from .reader import decode_positions
+from ..lop.reader import decode_positions
 
 #: A copy becomes an instance only if the fitted transform reproduces its level-24 positions within
 #: this many cells of the 24-bit grid (the decode itself is exact to half a cell).
@@ -866,7 +866,8 @@ def preview(c, container_path: str, meshes: list[dict], lods: list[int], source:
     meshes = [dict(m, material=mi) for m, mi in zip(meshes, per_part)]
     for m in meshes:  # a normal map needs a tangent space: written, not left to each viewer
         mat = None if m["material"] is None else materials["materials"][m["material"]]
-        if mat and "normalTexture" in mat and m["normals"] is not None and m["uvs"] is not None:
+        if mat and "normalTexture" in mat and m["normals"] is not None and m["uvs"] is not None \
+                and m.get("tangents") is None:  # a container that stores tangents keeps its own
             m["tangents"] = tangents(m["positions"], m["normals"], m["uvs"], m["indices"])
     keys = [(p.get("mesh_key"), mi) if p.get("mesh_key") else None for p, mi in zip(parts, per_part)]
     out_meshes, nodes, stats = instance_nodes(c, lods, meshes, keys)

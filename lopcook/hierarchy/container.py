@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..emit import attributes as attr
-from ..emit.summary import hierarchy_stats
-from ..emit.reader import decode_positions, lod_attributes, top_values
+from ..lop.indices import decode_indices
+from ..lop.summary import hierarchy_stats
+from ..lop.reader import decode_positions, lod_attributes, top_values
 from ..errors import LopcookError
 from ..grid import BITS
 from ..viewing import Viewing, required_level
@@ -60,7 +60,7 @@ def encode_part(encoded, grid) -> tuple[bytes, dict]:
     raw = dict(encoded.attributes)["indices"]
     width = int(e["index_width"])
     m = int(e["triangles"])
-    tri = attr.decode_indices(np.frombuffer(raw, "<u2" if width == 2 else "<u4")[:3 * m], width, m).astype(np.int64)
+    tri = decode_indices(np.frombuffer(raw, "<u2" if width == 2 else "<u4")[:3 * m], width, m).astype(np.int64)
     kept = drop_degenerate(tri)
     step = float(grid.extent) / float(1 << BITS)
     tree = build_tree(encoded.q, kept, grid=(np.asarray(grid.origin, np.float64), step))
@@ -103,7 +103,7 @@ def add_hierarchy(manifest: dict, sections: list, lod0: list, grid, cache: dict 
 
 
 def part_stats(c, part: int) -> dict | None:
-    """``lopcook.emit.summary.hierarchy_stats``: inspect's figures of one part's hierarchy."""
+    """``lopcook.lop.summary.hierarchy_stats``: inspect's figures of one part's hierarchy."""
     return hierarchy_stats(c, part)
 
 
@@ -176,7 +176,7 @@ def refine(c, camera, target, *, fov: float = 60.0, viewport=(1920, 1080), pixel
         cut = select_cut(h, camera, target, fov=fov, viewport=viewport, pixel_error=pixel_error, up=up,
                          backface=backface)
         vert = h.vertex_of_leaf[h.node_leaf[cut.nodes]]
-        a = lod_attributes(c, i, 0, unit_normals=True)
+        a = lod_attributes(c, i, 0, unit_directions=True)
         meshes.append({"name": parts[i]["name"], "positions": pos[vert], "indices": cut.triangles,
                        "normals": None if a["normals"] is None else a["normals"][vert],
                        "uvs": None if a["uvs"] is None else a["uvs"][vert],

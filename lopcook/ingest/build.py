@@ -14,8 +14,8 @@ from .normals import compute_normals
 
 def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings: IngestSettings,
               normals: np.ndarray | None = None, uvs: np.ndarray | None = None,
-              colors: np.ndarray | None = None, source: str = "", texture: Texture | None = None,
-              mesh_key: str = "", double_sided: bool = False) -> MeshPart:
+              colors: np.ndarray | None = None, extra: dict | None = None, source: str = "",
+              texture: Texture | None = None, mesh_key: str = "", double_sided: bool = False) -> MeshPart:
     """Build a MeshPart from loader arrays.
 
     Parameters
@@ -27,6 +27,7 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
         vertices; uvs/colors follow the split.
     uvs : (n, 2) float or None, origin top-left
     colors : (n, 3|4) float or None, linear, alpha 1 added when missing
+    extra : ``{codec name: (n, k) float}`` of any other attribute (``lopcook.lop.codecs``), world space
     """
     positions = np.ascontiguousarray(positions, dtype=np.float64)
     indices = np.ascontiguousarray(indices).astype(np.uint32, copy=False).reshape(-1, 3)
@@ -35,14 +36,14 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
         colors = np.concatenate([colors, np.ones((colors.shape[0], 1), colors.dtype)], axis=1)
     # (positions beyond MAX_COORDINATE, or not finite, are refused by Scene.validate with their own
     # message: their cross products would overflow into NaN normals first)
+    others = {"uvs": uvs, "colors": colors, **(extra or {})}
     if normals is None and indices.size and positions.size and np.isfinite(positions).all() \
             and float(np.abs(positions).max()) <= MAX_COORDINATE and int(indices.max()) < positions.shape[0]:
         res = compute_normals(positions, indices, settings.crease_angle_deg)
         sv = res.source_vertex
         if sv.size != positions.shape[0] or not np.array_equal(sv, np.arange(sv.size)):
             positions = np.take(positions, sv, axis=0)  # row gathers: np.take is 2-3x faster than [sv]
-            uvs = None if uvs is None else np.take(uvs, sv, axis=0)
-            colors = None if colors is None else np.take(colors, sv, axis=0)
+            others = {k: None if v is None else np.take(v, sv, axis=0) for k, v in others.items()}
         indices = res.indices
         normals = res.normals
         computed = True
@@ -55,9 +56,8 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
         name=name,
         positions=positions,
         indices=indices,
-        normals=None if normals is None else np.ascontiguousarray(normals, dtype=np.float32),
-        uvs=None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
-        colors=None if colors is None else np.ascontiguousarray(colors, dtype=np.float32),
+        attributes={k: np.ascontiguousarray(v, dtype=np.float32)
+                    for k, v in {"normals": normals, **others}.items() if v is not None},
         source=source,
         normals_computed=computed,
         texture=texture,

@@ -3,7 +3,7 @@ the container summary and, optionally, the re-cook's analysis and timings.
 
 ``build_report`` takes a render evaluation (``lopcook.verify.evaluate.evaluate`` with images of one
 view at every level: ``lopcook.report.render.render_for_report``), the container summary
-(``lopcook.emit.summary.describe_container``), the uniform 16-bit baseline's evaluation, the
+(``lopcook.lop.summary.describe_container``), the uniform 16-bit baseline's evaluation, the
 re-cook record (``lopcook.tune.recook.recook``) and the analysis warnings, and returns a dict of
 plain Python numbers only (numpy converted, non-finite floats as None: a PSNR of None is +inf,
 identical images), file names without directories and no
@@ -143,7 +143,7 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
     the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
     (``options.lods.reports[i].notes``), else empty."""
-    from ..emit.manifest import Manifest
+    from ..lop.manifest import Manifest
 
     typed = Manifest.of(manifest)
     if not reports:

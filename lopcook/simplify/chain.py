@@ -283,14 +283,15 @@ class LodReport:
 
 def _xatlas_part(part: MeshPart) -> MeshPart:
     vmap, ind, uv = parametrise_xatlas(part.positions, part.indices)
+    attrs = {k: v[vmap] for k, v in part.attributes.items()}
+    attrs["uvs"] = uv
     return replace(part, positions=np.ascontiguousarray(part.positions[vmap]), indices=ind.astype(np.uint32),
-                   normals=None if part.normals is None else part.normals[vmap], uvs=uv,
-                   colors=None if part.colors is None else part.colors[vmap], texture=None)
+                   attributes=attrs, texture=None)
 
 
 def parametrise(part: MeshPart) -> MeshPart:
-    """``part`` with a fresh xatlas atlas as its UVs (vertices split at the atlas seams; normals and
-    colours copied). Any texture is dropped: it does not match the new atlas (re-bake it)."""
+    """``part`` with a fresh xatlas atlas as its UVs (vertices split at the atlas seams; the other
+    attributes copied). Any texture is dropped: it does not match the new atlas (re-bake it)."""
     return _xatlas_part(part)
 
 

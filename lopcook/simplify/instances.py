@@ -4,13 +4,14 @@ simplified once per distinct mesh and placed on every copy.
 Scenes place one mesh many times (USD instances and references, glTF nodes sharing a mesh, a
 chess set's pawns). lopcook's scene model is in world space, so
 the copies differ in positions only. Two parts are **copies** when they have the same vertex count,
-the same triangles (index arrays equal), the same UVs and colours (bit for bit), and one affine map
-``x -> A x + t`` takes every position of the first to the second's within ``rtol`` of the part's
-extent (least squares over all vertices, then the largest residual is checked), with ``A``
-invertible, and the normals agree with ``A^-T n`` normalised (within ``NORMAL_TOL``).
+the same triangles (index arrays equal), the same attributes a placement does not change (UVs,
+colours: bit for bit), and one affine map ``x -> A x + t`` takes every position of the first to the
+second's within ``rtol`` of the part's extent (least squares over all vertices, then the largest
+residual is checked), with ``A`` invertible, and the attributes a placement maps agree with their
+codec's ``to_world`` (normals: ``A^-T n`` normalised) within ``NORMAL_TOL``.
 
-A copy's LOD is the representative's LOD mapped by the same ``(A, t)`` (normals by ``A^-T``,
-renormalised; triangles, UVs and colours unchanged). Its error: when ``A`` is a similarity
+A copy's LOD is the representative's LOD mapped by the same ``(A, t)`` (attributes by their
+codec's ``to_world``; triangles, UVs and colours unchanged). Its error: when ``A`` is a similarity
 (``A^T A = s^2 I``, rotation or reflection times a uniform scale s) distances scale by ``s``
 exactly, so error_m = s * the representative's; otherwise the error is measured again
 (``lod.hausdorff``). Mirrored placements whose importer reversed the winding have different index
@@ -26,6 +27,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..lop.codecs import CODECS
+from ..lop.codecs.normals_oct import NORMALS
 from ..types import MeshPart
 
 #: largest position residual of the affine fit, relative to the part's bounding-box diagonal
@@ -39,9 +42,11 @@ def _digest(a: np.ndarray | None) -> str:
 
 
 def signature(part: MeshPart) -> tuple:
-    """What copies must share exactly: vertex count, triangles, UVs, colours (digests)."""
-    return (part.n_vertices, part.n_triangles, _digest(part.indices), _digest(part.uvs), _digest(part.colors),
-            part.normals is None)
+    """What copies must share exactly: vertex count, triangles, every attribute a placement does
+    not map (UVs, colours: digests) and which mapped ones (normals) are present."""
+    return (part.n_vertices, part.n_triangles, _digest(part.indices),
+            *(_digest(part.attributes.get(c.name)) for c in CODECS if not c.placed),
+            *(c.name in part.attributes for c in CODECS if c.placed))
 
 
 def affine_map(rep: MeshPart, other: MeshPart, rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray] | None:
@@ -62,17 +67,16 @@ def affine_map(rep: MeshPart, other: MeshPart, rtol: float = RTOL) -> tuple[np.n
         return None
     if float(np.abs(p @ a.T + t - q).max()) > rtol * max(diag, 1e-300):
         return None
-    if rep.normals is not None:
-        if float(np.abs(map_normals(rep.normals, a) - other.normals).max()) > NORMAL_TOL:
-            return None
+    for c in CODECS:
+        if c.placed and c.name in rep.attributes:
+            if float(np.abs(c.to_world(rep.attributes[c.name], a) - other.attributes[c.name]).max()) > NORMAL_TOL:
+                return None
     return a, t
 
 
 def map_normals(normals: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """(n, 3) float32 unit normals mapped by the inverse transpose of ``a``."""
-    m = np.asarray(normals, np.float64) @ np.linalg.inv(a)  # n @ A^-1 == (A^-T n^T)^T
-    ln = np.linalg.norm(m, axis=1, keepdims=True)
-    return (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+    """(n, 3) float32 unit normals mapped by the inverse transpose of ``a`` (``NORMALS.to_world``)."""
+    return NORMALS.to_world(normals, a)
 
 
 def similarity_scale(a: np.ndarray, rtol: float = 1e-9) -> float | None:
@@ -87,8 +91,10 @@ def place(part: MeshPart, a: np.ndarray, t: np.ndarray, like: MeshPart) -> MeshP
     """``part`` (a LOD of the representative) mapped by ``(a, t)``, named and sourced as ``like``
     (the copy it is placed on)."""
     return MeshPart(name=like.name, positions=np.ascontiguousarray(part.positions @ a.T + t, dtype=np.float64),
-                    indices=part.indices, normals=None if part.normals is None else map_normals(part.normals, a),
-                    uvs=part.uvs, colors=part.colors, source=like.source, normals_computed=like.normals_computed,
+                    indices=part.indices,
+                    attributes={c.name: c.to_world(part.attributes[c.name], a) for c in CODECS
+                                if c.name in part.attributes},
+                    source=like.source, normals_computed=like.normals_computed,
                     texture=like.texture, mesh_key=like.mesh_key, double_sided=like.double_sided)
 
 

@@ -8,6 +8,7 @@ import itertools
 
 import numpy as np
 
+from ..lop.codecs import BY_NAME, CODECS
 from ..mesh import components, degenerate_mask, face_normals, stable_argsort, unique_rows, used_ids, weld_labels
 from ..types import MeshPart
 from .backends import BackendFailure, BackendResult, Work
@@ -455,35 +456,63 @@ SPLIT_UV = 5e-3
 SPLIT_COLOR = 0.02
 
 
+def _direction_fix(val: np.ndarray, fallback_normal: np.ndarray) -> np.ndarray:
+    """A blended direction made unit again (``fallback_normal``, LOD 0's face normal, where the
+    blend vanishes); components after the third (a handedness) snapped to +-1."""
+    xyz = val[:, :3]
+    ln = np.linalg.norm(xyz, axis=1)
+    xyz = np.where((ln > 1e-6)[:, None], xyz / np.where(ln > 1e-6, ln, 1.0)[:, None], fallback_normal)
+    if val.shape[1] == 3:
+        return xyz
+    return np.concatenate([xyz, np.where(val[:, 3:] >= 0.0, 1.0, -1.0)], axis=1)
+
+
 def attributes_at(ref: Reference, names: list, face: np.ndarray, bary: np.ndarray,
                    fallback_normal: np.ndarray) -> dict:
-    """LOD 0's attributes ``names`` interpolated at (face, bary): normals unit (LOD 0's face normal
-    where the interpolation vanishes), colours clipped."""
+    """LOD 0's attributes ``names`` interpolated at (face, bary), made valid by their codec's
+    error model: directions unit (LOD 0's face normal where the interpolation vanishes), colours
+    clipped."""
     out = {}
     src = ref.part
     for name in names:
-        val = interpolate(getattr(src, name), ref, face, bary)
-        if name == "normals":
-            ln = np.linalg.norm(val, axis=1)
-            val = np.where((ln > 1e-6)[:, None], val / np.where(ln > 1e-6, ln, 1.0)[:, None], fallback_normal)
-        elif name == "colors":
+        val = interpolate(src.attributes[name], ref, face, bary)
+        model = BY_NAME[name].error_model
+        if model == "direction":
+            val = _direction_fix(val, fallback_normal)
+        elif model == "color":
             val = np.clip(val, 0.0, 1.0)
         out[name] = val
     return out
 
 
+def _extra_differs(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
+    """Rows whose components after the third (a direction's handedness) differ."""
+    return (va[:, 3:] != vb[:, 3:]).any(axis=1) if va.shape[1] > 3 else np.zeros(va.shape[0], dtype=bool)
+
+
 def differs(a: dict, b: dict) -> np.ndarray:
+    """Rows where any attribute of ``a`` and ``b`` is beyond its split tolerance: directions more
+    than ``SPLIT_NORMAL_DEG`` apart (or of another handedness), texture coordinates ``SPLIT_UV``,
+    colours ``SPLIT_COLOR`` (largest component difference)."""
     bad = None
     for name, va in a.items():
         vb = b[name]
-        if name == "normals":
-            d = np.einsum("ij,ij->i", va, vb) < np.cos(np.radians(SPLIT_NORMAL_DEG))
-        elif name == "uvs":
+        model = BY_NAME[name].error_model
+        if model == "direction":
+            d = np.einsum("ij,ij->i", va[:, :3], vb[:, :3]) < np.cos(np.radians(SPLIT_NORMAL_DEG))
+            d |= _extra_differs(va, vb)
+        elif model == "texcoord":
             d = np.abs(va - vb).max(axis=1) > SPLIT_UV
         else:
             d = np.abs(va - vb).max(axis=1) > SPLIT_COLOR
         bad = d if bad is None else bad | d
     return bad
+
+
+def key_order(names) -> list:
+    """Attribute names in the order their bits key vertices: texture coordinates first, then the
+    others in record order (``CODECS``)."""
+    return sorted(names, key=lambda n: (BY_NAME[n].error_model != "texcoord", CODECS.index(BY_NAME[n])))
 
 
 def exact_sources(ref: Reference, points: np.ndarray):
@@ -517,10 +546,13 @@ def _attribute_distance(names: list, cand: dict, ext: dict) -> np.ndarray:
     score = None
     for name in names:
         a, b = cand[name].astype(np.float64), ext[name]
-        if name == "normals":
-            d = (1.0 - np.einsum("ij,ij->i", a, b)) / (1.0 - np.cos(np.radians(SPLIT_NORMAL_DEG)))
+        model = BY_NAME[name].error_model
+        if model == "direction":
+            d = (1.0 - np.einsum("ij,ij->i", a[:, :3], b[:, :3])) / (1.0 - np.cos(np.radians(SPLIT_NORMAL_DEG)))
+            if a.shape[1] > 3:
+                d = d + _extra_differs(a, b)
         else:
-            d = np.abs(a - b).max(axis=1) / (SPLIT_UV if name == "uvs" else SPLIT_COLOR)
+            d = np.abs(a - b).max(axis=1) / (SPLIT_UV if model == "texcoord" else SPLIT_COLOR)
         score = d if score is None else score + d
     return score
 
@@ -556,7 +588,7 @@ def exact_corner_sources(ref: Reference, names: list, P: np.ndarray, F: np.ndarr
     pair = np.repeat(np.arange(amb.size), c)  # (corner, candidate) pairs
     offs = np.arange(pair.size) - np.repeat(np.cumsum(c) - c, c)
     cand = order[start[vid[amb]][pair] + offs]
-    score = _attribute_distance(names, {n: getattr(ref.part, n)[cand] for n in names},
+    score = _attribute_distance(names, {n: ref.part.attributes[n][cand] for n in names},
                                 {n: v[pair] for n, v in ext.items()})
     incident = (ref.faces[g2[pair]] == cand[:, None]).any(axis=1)
     score = np.where(incident, -1.0, score)
@@ -676,7 +708,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             raise BackendFailure("the closed mesh's signed volume changed sign (inside out)")
 
     src = ref.part
-    names = [n for n in ("normals", "colors") if getattr(src, n) is not None]
+    names = [c.name for c in CODECS if c.error_model != "texcoord" and c.name in src.attributes]
     uv_from_ref = src.uvs is not None and mode != "xatlas" and res.wedge_uvs is None and not (
         mode == "lock" and res.vertex_source is not None and work.region is not None)
     if uv_from_ref:
@@ -689,7 +721,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             wedge = (res.wedge_uvs.reshape(-1, 2).astype(np.float32) if res.wedge_uvs is not None
                      and src.uvs is not None and not uv_from_ref and mode != "xatlas" else None)
             srcv = exact_corner_sources(ref, names, P, F, centroid, found, wedge)
-            corner_attr = {n: np.ascontiguousarray(getattr(src, n)[srcv], dtype=np.float32) for n in names}
+            corner_attr = {n: np.ascontiguousarray(src.attributes[n][srcv], dtype=np.float32) for n in names}
     elif names:
         face_of_corner = np.repeat(np.arange(m), 3)
         bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
@@ -730,8 +762,9 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             val = at_v[n][vid[first]]
             if not_own.size:
                 val[not_own] = at2[n][at_split]
-            if n == "normals":
-                val = val / np.linalg.norm(val, axis=1, keepdims=True)
+            if BY_NAME[n].error_model == "direction":
+                val = val.copy()
+                val[:, :3] = val[:, :3] / np.linalg.norm(val[:, :3], axis=1, keepdims=True)
             corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
     per_group = bool(names) and found is None  # every attribute so far is a function of the corner's group
     if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
@@ -745,7 +778,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
 
     def unique_vertices(row_vid: np.ndarray):
         keys = [row_vid.reshape(-1, 1).astype(np.int64)]
-        for name in ("uvs", "normals", "colors"):
+        for name in key_order(corner_attr):
             if name in corner_attr:
                 keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32)
                             .astype(np.int64))
@@ -767,9 +800,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         name=input_part.name,
         positions=np.ascontiguousarray(P[vid[vfirst]], dtype=np.float64),
         indices=vinv.reshape(m, 3).astype(np.uint32),
-        normals=corner_attr["normals"][pick] if "normals" in corner_attr else None,
-        uvs=corner_attr["uvs"][pick] if "uvs" in corner_attr else None,
-        colors=corner_attr["colors"][pick] if "colors" in corner_attr else None,
+        attributes={n: v[pick] for n, v in corner_attr.items()},
         source=input_part.source,
         normals_computed=input_part.normals_computed,
         texture=input_part.texture,

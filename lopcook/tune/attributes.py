@@ -1,4 +1,4 @@
-"""Every attribute's bits chosen by image error: Purnomo's greedy +-1-bit search (issue 15, item 1).
+"""Every attribute's bits chosen by image error: Purnomo's greedy +-1-bit search.
 
 This work is based on: Purnomo, Bilodeau, Cohen and Kumar, "Hardware-Compatible Vertex Compression
 Using Quantization and Simplification", Graphics Hardware 2005, sections 4.1 (the image-space
@@ -7,9 +7,9 @@ error over object pixels) and 4.2 (Fig. 3: the greedy bit-reduce / bit-increase 
 when the error stops decreasing). Meyer et al. 2011 section 5.1 give the positions' knob (the k_f
 of ``k_f * E_v * dx(b) <= eps``).
 
-The allocation (``Allocation``). Per part: the bits per component of its normals (octahedral,
-precise, ``NORMAL_BITS`` = 4..16), UVs (over the part's range, ``UV_BITS`` = 6..16) and colours
-(``COLOR_BITS`` = 4..8 per channel), each None where the part has no such attribute; and one
+The allocation (``Allocation``). Per part: the bits per field of each attribute codec in record
+order (``RANGES``, from ``lopcook.lop.codecs``: normals 4..16, UVs 6..16, colours 4..8, ...), each
+None where the part has no such attribute; and one
 scale of the positions' k_f for the whole scene, ``x`` = log2 sigma on the grid of
 ``POSITION_STEP`` (every attribute's k_f times sigma, as ``lopcook.tune.calibrate``: a probe cooks
 with ``eps / sigma``; the per-vertex LOP levels stay the analysis's). It is cooked through
@@ -17,13 +17,13 @@ with ``eps / sigma``; the per-vertex LOP levels stay the analysis's). It is cook
 (``lopcook.pipeline.run``), so a probe's container is exactly what ``cook`` writes for it.
 
 The knobs (``knobs``). Each knob moves one quantity by one step: ``positions`` (x by
-``POSITION_STEP``), and per part ``normals[i]``, ``uvs[i]``, ``colors[i]`` (one bit per component).
+``POSITION_STEP``), and per part and attribute ``normals[i]``, ``uvs[i]``, ... (one bit per field).
 With more than ``MAX_PART_KNOBS`` parts carrying an attribute, one knob moves that attribute on
 every part at once (each clipped to its range): the search's cost grows with the knobs, and a
 scene of many small parts gains little from per-part bits.
 
 The cost (``vertex_bits``): bits per vertex at level ``COST_LEVEL`` (11) over every LOD-0 vertex of
-the scene: the CAP position buffer's bits at that level (``lopcook.emit.summary.memory_rows``,
+the scene: the CAP position buffer's bits at that level (``lopcook.lop.summary.memory_rows``,
 word padding included) plus each part's record bits ``S = 2 b_n + 2 b_u + 4 b_c`` times its
 vertices (``lopcook inspect``'s ``vertex_bits`` total at 11, vertex-weighted).
 
@@ -97,16 +97,15 @@ import math
 import time
 from dataclasses import dataclass, replace
 
-from ..emit.attributes import with_code_memo
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
+from ..lop.codecs import CODECS
+from ..lop.memo import with_code_memo
 
-NORMAL_BITS = (4, 16)
-UV_BITS = (6, 16)
-COLOR_BITS = (4, 8)
-RANGES = {"normals": NORMAL_BITS, "uvs": UV_BITS, "colors": COLOR_BITS}
-ATTRIBUTES = ("normals", "uvs", "colors")
-#: record bits per unit of each attribute's bits: 2 components, 2 components, 4 channels
-COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
+#: the searched attributes, in record order, with their bit ranges (``lopcook.lop.codecs``)
+RANGES = {c.name: c.bits for c in CODECS}
+ATTRIBUTES = tuple(c.name for c in CODECS)
+#: record bits per unit of each attribute's bits: its number of fields (normals 2, UVs 2, colours 4)
+COMPONENTS = {c.name: len(c.field_widths(c.bits[0])) for c in CODECS}
 #: containers a search keeps cooked (``Search.cook``)
 KEEP_COOKED = 2
 #: the positions' knob: log2 of the k_f scale, its grid step and range (as ``lopcook.tune.calibrate``)
@@ -137,7 +136,8 @@ MODES = ("budget", "target")
 @dataclass(frozen=True)
 class Allocation:
     """One point of the search: ``x`` = log2 of the positions' k_f scale, ``parts`` = per part
-    (normal bits, UV bits, colour bits), None where the part has no such attribute."""
+    the bits of each codec in record order (normal, UV, colour, ...), None where the part has no
+    such attribute."""
 
     x: float
     parts: tuple
@@ -149,10 +149,11 @@ class Allocation:
         return (float(self.x), tuple(tuple(p) for p in self.parts), self.e)
 
     def record(self) -> dict:
-        """JSON form: {"log2_kf_scale", "parts": [{"normals", "uvs", "colors"}]} and, when edges are
-        a knob, "edge_scale"."""
+        """JSON form: {"log2_kf_scale", "parts": [{"normals", "uvs", "colors", ...}]} (a codec newer
+        than the first format only where set) and, when edges are a knob, "edge_scale"."""
         out = {"log2_kf_scale": float(self.x),
-               "parts": [dict(zip(ATTRIBUTES, (None if b is None else int(b) for b in p))) for p in self.parts]}
+               "parts": [{c.name: None if b is None else int(b) for c, b in zip(CODECS, p)
+                          if c.format_major == 2 or b is not None} for p in self.parts]}
         if self.e is not None:
             out["edge_scale"] = float(self.e)
         return out
@@ -224,8 +225,8 @@ def vertex_bits(c, level: int = COST_LEVEL) -> dict:
     """Bits per vertex of container ``c`` at ``level`` over every LOD-0 vertex: {"positions" (CAP
     buffer bits at ``level`` / vertices), "attributes" (sum of n_i * record bits / vertices),
     "total", "vertices", "per_part" [{"vertices", "record_bits"}]}. The record bits are the
-    manifest's ``record_bits`` (the packed record, ``lopcook.emit.attributes``)."""
-    from ..emit.summary import memory_rows
+    manifest's ``record_bits`` (the packed record, ``lopcook.lop.record``)."""
+    from ..lop.summary import memory_rows
 
     verts = attr = 0
     per_part = []
@@ -709,7 +710,7 @@ def attribute_errors(c, scene) -> list[dict]:
     part has no texture). Vertices matched by order (``lopcook.verify.buffers.source_order``)."""
     import numpy as np
 
-    from ..emit.reader import lod_attributes
+    from ..lop.reader import lod_attributes
     from ..verify.buffers import source_order
 
     orders = source_order(c, scene)
@@ -899,7 +900,7 @@ def format_search(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["NORMAL_BITS", "UV_BITS", "COLOR_BITS", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
+__all__ = ["RANGES", "ATTRIBUTES", "POSITION_STEP", "COST_LEVEL", "MAX_PART_KNOBS", "MAX_ROUNDS",
            "Allocation", "Knob", "knobs", "step", "vertex_bits", "container_allocation", "cook_settings", "Search",
            "search_budget", "search_target", "last_passing", "moved_knobs", "refine_on_gate", "MAX_FREEZES",
            "fallbacks", "gate_quality", "attribute_errors", "allocate", "search_record",

@@ -22,7 +22,7 @@ Steps of ``fit``:
 
    * ``"positions"`` (default): the GPU-resident position buffer at level B of the container
      that would be written (``lopcook.emit.PositionSizer``; the written container's ``cap_bytes``
-     at B, ``lopcook.emit.summary.memory_rows``). Unclustered (``cook --clusters 0``): 3 B bits
+     at B, ``lopcook.lop.summary.memory_rows``). Unclustered (``cook --clusters 0``): 3 B bits
      per vertex, whole 32-bit words per buffer (AP at B). Clustered (the default,
      ``settings.emit.clusters``): each buffer in the layout the cook's encoding chooses for it
      (``clustering_wins``): the words of P with every vertex at B bits less its cluster's shared
@@ -77,8 +77,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..emit.binning import LEVELS
-from ..emit.manifest import FLOAT32_BYTES_PER_VERTEX
+from ..lop.binning import LEVELS
+from ..lop.manifest import FLOAT32_BYTES_PER_VERTEX
 from ..errors import LopcookError
 from ..settings import DEFAULT_LOD_LEVELS, DEFAULTS, BudgetScope, LodSpec, Settings, halvings
 from ..simplify import MIN_SIMPLIFY_TRIANGLES
@@ -223,9 +223,9 @@ def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
     for i, (p, k) in enumerate(zip(scene.parts, lods)):
         b = buffers[i][k]
         pos = grid.reconstruct(b.quantized, LEVELS)
-        parts.append(MeshPart(p.name, pos, np.asarray(b.indices, np.uint32), b.normals, b.uvs, b.colors,
+        parts.append(MeshPart(p.name, pos, np.asarray(b.indices, np.uint32), dict(b.attributes),
                               source=p.source, normals_computed=p.normals_computed,
-                              texture=p.texture if b.uvs is not None else None, mesh_key=p.mesh_key,
+                              texture=p.texture if b.attributes.get("uvs") is not None else None, mesh_key=p.mesh_key,
                               double_sided=p.double_sided))
     return replace(scene, parts=tuple(parts))
 

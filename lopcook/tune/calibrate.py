@@ -114,7 +114,7 @@ import time
 from dataclasses import replace
 
 
-from ..emit.attributes import with_code_memo
+from ..lop.memo import with_code_memo
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
@@ -258,7 +258,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     """
     from ..analyse import analyse
     from ..emit import build
-    from ..emit.container import from_bytes
+    from ..lop.container import from_bytes
 
     t0 = time.perf_counter()
     s = replace(settings, eps=settings.eps / float(sigma), edge_eps=_edge_eps(settings, edge_scale))
@@ -315,7 +315,7 @@ def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cac
     build alone (no render). ``cache`` (a dict) keeps results by (x, e); ``prepared`` as in ``probe``."""
     from ..analyse import analyse
     from ..emit import build
-    from ..emit.container import from_bytes
+    from ..lop.container import from_bytes
     from ..verify.buffers import position_bytes
 
     if cache is not None and (x, e) in cache:

@@ -44,7 +44,7 @@ def recorded_settings(manifest: dict, path: str | None = None) -> Settings:
 
 def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes | None = None,
            progress: Progress = NONE) -> dict:
-    """Re-cook ``container`` (``lopcook.emit.container.Container``) from ``scene`` (its ingested
+    """Re-cook ``container`` (``lopcook.lop.container.Container``) from ``scene`` (its ingested
     source) and compare (see module doc).
 
     Returns ``{"status": "identical" | "prefix" | "differs" | "not re-cooked", "detail": str,

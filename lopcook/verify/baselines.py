@@ -11,7 +11,7 @@ per vertex (vertex attributes are 4-byte aligned), 66.7 % of float32. Parts are 
 space (lopcook's scene model), so instances of one mesh get one volume each.
 
 Level colours (``level_colours``, ``level_scene``): every vertex of LOD 0 coloured by its minimum
-level m_v (read back from the container's bins, ``lopcook.emit.reader``), on a turbo-like ramp
+level m_v (read back from the container's bins, ``lopcook.lop.reader``), on a turbo-like ramp
 from the lowest to the highest level present, textures removed; rendered with float positions.
 """
 
@@ -65,7 +65,7 @@ def level_colours(levels: np.ndarray, lo: int, hi: int) -> np.ndarray:
 def container_levels(c, part: int, lod: int = 0) -> np.ndarray:
     """(n,) uint8 minimum level of every vertex of ``part``'s LOD ``lod``, in the container's
     binned order (bin k spans ``[VertexId[k-1], VertexId[k])``)."""
-    from ..emit.reader import lod_entry
+    from ..lop.reader import lod_entry
 
     vid = np.asarray(lod_entry(c, part, lod)["vertex_id"], dtype=np.int64)
     return np.repeat(np.arange(1, 25, dtype=np.uint8), np.diff(vid))
@@ -77,7 +77,7 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
     holds the source's vertices, the source ``scene``'s positions and normals are used (vertices
     matched by ``render.source_order``); otherwise (a ``cook --target-bytes`` container whose only
     LOD is simplified) the container's own LOD 0 decoded at its highest level. Returns (scene, lo, hi)."""
-    from ..emit.reader import decode_positions, lod_attributes
+    from ..lop.reader import decode_positions, lod_attributes
     from .buffers import lod0_is_source, source_order
 
     geometry, per_part = [], []
@@ -91,14 +91,15 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
         level = min(24, int(c.available_level))
         for i in range(len(c.manifest["parts"])):
             _, _, pos = decode_positions(c, i, 0, level, float32=False)
-            a = lod_attributes(c, i, 0, unit_normals=True)
+            a = lod_attributes(c, i, 0, unit_directions=True)
             geometry.append((np.asarray(pos, np.float64), a["indices"], a["normals"]))
             per_part.append(container_levels(c, i))
     allv = np.concatenate(per_part)
     lo = int(allv.min()) if lo is None else int(lo)
     hi = int(allv.max()) if hi is None else int(hi)
-    parts = tuple(MeshPart(name=p.name, positions=pos, indices=np.asarray(ind, np.uint32), normals=nrm, uvs=None,
-                           colors=level_colours(lv, lo, hi), source=p.source, normals_computed=p.normals_computed,
+    parts = tuple(MeshPart(name=p.name, positions=pos, indices=np.asarray(ind, np.uint32),
+                           attributes={"normals": nrm, "colors": level_colours(lv, lo, hi)},
+                           source=p.source, normals_computed=p.normals_computed,
                            texture=None, mesh_key=p.mesh_key, double_sided=p.double_sided)
                   for p, (pos, ind, nrm), lv in zip(scene.parts, geometry, per_part))
     return replace(scene, parts=parts, source=f"{scene.source} (minimum levels)"), lo, hi

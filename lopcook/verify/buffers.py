@@ -8,21 +8,21 @@ bits), Table 1 (levels 6 to 11 and memory relative to float32).
 * **AP** at level B (``ap_buffer``): every vertex with exactly B bits per component (the top B of
   its 24-bit grid integers), packed as one bin (VertexId = [0, n, ..., n]) so that the shipped
   decoder reads B bits for each.
-* **CAP** at level B: the container's binned buffer (``lopcook.emit.reader.gpu_buffer``).
+* **CAP** at level B: the container's binned buffer (``lopcook.lop.reader.gpu_buffer``).
 * ``source_order``: container vertex j (binned order) -> source vertex, so that source normals,
   UVs and colours can be drawn with decoded positions (only positions differ).
 * ``position_bytes``: GPU-resident position bytes at level B, AP and CAP, as
-  ``lopcook.emit.summary.memory_rows`` counts them.
+  ``lopcook.lop.summary.memory_rows`` counts them.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..emit.binning import LEVELS, table_bit_id
-from ..emit.bitplane import pack
-from ..emit.placement import float32_slack, split
-from ..emit.reader import GpuBuffer, lod_attributes, lod_entry, part_grid, top_values
+from ..lop.binning import LEVELS, table_bit_id
+from ..lop.bitplane import pack
+from ..lop.placement import float32_slack, split
+from ..lop.reader import GpuBuffer, lod_attributes, lod_entry, part_grid, top_values
 from ..errors import LopcookError
 from ..settings import DEFAULTS
 
@@ -50,10 +50,10 @@ def ap_buffer(c, part: int, lod: int, level: int) -> GpuBuffer:
 
 def cap_buffer(c, part: int, lod: int, level: int):
     """CAP at per-buffer level B as a renderer uploads it: the container's buffer in its own layout,
-    ``lopcook.emit.reader.clustered_gpu_buffer`` (clustered P and cluster records, decoded by the
+    ``lopcook.lop.reader.clustered_gpu_buffer`` (clustered P and cluster records, decoded by the
     ``LOP_CLUSTERED`` shader) for a clustered buffer, else ``gpu_buffer`` (binned P, VertexId/BitId).
     Both decode to the same grid integers at max(B, m_v) bits."""
-    from ..emit.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
+    from ..lop.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
 
     if buffer_clusters(c, part, lod) is not None:
         return clustered_gpu_buffer(c, part, lod, level)
@@ -154,7 +154,7 @@ def lod0_is_source(c) -> bool:
 def position_bytes(c, lods: list[int], level: int) -> dict:
     """GPU-resident position bytes at per-buffer level B over all parts (part i's LOD ``lods[i]``):
     ``cap`` (binned buffers, ``buffer_bytes``) and ``ap`` (every vertex B bits, whole words per
-    buffer), as ``lopcook.emit.summary.memory_rows`` counts them for LOD 0."""
+    buffer), as ``lopcook.lop.summary.memory_rows`` counts them for LOD 0."""
     m = c.entries
     parts = m.parts
     if not m.has_placements:
@@ -177,7 +177,7 @@ def resident_levels(c, lods: list[int], level: int) -> dict:
     at scene level ``level``, with the level it is resident at (the maximum over the placements
     that draw it of ``Manifest.part_level``; a part on the scene grid at ``level``). Each placement
     decodes its shared buffer at this level."""
-    from ..emit.reader import owner
+    from ..lop.reader import owner
 
     m = c.entries
     out: dict = {}

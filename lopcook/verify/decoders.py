@@ -4,16 +4,16 @@ This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Render
 sections 4 (crack-free per-vertex levels), 5.3 (binned buffers) and 6 (GPU decoding and adaption).
 
 For every part and LOD of a container and every chosen per-buffer level B, the packed buffer P is
-rebuilt on the CPU (``lopcook.emit.reader.gpu_buffer``), decoded by the vertex shader of each
+rebuilt on the CPU (``lopcook.lop.reader.gpu_buffer``), decoded by the vertex shader of each
 language through transform feedback (``lopcook.verify.gpu``) and compared with the CPU reference
-(``lopcook.emit.bitplane.decode`` + ``to_grid`` + ``reconstruct_float32``): grid integers, float32
+(``lopcook.lop.bitplane.decode`` + ``to_grid`` + ``reconstruct_float32``): grid integers, float32
 bits and the bits per component used must all be equal (tolerance: 0 ulp). At the last chosen level
 the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror from three cameras
 (inside, near and far from the buffer's box). With ``adapt=True`` the
 compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
 BitId must equal the CPU's packing of each level from scratch, byte for byte.
 
-A clustered buffer (issue 16, ``cook --clusters N``, ``lopcook.emit.clusters``) is uploaded as a
+A clustered buffer (issue 16, ``cook --clusters N``, ``lopcook.lop.clusters``) is uploaded as a
 renderer uploads it: its clustered P and cluster records (``reader.clustered_gpu_buffer``), decoded
 by the ``LOP_CLUSTERED`` vertex shader of each language (``gpu.decode_clustered``, the crack-free
 path included) and compared with the same global-grid reference at max(B, m_v) bits; its adaption
@@ -25,7 +25,7 @@ is also compared with the unclustered one (``clustered_cpu``).
 The packed vertex attribute record of every part/LOD (section ``part{i}/lod{k}/attributes``:
 octahedral normals, UVs, colours at the manifest's ``attribute_bits``; Purnomo et al. 2005,
 sections 3-5) is decoded by ``shaders/decode_attributes.*`` in each language and compared with
-``lopcook.emit.attributes.decode_record``: float32 bits of the unnormalised normal, UV and colour
+``lopcook.lop.record.decode_record``: float32 bits of the unnormalised normal, UV and colour
 must be equal (0 ulp).
 
 It also holds the CPU mirror of the shaders' crack-free per-vertex level (``view_tables``,
@@ -42,8 +42,12 @@ import time
 import numpy as np
 
 from ..grid import dx
-from ..emit.binning import LEVELS, table_bit_id
-from ..emit.bitplane import decode, reconstruct_float32, to_grid
+from ..lop.codecs import CODECS, AttributeBits
+from ..lop.record import decode_record
+from ..lop.reader import lod_entry
+from .attribute_gpu import attribute_decoder
+from ..lop.binning import LEVELS, table_bit_id
+from ..lop.bitplane import decode, reconstruct_float32, to_grid
 from ..errors import LopcookError
 from ..viewing import Viewing, nearest_box_distance
 
@@ -134,7 +138,7 @@ def vertex_levels(values, widths, bin_levels, level: int, origin, cell: float, c
 
     Parameters
     ----------
-    values : (n, 3) uint32 top bits at ``widths`` (``lopcook.emit.bitplane.decode``)
+    values : (n, 3) uint32 top bits at ``widths`` (``lopcook.lop.bitplane.decode``)
     widths : (n,) bits per component, max(bin level, B)
     bin_levels : (n,) each vertex's bin (minimum) level
     level : per-buffer level B
@@ -190,7 +194,7 @@ def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
     offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it
     (a clustered buffer's slice is ``reader.plane_slice_bits`` long)."""
-    from ..emit.reader import buffer_clusters, lod_entry, owner, top_values
+    from ..lop.reader import buffer_clusters, lod_entry, owner, top_values
 
     part = owner(c, part)  # a placement's buffer is its owner's
     if buffer_clusters(c, part, lod) is not None:
@@ -214,7 +218,7 @@ def stored_plane_source(c, part: int, lod: int):
     and the bit offset of buffer (part, lod)'s slice inside it (buffers in manifest order, each
     ``reader.plane_slice_bits`` long). For a clustered buffer this is the slice the
     ``LOP_CLUSTERED`` add-plane kernel reads (anchor-implied components skipped)."""
-    from ..emit.reader import lod_entry, owner, plane_slice_bits
+    from ..lop.reader import lod_entry, owner, plane_slice_bits
 
     part = owner(c, part)  # a placement's buffer is its owner's
     lod_entry(c, part, lod)  # LopcookError for a part or LOD that does not exist
@@ -237,7 +241,7 @@ def stored_plane_source(c, part: int, lod: int):
 def _buffers(c):
     """(part, lod) of every distinct buffer: a placement sharing another part's buffers
     (``cook --instances``) is decoded once, through its owner, on the owner's mesh grid."""
-    from ..emit.reader import owner
+    from ..lop.reader import owner
 
     for i, p in enumerate(c.manifest["parts"]):
         if owner(c, i) != i:
@@ -274,16 +278,16 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
         gpu.require_hlsl_tools()
     gpu.context()
 
-    from ..emit.clusters import decode_clustered
-    from ..emit.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
+    from ..lop.clusters import decode_clustered
+    from ..lop.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
 
-    from ..emit.reader import part_grid
+    from ..lop.reader import part_grid
 
     cluster_stats = {"decoded_vertices": 0, "mismatches": 0}
     stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
                     "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
                     "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
-                    "normal_mismatches": 0, "uv_mismatches": 0, "color_mismatches": 0, "attribute_max_ulp": 0,
+                    **{key: 0 for _, key in ATTRIBUTE_OUTPUTS}, "attribute_max_ulp": 0,
                     "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0,
                     "per_level": {str(v): {"decoded_vertices": 0, "decode_mismatches": 0, "adapt_checks": 0,
                                            "adapt_mismatches": 0} for v in levels}}
@@ -351,8 +355,8 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
                 _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
         attribute_buffers += _verify_attributes(c, part, lod, languages, stats, examples, max_examples)
     ok = all(s["grid_mismatches"] == 0 and s["float_mismatches"] == 0 and s["level_mismatches"] == 0
-             and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0 and s["normal_mismatches"] == 0
-             and s["uv_mismatches"] == 0 and s["color_mismatches"] == 0 for s in stats.values())
+             and s["crack_free_mismatches"] == 0 and s["adapt_mismatches"] == 0
+             and all(s[key] == 0 for _, key in ATTRIBUTE_OUTPUTS) for s in stats.values())
     ok = ok and cluster_stats["mismatches"] == 0
     for s in stats.values():
         s["decode_seconds"] = round(s["decode_seconds"], 4)
@@ -381,7 +385,7 @@ def verify_clustered_decode(words, records, cluster_id, vertex_id, cluster_size:
                             values, widths, languages=("glsl", "hlsl")) -> dict:
     """Decode one clustered buffer with the ``LOP_CLUSTERED`` vertex shader of each language and
     compare with the CPU reference's decode ``(values, widths)`` (top bits (n, 3) and bits per
-    component (n,), e.g. ``lopcook.emit.clusters.decode_clustered``): grid integers
+    component (n,), e.g. ``lopcook.lop.clusters.decode_clustered``): grid integers
     (``to_grid``), float32 bits (``reconstruct_float32``, 0 ulp) and widths.
 
     ``words``: P at ``level``; ``records``: (n_c, 4) uint32 with word 3 = ClusterBit at ``level``;
@@ -448,7 +452,7 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
     crack-free path instead (same reference)."""
     from . import gpu
 
-    from ..emit.reader import part_grid
+    from ..lop.reader import part_grid
 
     origin, extent = part_grid(c, part)
     cell = extent / float(1 << LEVELS)
@@ -482,24 +486,20 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
                                  "got_position": [float(v) for v in got.position[j]]})
 
 
-ATTRIBUTE_OUTPUTS = (("normals", "normal_mismatches"), ("uvs", "uv_mismatches"), ("colors", "color_mismatches"))
+#: per codec, the count of vertices whose decode differs: "normal_mismatches", "uv_mismatches", ...
+ATTRIBUTE_OUTPUTS = tuple((c.name, f"{c.singular}_mismatches") for c in CODECS)
 
 
 def attribute_record(c, part: int, lod: int):
-    """``(words, n, bits, uv_range, uv_step)`` of buffer (part, lod)'s packed attribute record as a
-    renderer uploads it: the section's uint32 words, the vertex count, the manifest's
-    ``attribute_bits`` as ``lopcook.emit.attributes.AttributeBits``, ``uv_range`` and ``uv_step``
-    (None when the LOD has no UVs): the arguments of ``decode_record``. None when the LOD has no
-    attribute record."""
-    from ..emit.attributes import AttributeBits
-    from ..emit.reader import lod_entry
-
+    """``(words, n, bits, entry)`` of buffer (part, lod)'s packed attribute record as a renderer
+    uploads it: the section's uint32 words, the vertex count, the manifest's ``attribute_bits`` as
+    ``lopcook.lop.codecs.AttributeBits`` and the LOD entry (the codecs' LOD fields): the arguments
+    of ``decode_record``. None when the LOD has no attribute record."""
     e = lod_entry(c, part, lod)
     if e.get("attributes") is None:
         return None
     words = np.frombuffer(c.section(e["attributes"]), dtype="<u4")
-    bits = AttributeBits.of(e.get("attribute_bits") or {})
-    return words, int(e["vertices"]), bits, e.get("uv_range"), e.get("uv_step")
+    return words, int(e["vertices"]), AttributeBits.of(e.get("attribute_bits") or {}), e
 
 
 def _verify_attributes(c, part, lod, languages, stats, examples, max_examples) -> int:
@@ -508,15 +508,12 @@ def _verify_attributes(c, part, lod, languages, stats, examples, max_examples) -
     rec = attribute_record(c, part, lod)
     if rec is None:
         return 0
-    from ..emit.attributes import decode_record
-    from . import gpu
-
-    words, n, bits, uv_range, uv_step = rec
-    ref = decode_record(words, n, bits, uv_range, uv_step)
+    words, n, bits, entry = rec
+    ref = decode_record(words, n, bits, entry)
     for lang in languages:
         s = stats[lang]
         t0 = time.perf_counter()
-        got = gpu.attribute_decoder(lang).decode(words, n, bits, uv_range, uv_step)
+        got = attribute_decoder(lang).decode(words, n, bits, entry)
         s["attribute_seconds"] += time.perf_counter() - t0
         s["attribute_vertices"] += n
         for name, key in ATTRIBUTE_OUTPUTS:
@@ -553,7 +550,7 @@ def adapt_walk(levels: list[int]) -> list[int]:
 
 
 def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples) -> None:
-    from ..emit.reader import gpu_buffer
+    from ..lop.reader import gpu_buffer
     from . import gpu
 
     first = gpu_buffer(c, part, lod, levels[0])
@@ -623,8 +620,8 @@ def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, ma
     plane at a time, fed the file's own plane slices; after each chosen level P, the cluster
     records, VertexId, ClusterId and BitId (= ClusterBit[ClusterId[k]]) must equal the CPU's
     (``reader.clustered_gpu_buffer`` at that level)."""
-    from ..emit.clusters import cluster_bit
-    from ..emit.reader import clustered_gpu_buffer
+    from ..lop.clusters import cluster_bit
+    from ..lop.reader import clustered_gpu_buffer
     from . import gpu
 
     first = clustered_gpu_buffer(c, part, lod, levels[0])
@@ -676,10 +673,10 @@ def format_report(report: dict) -> str:
                       for b, v in (s.get("per_level") or {}).items() if v["decode_mismatches"] or v["adapt_mismatches"]]
         if bad_levels:
             lines.append(f"  {lang} mismatches by level: " + "; ".join(bad_levels))
-        attr_bad = s["normal_mismatches"] + s["uv_mismatches"] + s["color_mismatches"]
+        attr_bad = sum(s[key] for _, key in ATTRIBUTE_OUTPUTS)
+        each = ", ".join(f"{key.split('_')[0]} {s[key]}" for _, key in ATTRIBUTE_OUTPUTS)
         lines.append(f"  {lang} attributes: {s['attribute_vertices']:,} records in {report['attribute_buffers']} buffers, "
-                     f"{attr_bad} mismatches (normal {s['normal_mismatches']}, uv {s['uv_mismatches']}, colour "
-                     f"{s['color_mismatches']}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
+                     f"{attr_bad} mismatches ({each}; max {s['attribute_max_ulp']} ulp) in {s['attribute_seconds']:.2f} s")
     if report.get("clustered_buffers"):
         lines.append(f"  clustered buffers: {report['clustered_buffers']} of {report['buffers']}, decoded by the "
                      "LOP_CLUSTERED shaders: " + "; ".join(

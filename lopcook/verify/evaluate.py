@@ -13,13 +13,13 @@ What is rendered (``evaluate``), for every per-buffer level B and every view:
 * **float**: the source scene (``lopcook.types.Scene``), positions float64 rounded to float32, each
   part with its own index buffer (the same triangles, in the same order, as the container's).
 * **AP** (paper section 4): every vertex decoded with B bits (``lopcook.verify.buffers.ap_buffer``).
-* **CAP** (section 5): the container's binned buffer at B (``lopcook.emit.reader.gpu_buffer``):
+* **CAP** (section 5): the container's binned buffer at B (``lopcook.lop.reader.gpu_buffer``):
   vertices of bin k > B keep k bits. A clustered buffer (``cook --clusters N``) is uploaded in its
   clustered layout and drawn by the ``LOP_CLUSTERED`` decoder (``lopcook.verify.buffers.cap_buffer``);
   it decodes to the same positions.
 
 Positions of AP and CAP are decoded on the GPU by the shipped decoder, with the container's own
-decoded normals, UVs and colours (``lopcook.emit.reader.lod_attributes``: the packed attribute
+decoded normals, UVs and colours (``lopcook.lop.reader.lod_attributes``: the packed attribute
 record, normals normalised per vertex) and the source's textures (``lopcook.verify.renderer``):
 the error counts positions and attribute quantisation. ``evaluate(..., lod=k)`` renders the
 container's LOD k against the same float LOD-0 source, with the LOD's own index buffer.
@@ -52,8 +52,8 @@ import time
 
 import numpy as np
 
-from ..emit.binning import LEVELS
-from ..emit.reader import lod_entry
+from ..lop.binning import LEVELS
+from ..lop.reader import lod_entry
 from ..errors import LopcookError
 from ..viewing import Viewing, required_level
 from . import metrics as M
@@ -465,7 +465,7 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
              keep_images: bool = False, camera_levels=None, variants=VARIANTS, samples: int = SAMPLES,
              ks: float | None = None, shininess: float | None = None, image_view: int | None = None,
              lod: int = LOD, distance_m: float | None = None, attributes: str = "container") -> dict:
-    """Render ``container`` (a ``lopcook.emit.container.Container``) against its float ``scene``
+    """Render ``container`` (a ``lopcook.lop.container.Container``) against its float ``scene``
     (``lopcook.types.Scene``, the source it was cooked from) and measure AP and CAP.
 
     Parameters
@@ -482,7 +482,7 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     lod : the container's LOD to render (default 0), always against the float **source** (LOD 0).
         A part with fewer LODs renders its last one (``lod_indices``). Every LOD is drawn with the
         container's own decoded attributes (normals, UVs, colours at their packed bits) and index
-        buffer (``lopcook.emit.reader.lod_attributes``), and the source part's texture, so the
+        buffer (``lopcook.lop.reader.lod_attributes``), and the source part's texture, so the
         PSNR counts attribute quantisation as well as positions'. Part IDs are part indices, so depth-order errors work at every LOD.
     distance_m : None (camera at each level's distance, see the module doc), or one camera
         distance in metres (eye to the nearest point of the source's bounding box) for every row;
@@ -508,7 +508,7 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
       ``float_object_pixels`` [per view], ``float32_bytes``, and for each variant ``"ap"`` / ``"cap"``:
 
       - ``bytes``: GPU-resident position bytes at B over all parts of the rendered LOD
-        (as ``lopcook.emit.summary.memory_rows`` counts LOD 0), ``percent_of_float32`` (of LOD 0's);
+        (as ``lopcook.lop.summary.memory_rows`` counts LOD 0), ``percent_of_float32`` (of LOD 0's);
       - ``psnr_views`` [dB or None per view], ``psnr_min`` (min over views; None when every view is
         identical), ``psnr_mean`` (PSNR of the view-averaged MSE), ``psnr_pooled`` (PSNR of the
         squared errors pooled over all object pixels of all views); ``psnr_interior_min``,

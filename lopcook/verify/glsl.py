@@ -9,7 +9,7 @@ section 6.2 (positions decoded in the vertex shader).
   = vertex), read from SSBO 0 (packed words) and UBO 0 (tables and grid,
   ``lopcook.verify.gpu.decode_block``), then mapped by the placement rows ``u_place0..2`` (the
   3 x 4 transform of a ``cook --instances`` placement, identity otherwise) in the float32 order of
-  ``lopcook.emit.placement.to_world``. ``clustered=True`` adds ``LOP_CLUSTERED``: the clustered
+  ``lopcook.lop.placement.to_world``. ``clustered=True`` adds ``LOP_CLUSTERED``: the clustered
   layout of issue 16 (SSBO 0 clustered P, SSBO 3 the cluster records, UBO 0
   ``lopcook.verify.gpu.cluster_decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
   Both pass the source normals, UVs and colours through unchanged.
@@ -52,7 +52,7 @@ void main()
     uint bits;
     lop_decode(uint(gl_VertexID), grid, p, bits);
     // placement (cook --instances): world = ((a0 p.x + a1 p.y) + a2 p.z) + t per row, float32,
-    // no fused multiply-add (lopcook.emit.placement.to_world); the identity on the scene grid
+    // no fused multiply-add (lopcook.lop.placement.to_world); the identity on the scene grid
     precise vec3 w;
     w.x = ((u_place0.x * p.x + u_place0.y * p.y) + u_place0.z * p.z) + u_place0.w;
     w.y = ((u_place1.x * p.x + u_place1.y * p.y) + u_place1.z * p.z) + u_place1.w;

@@ -18,10 +18,7 @@ Mesa), ``glslang-tools`` and ``spirv-cross`` (HLSL only). Missing ones raise Lop
 Buffers are numpy arrays in and out: packed words ``(w,) uint32``, tables ``(25,) int`` (VertexId,
 BitId), grid integers ``(n, 3) uint32``, positions ``(n, 3) float32`` metres.
 
-``AttributeDecoder`` runs ``shaders/decode_attributes.*`` (Purnomo et al. 2005, sections 3-5: the
-packed per-vertex record of octahedral normals, UVs and colours) the same way: words in, float32
-``normals (n, 3)`` (unnormalised), ``uvs (n, 2)``, ``colors (n, 4)`` out, as
-``lopcook.emit.attributes.decode_record`` returns them.
+The attribute record's decoders run the same way in ``lopcook.verify.attribute_gpu``.
 """
 
 from __future__ import annotations
@@ -36,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..emit.binning import LEVELS, buffer_bytes, table_bit_id
+from ..lop.binning import LEVELS, buffer_bytes, table_bit_id
 from ..errors import EXIT_BAD_INPUT, EXIT_VERIFY_FAILED, LopcookError
 
 LANGUAGES = ("glsl", "hlsl")
@@ -502,175 +499,6 @@ def decode_clustered(language: str, words, records, cluster_id, vertex_id, clust
     return dec.decode_clustered(words, rec, cid, vid, cluster_size, level, origin, half_cell, view=view)
 
 
-# ---- vertex-shader attribute decoding (transform feedback) -------------------------------------
-
-# Transform feedback record of the attribute verification shader: 36 bytes per vertex.
-ATTRIBUTE_FEEDBACK = np.dtype([("normal", "<f4", 3), ("uv", "<f4", 2), ("color", "<f4", 4)])
-ATTRIBUTE_VARYINGS = ("lop_out_normal", "lop_out_uv", "lop_out_color")
-#: (name in decode_record's result, bits range) of each attribute of the packed record, in record order
-ATTRIBUTE_FIELDS = (("normals", (4, 16)), ("uvs", (6, 16)), ("colors", (4, 8)))
-
-_GLSL_ATTR_VS_MAIN = """
-out vec3 lop_out_normal;
-out vec2 lop_out_uv;
-out vec4 lop_out_color;
-
-void main()
-{
-    uint j = uint(gl_VertexID);
-    lop_out_normal = vec3(0.0);
-    lop_out_uv = vec2(0.0);
-    lop_out_color = vec4(0.0);
-    if (lop_attr_bits.x != 0u)
-        lop_out_normal = lop_decode_normal(j);
-    if (lop_attr_bits.y != 0u)
-        lop_out_uv = lop_decode_uv(j);
-    if (lop_attr_bits.z != 0u)
-        lop_out_color = lop_decode_color(j);
-}
-"""
-
-_HLSL_ATTR_VS_MAIN = """
-struct LopAttributeOut
-{
-    float3 normal : LOP_NORMAL;
-    float2 uv : LOP_UV;
-    float4 color : LOP_COLOR;
-};
-
-LopAttributeOut lop_verify_attributes_vs(uint j : SV_VertexID)
-{
-    LopAttributeOut o;
-    o.normal = float3(0.0f, 0.0f, 0.0f);
-    o.uv = float2(0.0f, 0.0f);
-    o.color = float4(0.0f, 0.0f, 0.0f, 0.0f);
-    if (lop_attr_bits.x != 0u)
-        o.normal = lop_decode_normal(j);
-    if (lop_attr_bits.y != 0u)
-        o.uv = lop_decode_uv(j);
-    if (lop_attr_bits.z != 0u)
-        o.color = lop_decode_color(j);
-    return o;
-}
-"""
-
-
-def attribute_shader_source(language: str) -> str:
-    """GLSL 4.50 source of the attribute verification vertex shader: ``shaders/decode_attributes.*``
-    plus a main that writes the decoded normal, UV and colour of vertex ``gl_VertexID`` to transform
-    feedback (zeros for an absent attribute)."""
-    if language == "glsl":
-        return "#version 450\n#line 1\n" + shader_source("decode_attributes.glsl") + _GLSL_ATTR_VS_MAIN
-    if language == "hlsl":
-        return hlsl_to_glsl(shader_source("decode_attributes.hlsl") + _HLSL_ATTR_VS_MAIN, "vert",
-                            "lop_verify_attributes_vs", rename_outputs=ATTRIBUTE_VARYINGS,
-                            name="decode_attributes.hlsl")
-    raise ValueError(f"language must be one of {LANGUAGES}, got {language!r}")
-
-
-def attribute_bits(bits) -> tuple[int, int, int]:
-    """(b_n, b_u, b_c) with 0 for an absent attribute, from the manifest's ``attribute_bits``
-    mapping (``{"normals": b | None, "uvs": ..., "colors": ...}``), an object with those three
-    attributes (``lopcook.emit.attributes.AttributeBits``) or a 3-sequence in that order. Raises
-    ValueError for bits outside the spec's ranges (normals 4..16, UVs 6..16, colours 4..8)."""
-    if isinstance(bits, dict):
-        bits = [bits.get(name) for name, _ in ATTRIBUTE_FIELDS]
-    elif all(hasattr(bits, name) for name, _ in ATTRIBUTE_FIELDS):
-        bits = [getattr(bits, name) for name, _ in ATTRIBUTE_FIELDS]
-    out = []
-    for (name, (lo, hi)), b in zip(ATTRIBUTE_FIELDS, bits, strict=True):
-        b = 0 if b is None else int(b)
-        if b and not lo <= b <= hi:
-            raise ValueError(f"{name}: {b} bits per component is outside [{lo}, {hi}]")
-        out.append(b)
-    return tuple(out)
-
-
-def attribute_block(bits, uv_lo, uv_step, words: int) -> bytes:
-    """The 64 bytes of the LopAttributeDecode uniform block / cbuffer (std140, see the shader header):
-    the bits and record size, ``float32(1 / (2^(b_n-1) - 1))`` and ``float32(1 / (2^b_c - 1))``
-    (each the float64 quotient rounded once to float32), the UV ``lo`` and ``step`` (float32, as the
-    manifest's ``uv_range[0]`` and ``uv_step``), and the section's word count."""
-    bn, bu, bc = attribute_bits(bits)
-    record = 2 * bn + 2 * bu + 4 * bc
-    rn = np.float32(1.0 / float((1 << (bn - 1)) - 1)) if bn else np.float32(0.0)
-    rc = np.float32(1.0 / float((1 << bc) - 1)) if bc else np.float32(0.0)
-    lo = np.asarray(uv_lo, dtype=np.float32).reshape(2)
-    step = np.asarray(uv_step, dtype=np.float32).reshape(2)
-    return b"".join([
-        np.array([bn, bu, bc, record], dtype="<u4").tobytes(),
-        np.array([rn, rc, 0.0, 0.0], dtype="<f4").tobytes(),
-        np.array([lo[0], lo[1], step[0], step[1]], dtype="<f4").tobytes(),
-        np.array([max(int(words), 1), 0, 0, 0], dtype="<u4").tobytes(),
-    ])
-
-
-class AttributeDecoder:
-    """``shaders/decode_attributes.*`` of one language, run through transform feedback.
-
-    ``decode(words, n, bits, uv_range, uv_step)`` (the arguments of
-    ``lopcook.emit.attributes.decode_record``; ``uv_range`` ``[[lo_u, lo_v], [hi_u, hi_v]]``, only
-    ``lo`` is used, and ``uv_step`` may be None without UVs) decodes the packed records of vertices
-    ``j = gl_VertexID`` in ``[0, n)`` and returns ``{"normals": (n, 3), "uvs": (n, 2), "colors":
-    (n, 4)}`` float32 (None for an absent attribute), the shape of ``decode_record``'s result.
-    """
-
-    def __init__(self, language: str, source: str | None = None):
-        self.ctx = context()
-        self.language = language
-        self.source = attribute_shader_source(language) if source is None else source
-        self.program = self.ctx.program(vertex_shader=self.source, varyings=ATTRIBUTE_VARYINGS)
-        self.vao = self.ctx.vertex_array(self.program, [])
-
-    def decode(self, words, n: int, bits, uv_range=None, uv_step=None) -> dict:
-        import moderngl
-
-        present = attribute_bits(bits)
-        if present[1] and (uv_range is None or uv_step is None):
-            raise ValueError("UVs need their uv_range and uv_step")
-        uv_lo = (0.0, 0.0) if uv_range is None else uv_range[0]
-        uv_step = (0.0, 0.0) if uv_step is None else uv_step
-        n = int(n)
-        words = np.ascontiguousarray(words, dtype="<u4")
-        record = 2 * present[0] + 2 * present[1] + 4 * present[2]
-        if n * record > 32 * words.size:
-            raise ValueError(f"{n} records of {record} bits need {-(-n * record // 32)} words, got {words.size}")
-        if n * record >= 2**32:
-            raise ValueError(f"{n} records of {record} bits exceed the shaders' uint32 bit offsets")
-        rec = np.zeros(n, dtype=ATTRIBUTE_FEEDBACK)
-        if n:
-            resources = [self.ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0"),
-                         self.ctx.buffer(attribute_block(present, uv_lo, uv_step, words.size))]
-            resources[0].bind_to_storage_buffer(1)
-            resources[1].bind_to_uniform_block(2)
-            out = self.ctx.buffer(reserve=n * ATTRIBUTE_FEEDBACK.itemsize)
-            try:
-                self.vao.transform(out, mode=moderngl.POINTS, vertices=n)
-                rec = np.frombuffer(out.read(), dtype=ATTRIBUTE_FEEDBACK)
-            finally:
-                out.release()
-                for r in resources:
-                    r.release()
-        return {name: (rec[field].copy() if b else None)
-                for (name, _), field, b in zip(ATTRIBUTE_FIELDS, ("normal", "uv", "color"), present)}
-
-    def release(self) -> None:
-        self.vao.release()
-        self.program.release()
-
-
-_ATTRIBUTE_DECODERS: dict = {}
-
-
-def attribute_decoder(language: str) -> AttributeDecoder:
-    """Cached AttributeDecoder per (language, shader source) for this process's context."""
-    source = attribute_shader_source(language)
-    key = (language, source)
-    if key not in _ATTRIBUTE_DECODERS:
-        _ATTRIBUTE_DECODERS[key] = AttributeDecoder(language, source)
-    return _ATTRIBUTE_DECODERS[key]
-
-
 class Passthrough:
     """Float passthrough for the benchmark: a vertex shader that copies a float32 vec3 attribute
     (a standard vertex buffer, the paper's "UC" column) to transform feedback."""
@@ -1001,8 +829,8 @@ def adapter(language: str) -> Adapter:
 
 __all__ = ["LANGUAGES", "KERNELS", "context", "use_default_framebuffer", "context_info", "gl_available", "hlsl_tools_available",
            "require_hlsl_tools", "tool_versions", "hlsl_to_glsl", "vertex_shader_source", "compute_shader_source", "decode_block",
-           "view_block", "Decoded", "VertexDecoder", "vertex_decoder", "ATTRIBUTE_FIELDS", "attribute_shader_source",
-           "attribute_bits", "attribute_block", "AttributeDecoder", "attribute_decoder", "Passthrough", "AdaptBuffer", "Adapter",
+           "view_block", "Decoded", "VertexDecoder", "vertex_decoder",
+           "Passthrough", "AdaptBuffer", "Adapter",
            "adapter", "CLUSTER_RECORD_WORDS", "CLUSTER_DECODE_BLOCK_BYTES", "CLUSTER_SIZES", "check_cluster_tables", "cluster_decode_block",
            "clustered_vertex_decoder", "decode_clustered", "clustered_bits", "ClusteredAdaptBuffer", "ClusteredAdapter",
            "clustered_adapter"]

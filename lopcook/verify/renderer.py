@@ -65,7 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..emit.reader import lod_attributes
+from ..lop.reader import lod_attributes
 from ..errors import LopcookError
 from ..settings import DEFAULTS
 from ..viewing import Viewing
@@ -1256,10 +1256,10 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     the pack and the reference decode round-trip exactly, ``tests/test_clusters.py`` and
     ``tests/test_bitplane.py``), else the reference decode of its words."""
     def positions():
-        from ..emit.bitplane import decode, reconstruct_float32
-        from ..emit.clusters import decode_clustered
-        from ..emit.placement import to_world
-        from ..emit.reader import ClusteredGpuBuffer
+        from ..lop.bitplane import decode, reconstruct_float32
+        from ..lop.clusters import decode_clustered
+        from ..lop.placement import to_world
+        from ..lop.reader import ClusteredGpuBuffer
 
         if buf.decoded is not None:
             values, widths = buf.decoded
@@ -1296,7 +1296,7 @@ def _placed_positions(local, place):
         return local
 
     def positions():
-        from ..emit.placement import to_world
+        from ..lop.placement import to_world
 
         return to_world(local(), np.asarray(place, np.float64).reshape(3, 4))
 
@@ -1331,8 +1331,8 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     decoder gives, ``lopcook verify --decoders``) -- so two items with equal digests, drawn with the
     same camera and shading, give the same pixels, whatever layout (clustered or binned) or minimum
     levels gave those positions."""
-    from ..emit.placement import split
-    from ..emit.reader import ClusteredGpuBuffer, owner, part_grid, placement_transform, world_normals
+    from ..lop.placement import split
+    from ..lop.reader import ClusteredGpuBuffer, owner, part_grid, placement_transform, world_normals
     from .buffers import resident_levels
     from .gpu import check_cluster_tables, cluster_decode_block, decode_block
 
@@ -1351,7 +1351,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
             # interpolation (an unnormalised one would weight the vertices by its length)
             o = (owner(c, i), k)  # a placement's LOD entry is its owner's: one decode for all of them
             if o not in decoded_attributes:
-                decoded_attributes[o] = lod_attributes(c, i, k, unit_normals=True)
+                decoded_attributes[o] = lod_attributes(c, i, k, unit_directions=True)
             a = decoded_attributes[o]
             index_words = np.ascontiguousarray(a["indices"], dtype="<u4")
             ibo = ctx.buffer(index_words.tobytes())

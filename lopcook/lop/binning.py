@@ -14,7 +14,7 @@ Bin k (level k) holds the vertices with ``m_v = k``. Tables, 25 entries each (in
   bin k, i.e. bin k starts at ``BitId[k-1]``: ``BitId[k] = sum_{i<=k} 3 * b_i * |bin i|``.
 
 The paper's random access then reads vertex j of bin b at bit offset
-``3 * b_b * (j - VertexId[b-1]) + BitId[b-1]`` (``lopcook.emit.bitplane.decode``).
+``3 * b_b * (j - VertexId[b-1]) + BitId[b-1]`` (``lopcook.lop.bitplane.decode``).
 Memory of the GPU-resident buffer at level B: ``ceil(BitId[24] / 32)`` uint32 words.
 """
 

@@ -4,7 +4,7 @@
 the mandatory bits and refinement planes 2..B, exactly as the paper lays it out (binned order,
 VertexId/BitId tables); ``decode_positions`` decodes it with the reference decoder.
 
-A clustered buffer (``cluster_size`` in its entry, ``lopcook.emit.clusters``) is read from its
+A clustered buffer (``cluster_size`` in its entry, ``lopcook.lop.clusters``) is read from its
 cluster headers, its clustered mandatory words and its plane slices (which skip the components
 its anchors imply); ``clustered_gpu_buffer`` gives its clustered P and cluster records, and
 ``decode_positions`` decodes that with ``clusters.decode_clustered``. ``gpu_buffer`` of a clustered
@@ -18,11 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LopcookError
-from . import attributes as attr
 from .binning import LEVELS, table_bit_id, vertex_widths
 from .bitplane import decode, pack, reconstruct_float32, reconstruct_float64, to_grid
 from .clusters import Clusters, decode_clustered, from_header, pack_clustered, records, vertex_clusters
+from .codecs import CODECS, AttributeBits
+from .codecs.normals_oct import NORMALS
 from .container import Container
+from .indices import decode_indices
+from .placement import split, to_world
+from .record import decode_record
 
 
 @dataclass
@@ -82,18 +86,21 @@ def placement_transform(c: Container, part: int) -> list | None:
     return None if pl is None else pl["transform"]
 
 
-def world_normals(c: Container, part: int, normals):
-    """Part ``part``'s decoded normals (n, 3) float32 in world space: unchanged on the scene grid;
-    for a placement mapped by ``A^-T`` (float64 of its float32 ``A``) and normalised, float32.
-    None stays None."""
+def world_attributes(c: Container, part: int, attrs: dict) -> dict:
+    """Part ``part``'s decoded attributes ``{name: values or None}`` in world space: unchanged on
+    the scene grid; for a placement each codec's ``to_world`` by the float64 of its float32
+    ``A`` (normals: ``A^-T n`` normalised). Other keys are passed through."""
     tf = placement_transform(c, part)
-    if tf is None or normals is None:
-        return normals
-    from .placement import split
+    if tf is None:
+        return dict(attrs)
+    a = split(tf)[0].astype(np.float64)
+    by_name = {x.name: x for x in CODECS}
+    return {k: v if v is None or k not in by_name else by_name[k].to_world(v, a) for k, v in attrs.items()}
 
-    m = np.asarray(normals, np.float64) @ np.linalg.inv(split(tf)[0].astype(np.float64))  # (A^-T n^T)^T
-    ln = np.linalg.norm(m, axis=1, keepdims=True)
-    return (m / np.where(ln > 0, ln, 1.0)).astype(np.float32)
+
+def world_normals(c: Container, part: int, normals):
+    """Part ``part``'s decoded normals (n, 3) float32 in world space (``world_attributes``)."""
+    return world_attributes(c, part, {NORMALS.name: normals})[NORMALS.name]
 
 
 def _buffer_order(c: Container):
@@ -260,35 +267,35 @@ def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: 
 def _placed(pos, tf, float32: bool):
     """Local positions -> world: the float32 reference order (``placement.to_world``), or float64
     ``A p + t`` with the same float32 values of A and t."""
-    from .placement import split, to_world
-
     if float32:
         return to_world(pos, tf)
     a, t = split(tf)
     return np.asarray(pos, np.float64) @ a.astype(np.float64).T + t.astype(np.float64)
 
 
-def lod_attributes(c: Container, part: int, lod: int, *, unit_normals: bool = False) -> dict:
-    """Decoded indices (m, 3) uint32 and normals / uvs / colors (float32 or None), binned order,
-    from the LOD's index section and its packed attribute record (``attributes.decode_record``):
-    normals are the UNNORMALISED float32 octahedral decode (normalise where a unit vector is
-    needed, or pass ``unit_normals=True``: float32 of the float64 normalisation), uvs and colours
-    the float32 decodes, exactly as the shaders compute them."""
+def lod_attributes(c: Container, part: int, lod: int, *, unit_directions: bool = False) -> dict:
+    """Decoded ``indices`` (m, 3) uint32 and every codec's attribute (float32 or None; normals,
+    uvs, colors, ...), binned order, from the LOD's index section and its packed attribute record
+    (``record.decode_record``): normals (and other directions) are the UNNORMALISED float32
+    octahedral decode (normalise where a unit vector is needed, or pass ``unit_directions=True``:
+    each codec's ``unit``, float32 of the float64 normalisation), the others the float32 decodes,
+    exactly as the shaders compute them."""
     e = lod_entry(c, part, lod)
     dtype = "<u2" if e["index_width"] == 2 else "<u4"
     raw = np.frombuffer(c.section(e["indices"]), dtype)
     if raw.size < 3 * e["triangles"]:
         raise LopcookError("container", c.path, f"part {part} LOD {lod}: index section is too short")
-    out = {"indices": attr.decode_indices(raw[: 3 * e["triangles"]], e["index_width"], e["triangles"])}
+    out = {"indices": decode_indices(raw[: 3 * e["triangles"]], e["index_width"], e["triangles"])}
     n = e["vertices"]
-    bits = attr.AttributeBits.of(e.get("attribute_bits") or {})
-    out.update({"normals": None, "uvs": None, "colors": None})
+    bits = AttributeBits.of(e.get("attribute_bits") or {})
+    out.update({x.name: None for x in CODECS})
     if e.get("attributes") is not None:
         words = np.frombuffer(c.section(e["attributes"]), "<u4")
-        out.update(attr.decode_record(words, n, bits, e.get("uv_range"), e.get("uv_step")))
-        if unit_normals and out["normals"] is not None:
-            v = out["normals"].astype(np.float64)
-            out["normals"] = (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32)
+        out.update(decode_record(words, n, bits, e))
+        if unit_directions:
+            for x in CODECS:
+                if x.error_model == "direction" and out[x.name] is not None:
+                    out[x.name] = x.unit(out[x.name])
     if int(out["indices"].max(initial=0)) >= n:
         raise LopcookError("container", c.path, f"part {part} LOD {lod}: index out of range")
     return out

@@ -35,8 +35,14 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..atomic import write_atomic  # noqa: F401  (re-exported: the writer of .lop files)
 from ..errors import LopcookError
+from .clusters import from_header, plane_bit, words_at
+from .codecs import CODECS, AttributeBits
+from .manifest import Manifest
+from .validate import validate_manifest
 
 MAGIC = b"LOPC"
 VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
@@ -46,7 +52,8 @@ VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
 CLUSTERED_VERSION = (3, 0)
 #: the minor that an earlier build wrote for placements without clusters (2.1); still read
 PLACEMENT_MINOR = 1
-READABLE_MAJORS = (VERSION[0], CLUSTERED_VERSION[0])
+#: majors this reader reads: 2, 3, and those that attribute codecs introduced (``Codec.format_major``)
+READABLE_MAJORS = tuple(range(VERSION[0], max([CLUSTERED_VERSION[0]] + [c.format_major for c in CODECS]) + 1))
 HEADER_SIZE = 32
 _HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
 
@@ -76,10 +83,8 @@ class Container:
 
     @property
     def entries(self):
-        """The typed view of the manifest (``lopcook.emit.manifest.Manifest``): parts, LODs and
+        """The typed view of the manifest (``lopcook.lop.manifest.Manifest``): parts, LODs and
         their byte accounting."""
-        from .manifest import Manifest
-
         return Manifest.of(self.manifest)
 
     def write(self, path) -> None:
@@ -127,10 +132,19 @@ def has_placements(manifest: dict) -> bool:
     return isinstance(parts, list) and any(isinstance(p, dict) and "placement" in p for p in parts)
 
 
+def attributes_major(manifest: dict) -> int:
+    """The lowest major that can hold the manifest's attribute codecs (``Codec.format_major``)."""
+    return max([VERSION[0]] + [AttributeBits.of(p.get("attribute_bits") or {}).format_major
+                               for p in manifest.get("parts", [])])
+
+
 def version_of(manifest: dict) -> tuple[int, int]:
     """The version a file with this manifest is written as: the oldest that reads it correctly
-    (``CLUSTERED_VERSION`` with clustered buffers or placements, else ``VERSION``)."""
-    return CLUSTERED_VERSION if is_clustered(manifest) or has_placements(manifest) else VERSION
+    (``CLUSTERED_VERSION`` with clustered buffers or placements, else ``VERSION``; a later major
+    when an attribute codec needs it)."""
+    base = CLUSTERED_VERSION if is_clustered(manifest) or has_placements(manifest) else VERSION
+    major = attributes_major(manifest)
+    return base if major <= base[0] else (major, 0)
 
 
 def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> bytes:
@@ -215,13 +229,14 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
     except RecursionError:
         fail("manifest JSON is nested too deeply")
-    from .manifest import validate_manifest
-
     validate_manifest(manifest, path)
     if major == VERSION[0] and is_clustered(manifest):
         fail(f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
     if major == VERSION[0] and has_placements(manifest) and minor < PLACEMENT_MINOR:
         fail(f"container version {major}.{minor} must not hold placements (they need 3.x)")
+    if major < attributes_major(manifest):
+        fail(f"container version {major}.{minor} must not hold the attributes it lists (they need "
+             f"{attributes_major(manifest)}.x)")
     base = HEADER_SIZE + msize
     sections: dict = {}
     expected_end = base
@@ -254,8 +269,6 @@ def _check_index_values(manifest: dict, sections: dict, fail) -> None:
     """Every index of every LOD present is below its vertex count (a semantic check on the
     payload: the manifest validator has already checked the section sizes). O(indices), one
     vectorised max per LOD."""
-    import numpy as np
-
     for i, part in enumerate(manifest["parts"]):
         for k, lod in enumerate(part["lods"]):
             data = sections.get(lod["indices"])
@@ -273,10 +286,6 @@ def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
     manifest alone cannot say it). Vectorised per buffer."""
     if not is_clustered(manifest) or manifest["positions"]["clusters"] not in sections:
         return
-    import numpy as np
-
-    from .clusters import from_header, plane_bit, words_at
-
     pos = manifest["positions"]
     head = np.frombuffer(sections[pos["clusters"]], "<u4")
     present = [p for p in range(2, pos["max_level"] + 1) if pos["planes"][str(p)] in sections]

@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from .binning import LEVELS
+from .clusters import k_histogram
+from .codecs import CODECS, AttributeBits
 from .container import Container
+from .reader import buffer_clusters
+from .record import aligned_waste, record_waste
 
 SUMMARY_LEVELS = range(6, 13)
 
@@ -37,9 +41,6 @@ def cluster_stats(c: Container) -> dict | None:
     ``cluster_size`` (N values used), ``buffers``, ``clusters`` (all buffers), ``k_histogram``
     (25 counts: cluster components with each common-prefix length k, x, y, z together),
     ``header_bytes`` (stored anchors, 12 per cluster) and ``record_bytes`` (GPU records, 16 per cluster)."""
-    from .clusters import k_histogram
-    from .reader import buffer_clusters
-
     hist = np.zeros(LEVELS + 1, dtype=np.int64)
     sizes, buffers, total = set(), 0, 0
     for i, p in enumerate(c.manifest["parts"]):
@@ -97,12 +98,16 @@ def hierarchy_stats(c: Container, part: int) -> dict | None:
             "triangles": int(rec["triangles"])}
 
 
-ATTRIBUTE_COMPONENTS = {"normals": 2, "uvs": 2, "colors": 4}
+def _listed_codecs(c: Container) -> list:
+    """The codecs ``inspect`` lists for a container: every codec of the first format, and a later
+    one where some buffer holds it."""
+    held = {k for p in c.manifest["parts"] for k, v in (p.get("attribute_bits") or {}).items() if v is not None}
+    return [x for x in CODECS if x.format_major == 2 or x.name in held]
 
 
-def _attribute_vertex_bits(bits: dict | None) -> dict:
+def _attribute_vertex_bits(bits: dict | None, codecs) -> dict:
     b = bits or {}
-    return {k: (0 if b.get(k) is None else k_n * int(b[k])) for k, k_n in ATTRIBUTE_COMPONENTS.items()}
+    return {x.name: (0 if b.get(x.name) is None else sum(x.field_widths(int(b[x.name])))) for x in codecs}
 
 
 def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
@@ -110,18 +115,20 @@ def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
 
     ``{"parts": [per part: {"positions": {"6": ..}, "normals", "uvs", "colors", "total": {"6": ..}}],
     "total": {same keys}}``. Per part: ``positions[L]`` = 8 x the CAP bytes (whole uint32 words,
-    ``LodEntry.cap_bytes``) of its LOD 0 at per-buffer level L per vertex; ``normals`` = 2 b_n,
-    ``uvs`` = 2 b_u, ``colors`` = 4 b_c (0 when absent); ``total[L]`` their sum. The total is
-    vertex-weighted over every buffer of the file (all parts, all LODs)."""
+    ``LodEntry.cap_bytes``) of its LOD 0 at per-buffer level L per vertex; per listed codec
+    (``_listed_codecs``) its record bits (normals 2 b_n, uvs 2 b_u, colors 4 b_c; 0 when absent);
+    ``total[L]`` their sum. The total is vertex-weighted over every buffer of the file (all parts,
+    all LODs)."""
     levels = [int(L) for L in levels if 1 <= int(L) <= c.manifest["positions"]["max_level"]]
     entries = c.entries
     parts = []
     tot_v = 0
     tot_pos = {L: 0 for L in levels}
-    tot_attr = {k: 0 for k in ATTRIBUTE_COMPONENTS}
+    codecs = _listed_codecs(c)
+    tot_attr = {x.name: 0 for x in codecs}
     for i, p in enumerate(entries.parts):
         e0 = p.lods[0]
-        attr = _attribute_vertex_bits(e0.attribute_bits)
+        attr = _attribute_vertex_bits(e0.attribute_bits, codecs)
         pos = {str(L): 8.0 * e0.cap_bytes(entries.part_level(i, L)) / max(e0.vertices, 1) for L in levels}
         a_sum = sum(attr.values())
         parts.append({"positions": pos, **attr, "total": {k: v + a_sum for k, v in pos.items()}})
@@ -131,7 +138,7 @@ def vertex_bits(c: Container, levels=SUMMARY_LEVELS) -> dict:
             tot_v += e.vertices
             for L in levels:
                 tot_pos[L] += 8 * e.cap_bytes(L)
-            for k, v in _attribute_vertex_bits(e.attribute_bits).items():
+            for k, v in _attribute_vertex_bits(e.attribute_bits, codecs).items():
                 tot_attr[k] += v * e.vertices
     n = max(tot_v, 1)
     attr_total = {k: v / n for k, v in tot_attr.items()}
@@ -146,8 +153,6 @@ def attribute_waste(part: dict) -> dict:
     section's tail, < 32: fields may cross words) and ``aligned_bits_per_vertex``, what records
     of whole components packed first-fit decreasing into 32-bit words (Purnomo 2005, section 4)
     would waste per vertex."""
-    from .attributes import AttributeBits, aligned_waste, record_waste
-
     bits = AttributeBits.of(part.get("attribute_bits") or {})
     return {"buffer_bits": [record_waste(int(e["vertices"]), bits) for e in part["lods"]],
             "aligned_bits_per_vertex": aligned_waste(bits)}
@@ -167,7 +172,7 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     for p in m["parts"]:
         lods = [{"vertices": e["vertices"], "triangles": e["triangles"], "geometric_error_m": e["geometric_error_m"],
                  "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
-                 "attributes": [k for k in ("normals", "uvs", "colors") if (e.get("attribute_bits") or {}).get(k)],
+                 "attributes": [x.name for x in CODECS if (e.get("attribute_bits") or {}).get(x.name)],
                  "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0)}
                 for e in p["lods"]]
         parts.append({"name": p["name"], "source": p["source"], "lods": lods,
@@ -282,8 +287,9 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
     vb = d.get("vertex_bits")
     if vb and vb["positions"]:
         top = max(vb["positions"], key=int)
-        lines.append(f"  bits per vertex at level {top}: positions {vb['positions'][top]:.1f} + normals "
-                     f"{vb['normals']:.1f} + UVs {vb['uvs']:.1f} + colours {vb['colors']:.1f} = {vb['total'][top]:.1f}")
+        terms = "".join(f" + {x.label} {vb[x.name]:.1f}" for x in CODECS if x.name in vb)
+        lines.append(f"  bits per vertex at level {top}: positions {vb['positions'][top]:.1f}{terms} = "
+                     f"{vb['total'][top]:.1f}")
     for w in d.get("lod_warnings") or []:
         lines.append(f"  LOD warning: {w}")
     if timings:

@@ -12,7 +12,7 @@ Layout (the contract with the shaders, docs/format.md section 6.6):
 
 * Order: vertices sorted by (m_v ascending, Morton code ascending, original index). The Morton
   code interleaves the top 21 bits of the 24-bit grid integers q (x in the lowest bit of each
-  triple). Bins and ``VertexId[0..24]`` keep their meaning (``lopcook.emit.binning``).
+  triple). Bins and ``VertexId[0..24]`` keep their meaning (``lopcook.lop.binning``).
 * Clusters: bin k's vertices ``[VertexId[k-1], VertexId[k])`` are cut into runs of N (the last
   run of a bin may be shorter); a cluster never spans two bins, so its vertices share m. The
   table ``ClusterId[0..24]`` counts the clusters in bins <= k. Vertex j of bin k is in cluster

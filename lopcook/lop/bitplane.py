@@ -7,7 +7,7 @@ Bit layout of a packed buffer ``P`` (what the shaders in ``shaders/`` read):
 
 * ``P`` is an array of uint32 words (little-endian in files). Bit offset ``o`` of the buffer is
   bit ``o & 31`` (0 = least significant) of word ``o >> 5``.
-* Vertices follow each other in binned order (``lopcook.emit.binning``). Vertex j of bin k stores
+* Vertices follow each other in binned order (``lopcook.lop.binning``). Vertex j of bin k stores
   ``b = max(k, B)`` bits per component at offset ``o_j = 3*b*(j - VertexId[k-1]) + BitId[k-1]``:
   component x at ``o_j``, y at ``o_j + b``, z at ``o_j + 2b``.
 * A component's field holds ``v = q >> (24 - b)``, the top b bits of its 24-bit grid integer q,
