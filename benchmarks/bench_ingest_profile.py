@@ -8,7 +8,7 @@ Not a test (pytest does not collect benchmarks/). Usage::
     PYTHONPATH=. .venv/bin/python benchmarks/bench_ingest_profile.py FILE [--repeat 5] [--top 12]
 
 Run it with another checkout first on ``PYTHONPATH`` to measure that version the same way (the
-before/after tables of docs/performance.md were made so). The 1.1M-triangle GLB is the bunny
+before/after tables of docs/history/performance-log.md were made so). The 1.1M-triangle GLB is the bunny
 subdivided twice (``benchmarks/bench_simplifiers.py`` and ``bench_ingest.py`` write it).
 """
 
