@@ -8,16 +8,16 @@
 //
 // One file, five kernels; compile it once per kernel with exactly one of these defined:
 //   LOP_KERNEL_UNPACK        P (level B) -> U              mirrors to_grid(decode(P, VertexId, BitId, B))
-//   LOP_KERNEL_ADD_PLANE     U |= plane p (B -> B + 1)     mirrors lopcook.emit.bitplane.add_plane
-//   LOP_KERNEL_REMOVE_PLANE  U &= ~bit of level B (B -> B - 1)   mirrors lopcook.emit.bitplane.remove_plane
-//   LOP_KERNEL_TABLES        BitId for the new level       mirrors lopcook.emit.binning.table_bit_id
-//   LOP_KERNEL_PACK          U -> P (new level)            mirrors lopcook.emit.bitplane.pack
+//   LOP_KERNEL_ADD_PLANE     U |= plane p (B -> B + 1)     mirrors lopcook.lop.bitplane.add_plane
+//   LOP_KERNEL_REMOVE_PLANE  U &= ~bit of level B (B -> B - 1)   mirrors lopcook.lop.bitplane.remove_plane
+//   LOP_KERNEL_TABLES        BitId for the new level       mirrors lopcook.lop.binning.table_bit_id
+//   LOP_KERNEL_PACK          U -> P (new level)            mirrors lopcook.lop.bitplane.pack
 // A level change B -> B' is: UNPACK at B; ADD_PLANE p = B+1 .. B' (or REMOVE_PLANE B .. B'+1), one
 // dispatch per plane; TABLES at B'; PACK at B' into a buffer of ceil(BitId'[24] / 32) words. The
 // result is byte-identical to packing level B' from scratch on the CPU (tests/test_gpu_decoders.py).
 // VertexId never changes (VertexId[k] = vertices with minimum level <= k); BitId is rewritten on the
 // GPU by LOP_KERNEL_TABLES, so no read-back is needed. The CPU only sizes the new P
-// (lopcook.emit.binning.buffer_bytes: a 25-term sum over VertexId it already holds).
+// (lopcook.lop.binning.buffer_bytes: a 25-term sum over VertexId it already holds).
 //
 // Bindings (all std430 SSBOs of uint32 words, except the UBO):
 //   SSBO 0  LopPackedIn  { uint lop_in[]; }          P at level B (read by UNPACK)

@@ -5,10 +5,10 @@
 // section 6.1 and Figures 10-11. Line-for-line the same kernels as adapt_bitplanes.comp.glsl
 // (read its header for the protocol); here each kernel is its own entry point:
 //   lop_unpack_cs        P (level B) -> U              mirrors to_grid(decode(P, VertexId, BitId, B))
-//   lop_add_plane_cs     U |= plane p (B -> B + 1)     mirrors lopcook.emit.bitplane.add_plane
-//   lop_remove_plane_cs  U &= ~bit of level B          mirrors lopcook.emit.bitplane.remove_plane
-//   lop_tables_cs        BitId for the new level       mirrors lopcook.emit.binning.table_bit_id
-//   lop_pack_cs          U -> P (new level)            mirrors lopcook.emit.bitplane.pack
+//   lop_add_plane_cs     U |= plane p (B -> B + 1)     mirrors lopcook.lop.bitplane.add_plane
+//   lop_remove_plane_cs  U &= ~bit of level B          mirrors lopcook.lop.bitplane.remove_plane
+//   lop_tables_cs        BitId for the new level       mirrors lopcook.lop.binning.table_bit_id
+//   lop_pack_cs          U -> P (new level)            mirrors lopcook.lop.bitplane.pack
 // BitId is rewritten on the GPU (lop_tables_cs); VertexId never changes.
 //
 // Bindings (register numbers are unique across t/u so that glslang's default mapping, and any

@@ -5,10 +5,10 @@
 // (decoding in the vertex shader with the tables as uniforms).
 //
 // Mirrors (bit for bit; checked by `lopcook verify OUT.lop --decoders` and tests/test_gpu_decoders.py):
-//   lop_bin_start      numpy.searchsorted(VertexId, j, side="right") - 1   (lopcook.emit.bitplane.decode)
-//   lop_decode_bits    lopcook.emit.bitplane.decode        (top bits v and width b of vertex j)
-//   lop_to_grid        lopcook.emit.bitplane.to_grid       (24-bit grid integers, dropped bits zero)
-//   lop_reconstruct    lopcook.emit.bitplane.reconstruct_float32  (float32 metres, identical bits)
+//   lop_bin_start      numpy.searchsorted(VertexId, j, side="right") - 1   (lopcook.lop.bitplane.decode)
+//   lop_decode_bits    lopcook.lop.bitplane.decode        (top bits v and width b of vertex j)
+//   lop_to_grid        lopcook.lop.bitplane.to_grid       (24-bit grid integers, dropped bits zero)
+//   lop_reconstruct    lopcook.lop.bitplane.reconstruct_float32  (float32 metres, identical bits)
 //   lop_vertex_level   lopcook.verify.decoders.vertex_levels       (crack-free per-vertex level; the
 //                      rule of lopcook.viewing.per_vertex_level: max(min(own, B), bin level))
 //

@@ -7,10 +7,10 @@
 // Line-for-line the same algorithm as decode_bitplanes.glsl. Mirrors (bit for bit; checked by
 // `lopcook verify OUT.lop --decoders`, which compiles this file with glslang's HLSL front end to
 // SPIR-V and spirv-cross to GLSL 4.50, and by tests/test_gpu_decoders.py):
-//   lop_bin_start      numpy.searchsorted(VertexId, j, side="right") - 1   (lopcook.emit.bitplane.decode)
-//   lop_decode_bits    lopcook.emit.bitplane.decode        (top bits v and width b of vertex j)
-//   lop_to_grid        lopcook.emit.bitplane.to_grid       (24-bit grid integers, dropped bits zero)
-//   lop_reconstruct    lopcook.emit.bitplane.reconstruct_float32  (float32 metres, identical bits)
+//   lop_bin_start      numpy.searchsorted(VertexId, j, side="right") - 1   (lopcook.lop.bitplane.decode)
+//   lop_decode_bits    lopcook.lop.bitplane.decode        (top bits v and width b of vertex j)
+//   lop_to_grid        lopcook.lop.bitplane.to_grid       (24-bit grid integers, dropped bits zero)
+//   lop_reconstruct    lopcook.lop.bitplane.reconstruct_float32  (float32 metres, identical bits)
 //   lop_vertex_level   lopcook.verify.decoders.vertex_levels       (crack-free per-vertex level; the
 //                      rule of lopcook.viewing.per_vertex_level: max(min(own, B), bin level))
 //
