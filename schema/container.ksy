@@ -1,6 +1,6 @@
 meta:
   id: lopcook_lop
-  title: lopcook level-of-precision container (.lop), versions 2.0 and 3.0 (3.0 = clustered position buffers)
+  title: lopcook level-of-precision container (.lop), versions 2.0, 3.0 (clustered position buffers, placements) and 4.0 (tangents)
   application: lopcook (offline asset cooker, Meyer et al. 2011 adaptive level-of-precision)
   file-extension: lop
   license: MIT
@@ -94,12 +94,13 @@ types:
       - id: version_major
         type: u2
         valid:
-          any-of: [2, 3]
+          any-of: [2, 3, 4]
         doc: |
           Offset 4, uint16: format major version: 2, or 3 when the file holds clustered
           position buffers (manifest positions.clusters; cluster_section) or placement parts
           (cook --instances, parts[].placement); a file with neither is written as 2.0. 3.x
-          means "may hold clusters and/or placements". A writer writes the oldest major that
+          means "may hold clusters and/or placements". 4 when some part has tangents
+          (lod.attribute_bits.tangents; 4.x may also hold clusters and placements). A writer writes the oldest major that
           reads the file correctly. A reader refuses a major version it does not know (an
           incompatible change of layout or meaning): a 2.x reader must not read clustered
           buffers, whose words and planes it would misread, nor placements, whose mesh-grid
@@ -232,11 +233,12 @@ types:
 
   attributes_section:
     doc: |
-      Section "part{i}/lod{k}/attributes": one record of S = 2 b_n + 2 b_u + 4 b_c bits per
-      vertex (binned order), S = manifest lod.record_bits, the bits b_n, b_u, b_c from
-      lod.attribute_bits (an absent attribute: null, counted 0 here). Vertex j's record starts
-      at bit j * S of the section; its fields, each present attribute only, follow in the order
-      normal.u, normal.v (b_n bits each), uv.u, uv.v (b_u), color.r, g, b, a (b_c), least
+      Section "part{i}/lod{k}/attributes": one record of S = 2 b_n + 2 b_u + 4 b_c (+ 2 b_t + 1)
+      bits per vertex (binned order), S = manifest lod.record_bits, the bits b_n, b_u, b_c, b_t
+      from lod.attribute_bits (an absent attribute: null or, for tangents, no key; counted 0
+      here). Vertex j's record starts at bit j * S of the section; its fields, each present
+      attribute only, follow in the order normal.u, normal.v (b_n bits each), uv.u, uv.v (b_u),
+      color.r, g, b, a (b_c), tangent.u, tangent.v (b_t) and the tangent's sign bit, least
       significant bit first (bit i of the section is bit i & 31 of word i >> 5). A field may
       span two words (unlike Purnomo's word-aligned bins); read it with bit_field. Length
       4 * ceil(vertices * S / 32) bytes, no padding word.
@@ -253,6 +255,9 @@ types:
       - id: bits_color
         type: u1
         doc: lod.attribute_bits.colors (4..8), 0 when null.
+      - id: bits_tangent
+        type: u1
+        doc: lod.attribute_bits.tangents (4..16, version 4.0), 0 when absent or null.
       - id: lo_u
         type: f8
         doc: lod.uv_range[0][0] (a float32 value); 0 without UVs.
@@ -267,7 +272,7 @@ types:
         doc: lod.uv_step[1].
     instances:
       record_bits:
-        value: 2 * bits_normal + 2 * bits_uv + 4 * bits_color
+        value: '2 * bits_normal + 2 * bits_uv + 4 * bits_color + (bits_tangent > 0 ? 2 * bits_tangent + 1 : 0)'
         doc: S, bits per vertex.
       ofs_uv:
         value: 2 * bits_normal
@@ -275,6 +280,9 @@ types:
       ofs_color:
         value: 2 * bits_normal + 2 * bits_uv
         doc: Bit offset of color.r inside a record.
+      ofs_tangent:
+        value: 2 * bits_normal + 2 * bits_uv + 4 * bits_color
+        doc: Bit offset of tangent.u inside a record.
     seq:
       - id: words
         type: u4
@@ -287,13 +295,15 @@ types:
       Vertex j's record in an attributes_section (its _parent), decoded. Every decode instance
       is a float32 value: evaluate each operation in float32, rounding once per operation,
       with no fused multiply-add (a shader: `precise`); the decode is bit-exact with
-      lopcook.emit.attributes.decode_record.
+      lopcook.lop.record.decode_record.
       Normal (Cigolle et al. 2014, precise octahedral, b_n bits): h = 2^(b_n - 1),
       R = float32(1 / (h - 1)); p = max(float32(code - h) * R, -1) per component;
       z = (1 - |p.x|) - |p.y|; if z < 0: (x, y) = ((1 - |p.y|) sgn(p.x), (1 - |p.x|) sgn(p.y)),
       sgn(t) = +1 for t >= 0 else -1; the normal is (x, y, z), unnormalised (normalise it).
       UV: u = lo_u + float32(q_u) * step_u (one rounded product, one rounded sum); likewise v.
       Colour: c = float32(q) * float32(1 / (2^b_c - 1)) per channel, linear.
+      Tangent (version 4.0): xyz decoded exactly as the normal with b_t bits (unnormalised),
+      w = -1.0 when the sign bit is 1, else +1.0.
     params:
       - id: j
         type: u4
@@ -342,6 +352,21 @@ types:
         type: bit_field(ofs_bit + _parent.ofs_color + 3 * _parent.bits_color, _parent.bits_color)
         if: _parent.bits_color > 0
         doc: Alpha code.
+      tangent_u:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_tangent, _parent.bits_tangent)
+        if: _parent.bits_tangent > 0
+        doc: Octahedral code of the tangent's u, 1 .. 2^b_t - 1 (0 reads as -1).
+      tangent_v:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_tangent + _parent.bits_tangent, _parent.bits_tangent)
+        if: _parent.bits_tangent > 0
+        doc: Octahedral code of the tangent's v.
+      tangent_sign:
+        pos: 0
+        type: bit_field(ofs_bit + _parent.ofs_tangent + 2 * _parent.bits_tangent, 1)
+        if: _parent.bits_tangent > 0
+        doc: 1 when the handedness w is -1.
       half_n:
         value: 1 << (_parent.bits_normal - 1)
         doc: h = 2^(b_n - 1) (an integer).
@@ -390,6 +415,36 @@ types:
       a_f:
         value: color_a.value * inv_c
         doc: Alpha in [0, 1].
+      half_t:
+        value: 1 << (_parent.bits_tangent - 1)
+        doc: h = 2^(b_t - 1) (an integer).
+      inv_t:
+        value: 1.0 / (half_t - 1)
+        doc: float32(1 / (h - 1)), rounded once.
+      tp_x:
+        value: '(tangent_u.value - half_t) * inv_t < -1.0 ? -1.0 : (tangent_u.value - half_t) * inv_t'
+        doc: The tangent's p.x.
+      tp_y:
+        value: '(tangent_v.value - half_t) * inv_t < -1.0 ? -1.0 : (tangent_v.value - half_t) * inv_t'
+        doc: The tangent's p.y.
+      abs_tp_x:
+        value: 'tp_x < 0 ? -tp_x : tp_x'
+        doc: '|p.x|.'
+      abs_tp_y:
+        value: 'tp_y < 0 ? -tp_y : tp_y'
+        doc: '|p.y|.'
+      tangent_z:
+        value: (1.0 - abs_tp_x) - abs_tp_y
+        doc: z of the tangent.
+      tangent_x:
+        value: 'tangent_z < 0 ? (1.0 - abs_tp_y) * (tp_x >= 0 ? 1.0 : -1.0) : tp_x'
+        doc: x of the tangent.
+      tangent_y:
+        value: 'tangent_z < 0 ? (1.0 - abs_tp_x) * (tp_y >= 0 ? 1.0 : -1.0) : tp_y'
+        doc: y of the tangent. The tangent is (tangent_x, tangent_y, tangent_z), unnormalised.
+      tangent_w:
+        value: 'tangent_sign.value == 1 ? -1.0 : 1.0'
+        doc: The handedness w.
 
   mandatory_section:
     doc: |

@@ -9,14 +9,16 @@
 // Line-for-line the same algorithm as decode_attributes.glsl. Mirrors (bit for bit; checked by
 // `lopcook verify OUT.lop --decoders`, which compiles this file with glslang's HLSL front end to
 // SPIR-V and spirv-cross to GLSL 4.50, and by tests/test_gpu_attribute_decoders.py):
-// lopcook.emit.attributes.decode_record
+// lopcook.lop.record.decode_record
 //   lop_attr_read_field   the b-bit field at bit o of the section, least significant bit first
 //   lop_decode_normal     record["normals"][j]  unnormalised float32 octahedral decode
 //   lop_decode_uv         record["uvs"][j]      lo + float32(q) * step
 //   lop_decode_color      record["colors"][j]   float32(q) * float32(1 / (2^b_c - 1)), linear RGBA
+//   lop_decode_tangent    record["tangents"][j] unnormalised octahedral xyz and w = +-1 (container 4.0)
 //
-// Record of vertex j (binned order): S = 2 b_n + 2 b_u + 4 b_c bits from bit j * S of the section,
-// fields normal u, v (b_n each), uv u, v (b_u each), colour r, g, b, a (b_c each), present ones only.
+// Record of vertex j (binned order): S = 2 b_n + 2 b_u + 4 b_c (+ 2 b_t + 1) bits from bit j * S of
+// the section, fields normal u, v (b_n each), uv u, v (b_u each), colour r, g, b, a (b_c each),
+// tangent u, v (b_t each) and its sign bit, present ones only.
 //
 // Bindings (override the registers with #define before this file; they do not collide with
 // decode_bitplanes.hlsl's t0, b0, b1):
@@ -26,12 +28,13 @@
 //   cbuffer LopAttributeDecode : register(LOP_ATTR_REGISTER = b2), 64 bytes, one per buffer:
 //           offset  0  uint4  lop_attr_bits    x: b_n (0: no normals), y: b_u (0: no UVs), z: b_c
 //                                              (0: no colours), w: S (record bits)
-//           offset 16  float4 lop_attr_scale   x: float32(1 / (2^(b_n-1) - 1)), y: float32(1 / (2^b_c - 1))
+//           offset 16  float4 lop_attr_scale   x: float32(1 / (2^(b_n-1) - 1)), y: float32(1 / (2^b_c - 1)),
+//                                              z: float32(1 / (2^(b_t-1) - 1))
 //           offset 32  float4 lop_attr_uv      xy: lo (manifest uv_range[0]), zw: step (manifest uv_step)
-//           offset 48  uint4  lop_attr_params  x: words in the section (>= 1)
-//   (the byte layout equals the GLSL std140 block; lopcook.verify.gpu.attribute_block builds it)
+//           offset 48  uint4  lop_attr_params  x: words in the section (>= 1), y: b_t (0: no tangents)
+//   (the byte layout equals the GLSL std140 block; lopcook.verify.attribute_gpu.attribute_block builds it)
 //
-// Limits: a buffer holds at most 2^32 / 96 (44 739 242) vertices (j * S is a uint32 bit offset).
+// Limits: a buffer holds at most 2^32 / 129 (33 294 161) vertices (j * S is a uint32 bit offset).
 // Float decode: conversions see values below 2^16 (exact); the other float32 operations round to
 // nearest even (D3D10+) or are exact; `precise` forbids fusing the UV's product and sum into an
 // mad/fma. See shaders/README.md.
@@ -79,15 +82,13 @@ float lop_attr_sgn(float x)
     return (x >= 0.0f) ? 1.0f : -1.0f;
 }
 
-// Octahedral normal of vertex j, unnormalised float32: p = max(float(code - h) * R, -1),
-// z = (1 - |p.x|) - |p.y|, lower half unfolded when z < 0 (see decode_attributes.glsl).
-float3 lop_decode_normal(uint j)
+// Octahedral direction of b bits per component at bit offset o, unnormalised float32, as
+// decode_attributes.glsl's lop_attr_oct (r = float32(1 / (2^(b-1) - 1)) from the cbuffer).
+float3 lop_attr_oct(uint o, uint b, float r)
 {
-    uint b = lop_attr_bits.x;
-    uint o = lop_attr_record(j);
     int h = int(1u << (b - 1u));
     int2 s = int2(int(lop_attr_read_field(o, b)), int(lop_attr_read_field(o + b, b))) - h;
-    precise float2 p = max(float2(s) * lop_attr_scale.x, float2(-1.0f));
+    precise float2 p = max(float2(s) * r, float2(-1.0f));
     precise float2 a = abs(p);
     precise float ax = 1.0f - a.x;
     precise float ay = 1.0f - a.y;
@@ -99,6 +100,12 @@ float3 lop_decode_normal(uint j)
         xy = float2(fx, fy);
     }
     return float3(xy, z);
+}
+
+// Octahedral normal of vertex j, unnormalised float32 (b = b_n, r = lop_attr_scale.x).
+float3 lop_decode_normal(uint j)
+{
+    return lop_attr_oct(lop_attr_record(j), lop_attr_bits.x, lop_attr_scale.x);
 }
 
 // Texture coordinates of vertex j: lo + float32(q) * step per component (`precise`: no fma).
@@ -120,4 +127,15 @@ float4 lop_decode_color(uint j)
                     lop_attr_read_field(o + 3u * b, b));
     precise float4 c = float4(q) * lop_attr_scale.y;
     return c;
+}
+
+// Tangent of vertex j: xyz the unnormalised octahedral decode (b = b_t, r = lop_attr_scale.z), w the
+// handedness, -1.0 when its sign bit is set, else +1.0.
+float4 lop_decode_tangent(uint j)
+{
+    uint b = lop_attr_params.y;
+    uint o = lop_attr_record(j) + 2u * lop_attr_bits.x + 2u * lop_attr_bits.y + 4u * lop_attr_bits.z;
+    float3 t = lop_attr_oct(o, b, lop_attr_scale.z);
+    float w = (lop_attr_read_field(o + 2u * b, 1u) != 0u) ? -1.0f : 1.0f;
+    return float4(t, w);
 }

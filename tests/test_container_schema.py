@@ -140,7 +140,8 @@ MUTATIONS = {
     "attributes section misnamed": lambda m: _lod(m).update(attributes="part1/lod0/attribute"),
     "normal bits 17": lambda m: _lod(m)["attribute_bits"].update(normals=17),
     "colour bits 3": lambda m: _lod(m)["attribute_bits"].update(colors=3),
-    "record_bits 97": lambda m: _lod(m).update(record_bits=97),
+    "record_bits 130": lambda m: _lod(m).update(record_bits=130),
+    "tangent bits 3": lambda m: _lod(m)["attribute_bits"].update(tangents=3),
     "attribute_bits without colours": lambda m: _lod(m)["attribute_bits"].pop("colors"),
     "part without attribute_bits": lambda m: m["parts"][1].pop("attribute_bits"),
     "mandatory_words of one number": lambda m: _lod(m).update(mandatory_words=[84]),
@@ -420,12 +421,17 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
     call = {name: re.fullmatch(r"bit_field\((.*), (.*)\)", i["type"]).groups() for name, i in inst.items()
             if "type" in i}
     fields = {("normals", 0): "normal_u", ("normals", 1): "normal_v", ("uvs", 0): "uv_u", ("uvs", 1): "uv_v",
-              ("colors", 0): "color_r", ("colors", 1): "color_g", ("colors", 2): "color_b", ("colors", 3): "color_a"}
+              ("colors", 0): "color_r", ("colors", 1): "color_g", ("colors", 2): "color_b", ("colors", 3): "color_a",
+              ("tangents", 0): "tangent_u", ("tangents", 1): "tangent_v", ("tangents", 2): "tangent_sign"}
     f32 = np.float32
-    for bits in (AttributeBits(4, 6, 4), AttributeBits(11, 9, 5), AttributeBits(16, 16, 8), AttributeBits(7, None, 6)):
+    for bits in (AttributeBits(4, 6, 4), AttributeBits(11, 9, 5), AttributeBits(16, 16, 8), AttributeBits(7, None, 6),
+                 AttributeBits(16, 16, 8, 16), AttributeBits(5, None, None, 4), AttributeBits(9, 7, None, 13)):
         n = 60
         codes = {k: rng.integers(0, 1 << getattr(bits, k), size=(n, c)) for k, c in
                  (("normals", 2), ("uvs", 2), ("colors", 4)) if getattr(bits, k) is not None}
+        if bits.tangents:
+            codes["tangents"] = np.concatenate([rng.integers(0, 1 << bits.tangents, size=(n, 2)),
+                                                rng.integers(0, 2, size=(n, 1))], axis=1)
         codes["normals"][:3] = [[0, 0], [1, (1 << bits.normals) - 1], [1 << (bits.normals - 1)] * 2]
         words = pack_record(codes, n, bits)
         lo, step = [f32(-0.25), f32(0.5)], [f32(1.75 / 65535), f32(0.001)]
@@ -433,8 +439,8 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
                                              "uv_step": [float(v) for v in step]})
         unpacked = unpack_record(words, n, bits)
         parent = SimpleNamespace(bits_normal=bits.normals or 0, bits_uv=bits.uvs or 0, bits_color=bits.colors or 0,
-                                 lo_u=lo[0], lo_v=lo[1], step_u=step[0], step_v=step[1])
-        for name in ("record_bits", "ofs_uv", "ofs_color"):
+                                 bits_tangent=bits.tangents or 0, lo_u=lo[0], lo_v=lo[1], step_u=step[0], step_v=step[1])
+        for name in ("record_bits", "ofs_uv", "ofs_color", "ofs_tangent"):
             setattr(parent, name, eval(sec_py[name], {**vars(parent)}))
         assert parent.record_bits == bits.record_bits
         for j in range(n):
@@ -446,14 +452,17 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
                 assert (o, w) == (j * bits.record_bits + off, width), fname
                 ns[fname] = SimpleNamespace(value=int(unpacked[attr_name][j, c]))
             out = {}
+            tangent_names = ("half_t", "inv_t", "tp_x", "tp_y", "abs_tp_x", "abs_tp_y", "tangent_z", "tangent_x",
+                             "tangent_y", "tangent_w")
             for name in ("half_n", "inv_n", "p_x", "p_y", "abs_p_x", "abs_p_y", "oct_z", "oct_x", "oct_y",
-                         "u", "v", "inv_c", "r_f", "g_f", "b_f", "a_f"):
+                         "u", "v", "inv_c", "r_f", "g_f", "b_f", "a_f") + tangent_names:
                 group = {"half_n": "normals", "inv_n": "normals", "u": "uvs", "v": "uvs", "inv_c": "colors",
-                         "r_f": "colors", "g_f": "colors", "b_f": "colors", "a_f": "colors"}.get(name, "normals")
+                         "r_f": "colors", "g_f": "colors", "b_f": "colors", "a_f": "colors",
+                         **dict.fromkeys(tangent_names, "tangents")}.get(name, "normals")
                 if getattr(bits, group) is None:
                     continue
                 val = eval(py[name], ns)
-                ns[name] = out[name] = val if name == "half_n" else f32(val)
+                ns[name] = out[name] = val if name in ("half_n", "half_t") else f32(val)
             if bits.normals:
                 want = ref["normals"][j]
                 assert [out["oct_x"], out["oct_y"], out["oct_z"]] == want.tolist() or np.array_equal(
@@ -462,4 +471,7 @@ def test_ksy_attribute_expressions_agree_with_the_decoders(ksy, rng):
                 assert np.array_equal(np.array([out["u"], out["v"]], f32), ref["uvs"][j])
             if bits.colors:
                 assert np.array_equal(np.array([out[f"{c}_f"] for c in "rgba"], f32), ref["colors"][j])
+            if bits.tangents:
+                got = np.array([out[f"tangent_{c}"] for c in "xyzw"], f32)
+                assert np.array_equal(got.view(np.uint32), ref["tangents"][j].view(np.uint32))
 

@@ -17,10 +17,11 @@ from ...errors import LopcookError
 from .base import Codec, check_bits
 from .colors_unorm import COLORS
 from .normals_oct import NORMALS
+from .tangents_oct import TANGENTS
 from .uvs_range import UVS
 
 #: every codec, in record order
-CODECS: tuple[Codec, ...] = (NORMALS, UVS, COLORS)
+CODECS: tuple[Codec, ...] = (NORMALS, UVS, COLORS, TANGENTS)
 BY_NAME: dict[str, Codec] = {c.name: c for c in CODECS}
 
 __all__ = ["CODECS", "BY_NAME", "Codec", "AttributeBits", "bits_for", "check_bits", "codec"]
