@@ -1,7 +1,7 @@
 """meshoptimizer backend for LOD chains: attribute-aware edge collapse that keeps seams closed.
 
 ``simplify_meshopt`` has the signature and result type of ``lopcook.simplify.backends.simplify_pymeshlab`` (so
-``lod._run_backend`` calls it with the same arguments as pymeshlab) and adds the simplifier's own
+``lopcook.simplify.backends.run_backend`` calls it with the same arguments as pymeshlab) and adds the simplifier's own
 error estimate (``MeshoptResult.error_m``).
 
 Method: ``meshopt_simplifyWithAttributes`` (Kapoulkine, meshoptimizer; quadric error metric of
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mesh import used_ids, weld_labels
-from .backends import BackendResult
+from .types import BackendResult
 
 #: attribute weight of UVs (texture coordinates in [0, 1]) and of unit normals; positions are
 #: normalised by meshoptimizer to the mesh extent, so these weigh a UV or normal change of 1
