@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.simplify import chain as L
 from lopcook.simplify import error as E
 from lopcook.simplify import reference as R

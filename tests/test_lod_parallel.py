@@ -76,7 +76,7 @@ def _dies(part, **kw):
 
 
 def test_a_worker_that_dies_is_an_error_not_a_hang(monkeypatch):
-    from lopcook import fixtures as fx
+    from tests.support import fixtures as fx
     from lopcook.errors import LopcookError
     from lopcook.types import MeshPart
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import cook_container
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.settings import DEFAULT_ANALYSE, AnalyseSettings
 from lopcook.types import MeshPart, Scene
 from lopcook.verify import renderer as R

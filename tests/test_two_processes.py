@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from lopcook import isolate, pipeline
-from lopcook.fixtures import unit_sphere
+from tests.support.fixtures import unit_sphere
 from lopcook.settings import Settings, SimplifySettings, parse_lods
 from lopcook.simplify import reference as R
 from lopcook.types import MeshPart, Scene

@@ -110,11 +110,9 @@ def peer_argv(cfg: dict, avail: dict, glb: Path, npz: Path, out: Path) -> list:
 
 # ---- input and output -------------------------------------------------------------------------
 
-def white_png() -> bytes:
-    """A 1 x 1 white RGBA PNG (deterministic bytes)."""
-    from ..fixtures import png_bytes
-
-    return png_bytes(np.full((1, 1, 4), 255, np.uint8))
+#: a 1 x 1 white RGBA PNG (8-bit RGBA, no filter, zlib level 9): the texture of the peers' input.glb
+WHITE_PNG = bytes.fromhex("89504e470d0a1a0a0000000d49484452000000010000000108060000001f15c4890000000b4944415478da63f80f"
+                          "040009fb03fd68fa1ccc0000000049454e44ae426082")
 
 
 def write_inputs(scene, adir: Path) -> tuple[Path, Path]:
@@ -134,7 +132,7 @@ def write_inputs(scene, adir: Path) -> tuple[Path, Path]:
     if textured:
         materials = {"materials": [{"name": "bench", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
                      "textures": [{"source": 0}], "samplers": [],
-                     "images": [{"name": "white", "mimeType": "image/png", "data": white_png()}]}
+                     "images": [{"name": "white", "mimeType": "image/png", "data": WHITE_PNG}]}
     glb = adir / "input.glb"
     write_gltf(glb, meshes, generator="lopcook bench --attributes", materials=materials)
     npz = adir / "parts.npz"
