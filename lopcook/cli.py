@@ -1026,7 +1026,7 @@ def cmd_report(args) -> int:
 
 
 def _add_bench_parser(sub) -> None:
-    """``lopcook bench``: lopcook against gltfpack, glTF-Transform and Draco (lopcook/bench.py, docs/bench.md)."""
+    """``lopcook bench``: lopcook against gltfpack, glTF-Transform and Draco (lopcook/bench/, docs/bench.md)."""
     p = sub.add_parser("bench", help="speed and accuracy against gltfpack, glTF-Transform and Draco, and how the "
                                      "cook's cost grows (needs pip install 'lopcook[bench]'; see docs/bench.md)")
     p.add_argument("assets", nargs="*", metavar="ASSET",
@@ -1064,8 +1064,9 @@ def _add_bench_parser(sub) -> None:
 
 
 def cmd_bench(args) -> int:
-    from .bench import DEFAULT_LEVELS, run
-    from .benchkit.peers import PEERS
+    from .bench.compare import DEFAULT_LEVELS
+    from .bench.peers import PEERS
+    from .bench.run import run
     from .verify.decoders import parse_levels
 
     args.levels = parse_levels(args.levels) if args.levels else list(DEFAULT_LEVELS)

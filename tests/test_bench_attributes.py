@@ -1,4 +1,4 @@
-"""The pure parts of ``lopcook bench --attributes`` (lopcook/benchkit/attributes.py): GPU bytes of
+"""The pure parts of ``lopcook bench --attributes`` (lopcook/bench/attributes.py): GPU bytes of
 every glTF attribute, gltfpack's UV transform read back, the run list, a container's bytes per
 vertex, and the bench input's textured material. No peer tool, no GL, no timing."""
 
@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from lopcook.benchkit import attributes as A
+from lopcook.bench import attributes as A
 
 
 def _gltf(accessors, prims):
@@ -82,7 +82,7 @@ def test_bench_input_has_one_textured_material_on_the_parts_with_uvs(tmp_path):
     from dataclasses import replace
 
     from lopcook.api import load
-    from lopcook.bench import glb_json
+    from lopcook.bench.common import glb_json
     from tests.support.fixtures import seamed_cube, two_plates, write_gltf
 
     parts = seamed_cube() + [replace(two_plates()[0], uvs=None)]  # a part without UVs gets no material
