@@ -1,7 +1,7 @@
 """``--scheduler tcp://HOST:PORT``: the batch's cooks on a Dask distributed cluster.
 
 Each asset is one Dask task, ``lopcook.batch.worker.run_isolated(task)``, so on the worker it
-runs exactly as locally: a fresh ``python -m lopcook.batch.worker`` process under the memory
+runs exactly as locally: a fresh ``python -m lopcook.batch.child`` process under the memory
 cap, which cooks with ``lopcook cook``'s own code and moves the output into place.
 
 The cluster needs a **shared filesystem**: every worker must see the sources and OUTDIR at the

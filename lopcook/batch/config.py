@@ -40,6 +40,7 @@ import re
 import shlex
 from dataclasses import dataclass, field
 
+from ..cli.parser import build_parser
 from ..errors import LopcookError
 
 #: Namespace entries of ``lopcook cook`` that are not cook options (the batch sets or ignores them)
@@ -181,8 +182,6 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
 def _parse_cook(options) -> dict:
     """``lopcook cook``'s parser over ``options`` -> the Namespace as a dict; ``ValueError`` with
     argparse's message when they do not parse."""
-    from ..cli import build_parser
-
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):  # --help prints

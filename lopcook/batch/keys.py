@@ -27,7 +27,9 @@ import hashlib
 import json
 import os
 
+from ..atomic import write_atomic
 from ..version import __version__
+from . import STATE_FILE
 
 KEY_FORMAT = "lopcook-batch-key/1"
 STATE_FORMAT = "lopcook-batch-state/1"
@@ -159,8 +161,6 @@ class State:
     """``OUTDIR/.lopcook-batch.json``: entries keyed by output path relative to OUTDIR."""
 
     def __init__(self, outdir: str, entries: dict | None = None) -> None:
-        from . import STATE_FILE
-
         self.outdir = os.path.abspath(outdir)
         self.path = os.path.join(self.outdir, STATE_FILE)
         self.entries: dict[str, dict] = dict(entries or {})
@@ -202,8 +202,6 @@ class State:
         self.entries.pop(self.rel(output), None)
 
     def save(self) -> None:
-        from ..atomic import write_atomic
-
         os.makedirs(self.outdir, exist_ok=True)
         data = {"format": STATE_FORMAT, "lopcook": __version__,
                 "outputs": {k: self.entries[k] for k in sorted(self.entries)}}

@@ -23,9 +23,12 @@ from dataclasses import dataclass
 from ..errors import LopcookError
 from ..version import __version__
 from . import SCRATCH_DIR
+from .cluster import run_cluster
 from .config import BatchConfig, load_config, resolve
 from .discover import Asset, discover
 from .keys import State, options_digest
+from .local import run_local
+from .progress import Progress
 
 DEFAULT_MEMORY_CAP = 4 * 10 ** 9
 _SAVE_EVERY_S = 2.0
@@ -124,7 +127,6 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     tasks = [{"source": p.asset.source, "output": p.asset.output, "relpath": p.asset.relpath,
               "options": list(p.options), "resolved": p.resolved, "memory_cap": memory_cap,
               "scratch_root": scratch_root} for p in todo]
-    from .progress import Progress
 
     bar = Progress(len(tasks), progress)
     last_save = [time.perf_counter()]
@@ -157,12 +159,9 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
 
     try:
         if scheduler and tasks:  # nothing to cook: no need to reach the cluster
-            from .cluster import run_cluster
 
             cluster_info = run_cluster(tasks, scheduler, on_result, timeout_s=scheduler_timeout_s)
         elif not scheduler:
-            from .local import run_local
-
             run_local(tasks, jobs, on_result)
     finally:
         bar.close()
