@@ -11,7 +11,6 @@ is a subset of the input vertices (``vertex_source``) with their exact float64 p
 Vertices that share a position exactly are a *seam* (UV seam, normal crease, colour edge): the
 simplifier collapses seam edges only along the seam and both sides together, so co-located seam
 vertices stay co-located (no cracks) and each side keeps its own UVs (no texture swimming).
-
 Arguments as for pymeshlab:
 
 * ``uvs`` (n, 2) per vertex: the attribute metric includes them (weight ``UV_WEIGHT``); the result

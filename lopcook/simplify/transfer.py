@@ -235,50 +235,9 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     ``_SPLIT_*`` tolerances: another side of a seam or crease) gets those values instead; corners
     of one vertex that land in the same LOD 0 region share one value."""
     P, F = res.positions, res.faces
-    m, k = F.shape[0], P.shape[0]
-    found = exact_sources(ref, P) if exact else None
-    if found is not None:
-        # every vertex is a LOD 0 vertex (meshoptimizer): at distance 0, attributes copied; only
-        # the face interiors (centroids) are queried. Row-wise temporaries only ((m, 3), no (m, 3, 3)).
-        centroid = P[F[:, 0]] + P[F[:, 1]]
-        centroid += P[F[:, 2]]
-        centroid /= 3.0
-        # a vertex of the face lies on LOD 0: its distance bounds the centroid's
-        bound = np.full(m, np.inf)
-        for j in range(3):
-            gap = centroid - P[F[:, j]]
-            np.minimum(bound, np.einsum("ij,ij->i", gap, gap), out=bound)
-        del gap
-        d2, fc, _ = ref.query_bounded(centroid, bound, closest=False)
-        del bound, _
-    else:
-        tri = P[F]
-        centroid = tri.mean(axis=1)
-        d2, fid, closest = ref.query_any(np.concatenate([P, centroid]))
-        fv, fc = fid[:k], fid[k:]
-        del tri
-    lod_to_ref = float(np.sqrt(d2.max()))
-    del d2
-
-    # flipped faces: facing away (more than 120 degrees) from LOD 0's nearest face at the centroid
-    # and at 2 of the 3 points half-way to the corners (one sample alone is fooled where a coarse
-    # face cuts a sharp edge or lies between two sheets)
-    unit = face_normals(P, F)
-    fl = np.linalg.norm(unit, axis=1)
-    unit /= np.where(fl > 0, fl, 1.0)[:, None]
-    del fl
-    cand = np.flatnonzero(np.einsum("ij,ij->i", unit, ref.face_unit[fc]) < FLIP_COS)
-    flipped = 0
-    if cand.size:
-        tri_c = P[F[cand]]
-        half = 0.5 * (tri_c + centroid[cand][:, None, :])  # (c, 3, 3)
-        if found is not None:  # half-way to a corner that lies on LOD 0
-            hb = 0.25 * ((tri_c - centroid[cand][:, None, :]) ** 2).sum(axis=2)
-            fh = ref.query_near(half.reshape(-1, 3), hb.reshape(-1))[1].reshape(-1, 3)
-        else:
-            fh = ref.query_any(half.reshape(-1, 3))[1].reshape(-1, 3)
-        votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
-        flipped = int((votes >= 2).sum())
+    m = F.shape[0]
+    found, centroid, fc, near, lod_to_ref = _distances(ref, P, F, exact)
+    flipped = _flipped_faces(ref, P, F, centroid, fc, found is not None)
     if flipped > max_flipped_fraction * m and flipped > 0:
         raise BackendFailure(f"{flipped} of {m} faces are flipped against the source surface")
     if ref.defects["closed"] and abs(ref.volume) > 0:
@@ -293,8 +252,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
     if uv_from_ref:
         names.append("uvs")
     vid = F.ravel()
-    corner_attr = {}
-    srcv = None
+    corner_attr, srcv, first, group = {}, None, None, None
     if found is not None:
         if names:
             wedge = (res.wedge_uvs.reshape(-1, 2).astype(np.float32) if res.wedge_uvs is not None
@@ -302,48 +260,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             srcv = exact_corner_sources(ref, names, P, F, centroid, found, wedge)
             corner_attr = {n: np.ascontiguousarray(getattr(src, n)[srcv], dtype=np.float32) for n in names}
     elif names:
-        face_of_corner = np.repeat(np.arange(m), 3)
-        bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
-        at_v = attributes_at(ref, names, fv, bary_v, ref.face_unit[fv])
-        # phase 1: the corner's side = LOD 0's face nearest to the LOD face's centroid. That face's
-        # attribute field, extrapolated linearly to the vertex, matches the vertex's own value on a
-        # smooth field and differs across a seam or crease.
-        g = fc[face_of_corner]
-        split = np.empty(vid.size, dtype=bool)
-        for s0 in range(0, vid.size, TRANSFER_CHUNK):  # row-wise: (chunk, 3, 3) temporaries only
-            sl = slice(s0, s0 + TRANSFER_CHUNK)
-            gs, vs = g[sl], vid[sl]
-            ext = attributes_at(ref, names, gs, barycentric(P[vs], ref.positions[ref.faces[gs]], clamp=False),
-                                 ref.face_unit[gs])
-            split[sl] = differs({n: at_v[n][vs] for n in names}, ext)
-            del ext
-        cs = np.flatnonzero(split)
-        at2 = {}
-        if cs.size:
-            # phase 2: only for corners that look split, find their side near the corner itself
-            q = P[vid[cs]]
-            q = q + NUDGE * (centroid[face_of_corner[cs]] - q)
-            g2 = ref.query_any(q)[1]
-            g[cs] = g2
-            pv_cs = P[vid[cs]]
-            tri2 = ref.positions[ref.faces[g2]]
-            ext2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=False), ref.face_unit[g2])
-            split[cs] = differs({n: at_v[n][vid[cs]] for n in names}, ext2)
-            # the value of a split corner: its side's field at the vertex, kept inside that face
-            at2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=True), ref.face_unit[g2])
-        # corners that agree with their vertex share its value; the others group by LOD 0 region
-        region = np.where(split, ref.region[g], -1)
-        first, group = unique_rows(np.stack([vid, region], axis=1))
-        own = ~split[first]
-        not_own = np.flatnonzero(~own)
-        at_split = np.searchsorted(cs, first[not_own])  # a corner still split after phase 2 is in cs
-        for n in names:
-            val = at_v[n][vid[first]]
-            if not_own.size:
-                val[not_own] = at2[n][at_split]
-            if n == "normals":
-                val = val / np.linalg.norm(val, axis=1, keepdims=True)
-            corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
+        corner_attr, first, group = _closest_point_corners(ref, names, P, F, centroid, fc, near)
     per_group = bool(names) and found is None  # every attribute so far is a function of the corner's group
     if src.uvs is not None and mode != "xatlas" and not uv_from_ref:
         if per_group:
@@ -353,27 +270,7 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
             corner_attr["uvs"] = res.wedge_uvs.reshape(-1, 2).astype(np.float32)
         else:
             corner_attr["uvs"] = lock_uvs(res, input_part, work)[vid]
-
-    def unique_vertices(row_vid: np.ndarray):
-        keys = [row_vid.reshape(-1, 1).astype(np.int64)]
-        for name in ("uvs", "normals", "colors"):
-            if name in corner_attr:
-                keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32)
-                            .astype(np.int64))
-        return unique_rows(np.concatenate(keys, axis=1))
-
-    exact_key = _exact_vertex_key(vid, srcv, found, corner_attr, names) if found is not None else None
-    if exact_key is not None:
-        vfirst, vinv = exact_key
-        pick = vfirst
-    elif per_group:
-        # corners of one group share their row, and groups are numbered by first appearance, so
-        # the unique rows of the groups, numbered by first appearance, are those of the corners
-        gfirst, ginv = unique_vertices(vid[first])
-        vfirst, vinv, pick = first[gfirst], ginv[group], gfirst
-    else:
-        vfirst, vinv = unique_vertices(vid)
-        pick = vfirst
+    vfirst, vinv, pick = _lod_vertices(vid, corner_attr, srcv, found, names, first, group, per_group)
     out = MeshPart(
         name=input_part.name,
         positions=np.ascontiguousarray(P[vid[vfirst]], dtype=np.float64),
@@ -392,6 +289,140 @@ def transfer_attributes(res: BackendResult, ref: Reference, input_part: MeshPart
         on_ref = np.zeros(ref.positions.shape[0], dtype=bool)
         on_ref[srcv if srcv is not None else found[2][found[1][vid]]] = True
     return out, {"lod_to_ref": lod_to_ref, "flipped": flipped, "on_ref": on_ref}
+
+
+def _distances(ref: Reference, P: np.ndarray, F: np.ndarray, exact: bool) -> tuple:
+    """``transfer_attributes``' queries of LOD 0: ``(found, centroids (m, 3), LOD 0 face nearest
+    each centroid (m,), near, LOD -> LOD 0 distance in metres)``. ``found``: ``exact_sources``
+    (every vertex a LOD 0 vertex) or None; ``near``: None for an exact copy, else (LOD 0 face
+    nearest each vertex (k,), the closest points of the vertices and centroids (k + m, 3))."""
+    m, k = F.shape[0], P.shape[0]
+    found = exact_sources(ref, P) if exact else None
+    if found is not None:
+        # every vertex is a LOD 0 vertex (meshoptimizer): at distance 0, attributes copied; only
+        # the face interiors (centroids) are queried. Row-wise temporaries only ((m, 3), no (m, 3, 3)).
+        centroid = P[F[:, 0]] + P[F[:, 1]]
+        centroid += P[F[:, 2]]
+        centroid /= 3.0
+        # a vertex of the face lies on LOD 0: its distance bounds the centroid's
+        bound = np.full(m, np.inf)
+        for j in range(3):
+            gap = centroid - P[F[:, j]]
+            np.minimum(bound, np.einsum("ij,ij->i", gap, gap), out=bound)
+        del gap
+        d2, fc, _ = ref.query_bounded(centroid, bound, closest=False)
+        del bound, _
+        near = None
+    else:
+        tri = P[F]
+        centroid = tri.mean(axis=1)
+        del tri
+        d2, fid, closest = ref.query_any(np.concatenate([P, centroid]))
+        fc = fid[k:]
+        near = (fid[:k], closest)
+    return found, centroid, fc, near, float(np.sqrt(d2.max()))
+
+
+def _flipped_faces(ref: Reference, P: np.ndarray, F: np.ndarray, centroid: np.ndarray, fc: np.ndarray,
+                   on_ref: bool) -> int:
+    """Faces facing away (more than 120 degrees) from LOD 0's nearest face at the centroid and at 2
+    of the 3 points half-way to the corners (one sample alone is fooled where a coarse face cuts a
+    sharp edge or lies between two sheets). ``on_ref``: every vertex lies on LOD 0."""
+    unit = face_normals(P, F)
+    fl = np.linalg.norm(unit, axis=1)
+    unit /= np.where(fl > 0, fl, 1.0)[:, None]
+    del fl
+    cand = np.flatnonzero(np.einsum("ij,ij->i", unit, ref.face_unit[fc]) < FLIP_COS)
+    if not cand.size:
+        return 0
+    tri_c = P[F[cand]]
+    half = 0.5 * (tri_c + centroid[cand][:, None, :])  # (c, 3, 3)
+    if on_ref:  # half-way to a corner that lies on LOD 0
+        hb = 0.25 * ((tri_c - centroid[cand][:, None, :]) ** 2).sum(axis=2)
+        fh = ref.query_near(half.reshape(-1, 3), hb.reshape(-1))[1].reshape(-1, 3)
+    else:
+        fh = ref.query_any(half.reshape(-1, 3))[1].reshape(-1, 3)
+    votes = (np.einsum("ij,ikj->ik", unit[cand], ref.face_unit[fh]) < FLIP_COS).sum(axis=1)
+    return int((votes >= 2).sum())
+
+
+def _closest_point_corners(ref: Reference, names: list, P: np.ndarray, F: np.ndarray, centroid: np.ndarray,
+                           fc: np.ndarray, near: tuple) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The closest-point transfer's corner values (``transfer_attributes`` doc): ``({name: value per
+    group}, first corner of each group, group of each corner)``; a group is a vertex and, for a
+    corner on another side of a seam or crease, the LOD 0 region of that side."""
+    m, k = F.shape[0], P.shape[0]
+    fv, closest = near
+    vid = F.ravel()
+    face_of_corner = np.repeat(np.arange(m), 3)
+    bary_v = barycentric(closest[:k], ref.positions[ref.faces[fv]], clamp=True)
+    at_v = attributes_at(ref, names, fv, bary_v, ref.face_unit[fv])
+    # phase 1: the corner's side = LOD 0's face nearest to the LOD face's centroid. That face's
+    # attribute field, extrapolated linearly to the vertex, matches the vertex's own value on a
+    # smooth field and differs across a seam or crease.
+    g = fc[face_of_corner]
+    split = np.empty(vid.size, dtype=bool)
+    for s0 in range(0, vid.size, TRANSFER_CHUNK):  # row-wise: (chunk, 3, 3) temporaries only
+        sl = slice(s0, s0 + TRANSFER_CHUNK)
+        gs, vs = g[sl], vid[sl]
+        ext = attributes_at(ref, names, gs, barycentric(P[vs], ref.positions[ref.faces[gs]], clamp=False),
+                             ref.face_unit[gs])
+        split[sl] = differs({n: at_v[n][vs] for n in names}, ext)
+        del ext
+    cs = np.flatnonzero(split)
+    at2 = {}
+    if cs.size:
+        # phase 2: only for corners that look split, find their side near the corner itself
+        q = P[vid[cs]]
+        q = q + NUDGE * (centroid[face_of_corner[cs]] - q)
+        g2 = ref.query_any(q)[1]
+        g[cs] = g2
+        pv_cs = P[vid[cs]]
+        tri2 = ref.positions[ref.faces[g2]]
+        ext2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=False), ref.face_unit[g2])
+        split[cs] = differs({n: at_v[n][vid[cs]] for n in names}, ext2)
+        # the value of a split corner: its side's field at the vertex, kept inside that face
+        at2 = attributes_at(ref, names, g2, barycentric(pv_cs, tri2, clamp=True), ref.face_unit[g2])
+    # corners that agree with their vertex share its value; the others group by LOD 0 region
+    region = np.where(split, ref.region[g], -1)
+    first, group = unique_rows(np.stack([vid, region], axis=1))
+    own = ~split[first]
+    not_own = np.flatnonzero(~own)
+    at_split = np.searchsorted(cs, first[not_own])  # a corner still split after phase 2 is in cs
+    corner_attr = {}
+    for n in names:
+        val = at_v[n][vid[first]]
+        if not_own.size:
+            val[not_own] = at2[n][at_split]
+        if n == "normals":
+            val = val / np.linalg.norm(val, axis=1, keepdims=True)
+        corner_attr[n] = val.astype(np.float32)  # per group; per corner: [group]
+    return corner_attr, first, group
+
+
+def _lod_vertices(vid: np.ndarray, corner_attr: dict, srcv, found, names: list, first, group,
+                  per_group: bool) -> tuple:
+    """The LOD's vertices: corners with equal (vertex, attribute bits) rows are one vertex.
+    ``(first corner of each vertex, vertex of each corner, row of each vertex in corner_attr)``."""
+    def unique_vertices(row_vid: np.ndarray):
+        keys = [row_vid.reshape(-1, 1).astype(np.int64)]
+        for name in ("uvs", "normals", "colors"):
+            if name in corner_attr:
+                keys.append((np.ascontiguousarray(corner_attr[name]) + np.float32(0.0)).view(np.int32)
+                            .astype(np.int64))
+        return unique_rows(np.concatenate(keys, axis=1))
+
+    exact_key = _exact_vertex_key(vid, srcv, found, corner_attr, names) if found is not None else None
+    if exact_key is not None:
+        vfirst, vinv = exact_key
+        return vfirst, vinv, vfirst
+    if per_group:
+        # corners of one group share their row, and groups are numbered by first appearance, so
+        # the unique rows of the groups, numbered by first appearance, are those of the corners
+        gfirst, ginv = unique_vertices(vid[first])
+        return first[gfirst], ginv[group], gfirst
+    vfirst, vinv = unique_vertices(vid)
+    return vfirst, vinv, vfirst
 
 
 def lock_uvs(res: BackendResult, input_part: MeshPart, work: Work) -> np.ndarray:
