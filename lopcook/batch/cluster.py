@@ -21,6 +21,7 @@ import uuid
 from collections.abc import Callable, Iterable
 
 from ..errors import LopcookError
+from .worker import run_isolated
 
 
 def run_cluster(tasks: Iterable[dict], scheduler: str, on_result: Callable[[dict, dict], None],
@@ -29,12 +30,10 @@ def run_cluster(tasks: Iterable[dict], scheduler: str, on_result: Callable[[dict
     finishes. Returns ``{"scheduler": address, "workers": n}``. Raises ``LopcookError`` when the
     scheduler cannot be reached within ``timeout_s`` or has no workers."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client, as_completed  # optional (lopcook[cluster]): only --scheduler needs it
     except ImportError:
         raise LopcookError("usage", None, "--scheduler needs the distributed package",
                            hint="pip install distributed") from None
-    from .worker import run_isolated
-
     tasks = list(tasks)
     try:
         client = Client(scheduler, timeout=timeout_s)

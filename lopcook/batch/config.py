@@ -38,6 +38,7 @@ import io
 import os
 import re
 import shlex
+import tomllib
 from dataclasses import dataclass, field
 
 from ..cli.parser import build_parser
@@ -138,8 +139,6 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
     """Read and validate ``lopcook.toml`` (None: the empty config). Raises ``LopcookError``."""
     if path is None:
         return BatchConfig()
-    import tomllib
-
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:

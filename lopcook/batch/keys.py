@@ -74,33 +74,11 @@ def parse_depfile(text: str) -> tuple[str, list[str]]:
     while i < n:
         c = text[i]
         if c == "\\":
-            j = i
-            while j < n and text[j] == "\\":
-                j += 1
-            k = j - i
-            nxt = text[j] if j < n else ""
-            if nxt in (" ", "\t") and nxt:
-                cur.append("\\" * (k // 2) + (nxt if k % 2 else ""))
-                have = have or k >= 2 or k % 2 == 1
-                i = j + 1 if k % 2 else j
-                if not k % 2:
-                    flush()
-                continue
-            if nxt == "\n" or (nxt == "\r" and text[j + 1:j + 2] == "\n"):
-                if k > 1:
-                    cur.append("\\" * (k - 1))
-                    have = True
+            piece, has, i, ends = _backslashes(text, i)
+            cur.append(piece)
+            have = have or has
+            if ends:
                 flush()
-                i = j + (2 if nxt == "\r" else 1)
-                continue
-            if nxt in ("#", ":") and nxt:
-                cur.append("\\" * (k - 1) + nxt)
-                have = True
-                i = j + 1
-                continue
-            cur.append("\\" * k)
-            have = True
-            i = j
             continue
         if c == "$" and text[i + 1:i + 2] == "$":
             cur.append("$")
@@ -130,6 +108,24 @@ def parse_depfile(text: str) -> tuple[str, list[str]]:
     if target is None:
         raise ValueError("not a depfile: no 'target:'")
     return target, words
+
+
+def _backslashes(text: str, i: int) -> tuple[str, bool, int, bool]:
+    """The run of backslashes at ``text[i]`` and what it escapes (``parse_depfile``'s rules):
+    ``(text it adds to the word, whether it makes a word, index after it, whether the word ends)``."""
+    n = len(text)
+    j = i
+    while j < n and text[j] == "\\":
+        j += 1
+    k = j - i
+    nxt = text[j] if j < n else ""
+    if nxt in (" ", "\t") and nxt:  # 2N+1: N backslashes and the blank; 2N: N backslashes, then a separator
+        return "\\" * (k // 2) + (nxt if k % 2 else ""), k >= 2 or k % 2 == 1, j + 1 if k % 2 else j, not k % 2
+    if nxt == "\n" or (nxt == "\r" and text[j + 1:j + 2] == "\n"):  # a line continuation
+        return "\\" * (k - 1) if k > 1 else "", k > 1, j + (2 if nxt == "\r" else 1), True
+    if nxt in ("#", ":") and nxt:
+        return "\\" * (k - 1) + nxt, True, j + 1, False
+    return "\\" * k, True, j, False
 
 
 def read_depfile(path: str) -> list[str]:

@@ -24,7 +24,7 @@ COLOURS = {"lopcook CAP": "tab:red", "lopcook AP": "tab:orange", "gltfpack": "ta
 def pyplot():
     """``matplotlib.pyplot`` on the Agg backend (an optional dependency, ``pip install 'lopcook[bench]'``,
     imported on first use: ImportError when it is missing)."""
-    import matplotlib
+    import matplotlib  # optional (lopcook[bench])
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -80,7 +80,7 @@ def best_of(fn, repeat=3, label=None):
 
 
 def meshopt_bits(tri, n):
-    import meshoptimizer as mo
+    import meshoptimizer as mo  # the peers' codecs (DracoPy: lopcook[bench]) load when measured
 
     idx = np.ascontiguousarray(tri.reshape(-1).astype(np.uint32))
     opt = np.zeros_like(idx)

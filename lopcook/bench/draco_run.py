@@ -23,7 +23,7 @@ COMPRESSION_LEVEL = 7
 
 
 def encode_parts(parts: dict, bits: int, normal_bits: int = NORMAL_BITS, uv_bits: int = UV_BITS) -> dict:
-    import DracoPy
+    import DracoPy  # optional (lopcook[bench]): imported where Draco runs
 
     out = {}
     k = 0

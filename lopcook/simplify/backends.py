@@ -30,7 +30,7 @@ SELECTABLE = BACKENDS + ("meshopt", "auto")
 
 def simplify_fast(positions, faces, target, *, lock_border=False) -> BackendResult:
     """fast-simplification to ``target`` triangles; the collapse map gives ``vertex_source``."""
-    import fast_simplification
+    import fast_simplification  # the native simplifiers load when a chain first uses them
 
     p_out, f_out, collapses = fast_simplification.simplify(
         np.ascontiguousarray(positions, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32),

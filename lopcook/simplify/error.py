@@ -32,7 +32,7 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
     queried only when that bound (plus a 1e-9 relative slack for rounding) reaches the largest
     vertex distance, so the maximum is unchanged. Queries go to one libigl AABB tree over the LOD
     (how few centroids that queries: docs/lod.md)."""
-    import igl
+    import igl  # libigl (native) loads when a LOD is first measured
 
     pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
     fac = np.ascontiguousarray(lod.indices, dtype=np.int64)

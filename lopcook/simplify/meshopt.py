@@ -74,7 +74,7 @@ def _simplify_fn():
     object: the wrapper's own attribute is left as it is)."""
     global _FN
     if _FN is None:
-        from meshoptimizer._loader import lib
+        from meshoptimizer._loader import lib  # the bundled C library loads on the first call
 
         fn = lib["meshopt_simplifyWithAttributes"]
         P = ctypes.POINTER

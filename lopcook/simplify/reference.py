@@ -46,7 +46,7 @@ _MORTON_BITS = 21
 
 def point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):
     """libigl closest points: (squared distance, face id, closest point)."""
-    import igl
+    import igl  # libigl (native) and scipy (below) load when LOD 0 is first queried
 
     d, i, c = igl.point_mesh_squared_distance(np.ascontiguousarray(points, dtype=np.float64),
                                               np.ascontiguousarray(positions, dtype=np.float64),
