@@ -18,6 +18,7 @@ from .connectivity import ASSETS, main
 from .scaling import bench_scaling
 from .summary import write_outputs
 
+
 def run_connectivity(opts) -> dict:
     """``lopcook bench --connectivity``: ``lopcook.bench.connectivity`` on ``opts.assets`` (default
     every corpus asset) into ``opts.output`` (connectivity.json, connectivity_unit_size.png)."""

@@ -16,6 +16,7 @@ from .common import asset_name, log, write_csv
 from .compare import DEFAULT_ASSETS, PEER_BYTES_16BIT, ROW_COLUMNS, STAGE_COLUMNS, TARGET_PSNR_DB
 from .scaling import SCALING_COLUMNS, SCALING_LODS
 
+
 def _f(v) -> float:
     try:
         return float(v)

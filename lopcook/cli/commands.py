@@ -48,6 +48,7 @@ from ..version import __version__
 from .parser import (analyse_settings, check_views, ingest_settings, parse_xyz, settings_from_args,
                      source_ingest_settings)
 
+
 def cmd_analyse(args) -> int:
     settings = analyse_settings(args)
     scene = load(args.source, ingest_settings(args))

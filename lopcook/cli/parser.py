@@ -28,6 +28,7 @@ from ..viewing import Viewing
 
 D = DEFAULTS
 
+
 def _add_crease_angle(p: argparse.ArgumentParser) -> None:
     p.add_argument("--crease-angle", type=float, default=None, metavar="DEG",
                    help="dihedral angle above which computed normals split, degrees in [0, 180] "

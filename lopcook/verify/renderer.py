@@ -1312,6 +1312,7 @@ def _shared_buffer(ctx, c, i: int, k: int, p_level: int, p_origin, p_half, buf, 
     owned += [ssbo, ubo]
     return ssbo, ubo, prog, clusters, _once(_decoded_positions(buf, p_level, p_origin, p_half, None))
 
+
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
