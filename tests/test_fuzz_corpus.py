@@ -1,4 +1,4 @@
-"""The hostile-input corpus of ``tests.support.fuzzcases`` through the CLI (issue 17).
+"""The hostile-input corpus of ``tests.support.fuzzcases`` through the CLI.
 
 Over 450 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
 lengths and counts with checksums recomputed, degenerate geometry, hostile textures, depth and
