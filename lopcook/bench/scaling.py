@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import trimesh
-
 from ..emit.gltf_writer import write_gltf
 from ..ingest import load
 from . import peers as P
@@ -29,6 +27,7 @@ SCALING_COLUMNS = ("input", "triangles", "vertices", "tool", "config", "wall_s",
 def scaling_inputs(out_dir: Path, corpus: Path | None, max_triangles: int, opts) -> list[tuple[str, Path, int, int]]:
     """(name, GLB path, triangles, vertices): the bunny subdivided 0..3 times and the chess set,
     those with at most ``max_triangles`` triangles; written once into ``out_dir/scaling``."""
+    import trimesh  # heavy (it loads scipy): imported by the one step that subdivides
     sdir = out_dir / "scaling"
     sdir.mkdir(parents=True, exist_ok=True)
     out = []
