@@ -75,7 +75,6 @@ def _cook_in_child(task: dict) -> dict:
             "deps": deps, "cook_timings_s": info.get("timings_s", {}), "warnings": info.get("warnings", [])}
 
 
-
 def child_main(argv: list[str]) -> int:
     """``python -m lopcook.batch.child TASK.json``: cook, write ``TASK.json``'s ``result`` file."""
     with open(argv[0], encoding="utf-8") as fh:
@@ -89,16 +88,15 @@ def child_main(argv: list[str]) -> int:
     try:
         result = _cook_in_child(task)
     except MemoryError:
-        result = {"status": "failed", "exit_code": 3,
+        result = {"status": "failed", "exit_code": EXIT_INTERNAL,
                   "error": f"out of memory under the worker memory cap ({format_bytes(cap)})" if cap else
                   "out of memory"}
     except Exception as exc:  # noqa: BLE001 - reported as this asset's failure
-        result = {"status": "failed", "exit_code": 3, "error": f"internal error: {type(exc).__name__}: {exc}"}
+        result = {"status": "failed", "exit_code": EXIT_INTERNAL, "error": f"internal error: {type(exc).__name__}: {exc}"}
     result["time_s"] = time.perf_counter() - t0
     result["peak_rss_bytes"] = _own_peak_rss()
     write_atomic(task["result"], json.dumps(result).encode())
     return 0
-
 
 
 def _own_peak_rss() -> int | None:

@@ -112,7 +112,6 @@ def _add_inspect_parser(sub) -> None:
     _add_common(p)
 
 
-
 def _add_cook_parser(sub) -> None:
     """``lopcook cook``: every option of a cook (``settings_from_args`` maps them to Settings)."""
     p = sub.add_parser("cook", help="ingest, analyse and write a .lop container")
@@ -164,7 +163,6 @@ def _add_cook_parser(sub) -> None:
     _add_common(p)
 
 
-
 def _add_calibrate_parser(sub) -> None:
     """``lopcook calibrate``: the k_f search on its own."""
     p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
@@ -174,7 +172,6 @@ def _add_calibrate_parser(sub) -> None:
     _add_crease_angle(p)
     add_calibration_options(p, cook=False)
     _add_common(p)
-
 
 
 def _add_decode_parser(sub) -> None:
@@ -188,7 +185,6 @@ def _add_decode_parser(sub) -> None:
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")
     _add_common(p)
-
 
 
 def _add_refine_parser(sub) -> None:
@@ -208,7 +204,6 @@ def _add_refine_parser(sub) -> None:
     _add_common(p)
 
 
-
 def _add_analyse_parser(sub) -> None:
     """``lopcook analyse``: per-vertex minimum levels."""
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
@@ -216,7 +211,6 @@ def _add_analyse_parser(sub) -> None:
     add_analyse_options(p)
     _add_crease_angle(p)
     _add_common(p)
-
 
 
 def _add_verify_parser(sub) -> None:
@@ -253,7 +247,6 @@ def _add_verify_parser(sub) -> None:
     p.add_argument("--no-adapt", action="store_true",
                    help="with --decoders: skip the compute-shader adaption check (decode only)")
     _add_common(p)
-
 
 
 def _add_report_parser(sub) -> None:
