@@ -10,7 +10,7 @@ import sys, time
 import numpy as np
 from lopcook.ingest import load
 from lopcook.simplify import backends as B, error as E
-from lopcook.simplify.transfer import Reference
+from lopcook.simplify.reference import Reference
 from lopcook.types import MeshPart
 for name in sys.argv[1:]:
     part = load(name).parts[0]

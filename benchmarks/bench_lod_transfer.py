@@ -27,7 +27,8 @@ import numpy as np
 from lopcook.ingest import load
 from lopcook.mesh import face_normals
 from lopcook.simplify.backends import check_result, prepare, run_backend
-from lopcook.simplify.transfer import Reference, exact_sources, transfer_attributes
+from lopcook.simplify.reference import Reference
+from lopcook.simplify.transfer import exact_sources, transfer_attributes
 
 
 def corner_values(part, name):

@@ -59,7 +59,7 @@ from lopcook.ingest import load  # noqa: E402
 from lopcook.settings import DEFAULT_ANALYSE, DEFAULT_INGEST  # noqa: E402
 from lopcook.tune.calibrate import calibrate, calibrated_settings, format_calibration  # noqa: E402
 from lopcook.verify.decoders import parse_levels  # noqa: E402
-from lopcook.verify.evaluate import evaluate  # noqa: E402
+from lopcook.verify.evaluate import evaluate, harness_evaluate  # noqa: E402
 from lopcook.verify.tables import format_table  # noqa: E402
 from lopcook.viewing import Viewing  # noqa: E402
 
@@ -235,7 +235,7 @@ def _split(h, nd, c, levels, views) -> list[dict]:
         pixels = dict.fromkeys(CLASSES, 0)
         psnrs, mem = [], None
         for view in C.select_views(views):
-            res = h.evaluate(c, levels=[level], views=[view], variants=("cap",), keep_images=True, image_view=view)
+            res = harness_evaluate(h, c, levels=[level], views=[view], variants=("cap",), keep_images=True, image_view=view)
             im, row = res["images"], res["levels"][0]
             mem = row["cap"]["percent_of_float32"]
             psnrs.append(row["cap"]["psnr_min"])

@@ -1,6 +1,6 @@
 #!/bin/sh
 # Install the peer tools of `lopcook bench` (pinned) into $LOPCOOK_PEERS (default <repo>/.peers),
-# where lopcook/benchkit/peers.py looks for them first; DracoPy and matplotlib come with the
+# where lopcook/bench/peers.py looks for them first; DracoPy and matplotlib come with the
 # `bench` extra. Usage: sh benchmarks/install_peers.sh
 set -eu
 repo=$(cd "$(dirname "$0")/.." && pwd)

@@ -5,7 +5,8 @@ Every error names the file, what is wrong and what to do, e.g.::
     LopcookError("ingest", "car.glb", "accessor 3: 7 indices, not a multiple of 3",
                  hint="re-export the file with triangulated primitives")
 
-Exit codes (see ``lopcook.cli``): 0 ok, 1 verification failed, 2 bad input or usage.
+Exit codes (see ``lopcook.cli``): 0 ok, 1 verification failed, 2 bad input or usage, 3 internal
+error (a bug: ``internal_error`` words it).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import re
 EXIT_OK = 0
 EXIT_VERIFY_FAILED = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
 
 
 class LopcookError(Exception):
@@ -72,3 +74,9 @@ def one_line(text: str) -> str:
 
 
 _BREAKS = re.compile(r"\s*[\x00-\x08\x0a-\x1f\x7f\x85\u2028\u2029]+\s*")
+
+
+def internal_error(exc: BaseException) -> str:
+    """The one line for an exception that is not a ``LopcookError`` (a bug, not bad input): its
+    type and message, and what to do."""
+    return f"internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback and report it)"

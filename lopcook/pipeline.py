@@ -186,12 +186,12 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
 
 def parallel(scene: Scene) -> bool:
     """Whether a LOD cook of ``scene`` analyses and encodes in forked processes beside its own
-    (``lopcook.isolate``): two or more LOD workers (``lopcook.simplify.parallel.workers``,
+    (``lopcook.isolate``): two or more LOD workers (``lopcook.simplify.workers``,
     ``$LOPCOOK_LOD_WORKERS=1`` turns it off), at least ``PARALLEL_VERTICES`` LOD 0 vertices, and
     the system's available memory at least ``PARALLEL_BYTES_PER_VERTEX`` per vertex (the children
     add their working memory to the cook's; docs/performance.md). The bytes are the same either way."""
     from .memory import available_bytes
-    from .simplify.parallel import workers
+    from .simplify.workers import workers
 
     n = sum(p.n_vertices for p in scene.parts)
     if workers() < 2 or n < PARALLEL_VERTICES:

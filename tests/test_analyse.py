@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.analyse import analyse
 from lopcook.analyse.result import REASON_CODE
 from lopcook.settings import AnalyseSettings

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import FIXTURES
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.analyse import analyse
 from lopcook.analyse.prepared import LOOKAHEAD, PreparedAnalysis
 from lopcook.emit import build

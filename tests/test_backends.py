@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.simplify import backends as B
 from lopcook.simplify.topology import mesh_defects, seam_stats
 from lopcook.types import MeshPart

@@ -1,4 +1,4 @@
-"""The pure parts of ``lopcook bench`` (lopcook/bench.py, lopcook/benchkit/): Pareto front, log-log
+"""The pure parts of ``lopcook bench`` (lopcook/bench/): Pareto front, log-log
 slope, vertex matching and position error, crack counting, GPU bytes of a glTF, the "peer not
 installed" line and the CSV columns. No peer tool, no GL, no timing."""
 
@@ -11,9 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from lopcook import bench as B
-from lopcook.benchkit import metrics as BM
-from lopcook.benchkit import peers as P
+from lopcook.bench import common, compare, summary
+from lopcook.bench import metrics as BM
+from lopcook.bench import peers as P
 
 
 def test_pareto_front_keeps_exactly_the_non_dominated_points():
@@ -107,65 +107,65 @@ def test_cli_bench_prints_one_line_per_missing_peer(tmp_path):
 
 
 def test_csv_columns_and_values(tmp_path):
-    rows = [B.result_row(asset="a", tool="lopcook", config="CAP", level=6, psnr_min_db=float("inf"), max_err_rel=1.5e-7)]
-    B.write_csv(tmp_path / "r.csv", rows, B.ROW_COLUMNS)
+    rows = [compare.result_row(asset="a", tool="lopcook", config="CAP", level=6, psnr_min_db=float("inf"), max_err_rel=1.5e-7)]
+    common.write_csv(tmp_path / "r.csv", rows, compare.ROW_COLUMNS)
     with open(tmp_path / "r.csv", newline="") as fh:
         got = list(csv.DictReader(fh))
-    assert tuple(got[0].keys()) == B.ROW_COLUMNS
+    assert tuple(got[0].keys()) == compare.ROW_COLUMNS
     assert got[0]["psnr_min_db"] == "inf" and float(got[0]["max_err_rel"]) == 1.5e-7 and got[0]["error"] == ""
     for col in ("file_bytes", "gpu_bytes_per_vertex", "max_err_rel", "rms_err_rel", "cracks",
                 "cracks_between_parts", "psnr_min_db", "wall_s", "peak_rss_mb"):
-        assert col in B.ROW_COLUMNS
+        assert col in compare.ROW_COLUMNS
 
 
 def test_cook_stages_split_the_analysis():
     t = {"ingest": 1.0, "lod": 2.0, "analyse": 3.0, "analyse.attribute_error": 1.0, "analyse.depth": 0.5,
          "emit": 0.25, "write": 0.125}
-    s = B.cook_stages(t)
+    s = common.cook_stages(t)
     assert s["E_v"] == 1.0 and s["depth"] == 0.5 and s["analyse other"] == 1.5 and s["bins/planes"] == 0.25
     assert sum(s.values()) == pytest.approx(1.0 + 2.0 + 3.0 + 0.25 + 0.125)
 
 
 def test_checks_report_pass_and_miss_from_rows():
-    rows = [B.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
+    rows = [compare.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
                    psnr_min_db=45.0) for b in (6, 7)]
     scaling = [{"input": "bunny s2", "tool": "lopcook", "triangles": 1_111_216, "wall_s": 6.0, "peak_rss_mb": 500.0},
                {"input": "bunny s2", "tool": "gltfpack", "triangles": 1_111_216, "wall_s": 3.0, "peak_rss_mb": 300.0},
                {"input": "bunny s0", "tool": "lopcook", "triangles": 69_451, "wall_s": 6.0 / 16, "peak_rss_mb": 90.0},
                {"input": "bunny s3", "tool": "lopcook", "triangles": 4_444_864, "wall_s": 24.0, "peak_rss_mb": 1400.0},
                {"input": "bunny s3", "tool": "gltfpack", "triangles": 4_444_864, "wall_s": 6.0, "peak_rss_mb": 600.0}]
-    checks = B.checks(rows, scaling, ["x"], {"pareto": "p.png"}, [6, 7])
+    checks = summary.checks(rows, scaling, ["x"], {"pareto": "p.png"}, [6, 7])
     status = [c["status"] for c in checks]
     # the chart lacks the four default assets; 3.7 B/vertex at 45 dB; 1.1M: 2x gltfpack (<= 3x) but
     # 500 MiB = 524 MB (> 500 MB); 4.4M: 4x gltfpack (> 3x), 1,400 MiB = 1,468 MB (<= 1,500); slope 1
     assert status == ["miss", "pass", "pass", "miss", "miss", "pass", "pass"]
     assert checks[2]["ratio"] == pytest.approx(2.0) and checks[4]["ratio"] == pytest.approx(4.0)
     assert checks[3]["peak_rss_MB"] == pytest.approx(500 * 2**20 / 1e6)
-    assert [c["status"] for c in B.checks(rows, scaling[:3], ["x"], {}, [6, 7])[4:6]] == ["not measured"] * 2
-    assert B.checks(rows, scaling, ["x"], {}, [6, 7])[1]["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
+    assert [c["status"] for c in summary.checks(rows, scaling[:3], ["x"], {}, [6, 7])[4:6]] == ["not measured"] * 2
+    assert summary.checks(rows, scaling, ["x"], {}, [6, 7])[1]["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
 
 
 def test_cap_check_takes_the_cheapest_config_that_reaches_40_db():
-    rows = [B.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=6.0, psnr_min_db=55.0)
+    rows = [compare.result_row(asset="x", tool="lopcook", config="CAP", level=b, gpu_bytes_per_vertex=6.0, psnr_min_db=55.0)
             for b in (6, 7)]
-    rows += [B.result_row(asset="x", tool="lopcook", config="CAP (calibrated)", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
+    rows += [compare.result_row(asset="x", tool="lopcook", config="CAP (calibrated)", level=b, gpu_bytes_per_vertex=3.0 + 0.1 * b,
                     psnr_min_db=39.0 + b / 6) for b in (6, 7)]  # 40.0 and 40.17 dB
-    c = B.checks(rows, [], ["x"], {}, [6, 7])[1]
+    c = summary.checks(rows, [], ["x"], {}, [6, 7])[1]
     assert c["status"] == "pass" and c["assets"]["x"]["config"] == "CAP (calibrated)"
     assert c["assets"]["x"]["cap_bytes_per_vertex_max"] == pytest.approx(3.7)
     rows[-1]["psnr_min_db"] = 38.0  # calibrated misses 40 dB at level 7: the default CAP is taken
-    c = B.checks(rows, [], ["x"], {}, [6, 7])[1]
+    c = summary.checks(rows, [], ["x"], {}, [6, 7])[1]
     assert c["assets"]["x"]["config"] == "CAP" and c["status"] == "miss"  # 6 B/vertex > 4
 
 
 def test_results_table_one_row_per_configuration():
-    rows = [B.result_row(asset="x", tool="lopcook", config=v, bits=b, level=b, gpu_bytes_per_vertex=2.0 + b / 10,
+    rows = [compare.result_row(asset="x", tool="lopcook", config=v, bits=b, level=b, gpu_bytes_per_vertex=2.0 + b / 10,
                    psnr_min_db=30.0 + b, file_bytes=2048, wall_s=1.5, peak_rss_mb=100.0, cracks_between_parts=0)
             for v in ("AP", "CAP") for b in (6, 11)]
-    rows += [B.result_row(asset="x", tool="gltfpack", config="-vp 14", bits=14, level=b, gpu_bytes_per_vertex=8.0,
+    rows += [compare.result_row(asset="x", tool="gltfpack", config="-vp 14", bits=14, level=b, gpu_bytes_per_vertex=8.0,
                     psnr_min_db=float("inf") if b == 11 else 50.0, file_bytes=1024, wall_s=0.2, peak_rss_mb=60.0,
                     cracks_between_parts=3) for b in (6, 11)]
-    lines = B.results_table(rows, [6, 11])
+    lines = summary.results_table(rows, [6, 11])
     assert len(lines) == 2 + 3
     assert "| x | lopcook | AP | 2.60-3.10 | 36.0 / 41.0 | 2 | 1.50 | 100 | 0 |" in lines
     assert "| x | gltfpack | -vp 14 | 8.00 | 50.0 / inf | 1 | 0.20 | 60 | 3 |" in lines

@@ -1,4 +1,4 @@
-"""The pure parts of ``lopcook bench --attributes`` (lopcook/benchkit/attributes.py): GPU bytes of
+"""The pure parts of ``lopcook bench --attributes`` (lopcook/bench/attributes.py): GPU bytes of
 every glTF attribute, gltfpack's UV transform read back, the run list, a container's bytes per
 vertex, and the bench input's textured material. No peer tool, no GL, no timing."""
 
@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from lopcook.benchkit import attributes as A
+from lopcook.bench import attributes as A
 
 
 def _gltf(accessors, prims):
@@ -64,7 +64,7 @@ def test_configs_sweep_one_attribute_at_a_time_around_each_default():
 def test_container_bytes_per_vertex_adds_the_attribute_sections(tmp_path):
     from lopcook.api import cook, load
     from lopcook.lop.summary import memory_rows
-    from lopcook.fixtures import seamed_cube, write_gltf
+    from tests.support.fixtures import seamed_cube, write_gltf
 
     write_gltf(seamed_cube(), tmp_path / "cube.gltf")
     c = cook(load(tmp_path / "cube.gltf"))
@@ -82,8 +82,8 @@ def test_bench_input_has_one_textured_material_on_the_parts_with_uvs(tmp_path):
     from dataclasses import replace
 
     from lopcook.api import load
-    from lopcook.bench import glb_json
-    from lopcook.fixtures import seamed_cube, two_plates, write_gltf
+    from lopcook.bench.common import glb_json
+    from tests.support.fixtures import seamed_cube, two_plates, write_gltf
 
     parts = seamed_cube() + [replace(two_plates()[0], uvs=None)]  # a part without UVs gets no material
     write_gltf(parts, tmp_path / "s.gltf")
@@ -96,3 +96,17 @@ def test_bench_input_has_one_textured_material_on_the_parts_with_uvs(tmp_path):
     with np.load(npz) as z:
         assert "uvs_0" in z.files and "uvs_1" not in z.files
     assert json.loads(json.dumps(doc))  # plain JSON
+
+
+def test_the_input_texture_is_one_white_pixel():
+    """The bench's literal PNG is what the fixture writer makes of one white RGBA pixel, and reads
+    back as one."""
+    import io
+
+    from PIL import Image
+
+    from tests.support.fixtures import png_bytes
+
+    assert A.WHITE_PNG == png_bytes(np.full((1, 1, 4), 255, np.uint8))
+    img = Image.open(io.BytesIO(A.WHITE_PNG))
+    assert img.size == (1, 1) and img.mode == "RGBA" and img.getpixel((0, 0)) == (255, 255, 255, 255)

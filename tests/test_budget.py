@@ -16,7 +16,7 @@ from lopcook.settings import Settings, SimplifySettings
 from lopcook.tune import budget as BG
 
 FAST = Settings(simplify=SimplifySettings(backend="fast"))
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.api import budget_target as _budget_target
 from lopcook.cli import main
 from lopcook.lop.container import from_bytes, read
@@ -145,7 +145,7 @@ def test_nothing_fits_is_one_clear_error(gl, bumpy):
 
 
 def test_cli_target_bytes(gl, bumpy, tmp_path, capsys):
-    from lopcook.fixtures import write_gltf
+    from tests.support.fixtures import write_gltf
 
     src = tmp_path / "bumpy.glb"
     p = bumpy.parts[0]

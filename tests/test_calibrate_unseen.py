@@ -16,7 +16,7 @@ import pytest
 
 from lopcook import api
 from lopcook.errors import EXIT_VERIFY_FAILED, LopcookError
-from lopcook.fixtures import _part, write_obj
+from tests.support.fixtures import _part, write_obj
 from lopcook.ingest import load
 from lopcook.settings import DEFAULTS, RenderSettings
 from lopcook.verify.evaluate import evaluate

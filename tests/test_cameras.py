@@ -62,7 +62,7 @@ def test_object_pixels_at_a_level_do_not_depend_on_the_resolution():
 
 
 def test_fixture_rotation_is_the_view_rotation():
-    from lopcook import fixtures as F
+    from tests.support import fixtures as F
 
     np.testing.assert_array_equal(F.GLOSSY_CREASE_ROTATION, C.VIEW_ROTATION)
 

@@ -159,7 +159,7 @@ def test_decode_lod_uses_the_coarsest_lod_of_shorter_chains(tmp_path, capsys):
 
     import numpy as np
 
-    from lopcook import fixtures as F
+    from tests.support import fixtures as F
     from lopcook.cli import main
     from lopcook.ingest import load
 
@@ -192,7 +192,7 @@ def test_decode_lod_uses_the_coarsest_lod_of_shorter_chains(tmp_path, capsys):
 
 def test_inspect_says_which_parts_are_double_sided(tmp_path):
     schema = json.loads((REPO / "schema" / "inspect.source.schema.json").read_text())
-    from lopcook import fixtures as fx
+    from tests.support import fixtures as fx
 
     path = fx.write_textured_gltf(tmp_path / "textured.glb")[0]  # its material is double-sided
     proc = run("inspect", path, "--json")

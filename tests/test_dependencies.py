@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from lopcook.depfile import DependencyList, escape, format_depfile, write_depfile
-from lopcook.fixtures import seamed_cube, write_gltf, write_obj
+from tests.support.fixtures import seamed_cube, write_gltf, write_obj
 from lopcook.ingest import load
 from lopcook.types import Scene
 

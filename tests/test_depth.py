@@ -8,7 +8,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.analyse.depth import (depth_levels, depth_levels_reference, level_from_distance,
                                    point_triangle_distance)
 from lopcook.grid import dx

@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.simplify import chain as L
 from lopcook.simplify import error as E
-from lopcook.simplify import transfer as X
+from lopcook.simplify import reference as R
 from lopcook.ingest import load
 from lopcook.types import MeshPart
 
@@ -62,7 +62,7 @@ def test_one_sided_distances_of_a_sheet_inside_a_larger_one(plate):
 def test_samples_are_referenced_vertices_then_centroids():
     p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [7, 7, 7], [1, 1, 0]], dtype=np.float64)  # vertex 3 unused
     f = np.array([[0, 1, 2], [1, 4, 2]], dtype=np.int64)
-    s = E.samples(p, f)
+    s = R.samples(p, f)
     np.testing.assert_array_equal(s[:4], p[[0, 1, 2, 4]])
     np.testing.assert_allclose(s[4:], [p[[0, 1, 2]].mean(0), p[[1, 4, 2]].mean(0)], rtol=0, atol=1e-15)
 
@@ -70,7 +70,7 @@ def test_samples_are_referenced_vertices_then_centroids():
 def test_point_mesh_projects_onto_the_nearest_face():
     p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
     f = np.array([[0, 1, 2]], dtype=np.int64)
-    d2, fid, c = E.point_mesh(np.array([[0.25, 0.25, 0.5], [2.0, 0.0, 0.0]]), p, f)
+    d2, fid, c = R.point_mesh(np.array([[0.25, 0.25, 0.5], [2.0, 0.0, 0.0]]), p, f)
     np.testing.assert_allclose(d2, [0.25, 1.0], rtol=1e-12)
     np.testing.assert_array_equal(fid, [0, 0])
     np.testing.assert_allclose(c, [[0.25, 0.25, 0.0], [1.0, 0.0, 0.0]], atol=1e-12)
@@ -80,12 +80,12 @@ def test_point_mesh_projects_onto_the_nearest_face():
 
 
 def _brute_ref_to_lod(ref, part):
-    return float(np.sqrt(E.point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
+    return float(np.sqrt(R.point_mesh(ref.samples, part.positions, part.indices.astype(np.int64))[0].max()))
 
 
 def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(corpus):
     bunny = load(corpus / "stanford-bunny.obj").parts[0]
-    ref = X.Reference(bunny)
+    ref = R.Reference(bunny)
     for ratio in (1 / 2, 1 / 8):
         lod = L.simplify(bunny, ratio, backend="fast")
         assert E.measure_ref_to_lod(ref, lod.part) == _brute_ref_to_lod(ref, lod.part)
@@ -93,7 +93,7 @@ def test_ref_to_lod_pruned_measurement_equals_querying_every_sample(corpus):
 
 def test_ref_to_lod_on_a_fixture_equals_the_one_sided_hausdorff():
     sphere = F.unit_sphere()[0].as_mesh_part()
-    ref = X.Reference(sphere)
+    ref = R.Reference(sphere)
     lod = L.simplify(sphere, 0.25, backend="fast")
     d = E.measure_ref_to_lod(ref, lod.part)
     assert d > 0 and d == _brute_ref_to_lod(ref, lod.part)
@@ -104,7 +104,7 @@ def test_ref_to_lod_finds_a_maximum_at_a_centroid():
     # the same four vertices, the non-planar quad split along the other diagonal: every vertex lies
     # on the LOD (distance 0), the deviation is at the face centroids only
     v = [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]
-    ref = X.Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
+    ref = R.Reference(_part(v, [[0, 1, 2], [0, 2, 3]]))
     lod = _part(v, [[0, 1, 3], [1, 2, 3]])
     d = E.measure_ref_to_lod(ref, lod)
     assert d > 0.1 and d == _brute_ref_to_lod(ref, lod)
@@ -115,12 +115,12 @@ def test_ref_to_lod_finds_a_maximum_at_a_centroid():
 
 def _brute_vertex_max(ref, part):
     pts = ref.positions[ref.sample_vertices]
-    return float(np.sqrt(E.point_mesh(pts, part.positions, part.indices.astype(np.int64))[0].max()))
+    return float(np.sqrt(R.point_mesh(pts, part.positions, part.indices.astype(np.int64))[0].max()))
 
 
 def test_sample_order_takes_one_vertex_of_every_cell_of_the_complete_levels(corpus):
     pts = load(corpus / "stanford-bunny.obj").parts[0].positions
-    order = E.SampleOrder(pts)
+    order = R.SampleOrder(pts)
     assert np.array_equal(np.sort(order.order), np.arange(pts.shape[0]))
     lo, ext = pts.min(0), (pts.max(0) - pts.min(0)).max()
     for count in (1, 100, 5000, 20000, pts.shape[0] + 5):
@@ -135,12 +135,12 @@ def test_sample_order_takes_one_vertex_of_every_cell_of_the_complete_levels(corp
         occupied = np.unique(key)
         sampled = np.unique(key[order.order[pick]])
         assert np.array_equal(occupied, sampled), (count, full)
-    np.testing.assert_array_equal(E.SampleOrder(pts).take(777), order.take(777))  # deterministic
+    np.testing.assert_array_equal(R.SampleOrder(pts).take(777), order.take(777))  # deterministic
 
 
 def test_sampled_ref_to_lod_brackets_the_vertex_maximum(corpus):
     bunny = load(corpus / "stanford-bunny.obj").parts[0]
-    ref = X.Reference(bunny)
+    ref = R.Reference(bunny)
     for ratio in (1 / 2, 1 / 8, 1 / 32):
         lod = L.simplify(bunny, ratio, backend="fast").part
         exact = _brute_vertex_max(ref, lod)
@@ -156,7 +156,7 @@ def test_sampled_bound_in_blocks_equals_one_pass(corpus, monkeypatch):
     # the bound is computed a block of rows at a time: blocks of 1, 777 rows and one block over
     # every vertex give the same (measured, bound, queried), bit for bit
     bunny = load(corpus / "stanford-bunny.obj").parts[0]
-    ref = X.Reference(bunny)
+    ref = R.Reference(bunny)
     lod = L.simplify(bunny, 1 / 8, backend="fast").part
     monkeypatch.setattr(E, "_BOUND_BLOCK", bunny.n_vertices + 1)
     whole = E.sampled_ref_to_lod(ref, lod, 2000)
@@ -199,7 +199,7 @@ def test_sampled_bound_covers_a_spike_the_sample_misses():
     i = np.arange(n - 1)
     a = (i[:, None] * n + i[None, :]).ravel()
     faces = np.concatenate([np.stack([a, a + n, a + 1], 1), np.stack([a + 1, a + n, a + n + 1], 1)])
-    ref = X.Reference(_part(pos, faces))
+    ref = R.Reference(_part(pos, faces))
     flat = _part([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
     order = ref.sample_order
     count = 16  # levels 0-2 of the sample order; the spike is first in its cell at level 3

@@ -224,13 +224,13 @@ def test_source_check_skipped_only_for_a_container_cooked_from_the_harness_scene
     moved = Scene((MeshPart(p.name, p.positions + 0.01, p.indices, normals=p.normals),), "moved", "glb")
     with Harness(moved, resolution=(64, 36)) as h:
         with pytest.raises(LopcookError, match="positions differ"):
-            h.evaluate(c, levels=[6], views=1, variants=("cap",))
+            E.harness_evaluate(h, c, levels=[6], views=1, variants=("cap",))
         with pytest.raises(LopcookError, match="positions differ"):  # not the harness's scene: checked
-            h.evaluate(c, levels=[6], views=1, variants=("cap",), cooked_from=s)
-        r = h.evaluate(c, levels=[6], views=1, variants=("cap",), cooked_from=moved)
+            E.harness_evaluate(h, c, levels=[6], views=1, variants=("cap",), cooked_from=s)
+        r = E.harness_evaluate(h, c, levels=[6], views=1, variants=("cap",), cooked_from=moved)
         assert [row["level"] for row in r["levels"]] == [6]
         with pytest.raises(LopcookError, match="positions differ"):  # the source's attributes need the order
-            h.evaluate(c, levels=[6], views=1, variants=("cap",), attributes="source", cooked_from=moved)
+            E.harness_evaluate(h, c, levels=[6], views=1, variants=("cap",), attributes="source", cooked_from=moved)
 
 
 def test_a_view_stop_keeps_the_views_before_it_whatever_was_cached(gl, crease):
@@ -252,14 +252,15 @@ def test_a_view_stop_keeps_the_views_before_it_whatever_was_cached(gl, crease):
         return r["levels"][0][v]["psnr_views"]
 
     with Harness(s, SMALL) as h:
-        full_cap = psnrs(h.evaluate(c, levels=[6], views=6, variants=("cap",)), "cap")
+        full_cap = psnrs(E.harness_evaluate(h, c, levels=[6], views=6, variants=("cap",)), "cap")
     with Harness(s, SMALL) as h:
         got = {}
         for variant, k in (("cap", 2), ("ap", 3), ("cap", 4)):  # fresh; floats cached; remembered
             rule, calls = stopped_at(k)
-            got[variant, k] = psnrs(h.evaluate(c, levels=[6], views=6, variants=(variant,), stop_view=rule), variant)
+            got[variant, k] = psnrs(E.harness_evaluate(h, c, levels=[6], views=6, variants=(variant,),
+                                                       stop_view=rule), variant)
             assert len(got[variant, k]) == k + 1 and len(calls) == k + 1
     with Harness(s, SMALL) as h:
-        full_ap = psnrs(h.evaluate(c, levels=[6], views=6, variants=("ap",)), "ap")
+        full_ap = psnrs(E.harness_evaluate(h, c, levels=[6], views=6, variants=("ap",)), "ap")
     assert got["cap", 2] == full_cap[:3] and got["cap", 4] == full_cap[:5] and got["ap", 3] == full_ap[:4]
     assert full_ap != full_cap  # the variants differ, so each comparison is with its own

@@ -1,4 +1,4 @@
-"""lopcook.fixtures: the committed files regenerate byte for byte, and the fixture data holds
+"""tests.support.fixtures: the committed files regenerate byte for byte, and the fixture data holds
 the analytic facts fixtures/README.md states (counts, areas, volumes, gaps, transforms).
 
 Importers are not tested here; the files are only read back with json/numpy/text/pxr to check
@@ -13,7 +13,7 @@ import struct
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 
 from conftest import FIXTURES
 
@@ -49,7 +49,7 @@ def test_regenerated_files_are_byte_identical_to_committed(tmp_path):
     committed = sorted(p.name for p in FIXTURES.iterdir() if p.is_file() and p.suffix != ".md")
     generated = set(names)
     missing = [n for n in names if not (FIXTURES / n).is_file()]
-    assert not missing, f"run `python -m lopcook.fixtures` to write {missing}"
+    assert not missing, f"run `python -m tests.support.fixtures` to write {missing}"
     # fixtures/ may hold other hand-made files; every file write_all makes must match exactly.
     assert generated <= set(committed)
     differ = [n for n in names if (tmp_path / n).read_bytes() != (FIXTURES / n).read_bytes()]

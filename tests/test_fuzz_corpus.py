@@ -1,11 +1,11 @@
-"""The hostile-input corpus of ``lopcook.fuzzcases`` through the CLI (issue 17).
+"""The hostile-input corpus of ``tests.support.fuzzcases`` through the CLI.
 
 Over 450 generated inputs (glTF/GLB, OBJ, usda/usdc/usdz, .lop: truncations, byte flips, lying
 lengths and counts with checksums recomputed, degenerate geometry, hostile textures, depth and
 instancing bombs, FIFOs and device symlinks) run as ``python -m lopcook cook|inspect|decode`` in
 subprocesses under a 60 s limit and a 4 GB address-space limit. Every run must be classified
 ``ok`` or ``clean`` (exit 0, or exit 2 with one line naming the file; see
-``lopcook.fuzzcases.classify``): no exit 3, traceback, signal, timeout, memory blow-up, clobbered
+``tests.support.fuzzcases.classify``): no exit 3, traceback, signal, timeout, memory blow-up, clobbered
 or partial output, multi-line error, garbage accepted or valid input refused.
 
 The corpus is split into ``CHUNKS`` tests (marked ``fuzz_corpus``) so that CI can run them in
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from lopcook import fuzzcases
+from tests.support import fuzzcases
 
 REPO = Path(__file__).resolve().parents[1]
 CHUNKS = 6

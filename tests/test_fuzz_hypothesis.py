@@ -18,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.lop import reader
 from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError

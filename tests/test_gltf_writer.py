@@ -17,7 +17,7 @@ import numpy as np
 import pygltflib
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.emit import gltf_writer as W
 from lopcook.emit.gltf_writer import write_gltf
 from lopcook.ingest import load

@@ -11,7 +11,7 @@ import zlib
 import numpy as np
 import pytest
 
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.lop import reader
 from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError

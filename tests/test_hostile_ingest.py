@@ -12,7 +12,7 @@ import re
 import numpy as np
 import pytest
 
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
 from lopcook.ingest.build import MAX_COORDINATE, MAX_PARTS, MAX_TEXTURE_PIXELS, texture_problem

@@ -9,7 +9,7 @@ import re
 
 import pytest
 
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.errors import LopcookError  # noqa: E402
 from lopcook.ingest import load, usd  # noqa: E402
 from lopcook.ingest.build import MAX_PARTS  # noqa: E402

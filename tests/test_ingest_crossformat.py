@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import FIXTURES
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.ingest import load
 
 

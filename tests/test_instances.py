@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.simplify import instances as I
 from lopcook.simplify import hausdorff, lod_chain
 from lopcook.types import MeshPart, Scene

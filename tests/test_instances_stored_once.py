@@ -15,7 +15,7 @@ from lopcook.lop.container import CLUSTERED_VERSION, VERSION, from_bytes, to_byt
 from lopcook.lop.placement import float32_slack, level_shift, local_level, resident_level, to_world
 from lopcook.lop.reader import decode_positions, lod_attributes, owner, part_grid
 from lopcook.errors import LopcookError
-from lopcook.fixtures import unit_sphere
+from tests.support.fixtures import unit_sphere
 from lopcook.grid import dx
 from lopcook.pipeline import run
 from lopcook.settings import Settings, SimplifySettings
@@ -502,7 +502,7 @@ def test_report_of_an_instanced_gltf_says_what_sharing_saves(tmp_path, gl):
 
     from conftest import REPO
     from lopcook.cli import main
-    from lopcook.fixtures import write_gltf
+    from tests.support.fixtures import write_gltf
 
     sphere = unit_sphere(2)
     nodes = [{"name": "a", "mesh": 0, "translation": [0.0, 0.0, 0.0]},

@@ -15,7 +15,7 @@ from lopcook.simplify import chain as L
 from lopcook.simplify import error as E
 from lopcook.simplify import topology as T
 from lopcook.simplify import transfer as X
-from lopcook.fixtures import unit_sphere
+from tests.support.fixtures import unit_sphere
 from lopcook.types import MeshPart
 
 pytestmark = pytest.mark.skipif(not isolate._available(), reason="backends are isolated on Linux only")

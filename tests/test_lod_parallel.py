@@ -10,6 +10,7 @@ from lopcook import pipeline
 from lopcook.ingest import load
 from lopcook.settings import LodSpec, Settings, SimplifySettings
 from lopcook.simplify import parallel as P
+from lopcook.simplify import workers as W
 
 
 @pytest.fixture(scope="module")
@@ -51,18 +52,18 @@ def test_cook_bytes_do_not_depend_on_the_worker_count(truck, monkeypatch):
     data = {}
     for w in ("1", "2"):
         monkeypatch.setenv("LOPCOOK_LOD_WORKERS", w)
-        assert P.workers() == int(w)
+        assert W.workers() == int(w)
         data[w] = pipeline.run(truck, settings).data
     assert data["1"] == data["2"]
 
 
 def test_workers_setting(monkeypatch):
     monkeypatch.setenv("LOPCOOK_LOD_WORKERS", "0")
-    assert P.workers() == 1
+    assert W.workers() == 1
     monkeypatch.setenv("LOPCOOK_LOD_WORKERS", "many")
-    assert P.workers() == 1
+    assert W.workers() == 1
     monkeypatch.delenv("LOPCOOK_LOD_WORKERS")
-    assert 1 <= P.workers() <= P.MAX_WORKERS
+    assert 1 <= W.workers() <= W.MAX_WORKERS
 
 
 def _dies(part, **kw):
@@ -75,7 +76,7 @@ def _dies(part, **kw):
 
 
 def test_a_worker_that_dies_is_an_error_not_a_hang(monkeypatch):
-    from lopcook import fixtures as fx
+    from tests.support import fixtures as fx
     from lopcook.errors import LopcookError
     from lopcook.types import MeshPart
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.cli import main
 from lopcook.emit import preview as P
 from lopcook.emit.gltf_writer import write_gltf

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import cook_container
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.lop.reader import gpu_buffer
 from lopcook.types import MeshPart, Scene
 from lopcook.verify.buffers import source_order

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from conftest import cook_container
-from lopcook import fixtures as fx
+from tests.support import fixtures as fx
 from lopcook.settings import DEFAULT_ANALYSE, AnalyseSettings
 from lopcook.types import MeshPart, Scene
 from lopcook.verify import renderer as R
 from lopcook.verify.cameras import camera_distance, make_camera, render_viewing
+from lopcook.verify.evaluate import harness_evaluate, harness_evaluate_scene
 from lopcook.verify.renderer import Harness, Shading, digest, release_shared, shared_harness
 
 RES = (96, 54)
@@ -62,20 +63,20 @@ def test_a_memoised_evaluation_equals_a_fresh_one_and_renders_nothing(gl, monkey
     c = cook_container(scene)
     levels = [6, 9, 12]
     with Harness(scene, RES) as fresh:
-        want = strip(fresh.evaluate(c, levels=levels, views=4))
+        want = strip(harness_evaluate(fresh, c, levels=levels, views=4))
     with Harness(scene, RES, cache_float=True) as h:
-        first = strip(h.evaluate(c, levels=levels, views=4))
+        first = strip(harness_evaluate(h, c, levels=levels, views=4))
         n = Counting(h, monkeypatch)
-        again = strip(h.evaluate(c, levels=levels, views=4))
+        again = strip(harness_evaluate(h, c, levels=levels, views=4))
         assert (n.decoded, n.float) == (0, 0)  # every (level, view) came from the memo
         assert first == want and again == want
         # a container cooked at a looser eps: its CAP draws other positions (rendered, its own
         # numbers); an AP draw is a memo hit only where its attributes (bits by eps) are the same too
         other = cook_container(scene, AnalyseSettings(eps=DEFAULT_ANALYSE.eps * 64.0))
-        got = strip(h.evaluate(other, levels=levels, views=4))
+        got = strip(harness_evaluate(h, other, levels=levels, views=4))
         assert len(levels) * 4 <= n.decoded <= 2 * len(levels) * 4
     with Harness(scene, RES) as fresh:
-        assert got == strip(fresh.evaluate(other, levels=levels, views=4))
+        assert got == strip(harness_evaluate(fresh, other, levels=levels, views=4))
         assert got["levels"][0]["cap"] != want["levels"][0]["cap"]
 
 
@@ -83,14 +84,14 @@ def test_a_stopped_evaluation_leaves_the_levels_it_rendered_memoised(gl, monkeyp
     scene = spheres(2)
     c = cook_container(scene)
     with Harness(scene, RES, cache_float=True) as h:
-        part = strip(h.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",), stop=lambda pv: True))
+        part = strip(harness_evaluate(h, c, levels=[6, 8, 10], views=3, variants=("cap",), stop=lambda pv: True))
         assert [r["level"] for r in part["levels"]] == [6]
         n = Counting(h, monkeypatch)
-        full = strip(h.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",)))
+        full = strip(harness_evaluate(h, c, levels=[6, 8, 10], views=3, variants=("cap",)))
         assert n.decoded == 2 * 3  # levels 8 and 10 only
         assert full["levels"][0] == part["levels"][0]
     with Harness(scene, RES) as fresh:
-        assert full == strip(fresh.evaluate(c, levels=[6, 8, 10], views=3, variants=("cap",)))
+        assert full == strip(harness_evaluate(fresh, c, levels=[6, 8, 10], views=3, variants=("cap",)))
 
 
 def test_digest_tells_dtype_shape_and_bytes_apart():
@@ -264,8 +265,8 @@ def test_kept_attributes_give_the_same_evaluations_and_follow_the_container(gl):
     with Harness(scene, RES) as fresh, Harness(scene, RES) as kept:
         kept.keep_attributes = True
         for level in (6, 9, 11):
-            a = fresh.evaluate(c, levels=[level], views=3, keep_images=True)
-            b = kept.evaluate(c, levels=[level], views=3, keep_images=True)
+            a = harness_evaluate(fresh, c, levels=[level], views=3, keep_images=True)
+            b = harness_evaluate(kept, c, levels=[level], views=3, keep_images=True)
             ia, ib = a.pop("images"), b.pop("images")
             assert strip(a) == strip(b)
             assert all(np.array_equal(ia[k], ib[k]) for k in ia if isinstance(ia[k], np.ndarray))
@@ -274,12 +275,13 @@ def test_kept_attributes_give_the_same_evaluations_and_follow_the_container(gl):
             if level > 6:  # the same buffers as the level before
                 assert all(entries[i][0] is first[i][0] for i in entries)
             first = entries
-        assert strip(kept.evaluate(other, levels=[9], views=3)) == strip(fresh.evaluate(other, levels=[9], views=3))
+        assert strip(harness_evaluate(kept, other, levels=[9], views=3)) == \
+            strip(harness_evaluate(fresh, other, levels=[9], views=3))
         assert kept.kept_attributes[0] is other
     assert kept.kept_attributes is None  # released with the harness
     # off by default: nothing is kept
     with Harness(scene, RES) as h:
-        h.evaluate(c, levels=[9], views=2)
+        harness_evaluate(h, c, levels=[9], views=2)
         assert h.kept_attributes is None
 
 
@@ -305,8 +307,8 @@ def test_a_test_scene_draws_the_sources_index_and_attribute_buffers_it_shares(gl
         assert not any(o is src["buffers"][0] for o in owned for src in h.float_items)  # not the items' to release
         for o in owned + owned2:
             o.release()
-        a = h.evaluate_scene(u16, levels=[8, 12], views=3)
-        b = h.evaluate_scene(apart, levels=[8, 12], views=3)
+        a = harness_evaluate_scene(h, u16, levels=[8, 12], views=3)
+        b = harness_evaluate_scene(h, apart, levels=[8, 12], views=3)
         assert strip(a)["levels"] == strip(b)["levels"]
 
 

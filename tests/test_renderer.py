@@ -40,7 +40,7 @@ def test_textured_part_samples_its_base_colour(gl):
     """A base-colour texture reaches the render (float, AP and CAP alike); CAP at 24 still matches."""
     from PIL import Image
 
-    from lopcook import fixtures as F
+    from tests.support import fixtures as F
 
     img = np.zeros((64, 64, 3), np.uint8)
     img[:] = (230, 30, 30)

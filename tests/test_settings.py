@@ -7,7 +7,7 @@ import dataclasses
 
 import pytest
 
-from lopcook.cli import build_parser
+from lopcook.cli.parser import build_parser
 from lopcook.errors import LopcookError
 from lopcook.lop.codecs import CODECS
 from lopcook.settings import (DEFAULTS, AnalyseSettings, AttributeSettings, DepthMode, IngestSettings, LodBackend,

@@ -10,7 +10,7 @@ from conftest import position_ids
 from lopcook.ingest import load
 from lopcook.mesh import face_normals, unique_rows
 from lopcook.simplify import chain as L
-from lopcook.simplify import error as E
+from lopcook.simplify import reference as R
 from lopcook.simplify import transfer as T
 from lopcook.simplify.backends import check_result, prepare, run_backend
 from lopcook.types import MeshPart
@@ -49,10 +49,10 @@ def assert_error_bound(lod: L.Lod, src: MeshPart):
     recorded is the centroids' maximum, the vertices being at distance 0."""
     p, f = lod.part.positions, lod.part.indices.astype(np.int64)
     fs = src.indices.astype(np.int64)
-    dv = E.point_mesh(p, src.positions, fs)[0]
+    dv = R.point_mesh(p, src.positions, fs)[0]
     assert dv.max() <= 1e-30  # the vertices lie on LOD 0 (they are LOD 0 vertices)
-    dc = np.sqrt(E.point_mesh(p[f].mean(axis=1), src.positions, fs)[0])
-    d0 = np.sqrt(E.point_mesh(src.positions[np.unique(fs)], p, f)[0])
+    dc = np.sqrt(R.point_mesh(p[f].mean(axis=1), src.positions, fs)[0])
+    d0 = np.sqrt(R.point_mesh(src.positions[np.unique(fs)], p, f)[0])
     worst = max(float(dc.max()), float(d0.max()))
     assert lod.error_bound_m >= worst * (1 - 1e-12), (lod.error_bound_m, worst)
     assert lod.hausdorff_m <= lod.error_bound_m
@@ -117,7 +117,7 @@ def test_colocated_corners_take_their_own_side():
 def test_exact_vertex_key_equals_generic_key(corpus):
     # the two-column key gives the same vertices, numbered alike, as the generic per-corner bit rows
     part = load(corpus / "fandisk.obj").parts[0]
-    ref = T.Reference(part)
+    ref = R.Reference(part)
     work, _ = prepare(part, "ignore")
     target = part.n_triangles // 4
     res, _ = check_result(run_backend("meshopt", work, target, True, True), target, work.faces.shape[0])
@@ -137,7 +137,7 @@ def test_exact_vertex_key_equals_generic_key(corpus):
 def test_moved_vertices_keep_the_closest_point_transfer(corpus):
     # fast-simplification moves vertices: no exact sources, and exact=True changes nothing
     part = load(corpus / "stanford-bunny.obj").parts[0]
-    ref = T.Reference(part)
+    ref = R.Reference(part)
     work, _ = prepare(part, "ignore")
     target = part.n_triangles // 4
     res, _ = check_result(run_backend("fast", work, target, True, True), target, work.faces.shape[0])
@@ -151,7 +151,7 @@ def test_moved_vertices_keep_the_closest_point_transfer(corpus):
 
 def test_exact_sources_rejects_a_moved_vertex():
     part = _folded_sheet(4)
-    ref = T.Reference(part)
+    ref = R.Reference(part)
     p = part.positions[np.unique(part.indices)].copy()
     found = T.exact_sources(ref, p)
     assert found is not None
@@ -163,8 +163,8 @@ def test_exact_sources_rejects_a_moved_vertex():
 def test_query_bounded_equals_query(corpus, monkeypatch):
     # chunked trees give the closest distances of the one tree over all of LOD 0
     part = load(corpus / "stanford-bunny.obj").parts[0]
-    monkeypatch.setattr(T, "CHUNK_FACES", 4096)  # 17 chunks
-    ref = T.Reference(part)
+    monkeypatch.setattr(R, "CHUNK_FACES", 4096)  # 17 chunks
+    ref = R.Reference(part)
     assert len(ref.chunks) == 2 ** int(np.ceil(np.log2(ref.faces.shape[0] / 4096)))  # 32 chunks
     assert np.array_equal(np.sort(np.concatenate([c[0] for c in ref.chunks])), np.arange(ref.faces.shape[0]))
     rng = np.random.default_rng(3)
@@ -188,8 +188,8 @@ def test_query_bounded_equals_query(corpus, monkeypatch):
 def test_query_near_equals_query(corpus, monkeypatch):
     # the faces around the vertices within reach hold the closest point: same distances
     part = load(corpus / "stanford-bunny.obj").parts[0]
-    monkeypatch.setattr(T, "CHUNK_FACES", 4096)
-    ref = T.Reference(part)
+    monkeypatch.setattr(R, "CHUNK_FACES", 4096)
+    ref = R.Reference(part)
     rng = np.random.default_rng(5)
     v = rng.integers(0, part.n_vertices, 3000)
     pts = part.positions[v] + rng.normal(0.0, 1e-3, (v.size, 3))

@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lopcook import fixtures as F
+from tests.support import fixtures as F
 from lopcook.simplify import backends as B
 from lopcook.simplify import transfer as X
-from lopcook.simplify.error import samples
+from lopcook.simplify import reference as R
+from lopcook.simplify.reference import samples
 from lopcook.types import MeshPart
 
 TRI = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -53,7 +54,7 @@ def test_reference_leaves_zero_area_faces_out():
     cube = _parts()["seamed_cube"]
     idx = np.r_[cube.indices, [[0, 0, 1]]].astype(np.uint32)
     part = MeshPart(name="cube", positions=cube.positions, indices=idx, normals=cube.normals, uvs=cube.uvs)
-    ref = X.Reference(part)
+    ref = R.Reference(part)
     assert ref.degenerate.sum() == 1 and ref.faces.shape == (12, 3) and ref.faces_all.shape == (13, 3)
     assert ref.defects["degenerate_faces"] == 1 and ref.defects["closed"]
     assert ref.volume == pytest.approx(1.0, rel=1e-15)
@@ -68,7 +69,7 @@ def test_reference_leaves_zero_area_faces_out():
                          + [("unit_sphere", "ignore")])
 def test_transfer_onto_the_unsimplified_mesh_reproduces_its_attributes(name, mode):
     part = _parts()[name]
-    ref = X.Reference(part)
+    ref = R.Reference(part)
     work, _ = B.prepare(part, mode)
     res = B.BackendResult(part.positions.copy(), part.indices.astype(np.int64))
     out, info = X.transfer_attributes(res, ref, part, work, mode, 0.02)
@@ -88,7 +89,7 @@ def test_transfer_onto_the_unsimplified_mesh_reproduces_its_attributes(name, mod
 
 def test_transfer_onto_a_simplified_plate_keeps_linear_uvs_and_normals():
     plate = _parts()["two_plates"]
-    ref = X.Reference(plate)
+    ref = R.Reference(plate)
     work, _ = B.prepare(plate, "ignore")
     res, _ = B.check_result(B.simplify_fast(work.positions, work.faces, 32, lock_border=True), 32, 128)
     out, info = X.transfer_attributes(res, ref, plate, work, "ignore", 0.02)
@@ -101,7 +102,7 @@ def test_transfer_onto_a_simplified_plate_keeps_linear_uvs_and_normals():
 
 def test_inside_out_result_is_a_backend_failure():
     cube = _parts()["seamed_cube"]
-    ref = X.Reference(cube)
+    ref = R.Reference(cube)
     work, _ = B.prepare(cube, "ignore")
     res = B.BackendResult(cube.positions.copy(), cube.indices.astype(np.int64)[:, ::-1].copy())
     with pytest.raises(B.BackendFailure, match="flipped"):
@@ -119,8 +120,8 @@ def test_chunks_partition_the_faces_and_box_them_and_candidates_hold_every_reach
     rng = np.random.default_rng(11)
     pos = s.positions * (1.0 + 0.03 * rng.standard_normal(s.positions.shape[0]))[:, None]
     part = MeshPart("bumpy", pos.astype(np.float32), s.indices.astype(np.uint32))
-    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
-    ref = X.Reference(part)
+    monkeypatch.setattr(R, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
+    ref = R.Reference(part)
     chunks = ref.chunks
     assert len(chunks) == 8
     owner = np.full(ref.faces.shape[0], -1)
@@ -148,8 +149,8 @@ def test_chunks_partition_the_faces_and_box_them_and_candidates_hold_every_reach
     v = (np.arange(k - 1)[None, :] + k * np.arange(k - 1)[:, None]).ravel()
     quads = np.stack([v, v + 1, v + k + 1, v + k], axis=1)
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    flat = X.Reference(MeshPart("flat", grid_pos.astype(np.float32), tris.astype(np.uint32)))
-    monkeypatch.setattr(X, "CHUNK_FACES", tris.shape[0] // 7)
+    flat = R.Reference(MeshPart("flat", grid_pos.astype(np.float32), tris.astype(np.uint32)))
+    monkeypatch.setattr(R, "CHUNK_FACES", tris.shape[0] // 7)
     assert len(flat.chunks) == 8
     q = np.concatenate([rng.uniform(0, k - 1, (5000, 2)), rng.uniform(0, 0.5, (5000, 1))], axis=1)
     cand = flat._candidates(q, np.ones(5000))
@@ -169,16 +170,16 @@ def test_query_any_equals_the_whole_tree_without_building_it(monkeypatch):
     part = MeshPart("bumpy", pos.astype(np.float32), s.indices.astype(np.uint32))
     pts = np.concatenate([rng.standard_normal((3000, 3)) * rng.uniform(0.2, 3.0, (3000, 1)),
                           part.positions[:500].astype(np.float64)])  # vertices: distance 0
-    d_all, f_all, c_all = X.Reference(part).query(pts)
-    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
-    ref = X.Reference(part)
+    d_all, f_all, c_all = R.Reference(part).query(pts)
+    monkeypatch.setattr(R, "CHUNK_FACES", part.n_triangles // 7)  # 8 chunks
+    ref = R.Reference(part)
     calls = {"near": 0, "bounded": 0}
     for name in calls:
-        method = getattr(X.Reference, f"query_{name}")
-        monkeypatch.setattr(X.Reference, f"query_{name}",
+        method = getattr(R.Reference, f"query_{name}")
+        monkeypatch.setattr(R.Reference, f"query_{name}",
                             lambda self, *a, _m=method, _n=name, **k: (calls.__setitem__(_n, calls[_n] + 1), _m(self, *a, **k))[1])
     # many points: the chunk sweep; one per NEAR_POINTS_PER_FACE faces or fewer: the faces near them
-    for sel in (slice(None), slice(2900, 2900 + part.n_triangles // X.NEAR_POINTS_PER_FACE)):
+    for sel in (slice(None), slice(2900, 2900 + part.n_triangles // R.NEAR_POINTS_PER_FACE)):
         d, f, c = ref.query_any(pts[sel])
         assert ref._tree is None  # no tree over all faces
         assert np.array_equal(d, d_all[sel]) and np.array_equal(c, c_all[sel])
@@ -189,7 +190,7 @@ def test_query_any_equals_the_whole_tree_without_building_it(monkeypatch):
         assert (bary > -1e-6).all()
         assert tie.size == 0 or np.abs(np.einsum("qk,qkd->qd", bary, tri) - c[tie]).max() < 1e-9
     assert calls["near"] == 1 and calls["bounded"] >= 1
-    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles)
-    small = X.Reference(part)
+    monkeypatch.setattr(R, "CHUNK_FACES", part.n_triangles)
+    small = R.Reference(part)
     assert all(np.array_equal(u, v) for u, v in zip(small.query_any(pts), (d_all, f_all, c_all)))
     assert small._tree is not None

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from lopcook import isolate, pipeline
-from lopcook.fixtures import unit_sphere
+from tests.support.fixtures import unit_sphere
 from lopcook.settings import Settings, SimplifySettings, parse_lods
-from lopcook.simplify import transfer as X
+from lopcook.simplify import reference as R
 from lopcook.types import MeshPart, Scene
 
 pytestmark = pytest.mark.skipif(not isolate._available(), reason="forked work is Linux only")
@@ -81,8 +81,8 @@ def _bumpy_sphere(subdiv: int = 5, bump: float = 0.05) -> MeshPart:
 
 def test_query_bounded_in_two_processes_is_the_serial_answer(monkeypatch):
     part = _bumpy_sphere()
-    monkeypatch.setattr(X, "CHUNK_FACES", part.n_triangles // 12)  # 16 chunks
-    monkeypatch.setattr(X, "PARALLEL_POINTS", 100)
+    monkeypatch.setattr(R, "CHUNK_FACES", part.n_triangles // 12)  # 16 chunks
+    monkeypatch.setattr(R, "PARALLEL_POINTS", 100)
     rng = np.random.default_rng(3)
     # points off the surface with a true bound: the squared distance to a LOD 0 vertex
     v = part.positions.astype(np.float64)
@@ -93,14 +93,14 @@ def test_query_bounded_in_two_processes_is_the_serial_answer(monkeypatch):
     answers = {}
     for w in ("1", "2"):
         monkeypatch.setenv("LOPCOOK_LOD_WORKERS", w)
-        answers[w] = X.Reference(part).query_bounded(pts, bound)
+        answers[w] = R.Reference(part).query_bounded(pts, bound)
     for a, b in zip(answers["1"], answers["2"]):
         assert a.dtype == b.dtype and np.array_equal(a, b)
     d, f, c = answers["2"]
-    full_d, _, _ = X.Reference(part).query(pts)  # one tree over all faces: the exact distances
+    full_d, _, _ = R.Reference(part).query(pts)  # one tree over all faces: the exact distances
     assert np.allclose(d, full_d, rtol=1e-12, atol=1e-15)
     # the closest point lies on the face found
-    ref = X.Reference(part)
+    ref = R.Reference(part)
     a, b_, c_ = (ref.positions[ref.faces[f, j]].astype(np.float64) for j in range(3))
     n = np.cross(b_ - a, c_ - a)
     n /= np.linalg.norm(n, axis=1)[:, None]
@@ -112,8 +112,8 @@ def test_a_lod_cook_in_two_processes_writes_the_one_process_bytes(monkeypatch):
     two processes: the container is the serial one."""
     scene = Scene(parts=(_bumpy_sphere(5, 0.01),), source="bumpy.obj", format="obj")
     monkeypatch.setattr(pipeline, "PARALLEL_VERTICES", 0)
-    monkeypatch.setattr(X, "PARALLEL_POINTS", 100)
-    monkeypatch.setattr(X, "CHUNK_FACES", 2048)
+    monkeypatch.setattr(R, "PARALLEL_POINTS", 100)
+    monkeypatch.setattr(R, "CHUNK_FACES", 2048)
     started = []
     real_start = isolate.start
 

@@ -1,6 +1,6 @@
 """The harness's fused metric pass and its float-render cache give the numbers of the plain
 implementation: ``metrics.view_metrics`` against ``image_metrics`` + ``depth_order_errors`` on
-constructed image pairs, and ``Harness.evaluate`` (cached float renders, fused metrics) against a
+constructed image pairs, and ``harness_evaluate`` (cached float renders, fused metrics) against a
 loop of plain ``Renderer.draw`` renders measured with the original functions, on a fixture."""
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from lopcook.verify import metrics as M
 from lopcook.verify import renderer as RR
 from lopcook.verify.buffers import source_order
 from lopcook.verify.cameras import camera_distance, make_camera, render_viewing
+from lopcook.verify.evaluate import harness_evaluate
 from lopcook.verify.renderer import Harness, Shading, decoded_items
 
 INT_KEYS = ("object_pixels", "pixels_off", "interior_pixels")
@@ -126,7 +127,7 @@ def test_harness_numbers_equal_the_plain_renders(gl, name):
     with Harness(scene, (160, 90), cache_float=True) as h:
         plain = _plain(h, c, scene, levels, views)
         for _ in range(2):  # the second pass reads every float render from the cache
-            r = h.evaluate(c, levels=levels, views=views, variants=("cap",))
+            r = harness_evaluate(h, c, levels=levels, views=views, variants=("cap",))
             got = [(row["cap"], i) for row in r["levels"] for i in range(len(views))]
             for (row, i), (colour, order) in zip(got, plain):
                 p = colour["psnr"]

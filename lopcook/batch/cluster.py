@@ -1,7 +1,7 @@
 """``--scheduler tcp://HOST:PORT``: the batch's cooks on a Dask distributed cluster.
 
 Each asset is one Dask task, ``lopcook.batch.worker.run_isolated(task)``, so on the worker it
-runs exactly as locally: a fresh ``python -m lopcook.batch.worker`` process under the memory
+runs exactly as locally: a fresh ``python -m lopcook.batch.child`` process under the memory
 cap, which cooks with ``lopcook cook``'s own code and moves the output into place.
 
 The cluster needs a **shared filesystem**: every worker must see the sources and OUTDIR at the
@@ -21,6 +21,7 @@ import uuid
 from collections.abc import Callable, Iterable
 
 from ..errors import LopcookError
+from .worker import run_isolated
 
 
 def run_cluster(tasks: Iterable[dict], scheduler: str, on_result: Callable[[dict, dict], None],
@@ -29,12 +30,10 @@ def run_cluster(tasks: Iterable[dict], scheduler: str, on_result: Callable[[dict
     finishes. Returns ``{"scheduler": address, "workers": n}``. Raises ``LopcookError`` when the
     scheduler cannot be reached within ``timeout_s`` or has no workers."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client, as_completed  # optional (lopcook[cluster]): only --scheduler needs it
     except ImportError:
         raise LopcookError("usage", None, "--scheduler needs the distributed package",
                            hint="pip install distributed") from None
-    from .worker import run_isolated
-
     tasks = list(tasks)
     try:
         client = Client(scheduler, timeout=timeout_s)

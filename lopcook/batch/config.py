@@ -38,8 +38,10 @@ import io
 import os
 import re
 import shlex
+import tomllib
 from dataclasses import dataclass, field
 
+from ..cli.parser import build_parser
 from ..errors import LopcookError
 
 #: Namespace entries of ``lopcook cook`` that are not cook options (the batch sets or ignores them)
@@ -137,8 +139,6 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
     """Read and validate ``lopcook.toml`` (None: the empty config). Raises ``LopcookError``."""
     if path is None:
         return BatchConfig()
-    import tomllib
-
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:
@@ -181,8 +181,6 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
 def _parse_cook(options) -> dict:
     """``lopcook cook``'s parser over ``options`` -> the Namespace as a dict; ``ValueError`` with
     argparse's message when they do not parse."""
-    from ..cli import build_parser
-
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):  # --help prints

@@ -27,7 +27,9 @@ import hashlib
 import json
 import os
 
+from ..atomic import write_atomic
 from ..version import __version__
+from . import STATE_FILE
 
 KEY_FORMAT = "lopcook-batch-key/1"
 STATE_FORMAT = "lopcook-batch-state/1"
@@ -72,33 +74,11 @@ def parse_depfile(text: str) -> tuple[str, list[str]]:
     while i < n:
         c = text[i]
         if c == "\\":
-            j = i
-            while j < n and text[j] == "\\":
-                j += 1
-            k = j - i
-            nxt = text[j] if j < n else ""
-            if nxt in (" ", "\t") and nxt:
-                cur.append("\\" * (k // 2) + (nxt if k % 2 else ""))
-                have = have or k >= 2 or k % 2 == 1
-                i = j + 1 if k % 2 else j
-                if not k % 2:
-                    flush()
-                continue
-            if nxt == "\n" or (nxt == "\r" and text[j + 1:j + 2] == "\n"):
-                if k > 1:
-                    cur.append("\\" * (k - 1))
-                    have = True
+            piece, has, i, ends = _backslashes(text, i)
+            cur.append(piece)
+            have = have or has
+            if ends:
                 flush()
-                i = j + (2 if nxt == "\r" else 1)
-                continue
-            if nxt in ("#", ":") and nxt:
-                cur.append("\\" * (k - 1) + nxt)
-                have = True
-                i = j + 1
-                continue
-            cur.append("\\" * k)
-            have = True
-            i = j
             continue
         if c == "$" and text[i + 1:i + 2] == "$":
             cur.append("$")
@@ -130,6 +110,24 @@ def parse_depfile(text: str) -> tuple[str, list[str]]:
     return target, words
 
 
+def _backslashes(text: str, i: int) -> tuple[str, bool, int, bool]:
+    """The run of backslashes at ``text[i]`` and what it escapes (``parse_depfile``'s rules):
+    ``(text it adds to the word, whether it makes a word, index after it, whether the word ends)``."""
+    n = len(text)
+    j = i
+    while j < n and text[j] == "\\":
+        j += 1
+    k = j - i
+    nxt = text[j] if j < n else ""
+    if nxt in (" ", "\t") and nxt:  # 2N+1: N backslashes and the blank; 2N: N backslashes, then a separator
+        return "\\" * (k // 2) + (nxt if k % 2 else ""), k >= 2 or k % 2 == 1, j + 1 if k % 2 else j, not k % 2
+    if nxt == "\n" or (nxt == "\r" and text[j + 1:j + 2] == "\n"):  # a line continuation
+        return "\\" * (k - 1) if k > 1 else "", k > 1, j + (2 if nxt == "\r" else 1), True
+    if nxt in ("#", ":") and nxt:
+        return "\\" * (k - 1) + nxt, True, j + 1, False
+    return "\\" * k, True, j, False
+
+
 def read_depfile(path: str) -> list[str]:
     """The dependencies of a depfile written by ``lopcook cook --depfile``."""
     with open(path, encoding="utf-8", errors="surrogateescape") as fh:
@@ -159,8 +157,6 @@ class State:
     """``OUTDIR/.lopcook-batch.json``: entries keyed by output path relative to OUTDIR."""
 
     def __init__(self, outdir: str, entries: dict | None = None) -> None:
-        from . import STATE_FILE
-
         self.outdir = os.path.abspath(outdir)
         self.path = os.path.join(self.outdir, STATE_FILE)
         self.entries: dict[str, dict] = dict(entries or {})
@@ -202,8 +198,6 @@ class State:
         self.entries.pop(self.rel(output), None)
 
     def save(self) -> None:
-        from ..atomic import write_atomic
-
         os.makedirs(self.outdir, exist_ok=True)
         data = {"format": STATE_FORMAT, "lopcook": __version__,
                 "outputs": {k: self.entries[k] for k in sorted(self.entries)}}

@@ -32,6 +32,7 @@ from __future__ import annotations
 import shlex
 import sys
 
+from ..atomic import write_atomic
 from ..version import __version__
 
 
@@ -75,8 +76,6 @@ def format_ninja(edges, lopcook_command: str | None = None) -> str:
 
 def write_ninja(path: str, edges, lopcook_command: str | None = None) -> None:
     """Write ``format_ninja(edges)`` to ``path`` atomically."""
-    from ..atomic import write_atomic
-
     write_atomic(path, format_ninja(edges, lopcook_command).encode("utf-8"))
 
 

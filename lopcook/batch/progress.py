@@ -21,7 +21,7 @@ class Progress:
         self.mode, self.total, self.done = mode, total, 0
         self.bar = None
         if mode == "bar" and total:
-            from tqdm import tqdm
+            from tqdm import tqdm  # imported only when a bar is drawn (a terminal)
 
             try:
                 width, height = os.get_terminal_size(self.stream.fileno())

@@ -23,9 +23,12 @@ from dataclasses import dataclass
 from ..errors import LopcookError
 from ..version import __version__
 from . import SCRATCH_DIR
+from .cluster import run_cluster
 from .config import BatchConfig, load_config, resolve
 from .discover import Asset, discover
 from .keys import State, options_digest
+from .local import run_local
+from .progress import Progress
 
 DEFAULT_MEMORY_CAP = 4 * 10 ** 9
 _SAVE_EVERY_S = 2.0
@@ -71,7 +74,7 @@ def _lock(outdir: str):
     closes): two batches writing one OUTDIR at once would lose each other's state entries."""
     fh = open(os.path.join(outdir, ".lopcook-batch.lock"), "a+b")
     try:
-        import fcntl
+        import fcntl  # POSIX only: the lock is taken where the platform has it
 
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
     except ImportError:  # not POSIX: no lock
@@ -96,27 +99,10 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     config = config if config is not None else load_config(default_config_path())
     outdir = os.path.abspath(outdir)
     planned = plan(sources, outdir, config)
-    try:
-        os.makedirs(outdir, exist_ok=True)
-    except OSError as exc:
-        raise LopcookError("usage", outdir, f"cannot create the output folder ({exc.strerror or exc})",
-                           hint="give -o a folder whose parent exists and is writable") from None
-    if not os.access(outdir, os.W_OK | os.X_OK):
-        raise LopcookError("usage", outdir, "the output folder is not writable")
+    _make_outdir(outdir)
     lock = _lock(outdir)
     state = State.load(outdir)
-    records: dict[str, dict] = {}
-    todo: list[Planned] = []
-    for p in planned:
-        rec = {"source": p.asset.source, "relpath": p.asset.relpath, "output": p.asset.output,
-               "options": list(p.options)}
-        records[p.asset.output] = rec
-        if not force and state.up_to_date(p.asset.source, p.asset.output, p.resolved):
-            e = state.entries[state.rel(p.asset.output)]
-            rec.update(status="up-to-date", bytes=e.get("bytes"), time_s=None, cpu_s=None, peak_rss_bytes=None,
-                       error=None, warnings=[])
-        else:
-            todo.append(p)
+    records, todo = _up_to_date(planned, state, force)
     todo.sort(key=lambda p: (-_input_bytes(p, state), p.asset.output))
     scratch_root = os.path.join(outdir, SCRATCH_DIR)
     # what a killed earlier batch left there (its cooks' scratch folders): no batch holds it now
@@ -124,32 +110,13 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     tasks = [{"source": p.asset.source, "output": p.asset.output, "relpath": p.asset.relpath,
               "options": list(p.options), "resolved": p.resolved, "memory_cap": memory_cap,
               "scratch_root": scratch_root} for p in todo]
-    from .progress import Progress
 
     bar = Progress(len(tasks), progress)
     last_save = [time.perf_counter()]
     cluster_info = None
 
     def on_result(task: dict, result: dict) -> None:
-        rec = records[task["output"]]
-        ok = result.get("status") == "cooked"
-        rec.update(status="cooked" if ok else "failed", error=result.get("error"), bytes=result.get("bytes"),
-                   time_s=result.get("wall_s", result.get("time_s")), cpu_s=result.get("cpu_s"),
-                   peak_rss_bytes=result.get("peak_rss_bytes"), host=result.get("host"),
-                   runner_pid=result.get("runner_pid"), warnings=result.get("warnings", []))
-        if result.get("signal"):
-            rec["signal"] = result["signal"]
-        if ok:
-            state.record(task["output"], {"source": task["source"], "deps": result["deps"], "key": result["key"],
-                                          "output_sha256": result["output_sha256"], "bytes": result["bytes"],
-                                          "options_sha256": options_digest(task["resolved"]),
-                                          "lopcook": __version__})
-        else:
-            state.forget(task["output"])
-            try:
-                os.unlink(task["output"])
-            except FileNotFoundError:
-                pass
+        _record(records[task["output"]], state, task, result)
         bar.advance(task["relpath"], result)
         if time.perf_counter() - last_save[0] > _SAVE_EVERY_S:
             state.save()
@@ -157,12 +124,8 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
 
     try:
         if scheduler and tasks:  # nothing to cook: no need to reach the cluster
-            from .cluster import run_cluster
-
             cluster_info = run_cluster(tasks, scheduler, on_result, timeout_s=scheduler_timeout_s)
         elif not scheduler:
-            from .local import run_local
-
             run_local(tasks, jobs, on_result)
     finally:
         bar.close()
@@ -182,6 +145,59 @@ def run_batch(sources, outdir: str, *, config: BatchConfig | None = None, jobs: 
     if cluster_info:
         summary["workers"] = cluster_info["workers"]
     return summary
+
+
+def _make_outdir(outdir: str) -> None:
+    """Create OUTDIR (its parent must exist); usage error when it cannot be made or written."""
+    try:
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise LopcookError("usage", outdir, f"cannot create the output folder ({exc.strerror or exc})",
+                           hint="give -o a folder whose parent exists and is writable") from None
+    if not os.access(outdir, os.W_OK | os.X_OK):
+        raise LopcookError("usage", outdir, "the output folder is not writable")
+
+
+def _up_to_date(planned: list, state: State, force: bool) -> tuple[dict, list]:
+    """``({output: summary record}, [Planned to cook])``: the records of up-to-date assets are
+    complete; the others are cooked (all of them with ``force``)."""
+    records: dict[str, dict] = {}
+    todo: list[Planned] = []
+    for p in planned:
+        rec = {"source": p.asset.source, "relpath": p.asset.relpath, "output": p.asset.output,
+               "options": list(p.options)}
+        records[p.asset.output] = rec
+        if not force and state.up_to_date(p.asset.source, p.asset.output, p.resolved):
+            e = state.entries[state.rel(p.asset.output)]
+            rec.update(status="up-to-date", bytes=e.get("bytes"), time_s=None, cpu_s=None, peak_rss_bytes=None,
+                       error=None, warnings=[])
+        else:
+            todo.append(p)
+    return records, todo
+
+
+def _record(rec: dict, state: State, task: dict, result: dict) -> None:
+    """One finished cook into its summary record and the state: a success is recorded; a failure
+    forgets the asset and removes its older output (OUTDIR never holds an output that does not
+    match the current sources and options)."""
+    ok = result.get("status") == "cooked"
+    rec.update(status="cooked" if ok else "failed", error=result.get("error"), bytes=result.get("bytes"),
+               time_s=result.get("wall_s", result.get("time_s")), cpu_s=result.get("cpu_s"),
+               peak_rss_bytes=result.get("peak_rss_bytes"), host=result.get("host"),
+               runner_pid=result.get("runner_pid"), warnings=result.get("warnings", []))
+    if result.get("signal"):
+        rec["signal"] = result["signal"]
+    if ok:
+        state.record(task["output"], {"source": task["source"], "deps": result["deps"], "key": result["key"],
+                                      "output_sha256": result["output_sha256"], "bytes": result["bytes"],
+                                      "options_sha256": options_digest(task["resolved"]),
+                                      "lopcook": __version__})
+    else:
+        state.forget(task["output"])
+        try:
+            os.unlink(task["output"])
+        except FileNotFoundError:
+            pass
 
 
 def format_summary(summary: dict) -> str:

@@ -1,18 +1,10 @@
 """One cook in a fresh process under a memory cap: what every batch runner executes.
 
 ``run_isolated(task)`` (called by the local runner's threads and, on a Dask worker, by the
-cluster runner) starts ``python -m lopcook.batch.worker TASK.json`` with the interpreter it runs
-under, waits for it with ``os.wait4`` (so its CPU time and peak resident memory are known even
-when it dies) and returns the result dict. The child:
-
-1. sets ``RLIMIT_AS`` (address space) to ``task["memory_cap"]`` bytes when given: an asset that
-   needs more fails (``MemoryError``, or a native library that does not check ``malloc`` dies
-   with a signal) instead of taking the machine down;
-2. calls ``lopcook.cli.main(["cook", SOURCE, "-o", SCRATCH/out.lop, "--depfile", SCRATCH/out.d,
-   "--json", *options])``, the very code ``lopcook cook`` runs, with stdout and stderr captured;
-3. on success computes the incremental key over the files the depfile lists
-   (``lopcook.batch.keys.asset_key``), hashes the output and ``os.replace``s it to its final
-   path (same filesystem: atomic), then writes the result JSON.
+cluster runner) starts ``python -m lopcook.batch.child TASK.json`` (``lopcook.batch.child``: the
+memory cap, the cook, the key) with the interpreter it runs under, waits for it with ``os.wait4``
+(so its CPU time and peak resident memory are known even when it dies) and returns the result
+dict.
 
 A failure (non-zero exit, an exception, a signal) leaves nothing at the final path: the cook only
 ever wrote inside the scratch folder, which ``run_isolated`` removes in every case. The error is
@@ -38,42 +30,6 @@ import sys
 import tempfile
 import time
 
-def _cook_in_child(task: dict) -> dict:
-    import contextlib
-    import io
-
-    from .. import cli
-    from .keys import asset_key, file_sha256, read_depfile
-
-    scratch = task["scratch"]
-    tmp_out = os.path.join(scratch, "out.lop")
-    tmp_d = os.path.join(scratch, "out.d")
-    start_ns = time.time_ns()
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = cli.main(["cook", task["source"], "-o", tmp_out, "--depfile", tmp_d, "--json", *task["options"]])
-        except SystemExit as exc:  # argparse (the options were validated up front: should not happen)
-            rc = exc.code if isinstance(exc.code, int) else 2
-    if rc != 0:
-        return {"status": "failed", "exit_code": rc, "error": error_line(err.getvalue(), rc)}
-    info = json.loads(out.getvalue())
-    deps = [os.path.abspath(d) for d in read_depfile(tmp_d)] or [task["source"]]
-    key = asset_key(task["source"], deps, task["resolved"])
-    for d in deps:  # an input written while we cooked: do not claim this output is current
-        try:
-            if os.stat(d).st_mtime_ns > start_ns:
-                key = None
-                break
-        except OSError:
-            pass
-    digest = file_sha256(tmp_out)
-    size = os.path.getsize(tmp_out)
-    os.makedirs(os.path.dirname(task["output"]), exist_ok=True)
-    os.replace(tmp_out, task["output"])
-    return {"status": "cooked", "exit_code": 0, "error": None, "bytes": size, "output_sha256": digest, "key": key,
-            "deps": deps, "cook_timings_s": info.get("timings_s", {}), "warnings": info.get("warnings", [])}
-
 
 def error_line(stderr: str, rc: int | None = None) -> str:
     """The one line that explains a failed cook: ``lopcook: error: X`` -> ``X``; else the last line."""
@@ -85,50 +41,6 @@ def error_line(stderr: str, rc: int | None = None) -> str:
     if lines:
         return lines[-1][:500]
     return f"lopcook cook exited with status {rc}"
-
-
-def child_main(argv: list[str]) -> int:
-    """``python -m lopcook.batch.worker TASK.json``: cook, write ``TASK.json``'s ``result`` file."""
-    with open(argv[0], encoding="utf-8") as fh:
-        task = json.load(fh)
-    cap = task.get("memory_cap")
-    if cap:
-        import resource
-
-        resource.setrlimit(resource.RLIMIT_AS, (int(cap), int(cap)))
-    t0 = time.perf_counter()
-    try:
-        result = _cook_in_child(task)
-    except MemoryError:
-        result = {"status": "failed", "exit_code": 3,
-                  "error": f"out of memory under the worker memory cap ({format_bytes(cap)})" if cap else
-                  "out of memory"}
-    except Exception as exc:  # noqa: BLE001 - reported as this asset's failure
-        result = {"status": "failed", "exit_code": 3, "error": f"internal error: {type(exc).__name__}: {exc}"}
-    result["time_s"] = time.perf_counter() - t0
-    result["peak_rss_bytes"] = _own_peak_rss()
-    from ..atomic import write_atomic
-
-    write_atomic(task["result"], json.dumps(result).encode())
-    return 0
-
-
-def _own_peak_rss() -> int | None:
-    """Peak resident memory of this process (``VmHWM``, which restarts at ``exec``, so it does not
-    include the launching process) or of a child it forked (the cook forks its simplifier;
-    ``RUSAGE_CHILDREN``, which for a fork includes this process's RSS at the fork), in bytes."""
-    import resource
-
-    peak = None
-    try:
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("VmHWM:"):
-                    peak = int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
-    return max(peak or 0, children) or None
 
 
 def format_bytes(n) -> str:
@@ -164,7 +76,7 @@ def parse_bytes(text: str) -> int | None:
 
 
 def run_isolated(task: dict) -> dict:
-    """Cook ``task`` in a fresh ``python -m lopcook.batch.worker`` process; the result dict (module doc).
+    """Cook ``task`` in a fresh ``python -m lopcook.batch.child`` process; the result dict (module doc).
 
     ``task``: ``source``, ``output`` (absolute), ``options`` (cook flags), ``resolved`` (their
     ``config.resolve`` dict), ``memory_cap`` (bytes or None), ``scratch_root`` (a directory on the
@@ -179,7 +91,7 @@ def run_isolated(task: dict) -> dict:
         with open(task_path, "w", encoding="utf-8") as fh:
             json.dump(child_task, fh)
         with open(os.path.join(scratch, "stderr.txt"), "wb") as errf:
-            proc = subprocess.Popen([sys.executable, "-m", "lopcook.batch.worker", task_path],
+            proc = subprocess.Popen([sys.executable, "-m", "lopcook.batch.child", task_path],
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=errf,
                                     env=_child_env())
             try:
@@ -229,15 +141,9 @@ def run_isolated(task: dict) -> dict:
 def _child_env() -> dict:
     """The child's environment: ours, with the directory lopcook is imported from first on
     PYTHONPATH (so the child cooks with this very lopcook, installed or not)."""
-    import lopcook
-
     env = dict(os.environ)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(lopcook.__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # holds lopcook/
     parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
     if root not in parts and os.path.basename(root) not in ("site-packages", "dist-packages"):
         env["PYTHONPATH"] = os.pathsep.join([root, *parts])
     return env
-
-
-if __name__ == "__main__":  # pragma: no cover - exercised through run_isolated
-    sys.exit(child_main(sys.argv[1:]))

@@ -41,7 +41,7 @@ range, non-unit normal, ...) raises ``ValueError`` and leaves no file; an I/O er
 temporary file. (For ``.gltf`` the ``.bin`` is moved into place first, then the ``.gltf``.)
 
 The low-level pieces (``BufferBuilder``, ``pack_glb``, ``gltf_json_text``, ``atomic_write_bytes``)
-are shared with ``lopcook.fixtures``, whose hand-made fixture files they write byte for byte.
+are shared with ``tests/support/fixtures.py``, whose hand-made fixture files they write byte for byte.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The GL pass of ``lopcook report``: every render the page shows, in one render harness.
 
-* **Every level**: the container is evaluated one level at a time (``Harness.evaluate`` with one
+* **Every level**: the container is evaluated one level at a time (``harness_evaluate`` with one
   level; the rows are those of one evaluation over all levels), keeping the images of one view at
   each level, the same view at every level so a reader compares like with like: the view that
   shows the most parts at the coarsest level (distinct part IDs in its float render: a chess set
@@ -27,6 +27,7 @@ import zlib
 import numpy as np
 
 from ..progress import NONE
+from ..verify.evaluate import harness_evaluate, harness_evaluate_scene
 
 #: the float-render cache's uncompressed share in the report's harness (the rest zlib-compressed:
 #: about 2 ms per megabyte to expand; ``lopcook.verify.renderer.Harness``)
@@ -133,7 +134,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
     """All renders of a report in one GL harness (module doc). Returns (evaluation, uniform16
     evaluation, (lo, hi) of the level ramp or None).
 
-    The evaluation is that of ``Harness.evaluate(container, levels=levels, views=views)`` (rows in the
+    The evaluation is that of ``harness_evaluate(h, container, levels=levels, views=views)`` (rows in the
     order of ``levels``) with ``images``: the coarsest level's images (``level``, ``view``, ``float``,
     ``ap``, ``cap``, heat maps, ID images, as ``evaluate``'s ``keep_images``), plus ``per_level`` (the
     same dict for every level, in row order), ``depth`` (None, or ``{"level", "view", "variant",
@@ -165,12 +166,12 @@ def render_for_report(container, scene, *, levels, views, resolution,
         h.share_culls(u16_scene)  # the baseline draws the float renders' coverage culls
 
         def baseline(b: int) -> None:
-            u16_parts.append(h.evaluate_scene(u16_scene, levels=[b], views=views, extent=extent, viewing=viewing,
-                                              shading=shading))
+            u16_parts.append(harness_evaluate_scene(h, u16_scene, levels=[b], views=views, extent=extent,
+                                                    viewing=viewing, shading=shading))
             h.clear_float_cache()
             st.advance()
 
-        first = h.evaluate(container, levels=[order[0]], views=views, keep_images=True)
+        first = harness_evaluate(h, container, levels=[order[0]], views=views, keep_images=True)
         parts = [first]
         imgs = first.get("images")
         image_view = imgs["view"] if imgs else None
@@ -188,7 +189,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
                                         view_ids.index(image_view))]
             if pick != image_view:
                 image_view = pick
-                imgs = h.evaluate(container, levels=[order[0]], views=[pick], keep_images=True,
+                imgs = harness_evaluate(h, container, levels=[order[0]], views=[pick], keep_images=True,
                                   image_view=pick)["images"]
                 first = dict(first, images=imgs)
                 parts = [first]
@@ -199,7 +200,7 @@ def render_for_report(container, scene, *, levels, views, resolution,
             first["images"] = imgs  # parts[0] is first: the uint32 IDs are not kept alongside
         per_level = {order[0]: imgs}
         for b in order[1:]:
-            e = h.evaluate(container, levels=[b], views=views, keep_images=True, image_view=image_view)
+            e = harness_evaluate(h, container, levels=[b], views=views, keep_images=True, image_view=image_view)
             # kept compressed until the renders end (the first level's stay as they are: choose_view
             # and the page's crops read them); the evaluation itself keeps none
             per_level[b] = pack_images(compact_ids(e.pop("images", None)))
@@ -222,14 +223,14 @@ def render_for_report(container, scene, *, levels, views, resolution,
                 if vid == image_view:
                     dimgs = None  # that level's kept images (below)
                 else:
-                    dimgs = h.evaluate(container, levels=[lv], views=[vid], keep_images=True,
+                    dimgs = harness_evaluate(h, container, levels=[lv], views=[vid], keep_images=True,
                                        image_view=vid)["images"]
                 imgs["depth"] = {"level": lv, "view": int(vid), "variant": variant, "errors": n, "images": dimgs}
             st.advance()
             hist = [b for b, c in enumerate(m["stats"]["histogram"]) if c and b > 0]
             coloured, lo, hi = level_scene(container, scene, hist[0], hist[-1])
             box = scene.bounds()
-            lv_ev = h.evaluate_scene(coloured, levels=[imgs["level"]], views=[imgs["view"]], extent=extent,
+            lv_ev = harness_evaluate_scene(h, coloured, levels=[imgs["level"]], views=[imgs["view"]], extent=extent,
                                      viewing=viewing, shading=Shading(ks=0.0), keep_images=True,
                                      image_view=imgs["view"],
                                      distance_m=frame_distance(box[0], box[1], viewing.fov_y_deg, resolution))

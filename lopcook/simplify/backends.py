@@ -15,6 +15,8 @@ import numpy as np
 from ..mesh import (compact, components, degenerate_mask, sorted_unique, stable_argsort, unique_rows,
                     weld_labels)
 from ..types import MeshPart
+from .meshopt import simplify_meshopt
+from .types import BackendFailure, BackendResult
 
 
 #: a backend result more than this factor off its target counts as a failure
@@ -26,17 +28,9 @@ BACKENDS = ("pymeshlab", "fast")
 SELECTABLE = BACKENDS + ("meshopt", "auto")
 
 
-@dataclass
-class BackendResult:
-    positions: np.ndarray            # (k, 3) float64
-    faces: np.ndarray                # (m, 3) int64
-    wedge_uvs: np.ndarray | None = None    # (m, 3, 2) per-corner UVs (pymeshlab texture variants)
-    vertex_source: np.ndarray | None = None  # (k,) input vertex each output vertex is (fast)
-
-
 def simplify_fast(positions, faces, target, *, lock_border=False) -> BackendResult:
     """fast-simplification to ``target`` triangles; the collapse map gives ``vertex_source``."""
-    import fast_simplification
+    import fast_simplification  # the native simplifiers load when a chain first uses them
 
     p_out, f_out, collapses = fast_simplification.simplify(
         np.ascontiguousarray(positions, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32),
@@ -96,10 +90,6 @@ def parametrise_xatlas(positions: np.ndarray, indices: np.ndarray):
     vmap, ind, uv = xatlas.parametrize(np.ascontiguousarray(positions, dtype=np.float32),
                                        np.ascontiguousarray(indices, dtype=np.uint32))
     return np.asarray(vmap, dtype=np.int64), np.asarray(ind, dtype=np.int64).reshape(-1, 3), np.asarray(uv, np.float32)
-
-
-class BackendFailure(Exception):
-    """A backend result that must not be used (reason in the message)."""
 
 
 @dataclass
@@ -167,9 +157,8 @@ def run_backend(backend: str, work: Work, target: int, lock_border: bool, topolo
     if backend == "fast":
         lock = lock_border if work.mode not in ("lock",) else True
         return simplify_fast(work.positions, work.faces, target, lock_border=lock)
-    simplifier = simplify_pymeshlab
-    if backend == "meshopt":  # pymeshlab's arguments (lopcook.simplify.meshopt)
-        from .meshopt import simplify_meshopt as simplifier
+    # meshoptimizer takes pymeshlab's arguments (lopcook.simplify.meshopt)
+    simplifier = simplify_meshopt if backend == "meshopt" else simplify_pymeshlab
     if work.mode == "lock":
         return simplifier(work.positions, work.faces, target, uvs=work.uvs, lock_border=True)
     if work.mode == "simplify":

@@ -151,11 +151,12 @@ from ..memory import release_free_memory
 from ..mesh import degenerate_mask
 from ..settings import DEFAULT_LOD_LEVELS, halvings
 from ..types import MeshPart
-from .backends import (BACKENDS, SELECTABLE, TOPOLOGY_BLIND, BackendFailure, check_result, parametrise_xatlas,
-                       prepare, run_backend)
+from .backends import BACKENDS, SELECTABLE, TOPOLOGY_BLIND, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, sampled_ref_to_lod
+from .reference import Reference
 from .topology import mesh_defects, seam_stats
-from .transfer import Reference, transfer_attributes
+from .transfer import transfer_attributes
+from .types import BackendFailure
 
 if TYPE_CHECKING:
     from .topology import SeamStats

@@ -8,37 +8,10 @@ peak inside a face); what the recorded error guarantees is stated in docs/lod.md
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from ..mesh import used_ids
 from ..types import MeshPart
-
-if TYPE_CHECKING:
-    from .transfer import Reference
-
-
-def point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):
-    """libigl closest points: (squared distance, face id, closest point)."""
-    import igl
-
-    d, i, c = igl.point_mesh_squared_distance(np.ascontiguousarray(points, dtype=np.float64),
-                                              np.ascontiguousarray(positions, dtype=np.float64),
-                                              np.ascontiguousarray(faces, dtype=np.int64))
-    return np.asarray(d), np.asarray(i, dtype=np.int64), np.asarray(c)
-
-
-def samples(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Referenced vertices and face centroids."""
-    used = used_ids(faces, positions.shape[0])
-    out = np.empty((used.size + faces.shape[0], 3), dtype=np.float64)
-    out[:used.size] = positions[used]
-    cen = out[used.size:]  # centroids in place: no (m, 3, 3) temporary
-    np.add(positions[faces[:, 0]], positions[faces[:, 1]], out=cen)
-    cen += positions[faces[:, 2]]
-    cen /= 3.0
-    return out
+from .reference import Reference, point_mesh, samples
 
 
 def hausdorff(a: MeshPart, b: MeshPart) -> tuple[float, float, float]:
@@ -59,7 +32,7 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
     queried only when that bound (plus a 1e-9 relative slack for rounding) reaches the largest
     vertex distance, so the maximum is unchanged. Queries go to one libigl AABB tree over the LOD
     (how few centroids that queries: docs/lod.md)."""
-    import igl
+    import igl  # libigl (native) loads when a LOD is first measured
 
     pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
     fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
@@ -98,79 +71,8 @@ SAMPLES_PER_LOD_VERTEX = 1.0
 #: fraction of the sampled maximum are queried too
 REFINE_FRACTION = 0.5
 
-_MORTON_BITS = 21
-
 #: rows per block of ``sampled_ref_to_lod``'s queries and bound (its (n, 3) arrays, a block at a time)
 _BOUND_BLOCK = 1 << 18
-
-
-def _spread3(v: np.ndarray) -> np.ndarray:
-    """21-bit integers with two zero bits inserted after every bit (Morton interleave helper)."""
-    x = v.astype(np.uint64) & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
-    return x
-
-
-def _high_bit(x: np.ndarray) -> np.ndarray:
-    """Index of the highest set bit of each uint64 (0 for 0)."""
-    x = x.copy()
-    hb = np.zeros(x.shape, dtype=np.int64)
-    for s in (32, 16, 8, 4, 2, 1):
-        big = x >= (np.uint64(1) << np.uint64(s))
-        hb += s * big
-        x = np.where(big, x >> np.uint64(s), x)
-    return hb
-
-
-class SampleOrder:
-    """LOD 0's vertices in a coarse-to-fine spatial order, for deterministic, evenly spread samples.
-
-    The vertices are sorted by Morton code (21 bits per axis over their bounding box, ties by
-    index). Level L cuts the box into 8**L cells; a vertex's ``level`` is the first L at which it
-    is the first sorted vertex of its cell (level 0: the first vertex; co-located repeats: 22, never
-    a cell's first). Taking every vertex of level <= L therefore takes one vertex of every occupied
-    level-L cell. Computed once per LOD 0 (one sort)."""
-
-    def __init__(self, points: np.ndarray):
-        p = np.asarray(points, dtype=np.float64)
-        self.points = p
-        self.n = p.shape[0]
-        if self.n == 0:
-            self.order = np.zeros(0, dtype=np.int64)
-            self.level = np.zeros(0, dtype=np.int64)
-            return
-        lo = p.min(axis=0)
-        ext = float((p.max(axis=0) - lo).max())
-        scale = ((1 << _MORTON_BITS) - 1) / ext if ext > 0 else 0.0
-        q = np.clip(np.floor((p - lo) * scale), 0, (1 << _MORTON_BITS) - 1).astype(np.uint64)
-        code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
-        self.order = np.argsort(code, kind="stable")
-        c = code[self.order]
-        level = np.empty(self.n, dtype=np.int64)
-        level[0] = 0
-        diff = c[1:] ^ c[:-1]
-        # first in its level-L cell iff the codes differ in their top 3L bits (of 63)
-        level[1:] = np.where(diff == 0, _MORTON_BITS + 1, (62 - _high_bit(diff)) // 3 + 1)
-        self.level = level
-
-    def take(self, count: int) -> np.ndarray:
-        """(n,) bool over the sorted order: about ``count`` vertices, every vertex of the complete
-        levels and an evenly spaced part of the next one (all when ``count >= n``)."""
-        pick = np.zeros(self.n, dtype=bool)
-        if count >= self.n:
-            pick[:] = True
-            return pick
-        per = np.bincount(self.level, minlength=_MORTON_BITS + 2)
-        total = np.cumsum(per)
-        full = int(np.searchsorted(total, count, side="right")) - 1  # last level wholly taken
-        pick |= self.level <= full
-        rest = count - (int(total[full]) if full >= 0 else 0)
-        if rest > 0:
-            nxt = np.flatnonzero(self.level == full + 1)
-            pick[nxt[np.linspace(0, nxt.size - 1, rest).round().astype(np.int64)]] = True
-        return pick
 
 
 def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,

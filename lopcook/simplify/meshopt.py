@@ -1,7 +1,7 @@
 """meshoptimizer backend for LOD chains: attribute-aware edge collapse that keeps seams closed.
 
 ``simplify_meshopt`` has the signature and result type of ``lopcook.simplify.backends.simplify_pymeshlab`` (so
-``lod._run_backend`` calls it with the same arguments as pymeshlab) and adds the simplifier's own
+``lopcook.simplify.backends.run_backend`` calls it with the same arguments as pymeshlab) and adds the simplifier's own
 error estimate (``MeshoptResult.error_m``).
 
 Method: ``meshopt_simplifyWithAttributes`` (Kapoulkine, meshoptimizer; quadric error metric of
@@ -11,7 +11,6 @@ is a subset of the input vertices (``vertex_source``) with their exact float64 p
 Vertices that share a position exactly are a *seam* (UV seam, normal crease, colour edge): the
 simplifier collapses seam edges only along the seam and both sides together, so co-located seam
 vertices stay co-located (no cracks) and each side keeps its own UVs (no texture swimming).
-
 Arguments as for pymeshlab:
 
 * ``uvs`` (n, 2) per vertex: the attribute metric includes them (weight ``UV_WEIGHT``); the result
@@ -48,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mesh import used_ids, weld_labels
-from .backends import BackendResult
+from .types import BackendResult
 
 #: attribute weight of UVs (texture coordinates in [0, 1]) and of unit normals; positions are
 #: normalised by meshoptimizer to the mesh extent, so these weigh a UV or normal change of 1
@@ -75,7 +74,7 @@ def _simplify_fn():
     object: the wrapper's own attribute is left as it is)."""
     global _FN
     if _FN is None:
-        from meshoptimizer._loader import lib
+        from meshoptimizer._loader import lib  # the bundled C library loads on the first call
 
         fn = lib["meshopt_simplifyWithAttributes"]
         P = ctypes.POINTER

@@ -9,49 +9,31 @@ the input's own restored in the parent (a texture is not sent back per LOD). A w
 (the memory killer, a crash in a simplifier) raises LopcookError. Elsewhere, with one worker, one
 part or fewer than ``MIN_TRIANGLES`` triangles in all, the chains run in-process.
 
-``workers()`` is ``$LOPCOOK_LOD_WORKERS`` when set (1 = serial), else the CPUs this process may
-use, at most ``MAX_WORKERS``; 1 inside a worker, so the work a chain splits over two
-processes when it runs alone (``lopcook.simplify.transfer``, ``lopcook.pipeline.parallel``) stays
-in the worker. Measurements: docs/lod.md.
+``workers()`` (``lopcook.simplify.workers``) is the default worker count; a chain run in a worker
+sees 1 there. Measurements: docs/lod.md.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import sys
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import replace
 
 from ..errors import LopcookError
-from ..isolate import cpus
 from .chain import lod_chain
+from .workers import enter_worker, workers
 
 #: below this many triangles in all, the fork and pickling cost more than they save
 MIN_TRIANGLES = 20_000
 
-#: at most this many worker processes by default
-MAX_WORKERS = 2
-
 _JOBS: list = []
-
-#: set in a worker process: its chain runs serially inside (the workers already fill the CPUs)
-_IN_WORKER = False
-
-
-def workers() -> int:
-    """Worker processes for the LOD stage (see the module doc); 1 inside a worker."""
-    if _IN_WORKER:
-        return 1
-    env = os.environ.get("LOPCOOK_LOD_WORKERS", "").strip()
-    if env:
-        try:
-            return max(1, int(env))
-        except ValueError:
-            return 1
-    return max(1, min(MAX_WORKERS, cpus()))
 
 
 def _one(i: int):
-    global _IN_WORKER
-    _IN_WORKER = True
+    enter_worker()
     part, chain, kwargs = _JOBS[i]
     lods, report = chain(part, **kwargs)
     own = []
@@ -70,9 +52,6 @@ def _one(i: int):
 def _collect(pending: set, parts, out: list, progress) -> None:
     """Place each finished chain at its part's index (whatever order they finish in), with LOD 0
     and textures the input's own again."""
-    from concurrent.futures import FIRST_COMPLETED, wait
-    from dataclasses import replace
-
     while pending:
         done, pending = wait(pending, return_when=FIRST_COMPLETED)
         for fut in done:
@@ -88,8 +67,6 @@ def _collect(pending: set, parts, out: list, progress) -> None:
 
 
 def _without_texture(part):
-    from dataclasses import replace
-
     return replace(part, texture=None)
 
 
@@ -107,10 +84,6 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
             if progress:
                 progress()
         return out
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-    from concurrent.futures.process import BrokenProcessPool
-
     global _JOBS
     _JOBS = [(p, chain, kwargs) for p in parts]
     order = sorted(range(n), key=lambda i: -parts[i].n_triangles)
@@ -135,4 +108,4 @@ def run_chains(parts, n_workers: int | None = None, progress=None, chain=lod_cha
     return out
 
 
-__all__ = ["run_chains", "workers", "MIN_TRIANGLES", "MAX_WORKERS"]
+__all__ = ["run_chains", "MIN_TRIANGLES"]

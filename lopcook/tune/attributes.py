@@ -100,6 +100,7 @@ from dataclasses import dataclass, replace
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..lop.codecs import CODECS
 from ..lop.memo import with_code_memo
+from ..verify.evaluate import harness_evaluate
 
 #: the searched attributes, in record order, with their bit ranges (``lopcook.lop.codecs``)
 RANGES = {c.name: c.bits for c in CODECS}
@@ -363,8 +364,8 @@ class Search:
             levels = watch + [b for b in self.levels if b not in self.watch]
             stop = stop_rule(self.goal, self.statistic, len(self.watch))
             stop_view = view_rule(self.goal, self.statistic)
-        res = self.h.evaluate(c, levels=levels, views=self.views, variants=("cap",), attributes="container",
-                              stop=stop, stop_view=stop_view, cooked_from=self.scene)
+        res = harness_evaluate(self.h, c, levels=levels, views=self.views, variants=("cap",),
+                               attributes="container", stop=stop, stop_view=stop_view, cooked_from=self.scene)
         per = [r["cap"][f"psnr_{self.statistic}"] for r in res["levels"]]
         obj = min(INF_DB if v is None else float(v) for v in per)
         p = {"allocation": alloc.record(), "bits_per_vertex": round(cost, 4), "objective_db": round(obj, 4),
@@ -683,7 +684,7 @@ def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | 
     "psnr_mean", "objective_db" (the ``statistic``, min over levels), "psnr_per_level", "levels"
     (those rendered)}. ``stop_below`` (dB): the renders end after the first level that misses it
     (the levels in the order given). ``cooked_here``: ``c`` was cooked from ``scene`` by the caller
-    (the harness then skips checking that it was: ``Harness.evaluate``'s ``cooked_from``)."""
+    (the harness then skips checking that it was: ``harness_evaluate``'s ``cooked_from``)."""
     from ..verify.renderer import shared_harness
 
     stop = stop_view = None
@@ -693,8 +694,8 @@ def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | 
         stop, stop_view = stop_rule(float(stop_below), statistic), view_rule(float(stop_below), statistic)
     # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
     with shared_harness(scene, tuple(confirm[1])) as h:
-        res = h.evaluate(c, levels=levels, views=confirm[0], variants=("cap",), attributes="container", stop=stop,
-                         stop_view=stop_view, cooked_from=scene if cooked_here else None)
+        res = harness_evaluate(h, c, levels=levels, views=confirm[0], variants=("cap",), attributes="container",
+                               stop=stop, stop_view=stop_view, cooked_from=scene if cooked_here else None)
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
     return {"views": confirm[0], "resolution": list(confirm[1]), "levels": [int(r["level"]) for r in res["levels"]],
             "psnr_min": _min_db(r["cap"]["psnr_min"] for r in res["levels"]),

@@ -59,7 +59,7 @@ Steps of ``fit``:
 7. Baselines, for the record and the report: **quantize only** = LOD 0 at its largest fitting
    level (a rendered candidate); **simplify only** = the finest LOD whose *float* buffer fits
    (float32 positions, and float32 attributes / 32-bit indices in the wider scopes), rendered as a
-   float scene (``Harness.evaluate_scene``; its positions are the chain's 24-bit grid positions,
+   float scene (``lopcook.verify.evaluate.harness_evaluate_scene``; its positions are the chain's 24-bit grid positions,
    within extent * 2^-25 of the simplifier's output, below float32 rounding at that extent).
 
 Nothing fits -- not even the smallest candidate, the coarsest LOD at level 1 -- is a
@@ -83,6 +83,7 @@ from ..errors import LopcookError
 from ..settings import DEFAULT_LOD_LEVELS, DEFAULTS, BudgetScope, LodSpec, Settings, halvings
 from ..simplify import MIN_SIMPLIFY_TRIANGLES
 from ..types import Scene
+from ..verify.evaluate import harness_evaluate, harness_evaluate_scene
 from ..viewing import Viewing
 
 SCOPES = tuple(s.value for s in BudgetScope)
@@ -335,7 +336,7 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     with Harness(scene, resolution, samples, cache_float=True) as h:
         for k, lods, levels in plan:
             say(f"budget: render LOD {k} at levels {levels}")
-            r = h.evaluate(c, levels=levels, views=views, variants=("ap",), lod=k, distance_m=distance)
+            r = harness_evaluate(h, c, levels=levels, views=views, variants=("ap",), lod=k, distance_m=distance)
             for row in r["levels"]:
                 b = row["level"]
                 cb = candidate_bytes(c, lods, b, scope, position_bytes)
@@ -351,8 +352,8 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
             row = fits[0]
             say(f"budget: render simplify-only LOD {row['lod']} (float)")
             test = _simplified_scene(scene, cooked.analysis.grid, cooked.buffers, row["lods"])
-            rs = h.evaluate_scene(test, levels=[available], views=views, distance_m=distance, extent=extent,
-                                  viewing=viewing, shading=Shading.from_manifest(c.manifest))
+            rs = harness_evaluate_scene(h, test, levels=[available], views=views, distance_m=distance,
+                                        extent=extent, viewing=viewing, shading=Shading.from_manifest(c.manifest))
             s = rs["levels"][0]["scene"]
             simplify = {"lod": row["lod"], "vertices": row["vertices"], "triangles": row["triangles"],
                         "bytes": row["float_bytes"], "bits_per_vertex": 8.0 * row["float_bytes"] / max(row["vertices"], 1),

@@ -120,6 +120,7 @@ from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
 from ..viewing import Viewing
 from ..verify.buffers import DEFAULT_LEVELS
 from ..verify.cameras import VIEW_COUNT, select_views
+from ..verify.evaluate import harness_evaluate
 from ..verify.renderer import RESOLUTION, Harness, shared_harness
 
 CAL_VIEWS = DEFAULTS.tune.calibration.views
@@ -202,7 +203,7 @@ def scout_rule(statistic: str, watch_db: float):
 
 
 def stop_rule(target: float, statistic: str, watch: int | None = None):
-    """The ``stop(per_view)`` of ``Harness.evaluate`` for a probe that must reach ``target`` dB
+    """The ``stop(per_view)`` of ``harness_evaluate`` for a probe that must reach ``target`` dB
     (``statistic`` "min" or "mean" over views) at every level it renders: true after the first level
     that misses it, or once ``watch`` levels (when given) have been rendered."""
     done = [0]
@@ -216,7 +217,7 @@ def stop_rule(target: float, statistic: str, watch: int | None = None):
 
 
 def view_rule(target: float, statistic: str):
-    """The ``stop_view(metrics)`` of ``Harness.evaluate`` for a probe that must reach ``target`` dB on
+    """The ``stop_view(metrics)`` of ``harness_evaluate`` for a probe that must reach ``target`` dB on
     the minimum over views: true at the first view below it (the level, and the probe, miss
     whatever the other views give; the level's recorded minimum is then that view's, an upper
     bound of the minimum over every view). None for the "mean" statistic, which needs every view."""
@@ -274,7 +275,7 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     # a probe that draws what an earlier one drew (the same buffers and attributes) takes its
     # numbers from the harness's content memo (``Harness.view_memo``) and renders nothing
     stop_view = None if stop_below is None else view_rule(float(stop_below[0]), stop_below[1])
-    res = harness.evaluate(c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view,
+    res = harness_evaluate(harness, c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view,
                            cooked_from=scene)
     from ..verify.buffers import position_bytes
 

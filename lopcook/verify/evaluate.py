@@ -32,17 +32,11 @@ scene's bounding box where the half-pixel criterion selects B (``camera_distance
 level-8 distance: the harness sanity check), ``distance_m`` fixes one distance for every row.
 
 Metrics: ``lopcook.verify.metrics`` (PSNR over object pixels, max error, share > 1/255, depth-order
-errors from the part-ID images), computed per view by ``metrics.view_metrics`` in one pass over the
-pixels where the test render differs from the float one.
+errors from the part-ID images), per view in one pass (``metrics.view_metrics``).
 
-Cost: every (level, view) renders float, AP and CAP once (the float render is reused when the
-harness caches it); GPU buffers are uploaded once per level and reused across views. A decoded
-draw is named by its content (``variant_key``: the digest of every item's GPU inputs, with the
-camera and shading); a (level, view) whose variants were all drawn before on the same harness
-takes the metrics recorded then (``Harness.view_memo``) and renders nothing, and a variant whose
-draw equals another's in the same view reuses its images. ``views`` and
-``resolution`` (CLI ``--views N --resolution WxH``) scale the cost linearly; measured times are in
-``docs/measurements.md``.
+Cost: every (level, view) renders float, AP and CAP once; a (level, view) drawn before on the same
+harness takes its recorded metrics (docs/verify.md, "Reuse"). ``evaluate`` and ``evaluate_scene``
+open a ``Harness`` of their own; ``harness_evaluate`` and ``harness_evaluate_scene`` use an open one.
 """
 
 from __future__ import annotations
@@ -55,12 +49,14 @@ import numpy as np
 from ..lop.binning import LEVELS
 from ..lop.reader import lod_entry
 from ..errors import LopcookError
+from ..grid import Grid
 from ..viewing import Viewing, required_level
+from . import gpu
 from . import metrics as M
-from .buffers import DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices, position_bytes, source_order
+from .buffers import (DEFAULT_LEVELS, LOD, VARIANTS, ap_buffer, cap_buffer, lod0_is_source, lod_indices,
+                      position_bytes, source_order)
 from .cameras import VIEW_COUNT, camera_distance, icosahedron_directions, make_camera, render_viewing, select_views
-from .renderer import RESOLUTION, SAMPLES, Harness, Shading, decoded_items, digest, float_items, trim_heap
-from .renderer import _expand  # a cropped render as the whole image
+from .renderer import RESOLUTION, SAMPLES, Harness, Shading, _expand, decoded_items, digest, float_items, trim_heap
 
 #: where LOD 0's normals, UVs and colours come from in a render: the container's own, or the source's
 ATTRIBUTE_SOURCES = ("container", "source")
@@ -176,24 +172,13 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     if stop_view is not None and stop_view(per_view[variants[0]][-1]):
                         break
                     continue
-                # the renders are the regions drawn (no whole-image arrays; whole images only for
-                # the view whose images are kept)
-                ref_rgba, ref_ids = h.render_float(cam, shading, key=key, crop=True)
-                fbox = h.last_float_box
-                outs, boxes = {}, {}
-                for v in variants:  # a variant whose draws equal an earlier one's gives its images
-                    same = next((u for u in outs if vkeys[u] is not None and vkeys[u] == vkeys[v]), None)
-                    if same is not None:
-                        outs[v], boxes[v] = outs[same], boxes[same]
-                    else:
-                        outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1], crop=True)
-                        boxes[v] = h.renderer.last_box
+                ref, fbox, outs, boxes = _draw_view(h, drawn, variants, vkeys, cam, shading, key)
                 seconds["render"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                float_pixels.append(int(np.count_nonzero(ref_rgba[..., 3])))
+                float_pixels.append(int(np.count_nonzero(ref[0][..., 3])))
                 for v in variants:
                     # the pass over the pixels either render drew (outside: background in both)
-                    colour, order = _crop_metrics(h.renderer.size, (ref_rgba, ref_ids), fbox, outs[v], boxes[v],
+                    colour, order = _crop_metrics(h.renderer.size, ref, fbox, outs[v], boxes[v],
                                                   h.__dict__.setdefault("_metric_scratch", {}))
                     per_view[v].append(colour)
                     depth[v].append(order)
@@ -207,11 +192,7 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                     chosen = view == image_view if image_view is not None else score > best_score
                     if chosen:
                         best_score = score
-                        size = h.renderer.size
-                        ref_whole = _expand((fbox, ref_rgba, ref_ids), size)
-                        images = {"level": level, "view": int(view), "float": ref_whole[0], "float_ids": ref_whole[1]}
-                        for v in variants:
-                            images[v], images[f"{v}_ids"] = _expand((boxes[v], *outs[v]), size)
+                        images = _view_images(h.renderer.size, level, view, ref, fbox, outs, boxes, variants)
             if images_here and images is not None and images["level"] == level:
                 # the heatmaps of the view kept (once, not for every view that led on the way)
                 for v in variants:
@@ -221,19 +202,52 @@ def render_rows(h: Harness, *, plan, view_ids, viewing, extent, shading, draws, 
                 r.release()
             del drawn, owned_all
             trim_heap()  # the level's buffers and decoded positions: back to the system before the next
-        rows.append({
-            "level": int(level),
-            "camera_level": int(cam_level),
-            "camera_distance_m": float(distance),
-            "selected_level": int(required_level(distance, extent, viewing)),
-            "eye_distance_m": [float(np.linalg.norm(cm.eye - cm.centre)) for cm in cams],
-            "near_far_m": [[cm.near, cm.far] for cm in cams],
-            "float_object_pixels": float_pixels,
-            "_raw": {v: (per_view[v], depth[v]) for v in variants},
-        })
+        rows.append(_level_row(level, cam_level, distance, extent, viewing, cams, float_pixels,
+                               {v: (per_view[v], depth[v]) for v in variants}))
         if stop is not None and stop(per_view[variants[0]]):
             break
     return rows, images
+
+
+def _draw_view(h: Harness, drawn: dict, variants, vkeys: dict, cam, shading, key) -> tuple:
+    """The float source and every variant drawn from ``cam`` as the regions drawn (no whole-image
+    arrays): ``((float rgba, float ids), float box, {variant: (rgba, ids)}, {variant: box})``. A
+    variant whose draws equal an earlier one's (same ``vkeys`` entry) gives that one's images."""
+    ref_rgba, ref_ids = h.render_float(cam, shading, key=key, crop=True)
+    fbox = h.last_float_box
+    outs, boxes = {}, {}
+    for v in variants:
+        same = next((u for u in outs if vkeys[u] is not None and vkeys[u] == vkeys[v]), None)
+        if same is not None:
+            outs[v], boxes[v] = outs[same], boxes[same]
+        else:
+            outs[v] = h.renderer.draw(drawn[v][0], cam, shading, decoded=drawn[v][1], crop=True)
+            boxes[v] = h.renderer.last_box
+    return (ref_rgba, ref_ids), fbox, outs, boxes
+
+
+def _view_images(size, level: int, view: int, ref, fbox, outs: dict, boxes: dict, variants) -> dict:
+    """``evaluate``'s ``images`` of one view: the float and variant renders as whole images of ``size``."""
+    ref_whole = _expand((fbox, *ref), size)
+    images = {"level": level, "view": int(view), "float": ref_whole[0], "float_ids": ref_whole[1]}
+    for v in variants:
+        images[v], images[f"{v}_ids"] = _expand((boxes[v], *outs[v]), size)
+    return images
+
+
+def _level_row(level: int, cam_level: int, distance: float, extent: float, viewing, cams, float_pixels,
+               raw: dict) -> dict:
+    """One level's row of ``render_rows`` (``raw``: per variant (per-view metrics, depth metrics))."""
+    return {
+        "level": int(level),
+        "camera_level": int(cam_level),
+        "camera_distance_m": float(distance),
+        "selected_level": int(required_level(distance, extent, viewing)),
+        "eye_distance_m": [float(np.linalg.norm(cm.eye - cm.centre)) for cm in cams],
+        "near_far_m": [[cm.near, cm.far] for cm in cams],
+        "float_object_pixels": float_pixels,
+        "_raw": raw,
+    }
 
 
 def _crop_metrics(size, ref, ref_box, test, test_box, scratch: dict | None = None) -> tuple[dict, dict]:
@@ -303,8 +317,6 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
     """The top-level keys shared by ``evaluate`` and ``evaluate_scene`` (source, resolution,
     samples, views and their directions, viewing, grid extent m, box m, shading, variants, parts,
     vertices, float32 bytes, seconds rounded to 0.1 ms, GL device)."""
-    from . import gpu
-
     return {
         "source": str(h.scene.source),
         "resolution": [int(h.renderer.size[0]), int(h.renderer.size[1])],
@@ -324,16 +336,11 @@ def view_header(h: Harness, view_ids, viewing, extent, shading, variants, f32, s
     }
 
 
-def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, ks, shininess, keep_images,
-                     image_view, lod=LOD, distance_m=None, stop=None, attributes: str = "container",
-                     stop_view=None, cooked_from=None) -> dict:
-    """``evaluate`` on an open harness ``h`` (``Harness.evaluate``): same arguments and result;
-    ``stop`` as in ``render_rows`` (the result then holds the levels rendered, in order);
-    ``cooked_from`` as in ``Harness.evaluate``."""
+def _checked_request(c, scene, variants, levels, camera_levels, views, image_view, lod, attributes) -> tuple:
+    """``harness_evaluate``'s arguments checked against container ``c`` and its source ``scene``:
+    ``(variants, levels, camera levels, view ids, LOD per part)``; LopcookError otherwise."""
     if attributes not in ATTRIBUTE_SOURCES:
         raise LopcookError("usage", c.path, f"attributes={attributes!r}: expected one of {ATTRIBUTE_SOURCES}")
-    t_start = time.perf_counter()
-    scene = h.scene
     variants = tuple(variants)
     for v in variants:
         if v not in VARIANTS:
@@ -347,8 +354,28 @@ def harness_evaluate(h: Harness, c, *, levels, views, camera_levels, variants, k
         raise LopcookError("verify", c.path, f"the container has {len(c.manifest['parts'])} parts, the source "
                            f"{scene.source!r} has {len(scene.parts)}",
                            hint="give the source the container was cooked from")
+    return variants, lv, cl, view_ids, lods
+
+
+def harness_evaluate(h: Harness, c, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
+                     variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
+                     keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
+                     distance_m: float | None = None, stop=None, attributes: str = "container", stop_view=None,
+                     cooked_from=None) -> dict:
+    """``evaluate`` on an open harness ``h`` (its scene is the source): same arguments and result.
+
+    ``stop(per_view) -> bool`` after each level ends the render early (``render_rows``: only the
+    levels rendered are in the result, in order); ``stop_view(metrics) -> bool`` after each view
+    ends that level's views (and, with a ``stop`` that sees the miss, the render).
+    ``cooked_from``: the scene the caller cooked ``c`` from itself (a search's probe); when it is
+    ``h``'s scene, the check that the container comes from it (``source_order``, which reads every
+    plane) is skipped where nothing else needs the vertex order."""
+    t_start = time.perf_counter()
+    scene = h.scene
+    variants, lv, cl, view_ids, lods = _checked_request(c, scene, variants, levels, camera_levels, views,
+                                                        image_view, lod, attributes)
     # every decoded variant draws the container's own attributes (lod_attributes: normals, UVs,
-    # colours at their packed bits), so its PSNR includes their quantisation (issue 15);
+    # colours at their packed bits), so its PSNR includes their quantisation;
     # attributes="source": LOD 0 with the source's (only positions differ)
     orders = [None] * len(lods)
     if lod0_is_source(c) and any(k == 0 for k in lods) and (cooked_from is not scene or attributes == "source"):
@@ -412,11 +439,40 @@ def _cluster_program(renderer, c):
     return renderer.cluster_decode_program if clustered else None
 
 
-def harness_evaluate_scene(h: Harness, test, *, levels, views, camera_levels, distance_m, extent, viewing,
-                           shading, keep_images, image_view) -> dict:
-    """``Harness.evaluate_scene`` on ``h``: same arguments and result."""
-    from ..analyse import Grid
+def harness_evaluate_scene(h: Harness, test, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
+                           distance_m: float | None = None, extent: float | None = None,
+                           viewing: Viewing | None = None, shading: Shading | None = None,
+                           keep_images: bool = False, image_view: int | None = None) -> dict:
+    """Render ``test`` (a ``lopcook.types.Scene`` with **float** positions, e.g. a simplified
+    LOD chain level: "simplify only") against ``h``'s source scene, with the cameras
+    ``evaluate`` uses, and measure it like a decoded variant.
 
+    Parameters
+    ----------
+    test : Scene whose part i stands for source part i (same order: part-ID depth-order
+        errors compare part indices); positions float64 metres (rendered as float32), its own
+        indices, normals, UVs, colours; textures: each test part's own ``texture``.
+    levels : per-buffer levels B (ints in [1, 24]) whose camera distances to use: one row per
+        level, the camera where the half-pixel criterion selects B (``camera_distance``); nothing
+        is decoded. ``camera_levels`` overrides the camera level per row as in ``evaluate``.
+    views : int N in [1, 20] or a list of icosahedron view indices (as ``evaluate``).
+    distance_m : when given, every row's camera sits this many metres from the nearest point
+        of the source's bounding box instead (its ``camera_level`` is then the level selected there).
+    extent : grid extent in metres for the distances (default: ``Grid.fit`` over the source
+        positions, the extent a container cooked without LODs has; pass a container's
+        ``manifest["grid"]["extent"]`` to use exactly its cameras).
+    viewing : field of view and pixel error (default ``Viewing()``: 60 degrees, half a pixel);
+        the viewport is always the render resolution (``render_viewing``).
+    shading : Phong parameters (default ``Shading()``: ks 0.5, shininess 32).
+    keep_images, image_view : as ``evaluate`` (image keys ``float``, ``scene``, ``float_ids``,
+        ``scene_ids``, ``scene_heatmap``).
+
+    Returns the dict ``evaluate`` returns (same top-level keys; ``container`` None, ``lod`` None,
+    ``variants`` ["scene"]) whose level rows hold one variant, ``"scene"``, with the same metrics
+    as ``"ap"``/``"cap"`` (``psnr_mean`` etc.); its ``bytes`` are the test scene's float32
+    positions (12 per vertex) and ``percent_of_float32`` is relative to the source's float32
+    positions (``float32_bytes``). Also ``test_source``, ``test_vertices``, ``test_triangles``.
+    """
     t_start = time.perf_counter()
     lv, cl = parse_levels(levels, camera_levels, LEVELS, None)
     view_ids = select_views(views)
@@ -530,18 +586,18 @@ def evaluate(container, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resol
     part has (usage, exit 2), a source that does not match the container (exit 2).
     """
     with Harness(scene, resolution, samples) as h:
-        return h.evaluate(container, levels=levels, views=views, camera_levels=camera_levels, variants=variants,
-                          ks=ks, shininess=shininess, keep_images=keep_images, image_view=image_view, lod=lod,
-                          distance_m=distance_m, attributes=attributes)
+        return harness_evaluate(h, container, levels=levels, views=views, camera_levels=camera_levels,
+                                variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
+                                image_view=image_view, lod=lod, distance_m=distance_m, attributes=attributes)
 
 
 def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, resolution=RESOLUTION,
                    samples: int = SAMPLES, **kw) -> dict:
-    """``Harness(scene, resolution, samples).evaluate_scene(test_scene, levels=..., views=..., **kw)``:
-    a float-position ``test_scene`` rendered against the float source ``scene`` with ``evaluate``'s
-    cameras; see ``Harness.evaluate_scene``."""
+    """``harness_evaluate_scene`` on a ``Harness(scene, resolution, samples)`` of its own: a
+    float-position ``test_scene`` rendered against the float source ``scene`` with ``evaluate``'s
+    cameras."""
     with Harness(scene, resolution, samples) as h:
-        return h.evaluate_scene(test_scene, levels=levels, views=views, **kw)
+        return harness_evaluate_scene(h, test_scene, levels=levels, views=views, **kw)
 
 
 __all__ = ["evaluate", "evaluate_scene", "harness_evaluate", "harness_evaluate_scene", "parse_levels",

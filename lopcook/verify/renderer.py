@@ -8,9 +8,9 @@ vertices).
 
 Draws: AP and CAP positions are decoded **on the GPU** by ``lop_decode`` of
 ``shaders/decode_bitplanes.glsl`` in the vertex shader (``lopcook.verify.glsl``), never by the
-CPU; a clustered buffer (issue 16, ``cook --clusters N``) is uploaded as clustered P plus its
-cluster records and drawn by the ``LOP_CLUSTERED`` build of that shader
-(``Renderer.cluster_decode_program``). Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
+CPU; a clustered buffer (``cook --clusters N``) is uploaded as clustered P plus its cluster
+records and drawn by the ``LOP_CLUSTERED`` build of that shader (``Renderer.cluster_decode_program``).
+Float draws the source's normals, UVs and colours; AP and CAP the container's decoded ones (its
 packed attribute record, normals normalised per vertex), all with the source's textures.
 
 Shading (``Shading``, ``lopcook.verify.glsl.FS``): Phong with one directional headlight (light
@@ -25,26 +25,10 @@ sides. The float reference and every decoded variant of a part are culled alike,
 triangle whose winding quantization flips is missing from the decoded render, as it would be
 in an engine, and the metrics count it.
 
-Coverage cull (``Coverage``, ``covering_triangles``): before a draw, an item's triangles whose
-screen bounding box, widened by ``COVER_MARGIN`` pixels, holds no sample position of any pixel
-of the viewport are left out of the draw. GL produces a fragment only where a triangle covers a
-sample, so such a triangle changes no pixel, depth or part ID: the images are the same bit for bit
-(``tests/test_render_cull.py``). Where the item's back faces are culled, the triangles that face
-away by more than moving their vertices by ``COVER_MARGIN`` could change are left out as well (GL
-would cull them: the same pixels again), which also spares their vertices the vertex shader. The
-sample positions are read off the context once (``sample_positions``: one tiny triangle around each
-candidate point on a 1/16-pixel lattice); a context whose positions are not found there draws every
-triangle. The vertices are projected on
-the CPU in float32 from the positions the vertex shader reads (a decoded item's from the grid
-integers its words were packed from, which the reference decoder, bit-exact with the shaders, gives
-back exactly: ``_decoded_positions``) and the float32 matrix it
-is given; ``COVER_MARGIN`` (1/32 px) covers the difference between the two float32 evaluations and
-the rasteriser's snapping (llvmpipe: 1/256 px). The kept triangles are written to one index
-buffer of the renderer (``Scratch``) and drawn from it. It runs where it pays: an item of at least
-``COVER_MIN_TRIANGLES`` triangles and ``COVER_DENSITY`` triangles per pixel of its projected box (a
-far, small object: llvmpipe's cost there is vertex and setup work per triangle, not pixels). A
-test scene whose positions lie near the source's (the report's uniform 16-bit baseline) can draw
-the source's culls instead of computing its own (``Harness.share_culls``, ``Coverage``).
+Coverage cull (``Coverage``, ``covering_triangles``): an item's triangles whose screen box, widened
+by ``COVER_MARGIN`` pixels, holds no sample position of the viewport (and, where back faces are
+culled, those facing away by more than that margin could change) are left out of the draw: the
+images are the same bit for bit (``tests/test_render_cull.py``; how and when: docs/verify.md).
 
 Framebuffer: ``SAMPLES`` x MSAA (4, or the context's maximum when lower), colour RGBA8 (alpha = 1
 where a sample saw the object; the background is cleared to 0, 0, 0, 0), a part-ID target R32UI
@@ -65,13 +49,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lop.reader import lod_attributes
+from ..lop.bitplane import decode, reconstruct_float32
+from ..lop.clusters import decode_clustered
+from ..lop.placement import split, to_world
+from ..lop.reader import ClusteredGpuBuffer, lod_attributes, owner, part_grid, placement_transform, world_normals
 from ..errors import LopcookError
+from ..memory import available_bytes, release_free_memory
 from ..settings import DEFAULTS
-from ..viewing import Viewing
-from .buffers import DEFAULT_LEVELS, LOD, VARIANTS
-from .cameras import VIEW_COUNT, Camera
+from . import gpu
+from .buffers import resident_levels
+from .cameras import Camera
 from .glsl import FS, RESOLVE_FS, RESOLVE_VS, vertex_shader_source
+from .gpu import check_cluster_tables, cluster_decode_block, decode_block
 
 #: render size (width, height) in pixels by default
 RESOLUTION = DEFAULTS.render.resolution
@@ -231,7 +220,7 @@ def sample_positions(ctx, samples: int):
     is trusted only when exactly ``max(samples, 1)`` candidates are covered, each by exactly one
     sample (coverage 1 / samples); a sample off the lattice by more than 1/64 pixel is found nowhere,
     and the cull is then off."""
-    import moderngl
+    import moderngl  # optional native GL binding: imported where a draw needs it, here and below
 
     n = SAMPLE_LATTICE
     samples = int(samples)
@@ -261,7 +250,6 @@ def sample_positions(ctx, samples: int):
     finally:
         for o in owned:
             o.release()
-        from . import gpu
 
         gpu.use_default_framebuffer()
     want = max(samples, 1)
@@ -599,8 +587,6 @@ class Renderer:
     part-ID images. Raises LopcookError (usage, exit 2) for a resolution below 1 x 1."""
 
     def __init__(self, resolution=RESOLUTION, samples: int = SAMPLES):
-        from . import gpu
-
         self.ctx = ctx = gpu.context()
         w, h = (int(resolution[0]), int(resolution[1]))
         if w < 1 or h < 1:
@@ -615,8 +601,6 @@ class Renderer:
         # colour, part IDs and depth at every sample, then the resolved colour and IDs: 4 bytes each,
         # in the process's own memory where the renderer is software (llvmpipe)
         need = w * h * (12 * samples + 8)
-        from ..memory import available_bytes
-
         renderer = str(ctx.info.get("GL_RENDERER", "")).lower()
         software = any(name in renderer for name in ("llvmpipe", "softpipe", "swrast"))
         avail = available_bytes() if software else None
@@ -749,8 +733,6 @@ class Renderer:
         whole-image arrays made (read-only views of the read-back, not C-contiguous)."""
         import moderngl
 
-        from . import gpu
-
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
         self._uniforms(program, camera, shading)
@@ -791,22 +773,7 @@ class Renderer:
             if id(prog) not in primed:
                 self._uniforms(prog, camera, shading)
                 primed.add(id(prog))
-            if decoded:
-                it["ssbo"].bind_to_storage_buffer(0)
-                it["ubo"].bind_to_uniform_block(0)
-                if it.get("clusters") is not None:
-                    it["clusters"].bind_to_storage_buffer(3)
-            program = prog
-            program["u_part"].value = int(it["part"]) + 1
-            if decoded:
-                rows = it.get("place", IDENTITY_ROWS)
-                for r in range(3):
-                    program[f"u_place{r}"].value = rows[r]
-            program["u_has_normal"].value = int(it["has_normal"])
-            program["u_has_texture"].value = int(it["texture"] is not None)
-            program["u_has_color"].value = int(it["has_color"])
-            if it["texture"] is not None:
-                it["texture"].use(location=0)
+            self._bind_item(prog, it, decoded)
             if count is None:
                 vao.render(moderngl.TRIANGLES)
             else:
@@ -814,6 +781,34 @@ class Renderer:
             gpu.flush()  # llvmpipe rasterises it while the next item is culled and bound
         if culling:
             ctx.disable(moderngl.CULL_FACE)
+        return self._read_back(region, crop)
+
+    @staticmethod
+    def _bind_item(program, it: dict, decoded: bool) -> None:
+        """Bind item ``it``'s buffers (decoded: SSBO 0, UBO 0, cluster records SSBO 3) and texture
+        (unit 0), and set its per-item uniforms on ``program`` (part ID, placement rows, flags)."""
+        if decoded:
+            it["ssbo"].bind_to_storage_buffer(0)
+            it["ubo"].bind_to_uniform_block(0)
+            if it.get("clusters") is not None:
+                it["clusters"].bind_to_storage_buffer(3)
+        program["u_part"].value = int(it["part"]) + 1
+        if decoded:
+            rows = it.get("place", IDENTITY_ROWS)
+            for r in range(3):
+                program[f"u_place{r}"].value = rows[r]
+        program["u_has_normal"].value = int(it["has_normal"])
+        program["u_has_texture"].value = int(it["texture"] is not None)
+        program["u_has_color"].value = int(it["has_color"])
+        if it["texture"] is not None:
+            it["texture"].use(location=0)
+
+    def _read_back(self, region, crop: bool):
+        """``draw``'s resolve and read-back of ``region`` (x, y, w, h in GL window coordinates):
+        ``(rgba, ids)`` as ``draw`` returns them; sets ``last_box``."""
+        import moderngl
+
+        ctx = self.ctx
         # resolve: colour by a blit (average of samples), part IDs by sample 0
         self.fbo_colour.use()
         ctx.copy_framebuffer(self.fbo_colour, self.fbo_ms_colour)
@@ -977,8 +972,6 @@ class Harness:
 
     def __init__(self, scene, resolution=RESOLUTION, samples: int = SAMPLES, cache_float: bool = False,
                  cache_bytes: int | None = None, raw_bytes: int | None = None):
-        from . import gpu
-
         self.ctx = gpu.context()
         self.scene = scene
         self.renderer = Renderer(resolution, samples)
@@ -1125,73 +1118,11 @@ class Harness:
                 n += 1
         return n
 
-    def evaluate(self, container, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
-                 variants=VARIANTS, ks: float | None = None, shininess: float | None = None,
-                 keep_images: bool = False, image_view: int | None = None, lod: int = LOD,
-                 distance_m: float | None = None, stop=None, attributes: str = "container", stop_view=None,
-                 cooked_from=None) -> dict:
-        """See ``lopcook.verify.evaluate.evaluate``; ``stop(per_view) -> bool`` after each level ends
-        the render early (``lopcook.verify.evaluate.render_rows``: only the levels rendered are in
-        the result); ``stop_view(metrics) -> bool`` after each view ends that level's views (and,
-        with a ``stop`` that sees the miss, the render); ``attributes`` "source" draws LOD 0 with the source's attributes.
-        ``cooked_from``: the scene the caller cooked ``container`` from itself (a search's probe);
-        when it is this harness's scene, the check that the container comes from it
-        (``source_order``, which reads every plane) is skipped where nothing else needs the vertex
-        order."""
-        from .evaluate import harness_evaluate
-
-        return harness_evaluate(self, container, levels=levels, views=views, camera_levels=camera_levels,
-                         variants=variants, ks=ks, shininess=shininess, keep_images=keep_images,
-                         image_view=image_view, lod=lod, distance_m=distance_m, stop=stop, stop_view=stop_view,
-                         attributes=attributes, cooked_from=cooked_from)
-
-    def evaluate_scene(self, test_scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT, camera_levels=None,
-                       distance_m: float | None = None, extent: float | None = None,
-                       viewing: Viewing | None = None, shading: Shading | None = None,
-                       keep_images: bool = False, image_view: int | None = None) -> dict:
-        """Render ``test_scene`` (a ``lopcook.types.Scene`` with **float** positions, e.g. a simplified
-        LOD chain level: "simplify only") against this harness's source scene, with the cameras
-        ``evaluate`` uses, and measure it like a decoded variant.
-
-        Parameters
-        ----------
-        test_scene : Scene whose part i stands for source part i (same order: part-ID depth-order
-            errors compare part indices); positions float64 metres (rendered as float32), its own
-            indices, normals, UVs, colours; textures: each test part's own ``texture``.
-        levels : per-buffer levels B (ints in [1, 24]) whose camera distances to use: one row per
-            level, the camera where the half-pixel criterion selects B (``camera_distance``); nothing
-            is decoded. ``camera_levels`` overrides the camera level per row as in ``evaluate``.
-        views : int N in [1, 20] or a list of icosahedron view indices (as ``evaluate``).
-        distance_m : when given, every row's camera sits this many metres from the nearest point
-            of the source's bounding box instead (its ``camera_level`` is then the level selected there).
-        extent : grid extent in metres for the distances (default: ``Grid.fit`` over the source
-            positions, the extent a container cooked without LODs has; pass a container's
-            ``manifest["grid"]["extent"]`` to use exactly its cameras).
-        viewing : field of view and pixel error (default ``Viewing()``: 60 degrees, half a pixel);
-            the viewport is always the render resolution (``render_viewing``).
-        shading : Phong parameters (default ``Shading()``: ks 0.5, shininess 32).
-        keep_images, image_view : as ``evaluate`` (image keys ``float``, ``scene``, ``float_ids``,
-            ``scene_ids``, ``scene_heatmap``).
-
-        Returns the dict ``evaluate`` returns (same top-level keys; ``container`` None, ``lod`` None,
-        ``variants`` ["scene"]) whose level rows hold one variant, ``"scene"``, with the same metrics
-        as ``"ap"``/``"cap"`` (``psnr_mean`` etc.); its ``bytes`` are the test scene's float32
-        positions (12 per vertex) and ``percent_of_float32`` is relative to the source's float32
-        positions (``float32_bytes``). Also ``test_source``, ``test_vertices``, ``test_triangles``.
-        """
-        from .evaluate import harness_evaluate_scene
-
-        return harness_evaluate_scene(self, test_scene, levels=levels, views=views, camera_levels=camera_levels,
-                               distance_m=distance_m, extent=extent, viewing=viewing, shading=shading,
-                               keep_images=keep_images, image_view=image_view)
-
 
 def trim_heap() -> None:
     """Return the C heap's free pages to the system (``lopcook.memory.release_free_memory``): after
     an evaluation, the freed GL buffers and llvmpipe's scene blocks would otherwise stay in the
     process's resident memory and add to the next evaluation's peak."""
-    from ..memory import release_free_memory
-
     release_free_memory()
 
 
@@ -1256,11 +1187,6 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     the pack and the reference decode round-trip exactly, ``tests/test_clusters.py`` and
     ``tests/test_bitplane.py``), else the reference decode of its words."""
     def positions():
-        from ..lop.bitplane import decode, reconstruct_float32
-        from ..lop.clusters import decode_clustered
-        from ..lop.placement import to_world
-        from ..lop.reader import ClusteredGpuBuffer
-
         if buf.decoded is not None:
             values, widths = buf.decoded
         elif isinstance(buf, ClusteredGpuBuffer):
@@ -1296,8 +1222,6 @@ def _placed_positions(local, place):
         return local
 
     def positions():
-        from ..lop.placement import to_world
-
         return to_world(local(), np.asarray(place, np.float64).reshape(3, 4))
 
     return positions
@@ -1310,13 +1234,92 @@ def release_attributes(attr_cache: dict) -> None:
             b.release()
 
 
+def _attribute_entry(ctx, c, i: int, k: int, p, order, textures, decoded_attributes: dict) -> tuple:
+    """``decoded_items``' attribute cache entry of part ``i`` (source part ``p``) at LOD ``k``:
+    ``(index buffer, VBO specs, GL objects, (has normal, has colour, texture), source box or None,
+    content digest, index count, index words)``. The source's attributes permuted by ``order``
+    when that is not None, else the container's own (``decoded_attributes``: (owner, LOD) ->
+    ``lod_attributes``, filled here)."""
+    # unit normals, as a vertex shader normalises the octahedral decode before the
+    # interpolation (an unnormalised one would weight the vertices by its length)
+    o = (owner(c, i), k)  # a placement's LOD entry is its owner's: one decode for all of them
+    if o not in decoded_attributes:
+        decoded_attributes[o] = lod_attributes(c, i, k, unit_directions=True)
+    a = decoded_attributes[o]
+    index_words = np.ascontiguousarray(a["indices"], dtype="<u4")
+    ibo = ctx.buffer(index_words.tobytes())
+    if order is not None:
+        arrays = vbo_arrays(p.normals, p.uvs, p.colors, order)
+        flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
+        tex = p.texture
+    else:
+        nrm = world_normals(c, i, a["normals"])  # a placement's: A^-T n, unit
+        arrays = vbo_arrays(nrm, a["uvs"], a["colors"])
+        flags = (a["normals"] is not None, a["colors"] is not None,
+                 textures.get(p.texture) if a["uvs"] is not None else None)
+        tex = p.texture if a["uvs"] is not None else None
+    bufs = [ctx.buffer(arr.tobytes()) for _, arr, _ in arrays]
+    specs = [(b, fmt, name) for b, (name, _, fmt) in zip(bufs, arrays)]
+    src_box = None
+    if order is not None and p.positions.size:  # the source's positions, in binned order
+        f = np.asarray(p.positions, np.float64)
+        src_box = (f.min(axis=0), f.max(axis=0))
+    key = digest(i, index_words, *[x for name, arr, fmt in arrays for x in (name, fmt, arr)],
+                 bool(flags[0]), bool(flags[1]), None if tex is None else tex.digest,
+                 None if src_box is None else np.asarray(src_box, np.float64), bool(p.double_sided))
+    return ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]), index_words
+
+
+def _placement_geometry(c, i: int, tf) -> tuple:
+    """Placement ``i``'s mesh grid and where it can draw: ``(grid origin, half a 24-bit cell
+    (float32), culling box (lo, hi) in world metres: the mapped mesh-grid cube, placement rows)``."""
+    p_origin, p_extent = part_grid(c, i)
+    p_half = np.float32(p_extent / float(1 << 24) / 2.0)
+    a, t = (x.astype(np.float64) for x in split(tf))
+    o = np.asarray(p_origin, np.float64)
+    corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]) * p_extent * \
+        (1.0 + 2.0 ** -20) + o
+    world = corners @ a.T + t
+    span = float(np.abs(world).max()) * 2.0 ** -20
+    rows = tuple(tuple(float(v) for v in np.asarray(tf, np.float64).reshape(3, 4)[r]) for r in range(3))
+    return p_origin, p_half, (world.min(axis=0) - span, world.max(axis=0) + span), rows
+
+
+def _shared_buffer(ctx, c, i: int, k: int, p_level: int, p_origin, p_half, buf, program, cluster_program,
+                   owned: list) -> tuple:
+    """GPU buffer ``buf`` (part ``i``'s at LOD ``k``, level ``p_level``) uploaded once for every
+    item that reads it: ``(SSBO, UBO, program, cluster records SSBO or None, positions())``; the GL
+    objects are appended to ``owned``."""
+    words = np.ascontiguousarray(buf.words, dtype="<u4")
+    ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
+    prog, clusters = program, None
+    if isinstance(buf, ClusteredGpuBuffer):
+        if cluster_program is None:
+            raise ValueError("a clustered buffer needs the LOP_CLUSTERED program (cluster_program)")
+        cl = buf.clusters
+        try:
+            rec, _, _ = check_cluster_tables(buf.records, cl.cluster_id, cl.vertex_id, cl.size)
+        except ValueError as exc:
+            raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take "
+                               f"this buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
+        clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
+        ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, p_level, p_origin, p_half,
+                                              words.size, cl.size))
+        prog = cluster_program
+        owned.append(clusters)
+    else:
+        ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
+    owned += [ssbo, ubo]
+    return ssbo, ubo, prog, clusters, _once(_decoded_positions(buf, p_level, p_origin, p_half, None))
+
+
 def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, level: int, origin, half_cell,
                    attr_cache: dict, cluster_program=None) -> tuple[list, list]:
     """Draw items of the decoded variant for every part at ``level``; ``buffers_of(c, part, lod, B)``
     gives the GpuBuffer (AP or CAP) or, for a clustered buffer, the ``ClusteredGpuBuffer``
     (``lopcook.verify.buffers.cap_buffer``), drawn with ``cluster_program`` (the ``LOP_CLUSTERED``
     build; ValueError when it is needed and None); for a placement it must give its owner's buffer
-    (``emit.reader.owner``; as every reader function does), which is built, uploaded and decoded
+    (``lop.reader.owner``; as every reader function does), which is built, uploaded and decoded
     once for all the placements of that owner at one level; ``lods[i]`` is part i's LOD index. Part i's attributes are the
     source's permuted by ``orders[i]`` when that is not None (LOD 0 of a container cooked from this
     source), else the container's own (``lod_attributes``: normals, UVs, colours as decoded from the
@@ -1331,11 +1334,6 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
     decoder gives, ``lopcook verify --decoders``) -- so two items with equal digests, drawn with the
     same camera and shading, give the same pixels, whatever layout (clustered or binned) or minimum
     levels gave those positions."""
-    from ..lop.placement import split
-    from ..lop.reader import ClusteredGpuBuffer, owner, part_grid, placement_transform, world_normals
-    from .buffers import resident_levels
-    from .gpu import check_cluster_tables, cluster_decode_block, decode_block
-
     items, owned = [], []
     shared: dict = {}  # (owner, LOD, level, grid) -> GL buffers, program and local positions of one buffer
     decoded_attributes: dict = {}  # (owner, LOD) -> lod_attributes (read only here)
@@ -1347,34 +1345,7 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         k = lods[i]
         tf = placement_transform(c, i)
         if i not in attr_cache:
-            # unit normals, as a vertex shader normalises the octahedral decode before the
-            # interpolation (an unnormalised one would weight the vertices by its length)
-            o = (owner(c, i), k)  # a placement's LOD entry is its owner's: one decode for all of them
-            if o not in decoded_attributes:
-                decoded_attributes[o] = lod_attributes(c, i, k, unit_directions=True)
-            a = decoded_attributes[o]
-            index_words = np.ascontiguousarray(a["indices"], dtype="<u4")
-            ibo = ctx.buffer(index_words.tobytes())
-            if orders[i] is not None:
-                arrays = vbo_arrays(p.normals, p.uvs, p.colors, orders[i])
-                flags = (p.normals is not None, p.colors is not None, textures.get(p.texture))
-                tex = p.texture
-            else:
-                nrm = world_normals(c, i, a["normals"])  # a placement's: A^-T n, unit
-                arrays = vbo_arrays(nrm, a["uvs"], a["colors"])
-                flags = (a["normals"] is not None, a["colors"] is not None,
-                         textures.get(p.texture) if a["uvs"] is not None else None)
-                tex = p.texture if a["uvs"] is not None else None
-            bufs = [ctx.buffer(arr.tobytes()) for _, arr, _ in arrays]
-            specs = [(b, fmt, name) for b, (name, _, fmt) in zip(bufs, arrays)]
-            src_box = None
-            if orders[i] is not None and p.positions.size:  # the source's positions, in binned order
-                f = np.asarray(p.positions, np.float64)
-                src_box = (f.min(axis=0), f.max(axis=0))
-            key = digest(i, index_words, *[x for name, arr, fmt in arrays for x in (name, fmt, arr)],
-                         bool(flags[0]), bool(flags[1]), None if tex is None else tex.digest,
-                         None if src_box is None else np.asarray(src_box, np.float64), bool(p.double_sided))
-            attr_cache[i] = (ibo, specs, [ibo, *bufs], flags, src_box, key, int(index_words.shape[0]), index_words)
+            attr_cache[i] = _attribute_entry(ctx, c, i, k, p, orders[i], textures, decoded_attributes)
         ibo, specs, _, (has_normal, has_color, texture), src_box, attr_key, n_tri, index_words = attr_cache[i]
         cull_box = None
         if src_box is not None:
@@ -1386,44 +1357,15 @@ def decoded_items(ctx, program, c, scene, lods, orders, textures, buffers_of, le
         p_level, p_origin, p_half = level, origin, half_cell
         if tf is not None:
             # a placement: its shared buffer at the resident level, on its mesh grid, mapped by
-            # its transform; the boxes are the mapped mesh-grid cube
+            # its transform
             p_level = resident[(owner(c, i), k)]
-            p_origin, p_extent = part_grid(c, i)
-            p_half = np.float32(p_extent / float(1 << 24) / 2.0)
-            a, t = (x.astype(np.float64) for x in split(tf))
-            o = np.asarray(p_origin, np.float64)
-            corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]) * p_extent * \
-                (1.0 + 2.0 ** -20) + o
-            world = corners @ a.T + t
-            span = float(np.abs(world).max()) * 2.0 ** -20
-            cull_box = (world.min(axis=0) - span, world.max(axis=0) + span)
-            extra["place"] = tuple(tuple(float(v) for v in np.asarray(tf, np.float64).reshape(3, 4)[r]) for r in range(3))
+            p_origin, p_half, cull_box, extra["place"] = _placement_geometry(c, i, tf)
         # the placements of one mesh read one buffer (their owner's, ``buffers_of`` contract): it is
         # built, uploaded and decoded once per level; each placement has its own VAO and positions
         share_key = (owner(c, i), k, int(p_level), tuple(float(v) for v in p_origin), float(p_half))
         if share_key not in shared:
-            buf = buffers_of(c, i, k, p_level)
-            words = np.ascontiguousarray(buf.words, dtype="<u4")
-            ssbo = ctx.buffer(words.tobytes() if words.size else b"\0\0\0\0")
-            prog, clusters = program, None
-            if isinstance(buf, ClusteredGpuBuffer):
-                if cluster_program is None:
-                    raise ValueError("a clustered buffer needs the LOP_CLUSTERED program (cluster_program)")
-                cl = buf.clusters
-                try:
-                    rec, _, _ = check_cluster_tables(buf.records, cl.cluster_id, cl.vertex_id, cl.size)
-                except ValueError as exc:
-                    raise LopcookError("verify", c.path, f"part {i} LOD {k}: the clustered decoder cannot take "
-                                       f"this buffer: {exc}", hint="cook it unclustered (--clusters 0)") from None
-                clusters = ctx.buffer(rec.astype("<u4").tobytes() if rec.size else b"\0" * 16)
-                ubo = ctx.buffer(cluster_decode_block(cl.vertex_id, cl.cluster_id, p_level, p_origin, p_half,
-                                                      words.size, cl.size))
-                prog = cluster_program
-                owned.append(clusters)
-            else:
-                ubo = ctx.buffer(decode_block(buf.vertex_id, buf.bit_id, p_level, p_origin, p_half, words.size))
-            owned += [ssbo, ubo]
-            shared[share_key] = (ssbo, ubo, prog, clusters, _once(_decoded_positions(buf, p_level, p_origin, p_half, None)))
+            shared[share_key] = _shared_buffer(ctx, c, i, k, p_level, p_origin, p_half, buffers_of(c, i, k, p_level),
+                                               program, cluster_program, owned)
         ssbo, ubo, prog, clusters, local = shared[share_key]
         vao = ctx.vertex_array(prog, list(specs), index_buffer=ibo, index_element_size=4)
         cover = Coverage(ctx, prog, specs, index_words, _placed_positions(local, extra.get("place")))

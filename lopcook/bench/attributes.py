@@ -1,10 +1,10 @@
 """``lopcook bench --attributes``: total GPU bytes per vertex (positions + normals + UVs + colours)
-against masked PSNR, for lopcook and for the peers' defaults and attribute sweeps (issue 15, item 4).
+against masked PSNR, for lopcook and for the peers' defaults and attribute sweeps.
 
 Purnomo et al. 2005 ("Hardware-compatible vertex compression using quantization and
 simplification", section 4.1) measure a quantization by rendering it against the original; here
 every output is rendered with **its own decoded attributes** (the peers' quantized normals, UVs and
-colours; lopcook's container's decoded attributes), unlike the position bench (``lopcook.bench``),
+colours; lopcook's container's decoded attributes), unlike the position bench (``lopcook.bench.compare``),
 which renders every tool with the source's attributes so that only positions differ.
 
 Runs (``attribute_configs``), positions at each tool's default bits:
@@ -23,7 +23,7 @@ with one shared textured material (a 1 x 1 white PNG) on the parts with UVs, so 
 quantize UVs: it stores them normalized over the material's UV box and writes the box as the
 material's ``KHR_texture_transform`` (offset, scale), which ``texture_transform`` reads back and
 ``_decoded_parts`` applies (uv = offset + scale * uv_q). Renders use the **source** textures: each
-output vertex is matched to its source vertex (``lopcook.benchkit.metrics.match_vertices``) to find
+output vertex is matched to its source vertex (``lopcook.bench.metrics.match_vertices``) to find
 its part (texture, part ID); its own normal, UV and colour are drawn where the tool kept them, the
 source's where it dropped one.
 
@@ -40,15 +40,23 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_atomic
+from ..lop.container import read
+from ..emit.gltf_writer import write_gltf
+from ..lop.summary import memory_rows
+from ..ingest import load
+from ..verify.evaluate import evaluate
 from . import metrics as BM
 from . import peers as P
+from .charts import COLOURS, INF_DB, pyplot
+from .common import Source, asset_name, glb_json, log, run_cook, write_csv
 from .draco_run import decode_buffers, write_parts
+from .render import Variant, render_variants
 
 NORMAL_SWEEP = (6, 8, 10, 12, 14)
 UV_SWEEP = (8, 10, 12, 14)
@@ -104,24 +112,20 @@ def peer_argv(cfg: dict, avail: dict, glb: Path, npz: Path, out: Path) -> list:
         return [avail["gltf-transform"], "quantize", str(glb), str(out), "--quantize-position", str(b["vp"]),
                 "--quantize-normal", str(b["vn"]), "--quantize-texcoord", str(b["vt"]), "--quantize-color",
                 str(b["vc"])]
-    return [avail["draco"], "-m", "lopcook.benchkit.draco_run", str(npz), str(out), str(b["vp"]), str(b["vn"]),
+    return [avail["draco"], "-m", "lopcook.bench.draco_run", str(npz), str(out), str(b["vp"]), str(b["vn"]),
             str(b["vt"])]
 
 
 # ---- input and output -------------------------------------------------------------------------
 
-def white_png() -> bytes:
-    """A 1 x 1 white RGBA PNG (deterministic bytes)."""
-    from ..fixtures import png_bytes
-
-    return png_bytes(np.full((1, 1, 4), 255, np.uint8))
+#: a 1 x 1 white RGBA PNG (8-bit RGBA, no filter, zlib level 9): the texture of the peers' input.glb
+WHITE_PNG = bytes.fromhex("89504e470d0a1a0a0000000d49484452000000010000000108060000001f15c4890000000b4944415478da63f80f"
+                          "040009fb03fd68fa1ccc0000000049454e44ae426082")
 
 
 def write_inputs(scene, adir: Path) -> tuple[Path, Path]:
     """``input.glb`` (float32 world-space parts; one shared textured material on the parts with UVs)
-    and ``parts.npz`` (Draco's input, as ``lopcook.bench.write_inputs``) in ``adir``."""
-    from ..emit.gltf_writer import write_gltf
-
+    and ``parts.npz`` (Draco's input, as ``lopcook.bench.compare.write_inputs``) in ``adir``."""
     meshes, textured = [], False
     for p in scene.parts:
         m = {"name": p.name, "positions": p.positions, "indices": p.indices, "normals": p.normals,
@@ -134,7 +138,7 @@ def write_inputs(scene, adir: Path) -> tuple[Path, Path]:
     if textured:
         materials = {"materials": [{"name": "bench", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
                      "textures": [{"source": 0}], "samplers": [],
-                     "images": [{"name": "white", "mimeType": "image/png", "data": white_png()}]}
+                     "images": [{"name": "white", "mimeType": "image/png", "data": WHITE_PNG}]}
     glb = adir / "input.glb"
     write_gltf(glb, meshes, generator="lopcook bench --attributes", materials=materials)
     npz = adir / "parts.npz"
@@ -187,9 +191,6 @@ def _decoded_parts(cfg: dict, out: Path) -> list[dict]:
     if cfg["tool"] == "draco":
         return [{"positions": pts, "indices": tri, "normals": nrm, "uvs": uv, "colors": None}
                 for pts, tri, nrm, uv in decode_buffers(out)]
-    from ..bench import glb_json
-    from ..ingest import load
-
     transform = texture_transform(glb_json(out)) if cfg["tool"] == "gltfpack" else None
     parts = []
     for p in load(out).parts:
@@ -202,9 +203,7 @@ def _decoded_parts(cfg: dict, out: Path) -> list[dict]:
 
 
 def peer_variant(cfg: dict, out: Path, src, asset: str):
-    """(table row without PSNR, ``lopcook.benchkit.render.Variant`` with the output's own attributes)."""
-    from .render import Variant
-
+    """(table row without PSNR, ``lopcook.bench.render.Variant`` with the output's own attributes)."""
     parts = _decoded_parts(cfg, out)
     pos = np.concatenate([p["positions"] for p in parts])
     feats = np.concatenate([BM.attribute_features(p["normals"], p["uvs"], p["positions"].shape[0]) for p in parts])
@@ -214,8 +213,6 @@ def peer_variant(cfg: dict, out: Path, src, asset: str):
         b = {"POSITION": 12 * n, "NORMAL": 12 * sum(p["positions"].shape[0] for p in parts if p["normals"] is not None),
              "TEXCOORD_0": 8 * sum(p["positions"].shape[0] for p in parts if p["uvs"] is not None), "COLOR_0": 0}
     else:
-        from ..bench import glb_json
-
         b, _ = gltf_attribute_bytes(glb_json(out))
     row = table_row(asset=asset, tool=cfg["tool"], config=cfg["config"], kind=cfg["kind"], vertices=n,
                     position_bits=cfg["bits"]["vp"], normal_bits=cfg["bits"]["vn"], uv_bits=cfg["bits"]["vt"],
@@ -247,8 +244,6 @@ def container_bytes_per_vertex(c, level: int) -> dict:
     """GPU bytes per vertex of a container's LOD 0 at ``level``: {"positions" (CAP at level),
     "attributes" (every LOD-0 attribute section: ``attributes``, or the older ``normals`` / ``uvs`` /
     ``colors``), "total", "vertices"}."""
-    from ..lop.summary import memory_rows
-
     lengths = {s["name"]: int(s["length"]) for s in c.manifest["sections"]}
     attr = verts = 0
     for part in c.manifest["parts"]:
@@ -263,29 +258,18 @@ def container_bytes_per_vertex(c, level: int) -> dict:
     return {"positions": cap / v, "attributes": attr / v, "total": (cap + attr) / v, "vertices": verts}
 
 
-def lopcook_configs(cook_has_bits: bool, target_psnr: float | None, normals: bool = True,
-                    uvs: bool = True) -> list[dict]:
-    """lopcook's runs: the default cook; with the packed-attribute cook the normal and UV sweeps
-    (``--normal-bits N`` / ``--uv-bits N``, for the attributes the scene has); and ``--target-psnr
-    DB`` when given."""
+def lopcook_configs(target_psnr: float | None, normals: bool = True, uvs: bool = True) -> list[dict]:
+    """lopcook's runs: the default cook; the normal and UV sweeps (``--normal-bits N`` /
+    ``--uv-bits N``, for the attributes the scene has); and ``--target-psnr DB`` when given."""
     out = [{"tool": "lopcook", "kind": "default", "config": "cook", "extra": []}]
-    if cook_has_bits:
-        out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --normal-bits {b}", "extra": ["--normal-bits", str(b)]}
-                for b in NORMAL_SWEEP if normals]
-        out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --uv-bits {b}", "extra": ["--uv-bits", str(b)]}
-                for b in UV_SWEEP if uvs]
+    out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --normal-bits {b}", "extra": ["--normal-bits", str(b)]}
+            for b in NORMAL_SWEEP if normals]
+    out += [{"tool": "lopcook", "kind": "sweep", "config": f"cook --uv-bits {b}", "extra": ["--uv-bits", str(b)]}
+            for b in UV_SWEEP if uvs]
     if target_psnr is not None:
         out.append({"tool": "lopcook", "kind": "searched", "config": f"cook --target-psnr {target_psnr:g}",
                     "extra": ["--target-psnr", f"{target_psnr:g}"]})
     return out
-
-
-def cook_has_attribute_bits() -> bool:
-    """Whether this lopcook's ``cook`` takes ``--normal-bits`` (the packed attribute record)."""
-    from ..cli import build_parser
-
-    cook = build_parser()._subparsers._group_actions[0].choices["cook"]
-    return any("--normal-bits" in a.option_strings for a in cook._actions)
 
 
 def _container_bits(c) -> dict:
@@ -299,23 +283,12 @@ def _container_bits(c) -> dict:
 
 # ---- the run ----------------------------------------------------------------------------------
 
-def _log(opts, msg: str) -> None:
-    if not getattr(opts, "quiet", False):
-        print(f"bench: {msg}", file=sys.stderr, flush=True)
-
-
 def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
     """Table rows of one asset: every peer run and lopcook run, bytes per vertex and PSNR."""
-    from ..bench import Source, asset_name, run_cook
-    from ..lop.container import read
-    from ..ingest import load
-    from ..verify.evaluate import evaluate
-    from .render import render_variants
-
     asset = asset_name(path)
     adir = out_dir / "attributes" / asset
     adir.mkdir(parents=True, exist_ok=True)
-    _log(opts, f"{asset}: ingest {path}")
+    log(opts, f"{asset}: ingest {path}")
     src = Source(load(path))
     glb, npz = write_inputs(src.scene, adir)
     level = max(opts.levels)
@@ -327,7 +300,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
         out = adir / (tag + (".npz" if cfg["tool"] == "draco" else ".glb"))
         if out.exists():
             out.unlink()
-        _log(opts, f"{asset}: {cfg['tool']} {cfg['config']}")
+        log(opts, f"{asset}: {cfg['tool']} {cfg['config']}")
         try:
             m = P.run_measured(peer_argv(cfg, avail, glb, npz, out), timeout_s=3600)
             if m.returncode != 0 or not out.exists():
@@ -341,7 +314,7 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
                             error=f"{type(exc).__name__}: {exc}")
         rows.append(row)
     if variants and not opts.skip_render:
-        _log(opts, f"{asset}: render {len(variants)} peer outputs with their own attributes")
+        log(opts, f"{asset}: render {len(variants)} peer outputs with their own attributes")
         got = render_variants(src.scene, variants, levels=opts.levels, views=opts.views, resolution=opts.resolution,
                               extent=src.extent, own_attributes=True)
         for r in rows:
@@ -349,9 +322,9 @@ def bench_asset(path, out_dir: Path, opts, avail: dict) -> list[dict]:
             if g:
                 r["psnr_min_db"] = _min_db([v["psnr_min"] for v in g.values()])
                 r["psnr_mean_db"] = _min_db([v["psnr_mean"] for v in g.values()])
-    for cfg in lopcook_configs(cook_has_attribute_bits(), getattr(opts, "attributes_target", None), **has):
+    for cfg in lopcook_configs(getattr(opts, "attributes_target", None), **has):
         lop = adir / (re.sub(r"[^A-Za-z0-9]+", "_", cfg["config"]).strip("_") + ".lop")
-        _log(opts, f"{asset}: lopcook {cfg['config']}")
+        log(opts, f"{asset}: lopcook {cfg['config']}")
         m, desc = run_cook(path, lop, cfg["extra"])
         if desc is None:
             err = (m.stderr.strip().splitlines() or [f"exit {m.returncode}"])[-1]
@@ -382,9 +355,7 @@ def _min_db(values) -> float:
 def attributes_chart(rows: list[dict], path) -> None:
     """``attributes.png``: total GPU bytes per vertex against PSNR (min over views and levels), one
     panel per asset; each tool's points, its Pareto front, and its default drawn as a star."""
-    from .charts import COLOURS, INF_DB, _plt
-
-    plt = _plt()
+    plt = pyplot()
     assets = list(dict.fromkeys(r["asset"] for r in rows))
     cols = min(2, max(1, len(assets)))
     nrows = -(-max(1, len(assets)) // cols)
@@ -419,9 +390,6 @@ def attributes_chart(rows: list[dict], path) -> None:
 def run(opts, assets: list[str], avail: dict) -> dict:
     """Every asset's rows into ``opts.output``: ``attributes.json`` (the table and the command),
     ``attributes.csv`` and ``attributes.png``. Returns the JSON object."""
-    from ..atomic import write_atomic
-    from ..bench import write_csv
-
     t0 = time.perf_counter()
     out_dir = Path(opts.output)
     rows = []
@@ -429,8 +397,6 @@ def run(opts, assets: list[str], avail: dict) -> dict:
         try:
             rows += bench_asset(a, out_dir, opts, avail)
         except Exception as exc:  # noqa: BLE001 -- an unreadable asset is a row, not a crash
-            from ..bench import asset_name
-
             rows.append(table_row(asset=asset_name(a), tool="lopcook", config="cook", error=f"{type(exc).__name__}: {exc}"))
         write_csv(out_dir / "attributes.csv", rows, TABLE_COLUMNS)
     chart = None
@@ -439,7 +405,7 @@ def run(opts, assets: list[str], avail: dict) -> dict:
             attributes_chart(rows, out_dir / "attributes.png")
             chart = "attributes.png"
     except ImportError as exc:
-        _log(opts, f"no chart: {exc} (pip install 'lopcook[bench]')")
+        log(opts, f"no chart: {exc} (pip install 'lopcook[bench]')")
     doc = {"command": "lopcook bench " + " ".join(getattr(opts, "argv", [])), "levels": list(opts.levels),
            "views": opts.views, "resolution": list(opts.resolution), "chart": chart,
            "seconds": round(time.perf_counter() - t0, 1), "rows": rows}
@@ -450,4 +416,4 @@ def run(opts, assets: list[str], avail: dict) -> dict:
 __all__ = ["NORMAL_SWEEP", "UV_SWEEP", "GLTFPACK_DEFAULTS", "GLTF_TRANSFORM_DEFAULTS", "DRACO_DEFAULTS",
            "TABLE_COLUMNS", "attribute_configs", "peer_argv", "write_inputs", "texture_transform",
            "gltf_attribute_bytes", "peer_variant", "container_bytes_per_vertex", "lopcook_configs",
-           "cook_has_attribute_bits", "bench_asset", "attributes_chart", "run"]
+           "bench_asset", "attributes_chart", "run"]

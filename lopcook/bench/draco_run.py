@@ -1,6 +1,6 @@
 """Child process of ``lopcook bench``: encode every part with Draco (DracoPy) and write the buffers.
 
-Usage: ``python -m lopcook.benchkit.draco_run PARTS.npz OUT.npz BITS [NORMAL_BITS UV_BITS]``
+Usage: ``python -m lopcook.bench.draco_run PARTS.npz OUT.npz BITS [NORMAL_BITS UV_BITS]``
 
 PARTS.npz holds, per part k, ``positions_k`` (n, 3) float32 metres, ``indices_k`` (m, 3) uint32 and,
 when present, ``normals_k`` (n, 3) float32 and ``uvs_k`` (n, 2) float32. Each part is one Draco
@@ -23,7 +23,7 @@ COMPRESSION_LEVEL = 7
 
 
 def encode_parts(parts: dict, bits: int, normal_bits: int = NORMAL_BITS, uv_bits: int = UV_BITS) -> dict:
-    import DracoPy
+    import DracoPy  # optional (lopcook[bench]): imported where Draco runs
 
     out = {}
     k = 0

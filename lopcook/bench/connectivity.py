@@ -10,7 +10,8 @@ DIR`` run this)::
 ``connectivity_unit_size.png``: bits per triangle (proposed_plus records plus the random-access
 index) against the size of the random-access unit, per asset, with the codecs that have no
 random access (meshoptimizer, Draco: one unit = the whole mesh) and the Nanite-style cluster DAG
-figure quoted in issue 14 (128-triangle clusters, about 14.3 bits per original triangle, bunny).
+figure quoted by docs/hierarchy.md (128-triangle clusters, about 14.3 bits per original triangle,
+bunny).
 
 For each asset, every part with at least 4 triangles is built into a vertex tree (the part's own
 vertices and index buffer, degenerate triangles dropped) and coded with every variant of
@@ -48,7 +49,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..api import load
+from ..hierarchy import (PROPOSED, PROPOSED_PLUS, VARIANTS, build_tree, decode_hierarchy, drop_degenerate,
+                         encode_hierarchy, measure, select_cut)
+from ..hierarchy import coding as C
 from ..mesh import canonical_triangles
+from .charts import pyplot
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -74,7 +80,7 @@ def best_of(fn, repeat=3, label=None):
 
 
 def meshopt_bits(tri, n):
-    import meshoptimizer as mo
+    import meshoptimizer as mo  # the peers' codecs (DracoPy: lopcook[bench]) load when measured
 
     idx = np.ascontiguousarray(tri.reshape(-1).astype(np.uint32))
     opt = np.zeros_like(idx)
@@ -98,8 +104,6 @@ UNITS = (1, 8, 64, 512, 4096)
 
 def index_bits(T, variant):
     """{"per_record": bits, U: bits} of the random-access index (see the module docstring)."""
-    from lopcook.hierarchy import coding as C
-
     lay = C.layout(T, variant.restructure)
     coded = C.encode_connectivity(T, variant, lay)
 
@@ -123,10 +127,7 @@ def index_bits(T, variant):
 
 
 def run_asset(path, variants):
-    import lopcook
-    from lopcook.hierarchy import build_tree, drop_degenerate, measure
-
-    scene = lopcook.load(path)
+    scene = load(path)
     acc = {k: {"bits": 0, "tables": 0, "struct": 0} for k in variants}
     ref = {"tri": 0, "meshopt": 0, "draco": 0, "parts": 0, "build_s": 0.0, "depth": 0,
            "index": {}}
@@ -155,8 +156,6 @@ def run_asset(path, variants):
 
 
 def throughput(trees):
-    from lopcook.hierarchy import PROPOSED, PROPOSED_PLUS, decode_hierarchy, encode_hierarchy
-
     out = {}
     m = sum(T.triangles.shape[0] for T, _ in trees)
     for name, v in (("proposed", PROPOSED), ("proposed_plus", PROPOSED_PLUS)):
@@ -172,8 +171,6 @@ def throughput(trees):
 
 
 def cut_timings(T):
-    from lopcook.hierarchy import PROPOSED_PLUS, decode_hierarchy, encode_hierarchy, select_cut
-
     h = decode_hierarchy(encode_hierarchy(T, variant=PROPOSED_PLUS))
     p = h.origin + (h.positions.astype(np.float64) + 0.5) * h.step
     c = p.mean(axis=0)
@@ -189,7 +186,7 @@ def cut_timings(T):
     return rows
 
 
-#: issue 14's quoted figure for a Nanite-style cluster DAG (meshoptimizer clusterlod, 128-triangle
+#: the quoted figure (docs/hierarchy.md) for a Nanite-style cluster DAG (meshoptimizer clusterlod, 128-triangle
 #: clusters) on the bunny: bits per original triangle, triangles only (not measured here)
 CLUSTER_DAG_QUOTED = {"triangles_per_unit": 128, "bits_per_triangle": 14.3}
 
@@ -201,10 +198,7 @@ def unit_size_chart(results: dict, path) -> Path | None:
     every record indexed), log scale; the rightmost column is the whole mesh (no random access).
     y: proposed_plus connectivity records plus that unit's index bits, per triangle."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
     except ImportError:
         return None
     fig, ax = plt.subplots(figsize=(8.0, 4.8), dpi=110)
@@ -218,7 +212,7 @@ def unit_size_chart(results: dict, path) -> Path | None:
         ax.plot([whole * 1.6], [res["meshopt_bits_per_triangle"]], "s", color=colour, ms=5, mfc="none")
         ax.plot([whole * 2.6], [res["draco_bits_per_triangle"]], "^", color=colour, ms=5, mfc="none")
     ax.plot([CLUSTER_DAG_QUOTED["triangles_per_unit"]], [CLUSTER_DAG_QUOTED["bits_per_triangle"]], "*", color="k",
-            ms=10, label="cluster DAG, bunny (issue 14, quoted)")
+            ms=10, label="cluster DAG, bunny (quoted)")
     ax.plot([], [], "ks", mfc="none", label="meshoptimizer index codec (no random access)")
     ax.plot([], [], "k^", mfc="none", label="Draco, whole mesh incl. 14-bit positions")
     ax.set_xscale("log", base=2)
@@ -240,8 +234,6 @@ def unit_size_chart(results: dict, path) -> Path | None:
 
 
 def main(argv=None):
-    from lopcook.hierarchy import VARIANTS
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--corpus", default=os.environ.get("LOPCOOK_CORPUS", str(REPO.parent / "shared" / "corpus")))
     ap.add_argument("--assets", nargs="*", default=ASSETS)

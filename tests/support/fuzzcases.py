@@ -1,8 +1,8 @@
 """Hostile and malformed inputs for the importers and the container reader, and the classifier
-that judges how the CLI treats them (issue 17, "Hostile and malformed input").
+that judges how the CLI treats them (docs/ingest.md, "Hostile input and limits").
 
 ``generate(root)`` writes a deterministic corpus (every case in its own directory under ``root``)
-built from the project fixtures (``lopcook.fixtures``): glTF/GLB, OBJ, USD (usda, usdc, usdz) and
+built from the project fixtures (``tests.support.fixtures``): glTF/GLB, OBJ, USD (usda, usdc, usdz) and
 ``.lop`` files with truncations, byte flips, lying lengths and counts (with the checksums
 recomputed so that the lie passes them), degenerate geometry, hostile texture references,
 scene-graph depth and instancing bombs, and non-regular files (FIFOs, ``/dev/zero`` symlinks).
@@ -30,8 +30,8 @@ limit (``TIMEOUT_S``) and an address-space limit (``RLIMIT_AS``, ``MEMORY_BYTES`
 ``other``          any other exit status
 =================  ==========================================================================
 
-Everything but ``ok`` and ``clean`` is a failure. ``python -m lopcook.fuzzcases [ROOT]`` runs
-the whole corpus and prints the count per class.
+Everything but ``ok`` and ``clean`` is a failure. ``python -m tests.support.fuzzcases [ROOT]`` (from
+the repository root) runs the whole corpus and prints the count per class.
 """
 
 from __future__ import annotations
@@ -51,6 +51,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from lopcook.lop.container import READABLE_MAJORS, VERSION, manifest_bytes
+from lopcook.emit.gltf_writer import pack_glb
+
+from . import fixtures
+from .fixtures import _gltf_document, write_gltf, write_obj, write_usd
 
 #: wall-clock limit of one CLI run, seconds
 TIMEOUT_S = 60
@@ -112,20 +118,14 @@ class Result:
 
 
 def _fixture_parts(name: str):
-    from . import fixtures
-
     return getattr(fixtures, name)()
 
 
 def _gltf_doc(parts=None) -> tuple[dict, bytes]:
-    from .fixtures import _gltf_document
-
     return _gltf_document(parts or _fixture_parts("seamed_cube"), None, None)
 
 
 def _glb(doc: dict, blob: bytes) -> bytes:
-    from .emit.gltf_writer import pack_glb
-
     return pack_glb(json.dumps(doc, separators=(",", ":")).encode("utf-8"), blob)
 
 
@@ -526,8 +526,6 @@ def _gltf_cases(w: _Writer, rng) -> None:
 
 
 def _obj_cases(w: _Writer, rng) -> None:
-    from .fixtures import write_obj
-
     tmp = w.root / "_base"
     base = write_obj(_fixture_parts("seamed_cube"), tmp / "cube.obj").read_text()
     lines = base.splitlines()
@@ -712,8 +710,6 @@ def usda_textured(asset: str) -> str:
 
 
 def _usd_cases(w: _Writer, rng) -> None:
-    from .fixtures import write_usd
-
     tmp = w.root / "_base"
     parts = _fixture_parts("seamed_cube")
     usda = write_usd(parts, tmp / "cube.usda").read_text()
@@ -834,8 +830,6 @@ def _usdz(usdc_path: Path, out: Path) -> bytes:
 
 
 def _lop_base(root: Path) -> bytes:
-    from .fixtures import write_gltf
-
     src = write_gltf(_fixture_parts("two_plates"), root / "_base" / "plates.glb", binary=True)[0]
     out = root / "_base" / "plates.lop"
     env = dict(os.environ)
@@ -854,15 +848,11 @@ def _lop_split(data: bytes) -> tuple[dict, bytes, bytes]:
 def _lop_pack(mbytes: bytes, payload: bytes, *, total: int | None = None) -> bytes:
     """A container with this manifest and payload, every CRC and size recomputed (the lie passes)."""
     total = 32 + len(mbytes) + len(payload) if total is None else total
-    from .lop.container import VERSION
-
     head = struct.pack("<4sHHIIIQ", b"LOPC", VERSION[0], VERSION[1], 32, len(mbytes), zlib.crc32(mbytes), total)
     return head + struct.pack("<I", zlib.crc32(head)) + mbytes + payload
 
 
 def _lop_with(manifest: dict, payload: bytes) -> bytes:
-    from .lop.container import manifest_bytes
-
     try:
         mb = manifest_bytes(manifest)
     except ValueError:  # NaN / Inf: written the way a liar would
@@ -999,8 +989,6 @@ def _lop_cases(w: _Writer, rng) -> None:
     # header lies
     lop("total_size_small", _lop_pack(mbytes, payload, total=100), "refuse")
     lop("total_size_huge", _lop_pack(mbytes, payload, total=1 << 60), "refuse")
-    from .lop.container import READABLE_MAJORS, VERSION
-
     future = struct.pack("<H", max(READABLE_MAJORS) + 1)  # the first major no reader knows
     lop("header_major_next", data[:4] + future + data[6:28] + struct.pack(
         "<I", zlib.crc32(data[:4] + future + data[6:28])) + data[32:], "refuse")
@@ -1142,7 +1130,7 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
     import tempfile
 
-    ap = argparse.ArgumentParser(prog="python -m lopcook.fuzzcases", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m tests.support.fuzzcases", description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", help="corpus directory (default: a temporary one)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--only", default="", help="run only cases whose name contains this text")

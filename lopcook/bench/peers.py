@@ -8,7 +8,7 @@ Peers (each optional; a missing one is skipped with one line):
   scaling chart, ``-si 0.5 -vp 14``.
 * **glTF-Transform** (npm ``@gltf-transform/cli``): ``quantize --quantize-position N``.
 * **Draco** (pip ``DracoPy``): ``encode(points, faces, quantization_bits=N)`` per part, in a child
-  Python process (``python -m lopcook.benchkit.draco_run``).
+  Python process (``python -m lopcook.bench.draco_run``).
 
 Where the tools are looked for: ``$LOPCOOK_PEERS/node_modules/.bin`` (default ``<repo>/.peers``,
 filled by ``benchmarks/install_peers.sh``), then ``$PATH``. DracoPy is imported by the child
@@ -24,8 +24,10 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,9 +76,6 @@ def run_measured(argv, timeout_s: float | None = None, env=None) -> Measured:
     (``/usr/bin/time -f %M``): time is the small process that forks and execs the tool, and
     reports the tool's ``ru_maxrss`` from ``wait4``. Without GNU time, ``os.wait4``'s
     ``ru_maxrss`` of the direct child is used (an upper bound: it includes the bench's RSS at fork)."""
-    import signal
-    import tempfile
-
     gnu = _gnu_time()
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, \
             tempfile.NamedTemporaryFile("r", suffix=".rss") as rss_file:
@@ -184,7 +183,7 @@ def gltf_transform_argv(exe: str, src, out, bits: int) -> list:
 
 def draco_argv(python: str, npz, out, bits: int) -> list:
     """Child process encoding every part of ``npz`` with DracoPy at ``bits`` and decoding it back."""
-    return [python, "-m", "lopcook.benchkit.draco_run", str(npz), str(out), str(int(bits))]
+    return [python, "-m", "lopcook.bench.draco_run", str(npz), str(out), str(int(bits))]
 
 
 __all__ = ["PEERS", "Measured", "run_measured", "peers_dir", "find_tool", "draco_available", "availability",

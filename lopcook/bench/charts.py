@@ -21,8 +21,10 @@ COLOURS = {"lopcook CAP": "tab:red", "lopcook AP": "tab:orange", "gltfpack": "ta
            "gltf-transform": "tab:green", "draco": "tab:purple", "lopcook CAP (calibrated)": "tab:brown"}
 
 
-def _plt():
-    import matplotlib
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (an optional dependency, ``pip install 'lopcook[bench]'``,
+    imported on first use: ImportError when it is missing)."""
+    import matplotlib  # optional (lopcook[bench])
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -46,7 +48,7 @@ def series_name(row: dict) -> str:
 def pareto_chart(rows: list[dict], path) -> None:
     """rows: accuracy rows (``bench.ROW_COLUMNS``); rows from -cc outputs are left out (same GPU
     data as the matching non-cc output)."""
-    plt = _plt()
+    plt = pyplot()
     assets = list(dict.fromkeys(r["asset"] for r in rows))
     n = max(1, len(assets))
     cols = min(2, n)
@@ -80,7 +82,7 @@ def pareto_chart(rows: list[dict], path) -> None:
 
 def scaling_chart(rows: list[dict], path) -> float:
     """rows: scaling rows (``bench.SCALING_COLUMNS``). Returns lopcook's fitted log-log slope."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 5))
     slope = float("nan")
     for tool, colour in (("lopcook", "tab:red"), ("gltfpack", "tab:blue")):
@@ -113,7 +115,7 @@ def scaling_chart(rows: list[dict], path) -> float:
 
 def stages_chart(rows: list[dict], path) -> None:
     """rows: stage rows (``bench.STAGE_COLUMNS``), one per (cook, stage)."""
-    plt = _plt()
+    plt = pyplot()
     cooks = list(dict.fromkeys(r["cook"] for r in rows))
     stages = list(dict.fromkeys(r["stage"] for r in rows))
     fig, ax = plt.subplots(figsize=(max(6, 1.1 * len(cooks) + 2), 5))

@@ -38,7 +38,7 @@ def match_vertices(source_pos: np.ndarray, output_pos: np.ndarray, source_attr: 
     concatenated; NaN where absent, and absent columns are not compared) are closest. Exact while the output's position error is less than half the
     distance between distinct source positions; otherwise the error measured with this match is
     a lower bound of the true one."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # heavy: imported by the one function that needs it
 
     src = np.asarray(source_pos, np.float64)
     out = np.asarray(output_pos, np.float64)

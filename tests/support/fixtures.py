@@ -6,7 +6,7 @@ Every fixture is plain data first (``FixturePart`` lists, in lopcook's scene con
 timestamps, no absolute paths), so the files in the repository's ``fixtures/`` folder can be
 regenerated and compared byte for byte::
 
-    python -m lopcook.fixtures [OUTDIR]      # default OUTDIR: ./fixtures
+    python -m tests.support.fixtures [OUTDIR]      # from the repository root; default OUTDIR: ./fixtures
 
 Exactness: every coordinate, normal and UV of the fixtures is exactly representable in float32
 (multiples of 2**-10 or simpler), except the icosphere, whose float64 positions lie on the unit
@@ -49,10 +49,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .emit.gltf_writer import (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
+from lopcook.emit.gltf_writer import (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
                                UNSIGNED_SHORT, BufferBuilder, gltf_json_text, pack_glb)
-from .mesh import icosahedron
-from .viewing import VIEW_ROTATION as GLOSSY_CREASE_ROTATION
+from lopcook.mesh import icosahedron
+from lopcook.viewing import VIEW_ROTATION as GLOSSY_CREASE_ROTATION
 
 GENERATOR = "lopcook fixtures"
 """``asset.generator`` of the glTF files and the signature in OBJ/USD headers."""
@@ -121,7 +121,7 @@ class FixturePart:
 
     def as_mesh_part(self, source: str = ""):
         """This part as a ``lopcook.types.MeshPart`` (positions float64, indices uint32)."""
-        from .types import MeshPart
+        from lopcook.types import MeshPart
 
         return MeshPart(name=self.name, positions=self.positions, indices=self.indices,
                         attributes={"normals": self.normals, "uvs": self.uvs}, source=source)
@@ -831,10 +831,10 @@ def write_all(outdir="fixtures") -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m lopcook.fixtures [OUTDIR]``: regenerate the fixtures (default ./fixtures)."""
+    """``python -m tests.support.fixtures [OUTDIR]``: regenerate the fixtures (default ./fixtures)."""
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) > 1 or (argv and argv[0].startswith("-")):
-        print("usage: python -m lopcook.fixtures [OUTDIR]   (default: fixtures)", file=sys.stderr)
+        print("usage: python -m tests.support.fixtures [OUTDIR]   (default: fixtures)", file=sys.stderr)
         return 2
     for p in write_all(argv[0] if argv else "fixtures"):
         print(f"{p}  {p.stat().st_size} bytes")

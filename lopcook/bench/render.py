@@ -8,7 +8,7 @@ Phong with the container's ks / shininess (defaults 0.5 / 32), 4x MSAA, masked P
 
 Each peer output is drawn with its **own** triangles and decoded positions, but with the
 **source** normals, UVs, colours and textures of the source vertex each output vertex is matched
-to (``lopcook.benchkit.metrics.match_vertices``), as lopcook's AP and CAP renders use the source
+to (``lopcook.bench.metrics.match_vertices``), as lopcook's AP and CAP renders use the source
 attributes: only positions differ from the float reference. The part ID of an output part is the
 source part most of its vertices match. The float reference of each (level, view) is rendered once
 and every variant is compared with it.
@@ -20,6 +20,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
+
+from ..verify import metrics as M
+from ..verify.cameras import camera_distance, make_camera, select_views
+from ..verify.renderer import Coverage, Harness, Shading, attribute_buffers, attribute_vbos
+from ..viewing import Viewing
 
 
 @dataclass
@@ -48,8 +53,6 @@ def _items(h, scene, variant: Variant, own_attributes: bool = False):
     output vertex takes the attributes of its matched source vertex (any part); with
     ``own_attributes`` the variant's own normals / UVs / colours where it has them (the source's,
     matched, for an attribute the tool dropped)."""
-    from lopcook.verify.renderer import Coverage, attribute_buffers, attribute_vbos
-
     ctx = h.ctx
     attrs = {n: _global_attribute(scene, n, w) for n, w in (("normals", 3), ("uvs", 2), ("colors", 4))}
     items, owned = [], []
@@ -87,11 +90,6 @@ def render_variants(scene, variants: list[Variant], *, levels, views, resolution
     scene : the float source (``lopcook.types.Scene``); levels : camera levels B (each selects its
     distance); views : int N or view indices; resolution : (w, h) pixels; extent : grid extent,
     metres. own_attributes : draw each variant's own attributes (``_items``)."""
-    from lopcook.verify import metrics as M
-    from lopcook.verify.cameras import camera_distance, make_camera, select_views
-    from lopcook.verify.renderer import Harness, Shading
-    from lopcook.viewing import Viewing
-
     view_ids = select_views(views)
     viewing = Viewing(viewport=(int(resolution[0]), int(resolution[1])), fov_y_deg=fov_y_deg,
                       pixel_error=pixel_error)

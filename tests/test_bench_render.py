@@ -1,4 +1,4 @@
-"""Peer outputs rendered against the float source (lopcook.benchkit.render): a variant equal to
+"""Peer outputs rendered against the float source (lopcook.bench.render): a variant equal to
 the source renders identically, a moved one does not, and its PSNR matches evaluate_scene of the
 same float scene. GL: skipped without EGL, a failure under CI=true."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from conftest import FIXTURES
-from lopcook.benchkit.render import Variant, render_variants
+from lopcook.bench.render import Variant, render_variants
 from lopcook.grid import Grid
 from lopcook.ingest import load
 from lopcook.types import MeshPart, Scene
