@@ -27,9 +27,9 @@ RANKS = {
     "api": 8,
     "top": 9,
 }
-FOUNDATION = {"errors", "types", "grid", "mesh", "settings", "viewing", "atomic", "memory", "depfile", "isolate", "version", "outputs", "progress",
+FOUNDATION = {"errors", "types", "grid", "mesh", "settings", "viewing", "atomic", "memory", "depfile", "isolate", "version", "progress",
               "selection", "__init__", "__main__"}
-TOP = {"cli", "report", "bench", "benchkit", "batch", "fixtures", "fuzzcases"}
+TOP = {"cli", "report", "bench", "benchkit", "batch", "fixtures", "fuzzcases", "outputs"}
 
 
 def layer(module: str) -> str:

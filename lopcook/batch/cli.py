@@ -11,6 +11,7 @@ import os
 import sys
 
 from ..errors import EXIT_BAD_INPUT, EXIT_OK, LopcookError
+from ..ingest import EXTENSIONS
 
 
 def _default_jobs() -> int:
@@ -25,8 +26,8 @@ def add_batch_parser(sub) -> None:
     p = sub.add_parser("batch", help="cook every asset of a tree into OUTDIR: incremental, parallel (--jobs), on a "
                                      "Dask cluster (--scheduler) or as a Ninja file (--emit-ninja); see docs/batch.md")
     p.add_argument("sources", nargs="+", metavar="SOURCE",
-                   help="source files, directories (searched recursively for .gltf .glb .obj .usd .usda .usdc "
-                        ".usdz) or manifests (text, one path per line)")
+                   help=f"source files, directories (searched recursively for {' '.join(EXTENSIONS)}) or "
+                        "manifests (text, one path per line)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR",
                    help="output folder: the source tree mirrored, each SOURCE.ext as SOURCE.lop")
     p.add_argument("--config", default=None, metavar="lopcook.toml",

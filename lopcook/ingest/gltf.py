@@ -82,9 +82,11 @@ import base64
 import binascii
 import json
 import os
+import re
 import struct
 import urllib.parse
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -94,6 +96,8 @@ from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
 from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
                     regular_file_problem, unique_names)
+from .format import Format
+from .materials import MaterialSet
 
 GLB_MAGIC = b"glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -993,9 +997,175 @@ def _no_constant(name: str):
 
 
 def _rename(part: MeshPart, name: str) -> MeshPart:
-    from dataclasses import replace
-
     return replace(part, name=name)
 
 
-__all__ = ["load"]
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The source's own glTF material of each manifest part, found by its ``mesh_key``
+    ``mesh{mi}/prim{k}`` (None: the primitive has no material, or the key is not glTF's).
+
+    Carried: base colour (factor, texture), metallic-roughness (factors, texture), normal (with
+    ``scale``), occlusion (with ``strength``), emissive (factor, texture), ``alphaMode``,
+    ``alphaCutoff`` (MASK only), ``doubleSided``. Images (bufferView, data URI or relative file)
+    go to ``out`` as bytes. Left out with a warning in ``out``: material extensions, a texture read
+    through another UV set than the base colour's (the one set the container keeps), a texture
+    without a source, an image that is not a readable PNG/JPEG or not a relative file. This is a
+    lenient second reading of a file ``load`` accepted: a malformed file raises ``ValueError``,
+    ``KeyError``, ``IndexError``, ``TypeError`` or ``struct.error``.
+    """
+    reader = _MaterialReader(path, out)
+    cache: dict = {}
+    per_part = []
+    for p in parts:
+        mk = re.fullmatch(r"mesh(\d+)/prim(\d+)", str(p.get("mesh_key", "")))
+        mat = None
+        if mk:
+            prim = reader.doc["meshes"][int(mk.group(1))]["primitives"][int(mk.group(2))]
+            mi = prim.get("material")
+            if mi is not None:
+                if mi not in cache:
+                    cache[mi] = reader.material(mi)
+                mat = cache[mi]
+        per_part.append(mat)
+    if reader.dropped_ext:
+        out.warn(f"material extensions not carried into the preview: {', '.join(sorted(reader.dropped_ext))}")
+    return per_part
+
+
+class _MaterialReader:
+    """The JSON, buffers and images of one glTF file, read for its materials."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        raw = Path(path).read_bytes()
+        self.bin_chunk = None
+        if raw[:4] == GLB_MAGIC:
+            jlen, jtype = struct.unpack_from("<I4s", raw, 12)
+            if jtype != b"JSON":
+                raise ValueError("GLB has no JSON chunk first")
+            self.doc = json.loads(raw[20:20 + jlen])
+            off = 20 + jlen
+            if off + 8 <= len(raw):
+                blen, btype = struct.unpack_from("<I4s", raw, off)
+                if btype == b"BIN\0":
+                    self.bin_chunk = raw[off + 8: off + 8 + blen]
+        else:
+            self.doc = json.loads(raw)
+        self.base = os.path.dirname(os.path.abspath(path))
+        self.out = out
+        self.buffers: dict = {}
+        self.samplers = self.doc.get("samplers") or []
+        self.dropped_ext: set = set()
+
+    def uri_bytes(self, uri: str, what: str) -> bytes | None:
+        """The bytes a data URI holds or a relative file has; None (and a warning) otherwise."""
+        if uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            return base64.b64decode(payload) if head.endswith(";base64") else \
+                urllib.parse.unquote(payload).encode("latin-1")
+        rel = urllib.parse.unquote(uri)
+        if "://" in rel or os.path.isabs(rel):
+            self.out.warn(f"{what}: URI {uri!r} is not a relative file; left out of the preview")
+            return None
+        p = os.path.join(self.base, rel)
+        if not os.path.isfile(p):
+            self.out.warn(f"{what}: file {rel!r} not found; left out of the preview")
+            return None
+        return Path(p).read_bytes()
+
+    def buffer(self, i: int) -> bytes | None:
+        if i not in self.buffers:
+            b = self.doc["buffers"][i]
+            self.buffers[i] = self.uri_bytes(b["uri"], f"buffer {i}") if "uri" in b else self.bin_chunk
+        return self.buffers[i]
+
+    def image(self, i: int) -> tuple[bytes, str] | None:
+        """``(encoded bytes, name)`` of image ``i``, or None."""
+        img = self.doc["images"][i]
+        name = img.get("name") or (os.path.basename(urllib.parse.unquote(img["uri"]))
+                                   if "uri" in img and not img["uri"].startswith("data:") else f"image{i}")
+        if "uri" in img:
+            data = self.uri_bytes(img["uri"], f"image {i}")
+        else:
+            v = self.doc["bufferViews"][img["bufferView"]]
+            b = self.buffer(v["buffer"])
+            data = None if b is None else b[v.get("byteOffset", 0): v.get("byteOffset", 0) + v["byteLength"]]
+        return None if not data else (bytes(data), name)
+
+    def tex_ref(self, ref, uv_set: int, what: str) -> dict | None:
+        """A material's texture reference ``ref`` as the preview's (index into ``out``), or None."""
+        if not isinstance(ref, dict) or "index" not in ref:
+            return None
+        if ref.get("texCoord", 0) != uv_set:
+            self.out.warn(f"{what} reads TEXCOORD_{ref.get('texCoord', 0)}, the container keeps "
+                          f"TEXCOORD_{uv_set} only; left out of the preview")
+            return None
+        self.dropped_ext.update((ref.get("extensions") or {}).keys())
+        tex = self.doc["textures"][ref["index"]]
+        if "source" not in tex:
+            self.out.warn(f"{what}: texture {ref['index']} has no PNG/JPEG source; left out of the preview")
+            return None
+        smp = None
+        if "sampler" in tex:
+            s = self.samplers[tex["sampler"]]
+            smp = {k: s[k] for k in ("magFilter", "minFilter", "wrapS", "wrapT") if k in s}
+        t = self.out.texture(self.out.image(("gltf", tex["source"]), lambda: self.image(tex["source"])), smp)
+        if t is None:
+            return None
+        res = {"index": t}
+        for k in ("scale", "strength"):
+            if k in ref:
+                res[k] = ref[k]
+        return res
+
+    def material(self, mi: int) -> dict:
+        """Material ``mi`` as glTF 2.0 core (see ``materials``)."""
+        m = self.doc["materials"][mi]
+        self.dropped_ext.update((m.get("extensions") or {}).keys())
+        pbr_in = m.get("pbrMetallicRoughness") or {}
+        uv_set = int((pbr_in.get("baseColorTexture") or {}).get("texCoord", 0))
+        what = f"material {mi}" + (f" {m['name']!r}" if m.get("name") else "")
+        res: dict = {"name": m["name"]} if isinstance(m.get("name"), str) else {}
+        pbr = {k: pbr_in[k] for k in ("baseColorFactor", "metallicFactor", "roughnessFactor") if k in pbr_in}
+        for k in ("baseColorTexture", "metallicRoughnessTexture"):
+            r = self.tex_ref(pbr_in.get(k), uv_set, f"{what} {k}")
+            if r is not None:
+                pbr[k] = r
+        res["pbrMetallicRoughness"] = pbr
+        for k in ("normalTexture", "occlusionTexture", "emissiveTexture"):
+            r = self.tex_ref(m.get(k), uv_set, f"{what} {k}")
+            if r is not None:
+                res[k] = r
+        for k in ("emissiveFactor", "alphaMode", "alphaCutoff", "doubleSided"):
+            if k in m:
+                res[k] = m[k]
+        if res.get("alphaMode") != "MASK":
+            res.pop("alphaCutoff", None)
+        return res
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: extension -> the kinds a file so named may hold (a .gltf may hold GLB bytes and vice versa)
+EXTENSIONS = {".gltf": ("gltf", "glb"), ".glb": ("glb", "gltf")}
+
+
+def sniff(head: bytes) -> str | None:
+    """``"glb"`` for the GLB magic, ``"gltf"`` for JSON (``{`` after a BOM and whitespace)."""
+    if head.startswith(GLB_MAGIC):
+        return "glb"
+    if head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
+        return "gltf"
+    return None
+
+
+FORMAT = Format(name="gltf", title="glTF/GLB", extensions=EXTENSIONS, load=load, sniff=sniff,
+                materials=materials, sidecars=(".bin",))
+
+__all__ = ["load", "materials", "sniff", "EXTENSIONS", "FORMAT"]

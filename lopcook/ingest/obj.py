@@ -65,7 +65,9 @@ the parse is about 11x the file size.
 from __future__ import annotations
 
 import os
+import re
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
@@ -74,6 +76,8 @@ from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
 from .build import MAX_PARTS, checked_texture, make_part, unique_names
+from .format import Format
+from .materials import MaterialSet
 from .polygons import triangulate
 
 # byte classes -------------------------------------------------------------------------------
@@ -732,12 +736,7 @@ def _read_mtllibs(ctx: _Ctx, mtllibs: list[str], encoding: str) -> dict[str, str
                 text = raw.decode("latin-1")
             cur = None
             mdir = os.path.dirname(mpath)
-            for line in text.replace("\\\r\n", " ").replace("\\\n", " ").splitlines():
-                parts = line.strip().split(None, 1)
-                if not parts:
-                    continue
-                kw = parts[0].lower()
-                rest = parts[1].strip() if len(parts) > 1 else ""
+            for kw, rest in _mtl_statements(text):
                 if kw == "newmtl":
                     cur = rest
                     out.setdefault(cur, None)
@@ -799,3 +798,163 @@ def _texture_for(ctx, mat, materials, cache, have_lib) -> Texture | None:
             ctx.warnings.append(f"texture {os.path.basename(fpath)!r} unreadable ({exc.strerror}); no texture")
     cache[fpath] = tex
     return tex
+
+
+def _mtl_statements(text: str):
+    """``(keyword lower-cased, rest stripped)`` of each statement of a .mtl file's text (backslash
+    line continuations joined; blank lines and ``#`` comment lines skipped)."""
+    for line in text.replace("\\\r\n", " ").replace("\\\n", " ").splitlines():
+        bits = line.strip().split(None, 1)
+        if not bits or bits[0].startswith("#"):
+            continue
+        yield bits[0].lower(), (bits[1].strip() if len(bits) > 1 else "")
+
+
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+#: sampler of every OBJ texture: repeat (MTL maps tile)
+_REPEAT = {"wrapS": 10497, "wrapT": 10497}
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The ``.mtl`` material of each manifest part's ``usemtl`` (recorded in its ``source``) as
+    glTF 2.0 core, or None (no ``usemtl``, or a material no library defines: a warning).
+
+    ``Kd`` -> base colour factor, ``map_Kd`` -> base colour texture, ``d`` (or ``1 - Tr``) ->
+    alpha (BLEND when < 1), ``norm`` / ``map_Bump`` / ``bump`` -> normal texture (``-bm`` ->
+    scale), ``Ke`` / ``map_Ke`` -> emissive, ``Pm`` -> metallic (default 0), ``Pr`` ->
+    roughness, else ``sqrt(2 / (Ns + 2))`` from the Phong exponent ``Ns``, else 1. Textures are
+    looked for where the .mtl names them, then beside the .obj; a missing one is a warning.
+    Raises ``OSError`` when the .obj cannot be read.
+    """
+    reader = _MtlMaterials(path, out)
+    per_part, cache = [], {}
+    for p in parts:
+        mk = re.search(r" usemtl (.+)$", str(p.get("source", "")))
+        name = mk.group(1) if mk else None
+        if name is not None and name not in cache:
+            cache[name] = reader.material(name)
+            if cache[name] is None and reader.mtl:
+                out.warn(f"material {name!r} is not in the material libraries; default material")
+        per_part.append(None if name is None else cache[name])
+    return per_part
+
+
+def _mtl_numbers(s: str, n: int) -> list[float] | None:
+    """The first ``n`` numbers of ``s`` when there are ``n`` finite ones, else None."""
+    try:
+        v = [float(x) for x in s.split()[:n]]
+    except ValueError:
+        return None
+    return v if len(v) == n and all(np.isfinite(v)) else None
+
+
+class _MtlMaterials:
+    """The statements of every material of an OBJ's ``mtllib`` files, made into glTF materials."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        self.base = os.path.dirname(os.path.abspath(path))
+        self.out = out
+        self.mtl: dict[str, dict] = {}  # name -> {keyword: first value, "dir": the .mtl's folder}
+        libs = re.findall(rb"^[ \t]*mtllib[ \t]+([^\r\n]+?)[ \t]*$", Path(path).read_bytes(), re.M)
+        for lib in libs:
+            name = lib.decode("utf-8", "replace")
+            mpath = os.path.join(self.base, name.replace("\\", "/"))
+            if not os.path.isfile(mpath):
+                out.warn(f"material library {name!r} not found; its materials are left out of the preview")
+                continue
+            cur = None
+            for kw, rest in _mtl_statements(Path(mpath).read_bytes().decode("utf-8", "replace")):
+                if kw == "newmtl":
+                    cur = self.mtl.setdefault(rest, {"dir": os.path.dirname(mpath)})
+                elif cur is not None:
+                    cur.setdefault(kw, rest)
+
+    def texmap(self, m: dict, key: str, what: str) -> tuple[dict | None, dict]:
+        """``(texture reference or None, options)`` of the map statement ``key`` of material ``m``."""
+        if key not in m:
+            return None, {}
+        toks, opts, fname = m[key].split(), {}, []
+        i = 0
+        while i < len(toks):
+            if toks[i].lower() == "-bm" and i + 1 < len(toks):
+                opts["bm"] = toks[i + 1]
+                i += 2
+            elif toks[i].startswith("-") and i + 1 < len(toks):
+                i += 2  # other options (one argument taken; -o/-s with three numbers skip below)
+                while i < len(toks) - 1 and re.fullmatch(r"[-+0-9.eE]+", toks[i]):
+                    i += 1
+            else:
+                fname.append(toks[i])
+                i += 1
+        name = " ".join(fname).replace("\\", "/")
+        if not name:
+            return None, opts
+        cands = [os.path.join(m["dir"], name), os.path.join(self.base, os.path.basename(name))]
+        found = next((c for c in cands if os.path.isfile(c)), None)
+        if found is None:
+            self.out.warn(f"{what} {os.path.basename(name)!r} not found; left out of the preview")
+            return None, opts
+        t = self.out.texture(self.out.image(("file", os.path.realpath(found)),
+                                            lambda: (Path(found).read_bytes(), os.path.basename(found))), _REPEAT)
+        return (None if t is None else {"index": t}), opts
+
+    def material(self, name: str) -> dict | None:
+        """Material ``name`` as glTF 2.0 core (see ``materials``), None when no library defines it."""
+        m = self.mtl.get(name)
+        if m is None:
+            return None
+        kd = _mtl_numbers(m.get("kd", ""), 3) or [1.0, 1.0, 1.0]
+        alpha = 1.0
+        if _mtl_numbers(m.get("d", ""), 1):
+            alpha = _mtl_numbers(m["d"], 1)[0]
+        elif _mtl_numbers(m.get("tr", ""), 1):
+            alpha = 1.0 - _mtl_numbers(m["tr"], 1)[0]
+        alpha = float(np.clip(alpha, 0.0, 1.0))
+        rough = 1.0
+        if _mtl_numbers(m.get("pr", ""), 1):
+            rough = _mtl_numbers(m["pr"], 1)[0]
+        elif _mtl_numbers(m.get("ns", ""), 1):
+            rough = float(np.sqrt(2.0 / (max(_mtl_numbers(m["ns"], 1)[0], 0.0) + 2.0)))
+        metal = _mtl_numbers(m.get("pm", ""), 1)[0] if _mtl_numbers(m.get("pm", ""), 1) else 0.0
+        pbr = {"baseColorFactor": [float(np.clip(c, 0, 1)) for c in kd] + [alpha],
+               "metallicFactor": float(np.clip(metal, 0, 1)), "roughnessFactor": float(np.clip(rough, 0, 1))}
+        what = f"material {name!r}"
+        ref, _ = self.texmap(m, "map_kd", f"{what} map_Kd")
+        if ref:
+            pbr["baseColorTexture"] = ref
+        res = {"name": name, "pbrMetallicRoughness": pbr}
+        for key in ("norm", "map_bump", "bump"):
+            if key in m:
+                ref, opts = self.texmap(m, key, f"{what} {key}")
+                if ref:
+                    bm = _mtl_numbers(opts.get("bm", ""), 1)
+                    if bm:
+                        ref["scale"] = bm[0]
+                    res["normalTexture"] = ref
+                break
+        ke = _mtl_numbers(m.get("ke", ""), 3)
+        ref, _ = self.texmap(m, "map_ke", f"{what} map_Ke")
+        if ref:
+            res["emissiveTexture"] = ref
+            ke = ke or [1.0, 1.0, 1.0]
+        if ke and any(ke):
+            res["emissiveFactor"] = [float(np.clip(c, 0, 1)) for c in ke]
+        if alpha < 1.0:
+            res["alphaMode"] = "BLEND"
+        return res
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: OBJ has no signature: an .obj file is read as OBJ unless its first bytes show another format
+EXTENSIONS = {".obj": ("obj",)}
+
+FORMAT = Format(name="obj", title="OBJ", extensions=EXTENSIONS, load=load, sniff=None, materials=materials,
+                sidecars=(".mtl",))
+
+__all__ = ["load", "materials", "EXTENSIONS", "FORMAT"]

@@ -75,6 +75,7 @@ the layer that authored it). A layer or texture inside a ``.usdz`` package count
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import sys
@@ -82,15 +83,18 @@ import tempfile
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image
 
 from ..depfile import DependencyList
 from ..errors import LopcookError
+from ..mesh import unique_rows
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
 from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
                     regular_file_problem, unique_names)
+from .format import Format
+from .materials import BASE_FROM_VERTEX_COLOURS, MaterialSet, image_readable
 from .polygons import triangulate
-from ..mesh import unique_rows
 
 #: UV primvar names, in order of preference, before falling back to any texCoord2* primvar
 UV_NAMES = ("st", "st0", "UVMap", "map1", "uv")
@@ -929,4 +933,229 @@ def _load_here(path: str, fmt: str, settings: IngestSettings) -> Scene:
     return loader.build()
 
 
-__all__ = ["load", "UV_NAMES"]
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+#: UsdPreviewSurface's diffuseColor default (linear)
+USD_DEFAULT_DIFFUSE = 0.18
+#: UsdUVTexture wrap token -> glTF sampler wrap mode
+_WRAP_GLTF = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The ``UsdPreviewSurface`` bound to each manifest part's prim (its ``source`` without the
+    ``[instance k]`` suffix) as glTF 2.0 core; None where the prim is not on the stage.
+
+    ``diffuseColor`` (value or ``UsdUVTexture``), ``metallic`` and ``roughness`` (values; textures
+    packed into one metallic-roughness image, G = roughness, B = metallic, from the channel each
+    connection reads), ``opacity`` (< 1: BLEND) and ``opacityThreshold`` (> 0: MASK with that
+    cutoff), ``normal``, ``emissiveColor`` and ``occlusion`` textures; the mesh's ``doubleSided``.
+    A prim without a bound preview surface gets UsdPreviewSurface's defaults (metallic 0,
+    roughness 0.5) and asks for its vertex colours, else ``USD_DEFAULT_DIFFUSE`` grey, as base
+    colour (``materials.BASE_FROM_VERTEX_COLOURS``). A broken shading network costs only that
+    part's material (a warning). Raises ``ValueError`` when the stage does not open.
+    """
+    reader = _UsdMaterials(path, out)
+    per_part = []
+    cache: dict = {}
+    for p in parts:
+        prim_path = re.sub(r" \[instance \d+\]$", "", str(p.get("source", "")))
+        if prim_path not in cache:
+            prim = reader.stage.GetPrimAtPath(prim_path) if prim_path.startswith("/") else None
+            try:
+                cache[prim_path] = reader.material(prim) if prim else None
+            except Exception as exc:  # noqa: BLE001 - a broken shading network only loses the material
+                why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                out.warn(f"{prim_path}: material unreadable ({why}); default material")
+                cache[prim_path] = None
+        per_part.append(cache[prim_path])
+    return per_part
+
+
+class _UsdMaterials:
+    """One opened stage, its preview surfaces read as glTF materials into ``out``."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        from pxr import Usd  # usd-core: heavy, imported only when a USD source is read
+
+        self.stage = Usd.Stage.Open(path)
+        if self.stage is None:
+            raise ValueError("the stage does not open")
+        self.out = out
+
+    def read_asset(self, asset) -> tuple[bytes, str] | None:
+        """``(bytes, file name)`` of a texture asset through the resolver (``.usdz`` too), or None."""
+        from pxr import Ar
+
+        resolved = asset.resolvedPath
+        if not resolved:
+            self.out.warn(f"texture @{asset.path}@ not found; left out of the preview")
+            return None
+        handle = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+        data = bytes(handle.GetBuffer()) if handle else b""
+        if not data:
+            self.out.warn(f"texture @{asset.path}@ unreadable; left out of the preview")
+            return None
+        return data, os.path.basename(asset.path)
+
+    @staticmethod
+    def source_of(shader, name: str):
+        """(value, None) or (None, (UsdUVTexture shader, output channel name)) for an input."""
+        from pxr import UsdShade
+
+        inp = shader.GetInput(name)
+        if not inp:
+            return None, None
+        for attr in inp.GetValueProducingAttributes():
+            prim = attr.GetPrim()
+            if prim.IsA(UsdShade.Shader) and attr.GetName().startswith("outputs:"):
+                src = UsdShade.Shader(prim)
+                if src.GetShaderId() == "UsdUVTexture":
+                    return None, (src, attr.GetName().split(":", 1)[1])
+                continue
+            return attr.Get(), None
+        return None, None
+
+    def texture(self, src) -> int | None:
+        """The preview texture of a ``UsdUVTexture`` (its file and wrap modes), or None."""
+        shader, _ = src
+        f = shader.GetInput("file")
+        asset = f.Get() if f else None
+        if asset is None or not asset.path:
+            return None
+        smp = {}
+        for key in ("wrapS", "wrapT"):
+            w = shader.GetInput(key)
+            v = w.Get() if w else None
+            if v in _WRAP_GLTF:
+                smp[key] = _WRAP_GLTF[v]
+        return self.out.texture(self.out.image(("usd", asset.resolvedPath or asset.path),
+                                               lambda: self.read_asset(asset)), smp or None)
+
+    def packed_mr(self, metal_src, rough_src) -> int | None:
+        """One metallic-roughness PNG (G roughness, B metallic) from USD's separate textures."""
+        chans = {}
+        for label, src in (("metallic", metal_src), ("roughness", rough_src)):
+            if src is None:
+                continue
+            f = src[0].GetInput("file")
+            asset = f.Get() if f else None
+            got = self.read_asset(asset) if asset is not None and asset.path else None
+            if got is None or not image_readable(got[0]):
+                continue
+            with Image.open(io.BytesIO(got[0])) as im:
+                band = "rgba".find(src[1]) if src[1] in ("r", "g", "b", "a") else 0
+                im = im.convert("RGBA")
+                chans[label] = (np.asarray(im)[:, :, band], got[1])
+        if not chans:
+            return None
+        h = max(c[0].shape[0] for c in chans.values())
+        w = max(c[0].shape[1] for c in chans.values())
+        img = np.full((h, w, 3), 255, np.uint8)
+        for label, slot in (("roughness", 1), ("metallic", 2)):
+            if label in chans:
+                band = Image.fromarray(chans[label][0]).resize((w, h), Image.BILINEAR) \
+                    if chans[label][0].shape != (h, w) else Image.fromarray(chans[label][0])
+                img[:, :, slot] = np.asarray(band)
+        buf = io.BytesIO()
+        Image.fromarray(img, "RGB").save(buf, format="PNG", optimize=False)
+        key = ("usd-mr",) + tuple(sorted(c[1] for c in chans.values()))
+        return self.out.texture(self.out.image(key, lambda: (buf.getvalue(), "metallicRoughness.png")), None)
+
+    def material(self, prim) -> dict:
+        """The glTF material of ``prim``'s bound preview surface (see ``materials``)."""
+        from pxr import UsdGeom, UsdShade
+
+        mat = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+        shader = mat.ComputeSurfaceSource()[0] if mat else None
+        double = bool(UsdGeom.Mesh(prim).GetDoubleSidedAttr().Get()) if prim.IsA(UsdGeom.Mesh) else False
+        if not shader or shader.GetShaderId() != "UsdPreviewSurface":
+            res = {BASE_FROM_VERTEX_COLOURS: USD_DEFAULT_DIFFUSE,
+                   "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.5}}
+            if double:
+                res["doubleSided"] = True
+            return res
+        pbr: dict = {}
+        res: dict = {"name": mat.GetPrim().GetName(), "pbrMetallicRoughness": pbr}
+        alpha, osrc = self.base_colour(shader, pbr)
+        self.metallic_roughness(shader, pbr)
+        for usd_name, key in (("normal", "normalTexture"), ("occlusion", "occlusionTexture"),
+                              ("emissiveColor", "emissiveTexture")):
+            v, s = self.source_of(shader, usd_name)
+            if s is not None:
+                t = self.texture(s)
+                if t is not None:
+                    res[key] = {"index": t}
+                    if key == "emissiveTexture":
+                        res["emissiveFactor"] = [1.0, 1.0, 1.0]
+            elif usd_name == "emissiveColor" and v is not None and any(float(c) > 0 for c in v):
+                res["emissiveFactor"] = [float(np.clip(c, 0, 1)) for c in v]
+        threshold, _ = self.source_of(shader, "opacityThreshold")
+        if threshold is not None and float(threshold) > 0 and (alpha < 1.0 or osrc is not None):
+            res["alphaMode"], res["alphaCutoff"] = "MASK", float(threshold)
+        elif alpha < 1.0:
+            res["alphaMode"] = "BLEND"
+        if double:
+            res["doubleSided"] = True
+        return res
+
+    def base_colour(self, shader, pbr: dict) -> tuple[float, object]:
+        """Set ``pbr``'s base colour factor and texture from ``diffuseColor`` and ``opacity``;
+        return (alpha, the opacity's texture source or None)."""
+        value, src = self.source_of(shader, "diffuseColor")
+        rgb = [1.0, 1.0, 1.0] if src is not None else \
+            [float(x) for x in (value if value is not None else (0.18, 0.18, 0.18))]
+        opacity, osrc = self.source_of(shader, "opacity")
+        alpha = 1.0 if opacity is None else float(np.clip(opacity, 0.0, 1.0))
+        pbr["baseColorFactor"] = [float(np.clip(c, 0, 1)) for c in rgb] + [alpha]
+        if src is not None:
+            t = self.texture(src)
+            if t is not None:
+                pbr["baseColorTexture"] = {"index": t}
+        return alpha, osrc
+
+    def metallic_roughness(self, shader, pbr: dict) -> None:
+        """Set ``pbr``'s metallic and roughness factors and packed texture."""
+        mv, msrc = self.source_of(shader, "metallic")
+        rv, rsrc = self.source_of(shader, "roughness")
+        pbr["metallicFactor"] = 1.0 if msrc is not None else float(np.clip(0.0 if mv is None else mv, 0, 1))
+        pbr["roughnessFactor"] = 1.0 if rsrc is not None else float(np.clip(0.5 if rv is None else rv, 0, 1))
+        if msrc is not None or rsrc is not None:
+            t = self.packed_mr(msrc, rsrc)
+            if t is not None:
+                pbr["metallicRoughnessTexture"] = {"index": t}
+            else:  # textures unreadable: back to the defaults
+                pbr["metallicFactor"] = 0.0 if msrc is not None else pbr["metallicFactor"]
+                pbr["roughnessFactor"] = 0.5 if rsrc is not None else pbr["roughnessFactor"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: extension -> the kinds a file so named may hold (USD itself decides text or crate from content)
+EXTENSIONS = {
+    ".usd": ("usda", "usdc", "usdz"),
+    ".usda": ("usda", "usdc"),
+    ".usdc": ("usdc", "usda"),
+    ".usdz": ("usdz",),
+}
+
+
+def sniff(head: bytes) -> str | None:
+    """``"usdc"`` (crate magic ``PXR-USDC``), ``"usdz"`` (a zip: ``PK\\x03\\x04``) or ``"usda"``
+    (``#usda`` after whitespace)."""
+    if head.startswith(b"PXR-USDC"):
+        return "usdc"
+    if head.startswith(b"PK\x03\x04"):
+        return "usdz"
+    if head.lstrip().startswith(b"#usda"):
+        return "usda"
+    return None
+
+
+FORMAT = Format(name="usd", title="USD", extensions=EXTENSIONS, load=load, sniff=sniff, materials=materials,
+                requires="pxr", install="pip install usd-core")
+
+__all__ = ["load", "materials", "sniff", "UV_NAMES", "EXTENSIONS", "FORMAT", "USD_DEFAULT_DIFFUSE"]
