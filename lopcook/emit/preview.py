@@ -337,4 +337,5 @@ def preview(c, container_path: str, meshes: list[dict], lods: list[int], source:
             "source": path, **stats}
 
 
-__all__ = ["source_candidate", "find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview", "INSTANCE_TOL_STEPS"]
+__all__ = ["source_candidate", "find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview",
+           "INSTANCE_TOL_STEPS"]

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import LopcookError
 from ..grid import Grid
-from ..memory import address_space_limit, release_free_memory
+from .. import memory
 from ..mesh import degenerate_mask
 from ..settings import DEFAULT_INGEST, IngestSettings
 from ..types import Scene
@@ -147,14 +147,14 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
                            hint="flatten the hierarchy or re-export the file") from None
     except Exception as exc:  # a parser failure we did not anticipate: still one clear line
         detail = " ".join(str(exc).split())[:200] or "malformed data"
-        cap = address_space_limit()
+        cap = memory.address_space_limit()
         if cap is not None and re.search(r"map segment|[Cc]annot allocate memory|out of memory", detail):
             raise LopcookError("ingest", path, f"reading the file ran out of memory under a {cap / 1e9:.2g} GB "
                                f"address-space limit ({detail})", hint="raise the limit (ulimit -v, lopcook batch "
                                "--worker-memory)") from None
         raise LopcookError("ingest", path, f"cannot read the {fmt} file ({detail})",
                            hint="the file is malformed; re-export it (run with --debug for details)") from exc
-    release_free_memory()  # the parsers' and normal computation's temporaries
+    memory.release_free_memory()  # the parsers' and normal computation's temporaries
     for dep in scene.dependencies:
         if bad_path_characters(dep):
             raise LopcookError("ingest", path, f"refers to a file whose name contains a line break or NUL "

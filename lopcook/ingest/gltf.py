@@ -1,79 +1,39 @@
-"""glTF 2.0 (``.gltf`` JSON and ``.glb`` binary) -> ``Scene``.
+"""glTF 2.0 (``.gltf`` JSON, ``.glb`` binary) -> ``Scene``; the glTF ``FORMAT`` of the registry.
 
-Own reader, not trimesh
------------------------
-The JSON, GLB container and buffers are parsed here with ``json``/``struct``/numpy. trimesh
-5.2.0's loader reads accessors as raw integers and ignores ``accessor.normalized``, so
-KHR_mesh_quantization files (normalized SHORT/BYTE positions, normals and texcoords) would come
-out 32767 or 127 times too large; it also does not reject unknown ``extensionsRequired``, and
-its scene graph flattens names and primitive identity that we want in ``source``/``mesh_key``.
-A direct reader keeps every accessor vertex (no merging: vertex count = accessor count, as
-trimesh's glTF loader also does) and is as fast as ``trimesh.load(path, force="scene")`` on the
-corpus (timings: ``docs/measurements.md``).
+Specification: https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html (section numbers below).
+The reader is our own (``json``/``struct``/numpy; why not trimesh, and what each section means
+in detail: docs/ingest.md, "glTF").
 
-What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html)
-------------------------------------------------------------------------------------------
-* 4.4 GLB file format: 12-byte header (magic ``glTF``, version 2, total length), then chunks
-  (length, type, data); the first chunk is JSON, an optional ``BIN`` chunk backs buffer 0.
-* 3.6 Buffers and buffer views: ``uri`` as a path relative to the .gltf (percent-decoded),
-  a ``data:...;base64,`` URI, or (GLB) the BIN chunk; ``byteOffset``/``byteLength``/
-  ``byteStride``. A buffer shorter than its ``byteLength`` is an error.
-* 3.6.2 Accessors: ``componentType`` (5120 BYTE, 5121 UNSIGNED_BYTE, 5122 SHORT,
-  5123 UNSIGNED_SHORT, 5125 UNSIGNED_INT, 5126 FLOAT), ``type`` (SCALAR, VEC2-4), ``normalized``,
-  ``byteOffset``, strided views, accessors without a bufferView (zeros), and 3.6.2.3 sparse
-  accessors. 3.11 (animation / normalized data) gives the decoding of normalized integers:
-  signed ``max(c / (2^(b-1) - 1), -1)``, unsigned ``c / (2^b - 1)``; non-normalized integers are
-  plain values.
-* KHR_mesh_quantization: POSITION, NORMAL and TEXCOORD_n may be (UNSIGNED_)BYTE/SHORT,
-  normalized or not; the node transform dequantizes. Supported whether or not it is listed in
-  ``extensionsRequired``.
-* 3.5 Concepts / scenes and nodes (3.5.2 transformations): the default ``scene`` (else scene 0;
-  with no scenes, every root node) is walked; world = parent @ local, local = ``matrix``
-  (column-major) or T * R * S (translation, unit quaternion x y z w, scale).
-* 3.7.2 Meshes / primitives: one ``MeshPart`` per (node, primitive). Modes 4 TRIANGLES,
-  5 TRIANGLE_STRIP and 6 TRIANGLE_FAN become triangles (3.7.2.1 topology formulas); modes 0-3
-  (points/lines) are skipped with a warning. Non-indexed primitives use indices 0..n-1.
-  Attributes: POSITION, NORMAL, TEXCOORD_n (n from the base-colour texture's ``texCoord``,
-  default 0; glTF UVs already have the top-left origin) and COLOR_0 (VEC3/VEC4, linear).
-* 3.9 Materials: ``pbrMetallicRoughness.baseColorTexture`` -> ``textures[i].source`` ->
-  ``images[j]`` (uri, data URI, or bufferView + mimeType), as encoded bytes.
-* ``Scene.dependencies``: the source, then every external file a ``uri`` named that was read or
-  looked for (buffers, the base-colour images actually used; a missing image is listed too), in
-  the order they were first needed. Data URIs and GLB chunks are not files; remote URLs are
-  refused, not listed. Images no part uses (e.g. normal or occlusion maps) are never opened and
-  not listed.
-* 3.12 Extensions: any ``extensionsRequired`` entry that is not supported (e.g.
-  KHR_draco_mesh_compression, EXT_meshopt_compression) is rejected. ``KHR_materials_*``
-  extensions are accepted: they change shading only, not geometry or the base-colour texture.
-  A Draco primitive or a meshopt-compressed bufferView / buffer that is used but not required is
-  rejected too: its "fallback" is all lopcook could read, and files in the wild point it at the
-  compressed bytes, which would be read as plain data.
-* ``EXT_mesh_gpu_instancing`` (required or not): a node's instances are placed as copies of its
-  mesh, one part per instance and primitive (named ``.../instance<i>``), each at the node's world transform
-  times the instance's TRANSLATION @ ROTATION @ SCALE (float, or KHR_mesh_quantization's
-  normalized integers for ROTATION). Copies share their mesh, so ``cook --instances`` stores it once.
+``load(path, fmt="gltf"|"glb", settings) -> Scene`` (not yet validated):
 
-Hostile input (issue 17): integers (``byteLength`` >= 1, ``byteOffset`` >= 0, ``byteStride`` a
-multiple of 4 in [4, 252], ``count`` >= 1) are JSON integers, not floats or booleans; every
-accessor's bytes are checked against its view before anything is allocated, and an accessor
-without a bufferView may declare at most as many elements as the file and its buffers have bytes
-(``ZERO_ACCESSOR_MIN`` at least); the scene graph's placements are counted before decoding
-(``build.MAX_PARTS``, ``build.MAX_TRIANGLES``); identical primitives are decoded once. URIs are
-relative paths: absolute paths, devices, FIFOs and directories are refused (an image: a warning;
-a buffer: an error) and never opened; a name with a line break or NUL is an error. Images are
-decoded once at ingest (``build.checked_texture``): one that does not decode is a warning and
-its parts cook untextured. Deeply nested JSON and integers of thousands of digits are invalid
-JSON.
+* one ``MeshPart`` per (node, triangle primitive) of the default scene (else scene 0, else every
+  root node); world = parent @ local, local = ``matrix`` or T * R * S (3.5.2). Modes 4-6 become
+  triangles (3.7.2.1), points and lines are skipped with a warning; vertices are never merged
+  (vertex count = accessor count). ``mesh_key`` is ``mesh{mi}/prim{k}``.
+* attributes: POSITION, NORMAL, TEXCOORD_n (n = the base-colour texture's ``texCoord``), COLOR_0
+  (linear RGBA), in every component type of core glTF and KHR_mesh_quantization, normalized or
+  not (3.11 decoding), strided, sparse or without a bufferView (zeros).
+* ``EXT_mesh_gpu_instancing``: one part per instance and primitive (``.../instance<i>``), at the
+  node's world matrix @ TRANSLATION @ ROTATION @ SCALE; copies share ``mesh_key``.
+* the base-colour image (bufferView, data URI or relative file) is the part's ``texture``,
+  decoded once (``build.checked_texture``; an unreadable one is a warning).
+* units: metres, +Y up (3.4): ``unit_scale`` 1.0. Positions in float64; normals by the inverse
+  transpose; a mirroring matrix (det < 0) flips the winding. Skins and morph targets are not
+  applied (a warning).
+* ``Scene.dependencies``: the source, then every external buffer and used base-colour image (a
+  missing one too), in first-use order; remote URLs are refused.
 
-Units: glTF is metres with +Y up (3.4 coordinate system and units), so ``unit_scale`` is 1.0 and
-``up_axis`` "Y". Positions are transformed in float64; normals by the inverse transpose of the
-world matrix's linear part (renormalised in ``make_part``); a mirroring world matrix
-(det < 0) flips triangle winding so triangles stay counter-clockwise. Skins and morph targets are
-not applied (the static node pose is used; a warning says so).
+Refused, each as one ``LopcookError("ingest", path, ...)`` naming the object read: malformed
+JSON, GLB header or chunks; integers that are not JSON integers in range (``byteLength`` >= 1,
+``byteStride`` a multiple of 4 in [4, 252], ...); accessor bytes beyond their view (checked before
+allocating; a data-less accessor may declare at most as many elements as the file has bytes,
+``ZERO_ACCESSOR_MIN`` at least); required extensions other than ``SUPPORTED_REQUIRED``, and
+Draco or meshopt data even when only used; absolute or non-regular-file URIs of buffers; more
+than ``build.MAX_PARTS`` placements or ``settings.max_triangles`` triangles (counted before
+decoding). Identical primitives are decoded once.
 
-Malformed input never escapes as a Python traceback: every ``KeyError``/``IndexError``/
-``ValueError``/``TypeError``/``struct.error`` is turned into one ``LopcookError("ingest", ...)``
-naming the object being read.
+``materials(path, parts, out)`` reads each part's material again for ``lopcook decode``
+(docs/format.md 9.2); ``sniff(head)`` tells GLB from JSON.
 """
 
 from __future__ import annotations
