@@ -6,7 +6,9 @@ fails only when used, with its install hint."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
 import struct
 
 import pytest
@@ -117,6 +119,18 @@ def test_missing_optional_dependency_fails_only_when_used(monkeypatch, capsys):
     rc = main(["inspect", str(FIXTURES / "two_plates.obj")])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "pip install absent" in err
+
+
+def test_the_schemas_admit_every_registered_kind():
+    """The container manifest's and ``inspect --json``'s ``source.format`` name a kind of the
+    registry: the schemas describe its shape, not a list that adding a format would have to edit."""
+    for name, where in (("container.schema.json", ("properties", "source", "properties", "format")),
+                        ("inspect.source.schema.json", ("properties", "format"))):
+        node = json.loads((REPO / "schema" / name).read_text())
+        for key in where:
+            node = node[key]
+        assert "enum" not in node and node["type"] == "string"
+        assert all(re.fullmatch(node["pattern"], kind) for kind in KINDS), name
 
 
 def test_materials_come_from_the_source_formats_reader(tmp_path):
