@@ -34,6 +34,7 @@ FORMATS: tuple[Format, ...] = tuple(import_module(f"{__name__}.{name}").FORMAT f
     "gltf",
     "obj",
     "usd",
+    "ply",
 ))
 
 #: extension (lower case, with the dot) -> the kinds a file so named may hold
