@@ -15,9 +15,10 @@ from pathlib import Path
 
 from .atomic import name_max
 from .errors import LopcookError
+from .ingest import SOURCE_EXTENSIONS  # noqa: F401 (re-exported)
 
-#: extensions of the sources lopcook reads: a container or depfile must never be named like one
-SOURCE_EXTENSIONS = (".gltf", ".glb", ".obj", ".mtl", ".usd", ".usda", ".usdc", ".usdz", ".bin")
+# SOURCE_EXTENSIONS: the extensions of the sources lopcook reads, sidecars (.mtl, .bin) included
+# (lopcook.ingest.FORMATS): a container or depfile must never be named like one
 
 
 def _same(a: str, b: str) -> bool:

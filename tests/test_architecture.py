@@ -34,6 +34,7 @@ RANKS = {
     "pipeline": 6,
     "tune": 7,
     "api": 8,
+    "outputs": 8,
     "cookjob": 9,
     "report": 10,
     "bench": 10,
@@ -43,8 +44,7 @@ RANKS = {
 }
 #: below everything: what the container format (lop/) may import
 CORE = {"errors", "grid", "atomic", "version"}
-FOUNDATION = {"types", "mesh", "settings", "viewing", "memory", "depfile", "isolate", "outputs", "progress",
-              "selection"}
+FOUNDATION = {"types", "mesh", "settings", "viewing", "memory", "depfile", "isolate", "progress", "selection"}
 #: the command line's entry: ``lopcook.cli.main`` (it runs every command, batch's too) and ``python -m lopcook``
 ENTRY = {"lopcook.cli", "lopcook.__main__"}
 

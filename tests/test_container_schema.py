@@ -160,6 +160,7 @@ MUTATIONS = {
     "fov 180": lambda m: m["viewing"].update(fov_y_deg=180.0),
     "normals stored as 3 components": lambda m: m["encodings"]["normals"].update(components=3),
     "sha256 not hex": lambda m: m["source"].update(sha256="xyz"),
+    "source format not a lower-case word": lambda m: m["source"].update(format="Stanford PLY"),
     "string where a number belongs": lambda m: m["stats"].update(vertices="162"),
 }
 

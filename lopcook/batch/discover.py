@@ -2,8 +2,8 @@
 
 A SOURCE is one of:
 
-* a **directory**: searched recursively for files with a supported extension (``.gltf .glb .obj
-  .usd .usda .usdc .usdz``, any case); entries whose name starts with ``.`` and the output
+* a **directory**: searched recursively for files with a supported extension (those of
+  ``lopcook.ingest.FORMATS``, any case); entries whose name starts with ``.`` and the output
   directory itself are skipped. The asset root is the directory.
 * a **source file** (supported extension): the asset root is its directory.
 * a **manifest**: any other file, read as UTF-8 text with one path per line (blank lines and
@@ -25,10 +25,13 @@ import os
 from dataclasses import dataclass
 
 from ..errors import LopcookError
+from ..ingest import EXTENSIONS
 from .config import BatchConfig
 
-#: the extensions ``lopcook.ingest.load`` accepts (lopcook.ingest.EXTENSIONS; a test checks they agree)
-SOURCE_EXTENSIONS = (".gltf", ".glb", ".obj", ".usd", ".usda", ".usdc", ".usdz")
+#: the extensions ``lopcook.ingest.load`` accepts (those of ``lopcook.ingest.FORMATS``)
+SOURCE_EXTENSIONS = tuple(EXTENSIONS)
+#: the same, as help and messages list them
+_LISTED = " ".join(SOURCE_EXTENSIONS)
 
 
 @dataclass(frozen=True)
@@ -60,8 +63,8 @@ def _read_manifest(path: str) -> list[str]:
         with open(path, encoding="utf-8") as fh:
             text = fh.read()
     except UnicodeDecodeError:
-        raise LopcookError("usage", path, "not a supported source file (.gltf .glb .obj .usd .usda .usdc .usdz) and "
-                           "not a manifest (UTF-8 text, one path per line)") from None
+        raise LopcookError("usage", path, f"not a supported source file ({_LISTED}) and not a manifest (UTF-8 "
+                           "text, one path per line)") from None
     except OSError as exc:
         raise LopcookError("usage", path, f"cannot read the manifest: {exc.strerror}") from None
     base = os.path.dirname(path)
@@ -89,8 +92,7 @@ def discover(sources, outdir: str, config: BatchConfig | None = None) -> list[As
             found.extend((f, root) for f in _walk(path, skip))
         elif os.path.isfile(path):
             if not is_source_file(path):
-                raise LopcookError("usage", origin or path, f"{path}: not a supported source file (.gltf .glb .obj "
-                                   ".usd .usda .usdc .usdz)")
+                raise LopcookError("usage", origin or path, f"{path}: not a supported source file ({_LISTED})")
             found.append((path, root))
         else:
             raise LopcookError("usage", origin, f"{path}: no such file or directory" if origin else

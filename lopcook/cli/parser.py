@@ -16,6 +16,7 @@ from dataclasses import replace
 
 from ..api import budget_target
 from ..errors import LopcookError
+from ..ingest import EXTENSIONS, describe_formats, formats_table
 from ..isolate import cpus
 from ..progress import MODES
 from ..lop.codecs import CODECS
@@ -57,6 +58,17 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout instead of text")
 
 
+class _FormatsAction(argparse.Action):
+    """``lopcook --formats``: list the input formats and whether each can be read here, exit 0."""
+
+    def __init__(self, option_strings, dest, **kwargs) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(formats_table())
+        parser.exit(0)
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (exit 2), like lopcook's own errors:
     ``lopcook cook: error: the following arguments are required: -o (see lopcook cook --help)``.
@@ -71,9 +83,11 @@ def build_parser() -> argparse.ArgumentParser:
     ``--debug``, ``-q`` and ``--progress`` after the command)."""
     parser = _Parser(
         prog="lopcook",
-        description="Cook glTF/OBJ/USD scenes into level-of-precision (LOP) vertex containers.",
+        description=f"Cook {describe_formats()} scenes into level-of-precision (LOP) vertex containers.",
     )
     parser.add_argument("--version", action="version", version=f"lopcook {__version__}")
+    parser.add_argument("--formats", action=_FormatsAction,
+                        help="list the input formats, their extensions and whether each can be read here")
     parser.add_argument("--debug", action="store_true", help="show Python tracebacks on errors")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors (and --json output)")
     parser.add_argument("--progress", choices=MODES, default="auto",
@@ -107,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_inspect_parser(sub) -> None:
     """``lopcook inspect``: describe a source scene or a container."""
     p = sub.add_parser("inspect", help="describe a source scene or a .lop container")
-    p.add_argument("source", metavar="FILE", help="glTF/GLB, OBJ or USD (.usd/.usda/.usdc/.usdz) file, or a .lop container")
+    p.add_argument("source", metavar="FILE", help=f"{describe_formats(extensions=True)} file, or a .lop container")
     _add_crease_angle(p)
     _add_common(p)
 
@@ -115,7 +129,7 @@ def _add_inspect_parser(sub) -> None:
 def _add_cook_parser(sub) -> None:
     """``lopcook cook``: every option of a cook (``settings_from_args`` maps them to Settings)."""
     p = sub.add_parser("cook", help="ingest, analyse and write a .lop container")
-    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
+    p.add_argument("source", metavar="SOURCE", help=f"{describe_formats()} file")
     p.add_argument("-o", "--output", required=True, metavar="OUT.lop", help="container to write (atomically)")
     p.add_argument("--depfile", metavar="OUT.d", help="write a Make-style depfile listing every file read")
     p.add_argument("--strict", action="store_true",
@@ -166,7 +180,7 @@ def _add_cook_parser(sub) -> None:
 def _add_calibrate_parser(sub) -> None:
     """``lopcook calibrate``: the k_f search on its own."""
     p = sub.add_parser("calibrate", help="measure k_f: the least memory whose CAP renders reach a target PSNR")
-    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
+    p.add_argument("source", metavar="SOURCE", help=f"{describe_formats()} file")
     add_analyse_options(p)
     add_viewing_options(p)
     _add_crease_angle(p)
@@ -207,7 +221,7 @@ def _add_refine_parser(sub) -> None:
 def _add_analyse_parser(sub) -> None:
     """``lopcook analyse``: per-vertex minimum levels."""
     p = sub.add_parser("analyse", help="per-vertex minimum bit levels (attribute error and depth constraints)")
-    p.add_argument("source", metavar="SOURCE", help="glTF/GLB, OBJ or USD file")
+    p.add_argument("source", metavar="SOURCE", help=f"{describe_formats()} file")
     add_analyse_options(p)
     _add_crease_angle(p)
     _add_common(p)
@@ -254,7 +268,7 @@ def _add_report_parser(sub) -> None:
     p = sub.add_parser("report", help="one self-contained HTML report (and report.json) of a container rendered "
                                       "against its float source")
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
-    p.add_argument("--source", metavar="SOURCE", required=True, help="the glTF/GLB, OBJ or USD file it was cooked from")
+    p.add_argument("--source", metavar="SOURCE", required=True, help=f"the {describe_formats()} file it was cooked from")
     p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
                    help="HTML file to write; the JSON goes beside it with the suffix .json")
     p.add_argument("--levels", default=None, metavar="LEVELS",
@@ -386,8 +400,8 @@ def _add_batch_parser(sub) -> None:
     p = sub.add_parser("batch", help="cook every asset of a tree into OUTDIR: incremental, parallel (--jobs), on a "
                                      "Dask cluster (--scheduler) or as a Ninja file (--emit-ninja); see docs/batch.md")
     p.add_argument("sources", nargs="+", metavar="SOURCE",
-                   help="source files, directories (searched recursively for .gltf .glb .obj .usd .usda .usdc "
-                        ".usdz) or manifests (text, one path per line)")
+                   help=f"source files, directories (searched recursively for {' '.join(EXTENSIONS)}) or "
+                        "manifests (text, one path per line)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR",
                    help="output folder: the source tree mirrored, each SOURCE.ext as SOURCE.lop")
     p.add_argument("--config", default=None, metavar="lopcook.toml",

@@ -1,8 +1,13 @@
 """Ingest: any supported source file -> one validated ``Scene``.
 
-``load(path)`` decides the format from the file's content (magic bytes), not from the extension,
-among the formats the extension allows (a ``.usd`` may be text or crate; a ``.gltf`` may even hold
-GLB bytes), calls the loader from ``LOADERS`` and validates the result.
+Every input format is one module of this package that ends with ``FORMAT = Format(...)``
+(``lopcook.ingest.format``): its extensions, content sniffing, loader and material reader.
+``FORMATS`` lists them; everything else reads it (``EXTENSIONS``, ``KINDS``,
+``SOURCE_EXTENSIONS`` and ``describe_formats`` are views of it).
+
+``load(path)`` decides the format from the file's content (its first ``SNIFF_BYTES`` bytes), not
+from the extension, among the kinds the extension allows (a ``.usd`` may be text or crate; a
+``.gltf`` may even hold GLB bytes), calls that format's loader and validates the result.
 """
 
 from __future__ import annotations
@@ -10,54 +15,60 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from importlib import import_module
 
 import numpy as np
 
 from ..errors import LopcookError
-from ..memory import release_free_memory
+from ..grid import Grid
+from .. import memory
+from ..mesh import degenerate_mask
 from ..settings import DEFAULT_INGEST, IngestSettings
 from ..types import Scene
 from .build import MAX_PARTS, MAX_TEXTURE_PIXELS, MAX_TRIANGLES, bad_path_characters, regular_file_problem
+from .format import SNIFF_BYTES, Format
 
-#: extension -> formats that extension may hold
-EXTENSIONS = {
-    ".gltf": ("gltf", "glb"),
-    ".glb": ("glb", "gltf"),
-    ".obj": ("obj",),
-    ".usd": ("usda", "usdc", "usdz"),
-    ".usda": ("usda", "usdc"),
-    ".usdc": ("usdc", "usda"),
-    ".usdz": ("usdz",),
-}
+#: The input formats, one module each (``lopcook/ingest/<name>.py`` exporting ``FORMAT``), in the
+#: order help text and ``lopcook --formats`` list them. Adding a format adds one line here.
+FORMATS: tuple[Format, ...] = tuple(import_module(f"{__name__}.{name}").FORMAT for name in (
+    "gltf",
+    "obj",
+    "usd",
+    "ply",
+))
 
-
-def _load_gltf(path, fmt, settings):
-    from . import gltf
-
-    return gltf.load(path, fmt=fmt, settings=settings)
-
-
-def _load_obj(path, fmt, settings):
-    from . import obj
-
-    return obj.load(path, fmt=fmt, settings=settings)
+#: extension (lower case, with the dot) -> the kinds a file so named may hold
+EXTENSIONS: dict[str, tuple[str, ...]] = {ext: kinds for f in FORMATS for ext, kinds in f.extensions.items()}
+#: kind (``Scene.format``) -> its format
+KINDS: dict[str, Format] = {kind: f for f in FORMATS for kind in f.kinds}
+#: every extension a source is read from, sidecar files (.mtl, .bin) included
+SOURCE_EXTENSIONS: tuple[str, ...] = tuple(EXTENSIONS) + tuple(
+    dict.fromkeys(ext for f in FORMATS for ext in f.sidecars if ext not in EXTENSIONS))
 
 
-def _load_usd(path, fmt, settings):
-    from . import usd
+def format_of(kind: str) -> Format | None:
+    """The format that reads content of ``kind`` (``Scene.format``, the manifest's
+    ``source.format``), or None for a kind no format reads."""
+    return KINDS.get((kind or "").lower())
 
-    return usd.load(path, fmt=fmt, settings=settings)
+
+def describe_formats(extensions: bool = False) -> str:
+    """The formats for help text: ``"glTF/GLB, OBJ or USD"``, or with ``extensions``
+    ``"glTF/GLB (.gltf .glb), OBJ (.obj) or USD (.usd .usda .usdc .usdz)"``."""
+    names = [f.title + (f" ({' '.join(f.extensions)})" if extensions else "") for f in FORMATS]
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " or " + names[-1]
 
 
-#: format -> loader(path: str, fmt: str, settings: IngestSettings) -> Scene (not yet validated)
-LOADERS = {
-    "gltf": _load_gltf,
-    "glb": _load_gltf,
-    "obj": _load_obj,
-    "usda": _load_usd,
-    "usdc": _load_usd,
-    "usdz": _load_usd,
-}
+def formats_table() -> str:
+    """``lopcook --formats``: one line per format with its extensions and whether it can be read
+    here (else what is missing and how to install it)."""
+    rows = []
+    for f in FORMATS:
+        problem = f.missing()
+        state = "available" if problem is None else f"unavailable: {problem} ({f.install})"
+        rows.append((f.name, f.title, " ".join(f.extensions), state))
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:3], widths)) + "  " + r[3] for r in rows)
 
 
 def sniff(path: str) -> str:
@@ -84,35 +95,35 @@ def sniff(path: str) -> str:
         raise LopcookError("ingest", path, problem, hint="give the path of a scene file on disk")
     try:
         with open(path, "rb") as fh:
-            head = fh.read(64)
+            head = fh.read(SNIFF_BYTES)
     except OSError as exc:
         raise LopcookError("ingest", path, f"cannot read the file ({exc.strerror or 'error'})",
                            hint="check the path and permissions") from None
     if not head:
         raise LopcookError("ingest", path, "file is empty (0 bytes)", hint="re-export the asset")
     allowed = EXTENSIONS[ext]
-    if head.startswith(b"glTF"):
-        found = "glb"
-    elif head.startswith(b"PXR-USDC"):
-        found = "usdc"
-    elif head.startswith(b"PK\x03\x04"):
-        found = "usdz"
-    elif head.lstrip().startswith(b"#usda"):
-        found = "usda"
-    elif head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
-        found = "gltf"
-    else:
-        found = "obj" if "obj" in allowed else None
+    found = _kind_of(head, allowed)
     if found not in allowed:
-        what = f"content is {found}" if found else "content is not glTF, GLB, OBJ or USD"
+        what = f"content is {found}" if found else f"content is not {describe_formats()}"
         raise LopcookError("ingest", path, f"{what}, which a {ext} file cannot hold",
                            hint="the file is corrupt or has the wrong extension")
     return found
 
 
-def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> Scene:
-    """Load a glTF/GLB, OBJ or USD(A/C/Z) file into a validated Scene (metres, +Y up, CCW).
+def _kind_of(head: bytes, allowed: tuple[str, ...]) -> str | None:
+    """The kind a signature in ``head`` shows; else the kind of a format without a signature
+    (OBJ) that ``allowed`` holds; else None."""
+    for f in FORMATS:
+        found = f.sniff(head) if f.sniff is not None else None
+        if found is not None:
+            return found
+    return next((k for f in FORMATS if f.sniff is None for k in f.kinds if k in allowed), None)
 
+
+def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> Scene:
+    """Load a source file of any of ``FORMATS`` into a validated Scene (metres, +Y up, CCW).
+
+    A format whose optional dependency is not installed is refused with its install hint.
     Hostile input gives one ``LopcookError`` (exit 2), never a traceback: besides the loaders' own
     checks, a dependency whose name holds a line break or NUL is refused (before anything is
     written), and scenes over ``MAX_TRIANGLES`` triangles or ``MAX_PARTS`` parts are refused
@@ -120,10 +131,13 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
     """
     path = os.fspath(path)
     fmt = sniff(path)
+    missing = KINDS[fmt].missing()
+    if missing is not None:
+        raise LopcookError("ingest", path, missing, hint=KINDS[fmt].install)
     try:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc.: reported as errors instead
-            scene = LOADERS[fmt](path, fmt, settings)
+            scene = KINDS[fmt].load(path, fmt=fmt, settings=settings)
     except LopcookError:
         raise
     except MemoryError:
@@ -134,16 +148,14 @@ def load(path: str | os.PathLike, settings: IngestSettings = DEFAULT_INGEST) -> 
                            hint="flatten the hierarchy or re-export the file") from None
     except Exception as exc:  # a parser failure we did not anticipate: still one clear line
         detail = " ".join(str(exc).split())[:200] or "malformed data"
-        from ..memory import address_space_limit
-
-        cap = address_space_limit()
+        cap = memory.address_space_limit()
         if cap is not None and re.search(r"map segment|[Cc]annot allocate memory|out of memory", detail):
             raise LopcookError("ingest", path, f"reading the file ran out of memory under a {cap / 1e9:.2g} GB "
                                f"address-space limit ({detail})", hint="raise the limit (ulimit -v, lopcook batch "
                                "--worker-memory)") from None
         raise LopcookError("ingest", path, f"cannot read the {fmt} file ({detail})",
                            hint="the file is malformed; re-export it (run with --debug for details)") from exc
-    release_free_memory()  # the parsers' and normal computation's temporaries
+    memory.release_free_memory()  # the parsers' and normal computation's temporaries
     for dep in scene.dependencies:
         if bad_path_characters(dep):
             raise LopcookError("ingest", path, f"refers to a file whose name contains a line break or NUL "
@@ -164,9 +176,6 @@ def _refuse_all_degenerate(scene: Scene) -> None:
     (``mesh.degenerate_mask``: repeated indices, coincident or collinear corners; or every corner
     in one cell): there is no surface to cook and no edge to analyse. Such triangles among good
     ones are cooked as usual (``inspect`` counts degenerate triangles)."""
-    from ..grid import Grid
-    from ..mesh import degenerate_mask
-
     grid = Grid.fit([p.positions for p in scene.parts])
 
     def surface(q: np.ndarray, positions: np.ndarray, tris: np.ndarray) -> bool:
@@ -194,4 +203,5 @@ def _refuse_all_degenerate(scene: Scene) -> None:
                        "the 24-bit grid", hint="export a mesh whose triangles have area")
 
 
-__all__ = ["load", "sniff", "LOADERS", "EXTENSIONS", "MAX_TRIANGLES", "MAX_PARTS", "MAX_TEXTURE_PIXELS"]
+__all__ = ["load", "sniff", "FORMATS", "Format", "format_of", "describe_formats", "formats_table",
+           "EXTENSIONS", "KINDS", "SOURCE_EXTENSIONS", "MAX_TRIANGLES", "MAX_PARTS", "MAX_TEXTURE_PIXELS"]

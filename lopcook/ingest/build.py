@@ -3,9 +3,13 @@ normals where the source has none, and per-vertex attributes kept in step with v
 
 from __future__ import annotations
 
+import io
 import os
+import stat
+import warnings
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from ..settings import IngestSettings
 from ..types import MeshPart, Texture
@@ -98,8 +102,6 @@ MAX_TEXTURE_PIXELS = 8192 * 8192
 
 
 def _set_pillow_limit() -> None:
-    from PIL import Image
-
     Image.MAX_IMAGE_PIXELS = MAX_TEXTURE_PIXELS
 
 
@@ -111,11 +113,6 @@ def texture_problem(data: bytes) -> str | None:
     decodes (fully: truncated files, bad chunk CRCs and corrupt compressed data are found) to an
     image of at most ``MAX_TEXTURE_PIXELS`` pixels that converts to RGBA. The reason is worded in
     the image's own terms (no Python exception names)."""
-    import io
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
-
     if not data:
         return "the image is empty (0 bytes)"
     try:
@@ -158,8 +155,6 @@ def checked_texture(name: str, data: bytes | None, warn, what: str) -> Texture |
 def regular_file_problem(path: str) -> str | None:
     """Why ``path`` must not be read as a sidecar file (missing, a directory, a device, a FIFO or a
     socket; symlinks are followed), or None for a regular file."""
-    import stat
-
     try:
         st = os.stat(path)
     except FileNotFoundError:

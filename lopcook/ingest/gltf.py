@@ -1,79 +1,39 @@
-"""glTF 2.0 (``.gltf`` JSON and ``.glb`` binary) -> ``Scene``.
+"""glTF 2.0 (``.gltf`` JSON, ``.glb`` binary) -> ``Scene``; the glTF ``FORMAT`` of the registry.
 
-Own reader, not trimesh
------------------------
-The JSON, GLB container and buffers are parsed here with ``json``/``struct``/numpy. trimesh
-5.2.0's loader reads accessors as raw integers and ignores ``accessor.normalized``, so
-KHR_mesh_quantization files (normalized SHORT/BYTE positions, normals and texcoords) would come
-out 32767 or 127 times too large; it also does not reject unknown ``extensionsRequired``, and
-its scene graph flattens names and primitive identity that we want in ``source``/``mesh_key``.
-A direct reader keeps every accessor vertex (no merging: vertex count = accessor count, as
-trimesh's glTF loader also does) and is as fast as ``trimesh.load(path, force="scene")`` on the
-corpus (timings: ``docs/measurements.md``).
+Specification: https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html (section numbers below).
+The reader is our own (``json``/``struct``/numpy; why not trimesh, and what each section means
+in detail: docs/ingest.md, "glTF").
 
-What is read (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html)
-------------------------------------------------------------------------------------------
-* 4.4 GLB file format: 12-byte header (magic ``glTF``, version 2, total length), then chunks
-  (length, type, data); the first chunk is JSON, an optional ``BIN`` chunk backs buffer 0.
-* 3.6 Buffers and buffer views: ``uri`` as a path relative to the .gltf (percent-decoded),
-  a ``data:...;base64,`` URI, or (GLB) the BIN chunk; ``byteOffset``/``byteLength``/
-  ``byteStride``. A buffer shorter than its ``byteLength`` is an error.
-* 3.6.2 Accessors: ``componentType`` (5120 BYTE, 5121 UNSIGNED_BYTE, 5122 SHORT,
-  5123 UNSIGNED_SHORT, 5125 UNSIGNED_INT, 5126 FLOAT), ``type`` (SCALAR, VEC2-4), ``normalized``,
-  ``byteOffset``, strided views, accessors without a bufferView (zeros), and 3.6.2.3 sparse
-  accessors. 3.11 (animation / normalized data) gives the decoding of normalized integers:
-  signed ``max(c / (2^(b-1) - 1), -1)``, unsigned ``c / (2^b - 1)``; non-normalized integers are
-  plain values.
-* KHR_mesh_quantization: POSITION, NORMAL and TEXCOORD_n may be (UNSIGNED_)BYTE/SHORT,
-  normalized or not; the node transform dequantizes. Supported whether or not it is listed in
-  ``extensionsRequired``.
-* 3.5 Concepts / scenes and nodes (3.5.2 transformations): the default ``scene`` (else scene 0;
-  with no scenes, every root node) is walked; world = parent @ local, local = ``matrix``
-  (column-major) or T * R * S (translation, unit quaternion x y z w, scale).
-* 3.7.2 Meshes / primitives: one ``MeshPart`` per (node, primitive). Modes 4 TRIANGLES,
-  5 TRIANGLE_STRIP and 6 TRIANGLE_FAN become triangles (3.7.2.1 topology formulas); modes 0-3
-  (points/lines) are skipped with a warning. Non-indexed primitives use indices 0..n-1.
-  Attributes: POSITION, NORMAL, TEXCOORD_n (n from the base-colour texture's ``texCoord``,
-  default 0; glTF UVs already have the top-left origin) and COLOR_0 (VEC3/VEC4, linear).
-* 3.9 Materials: ``pbrMetallicRoughness.baseColorTexture`` -> ``textures[i].source`` ->
-  ``images[j]`` (uri, data URI, or bufferView + mimeType), as encoded bytes.
-* ``Scene.dependencies``: the source, then every external file a ``uri`` named that was read or
-  looked for (buffers, the base-colour images actually used; a missing image is listed too), in
-  the order they were first needed. Data URIs and GLB chunks are not files; remote URLs are
-  refused, not listed. Images no part uses (e.g. normal or occlusion maps) are never opened and
-  not listed.
-* 3.12 Extensions: any ``extensionsRequired`` entry that is not supported (e.g.
-  KHR_draco_mesh_compression, EXT_meshopt_compression) is rejected. ``KHR_materials_*``
-  extensions are accepted: they change shading only, not geometry or the base-colour texture.
-  A Draco primitive or a meshopt-compressed bufferView / buffer that is used but not required is
-  rejected too: its "fallback" is all lopcook could read, and files in the wild point it at the
-  compressed bytes, which would be read as plain data.
-* ``EXT_mesh_gpu_instancing`` (required or not): a node's instances are placed as copies of its
-  mesh, one part per instance and primitive (named ``.../instance<i>``), each at the node's world transform
-  times the instance's TRANSLATION @ ROTATION @ SCALE (float, or KHR_mesh_quantization's
-  normalized integers for ROTATION). Copies share their mesh, so ``cook --instances`` stores it once.
+``load(path, fmt="gltf"|"glb", settings) -> Scene`` (not yet validated):
 
-Hostile input (issue 17): integers (``byteLength`` >= 1, ``byteOffset`` >= 0, ``byteStride`` a
-multiple of 4 in [4, 252], ``count`` >= 1) are JSON integers, not floats or booleans; every
-accessor's bytes are checked against its view before anything is allocated, and an accessor
-without a bufferView may declare at most as many elements as the file and its buffers have bytes
-(``ZERO_ACCESSOR_MIN`` at least); the scene graph's placements are counted before decoding
-(``build.MAX_PARTS``, ``build.MAX_TRIANGLES``); identical primitives are decoded once. URIs are
-relative paths: absolute paths, devices, FIFOs and directories are refused (an image: a warning;
-a buffer: an error) and never opened; a name with a line break or NUL is an error. Images are
-decoded once at ingest (``build.checked_texture``): one that does not decode is a warning and
-its parts cook untextured. Deeply nested JSON and integers of thousands of digits are invalid
-JSON.
+* one ``MeshPart`` per (node, triangle primitive) of the default scene (else scene 0, else every
+  root node); world = parent @ local, local = ``matrix`` or T * R * S (3.5.2). Modes 4-6 become
+  triangles (3.7.2.1), points and lines are skipped with a warning; vertices are never merged
+  (vertex count = accessor count). ``mesh_key`` is ``mesh{mi}/prim{k}``.
+* attributes: POSITION, NORMAL, TEXCOORD_n (n = the base-colour texture's ``texCoord``), COLOR_0
+  (linear RGBA), in every component type of core glTF and KHR_mesh_quantization, normalized or
+  not (3.11 decoding), strided, sparse or without a bufferView (zeros).
+* ``EXT_mesh_gpu_instancing``: one part per instance and primitive (``.../instance<i>``), at the
+  node's world matrix @ TRANSLATION @ ROTATION @ SCALE; copies share ``mesh_key``.
+* the base-colour image (bufferView, data URI or relative file) is the part's ``texture``,
+  decoded once (``build.checked_texture``; an unreadable one is a warning).
+* units: metres, +Y up (3.4): ``unit_scale`` 1.0. Positions in float64; normals by the inverse
+  transpose; a mirroring matrix (det < 0) flips the winding. Skins and morph targets are not
+  applied (a warning).
+* ``Scene.dependencies``: the source, then every external buffer and used base-colour image (a
+  missing one too), in first-use order; remote URLs are refused.
 
-Units: glTF is metres with +Y up (3.4 coordinate system and units), so ``unit_scale`` is 1.0 and
-``up_axis`` "Y". Positions are transformed in float64; normals by the inverse transpose of the
-world matrix's linear part (renormalised in ``make_part``); a mirroring world matrix
-(det < 0) flips triangle winding so triangles stay counter-clockwise. Skins and morph targets are
-not applied (the static node pose is used; a warning says so).
+Refused, each as one ``LopcookError("ingest", path, ...)`` naming the object read: malformed
+JSON, GLB header or chunks; integers that are not JSON integers in range (``byteLength`` >= 1,
+``byteStride`` a multiple of 4 in [4, 252], ...); accessor bytes beyond their view (checked before
+allocating; a data-less accessor may declare at most as many elements as the file has bytes,
+``ZERO_ACCESSOR_MIN`` at least); required extensions other than ``SUPPORTED_REQUIRED``, and
+Draco or meshopt data even when only used; absolute or non-regular-file URIs of buffers; more
+than ``build.MAX_PARTS`` placements or ``settings.max_triangles`` triangles (counted before
+decoding). Identical primitives are decoded once.
 
-Malformed input never escapes as a Python traceback: every ``KeyError``/``IndexError``/
-``ValueError``/``TypeError``/``struct.error`` is turned into one ``LopcookError("ingest", ...)``
-naming the object being read.
+``materials(path, parts, out)`` reads each part's material again for ``lopcook decode``
+(docs/format.md 9.2); ``sniff(head)`` tells GLB from JSON.
 """
 
 from __future__ import annotations
@@ -82,9 +42,11 @@ import base64
 import binascii
 import json
 import os
+import re
 import struct
 import urllib.parse
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -94,6 +56,8 @@ from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
 from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
                     regular_file_problem, unique_names)
+from .format import Format
+from .materials import MaterialSet
 
 GLB_MAGIC = b"glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -993,9 +957,175 @@ def _no_constant(name: str):
 
 
 def _rename(part: MeshPart, name: str) -> MeshPart:
-    from dataclasses import replace
-
     return replace(part, name=name)
 
 
-__all__ = ["load"]
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The source's own glTF material of each manifest part, found by its ``mesh_key``
+    ``mesh{mi}/prim{k}`` (None: the primitive has no material, or the key is not glTF's).
+
+    Carried: base colour (factor, texture), metallic-roughness (factors, texture), normal (with
+    ``scale``), occlusion (with ``strength``), emissive (factor, texture), ``alphaMode``,
+    ``alphaCutoff`` (MASK only), ``doubleSided``. Images (bufferView, data URI or relative file)
+    go to ``out`` as bytes. Left out with a warning in ``out``: material extensions, a texture read
+    through another UV set than the base colour's (the one set the container keeps), a texture
+    without a source, an image that is not a readable PNG/JPEG or not a relative file. This is a
+    lenient second reading of a file ``load`` accepted: a malformed file raises ``ValueError``,
+    ``KeyError``, ``IndexError``, ``TypeError`` or ``struct.error``.
+    """
+    reader = _MaterialReader(path, out)
+    cache: dict = {}
+    per_part = []
+    for p in parts:
+        mk = re.fullmatch(r"mesh(\d+)/prim(\d+)", str(p.get("mesh_key", "")))
+        mat = None
+        if mk:
+            prim = reader.doc["meshes"][int(mk.group(1))]["primitives"][int(mk.group(2))]
+            mi = prim.get("material")
+            if mi is not None:
+                if mi not in cache:
+                    cache[mi] = reader.material(mi)
+                mat = cache[mi]
+        per_part.append(mat)
+    if reader.dropped_ext:
+        out.warn(f"material extensions not carried into the preview: {', '.join(sorted(reader.dropped_ext))}")
+    return per_part
+
+
+class _MaterialReader:
+    """The JSON, buffers and images of one glTF file, read for its materials."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        raw = Path(path).read_bytes()
+        self.bin_chunk = None
+        if raw[:4] == GLB_MAGIC:
+            jlen, jtype = struct.unpack_from("<I4s", raw, 12)
+            if jtype != b"JSON":
+                raise ValueError("GLB has no JSON chunk first")
+            self.doc = json.loads(raw[20:20 + jlen])
+            off = 20 + jlen
+            if off + 8 <= len(raw):
+                blen, btype = struct.unpack_from("<I4s", raw, off)
+                if btype == b"BIN\0":
+                    self.bin_chunk = raw[off + 8: off + 8 + blen]
+        else:
+            self.doc = json.loads(raw)
+        self.base = os.path.dirname(os.path.abspath(path))
+        self.out = out
+        self.buffers: dict = {}
+        self.samplers = self.doc.get("samplers") or []
+        self.dropped_ext: set = set()
+
+    def uri_bytes(self, uri: str, what: str) -> bytes | None:
+        """The bytes a data URI holds or a relative file has; None (and a warning) otherwise."""
+        if uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            return base64.b64decode(payload) if head.endswith(";base64") else \
+                urllib.parse.unquote(payload).encode("latin-1")
+        rel = urllib.parse.unquote(uri)
+        if "://" in rel or os.path.isabs(rel):
+            self.out.warn(f"{what}: URI {uri!r} is not a relative file; left out of the preview")
+            return None
+        p = os.path.join(self.base, rel)
+        if not os.path.isfile(p):
+            self.out.warn(f"{what}: file {rel!r} not found; left out of the preview")
+            return None
+        return Path(p).read_bytes()
+
+    def buffer(self, i: int) -> bytes | None:
+        if i not in self.buffers:
+            b = self.doc["buffers"][i]
+            self.buffers[i] = self.uri_bytes(b["uri"], f"buffer {i}") if "uri" in b else self.bin_chunk
+        return self.buffers[i]
+
+    def image(self, i: int) -> tuple[bytes, str] | None:
+        """``(encoded bytes, name)`` of image ``i``, or None."""
+        img = self.doc["images"][i]
+        name = img.get("name") or (os.path.basename(urllib.parse.unquote(img["uri"]))
+                                   if "uri" in img and not img["uri"].startswith("data:") else f"image{i}")
+        if "uri" in img:
+            data = self.uri_bytes(img["uri"], f"image {i}")
+        else:
+            v = self.doc["bufferViews"][img["bufferView"]]
+            b = self.buffer(v["buffer"])
+            data = None if b is None else b[v.get("byteOffset", 0): v.get("byteOffset", 0) + v["byteLength"]]
+        return None if not data else (bytes(data), name)
+
+    def tex_ref(self, ref, uv_set: int, what: str) -> dict | None:
+        """A material's texture reference ``ref`` as the preview's (index into ``out``), or None."""
+        if not isinstance(ref, dict) or "index" not in ref:
+            return None
+        if ref.get("texCoord", 0) != uv_set:
+            self.out.warn(f"{what} reads TEXCOORD_{ref.get('texCoord', 0)}, the container keeps "
+                          f"TEXCOORD_{uv_set} only; left out of the preview")
+            return None
+        self.dropped_ext.update((ref.get("extensions") or {}).keys())
+        tex = self.doc["textures"][ref["index"]]
+        if "source" not in tex:
+            self.out.warn(f"{what}: texture {ref['index']} has no PNG/JPEG source; left out of the preview")
+            return None
+        smp = None
+        if "sampler" in tex:
+            s = self.samplers[tex["sampler"]]
+            smp = {k: s[k] for k in ("magFilter", "minFilter", "wrapS", "wrapT") if k in s}
+        t = self.out.texture(self.out.image(("gltf", tex["source"]), lambda: self.image(tex["source"])), smp)
+        if t is None:
+            return None
+        res = {"index": t}
+        for k in ("scale", "strength"):
+            if k in ref:
+                res[k] = ref[k]
+        return res
+
+    def material(self, mi: int) -> dict:
+        """Material ``mi`` as glTF 2.0 core (see ``materials``)."""
+        m = self.doc["materials"][mi]
+        self.dropped_ext.update((m.get("extensions") or {}).keys())
+        pbr_in = m.get("pbrMetallicRoughness") or {}
+        uv_set = int((pbr_in.get("baseColorTexture") or {}).get("texCoord", 0))
+        what = f"material {mi}" + (f" {m['name']!r}" if m.get("name") else "")
+        res: dict = {"name": m["name"]} if isinstance(m.get("name"), str) else {}
+        pbr = {k: pbr_in[k] for k in ("baseColorFactor", "metallicFactor", "roughnessFactor") if k in pbr_in}
+        for k in ("baseColorTexture", "metallicRoughnessTexture"):
+            r = self.tex_ref(pbr_in.get(k), uv_set, f"{what} {k}")
+            if r is not None:
+                pbr[k] = r
+        res["pbrMetallicRoughness"] = pbr
+        for k in ("normalTexture", "occlusionTexture", "emissiveTexture"):
+            r = self.tex_ref(m.get(k), uv_set, f"{what} {k}")
+            if r is not None:
+                res[k] = r
+        for k in ("emissiveFactor", "alphaMode", "alphaCutoff", "doubleSided"):
+            if k in m:
+                res[k] = m[k]
+        if res.get("alphaMode") != "MASK":
+            res.pop("alphaCutoff", None)
+        return res
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: extension -> the kinds a file so named may hold (a .gltf may hold GLB bytes and vice versa)
+EXTENSIONS = {".gltf": ("gltf", "glb"), ".glb": ("glb", "gltf")}
+
+
+def sniff(head: bytes) -> str | None:
+    """``"glb"`` for the GLB magic, ``"gltf"`` for JSON (``{`` after a BOM and whitespace)."""
+    if head.startswith(GLB_MAGIC):
+        return "glb"
+    if head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
+        return "gltf"
+    return None
+
+
+FORMAT = Format(name="gltf", title="glTF/GLB", extensions=EXTENSIONS, load=load, sniff=sniff,
+                materials=materials, sidecars=(".bin",))
+
+__all__ = ["load", "materials", "sniff", "EXTENSIONS", "FORMAT"]

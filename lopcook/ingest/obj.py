@@ -1,71 +1,48 @@
-"""Wavefront OBJ loader: ``load(path, fmt="obj", settings=...) -> Scene`` (not yet validated).
+"""Wavefront OBJ -> ``Scene``; the OBJ ``FORMAT`` of the registry (OBJ has no signature: a
+``.obj`` file is read as OBJ unless its first bytes show another format).
 
-What is read
-------------
-* ``v x y z [w]`` positions (``w`` ignored), ``v x y z r g b [a]`` positions with a vertex colour,
-  ``vt u [v [w]]``, ``vn x y z``; ``f``/``fo`` with corners ``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``
-  (empty fields allowed: ``v/vt/``), positive and negative (relative) indices.
-* ``o NAME`` and ``g NAME`` start a new part. A part is the (object, group) pair in effect: a
-  new ``o`` resets the group; the same pair seen again later continues the same part (OBJ groups
-  are named sets). Part names: the group name, the object name, ``"object/group"`` when both are
-  in effect, or the file stem for faces before any ``o``/``g``. Names are made unique with ``#k``.
-* ``usemtl`` (the first material each part's faces use is kept in ``MeshPart.source``; a part
-  that uses several gets a warning), ``mtllib`` (the .mtl files are parsed for ``newmtl`` /
-  ``map_Kd``; the part's material's ``map_Kd`` becomes ``MeshPart.texture``). A missing .mtl or
-  texture file is a Scene warning, not an error. ``Scene.dependencies`` lists the .obj, each
-  .mtl looked for (found or not), then the ``map_Kd`` file of each material a part uses: the
-  path the .mtl gives and, when that is missing, the fallback looked for next to the .obj.
-* ``\\`` line continuations, ``#`` comments (whole-line and trailing), ``\\r\\n``/``\\r`` line ends,
-  a UTF-8 BOM. ``s`` is ignored; ``l``/``p`` (polylines, points) and free-form statements are
-  skipped with a counted warning. Text is UTF-8; other bytes fall back to Latin-1 with a warning.
+``load(path, fmt="obj", settings) -> Scene`` (not yet validated) reads:
 
-Conventions of the result: OBJ has no units, so positions are taken as metres as written
-(``unit_scale = 1.0``), +Y up, counter-clockwise (OBJ's own convention, kept). UVs are flipped to
-the top-left origin: ``uv_out = (u, 1 - v)``.
+* ``v x y z [w]`` (``w`` ignored) or ``v x y z r g b [a]`` (a vertex colour), ``vt u [v [w]]``,
+  ``vn x y z``; ``f``/``fo`` corners ``v``, ``v/vt``, ``v//vn``, ``v/vt/vn`` (empty fields allowed),
+  positive and negative (relative) indices; ``\\`` continuations, ``#`` comments, any line end, a
+  UTF-8 BOM; non-UTF-8 text falls back to Latin-1 (a warning). ``l``/``p`` and free-form
+  statements are skipped and counted in a warning; ``s`` is ignored.
+* parts: one per (``o``, ``g``) pair in effect (a new ``o`` resets the group; a pair seen again
+  continues its part), named ``group``, ``object``, ``object/group`` or the file stem, made
+  unique with ``#k``. ``mesh_key`` is ``obj:<file name>:<part name>``.
+* vertices: one per distinct ``(v, vt, vn)`` triple the part's corners use, ordered by that triple
+  (``v`` records no face uses are dropped). All corners without ``vt``: ``uvs=None``; some
+  without: (0, 0) and a warning. Any corner without ``vn``: the part's normals are computed
+  (``build.make_part``, split at ``settings.crease_angle_deg``). UVs become ``(u, 1 - v)``
+  (origin top-left). Positions are metres as written (OBJ has no units), +Y up, CCW.
+* polygons: triangulated by ``polygons.triangulate`` (concave quads and n-gons right, winding
+  kept).
+* materials: ``usemtl`` (a part's first material is kept in ``MeshPart.source``; several: a
+  warning) and ``mtllib``; the material's ``map_Kd`` is the part's ``texture``. A missing .mtl
+  or image is a warning. ``Scene.dependencies``: the .obj, each .mtl looked for (found or not),
+  then each used ``map_Kd`` file (the path given and, when missing, the fallback beside the .obj).
 
-Vertices (per-corner split)
----------------------------
-A vertex of a part is a distinct ``(v, vt, vn)`` triple used by that part's corners; positions,
-UVs and normals are gathered per triple. ``v`` records that no face of the part uses are dropped
-(stanford-bunny: 35947 ``v`` -> 34834 vertices; spot: 2930 ``v`` / 3225 ``vt`` -> 3225 vertices,
-the counts trimesh reports in corpus.json). A part whose corners all lack ``vt`` gets
-``uvs=None``; when only some lack it they get uv (0, 0) and a warning. When any corner of a part
-lacks ``vn``, ``vn`` is ignored for that part (not part of the vertex key) and normals are computed
-by ``build.make_part`` (area weighted, split at creases sharper than
-``settings.crease_angle_deg``), which can add vertices along creases (fandisk: 6475 -> more at the
-60 degree default; exactly 6475 at 180). Vertices are ordered by (v, vt, vn) index.
+Refused, each as one ``LopcookError("ingest", path, "line N: ...")``: a malformed number or a
+wrong count of values, NaN/Inf, a corner that is not an index, index 0 or out of range (with the
+record count), a face of fewer than three corners, a line continuation inside a number, NUL bytes
+(binary or UTF-16 content), more than ``build.MAX_PARTS`` parts. A file without faces gives
+``parts=()`` (``Scene.validate`` reports it).
 
-Polygons with more than three corners are triangulated by ``polygons.triangulate`` (quads split
-along the diagonal that keeps both halves facing the polygon normal; n-gons ear-clipped), so
-concave polygons come out right and winding is kept.
-
-Errors (``LopcookError("ingest", path, ...)``, naming the physical line number): a malformed
-number on a ``v``/``vt``/``vn`` line or wrong number of values, NaN/Inf values, a face corner that
-is not an index, index 0 or an index out of range (with the count of records), a face with fewer
-than three corners, NUL bytes (binary or UTF-16 content). A file without faces returns a Scene
-with ``parts=()`` (``Scene.validate`` then reports "no triangle meshes").
-
-Implementation and why not trimesh
-----------------------------------
-Everything is vectorised over the bytes of the file: lines are found with one ``== b"\\n"``
-pass, classified by their first bytes, the bytes of all ``v`` (``vt``, ``vn``, ``f``) lines are
-gathered with one boolean mask and parsed in a single ``np.fromstring(sep=" ")`` call; face
-corners are split into fields by counting ``/`` per corner token (so files mixing ``v``,
-``v/vt``, ``v//vn`` and ``v/vt/vn`` corners, and faces of any length, need no per-line Python).
-Only the rare name lines (``o``, ``g``, ``usemtl``, ``mtllib``, unknown statements) and n-gons
-(5+ corners, in ``ear_clip``) take a Python loop.
-
-trimesh 5.2.0's ``trimesh.exchange.obj.load_obj`` was measured and rejected: it merges ``g``
-groups (and an ``o`` after them, even with ``split_object=True``) into one geometry, and it
-fan-triangulates n-gons (the concave L hexagon of the tests comes out with area 4 instead of 3
-and one flipped triangle); it is also slower (timings: ``docs/measurements.md``). Peak memory of
-the parse is about 11x the file size.
+Cost: vectorised over the file's bytes (implementation notes and why not trimesh:
+docs/ingest.md, "OBJ"); only name statements and n-gons of 5+ corners take a Python loop; the
+peak is about 11x the file size. ``materials(path, parts, out)`` reads the .mtl materials again
+for ``lopcook decode`` (docs/format.md 9.2).
 """
 
 from __future__ import annotations
 
 import os
+import re
+import warnings
 from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -74,6 +51,8 @@ from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import Scene, Texture
 from .build import MAX_PARTS, checked_texture, make_part, unique_names
+from .format import Format
+from .materials import MaterialSet
 from .polygons import triangulate
 
 # byte classes -------------------------------------------------------------------------------
@@ -154,7 +133,75 @@ def load(path: str, *, fmt: str = "obj", settings: IngestSettings) -> Scene:
 
 
 def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> Scene:
+    """The steps of ``load`` on the file's bytes."""
     path = ctx.path
+    # (1) one byte string: BOM, NUL, encoding, line ends and continuations settled
+    data, encoding = _normalise(ctx, data)
+    # (2) classify lines by their first bytes; read the few name statements
+    arr, lines = _classify(ctx, data)
+    names = _name_statements(ctx, data, lines, encoding)
+    # (3) the bytes of every v / vt / vn / f line, keywords and trailing comments blanked
+    work, btype = _record_bytes(data, arr, lines)
+    del arr
+    rows = {k: np.flatnonzero(lines.code == k) for k in (_V, _VT, _VN, _F)}
+    V, colors, has_color = _read_v(ctx, work[btype == _V], rows[_V])
+    UV = _read_vt(ctx, work[btype == _VT], rows[_VT])
+    N = _read_vn(ctx, work[btype == _VN], rows[_VN])
+    nv, nvt, nvn = V.shape[0], UV.shape[0], N.shape[0]
+    f_lines = rows[_F]
+    if f_lines.size == 0:
+        ctx.warnings.append(f"no faces (f statements): {nv} v records, nothing to mesh")
+        return Scene(parts=(), source=path, format="obj", unit_scale=1.0, up_axis="Y",
+                     warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
+    # (4) faces: corners resolved to record indices, polygons triangulated
+    fblob = work[btype == _F]
+    del work, btype
+    counts, cv, cvt, cvn, has_vt, has_vn = _read_faces(ctx, fblob, f_lines)
+    del fblob
+    corner_line = np.repeat(f_lines, counts)
+    cv = _resolve(ctx, "v", cv, None, rows[_V], corner_line, nv)
+    cvt = _resolve(ctx, "vt", cvt, has_vt, rows[_VT], corner_line, nvt)
+    cvn = _resolve(ctx, "vn", cvn, has_vn, rows[_VN], corner_line, nvn)
+    del corner_line
+    if np.all(counts == 3):
+        tri = np.arange(cv.size, dtype=np.int64).reshape(-1, 3)
+        tri_face = np.arange(counts.size, dtype=np.int64)
+    else:
+        tri, tri_face = triangulate(counts, V[cv])
+    # (5) parts: one per (object, group), each split per corner into its vertices
+    face_part, keys = _part_of_faces(ctx, names, f_lines)
+    stem = os.path.splitext(os.path.basename(path))[0] or "obj"
+    part_names = unique_names([_part_name(k, stem) for k in keys])
+    mtl_lines = np.array([e[0] for e in names.usemtl], dtype=np.int64)
+    mtl_names = [e[1] for e in names.usemtl]
+    face_mtl = np.searchsorted(mtl_lines, f_lines) - 1   # -1: no usemtl in effect
+    materials = _read_mtllibs(ctx, names.mtllibs, encoding) if names.mtllibs else {}
+    tex_cache: dict[str, Texture | None] = {}
+    tri_part = face_part[tri_face]
+    n_parts = len(keys)
+    if n_parts == 1:
+        order = None
+        bounds = np.array([0, tri.shape[0]])
+    else:
+        order = np.argsort(tri_part, kind="stable")
+        bounds = np.searchsorted(tri_part[order], np.arange(n_parts + 1))
+    out = []
+    for p, (key, name) in enumerate(zip(keys, part_names)):
+        sel = slice(bounds[p], bounds[p + 1])
+        tc = tri[sel] if order is None else tri[order[sel]]
+        faces_p = tri_face[sel] if order is None else tri_face[order[sel]]
+        mat = _first_material(ctx, name, face_mtl[faces_p], mtl_names)
+        texture = _texture_for(ctx, mat, materials, tex_cache, bool(names.mtllibs))
+        out.append(_build_part(ctx, name, key, mat, tc, cv, cvt, cvn, V, UV, N, colors, has_color,
+                               texture, settings))
+    return Scene(parts=tuple(out), source=path, format="obj", unit_scale=1.0, up_axis="Y",
+                 warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
+
+
+def _normalise(ctx: _Ctx, data: bytes) -> tuple[bytes, str]:
+    """``(bytes, encoding of names)``: a BOM blanked (offsets kept), ``\\r\\n`` and ``\\r`` made
+    ``\\n``, backslash continuations joined (their positions kept in ``ctx.cont_pos`` for line
+    numbers), a final ``\\n``. Refuses NUL bytes and a continuation inside a number."""
     if data.startswith(b"\xef\xbb\xbf"):
         data = b"   " + data[3:]  # keep byte offsets
     if b"\x00" in data:
@@ -187,10 +234,31 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         data = data.replace(b"\\\n", b"  ")
     if not data.endswith(b"\n"):
         data = data + b"\n"
+    return data, encoding
+
+
+@dataclass
+class _Lines:
+    """Per logical line: ``starts`` its first byte's offset, ``nl`` its newline's, ``s`` its first
+    non-blank byte's, ``code`` (``_V``, ``_VT``, ``_VN``, ``_F`` or 0), ``one``/``two`` the lines whose
+    keyword is one / two bytes long, ``other`` the lines to read as name statements; ``n`` the
+    bytes of the text."""
+
+    n: int
+    starts: np.ndarray
+    nl: np.ndarray
+    s: np.ndarray
+    code: np.ndarray
+    one: np.ndarray
+    two: np.ndarray
+    other: np.ndarray
+
+
+def _classify(ctx: _Ctx, data: bytes) -> tuple[np.ndarray, _Lines]:
+    """``(the bytes as uint8, padded by 3 newlines; the lines classified)``; ``l``/``p`` lines are
+    counted in a warning."""
     n = len(data)
     arr = np.frombuffer(data + b"\n\n\n", dtype=np.uint8)  # padded so first bytes can be peeked
-
-    # lines ----------------------------------------------------------------------------------
     nl = np.flatnonzero(arr[:n] == 10)
     starts = np.empty(nl.size, dtype=np.int64)
     starts[0] = 0
@@ -222,16 +290,29 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
     n_l = int(np.count_nonzero((b0 == ord("l")) & ws1))
     n_p = int(np.count_nonzero((b0 == ord("p")) & ws1))
     quiet |= ((b0 == ord("l")) | (b0 == ord("p"))) & ws1
-    other = np.flatnonzero((code == 0) & ~quiet)
+    if n_l or n_p:
+        ctx.warnings.append(f"skipped {n_l} line (l) and {n_p} point (p) statements: only faces are ingested")
+    return arr, _Lines(n=n, starts=starts, nl=nl, s=s, code=code, one=np.flatnonzero(is_v | is_f),
+                       two=np.flatnonzero(is_vt | is_vn | is_fo), other=np.flatnonzero((code == 0) & ~quiet))
 
-    # name statements (few): o, g, usemtl, mtllib, anything unknown ---------------------------
-    o_ev: list[tuple[int, str]] = []
-    g_ev: list[tuple[int, str]] = []
-    mtl_ev: list[tuple[int, str]] = []
-    mtllibs: list[str] = []
+
+@dataclass
+class _Names:
+    """The name statements: ``(line, name)`` of each ``o``, ``g`` and ``usemtl``; ``mtllib`` values."""
+
+    objects: list[tuple[int, str]]
+    groups: list[tuple[int, str]]
+    usemtl: list[tuple[int, str]]
+    mtllibs: list[str]
+
+
+def _name_statements(ctx: _Ctx, data: bytes, lines: _Lines, encoding: str) -> _Names:
+    """The ``o``, ``g``, ``usemtl`` and ``mtllib`` statements (trailing comments cut); any other
+    keyword is counted in one warning."""
+    names = _Names([], [], [], [])
     unknown: Counter = Counter()
-    for li in other.tolist():
-        text = data[s[li]:nl[li]].decode(encoding, errors="replace")
+    for li in lines.other.tolist():
+        text = data[lines.s[li]:lines.nl[li]].decode(encoding, errors="replace")
         parts = text.split(None, 1)
         if not parts:
             continue
@@ -242,33 +323,34 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
                              if i >= 0)]
         rest = rest.strip()
         if kw == "o":
-            o_ev.append((li, rest))
+            names.objects.append((li, rest))
         elif kw == "g":
-            g_ev.append((li, rest))
+            names.groups.append((li, rest))
         elif kw == "usemtl":
-            mtl_ev.append((li, rest))
+            names.usemtl.append((li, rest))
         elif kw == "mtllib":
             if rest:
-                mtllibs.append(rest)
+                names.mtllibs.append(rest)
         elif kw.startswith("#"):
             continue
         else:
             unknown[kw] += 1
-    if n_l or n_p:
-        ctx.warnings.append(f"skipped {n_l} line (l) and {n_p} point (p) statements: only faces are ingested")
     if unknown:
         what = ", ".join(f"{k!r} x{c}" for k, c in unknown.most_common(8))
         ctx.warnings.append(f"ignored {sum(unknown.values())} unsupported statements ({what})")
+    return names
 
-    # per-byte line type, keywords blanked, trailing comments blanked ---------------------------
-    lengths = np.diff(np.r_[starts, n])  # each includes its "\n"
-    btype = np.repeat(code, lengths)
+
+def _record_bytes(data: bytes, arr: np.ndarray, lines: _Lines) -> tuple[np.ndarray, np.ndarray]:
+    """``(work, btype)``: a copy of the text's bytes with the ``v``/``vt``/``vn``/``f``/``fo``
+    keywords and every trailing ``#`` comment of such lines blanked, and each byte's line code."""
+    n, nl = lines.n, lines.nl
+    lengths = np.diff(np.r_[lines.starts, n])  # each includes its "\n"
+    btype = np.repeat(lines.code, lengths)
     work = arr[:n].copy()
-    one = np.flatnonzero(is_v | is_f)
-    two = np.flatnonzero(is_vt | is_vn | is_fo)
-    work[s[one]] = 32
-    work[s[two]] = 32
-    work[s[two] + 1] = 32
+    work[lines.s[lines.one]] = 32
+    work[lines.s[lines.two]] = 32
+    work[lines.s[lines.two] + 1] = 32
     if b"#" in data:
         hp = np.flatnonzero(work == 35)
         hp = hp[btype[hp] != 0]
@@ -282,41 +364,13 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
             d[e] -= 1
             blank = np.cumsum(d[:n], dtype=np.int8).astype(bool)
             work[blank] = 32
-    del arr
+    return work, btype
 
-    lines = {k: np.flatnonzero(code == k) for k in (_V, _VT, _VN, _F)}
 
-    # v / vt / vn ----------------------------------------------------------------------------
-    V, colors, has_color = _read_v(ctx, work[btype == _V], lines[_V])
-    UV = _read_vt(ctx, work[btype == _VT], lines[_VT])
-    N = _read_vn(ctx, work[btype == _VN], lines[_VN])
-    nv, nvt, nvn = V.shape[0], UV.shape[0], N.shape[0]
-
-    f_lines = lines[_F]
-    if f_lines.size == 0:
-        ctx.warnings.append(f"no faces (f statements): {nv} v records, nothing to mesh")
-        return Scene(parts=(), source=path, format="obj", unit_scale=1.0, up_axis="Y",
-                     warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
-
-    # faces ------------------------------------------------------------------------------------
-    fblob = work[btype == _F]
-    del work, btype
-    counts, cv, cvt, cvn, has_vt, has_vn = _read_faces(ctx, fblob, f_lines)
-    del fblob
-    corner_line = np.repeat(f_lines, counts)
-    cv = _resolve(ctx, "v", cv, None, lines[_V], corner_line, nv)
-    cvt = _resolve(ctx, "vt", cvt, has_vt, lines[_VT], corner_line, nvt)
-    cvn = _resolve(ctx, "vn", cvn, has_vn, lines[_VN], corner_line, nvn)
-    del corner_line
-
-    if np.all(counts == 3):
-        tri = np.arange(cv.size, dtype=np.int64).reshape(-1, 3)
-        tri_face = np.arange(counts.size, dtype=np.int64)
-    else:
-        tri, tri_face = triangulate(counts, V[cv])
-
-    # parts: (object, group) state per face ------------------------------------------------------
-    og = sorted([(li, "o", name) for li, name in o_ev] + [(li, "g", name) for li, name in g_ev])
+def _part_of_faces(ctx: _Ctx, names: _Names, f_lines: np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+    """``(part index of each face, the (object, group) key of each part)``, parts in first-use
+    order; refuses more than ``MAX_PARTS`` parts before any is built."""
+    og = sorted([(li, "o", name) for li, name in names.objects] + [(li, "g", name) for li, name in names.groups])
     og_lines = np.array([e[0] for e in og], dtype=np.int64)
     states: list[tuple[str | None, str | None]] = [(None, None)]
     cur_o: str | None = None
@@ -328,61 +382,35 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
             cur_g = name or None
         states.append((cur_o, cur_g))
     seg = np.searchsorted(og_lines, f_lines)          # state index per face (monotone)
-    present = np.unique(seg)
     key_to_part: dict[tuple, int] = {}
     seg_to_part = np.full(len(states), -1, dtype=np.int64)
-    for sg in present.tolist():
+    for sg in np.unique(seg).tolist():
         key = states[sg]
         if key not in key_to_part:
             key_to_part[key] = len(key_to_part)
         seg_to_part[sg] = key_to_part[key]
-    face_part = seg_to_part[seg]
     keys = list(key_to_part)
     if len(keys) > MAX_PARTS:  # counted before any part is built
         ctx.fail(f"the file has {len(keys):,} objects/groups with faces, more than the {MAX_PARTS:,} parts "
                  "lopcook accepts", hint="merge groups or split the file")
-    stem = os.path.splitext(os.path.basename(path))[0] or "obj"
-    names = unique_names([_part_name(k, stem) for k in keys])
+    return seg_to_part[seg], keys
 
-    mtl_lines = np.array([e[0] for e in mtl_ev], dtype=np.int64)
-    mtl_names = [e[1] for e in mtl_ev]
-    face_mtl = np.searchsorted(mtl_lines, f_lines) - 1   # -1: no usemtl in effect
 
-    materials = _read_mtllibs(ctx, mtllibs, encoding) if mtllibs else {}
-    tex_cache: dict[str, Texture | None] = {}
-
-    tri_part = face_part[tri_face]
-    n_parts = len(keys)
-    if n_parts == 1:
-        order = None
-        bounds = np.array([0, tri.shape[0]])
-    else:
-        order = np.argsort(tri_part, kind="stable")
-        bounds = np.searchsorted(tri_part[order], np.arange(n_parts + 1))
-
-    out = []
-    for p, (key, name) in enumerate(zip(keys, names)):
-        sel = slice(bounds[p], bounds[p + 1])
-        tc = tri[sel] if order is None else tri[order[sel]]
-        faces_p = tri_face[sel] if order is None else tri_face[order[sel]]
-        # material: the first one the part's faces use
-        fm = face_mtl[faces_p]
-        fm = fm[fm >= 0]
-        mat = None
-        if fm.size:
-            used_ids, first = np.unique(fm, return_index=True)
-            used_names = list(dict.fromkeys(mtl_names[i] for i in used_ids[np.argsort(first)].tolist()))
-            used_names = [m for m in used_names if m and m != "(null)"]
-            if used_names:
-                mat = used_names[0]
-                if len(used_names) > 1:
-                    ctx.warnings.append(f"part {name!r} uses {len(used_names)} materials "
-                                        f"({', '.join(used_names[:5])}); its texture is {mat!r}'s")
-        texture = _texture_for(ctx, mat, materials, tex_cache, bool(mtllibs))
-        out.append(_build_part(ctx, name, key, mat, tc, cv, cvt, cvn, V, UV, N, colors, has_color,
-                               texture, settings))
-    return Scene(parts=tuple(out), source=path, format="obj", unit_scale=1.0, up_axis="Y",
-                 warnings=tuple(ctx.warnings), dependencies=ctx.deps.paths())
+def _first_material(ctx: _Ctx, name: str, fm: np.ndarray, mtl_names: list[str]) -> str | None:
+    """The first material (``usemtl``, index ``fm`` per face, -1 none) a part's faces use; a part
+    using several gets a warning."""
+    fm = fm[fm >= 0]
+    if not fm.size:
+        return None
+    used_ids, first = np.unique(fm, return_index=True)
+    used_names = list(dict.fromkeys(mtl_names[i] for i in used_ids[np.argsort(first)].tolist()))
+    used_names = [m for m in used_names if m and m != "(null)"]
+    if not used_names:
+        return None
+    if len(used_names) > 1:
+        ctx.warnings.append(f"part {name!r} uses {len(used_names)} materials "
+                            f"({', '.join(used_names[:5])}); its texture is {used_names[0]!r}'s")
+    return used_names[0]
 
 
 # numbers --------------------------------------------------------------------------------------
@@ -404,8 +432,6 @@ def _fromstring(blob: np.ndarray, n_tokens: int, dtype) -> np.ndarray | None:
     """Parse whitespace-separated numbers; None when the text does not parse to n_tokens values."""
     if n_tokens == 0:
         return np.zeros(0, dtype=dtype)
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
@@ -417,8 +443,6 @@ def _fromstring(blob: np.ndarray, n_tokens: int, dtype) -> np.ndarray | None:
 
 def _bad_number(ctx: _Ctx, blob: np.ndarray, line_ids: np.ndarray, kind: str):
     """Error path: find the first token on a ``kind`` line that is not a number and raise."""
-    import warnings
-
     for j, line in enumerate(blob.tobytes().split(b"\n")):
         for tok in line.split():
             with warnings.catch_warnings():
@@ -732,12 +756,7 @@ def _read_mtllibs(ctx: _Ctx, mtllibs: list[str], encoding: str) -> dict[str, str
                 text = raw.decode("latin-1")
             cur = None
             mdir = os.path.dirname(mpath)
-            for line in text.replace("\\\r\n", " ").replace("\\\n", " ").splitlines():
-                parts = line.strip().split(None, 1)
-                if not parts:
-                    continue
-                kw = parts[0].lower()
-                rest = parts[1].strip() if len(parts) > 1 else ""
+            for kw, rest in _mtl_statements(text):
                 if kw == "newmtl":
                     cur = rest
                     out.setdefault(cur, None)
@@ -799,3 +818,163 @@ def _texture_for(ctx, mat, materials, cache, have_lib) -> Texture | None:
             ctx.warnings.append(f"texture {os.path.basename(fpath)!r} unreadable ({exc.strerror}); no texture")
     cache[fpath] = tex
     return tex
+
+
+def _mtl_statements(text: str):
+    """``(keyword lower-cased, rest stripped)`` of each statement of a .mtl file's text (backslash
+    line continuations joined; blank lines and ``#`` comment lines skipped)."""
+    for line in text.replace("\\\r\n", " ").replace("\\\n", " ").splitlines():
+        bits = line.strip().split(None, 1)
+        if not bits or bits[0].startswith("#"):
+            continue
+        yield bits[0].lower(), (bits[1].strip() if len(bits) > 1 else "")
+
+
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+#: sampler of every OBJ texture: repeat (MTL maps tile)
+_REPEAT = {"wrapS": 10497, "wrapT": 10497}
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The ``.mtl`` material of each manifest part's ``usemtl`` (recorded in its ``source``) as
+    glTF 2.0 core, or None (no ``usemtl``, or a material no library defines: a warning).
+
+    ``Kd`` -> base colour factor, ``map_Kd`` -> base colour texture, ``d`` (or ``1 - Tr``) ->
+    alpha (BLEND when < 1), ``norm`` / ``map_Bump`` / ``bump`` -> normal texture (``-bm`` ->
+    scale), ``Ke`` / ``map_Ke`` -> emissive, ``Pm`` -> metallic (default 0), ``Pr`` ->
+    roughness, else ``sqrt(2 / (Ns + 2))`` from the Phong exponent ``Ns``, else 1. Textures are
+    looked for where the .mtl names them, then beside the .obj; a missing one is a warning.
+    Raises ``OSError`` when the .obj cannot be read.
+    """
+    reader = _MtlMaterials(path, out)
+    per_part, cache = [], {}
+    for p in parts:
+        mk = re.search(r" usemtl (.+)$", str(p.get("source", "")))
+        name = mk.group(1) if mk else None
+        if name is not None and name not in cache:
+            cache[name] = reader.material(name)
+            if cache[name] is None and reader.mtl:
+                out.warn(f"material {name!r} is not in the material libraries; default material")
+        per_part.append(None if name is None else cache[name])
+    return per_part
+
+
+def _mtl_numbers(s: str, n: int) -> list[float] | None:
+    """The first ``n`` numbers of ``s`` when there are ``n`` finite ones, else None."""
+    try:
+        v = [float(x) for x in s.split()[:n]]
+    except ValueError:
+        return None
+    return v if len(v) == n and all(np.isfinite(v)) else None
+
+
+class _MtlMaterials:
+    """The statements of every material of an OBJ's ``mtllib`` files, made into glTF materials."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        self.base = os.path.dirname(os.path.abspath(path))
+        self.out = out
+        self.mtl: dict[str, dict] = {}  # name -> {keyword: first value, "dir": the .mtl's folder}
+        libs = re.findall(rb"^[ \t]*mtllib[ \t]+([^\r\n]+?)[ \t]*$", Path(path).read_bytes(), re.M)
+        for lib in libs:
+            name = lib.decode("utf-8", "replace")
+            mpath = os.path.join(self.base, name.replace("\\", "/"))
+            if not os.path.isfile(mpath):
+                out.warn(f"material library {name!r} not found; its materials are left out of the preview")
+                continue
+            cur = None
+            for kw, rest in _mtl_statements(Path(mpath).read_bytes().decode("utf-8", "replace")):
+                if kw == "newmtl":
+                    cur = self.mtl.setdefault(rest, {"dir": os.path.dirname(mpath)})
+                elif cur is not None:
+                    cur.setdefault(kw, rest)
+
+    def texmap(self, m: dict, key: str, what: str) -> tuple[dict | None, dict]:
+        """``(texture reference or None, options)`` of the map statement ``key`` of material ``m``."""
+        if key not in m:
+            return None, {}
+        toks, opts, fname = m[key].split(), {}, []
+        i = 0
+        while i < len(toks):
+            if toks[i].lower() == "-bm" and i + 1 < len(toks):
+                opts["bm"] = toks[i + 1]
+                i += 2
+            elif toks[i].startswith("-") and i + 1 < len(toks):
+                i += 2  # other options (one argument taken; -o/-s with three numbers skip below)
+                while i < len(toks) - 1 and re.fullmatch(r"[-+0-9.eE]+", toks[i]):
+                    i += 1
+            else:
+                fname.append(toks[i])
+                i += 1
+        name = " ".join(fname).replace("\\", "/")
+        if not name:
+            return None, opts
+        cands = [os.path.join(m["dir"], name), os.path.join(self.base, os.path.basename(name))]
+        found = next((c for c in cands if os.path.isfile(c)), None)
+        if found is None:
+            self.out.warn(f"{what} {os.path.basename(name)!r} not found; left out of the preview")
+            return None, opts
+        t = self.out.texture(self.out.image(("file", os.path.realpath(found)),
+                                            lambda: (Path(found).read_bytes(), os.path.basename(found))), _REPEAT)
+        return (None if t is None else {"index": t}), opts
+
+    def material(self, name: str) -> dict | None:
+        """Material ``name`` as glTF 2.0 core (see ``materials``), None when no library defines it."""
+        m = self.mtl.get(name)
+        if m is None:
+            return None
+        kd = _mtl_numbers(m.get("kd", ""), 3) or [1.0, 1.0, 1.0]
+        alpha = 1.0
+        if _mtl_numbers(m.get("d", ""), 1):
+            alpha = _mtl_numbers(m["d"], 1)[0]
+        elif _mtl_numbers(m.get("tr", ""), 1):
+            alpha = 1.0 - _mtl_numbers(m["tr"], 1)[0]
+        alpha = float(np.clip(alpha, 0.0, 1.0))
+        rough = 1.0
+        if _mtl_numbers(m.get("pr", ""), 1):
+            rough = _mtl_numbers(m["pr"], 1)[0]
+        elif _mtl_numbers(m.get("ns", ""), 1):
+            rough = float(np.sqrt(2.0 / (max(_mtl_numbers(m["ns"], 1)[0], 0.0) + 2.0)))
+        metal = _mtl_numbers(m.get("pm", ""), 1)[0] if _mtl_numbers(m.get("pm", ""), 1) else 0.0
+        pbr = {"baseColorFactor": [float(np.clip(c, 0, 1)) for c in kd] + [alpha],
+               "metallicFactor": float(np.clip(metal, 0, 1)), "roughnessFactor": float(np.clip(rough, 0, 1))}
+        what = f"material {name!r}"
+        ref, _ = self.texmap(m, "map_kd", f"{what} map_Kd")
+        if ref:
+            pbr["baseColorTexture"] = ref
+        res = {"name": name, "pbrMetallicRoughness": pbr}
+        for key in ("norm", "map_bump", "bump"):
+            if key in m:
+                ref, opts = self.texmap(m, key, f"{what} {key}")
+                if ref:
+                    bm = _mtl_numbers(opts.get("bm", ""), 1)
+                    if bm:
+                        ref["scale"] = bm[0]
+                    res["normalTexture"] = ref
+                break
+        ke = _mtl_numbers(m.get("ke", ""), 3)
+        ref, _ = self.texmap(m, "map_ke", f"{what} map_Ke")
+        if ref:
+            res["emissiveTexture"] = ref
+            ke = ke or [1.0, 1.0, 1.0]
+        if ke and any(ke):
+            res["emissiveFactor"] = [float(np.clip(c, 0, 1)) for c in ke]
+        if alpha < 1.0:
+            res["alphaMode"] = "BLEND"
+        return res
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: OBJ has no signature: an .obj file is read as OBJ unless its first bytes show another format
+EXTENSIONS = {".obj": ("obj",)}
+
+FORMAT = Format(name="obj", title="OBJ", extensions=EXTENSIONS, load=load, sniff=None, materials=materials,
+                sidecars=(".mtl",))
+
+__all__ = ["load", "materials", "EXTENSIONS", "FORMAT"]

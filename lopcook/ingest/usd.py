@@ -1,80 +1,45 @@
-"""USD loader: ``.usd`` / ``.usda`` / ``.usdc`` / ``.usdz`` -> ``Scene`` (not yet validated).
+"""USD (``.usd``, ``.usda``, ``.usdc``, ``.usdz``) -> ``Scene``; the USD ``FORMAT`` of the registry
+(needs usd-core, ``pxr``, imported only where a stage is read).
 
-What is drawn
--------------
-Every ``UsdGeom.Mesh`` a renderer would draw becomes one ``MeshPart`` per placement:
+``load(path, fmt="usda"|"usdc"|"usdz", settings) -> Scene`` (not yet validated):
 
-* the stage is composed with ``Usd.Stage.Open(path, Usd.Stage.LoadAll)`` (references, payloads,
-  variants, instanceable prims); composition errors and unreadable files raise ``LopcookError``
-  with USD's own diagnostic text;
-* traversal follows instance proxies and skips prims that are inactive, unloaded, undefined or
-  abstract, prims whose ``visibility`` is ``invisible`` (and everything beneath), and meshes whose
-  computed ``purpose`` is ``guide`` or ``proxy`` (``default`` and ``render`` are kept);
-* prims beneath a ``UsdGeom.PointInstancer`` are drawn only through the instancer: every visible
-  instance (``protoIndices``, ``positions``, ``orientations``, ``scales``, ``invisibleIds``,
-  ``inactiveIds``) places every drawable mesh of its prototype, so one prototype mesh gives one
-  part per instance. Such parts are named ``<instancer>[k]/<prototype>/<mesh path>``; their
-  ``source`` is ``<mesh prim path> [instance k]``. Nested instancers are followed.
+* the stage is composed (``Usd.Stage.LoadAll``: references, payloads, variants, instanceable
+  prims) in a child process (``lopcook.isolate``): a crash of the native library is one error.
+  Composition errors carry USD's own diagnostic.
+* every ``UsdGeom.Mesh`` a renderer draws is one ``MeshPart`` per placement: instance proxies
+  followed; inactive, unloaded, undefined, abstract and invisible prims and ``guide``/``proxy``
+  purposes skipped; prims under a ``PointInstancer`` drawn only through it, one part per visible
+  instance and prototype mesh (named ``<instancer>[k]/...``, ``source`` ``<prim> [instance k]``),
+  nested instancers followed. ``mesh_key`` is the prim path of the mesh data: placements of one
+  mesh share it, and it is read, triangulated and split once.
+* geometry: ``faceVertexCounts``/``faceVertexIndices`` polygons (``holeIndices`` dropped, faces
+  of < 3 corners skipped and counted) triangulated by ``polygons.triangulate``; ``leftHanded``
+  and mirroring placements flip the winding. Primvars: normals, one UV set (``UV_NAMES``, else
+  the first ``texCoord2*``; ``v`` -> ``1 - v``), ``displayColor``/``displayOpacity`` as RGBA, in
+  every interpolation, indexed or not. A vertex is one distinct (point, normal, uv, colour) over
+  the kept corners. A subdivision scheme other than ``none`` is a warning (the control mesh is
+  cooked).
+* transforms and units: ``UsdGeom.XformCache`` (row vectors, ``p_world = p @ M``); ``upAxis Z``
+  becomes +Y by ``(x, y, z) -> (x, z, -y)``; ``metersPerUnit`` scales to metres (USD's fallback
+  0.01 when unauthored, a warning). Normals by the inverse transpose.
+* time: ``settings.usd_time`` ``"default"`` (an attribute with samples but no default value is
+  read at its earliest sample) or a time code.
+* the ``UsdUVTexture`` feeding the bound ``UsdPreviewSurface``'s ``diffuseColor`` is the part's
+  ``texture`` (read through the resolver, so ``.usdz`` works; unresolved: a warning).
+* ``Scene.dependencies``: the source, the stage's used layers (first-use order), then each
+  texture file; a file inside a ``.usdz`` counts as the ``.usdz``.
 
-``mesh_key`` is the prim path of the source mesh data (the prototype prim for instance proxies,
-the prototype mesh for instancer placements): every placement of the same mesh shares it, and the
-loader reads, triangulates and splits each keyed mesh only once.
-
-Geometry
---------
-``faceVertexCounts`` / ``faceVertexIndices`` polygons (faces listed in ``holeIndices`` dropped,
-faces with fewer than 3 corners skipped and counted in ``Scene.warnings``) are triangulated by
-``polygons.triangulate`` (concave quads and n-gons included). ``orientation = leftHanded`` flips
-the winding; so does a placement transform with a negative determinant (both together cancel).
-
-Primvars: normals (``primvars:normals``, else the ``normals`` attribute), one UV set (``st``, then
-``st0``, ``UVMap``, ``map1``, ``uv``, else the first ``texCoord2*`` primvar; ``v`` becomes
-``1 - v``) and ``displayColor`` / ``displayOpacity`` as RGBA. Interpolations ``constant``,
-``uniform`` (per face), ``vertex`` / ``varying`` (per point) and ``faceVarying`` (per corner) are
-supported, indexed or not (a *blocked* ``:indices`` attribute means "not indexed").
-
-A part's vertex is one distinct (point, normal, uv, color) combination over the corners of its
-kept faces, so vertices are split at UV seams and uniform/faceVarying normal discontinuities, and
-points no face uses are dropped. Hence part vertex counts differ from the USD ``points`` count.
-
-Transforms and units
---------------------
-The world matrix comes from ``UsdGeom.XformCache`` (row-vector convention, ``p_world = p @ M``),
-then ``upAxis = Z`` is turned into +Y up by ``(x, y, z) -> (x, z, -y)`` (a -90 degree rotation about
-X, handedness kept) and ``metersPerUnit`` scales to metres (USD's fallback 0.01 applies when it is
-not authored; that case is reported in ``Scene.warnings``). Normals are transformed by the
-inverse-transpose of the linear part.
-
-Time
-----
-``IngestSettings.usd_time`` selects the time code every attribute is read at:
-
-* ``"default"``: ``Usd.TimeCode.Default()``. An attribute that has no default value but has time
-  samples (e.g. animated ``points``, or an animated xformOp anywhere above the mesh) is read at
-  ``Usd.TimeCode.EarliestTime()``, i.e. its first sample;
-* a number (e.g. ``"24"``): that time code, with USD's usual value resolution (time samples
-  interpolated, falling back to the default value).
-
-Textures
---------
-For a mesh's bound material (``UsdShade.MaterialBindingAPI.ComputeBoundMaterial``) whose surface is
-a ``UsdPreviewSurface``, the ``UsdUVTexture`` feeding ``diffuseColor`` gives the part's texture
-(its ``inputs:file`` asset, read through the asset resolver, so files inside a ``.usdz`` work).
-An asset that does not resolve is reported in ``Scene.warnings`` and the part has no texture.
-
-Dependencies
-------------
-``Scene.dependencies``: the source, then every non-anonymous layer of
-``Usd.Stage.GetUsedLayers()`` (sublayers, references, payloads, in a deterministic first-use
-order: root layer stack, then prim traversal order, then the rest sorted), then each texture
-file as the meshes use it (its resolved path, or when it does not resolve the path anchored to
-the layer that authored it). A layer or texture inside a ``.usdz`` package counts as the
-``.usdz`` file. A reference authored as an absolute path is listed absolute.
+Refused, each as one ``LopcookError("ingest", path, ...)``: unreadable files and composition
+errors, inconsistent topology, out-of-range indices, NaN/Inf points, primvars whose length does
+not match their interpolation, more than ``build.MAX_PARTS`` placements or
+``settings.max_triangles`` triangles (counted before expanding). Details: docs/ingest.md, "USD".
+``materials(path, parts, out)`` reads the bound preview surfaces for ``lopcook decode``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import sys
@@ -82,15 +47,19 @@ import tempfile
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image
 
+from .. import isolate, memory
 from ..depfile import DependencyList
 from ..errors import LopcookError
+from ..mesh import unique_rows
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
 from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
                     regular_file_problem, unique_names)
+from .format import Format
+from .materials import BASE_FROM_VERTEX_COLOURS, MaterialSet, image_readable
 from .polygons import triangulate
-from ..mesh import unique_rows
 
 #: UV primvar names, in order of preference, before falling back to any texCoord2* primvar
 UV_NAMES = ("st", "st0", "UVMap", "map1", "uv")
@@ -198,7 +167,7 @@ def _one_line(text: str, path: str) -> str:
 
 class _Loader:
     def __init__(self, path: str, fmt: str, settings: IngestSettings) -> None:
-        from pxr import Usd
+        from pxr import Usd  # usd-core: heavy and optional, imported where a stage is read
 
         self.path = path
         self.fmt = fmt
@@ -228,7 +197,7 @@ class _Loader:
 
     def time_of(self, attr):
         """Time code to read ``attr`` at (see the module doc: default, else earliest sample)."""
-        from pxr import Usd
+        from pxr import Usd  # usd-core: heavy and optional, imported where a stage is read
 
         if self.time is not None:
             return self.time
@@ -244,7 +213,7 @@ class _Loader:
 
     # ------------------------------------------------------------------ open
     def open(self):
-        from pxr import Tf, Usd, UsdGeom
+        from pxr import Tf, Usd, UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         error = None
         with _captured_stderr() as lines:
@@ -301,7 +270,7 @@ class _Loader:
         first meets an opinion from them, then any left (layers that hold no prim opinion, e.g.
         only metadata) sorted by path. Layers inside a .usdz package count as the .usdz file.
         """
-        from pxr import Usd
+        from pxr import Usd  # usd-core: heavy and optional, imported where a stage is read
 
         stage = self.stage
         root = stage.GetRootLayer()
@@ -343,7 +312,7 @@ class _Loader:
     def add_asset_dependency(self, attr, authored: str, resolved: str) -> None:
         """A texture file: its resolved file, or (missing) the path anchored to the layer that
         authored it, so that a build reruns when it appears. UDIM patterns are not files."""
-        from pxr import Ar
+        from pxr import Ar  # usd-core: heavy and optional, imported where a stage is read
 
         if os.path.isabs(authored):
             self.absolute_refs.add(os.path.normpath(authored))
@@ -380,7 +349,7 @@ class _Loader:
     def xform_cache(self, prim):
         """The XformCache for ``prim``: at the settings' time, or at the earliest sample when an
         xformOp of ``prim`` or an ancestor has time samples and no default (usd_time 'default')."""
-        from pxr import Usd, UsdGeom
+        from pxr import Usd, UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         if self.time is not None:
             t = self.time
@@ -396,7 +365,7 @@ class _Loader:
     def _needs_earliest(self, prim) -> bool:
         """Whether an xformOp of ``prim`` or of an ancestor has time samples and no default
         (walked iteratively up the ancestors, so any depth of hierarchy works)."""
-        from pxr import Usd, UsdGeom
+        from pxr import Usd, UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         chain = []  # prim, parent, ... up to the first one already known (or the root)
         p = prim
@@ -429,7 +398,7 @@ class _Loader:
 
     # ------------------------------------------------------------------ traversal
     def run(self) -> None:
-        from pxr import Usd
+        from pxr import Usd  # usd-core: heavy and optional, imported where a stage is read
 
         pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
         for child in self.stage.GetPseudoRoot().GetFilteredChildren(pred):
@@ -438,7 +407,7 @@ class _Loader:
     def walk(self, prim, pred, purpose: str, ctx: _Context) -> None:
         """Draw ``prim`` and its subtree in depth-first pre-order (an explicit stack: any depth of
         hierarchy works; only nested PointInstancers recurse, once per nesting level)."""
-        from pxr import UsdGeom
+        from pxr import UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         stack = [(prim, purpose)]
         while stack:
@@ -488,7 +457,7 @@ class _Loader:
     def _meshes_below(self, proto) -> int:
         """How many drawable meshes one placement of ``proto`` places at least (meshes under it;
         a nested PointInstancer counts as one): the multiplier for counting before expanding."""
-        from pxr import Usd, UsdGeom
+        from pxr import Usd, UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         key = str(proto.GetPath())
         if key not in self.proto_meshes:
@@ -504,7 +473,7 @@ class _Loader:
         return self.proto_meshes[key]
 
     def instancer(self, prim, purpose: str, ctx: _Context) -> None:
-        from pxr import Tf, Usd, UsdGeom
+        from pxr import Tf, Usd, UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         pi = UsdGeom.PointInstancer(prim)
         where = str(prim.GetPath())
@@ -570,10 +539,64 @@ class _Loader:
 
     # ------------------------------------------------------------------ mesh data
     def read_mesh(self, prim, key: str) -> _LocalMesh | None:
-        from pxr import UsdGeom
+        """The mesh ``prim`` in its own space, triangulated and split into vertices (one per
+        distinct point and per-corner attributes); None (and a warning) without faces."""
+        from pxr import UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
         mesh = UsdGeom.Mesh(prim)
         where = str(prim.GetPath())
+        topology = self.topology(mesh, where)
+        if topology is None:
+            return None
+        points, counts, fvi = topology
+        n_faces = counts.size
+        keep_face = counts >= 3
+        small = int(n_faces - keep_face.sum())
+        if small:
+            self.warnings.append(f"{where}: {small} faces with fewer than 3 corners skipped")
+        holes = self.get(mesh.GetHoleIndicesAttr())
+        if holes is not None and len(holes):
+            holes = np.asarray(holes, dtype=np.int64).ravel()
+            valid = (holes >= 0) & (holes < n_faces)
+            if not valid.all():
+                self.warnings.append(f"{where}: {int((~valid).sum())} holeIndices out of range ignored")
+            keep_face[holes[valid]] = False
+        face_of_corner = np.repeat(np.arange(n_faces, dtype=np.int64), counts)
+        kept = np.flatnonzero(keep_face[face_of_corner])  # corner ids of kept faces
+        if kept.size == 0:
+            self.warnings.append(f"{where}: mesh has no faces with 3 or more corners, skipped")
+            return None
+        k_point = fvi[kept]
+        tri_local, _ = triangulate(counts[keep_face], points[k_point])  # (T, 3) into ``kept``
+        geom = dict(where=where, n_faces=n_faces, n_points=points.shape[0], n_corners=fvi.size,
+                    face=face_of_corner[kept], point=k_point, kept=kept)
+        (normals, nvary), (uvs, uvvary), (colors, cvary) = self.primvars(prim, mesh, geom)
+        # split: one vertex per distinct (point, per-corner attributes) over the kept corners
+        cols = [k_point[:, None]]
+        for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary)):
+            if values is not None and vary:
+                cols.append(_bits64(values))
+        first, inverse = unique_rows(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
+        tris = inverse[tri_local]
+        if str(self.get(mesh.GetOrientationAttr()) or "rightHanded") == "leftHanded":
+            tris = tris[:, [0, 2, 1]]
+        return _LocalMesh(
+            key=key,
+            points=points[k_point[first]],
+            tris=np.ascontiguousarray(tris),
+            normals=None if normals is None else normals[first],
+            uvs=None if uvs is None else uvs[first],
+            colors=None if colors is None else colors[first],
+            texture=self.texture(prim),
+            double_sided=self.get(mesh.GetDoubleSidedAttr()) is True,
+        )
+
+    def topology(self, mesh, where: str):
+        """``(points (n, 3) float64, faceVertexCounts (F,) int64, faceVertexIndices (C,) int64)``
+        checked (finite points, counts >= 0 summing to C, indices in range), or None (and a
+        warning) for a mesh without points or faces. A subdivision scheme is a warning."""
+        from pxr import UsdGeom  # usd-core: heavy and optional, imported where a stage is read
+
         pts = self.get(mesh.GetPointsAttr())
         counts = self.get(mesh.GetFaceVertexCountsAttr())
         fvi = self.get(mesh.GetFaceVertexIndicesAttr())
@@ -583,7 +606,7 @@ class _Loader:
         points = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
         counts = np.asarray(counts, dtype=np.int64).ravel()
         fvi = np.asarray(fvi, dtype=np.int64).ravel()
-        n_points, n_faces = points.shape[0], counts.size
+        n_points = points.shape[0]
         scheme_attr = mesh.GetSubdivisionSchemeAttr()
         if scheme_attr and scheme_attr.HasAuthoredValue():
             scheme = str(scheme_attr.Get())
@@ -607,30 +630,16 @@ class _Loader:
             self.fail(f"{where}: faceVertexIndices has index {bad} out of range for {n_points} points "
                       f"(max index {int(fvi.max())})",
                       hint="the topology does not match the points; re-export the mesh")
+        return points, counts, fvi
 
-        keep_face = counts >= 3
-        small = int(n_faces - keep_face.sum())
-        if small:
-            self.warnings.append(f"{where}: {small} faces with fewer than 3 corners skipped")
-        holes = self.get(mesh.GetHoleIndicesAttr())
-        if holes is not None and len(holes):
-            holes = np.asarray(holes, dtype=np.int64).ravel()
-            valid = (holes >= 0) & (holes < n_faces)
-            if not valid.all():
-                self.warnings.append(f"{where}: {int((~valid).sum())} holeIndices out of range ignored")
-            keep_face[holes[valid]] = False
-        face_of_corner = np.repeat(np.arange(n_faces, dtype=np.int64), counts)
-        kept = np.flatnonzero(keep_face[face_of_corner])  # corner ids of kept faces
-        if kept.size == 0:
-            self.warnings.append(f"{where}: mesh has no faces with 3 or more corners, skipped")
-            return None
-        k_point = fvi[kept]
-        tri_local, _ = triangulate(counts[keep_face], points[k_point])  # (T, 3) into ``kept``
+    def primvars(self, prim, mesh, geom: dict):
+        """``((normals, vary), (uvs, vary), (colors, vary))``: per kept corner values (or None)
+        and whether they vary per corner (then they split vertices). UVs as ``(u, 1 - v)``; colours
+        RGBA in [0, 1] from ``displayColor`` and ``displayOpacity``."""
+        from pxr import UsdGeom  # usd-core: heavy and optional, imported where a stage is read
 
-        # ---- primvars -> per kept corner values; those that vary per corner go into the key
         api = UsdGeom.PrimvarsAPI(prim)
-        geom = dict(where=where, n_faces=n_faces, n_points=n_points, n_corners=n_corners,
-                    face=face_of_corner[kept], point=k_point, kept=kept)
+        where = geom["where"]
         normals = uvs = colors = None
         nvary = uvvary = cvary = False
         pv = api.GetPrimvar("normals")
@@ -664,26 +673,7 @@ class _Loader:
                     if a is not None:
                         alpha, cvary = a, cvary or avary
                 colors = np.clip(np.concatenate([rgb, alpha], axis=1), 0.0, 1.0).astype(np.float32)
-
-        # ---- split: one vertex per distinct (point, per-corner attributes) over the kept corners
-        cols = [k_point[:, None]]
-        for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary)):
-            if values is not None and vary:
-                cols.append(_bits64(values))
-        first, inverse = unique_rows(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
-        tris = inverse[tri_local]
-        if str(self.get(mesh.GetOrientationAttr()) or "rightHanded") == "leftHanded":
-            tris = tris[:, [0, 2, 1]]
-        return _LocalMesh(
-            key=key,
-            points=points[k_point[first]],
-            tris=np.ascontiguousarray(tris),
-            normals=None if normals is None else normals[first],
-            uvs=None if uvs is None else uvs[first],
-            colors=None if colors is None else colors[first],
-            texture=self.texture(prim),
-            double_sided=self.get(mesh.GetDoubleSidedAttr()) is True,
-        )
+        return (normals, nvary), (uvs, uvvary), (colors, cvary)
 
     def uv_primvar(self, api):
         """The UV-set primvar (see UV_NAMES), or None."""
@@ -750,7 +740,7 @@ class _Loader:
 
     # ------------------------------------------------------------------ textures
     def texture(self, prim) -> Texture | None:
-        from pxr import Ar, UsdShade
+        from pxr import Ar, UsdShade  # usd-core: heavy and optional, imported where a stage is read
 
         try:
             material = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
@@ -814,7 +804,7 @@ class _Loader:
 
 def _package_outer(path: str) -> str:
     """``/a/b.usdz[c/d.usdc]`` -> ``/a/b.usdz`` (the outermost package file); other paths as given."""
-    from pxr import Ar
+    from pxr import Ar  # usd-core: heavy and optional, imported where a stage is read
 
     if Ar.IsPackageRelativePath(path):
         return Ar.SplitPackageRelativePathOuter(path)[0]
@@ -873,8 +863,6 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
     LopcookError for an unreadable file, composition errors, inconsistent topology, out-of-range
     indices, NaN/Inf points and primvars whose length does not match their interpolation.
     """
-    from .. import isolate
-
     if not isolate._available():
         return _load_here(path, fmt, settings)
     try:  # USD's native parsers in a child: a crash (e.g. a stack overflow) becomes one clear error
@@ -883,9 +871,7 @@ def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
         return isolate.call(_load_in_child, path, fmt, settings, faces=isolate.MIN_FACES)
     except isolate.ChildFailed as exc:
         why = str(exc).rsplit("(", 1)[-1].rstrip(")")
-        from ..memory import address_space_limit
-
-        cap = address_space_limit()
+        cap = memory.address_space_limit()
         if cap is not None:  # under a memory cap the USD library crashes when an allocation fails
             raise LopcookError("ingest", path, f"USD crashed while reading the file ({why}) under a "
                                f"{cap / 1e9:.2g} GB address-space limit: the file may need more memory than "
@@ -913,7 +899,7 @@ def _load_in_child(path: str, fmt: str, settings: IngestSettings) -> Scene:
 def _load_here(path: str, fmt: str, settings: IngestSettings) -> Scene:
     """``load`` in this process."""
     try:
-        from pxr import Tf, Usd  # noqa: F401
+        from pxr import Tf, Usd  # noqa: F401 - usd-core: heavy and optional, imported where a stage is read
     except ImportError as exc:  # pragma: no cover - usd-core is a dependency
         raise LopcookError("ingest", path, f"USD support needs usd-core: {exc}",
                            hint="pip install usd-core") from None
@@ -929,4 +915,229 @@ def _load_here(path: str, fmt: str, settings: IngestSettings) -> Scene:
     return loader.build()
 
 
-__all__ = ["load", "UV_NAMES"]
+# ---------------------------------------------------------------------------------------------
+# Materials for decoded previews (docs/format.md 9.2)
+# ---------------------------------------------------------------------------------------------
+
+#: UsdPreviewSurface's diffuseColor default (linear)
+USD_DEFAULT_DIFFUSE = 0.18
+#: UsdUVTexture wrap token -> glTF sampler wrap mode
+_WRAP_GLTF = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
+
+
+def materials(path: str, parts: list[dict], out: MaterialSet) -> list[dict | None]:
+    """The ``UsdPreviewSurface`` bound to each manifest part's prim (its ``source`` without the
+    ``[instance k]`` suffix) as glTF 2.0 core; None where the prim is not on the stage.
+
+    ``diffuseColor`` (value or ``UsdUVTexture``), ``metallic`` and ``roughness`` (values; textures
+    packed into one metallic-roughness image, G = roughness, B = metallic, from the channel each
+    connection reads), ``opacity`` (< 1: BLEND) and ``opacityThreshold`` (> 0: MASK with that
+    cutoff), ``normal``, ``emissiveColor`` and ``occlusion`` textures; the mesh's ``doubleSided``.
+    A prim without a bound preview surface gets UsdPreviewSurface's defaults (metallic 0,
+    roughness 0.5) and asks for its vertex colours, else ``USD_DEFAULT_DIFFUSE`` grey, as base
+    colour (``materials.BASE_FROM_VERTEX_COLOURS``). A broken shading network costs only that
+    part's material (a warning). Raises ``ValueError`` when the stage does not open.
+    """
+    reader = _UsdMaterials(path, out)
+    per_part = []
+    cache: dict = {}
+    for p in parts:
+        prim_path = re.sub(r" \[instance \d+\]$", "", str(p.get("source", "")))
+        if prim_path not in cache:
+            prim = reader.stage.GetPrimAtPath(prim_path) if prim_path.startswith("/") else None
+            try:
+                cache[prim_path] = reader.material(prim) if prim else None
+            except Exception as exc:  # noqa: BLE001 - a broken shading network only loses the material
+                why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                out.warn(f"{prim_path}: material unreadable ({why}); default material")
+                cache[prim_path] = None
+        per_part.append(cache[prim_path])
+    return per_part
+
+
+class _UsdMaterials:
+    """One opened stage, its preview surfaces read as glTF materials into ``out``."""
+
+    def __init__(self, path: str, out: MaterialSet) -> None:
+        from pxr import Usd  # usd-core: heavy and optional, imported where a stage is read
+
+        self.stage = Usd.Stage.Open(path)
+        if self.stage is None:
+            raise ValueError("the stage does not open")
+        self.out = out
+
+    def read_asset(self, asset) -> tuple[bytes, str] | None:
+        """``(bytes, file name)`` of a texture asset through the resolver (``.usdz`` too), or None."""
+        from pxr import Ar  # usd-core: heavy and optional, imported where a stage is read
+
+        resolved = asset.resolvedPath
+        if not resolved:
+            self.out.warn(f"texture @{asset.path}@ not found; left out of the preview")
+            return None
+        handle = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+        data = bytes(handle.GetBuffer()) if handle else b""
+        if not data:
+            self.out.warn(f"texture @{asset.path}@ unreadable; left out of the preview")
+            return None
+        return data, os.path.basename(asset.path)
+
+    @staticmethod
+    def source_of(shader, name: str):
+        """(value, None) or (None, (UsdUVTexture shader, output channel name)) for an input."""
+        from pxr import UsdShade  # usd-core: heavy and optional, imported where a stage is read
+
+        inp = shader.GetInput(name)
+        if not inp:
+            return None, None
+        for attr in inp.GetValueProducingAttributes():
+            prim = attr.GetPrim()
+            if prim.IsA(UsdShade.Shader) and attr.GetName().startswith("outputs:"):
+                src = UsdShade.Shader(prim)
+                if src.GetShaderId() == "UsdUVTexture":
+                    return None, (src, attr.GetName().split(":", 1)[1])
+                continue
+            return attr.Get(), None
+        return None, None
+
+    def texture(self, src) -> int | None:
+        """The preview texture of a ``UsdUVTexture`` (its file and wrap modes), or None."""
+        shader, _ = src
+        f = shader.GetInput("file")
+        asset = f.Get() if f else None
+        if asset is None or not asset.path:
+            return None
+        smp = {}
+        for key in ("wrapS", "wrapT"):
+            w = shader.GetInput(key)
+            v = w.Get() if w else None
+            if v in _WRAP_GLTF:
+                smp[key] = _WRAP_GLTF[v]
+        return self.out.texture(self.out.image(("usd", asset.resolvedPath or asset.path),
+                                               lambda: self.read_asset(asset)), smp or None)
+
+    def packed_mr(self, metal_src, rough_src) -> int | None:
+        """One metallic-roughness PNG (G roughness, B metallic) from USD's separate textures."""
+        chans = {}
+        for label, src in (("metallic", metal_src), ("roughness", rough_src)):
+            if src is None:
+                continue
+            f = src[0].GetInput("file")
+            asset = f.Get() if f else None
+            got = self.read_asset(asset) if asset is not None and asset.path else None
+            if got is None or not image_readable(got[0]):
+                continue
+            with Image.open(io.BytesIO(got[0])) as im:
+                band = "rgba".find(src[1]) if src[1] in ("r", "g", "b", "a") else 0
+                im = im.convert("RGBA")
+                chans[label] = (np.asarray(im)[:, :, band], got[1])
+        if not chans:
+            return None
+        h = max(c[0].shape[0] for c in chans.values())
+        w = max(c[0].shape[1] for c in chans.values())
+        img = np.full((h, w, 3), 255, np.uint8)
+        for label, slot in (("roughness", 1), ("metallic", 2)):
+            if label in chans:
+                band = Image.fromarray(chans[label][0]).resize((w, h), Image.BILINEAR) \
+                    if chans[label][0].shape != (h, w) else Image.fromarray(chans[label][0])
+                img[:, :, slot] = np.asarray(band)
+        buf = io.BytesIO()
+        Image.fromarray(img, "RGB").save(buf, format="PNG", optimize=False)
+        key = ("usd-mr",) + tuple(sorted(c[1] for c in chans.values()))
+        return self.out.texture(self.out.image(key, lambda: (buf.getvalue(), "metallicRoughness.png")), None)
+
+    def material(self, prim) -> dict:
+        """The glTF material of ``prim``'s bound preview surface (see ``materials``)."""
+        from pxr import UsdGeom, UsdShade  # usd-core: heavy and optional, imported where a stage is read
+
+        mat = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+        shader = mat.ComputeSurfaceSource()[0] if mat else None
+        double = bool(UsdGeom.Mesh(prim).GetDoubleSidedAttr().Get()) if prim.IsA(UsdGeom.Mesh) else False
+        if not shader or shader.GetShaderId() != "UsdPreviewSurface":
+            res = {BASE_FROM_VERTEX_COLOURS: USD_DEFAULT_DIFFUSE,
+                   "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.5}}
+            if double:
+                res["doubleSided"] = True
+            return res
+        pbr: dict = {}
+        res: dict = {"name": mat.GetPrim().GetName(), "pbrMetallicRoughness": pbr}
+        alpha, osrc = self.base_colour(shader, pbr)
+        self.metallic_roughness(shader, pbr)
+        for usd_name, key in (("normal", "normalTexture"), ("occlusion", "occlusionTexture"),
+                              ("emissiveColor", "emissiveTexture")):
+            v, s = self.source_of(shader, usd_name)
+            if s is not None:
+                t = self.texture(s)
+                if t is not None:
+                    res[key] = {"index": t}
+                    if key == "emissiveTexture":
+                        res["emissiveFactor"] = [1.0, 1.0, 1.0]
+            elif usd_name == "emissiveColor" and v is not None and any(float(c) > 0 for c in v):
+                res["emissiveFactor"] = [float(np.clip(c, 0, 1)) for c in v]
+        threshold, _ = self.source_of(shader, "opacityThreshold")
+        if threshold is not None and float(threshold) > 0 and (alpha < 1.0 or osrc is not None):
+            res["alphaMode"], res["alphaCutoff"] = "MASK", float(threshold)
+        elif alpha < 1.0:
+            res["alphaMode"] = "BLEND"
+        if double:
+            res["doubleSided"] = True
+        return res
+
+    def base_colour(self, shader, pbr: dict) -> tuple[float, object]:
+        """Set ``pbr``'s base colour factor and texture from ``diffuseColor`` and ``opacity``;
+        return (alpha, the opacity's texture source or None)."""
+        value, src = self.source_of(shader, "diffuseColor")
+        rgb = [1.0, 1.0, 1.0] if src is not None else \
+            [float(x) for x in (value if value is not None else (0.18, 0.18, 0.18))]
+        opacity, osrc = self.source_of(shader, "opacity")
+        alpha = 1.0 if opacity is None else float(np.clip(opacity, 0.0, 1.0))
+        pbr["baseColorFactor"] = [float(np.clip(c, 0, 1)) for c in rgb] + [alpha]
+        if src is not None:
+            t = self.texture(src)
+            if t is not None:
+                pbr["baseColorTexture"] = {"index": t}
+        return alpha, osrc
+
+    def metallic_roughness(self, shader, pbr: dict) -> None:
+        """Set ``pbr``'s metallic and roughness factors and packed texture."""
+        mv, msrc = self.source_of(shader, "metallic")
+        rv, rsrc = self.source_of(shader, "roughness")
+        pbr["metallicFactor"] = 1.0 if msrc is not None else float(np.clip(0.0 if mv is None else mv, 0, 1))
+        pbr["roughnessFactor"] = 1.0 if rsrc is not None else float(np.clip(0.5 if rv is None else rv, 0, 1))
+        if msrc is not None or rsrc is not None:
+            t = self.packed_mr(msrc, rsrc)
+            if t is not None:
+                pbr["metallicRoughnessTexture"] = {"index": t}
+            else:  # textures unreadable: back to the defaults
+                pbr["metallicFactor"] = 0.0 if msrc is not None else pbr["metallicFactor"]
+                pbr["roughnessFactor"] = 0.5 if rsrc is not None else pbr["roughnessFactor"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The format
+# ---------------------------------------------------------------------------------------------
+
+#: extension -> the kinds a file so named may hold (USD itself decides text or crate from content)
+EXTENSIONS = {
+    ".usd": ("usda", "usdc", "usdz"),
+    ".usda": ("usda", "usdc"),
+    ".usdc": ("usdc", "usda"),
+    ".usdz": ("usdz",),
+}
+
+
+def sniff(head: bytes) -> str | None:
+    """``"usdc"`` (crate magic ``PXR-USDC``), ``"usdz"`` (a zip: ``PK\\x03\\x04``) or ``"usda"``
+    (``#usda`` after whitespace)."""
+    if head.startswith(b"PXR-USDC"):
+        return "usdc"
+    if head.startswith(b"PK\x03\x04"):
+        return "usdz"
+    if head.lstrip().startswith(b"#usda"):
+        return "usda"
+    return None
+
+
+FORMAT = Format(name="usd", title="USD", extensions=EXTENSIONS, load=load, sniff=sniff, materials=materials,
+                requires="pxr", install="pip install usd-core")
+
+__all__ = ["load", "materials", "sniff", "UV_NAMES", "EXTENSIONS", "FORMAT", "USD_DEFAULT_DIFFUSE"]
