@@ -264,10 +264,10 @@ function bitsDict(ab) {
  * inspect shows, with their JSON types (integers are integer literals, never booleans or floats),
  * the grid finite and within float32, sections back to back with the position sections last and
  * in level order, every LOD's tables, counts and section sizes consistent, placements and
- * clustered buffers as section 6.8 and 6.9 say, and tangents (key `attribute_bits.tangents`) only
- * where `allowTangents`.
+ * clustered buffers as section 6.8 and 6.9 say, and tangents (`attribute_bits.tangents`, b_t in
+ * [4, 16]) counted in record_bits. Which container version may hold what is the caller's check.
  */
-export function validateManifest(m, path = null, {allowTangents = true} = {}) {
+export function validateManifest(m, path = null) {
   const fail = (msg) => { throw new LopError('container', path, `manifest: ${msg}`, 'the file is corrupt; cook it again'); };
   function need(obj, key, kind, where) {
     if (!isDict(obj) || !has(obj, key)) fail(`${where}: missing ${repr(key)}`);
@@ -295,7 +295,7 @@ export function validateManifest(m, path = null, {allowTangents = true} = {}) {
   if (!parts.length) fail('no parts');
   const acc = {wordsNext: 0, headersNext: 0, nClustered: 0, planeBits: new Map()};
   for (let p = 2; p <= pos.max_level; p++) acc.planeBits.set(p, 0);
-  for (let i = 0; i < parts.length; i++) checkPart(m, parts, i, extent, names, length, pos, acc, ctx, allowTangents);
+  for (let i = 0; i < parts.length; i++) checkPart(m, parts, i, extent, names, length, pos, acc, ctx);
   if (pos.clustered && !acc.nClustered) fail('positions.clusters is present but no buffer is clustered');
   if (pos.clustered && length.get(pos.clusters) < 4 * acc.headersNext) fail('positions.clusters is shorter than the cluster headers it holds');
   if (length.get(pos.mandatory) < 4 * acc.wordsNext) fail('positions.mandatory is shorter than the buffers it holds');
@@ -382,7 +382,7 @@ function checkPositions(m, names, order, {fail, need}) {
   return {max_level: maxLevel, mandatory: pos.mandatory, planes, clustered, clusters: clustered ? pos.clusters : null};
 }
 
-function checkBits(lod, where, allowTangents, {fail, need}) {
+function checkBits(lod, where, {fail, need}) {
   const ab = need(lod, 'attribute_bits', 'dict', where);
   const keys = Object.keys(ab).sort().join(',');
   const tangents = has(ab, 'tangents');
@@ -393,14 +393,13 @@ function checkBits(lod, where, allowTangents, {fail, need}) {
     if (v !== null && !(isIntAt(ab, key) && v >= lo && v <= hi)) fail(`${where}.attribute_bits.${key} must be null or an integer in [${lo}, ${hi}]`);
   }
   if (tangents) {
-    if (!allowTangents) fail(`${where}.attribute_bits.tangents needs container version 4.x`);
     const [lo, hi] = ATTRIBUTE_BITS.tangents;
     if (!(isIntAt(ab, 'tangents') && ab.tangents >= lo && ab.tangents <= hi)) fail(`${where}.attribute_bits.tangents must be an integer in [${lo}, ${hi}]`);
   }
   return {normals: ab.normals, uvs: ab.uvs, colors: ab.colors, tangents: tangents ? ab.tangents : null};
 }
 
-function checkPart(m, parts, i, extent, names, length, pos, acc, ctx, allowTangents) {
+function checkPart(m, parts, i, extent, names, length, pos, acc, ctx) {
   const {fail, need} = ctx;
   const part = parts[i];
   need(part, 'name', 'str', `parts[${i}]`);
@@ -426,17 +425,17 @@ function checkPart(m, parts, i, extent, names, length, pos, acc, ctx, allowTange
       const strip = (e) => Object.fromEntries(Object.entries(e).filter(([key]) => !SHARED_OWN_FIELDS.includes(key)));
       if (!pyEqual(strip(lod), strip(ref[k]))) fail(`${where} does not name the buffer of parts[${sharedOf}].lods[${k}] it places`);
       if (need(lod, 'geometric_error_m', 'float', where) < 0) fail(`${where}.geometric_error_m is negative`);
-      iBits = iBits === null ? checkBits(lod, where, allowTangents, ctx) : iBits;
+      iBits = iBits === null ? checkBits(lod, where, ctx) : iBits;
       return;
     }
-    const abits = checkLod(lod, where, names, length, pos, acc, ctx, allowTangents);
+    const abits = checkLod(lod, where, names, length, pos, acc, ctx);
     if (iBits === null) iBits = abits;
   });
   const pb = need(part, 'attribute_bits', 'dict', `parts[${i}]`);
   if (!pyEqual(pb, bitsDict(iBits))) fail(`parts[${i}].attribute_bits is not the attribute_bits its LODs share`);
 }
 
-function checkLod(lod, where, names, length, pos, acc, ctx, allowTangents) {
+function checkLod(lod, where, names, length, pos, acc, ctx) {
   const {fail, need} = ctx;
   const n = need(lod, 'vertices', 'int', where);
   const tri = need(lod, 'triangles', 'int', where);
@@ -449,7 +448,7 @@ function checkLod(lod, where, names, length, pos, acc, ctx, allowTangents) {
   const width = need(lod, 'index_width', 'int', where);
   if (width !== 2 && width !== 4) fail(`${where}.index_width must be 2 or 4`);
   if (!names.has(need(lod, 'indices', 'str', where))) fail(`${where}.indices names no section`);
-  const abits = checkBits(lod, where, allowTangents, ctx);
+  const abits = checkBits(lod, where, ctx);
   const S = recordBits(abits);
   const rec = lod.attributes;
   if (rec !== undefined && rec !== null && (typeof rec !== 'string' || !names.has(rec))) fail(`${where}.attributes names no section`);
@@ -806,7 +805,7 @@ class Reader {
       if (exc instanceof RangeError || /nested too deeply/.test(exc.message)) this.fail('manifest JSON is nested too deeply');
       this.fail(`manifest is not valid JSON (${String(exc.message).split(/\s+/).join(' ').slice(0, 160)})`);
     }
-    validateManifest(manifest, this.path, {allowTangents: h.major >= TANGENT_MAJOR});
+    validateManifest(manifest, this.path);
     const v = `${h.major}.${h.minor}`;
     if (h.major === 2 && isClustered(manifest)) this.fail(`container version ${v} must not hold clustered position buffers (they need 3.x)`);
     if (h.major === 2 && hasPlacements(manifest) && h.minor < 1) this.fail(`container version ${v} must not hold placements (they need 3.x)`);
