@@ -14,11 +14,15 @@
 //                         where a unit vector is needed, e.g. in the fragment shader)
 //   lop_decode_uv         record["uvs"][j]      lo + float32(q) * step
 //   lop_decode_color      record["colors"][j]   float32(q) * float32(1 / (2^b_c - 1)), linear RGBA
+//   lop_decode_tangent    the tangent of container 4.0: the normal's octahedral decode of the b_t-bit
+//                         codes (unnormalised xyz), w = -1.0 for sign bit 1, else +1.0
+//   lop_attr_oct          the octahedral decode both use
 //
-// Record of vertex j (binned order, the positions' order): S = 2 b_n + 2 b_u + 4 b_c bits from bit
-// j * S of the section `part{i}/lod{k}/attributes`, fields in this order, each present attribute
-// only (an absent attribute has b = 0 and takes no bits): normal u, v (b_n each), uv u, v (b_u
-// each), colour r, g, b, a (b_c each).
+// Record of vertex j (binned order, the positions' order): S = 2 b_n + 2 b_u + 4 b_c (+ 2 b_t + 1
+// with tangents) bits from bit j * S of the section `part{i}/lod{k}/attributes`, fields in this
+// order, each present attribute only (an absent attribute has b = 0 and takes no bits): normal u, v
+// (b_n each), uv u, v (b_u each), colour r, g, b, a (b_c each), tangent u, v (b_t each), tangent
+// sign (1 bit).
 //
 // Bindings (override any of them with #define before this file; it can be included beside
 // decode_bitplanes.glsl, whose bindings it does not use):
@@ -29,13 +33,15 @@
 //           offset  0  uvec4 lop_attr_bits    x: b_n (4..16, 0: no normals), y: b_u (6..16, 0: no
 //                                             UVs), z: b_c (4..8, 0: no colours), w: S (record bits)
 //           offset 16  vec4  lop_attr_scale   x: float32(1 / (2^(b_n-1) - 1)), y: float32(1 / (2^b_c - 1)),
-//                                             z, w: unused (0)
+//                                             z: float32(1 / (2^(b_t-1) - 1)) (0 without tangents),
+//                                             w: unused (0)
 //           offset 32  vec4  lop_attr_uv      xy: lo (manifest uv_range[0]), zw: step (manifest uv_step)
-//           offset 48  uvec4 lop_attr_params  x: words in the section (>= 1), y, z, w: unused (0)
+//           offset 48  uvec4 lop_attr_params  x: words in the section (>= 1), y: b_t (4..16, 0: no
+//                                             tangents), z, w: unused (0)
 //         Every float is a float32 value computed once on the CPU (lopcook.verify.gpu.attribute_block);
 //         never compute them in the shader (GLSL division is not correctly rounded).
 //
-// Limits: a buffer holds at most 2^32 / 96 (44 739 242) vertices (j * S is a uint32 bit offset).
+// Limits: a buffer holds at most 2^32 / 129 (33 294 320) vertices (j * S is a uint32 bit offset).
 // Float decode: integer -> float conversions see values below 2^16 (exact); the remaining float32
 // operations (a + b, a - b, a * b, max, abs, multiplication by +-1) are correctly rounded or exact
 // in GLSL 4.x; `precise` forbids fusing the UV's product and sum into an fma. See shaders/README.md.
@@ -85,17 +91,16 @@ float lop_attr_sgn(float x)
     return (x >= 0.0) ? 1.0 : -1.0;
 }
 
-// Octahedral normal of vertex j, unnormalised float32 (b = b_n, h = 2^(b-1), code = s + h):
-// p = max(float(code - h) * R, -1) with R = float32(1 / (h - 1)) from the UBO (code 0 reads as -1);
-// z = (1 - |p.x|) - |p.y|; if z < 0 the lower half is unfolded: x = (1 - |p.y|) * sgn(p.x),
-// y = (1 - |p.x|) * sgn(p.y). Every step is one correctly rounded (or exact) float32 operation.
-vec3 lop_decode_normal(uint j)
+// Octahedral vector of b bits per component (4 <= b <= 16) at bit offset o, unnormalised float32
+// (h = 2^(b-1), code = s + h): p = max(float(code - h) * r, -1) with r = float32(1 / (h - 1)) from
+// the UBO (code 0 reads as -1); z = (1 - |p.x|) - |p.y|; if z < 0 the lower half is unfolded:
+// x = (1 - |p.y|) * sgn(p.x), y = (1 - |p.x|) * sgn(p.y). Every step is one correctly rounded (or
+// exact) float32 operation.
+vec3 lop_attr_oct(uint o, uint b, float r)
 {
-    uint b = lop_attr_bits.x;
-    uint o = lop_attr_record(j);
     int h = int(1u << (b - 1u));
     ivec2 s = ivec2(int(lop_attr_read_field(o, b)), int(lop_attr_read_field(o + b, b))) - h;
-    precise vec2 p = max(vec2(s) * lop_attr_scale.x, vec2(-1.0));
+    precise vec2 p = max(vec2(s) * r, vec2(-1.0));
     precise vec2 a = abs(p);
     precise float ax = 1.0 - a.x;
     precise float ay = 1.0 - a.y;
@@ -107,6 +112,12 @@ vec3 lop_decode_normal(uint j)
         xy = vec2(fx, fy);
     }
     return vec3(xy, z);
+}
+
+// Octahedral normal of vertex j, unnormalised float32 (b = b_n, r = lop_attr_scale.x).
+vec3 lop_decode_normal(uint j)
+{
+    return lop_attr_oct(lop_attr_record(j), lop_attr_bits.x, lop_attr_scale.x);
 }
 
 // Texture coordinates of vertex j: lo + float32(q) * step per component (b = b_u), one rounded
@@ -129,4 +140,16 @@ vec4 lop_decode_color(uint j)
                     lop_attr_read_field(o + 3u * b, b));
     precise vec4 c = vec4(q) * lop_attr_scale.y;
     return c;
+}
+
+// Tangent of vertex j (container 4.0): xyz the octahedral decode of its b_t-bit codes (b_t =
+// lop_attr_params.y, r = lop_attr_scale.z), unnormalised like the normal; w = -1.0 when the sign bit
+// after them is 1, else +1.0 (glTF bitangent handedness). The fields follow the colours.
+vec4 lop_decode_tangent(uint j)
+{
+    uint b = lop_attr_params.y;
+    uint o = lop_attr_record(j) + 2u * lop_attr_bits.x + 2u * lop_attr_bits.y + 4u * lop_attr_bits.z;
+    vec3 t = lop_attr_oct(o, b, lop_attr_scale.z);
+    float w = (lop_attr_read_field(o + 2u * b, 1u) != 0u) ? -1.0 : 1.0;
+    return vec4(t, w);
 }

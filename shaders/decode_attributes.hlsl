@@ -14,9 +14,12 @@
 //   lop_decode_normal     record["normals"][j]  unnormalised float32 octahedral decode
 //   lop_decode_uv         record["uvs"][j]      lo + float32(q) * step
 //   lop_decode_color      record["colors"][j]   float32(q) * float32(1 / (2^b_c - 1)), linear RGBA
+//   lop_decode_tangent    the tangent of container 4.0 (octahedral xyz of b_t bits, w = +-1)
+//   lop_attr_oct          the octahedral decode both use
 //
-// Record of vertex j (binned order): S = 2 b_n + 2 b_u + 4 b_c bits from bit j * S of the section,
-// fields normal u, v (b_n each), uv u, v (b_u each), colour r, g, b, a (b_c each), present ones only.
+// Record of vertex j (binned order): S = 2 b_n + 2 b_u + 4 b_c (+ 2 b_t + 1) bits from bit j * S of
+// the section, fields normal u, v (b_n each), uv u, v (b_u each), colour r, g, b, a (b_c each),
+// tangent u, v (b_t each), tangent sign (1 bit), present ones only.
 //
 // Bindings (override the registers with #define before this file; they do not collide with
 // decode_bitplanes.hlsl's t0, b0, b1):
@@ -26,12 +29,13 @@
 //   cbuffer LopAttributeDecode : register(LOP_ATTR_REGISTER = b2), 64 bytes, one per buffer:
 //           offset  0  uint4  lop_attr_bits    x: b_n (0: no normals), y: b_u (0: no UVs), z: b_c
 //                                              (0: no colours), w: S (record bits)
-//           offset 16  float4 lop_attr_scale   x: float32(1 / (2^(b_n-1) - 1)), y: float32(1 / (2^b_c - 1))
+//           offset 16  float4 lop_attr_scale   x: float32(1 / (2^(b_n-1) - 1)), y: float32(1 / (2^b_c - 1)),
+//                                              z: float32(1 / (2^(b_t-1) - 1)) (0 without tangents)
 //           offset 32  float4 lop_attr_uv      xy: lo (manifest uv_range[0]), zw: step (manifest uv_step)
-//           offset 48  uint4  lop_attr_params  x: words in the section (>= 1)
+//           offset 48  uint4  lop_attr_params  x: words in the section (>= 1), y: b_t (0: no tangents)
 //   (the byte layout equals the GLSL std140 block; lopcook.verify.gpu.attribute_block builds it)
 //
-// Limits: a buffer holds at most 2^32 / 96 (44 739 242) vertices (j * S is a uint32 bit offset).
+// Limits: a buffer holds at most 2^32 / 129 (33 294 320) vertices (j * S is a uint32 bit offset).
 // Float decode: conversions see values below 2^16 (exact); the other float32 operations round to
 // nearest even (D3D10+) or are exact; `precise` forbids fusing the UV's product and sum into an
 // mad/fma. See shaders/README.md.
@@ -79,15 +83,14 @@ float lop_attr_sgn(float x)
     return (x >= 0.0f) ? 1.0f : -1.0f;
 }
 
-// Octahedral normal of vertex j, unnormalised float32: p = max(float(code - h) * R, -1),
-// z = (1 - |p.x|) - |p.y|, lower half unfolded when z < 0 (see decode_attributes.glsl).
-float3 lop_decode_normal(uint j)
+// Octahedral vector of b bits per component at bit offset o, unnormalised float32:
+// p = max(float(code - h) * r, -1), z = (1 - |p.x|) - |p.y|, lower half unfolded when z < 0 (see
+// decode_attributes.glsl).
+float3 lop_attr_oct(uint o, uint b, float r)
 {
-    uint b = lop_attr_bits.x;
-    uint o = lop_attr_record(j);
     int h = int(1u << (b - 1u));
     int2 s = int2(int(lop_attr_read_field(o, b)), int(lop_attr_read_field(o + b, b))) - h;
-    precise float2 p = max(float2(s) * lop_attr_scale.x, float2(-1.0f));
+    precise float2 p = max(float2(s) * r, float2(-1.0f));
     precise float2 a = abs(p);
     precise float ax = 1.0f - a.x;
     precise float ay = 1.0f - a.y;
@@ -99,6 +102,12 @@ float3 lop_decode_normal(uint j)
         xy = float2(fx, fy);
     }
     return float3(xy, z);
+}
+
+// Octahedral normal of vertex j, unnormalised float32 (b = b_n, r = lop_attr_scale.x).
+float3 lop_decode_normal(uint j)
+{
+    return lop_attr_oct(lop_attr_record(j), lop_attr_bits.x, lop_attr_scale.x);
 }
 
 // Texture coordinates of vertex j: lo + float32(q) * step per component (`precise`: no fma).
@@ -120,4 +129,16 @@ float4 lop_decode_color(uint j)
                     lop_attr_read_field(o + 3u * b, b));
     precise float4 c = float4(q) * lop_attr_scale.y;
     return c;
+}
+
+// Tangent of vertex j (container 4.0): xyz the octahedral decode of its b_t-bit codes (b_t =
+// lop_attr_params.y, r = lop_attr_scale.z), unnormalised like the normal; w = -1.0 when the sign bit
+// after them is 1, else +1.0 (glTF bitangent handedness). The fields follow the colours.
+float4 lop_decode_tangent(uint j)
+{
+    uint b = lop_attr_params.y;
+    uint o = lop_attr_record(j) + 2u * lop_attr_bits.x + 2u * lop_attr_bits.y + 4u * lop_attr_bits.z;
+    float3 t = lop_attr_oct(o, b, lop_attr_scale.z);
+    float w = (lop_attr_read_field(o + 2u * b, 1u) != 0u) ? -1.0f : 1.0f;
+    return float4(t, w);
 }

@@ -49,8 +49,8 @@ def test_every_shared_attribute_decoder_function_is_compared():
     assert T.TOKEN_TWINS[1] == ("decode_attributes.glsl", "decode_attributes.hlsl")
     g = T.functions((SHADERS / "decode_attributes.glsl").read_text())
     h = T.functions((SHADERS / "decode_attributes.hlsl").read_text(), hlsl=True)
-    assert set(g) == set(h) == {"lop_attr_read_field", "lop_attr_record", "lop_attr_sgn", "lop_decode_normal",
-                                "lop_decode_uv", "lop_decode_color"}
+    assert set(g) == set(h) == {"lop_attr_read_field", "lop_attr_record", "lop_attr_sgn", "lop_attr_oct",
+                                "lop_decode_normal", "lop_decode_uv", "lop_decode_color", "lop_decode_tangent"}
     assert g == h
 
 
