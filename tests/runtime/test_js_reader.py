@@ -98,21 +98,6 @@ def test_layouts_are_covered(cooked):
         assert any(e["attribute_bits"][key] for e in lods), key
 
 
-@pytest.fixture(scope="module")
-def tangent_files(cooked, tmp_path_factory):
-    """(name, path, original container, expected tangents): DamagedHelmet with tangents on its part,
-    the chess set with tangents on four parts and their placements (clustered, placed, mixed)."""
-    out = tmp_path_factory.mktemp("tangents")
-    files = []
-    for name, src, bits, parts in (("helmet-tangents", "DamagedHelmet", 10, None),
-                                   ("chess-tangents", "chess_set_flat", 7, [0, 1, 2, 3])):
-        data = cooked[src].read_bytes()
-        blob, expected = rs.with_tangents(data, bits=bits, parts=parts)
-        (out / f"{name}.lop").write_bytes(blob)
-        files.append((name, out / f"{name}.lop", from_bytes(data), expected))
-    return files
-
-
 def test_tangents_decode_as_written(node, tangent_files, tmp_path):
     got = run_js(node, [{"id": n, "file": str(p), "decode": True, "levels": [11, 24]} for n, p, _, _ in tangent_files],
                  tmp_path)
