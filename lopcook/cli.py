@@ -146,6 +146,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "beside the container; used only when its sha256 matches)")
     _add_common(p)
 
+    p = sub.add_parser("web", help="a glTF 2.0 file of the source's materials whose geometry streams from the "
+                                   "container (LOPCOOK_lop_geometry, for runtime/js/three-lop.js)")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.gltf",
+                   help=".gltf (+ .bin of its images) or .glb; it refers to the container by a relative URI")
+    p.add_argument("--source", metavar="SRC", default=None,
+                   help="source asset to take materials and textures from (default: the manifest's source file "
+                        "beside the container; used only when its sha256 matches)")
+    _add_common(p)
+
     p = sub.add_parser("refine", help="the view-dependent cut of a --hierarchy container for one camera, as glTF 2.0")
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container cooked with --hierarchy")
     p.add_argument("--camera", required=True, metavar="X,Y,Z", help="eye position, metres")
@@ -809,6 +819,21 @@ def cmd_decode(args) -> int:
     return EXIT_OK
 
 
+def cmd_web(args) -> int:
+    from .emit.web import write_web_gltf
+
+    _check_gltf_output(args)
+    out = write_web_gltf(args.container, args.output, args.source)
+    if not args.quiet:
+        for w in out["warnings"]:
+            print(f"lopcook: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(out, sort_keys=True))
+    elif not args.quiet:
+        print(f"{args.output}: {out['parts']} parts of {args.container}, {out['materials']} materials")
+    return EXIT_OK
+
+
 def _xyz(text: str, flag: str):
     import math
 
@@ -1090,7 +1115,8 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "refine": cmd_refine,
+COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "web": cmd_web,
+            "refine": cmd_refine,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report,
             "bench": cmd_bench, "batch": cmd_batch}
 
