@@ -92,13 +92,12 @@ def _fail(path, message: str) -> None:
 
 # ---- expressions: wrap every product that feeds a sum --------------------------------------------
 
-def wrap_products(expr: str) -> str:
-    """``expr`` (one GLSL expression) with every ``a * b`` whose value feeds ``+`` or ``-`` (through
-    parentheses and unary signs) written ``lop_rounded(a * b)``; the text otherwise unchanged.
-    ValueError for what this small parser does not read (assignments, the ternary operator)."""
+def _parse(expr: str) -> tuple[dict, list]:
+    """``(tree, tokens)`` of one GLSL expression: nodes ``{"kind", "op", "first", "last", "kids"}``
+    (token indices), kinds atom, paren, unary, postfix (member, index, call), binary. ValueError
+    for what this small parser does not read (assignments, the ternary operator)."""
     toks = [(m.group(), m.start(), m.end()) for m in _TOKEN.finditer(expr)]
     pos = 0
-    wraps: list[tuple[int, int]] = []
 
     def peek():
         return toks[pos][0] if pos < len(toks) else None
@@ -108,14 +107,12 @@ def wrap_products(expr: str) -> str:
         if pos >= len(toks) or (want is not None and toks[pos][0] != want):
             raise ValueError(f"cannot read {expr!r} at token {pos}")
         pos += 1
-        return toks[pos - 1]
 
     def node(kind, first, last, op=None, kids=()):
         return {"kind": kind, "op": op, "first": first, "last": last, "kids": list(kids)}
 
     def primary():
-        first = pos
-        t = peek()
+        first, t = pos, peek()
         if t == "(":
             take()
             inner = binary(0)
@@ -123,16 +120,16 @@ def wrap_products(expr: str) -> str:
             n = node("paren", first, pos - 1, kids=[inner])
         elif t in ("-", "+", "!", "~"):
             take()
-            n = node("unary", first, None, op=t, kids=[primary()])
-            n["last"] = pos - 1
-            return n
+            kid = primary()
+            return node("unary", first, pos - 1, op=t, kids=[kid])
         elif t is not None and (t[0].isalnum() or t[0] == "_"):
             take()
             n = node("atom", first, pos - 1)
         else:
             raise ValueError(f"cannot read {expr!r} at token {pos}")
         while peek() in (".", "[", "("):
-            t = take()[0]
+            t = peek()
+            take()
             kids = [n]
             if t == ".":
                 take()
@@ -151,22 +148,33 @@ def wrap_products(expr: str) -> str:
     def binary(min_prec):
         left = primary()
         while peek() in _PRECEDENCE and _PRECEDENCE[peek()] >= min_prec:
-            op = take()[0]
+            op = peek()
+            take()
             right = binary(_PRECEDENCE[op] + 1)
             left = node("binary", left["first"], right["last"], op=op, kids=[left, right])
         return left
+
+    tree = binary(0)
+    if pos != len(toks):
+        raise ValueError(f"cannot read {expr!r} at token {pos}")
+    return tree, toks
+
+
+def wrap_products(expr: str) -> str:
+    """``expr`` (one GLSL expression) with every ``a * b`` whose value feeds ``+`` or ``-`` (through
+    parentheses and unary signs) written ``lop_rounded(a * b)``; the text otherwise unchanged.
+    ValueError for what ``_parse`` does not read."""
+    tree, toks = _parse(expr)
+    wraps: list[tuple[int, int]] = []
 
     def visit(n, feeds_sum):
         through = n["kind"] == "paren" or (n["kind"] == "unary" and n["op"] in "+-")
         if n["kind"] == "binary" and n["op"] == "*" and feeds_sum:
             wraps.append((toks[n["first"]][1], toks[n["last"]][2]))
+        sums = n["kind"] == "binary" and n["op"] in "+-"
         for k in n["kids"]:
-            sums = n["kind"] == "binary" and n["op"] in "+-"
             visit(k, sums or (through and feeds_sum))
 
-    tree = binary(0)
-    if pos != len(toks):
-        raise ValueError(f"cannot read {expr!r} at token {pos}")
     visit(tree, False)
     out = expr
     for start, end in sorted(wraps, reverse=True):
