@@ -4,6 +4,8 @@
 // SHA-256 of each output (as little-endian uint32 words: float32 bits for floats) is posted back:
 //   positions per level: grid (3 n), level (n), position (3 n, world metres after lop_place)
 //   attributes once: normals (3 n), uvs (2 n), colors (4 n), tangents (4 n) where present
+//   crack-free decodes (lop_decode_crack_free) from each of the job's cameras, LOD 0 of each part
+//   on the scene grid: grid, level, position
 import * as lop from '/runtime/js/lop.js';
 import {DECODE_BITPLANES, DECODE_ATTRIBUTES} from '/runtime/js/lop-glsl.js';
 
@@ -17,6 +19,16 @@ void main() {
   uvec3 grid; vec3 p; uint level;
   lop_decode(uint(gl_VertexID), grid, p, level);
   if (u_placed != 0u) p = lop_place(p, u_place0, u_place1, u_place2);
+  o_grid = grid; o_level = level; o_pos = floatBitsToUint(p);
+  gl_Position = vec4(0.0); gl_PointSize = 1.0;
+}`;
+const VIEW_MAIN = `
+flat out uvec3 o_grid;
+flat out uint o_level;
+flat out uvec3 o_pos;
+void main() {
+  uvec3 grid; vec3 p; uint level;
+  lop_decode_crack_free(uint(gl_VertexID), grid, p, level);
   o_grid = grid; o_level = level; o_pos = floatBitsToUint(p);
   gl_Position = vec4(0.0); gl_PointSize = 1.0;
 }`;
@@ -118,6 +130,28 @@ function positions(gl, progs, c, part, lod, level) {
   });
 }
 
+/** The crack-free decode (lop_decode_crack_free) of buffer (part, lod) at level B from one camera. */
+function crackFree(gl, progs, c, part, lod, view) {
+  const inp = lop.decodeInputs(c, part, lod, view.level);
+  const n = c.lodEntry(c.owner(part), lod).vertices;
+  return run(gl, progs[inp.clustered ? 'viewClustered' : 'view'], n, 7, (loc) => {
+    const tex = [texture(gl, 0, inp.words, 1)];
+    gl.uniform1i(loc('lop_positions'), 0);
+    if (inp.clustered) {
+      tex.push(texture(gl, 1, inp.records, 4));
+      gl.uniform1i(loc('lop_clusters'), 1);
+      gl.uniform4uiv(loc('lop_cluster_id'), inp.clusterId);
+    } else gl.uniform4uiv(loc('lop_bit_id'), inp.bitId);
+    gl.uniform4uiv(loc('lop_vertex_id'), inp.vertexId);
+    gl.uniform4fv(loc('lop_origin_half'), inp.originHalf);
+    gl.uniform4uiv(loc('lop_params'), inp.params);
+    gl.uniform4fv(loc('lop_camera'), new Float32Array([...view.camera, 0]));
+    gl.uniform4fv(loc('lop_level_dist'), new Float32Array(view.level_dist));
+    gl.uniform4fv(loc('lop_block_radius'), new Float32Array(view.block_radius));
+    return tex;
+  });
+}
+
 function attributes(gl, progs, c, part, lod) {
   const inp = lop.attributeInputs(c, part, lod);
   const n = c.lodEntry(part, lod).vertices;
@@ -143,6 +177,8 @@ async function main() {
     plain: program(gl, head + DECODE_BITPLANES + POS_MAIN, ['o_grid', 'o_level', 'o_pos']),
     clustered: program(gl, head + '#define LOP_CLUSTERED\n' + DECODE_BITPLANES + POS_MAIN, ['o_grid', 'o_level', 'o_pos']),
     attributes: program(gl, '#version 300 es\n' + DECODE_ATTRIBUTES + ATTR_MAIN, ['o_normal', 'o_uv', 'o_color', 'o_tangent']),
+    view: program(gl, '#version 300 es\n' + DECODE_BITPLANES + VIEW_MAIN, ['o_grid', 'o_level', 'o_pos']),
+    viewClustered: program(gl, '#version 300 es\n#define LOP_CLUSTERED\n' + DECODE_BITPLANES + VIEW_MAIN, ['o_grid', 'o_level', 'o_pos']),
   };
   gl.bindVertexArray(gl.createVertexArray());
   const out = {renderer, containers: {}};
@@ -159,6 +195,13 @@ async function main() {
           const a = positions(gl, progs, c, i, k, level);
           vertices += n;
           rec.levels[level] = {grid: await sha(column(a, n, 7, 0, 3)), widths: await sha(column(a, n, 7, 3, 1)),
+            positions: await sha(column(a, n, 7, 4, 3))};
+        }
+        for (const [v, view] of (k === 0 && job.views && c.owner(i) === i && c.placementTransform(i) === null ? job.views : []).entries()) {
+          const a = crackFree(gl, progs, c, i, k, view);
+          vertices += n;
+          rec.views = rec.views || {};
+          rec.views[v] = {grid: await sha(column(a, n, 7, 0, 3)), widths: await sha(column(a, n, 7, 3, 1)),
             positions: await sha(column(a, n, 7, 4, 3))};
         }
         if (e.attributes != null) {
