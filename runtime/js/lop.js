@@ -50,6 +50,8 @@ export const MAX_JSON_DEPTH = 900;
 const SHARED_OWN_FIELDS = ['geometric_error_m', 'min_distance_m'];
 /** The first major that may hold tangents. */
 const TANGENT_MAJOR = 4;
+/** A stream's buffer is sized from the manifest up to this many bytes, grown as bytes arrive beyond. */
+const MAX_PREALLOCATION = 2 ** 28;
 const CORRUPT = 'the file is corrupt or not a lopcook container; cook it again';
 const INCOMPLETE = 'the copy is incomplete; cook it again';
 const f32 = Math.fround;
@@ -741,14 +743,24 @@ class Reader {
     if (need > this.bytes.length) {
       let cap = Math.max(need, 2 * this.bytes.length, 1 << 16);
       if (this.sectionsEnd !== undefined) cap = Math.max(need, Math.min(cap, this.sectionsEnd));
-      const grown = new Uint8Array(cap);
-      grown.set(this.bytes.subarray(0, this.received));
-      this.bytes = grown;
-      this.words.clear();
+      this.grow(cap);
     }
     this.bytes.set(chunk, this.received);
     this.received = need;
     this.advance();
+  }
+
+  grow(cap) {
+    let grown;
+    try {
+      grown = new Uint8Array(cap);
+    } catch (exc) {
+      if (exc instanceof RangeError) this.fail(`${cap} bytes do not fit in memory`, 'read a prefix, or a smaller file');
+      throw exc;
+    }
+    grown.set(this.bytes.subarray(0, this.received));
+    this.bytes = grown;
+    this.words.clear();
   }
 
   /** Adopt `bytes` as the whole input (no copy); `advance` then checks it. */
@@ -815,14 +827,9 @@ class Reader {
     this.sectionsEnd = this.table.length ? this.table[this.table.length - 1].end : base;
     this.manifest = manifest;
     MANIFEST_SIZE.set(manifest, h.manifestSize);
-    if (this.growable && this.bytes.length < Math.min(this.sectionsEnd, h.fileSize)) {
-      // size a stream's buffer once; adopted inputs keep their bytes
-      const cap = Math.min(this.sectionsEnd, h.fileSize);
-      if (cap <= 2 ** 31) {
-        const grown = new Uint8Array(cap);
-        grown.set(this.bytes.subarray(0, this.received));
-        this.bytes = grown;
-      }
+    const whole = Math.min(this.sectionsEnd, h.fileSize);
+    if (this.growable && this.bytes.length < whole && whole <= MAX_PREALLOCATION) {
+      this.grow(whole); // size a stream's buffer once (a larger one grows as bytes arrive)
     }
   }
 
@@ -858,15 +865,21 @@ class Reader {
 
   /** Every index of every LOD naming this section is below its vertex count (format.md 12, item 9). */
   checkIndices(name) {
-    this.manifest.parts.forEach((part, i) => part.lods.forEach((lod, k) => {
-      if (lod.indices !== name) return;
+    if (!this.indexUsers) { // section name -> [[part, lod, entry], ...], built once
+      this.indexUsers = new Map();
+      this.manifest.parts.forEach((part, i) => part.lods.forEach((lod, k) => {
+        if (!this.indexUsers.has(lod.indices)) this.indexUsers.set(lod.indices, []);
+        this.indexUsers.get(lod.indices).push([i, k, lod]);
+      }));
+    }
+    for (const [i, k, lod] of this.indexUsers.get(name) || []) {
       const data = this.section(name);
       const count = 3 * lod.triangles;
       let max = -1;
       if (lod.index_width === 2) for (let j = 0; j < count; j++) max = Math.max(max, data[2 * j] | (data[2 * j + 1] << 8));
       else for (let j = 0; j < count; j++) max = Math.max(max, u32le(data, 4 * j));
       if (max >= lod.vertices) this.fail(`part ${i} LOD ${k}: index ${max} is out of range for ${lod.vertices} vertices`);
-    }));
+    }
   }
 
   /** Cluster headers sound, cluster_p_words / cluster_plane_bits as the headers give, and the exact
@@ -1584,13 +1597,17 @@ export class LopRangeReader {
     }
     if (res.status !== 206) throw new LopError('container', String(this.url), `HTTP ${res.status} ${res.statusText} for bytes ${start}-${end - 1}`, 'check the URL');
     const got = new Uint8Array(await res.arrayBuffer());
-    if (got.length !== end - start) throw new LopError('container', String(this.url), `the server sent ${got.length} bytes for a range of ${end - start}`);
+    // a range past the end of the file is cut at the end (only the first request, made before the
+    // file size is known, may reach past it)
+    const cut = this._s._r.header === null && got.length < end - start;
+    if (got.length !== end - start && !cut) throw new LopError('container', String(this.url), `the server sent ${got.length} bytes for a range of ${end - start}`);
     this._s.push(got);
+    if (cut && this._s.bytes === this._s._r.header?.fileSize) this._s.end();
   }
 
   /** Fetch the header and the manifest. */
   async open() {
-    if (this.container) return this.container;
+    if (this.container || this.complete) return this.container;
     await this._get(0, this._first);
     const r = this._s._r;
     if (!r.manifest && r.header && !this.complete) await this._get(this._s.bytes, HEADER_SIZE + r.header.manifestSize);
@@ -1605,7 +1622,7 @@ export class LopRangeReader {
       if (start !== this._s.bytes) throw new LopError('usage', String(this.url), 'this layout needs sparse ranges, which this reader does not read');
       await this._get(start, end);
     }
-    if (this.complete) this._s.end();
+    if (this.complete && !this._s._done) this._s.end();
     return c;
   }
 }

@@ -231,3 +231,8 @@ def test_range_reader_fetches_nothing_twice(node, cooked, tmp_path):
     for level, have, got_level in r["steps"]:
         assert got_level == _prefix_level(data, have) >= level
     assert r["positions24"] == rs.sha(reader.decode_positions(from_bytes(data), 0, 0, 24)[2])
+    # a file shorter than the first request: one request, cut at the end of the file
+    small = cooked["colored"]
+    r = run_js(node, [{"id": "s", "file": str(small), "range_levels": [1, 24]}], tmp_path)["s"]["ranges"]
+    assert r["error"] is None and r["requests"] == [[0, small.stat().st_size]], r
+    assert r["steps"][-1][1:] == [small.stat().st_size, 24]
