@@ -37,7 +37,7 @@
 //         Every float is a float32 value computed once on the CPU (lopcook.verify.attribute_gpu.attribute_block);
 //         never compute them in the shader (GLSL division is not correctly rounded).
 //
-// Limits: a buffer holds at most 2^32 / 129 (33 294 161) vertices (j * S is a uint32 bit offset).
+// Limits: a buffer holds at most 2^32 / 129 (33 294 320) vertices (j * S is a uint32 bit offset).
 // Float decode: integer -> float conversions see values below 2^16 (exact); the remaining float32
 // operations (a + b, a - b, a * b, max, abs, multiplication by +-1) are correctly rounded or exact
 // in GLSL 4.x; `precise` forbids fusing the UV's product and sum into an fma. See shaders/README.md.

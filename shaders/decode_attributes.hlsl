@@ -34,7 +34,7 @@
 //           offset 48  uint4  lop_attr_params  x: words in the section (>= 1), y: b_t (0: no tangents)
 //   (the byte layout equals the GLSL std140 block; lopcook.verify.attribute_gpu.attribute_block builds it)
 //
-// Limits: a buffer holds at most 2^32 / 129 (33 294 161) vertices (j * S is a uint32 bit offset).
+// Limits: a buffer holds at most 2^32 / 129 (33 294 320) vertices (j * S is a uint32 bit offset).
 // Float decode: conversions see values below 2^16 (exact); the other float32 operations round to
 // nearest even (D3D10+) or are exact; `precise` forbids fusing the UV's product and sum into an
 // mad/fma. See shaders/README.md.

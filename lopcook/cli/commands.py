@@ -24,6 +24,7 @@ from ..cookjob import CookOutputs, cook_file
 from ..lop.container import read
 from ..emit.gltf_writer import write_gltf
 from ..emit.preview import preview, source_candidate
+from ..emit.web import write_web_gltf
 from ..lop.reader import decode_positions, lod_attributes, world_attributes
 from ..lop.codecs import CODECS
 from ..lop.summary import describe_container, format_container
@@ -187,6 +188,19 @@ def cmd_decode(args) -> int:
                           "warnings": pv["warnings"]}, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
+    return EXIT_OK
+
+
+def cmd_web(args) -> int:
+    _check_gltf_output(args)
+    out = write_web_gltf(args.container, args.output, args.source)
+    if not args.quiet:
+        for w in out["warnings"]:
+            print(f"lopcook: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(out, sort_keys=True))
+    elif not args.quiet:
+        print(f"{args.output}: {out['parts']} parts of {args.container}, {out['materials']} materials")
     return EXIT_OK
 
 
@@ -364,7 +378,8 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "refine": cmd_refine,
+COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "web": cmd_web,
+            "refine": cmd_refine,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report, "bench": cmd_bench}
 
 __all__ = ["COMMANDS", "cmd_analyse", "cmd_bench", "cmd_calibrate", "cmd_cook", "cmd_decode", "cmd_inspect", "cmd_refine",

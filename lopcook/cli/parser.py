@@ -101,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_cook_parser(sub)
     _add_calibrate_parser(sub)
     _add_decode_parser(sub)
+    _add_web_parser(sub)
     _add_refine_parser(sub)
     _add_analyse_parser(sub)
     _add_verify_parser(sub)
@@ -195,6 +196,19 @@ def _add_decode_parser(sub) -> None:
     p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
     p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
+    p.add_argument("--source", metavar="SRC", default=None,
+                   help="source asset to take materials and textures from (default: the manifest's source file "
+                        "beside the container; used only when its sha256 matches)")
+    _add_common(p)
+
+
+def _add_web_parser(sub) -> None:
+    """``lopcook web``: the glTF of the source's materials whose geometry streams from the container."""
+    p = sub.add_parser("web", help="a glTF 2.0 file of the source's materials whose geometry streams from the "
+                                   "container (LOPCOOK_lop_geometry, for runtime/js/three-lop.js)")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.gltf",
+                   help=".gltf (+ .bin of its images) or .glb; it refers to the container by a relative URI")
     p.add_argument("--source", metavar="SRC", default=None,
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")
