@@ -8,7 +8,7 @@ to a container's attribute records by hand, exactly as the format says (fields t
 tangent.v of b_t bits and tangent.sign of 1 bit after the colours; record_bits + 2 b_t + 1;
 ``attribute_bits.tangents`` in the part and each LOD; version 4.0), and returns the decoded
 tangents the reader must give: the octahedral decode of the written codes
-(``lopcook.emit.attributes.decode_normals``, the normals' decode with b_t) and w = -1 for sign 1.
+(``lopcook.lop.codecs.normals_oct.decode_normals``, the normals' decode with b_t) and w = -1 for sign 1.
 """
 
 from __future__ import annotations
@@ -26,7 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lopcook.emit import attributes as attr
+from lopcook.lop.codecs import AttributeBits
+from lopcook.lop.codecs.normals_oct import decode_normals, encode_normals
+from lopcook.lop.record import record_fields, unpack_record
 from lopcook.lop import reader
 from lopcook.lop.container import READABLE_MAJORS, from_bytes, to_bytes
 from lopcook.errors import LopcookError
@@ -133,7 +135,7 @@ def _tangent_codes(normals: np.ndarray | None, n: int, bits: int, rng) -> tuple[
         axis = np.where(np.abs(nv[:, 1:2]) > 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
         d = np.cross(nv, axis)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return attr.encode_normals(d, bits).astype(np.int64), rng.integers(0, 2, n)
+    return encode_normals(d, bits).astype(np.int64), rng.integers(0, 2, n)
 
 
 def with_tangents(data: bytes, bits: int = 10, parts=None, major: int = 4, seed: int = 3) -> tuple[bytes, dict]:
@@ -152,14 +154,14 @@ def with_tangents(data: bytes, bits: int = 10, parts=None, major: int = 4, seed:
     for i in sorted(chosen):
         for k, e in enumerate(m["parts"][i]["lods"]):
             n = e["vertices"]
-            old = attr.AttributeBits.of(e["attribute_bits"])
-            codes = attr.unpack_record(np.frombuffer(c.sections[e["attributes"]], "<u4"), n, old)
+            old = AttributeBits.of(e["attribute_bits"])
+            codes = unpack_record(np.frombuffer(c.sections[e["attributes"]], "<u4"), n, old)
             normals = reader.lod_attributes(c, i, k)["normals"]
             tcodes, sign = _tangent_codes(normals, n, bits, rng)
-            fields = [(codes[name][:, comp], w) for name, comp, _, w in attr.record_fields(old)]
+            fields = [(codes[name][:, comp], w) for name, comp, _, w in record_fields(old)]
             fields += [(tcodes[:, 0], bits), (tcodes[:, 1], bits), (sign, 1)]
             payloads[e["attributes"]] = _pack(fields, n).tobytes()
-            xyz = attr.decode_normals(tcodes, bits)
+            xyz = decode_normals(tcodes, bits)
             decoded[(i, k)] = np.concatenate([xyz, np.where(sign == 1, -1.0, 1.0).astype(np.float32)[:, None]], axis=1)
     for i, p in enumerate(m["parts"]):
         if owners[i] not in chosen:
