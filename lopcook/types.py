@@ -15,6 +15,7 @@ Conventions (all importers normalise to these):
 from __future__ import annotations
 
 import hashlib
+import io
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -59,9 +60,7 @@ class Texture:
 
     def image(self):
         """Decode to a PIL image (RGB/RGBA, 8 bits per channel)."""
-        import io
-
-        from PIL import Image
+        from PIL import Image  # optional at import time: only textured parts decode images
 
         return Image.open(io.BytesIO(self.data))
 

@@ -48,10 +48,10 @@ def _command(name: str):
     the top here, batch would import itself half-made. A batch worker, which needs only the
     parser, so loads no command either."""
     if name == "batch":
-        from ..batch.command import cmd_batch
+        from ..batch.command import cmd_batch  # lazy: batch imports cli.parser (docstring)
 
         return cmd_batch
-    from .commands import COMMANDS
+    from .commands import COMMANDS  # lazy: it loads every stage; --help and --version stay fast
 
     return COMMANDS[name]
 

@@ -3,10 +3,8 @@
 ``write_gltf(path, meshes)`` writes decoded meshes (world space, metres, +Y up, counter-clockwise
 triangles, glTF UVs, linear RGBA colours; see ``lopcook.types``) as one glTF 2.0 asset that the
 Khronos glTF-Validator accepts with 0 errors and 0 warnings (checked by
-``tests/test_gltf_writer.py`` with ``tools/gltf_validate.mjs``)::
-
-    from lopcook.emit.gltf_writer import write_gltf
-    write_gltf("preview.glb", [{"name": "body", "positions": p, "indices": t, "normals": n}])
+``tests/test_gltf_writer.py`` with ``tools/gltf_validate.mjs``):
+``write_gltf("preview.glb", [{"name": "body", "positions": p, "indices": t, "normals": n}])``.
 
 Layout (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html)
 --------------------------------------------------------------------------------------
@@ -34,14 +32,10 @@ Layout (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF
 Determinism: the bytes depend only on the arguments (no timestamps, no paths, sorted keys, fixed
 float formatting), so writing the same meshes twice gives identical files.
 
-Atomicity: every input is checked and the whole file content is built in memory before anything
-touches the disk; each file is then written to a temporary file in the destination directory
-and moved into place with ``os.replace``. An invalid mesh (wrong shape, NaN/Inf, index out of
-range, non-unit normal, ...) raises ``ValueError`` and leaves no file; an I/O error removes the
-temporary file. (For ``.gltf`` the ``.bin`` is moved into place first, then the ``.gltf``.)
-
-The low-level pieces (``BufferBuilder``, ``pack_glb``, ``gltf_json_text``, ``atomic_write_bytes``)
-are shared with ``tests/support/fixtures.py``, whose hand-made fixture files they write byte for byte.
+Atomicity: everything is checked and built in memory first, then written to a temporary file and
+moved into place (``.bin`` before ``.gltf``); an invalid mesh (wrong shape, NaN/Inf, index out of
+range, non-unit normal) raises ``ValueError`` and leaves no file. ``BufferBuilder``, ``pack_glb``,
+``gltf_json_text`` and ``atomic_write_bytes`` also write the hand-made test fixtures.
 """
 
 from __future__ import annotations
@@ -55,6 +49,8 @@ from pathlib import Path
 from urllib.parse import quote
 
 import numpy as np
+
+from ..atomic import write_atomic
 
 # glTF 2.0 constants
 FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
@@ -134,8 +130,6 @@ def pack_glb(json_bytes: bytes, blob: bytes) -> bytes:
 
 def atomic_write_bytes(path, data: bytes) -> Path:
     """Write ``data`` atomically (``lopcook.atomic.write_atomic``); returns ``Path(path)``."""
-    from ..atomic import write_atomic
-
     return write_atomic(path, data)
 
 

@@ -31,9 +31,10 @@ from pathlib import Path
 from urllib.parse import quote
 
 from ..errors import LopcookError
+from ..lop.container import read
+from ..lop.reader import decode_positions
 from . import preview
 from .gltf_writer import atomic_write_bytes, gltf_json_text, pack_glb
-from ..lop.reader import decode_positions
 
 EXTENSION = "LOPCOOK_lop_geometry"
 FLOAT = 5126
@@ -106,8 +107,6 @@ def write_web_gltf(container_path: str, out_path: str, source: str | None = None
     """Write ``out_path`` (``.gltf``, plus ``<stem>.bin`` when there are images, or ``.glb``)
     referencing ``container_path``; returns ``{"written": [paths], "parts", "materials",
     "warnings"}``. LopcookError for a bad container or output name; files are written atomically."""
-    from ..lop.container import read
-
     out = Path(out_path)
     if out.suffix.lower() not in (".gltf", ".glb"):
         raise LopcookError("usage", str(out), "the web glTF must end in .gltf or .glb")

@@ -2,8 +2,8 @@
 
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 section 5.3 (binned adaptive precision buffers, VertexId/BitId random access) and section 6.1
-(adding and removing bit planes). The anchor idea is issue 16's: spatially close vertices share
-the top bits of their grid coordinates; Nanite, AMD's Dense Geometry Format and meshoptimizer's
+(adding and removing bit planes). The anchors: spatially close vertices share the top bits of
+their grid coordinates; Nanite, AMD's Dense Geometry Format and meshoptimizer's
 shared cluster exponent store those bits once per cluster. Here every vertex keeps its own
 adaptive level (its bin) and the decode stays exactly the global grid's decode, so no crack opens
 between clusters, parts or LODs.

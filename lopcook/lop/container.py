@@ -45,8 +45,8 @@ from .manifest import Manifest
 from .validate import validate_manifest
 
 MAGIC = b"LOPC"
-VERSION = (2, 0)  # 2.0: one packed attribute record per buffer (issue 15)
-#: files with clustered position buffers or placement entries (issue 16): a 2.x reader that
+VERSION = (2, 0)  # 2.0: one packed attribute record per buffer
+#: files with clustered position buffers or placement entries: a 2.x reader that
 #: ignored ``cluster_size`` or ``placement`` would decode them wrongly, so they carry the next
 #: major; files with neither stay 2.0, byte for byte. 3.x = may hold clusters and/or placements.
 CLUSTERED_VERSION = (3, 0)

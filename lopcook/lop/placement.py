@@ -21,35 +21,15 @@ World position (the CPU reference, ``to_world``; the harness vertex shader does 
     component ``w_i = ((a_i0 p_0 + a_i1 p_1) + a_i2 p_2) + t_i``, every product and sum rounded
     to float32, no fused multiply-add.
 
-Minimum levels: each placement keeps its guarantee
-    The analysis runs on the world-space parts as without ``--instances`` (scene grid of extent
-    ``E_w``), giving placement ``p`` a level ``m_w`` per vertex with the guarantee
-    ``dx_w(m_w) = sqrt(3) E_w 2^-(m_w+1)`` (``lopcook.grid``). On the mesh grid at level ``l`` the
-    local displacement ``e`` has ``|e| <= sqrt(3) E_m 2^-(l+1)``; the world displacement is ``A e``
-    and ``|A e| <= sigma_p |e|`` with ``sigma_p`` the largest singular value of ``A_p``. So
-    ``|A e| <= dx_w(m_w)`` holds whenever ``sigma_p E_m 2^-l <= E_w 2^-m_w``, i.e.
-    ``l >= m_w + log2(sigma_p E_m / E_w)``; ``level_shift`` is the smallest integer
-    ``s_p >= log2(sigma_p E_m / E_w)`` (computed exactly by ``level_shift``) and the local level is
-    ``clamp(m_w + s_p, 1, 24)``. Clamping at 1 only adds precision; a vertex that would need more
-    than 24 bits cannot keep its guarantee, so such a placement is not grouped (it stays on the
-    scene grid). The shared buffer takes the maximum over its placements per vertex, so every
-    placement keeps its bound. The float32 evaluation of ``A p + t`` adds at most
-    ``float32_slack`` per component (stated below), as the scene grid's own float32 decode adds its
-    rounding (docs/format.md).
-
-View-time level
-    A runtime chooses a placement's per-buffer level ``B_w`` from its own distance exactly as for a
-    part on the scene grid, and converts it with the same shift: ``clamp(B_w + s_p, 1, 24)``
-    (``local_level``). The shared buffer is resident at the maximum over its placements
-    (``resident_level``); every placement decodes it at that level, at least the precision it needs.
-
-Cracks
-    A copy with a vertex in the same 24-bit scene-grid cell as a vertex of another part (a shared
-    boundary) is never grouped (``touching_parts``): it stays on the scene grid, where co-located
-    vertices get identical integers and the shared maximum level, as without ``--instances``.
-    Elsewhere copies meet other parts only where they are apart or intersect, and there the depth
-    constraint of the analysis (Meyer et al. 2011, section 5.2), which each placement keeps by the
-    bound above, keeps the depth order.
+Minimum levels (``level_shift``, ``local_level``, ``resident_level``)
+    A placement's world levels ``m_w`` (scene grid, extent ``E_w``) become mesh-grid levels
+    ``clamp(m_w + s_p, 1, 24)`` with ``s_p = ceil(log2(sigma_p E_m / E_w))``, ``sigma_p`` the
+    largest singular value of ``A_p``: then ``sigma_p dx_m(l) <= dx_w(m_w)``, so every placement
+    keeps its bound; a vertex needing more than 24 bits keeps the placement off the group. The
+    shared buffer takes the per-vertex maximum, and at view time the maximum over the placements
+    drawn. A copy sharing a scene-grid cell with another part is never grouped
+    (``touching_parts``), so shared vertices cannot crack. The proof and the crack argument:
+    docs/instances.md, "Why every placement keeps its levels".
 """
 
 from __future__ import annotations
