@@ -13,6 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+#: the fixtures of tests/runtime (the runtimes: node, the cooked corpus), a plugin so that no second conftest shadows this one
+pytest_plugins = ["tests.runtime.runtime_fixtures"]
+
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
 IN_CI = os.environ.get("CI", "").lower() == "true"

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import runtime_support as rs
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.lop import reader
 from lopcook.lop.container import from_bytes
 
@@ -149,7 +149,7 @@ def test_tangent_version_rules(node, tangent_files, tmp_path):
 
 
 def test_hostile_containers_get_the_python_verdict(node, tmp_path):
-    """Every container lie of lopcook.fuzzcases (checksums recomputed, so only the checks catch
+    """Every container lie of tests/support/fuzzcases.py (checksums recomputed, so only the checks catch
     them), and every byte of a small container flipped: lop.js refuses what lopcook's reader
     refuses and accepts what it accepts, at the same level."""
     w = fz._Writer(tmp_path / "hostile")

@@ -7,9 +7,9 @@ import shutil
 
 import pytest
 
-import runtime_support as rs
+from tests.runtime import runtime_support as rs
 from lopcook.lop.container import from_bytes
-from runtime_support import require
+from tests.runtime.runtime_support import require
 
 
 @pytest.fixture(scope="session")
