@@ -731,7 +731,7 @@ class Renderer:
         framebuffer bound. ``crop``: only the region read back, ``(rgba (r1 - r0, c1 - c0, 4), ids)``
         for ``last_box`` = (r0, r1, c0, c1) (outside it the whole image is background), with no
         whole-image arrays made (read-only views of the read-back, not C-contiguous)."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
@@ -806,7 +806,7 @@ class Renderer:
     def _read_back(self, region, crop: bool):
         """``draw``'s resolve and read-back of ``region`` (x, y, w, h in GL window coordinates):
         ``(rgba, ids)`` as ``draw`` returns them; sets ``last_box``."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         ctx = self.ctx
         # resolve: colour by a blit (average of samples), part IDs by sample 0
@@ -854,7 +854,7 @@ class Textures:
         """The texture of a ``lopcook.types.Texture`` (None for None), built once per content digest: RGBA8
         with mipmaps, trilinear filtering, repeat wrap. Raises LopcookError (exit 2) when the
         image does not decode."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         if texture is None:
             return None
