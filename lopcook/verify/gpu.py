@@ -82,7 +82,7 @@ def context():
     if _CONTEXT is not None:
         return _CONTEXT
     try:
-        import moderngl  # native GL binding: imported where a context is made, so reading works without it
+        import moderngl  # optional native GL binding, imported where a context is made
     except ImportError as exc:  # pragma: no cover - moderngl is a dependency
         raise LopcookError("verify", None, f"moderngl is not importable ({exc})",
                            hint="pip install moderngl") from None

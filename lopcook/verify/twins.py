@@ -25,9 +25,9 @@ Bad input (a missing file, a record that does not parse or lacks a pair, a one-s
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
-import argparse
 import re
 import sys
 from pathlib import Path
