@@ -32,6 +32,8 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 
+from .atomic import write_atomic
+
 __all__ = ["write_depfile", "format_depfile", "escape", "DependencyList"]
 
 
@@ -128,7 +130,5 @@ def write_depfile(path: str | os.PathLike, target: str | os.PathLike, dependenci
     flushed to disk, then renamed over ``path`` with ``os.replace``: readers see the old file or
     the complete new one, never a partial one. Same arguments, same bytes (UTF-8, ``\\n`` line ends).
     """
-    from .atomic import write_atomic
-
     data = format_depfile(os.fspath(target), dependencies, phony=phony).encode("utf-8", "surrogateescape")
     write_atomic(path, data)

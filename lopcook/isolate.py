@@ -3,27 +3,32 @@ and a crash in native code becomes an error the LOD chain falls back from.
 
 Why: a native simplifier's peak memory, and memory some libraries keep after they return (global
 containers keep their capacity until the process ends), would stack in the parent with everything
-that follows (docs/lod.md has the measured sizes). In a child it is returned to the system the moment the result is back. The child shares the parent's pages
-(copy on write), so the system's memory at any time is the parent's plus the child's private
-pages: the peak is not hidden, only no longer added to what comes after.
+that follows (docs/lod.md has the measured sizes). In a child it is returned to the system the
+moment the result is back. The child shares the parent's pages (copy on write), so the system's
+memory at any time is the parent's plus the child's private pages: the peak is not hidden, only
+no longer added to what comes after.
 
 ``start(fn, *args)`` forks the same way but returns at once: the child computes while the parent
 goes on, and ``Child.result()`` collects the value. ``fork_map(fn, items)`` uses it to spread
 independent pieces of work over two cores. Both give exactly the in-process results.
 
-``call(fn, *args)`` forks (Linux only; elsewhere, and for small inputs where the ~10 ms of a fork
-and the pickling are not worth it, the call runs in-process), runs ``fn(*args)`` in the child,
-sends the result (or the exception) back with pickle, and returns it (or raises it): it is
-``begin(...).result()``.
+``call(fn, *args)`` forks (Linux only; elsewhere, and for inputs under ``MIN_FACES`` faces, where
+a fork and the pickling cost more than they save, the call runs in-process), runs ``fn(*args)`` in
+the child, sends the result (or the exception) back with pickle, and returns it (or raises it): it
+is ``begin(...).result()``.
 A child that dies without answering (a segmentation fault in a backend) raises ``ChildFailed``.
 """
 
 from __future__ import annotations
 
+import faulthandler
+import multiprocessing as mp
 import os
 import pickle
+import signal
 import struct
 import sys
+import tempfile
 
 from .memory import release_free_memory
 
@@ -38,8 +43,6 @@ class ChildFailed(RuntimeError):
 def _quiet_child() -> None:
     """In the child: no faulthandler dump and no native chatter on stderr (a crash is reported by
     the parent as one ``ChildFailed`` message, which the LOD chain records as a note)."""
-    import faulthandler
-
     faulthandler.disable()
     try:
         null = os.open(os.devnull, os.O_WRONLY)
@@ -98,8 +101,6 @@ class Child:
         self._pid = self._fd = None
         self._done, self._value = False, None
         if fork:
-            import tempfile
-
             release_free_memory()
             # the result goes to an unlinked file, not a pipe: the child writes it and exits at
             # once, its memory freed, however long the parent takes to ask for it
@@ -139,8 +140,6 @@ class Child:
     def cancel(self) -> None:
         """Stop the child (if it still runs) and drop its result."""
         if self._pid is not None:
-            import signal
-
             try:
                 os.kill(self._pid, signal.SIGKILL)
             except OSError:
@@ -239,9 +238,7 @@ def call_fresh(fn, *args, **kwargs):
     libraries whose thread pools do not survive a fork once started (USD's TBB: a forked child
     waits forever for workers that were not copied). ``fn`` must be importable by name; results
     and exceptions must pickle. A child that dies without answering raises ``ChildFailed``, with
-    the signal or exit status. Costs an interpreter start and the imports (about a second)."""
-    import multiprocessing as mp
-
+    the signal or exit status. Costs an interpreter start and the imports."""
     ctx = mp.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_fresh_child, args=(send, fn, args, kwargs), daemon=True)

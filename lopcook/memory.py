@@ -7,6 +7,20 @@ import ctypes.util
 import os
 from contextlib import contextmanager
 
+try:
+    import resource  # POSIX only: address_space_limit is None elsewhere
+except ImportError:  # pragma: no cover - not POSIX
+    resource = None
+
+# numpy's switch for madvise(MADV_HUGEPAGE), a private function that moved in numpy 2 (None where absent)
+try:
+    from numpy._core.multiarray import _set_madvise_hugepage as _MADVISE_HUGEPAGE
+except ImportError:  # numpy 1.x
+    try:
+        from numpy.core.multiarray import _set_madvise_hugepage as _MADVISE_HUGEPAGE
+    except ImportError:
+        _MADVISE_HUGEPAGE = None
+
 _LIBC = None
 
 
@@ -18,18 +32,10 @@ def small_pages():
 
     numpy asks for transparent huge pages for every array of 4 MiB or more. The cook allocates and
     frees hundreds of megabytes of temporaries per stage and forks children beside them (a write
-    to a shared page after a fork copies the whole page), and with the advice the kernel's share
-    of a cook grew several times over (docs/performance.md, "numpy's huge pages off"). The bytes
+    to a shared page after a fork copies the whole page), so the advice costs more kernel time
+    than it saves (measurements: docs/performance.md, "numpy's huge pages off"). The bytes
     written do not depend on it."""
-    setter = None
-    if "NUMPY_MADVISE_HUGEPAGE" not in os.environ:
-        try:
-            from numpy._core.multiarray import _set_madvise_hugepage as setter
-        except ImportError:  # numpy 1.x
-            try:
-                from numpy.core.multiarray import _set_madvise_hugepage as setter
-            except ImportError:
-                setter = None
+    setter = None if "NUMPY_MADVISE_HUGEPAGE" in os.environ else _MADVISE_HUGEPAGE
     before = setter(False) if setter is not None else None
     try:
         yield
@@ -82,11 +88,11 @@ def available_bytes() -> int | None:
 def address_space_limit() -> int | None:
     """This process's address-space limit (``ulimit -v``, ``RLIMIT_AS``; what ``lopcook batch
     --worker-memory`` sets), bytes; None when there is none or it cannot be read."""
+    if resource is None:
+        return None
     try:
-        import resource
-
         soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-    except (ImportError, OSError, ValueError, AttributeError):
+    except (OSError, ValueError, AttributeError):
         return None
     return None if soft == resource.RLIM_INFINITY or soft < 0 else int(soft)
 

@@ -328,11 +328,10 @@ def graph_components(u: np.ndarray, v: np.ndarray, n: int) -> tuple[int, np.ndar
     """(count, (n,) label per node) of the connected components of the undirected graph on ``n``
     nodes with edges ``u[k]`` -- ``v[k]`` (scipy's ``connected_components``)."""
     # imported here: a cook without LODs never needs scipy.sparse (docs/performance.md, "Start-up")
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from scipy.sparse import coo_matrix, csgraph
 
     g = coo_matrix((np.ones(np.asarray(u).size, dtype=np.int8), (u, v)), shape=(n, n))
-    return connected_components(g, directed=False)
+    return csgraph.connected_components(g, directed=False)
 
 
 def next_corner(h: np.ndarray) -> np.ndarray:

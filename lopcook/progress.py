@@ -75,7 +75,7 @@ class BarProgress(Progress):
     """A tqdm bar per stage (counts, rate, ETA) on stderr."""
 
     def _start(self, st: _Stage) -> None:
-        from tqdm import tqdm
+        from tqdm import tqdm  # imported only when a bar is drawn (a terminal, or --progress bar)
 
         st.bar = tqdm(total=st.total, desc=f"lopcook: {st.name}", file=self.stream, leave=False,
                       dynamic_ncols=True, unit="")
@@ -92,7 +92,7 @@ class BarProgress(Progress):
         print(f"lopcook: {st.name}: {time.perf_counter() - st.t0:.1f} s", file=self.stream, flush=True)
 
     def note(self, text: str) -> None:
-        from tqdm import tqdm
+        from tqdm import tqdm  # imported only when a bar is drawn (a terminal, or --progress bar)
 
         tqdm.write(f"lopcook: {text}", file=self.stream)
 

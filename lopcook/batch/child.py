@@ -20,6 +20,7 @@ import contextlib
 import io
 import json
 import os
+import resource  # POSIX only, as the batch runner (os.wait4): the memory cap and peak memory
 import sys
 import time
 
@@ -81,8 +82,6 @@ def child_main(argv: list[str]) -> int:
         task = json.load(fh)
     cap = task.get("memory_cap")
     if cap:
-        import resource  # POSIX only, as the memory cap
-
         resource.setrlimit(resource.RLIMIT_AS, (int(cap), int(cap)))
     t0 = time.perf_counter()
     try:
@@ -103,8 +102,6 @@ def _own_peak_rss() -> int | None:
     """Peak resident memory of this process (``VmHWM``, which restarts at ``exec``, so it does not
     include the launching process) or of a child it forked (the cook forks its simplifier;
     ``RUSAGE_CHILDREN``, which for a fork includes this process's RSS at the fork), in bytes."""
-    import resource  # POSIX only
-
     peak = None
     try:
         with open("/proc/self/status", encoding="ascii") as fh:

@@ -20,6 +20,11 @@ import shutil
 import time
 from dataclasses import dataclass
 
+try:
+    import fcntl  # POSIX only: the OUTDIR lock is taken where the platform has it
+except ImportError:  # pragma: no cover - not POSIX: no lock
+    fcntl = None
+
 from ..errors import LopcookError
 from ..version import __version__
 from . import SCRATCH_DIR
@@ -73,12 +78,10 @@ def _lock(outdir: str):
     """An exclusive ``flock`` on ``OUTDIR/.lopcook-batch.lock`` (released when the returned file
     closes): two batches writing one OUTDIR at once would lose each other's state entries."""
     fh = open(os.path.join(outdir, ".lopcook-batch.lock"), "a+b")
+    if fcntl is None:  # not POSIX: no lock
+        return fh
     try:
-        import fcntl  # POSIX only: the lock is taken where the platform has it
-
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except ImportError:  # not POSIX: no lock
-        pass
     except OSError:
         fh.close()
         raise LopcookError("usage", outdir, "another lopcook batch is writing this OUTDIR",

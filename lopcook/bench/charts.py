@@ -27,7 +27,7 @@ def pyplot():
     import matplotlib  # optional (lopcook[bench])
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg"): pyplot takes its backend when first imported
 
     return plt
 

@@ -35,8 +35,8 @@ Throughput: ``encode_hierarchy`` (tree given) and ``decode_hierarchy`` + ``trian
 proposed and proposed_plus variants, in triangles per second (every decode is checked to give
 back exactly the part's triangles); for the bunny also one
 view-dependent cut (select + decode) for a near, middle and far camera. Times are the best of
-a few runs, as wall clock and as this process's CPU time (the machine is shared; CPU time is
-what the code costs when it has a core).
+a few runs, as wall clock and as this process's CPU time (what the code costs when it has a core
+to itself, whatever else the machine runs).
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ def meshopt_bits(tri, n):
 
 
 def draco_bits(pos, tri):
-    import DracoPy
+    import DracoPy  # optional (lopcook[bench]): imported where Draco runs
 
     mesh = DracoPy.encode(pos.astype(np.float32), tri.astype(np.uint32), quantization_bits=14,
                           compression_level=7)

@@ -58,7 +58,7 @@ def decode_buffers(path) -> list[tuple]:
     """The meshes of an OUT.npz written by this module, decoded (DracoPy): per buffer k,
     (positions (n, 3) float64, indices (m, 3) uint32, normals (n, 3) float32 or None, uvs (n, 2)
     float32 or None); an attribute the decoder returns with a count other than n is None."""
-    import DracoPy
+    import DracoPy  # optional (lopcook[bench]): imported where Draco runs
 
     parts = []
     with np.load(path) as z:

@@ -21,7 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..lop.reader import decode_positions, lod_attributes, lod_entry
 from ..types import MeshPart, Scene
+from .buffers import lod0_is_source, source_order
 
 #: bytes per vertex of VEC3 SHORT positions on the GPU (4-byte aligned attribute)
 UNIFORM16_BYTES_PER_VERTEX = 8
@@ -65,8 +67,6 @@ def level_colours(levels: np.ndarray, lo: int, hi: int) -> np.ndarray:
 def container_levels(c, part: int, lod: int = 0) -> np.ndarray:
     """(n,) uint8 minimum level of every vertex of ``part``'s LOD ``lod``, in the container's
     binned order (bin k spans ``[VertexId[k-1], VertexId[k])``)."""
-    from ..lop.reader import lod_entry
-
     vid = np.asarray(lod_entry(c, part, lod)["vertex_id"], dtype=np.int64)
     return np.repeat(np.arange(1, 25, dtype=np.uint8), np.diff(vid))
 
@@ -77,9 +77,6 @@ def level_scene(c, scene: Scene, lo: int | None = None, hi: int | None = None) -
     holds the source's vertices, the source ``scene``'s positions and normals are used (vertices
     matched by ``render.source_order``); otherwise (a ``cook --target-bytes`` container whose only
     LOD is simplified) the container's own LOD 0 decoded at its highest level. Returns (scene, lo, hi)."""
-    from ..lop.reader import decode_positions, lod_attributes
-    from .buffers import lod0_is_source, source_order
-
     geometry, per_part = [], []
     if lod0_is_source(c):
         for i, (part, order) in enumerate(zip(scene.parts, source_order(c, scene))):

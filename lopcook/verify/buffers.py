@@ -22,7 +22,8 @@ import numpy as np
 from ..lop.binning import LEVELS, table_bit_id
 from ..lop.bitplane import pack
 from ..lop.placement import float32_slack, split
-from ..lop.reader import GpuBuffer, lod_attributes, lod_entry, part_grid, top_values
+from ..lop.reader import (GpuBuffer, buffer_clusters, clustered_gpu_buffer, gpu_buffer, lod_attributes, lod_entry,
+                          owner, part_grid, top_values)
 from ..errors import LopcookError
 from ..settings import DEFAULTS
 
@@ -53,8 +54,6 @@ def cap_buffer(c, part: int, lod: int, level: int):
     ``lopcook.lop.reader.clustered_gpu_buffer`` (clustered P and cluster records, decoded by the
     ``LOP_CLUSTERED`` shader) for a clustered buffer, else ``gpu_buffer`` (binned P, VertexId/BitId).
     Both decode to the same grid integers at max(B, m_v) bits."""
-    from ..lop.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
-
     if buffer_clusters(c, part, lod) is not None:
         return clustered_gpu_buffer(c, part, lod, level)
     return gpu_buffer(c, part, lod, level)
@@ -177,8 +176,6 @@ def resident_levels(c, lods: list[int], level: int) -> dict:
     at scene level ``level``, with the level it is resident at (the maximum over the placements
     that draw it of ``Manifest.part_level``; a part on the scene grid at ``level``). Each placement
     decodes its shared buffer at this level."""
-    from ..lop.reader import owner
-
     m = c.entries
     out: dict = {}
     for i, k in enumerate(lods):

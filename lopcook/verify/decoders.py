@@ -13,7 +13,7 @@ the crack-free path (``lop_decode_crack_free``) is compared with its CPU mirror 
 compute kernels also walk every buffer through the chosen levels plane by plane, and P, VertexId and
 BitId must equal the CPU's packing of each level from scratch, byte for byte.
 
-A clustered buffer (issue 16, ``cook --clusters N``, ``lopcook.lop.clusters``) is uploaded as a
+A clustered buffer (``cook --clusters N``, ``lopcook.lop.clusters``) is uploaded as a
 renderer uploads it: its clustered P and cluster records (``reader.clustered_gpu_buffer``), decoded
 by the ``LOP_CLUSTERED`` vertex shader of each language (``gpu.decode_clustered``, the crack-free
 path included) and compared with the same global-grid reference at max(B, m_v) bits; its adaption
@@ -41,15 +41,18 @@ import time
 
 import numpy as np
 
+from ..errors import LopcookError
 from ..grid import dx
-from ..lop.codecs import CODECS, AttributeBits
-from ..lop.record import decode_record
-from ..lop.reader import lod_entry
-from .attribute_gpu import attribute_decoder
 from ..lop.binning import LEVELS, table_bit_id
 from ..lop.bitplane import decode, reconstruct_float32, to_grid
-from ..errors import LopcookError
+from ..lop.clusters import cluster_bit, decode_clustered
+from ..lop.codecs import CODECS, AttributeBits
+from ..lop.reader import (buffer_clusters, clustered_gpu_buffer, gpu_buffer, lod_entry, owner, part_grid,
+                          plane_slice_bits, top_values)
+from ..lop.record import decode_record
 from ..viewing import Viewing, nearest_box_distance
+from . import gpu
+from .attribute_gpu import attribute_decoder
 
 MAX_EXAMPLES = 10
 LENIENCE = np.float32(1.0 + 2.0**-18)  # the shaders' 1.0 + 1.0 / 262144.0
@@ -194,8 +197,6 @@ def plane_source(c, part: int, lod: int):
     """``plane(p) -> (words, bit_offset)``: the container's plane section p as uint32 words and the bit
     offset of buffer (part, lod) inside it (buffers in manifest order), as a renderer uploads it
     (a clustered buffer's slice is ``reader.plane_slice_bits`` long)."""
-    from ..lop.reader import buffer_clusters, lod_entry, owner, top_values
-
     part = owner(c, part)  # a placement's buffer is its owner's
     if buffer_clusters(c, part, lod) is not None:
         # a clustered buffer's stored slice skips anchor-implied components: the unclustered
@@ -218,8 +219,6 @@ def stored_plane_source(c, part: int, lod: int):
     and the bit offset of buffer (part, lod)'s slice inside it (buffers in manifest order, each
     ``reader.plane_slice_bits`` long). For a clustered buffer this is the slice the
     ``LOP_CLUSTERED`` add-plane kernel reads (anchor-implied components skipped)."""
-    from ..lop.reader import lod_entry, owner, plane_slice_bits
-
     part = owner(c, part)  # a placement's buffer is its owner's
     lod_entry(c, part, lod)  # LopcookError for a part or LOD that does not exist
 
@@ -241,8 +240,6 @@ def stored_plane_source(c, part: int, lod: int):
 def _buffers(c):
     """(part, lod) of every distinct buffer: a placement sharing another part's buffers
     (``cook --instances``) is decoded once, through its owner, on the owner's mesh grid."""
-    from ..lop.reader import owner
-
     for i, p in enumerate(c.manifest["parts"]):
         if owner(c, i) != i:
             continue
@@ -255,99 +252,34 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     """Decode every part/LOD of container ``c`` at ``levels`` with each language and compare.
 
     Returns a report dict (JSON-ready, sorted keys when dumped): ``ok``, per-language counts under
-    ``languages`` (vertices decoded, grid / float / level mismatches, max float distance in ulp,
-    adaption steps and mismatches, attribute records decoded and their normal / UV / colour
-    mismatches and max ulp; ``clustered_decoded_vertices`` / ``clustered_adapt_steps``: those done by
-    the ``LOP_CLUSTERED`` shaders; ``per_level[str(B)]``: vertex decodes and decode mismatches (grid,
-    float or bits wrong) at level B, and adaption checks on arriving at B and their mismatches); ``attribute_buffers`` counts the buffers with an attribute record), the first ``max_examples`` mismatches under ``examples``, the
-    context (``device``) and tool versions. Raises LopcookError when GL or the HLSL tools are missing
-    or a level is not in the file.
+    ``languages`` (``_language_stats``: vertices decoded, grid / float / level mismatches, max float
+    distance in ulp, adaption steps and mismatches, attribute records decoded and their normal / UV
+    / colour mismatches and max ulp; ``clustered_decoded_vertices`` / ``clustered_adapt_steps``:
+    those done by the ``LOP_CLUSTERED`` shaders; ``per_level[str(B)]``: vertex decodes and decode
+    mismatches (grid, float or bits wrong) at level B, and adaption checks on arriving at B and
+    their mismatches); ``attribute_buffers`` counts the buffers with an attribute record; the first
+    ``max_examples`` mismatches under ``examples``, the context (``device``) and tool versions.
+    Raises LopcookError when GL or the HLSL tools are missing or a level is not in the file.
+
+    Per distinct buffer (``_buffers``): (1) every chosen level decoded and compared, the crack-free
+    path at the last (``_verify_decodes``); (2) with ``adapt``, the kernels' walk through the levels
+    (``_verify_adapt`` / ``_verify_clustered_adapt``); (3) the attribute record
+    (``_verify_attributes``).
     """
-    from . import gpu
-
-    levels = parse_levels(None, c.path) if levels is None else sorted(set(int(v) for v in levels))
-    if levels and (levels[0] < 1 or levels[-1] > LEVELS):
-        raise LopcookError("usage", c.path, f"levels must be in [1, {LEVELS}], got {levels}")
-    if levels and levels[-1] > c.available_level:
-        raise LopcookError("usage", c.path, f"level {levels[-1]} is not in this file (it holds levels up to "
-                           f"{c.available_level})", hint=f"use --levels 1-{c.available_level}")
-    for lang in languages:
-        if lang not in gpu.LANGUAGES:
-            raise LopcookError("usage", c.path, f"unknown shader language {lang!r} (expected glsl or hlsl)")
-    if "hlsl" in languages:
-        gpu.require_hlsl_tools()
-    gpu.context()
-
-    from ..lop.clusters import decode_clustered
-    from ..lop.reader import buffer_clusters, clustered_gpu_buffer, gpu_buffer
-
-    from ..lop.reader import part_grid
-
+    levels = _checked_levels(c, levels, languages)
     cluster_stats = {"decoded_vertices": 0, "mismatches": 0}
-    stats = {lang: {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
-                    "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
-                    "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
-                    **{key: 0 for _, key in ATTRIBUTE_OUTPUTS}, "attribute_max_ulp": 0,
-                    "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0,
-                    "per_level": {str(v): {"decoded_vertices": 0, "decode_mismatches": 0, "adapt_checks": 0,
-                                           "adapt_mismatches": 0} for v in levels}}
-             for lang in languages}
+    stats = {lang: _language_stats(levels) for lang in languages}
     examples: list[dict] = []
     buffers = list(_buffers(c))
     vertices = 0
     attribute_buffers = 0
     clustered_buffers = 0
     for part, lod in buffers:
-        origin, extent = part_grid(c, part)  # the scene grid, or a shared buffer's mesh grid
-        cell = extent / float(1 << LEVELS)
-        half = np.float32(cell / 2.0)
+        grid = part_grid(c, part)  # the scene grid, or a shared buffer's mesh grid
         clustered = buffer_clusters(c, part, lod) is not None
         clustered_buffers += clustered
-        for level in levels:
-            buf = gpu_buffer(c, part, lod, level)
-            values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
-            cbuf = None
-            if clustered:  # the clustered CPU decode must equal the unclustered one exactly
-                cbuf = clustered_gpu_buffer(c, part, lod, level)
-                cvals, cwidths = decode_clustered(cbuf.words, cbuf.clusters, level)
-                bad = np.any(cvals != values, axis=1) | (cwidths != widths)
-                cluster_stats["decoded_vertices"] += int(widths.size)
-                cluster_stats["mismatches"] += int(bad.sum())
-            ref_grid = to_grid(values, widths)
-            ref_pos = reconstruct_float32(values, widths, origin, cell)
-            if level == levels[0]:
-                vertices += int(buf.vertex_id[LEVELS])
-            for lang in languages:
-                s = stats[lang]
-                t0 = time.perf_counter()
-                if cbuf is None:
-                    got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
-                else:  # what a renderer uploads for a clustered buffer: clustered P and its records
-                    got = _decode_clustered(c, part, lod, lang, cbuf, origin, half)
-                    s["clustered_decoded_vertices"] += int(widths.size)
-                s["decode_seconds"] += time.perf_counter() - t0
-                bad_grid = np.any(got.grid != ref_grid, axis=1)
-                bad_float = np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1)
-                bad_level = got.level.astype(np.int64) != widths
-                s["decoded_vertices"] += int(widths.size)
-                s["grid_mismatches"] += int(bad_grid.sum())
-                s["float_mismatches"] += int(bad_float.sum())
-                s["level_mismatches"] += int(bad_level.sum())
-                per = s["per_level"][str(level)]
-                per["decoded_vertices"] += int(widths.size)
-                per["decode_mismatches"] += int((bad_grid | bad_float | bad_level).sum())
-                if widths.size:
-                    s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
-                for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
-                    examples.append({"language": lang, "kind": "decode", "part": part, "lod": lod, "level": level,
-                                     "clustered": cbuf is not None, "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
-                                     "got_grid": got.grid[j].tolist(),
-                                     "expected_position": [float(v) for v in ref_pos[j]],
-                                     "got_position": [float(v) for v in got.position[j]],
-                                     "expected_bits": int(widths[j]), "got_bits": int(got.level[j])})
-            if level == levels[-1] and widths.size:
-                _verify_crack_free(c, part, lod, buf, values, widths, ref_pos, languages, stats, examples,
-                                   max_examples, cbuf)
+        vertices += _verify_decodes(c, part, lod, levels, languages, grid, clustered, stats, cluster_stats,
+                                    examples, max_examples)
         if adapt and levels:
             if clustered:
                 _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, max_examples)
@@ -379,7 +311,110 @@ def verify_decoders(c, levels=None, languages=("glsl", "hlsl"), *, adapt: bool =
     }
 
 
-# ---- clustered buffers (issue 16) ----------------------------------------------------------------
+def _checked_levels(c, levels, languages) -> list[int]:
+    """The sorted distinct levels to verify (None: 1..24), after checking that each is in [1, 24]
+    and in the file, that every language is known, that the HLSL tools are there when asked for
+    and that a GL context opens; each failure is a LopcookError."""
+    levels = parse_levels(None, c.path) if levels is None else sorted(set(int(v) for v in levels))
+    if levels and (levels[0] < 1 or levels[-1] > LEVELS):
+        raise LopcookError("usage", c.path, f"levels must be in [1, {LEVELS}], got {levels}")
+    if levels and levels[-1] > c.available_level:
+        raise LopcookError("usage", c.path, f"level {levels[-1]} is not in this file (it holds levels up to "
+                           f"{c.available_level})", hint=f"use --levels 1-{c.available_level}")
+    for lang in languages:
+        if lang not in gpu.LANGUAGES:
+            raise LopcookError("usage", c.path, f"unknown shader language {lang!r} (expected glsl or hlsl)")
+    if "hlsl" in languages:
+        gpu.require_hlsl_tools()
+    gpu.context()
+    return levels
+
+
+def _language_stats(levels: list[int]) -> dict:
+    """One language's zeroed counters (``verify_decoders``'s ``languages[lang]``); times in seconds."""
+    return {"decoded_vertices": 0, "grid_mismatches": 0, "float_mismatches": 0, "level_mismatches": 0,
+            "max_float_ulp": 0, "decode_seconds": 0.0, "crack_free_vertices": 0, "crack_free_mismatches": 0,
+            "adapt_steps": 0, "adapt_mismatches": 0, "adapt_seconds": 0.0, "attribute_vertices": 0,
+            **{key: 0 for _, key in ATTRIBUTE_OUTPUTS}, "attribute_max_ulp": 0,
+            "attribute_seconds": 0.0, "clustered_decoded_vertices": 0, "clustered_adapt_steps": 0,
+            "per_level": {str(v): {"decoded_vertices": 0, "decode_mismatches": 0, "adapt_checks": 0,
+                                   "adapt_mismatches": 0} for v in levels}}
+
+
+def _verify_decodes(c, part, lod, levels, languages, grid, clustered: bool, stats, cluster_stats, examples,
+                    max_examples) -> int:
+    """Buffer (part, lod) decoded at every level of ``levels`` by each language and compared with
+    the CPU reference; at the last level the crack-free path too (``_verify_crack_free``).
+    ``grid``: (origin (3,), extent) metres of the buffer's grid. A clustered buffer's CPU decode
+    is first compared with the unclustered one (``cluster_stats``), then the ``LOP_CLUSTERED``
+    shaders decode it. Returns the buffer's vertex count."""
+    origin, extent = grid
+    cell = extent / float(1 << LEVELS)
+    half = np.float32(cell / 2.0)
+    vertices = 0
+    for level in levels:
+        buf = gpu_buffer(c, part, lod, level)
+        values, widths = decode(buf.words, buf.vertex_id, buf.bit_id, level)
+        cbuf = None
+        if clustered:  # the clustered CPU decode must equal the unclustered one exactly
+            cbuf = clustered_gpu_buffer(c, part, lod, level)
+            cvals, cwidths = decode_clustered(cbuf.words, cbuf.clusters, level)
+            bad = np.any(cvals != values, axis=1) | (cwidths != widths)
+            cluster_stats["decoded_vertices"] += int(widths.size)
+            cluster_stats["mismatches"] += int(bad.sum())
+        ref = (to_grid(values, widths), reconstruct_float32(values, widths, origin, cell), widths)
+        if level == levels[0]:
+            vertices += int(buf.vertex_id[LEVELS])
+        for lang in languages:
+            _compare_decode(c, part, lod, level, lang, buf, cbuf, (origin, half), ref, stats[lang], examples,
+                            max_examples)
+        if level == levels[-1] and widths.size:
+            _verify_crack_free(c, part, lod, buf, values, widths, ref[1], languages, stats, examples,
+                               max_examples, cbuf)
+    return vertices
+
+
+def _compare_decode(c, part, lod, level: int, lang: str, buf, cbuf, grid, ref, s: dict, examples: list,
+                    max_examples: int) -> None:
+    """One language's vertex decode of buffer (part, lod) at ``level`` against the CPU reference,
+    counted into that language's stats ``s`` (and ``s["per_level"]``); mismatches are added to
+    ``examples`` while fewer than ``max_examples`` are held.
+
+    ``buf``: the ``GpuBuffer``; ``cbuf``: its ``ClusteredGpuBuffer`` (then the ``LOP_CLUSTERED``
+    shader decodes what a renderer uploads: clustered P and its records) or None. ``grid``:
+    (origin (3,) metres, half cell float32 metres). ``ref``: (grid integers (n, 3) uint32,
+    float32 positions (n, 3), bits per component (n,))."""
+    origin, half = grid
+    ref_grid, ref_pos, widths = ref
+    t0 = time.perf_counter()
+    if cbuf is None:
+        got = gpu.vertex_decoder(lang).decode(buf.words, buf.vertex_id, buf.bit_id, level, origin, half)
+    else:  # what a renderer uploads for a clustered buffer: clustered P and its records
+        got = _decode_clustered(c, part, lod, lang, cbuf, origin, half)
+        s["clustered_decoded_vertices"] += int(widths.size)
+    s["decode_seconds"] += time.perf_counter() - t0
+    bad_grid = np.any(got.grid != ref_grid, axis=1)
+    bad_float = np.any(got.position.view(np.uint32) != ref_pos.view(np.uint32), axis=1)
+    bad_level = got.level.astype(np.int64) != widths
+    s["decoded_vertices"] += int(widths.size)
+    s["grid_mismatches"] += int(bad_grid.sum())
+    s["float_mismatches"] += int(bad_float.sum())
+    s["level_mismatches"] += int(bad_level.sum())
+    per = s["per_level"][str(level)]
+    per["decoded_vertices"] += int(widths.size)
+    per["decode_mismatches"] += int((bad_grid | bad_float | bad_level).sum())
+    if widths.size:
+        s["max_float_ulp"] = max(s["max_float_ulp"], int(_ulp_distance(got.position, ref_pos).max()))
+    for j in np.flatnonzero(bad_grid | bad_float | bad_level)[: max(0, max_examples - len(examples))]:
+        examples.append({"language": lang, "kind": "decode", "part": part, "lod": lod, "level": level,
+                         "clustered": cbuf is not None, "vertex": int(j), "expected_grid": ref_grid[j].tolist(),
+                         "got_grid": got.grid[j].tolist(),
+                         "expected_position": [float(v) for v in ref_pos[j]],
+                         "got_position": [float(v) for v in got.position[j]],
+                         "expected_bits": int(widths[j]), "got_bits": int(got.level[j])})
+
+
+# ---- clustered buffers (LOP_CLUSTERED) ------------------------------------------------------------
 
 def verify_clustered_decode(words, records, cluster_id, vertex_id, cluster_size: int, level: int, origin, cell: float,
                             values, widths, languages=("glsl", "hlsl")) -> dict:
@@ -392,8 +427,6 @@ def verify_clustered_decode(words, records, cluster_id, vertex_id, cluster_size:
     ``cluster_id``, ``vertex_id``: (25,); ``cell``: extent / 2^24 metres. Returns ``{language:
     {decoded_vertices, grid_mismatches, float_mismatches, level_mismatches, max_float_ulp}}``, the
     per-language counters of ``verify_decoders``, so a container walk can add them up."""
-    from . import gpu
-
     values = np.asarray(values, dtype=np.uint32)
     widths = np.asarray(widths, dtype=np.int64)
     ref_grid = to_grid(values, widths)
@@ -419,8 +452,6 @@ def verify_clustered_adapt(words_at, records_at, cluster_id, vertex_id, cluster_
     equal the CPU's from scratch. ``words_at(B)`` / ``records_at(B)``: the CPU's P and (n_c, 4)
     records at level B; ``plane(p)``: (uint32 words, bit offset) of this buffer's slice of plane
     p. Returns ``{language: {adapt_steps, adapt_mismatches}}``."""
-    from . import gpu
-
     chosen = sorted(set(int(v) for v in levels))
     walk = [chosen[0], *adapt_walk(chosen)]
     out = {}
@@ -450,10 +481,6 @@ def _verify_crack_free(c, part, lod, buf, values, widths, positions, languages, 
     cameras (inside the box, near, far) looking along +z; viewing conditions from the manifest.
     ``cbuf``: the buffer's ``ClusteredGpuBuffer`` at that level, decoded by the ``LOP_CLUSTERED``
     crack-free path instead (same reference)."""
-    from . import gpu
-
-    from ..lop.reader import part_grid
-
     origin, extent = part_grid(c, part)
     cell = extent / float(1 << LEVELS)
     viewing = _manifest_viewing(c)
@@ -550,9 +577,9 @@ def adapt_walk(levels: list[int]) -> list[int]:
 
 
 def _verify_adapt(c, part, lod, levels, languages, stats, examples, max_examples) -> None:
-    from ..lop.reader import gpu_buffer
-    from . import gpu
-
+    """The adaption kernels walk an unclustered buffer through ``adapt_walk(levels)`` one plane at
+    a time, fed ``plane_source``; after each chosen level P, VertexId and BitId must equal the
+    CPU's (``reader.gpu_buffer`` at that level)."""
     first = gpu_buffer(c, part, lod, levels[0])
     if int(first.vertex_id[LEVELS]) == 0:
         return
@@ -603,8 +630,6 @@ def _adapt_example(lang, part, lod, target, expected, got, **extra) -> dict:
 def _decode_clustered(c, part, lod, lang, cbuf, origin, half_cell, view=None):
     """``gpu.decode_clustered`` of a container's ClusteredGpuBuffer; a buffer outside what the
     clustered decoder accepts (2^26 vertices or more) is a LopcookError naming it."""
-    from . import gpu
-
     cl = cbuf.clusters
     try:
         return gpu.decode_clustered(lang, cbuf.words, cbuf.records, cl.cluster_id, cl.vertex_id, cl.size, cbuf.level,
@@ -620,10 +645,6 @@ def _verify_clustered_adapt(c, part, lod, levels, languages, stats, examples, ma
     plane at a time, fed the file's own plane slices; after each chosen level P, the cluster
     records, VertexId, ClusterId and BitId (= ClusterBit[ClusterId[k]]) must equal the CPU's
     (``reader.clustered_gpu_buffer`` at that level)."""
-    from ..lop.clusters import cluster_bit
-    from ..lop.reader import clustered_gpu_buffer
-    from . import gpu
-
     first = clustered_gpu_buffer(c, part, lod, levels[0])
     cl = first.clusters
     if cl.n == 0:
@@ -693,6 +714,7 @@ def format_report(report: dict) -> str:
 
 
 def _levels_text(levels: list[int]) -> str:
+    """Sorted levels as runs: ``[1, 2, 3, 6, 8, 9]`` -> ``"1-3,6,8-9"``; ``"none"`` when empty."""
     if not levels:
         return "none"
     runs, start, prev = [], levels[0], levels[0]

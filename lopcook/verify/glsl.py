@@ -10,7 +10,7 @@ section 6.2 (positions decoded in the vertex shader).
   ``lopcook.verify.gpu.decode_block``), then mapped by the placement rows ``u_place0..2`` (the
   3 x 4 transform of a ``cook --instances`` placement, identity otherwise) in the float32 order of
   ``lopcook.lop.placement.to_world``. ``clustered=True`` adds ``LOP_CLUSTERED``: the clustered
-  layout of issue 16 (SSBO 0 clustered P, SSBO 3 the cluster records, UBO 0
+  layout of docs/format.md 6.9 (SSBO 0 clustered P, SSBO 3 the cluster records, UBO 0
   ``lopcook.verify.gpu.cluster_decode_block``). ``decoded=False``: a float32 ``in_position`` attribute.
   Both pass the source normals, UVs and colours through unchanged.
 * ``FS`` (shading): ``colour = base * (ambient + diffuse * max(N.L, 0)) + ks * max(R.V, 0)^shininess``
@@ -25,6 +25,8 @@ section 6.2 (positions decoded in the vertex shader).
 """
 
 from __future__ import annotations
+
+from .gpu import shader_source
 
 VS_MAIN = """
 uniform mat4 u_mvp;
@@ -129,8 +131,6 @@ def vertex_shader_source(decoded: bool, clustered: bool = False) -> str:
     """GLSL 4.50 vertex shader: ``decoded`` = the shipped ``decode_bitplanes.glsl`` (LOP_NO_VIEW, and
     LOP_CLUSTERED with ``clustered``) with ``lop_decode(gl_VertexID)`` for the position; else a
     float32 ``in_position`` attribute."""
-    from .gpu import shader_source
-
     if decoded:
         head = "#version 450\n#define LOP_NO_VIEW\n" + ("#define LOP_CLUSTERED\n" if clustered else "")
         return head + "#line 1\n" + shader_source("decode_bitplanes.glsl") + VS_MAIN

@@ -23,10 +23,13 @@ The attribute record's decoders run the same way in ``lopcook.verify.attribute_g
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,8 +55,6 @@ VARYINGS = ("lop_out_grid", "lop_out_position", "lop_out_level")
 def shader_dir() -> Path:
     """The ``shaders/`` folder: ``$LOPCOOK_SHADERS``, the repository's ``shaders/`` (editable
     install / checkout), or ``<prefix>/share/lopcook/shaders`` (where a wheel installs them)."""
-    import sys
-
     env = os.environ.get("LOPCOOK_SHADERS")
     candidates = [Path(env)] if env else [Path(__file__).resolve().parents[2] / "shaders",
                                           Path(sys.prefix) / "share" / "lopcook" / "shaders"]
@@ -81,7 +82,7 @@ def context():
     if _CONTEXT is not None:
         return _CONTEXT
     try:
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a context is made
     except ImportError as exc:  # pragma: no cover - moderngl is a dependency
         raise LopcookError("verify", None, f"moderngl is not importable ({exc})",
                            hint="pip install moderngl") from None
@@ -126,9 +127,8 @@ def flush() -> None:
 
 
 def _resolve_flush():
-    import ctypes
-    import ctypes.util
-
+    """``glFlush`` through ``eglGetProcAddress`` as a ctypes function, or False where EGL or the
+    entry point is missing."""
     try:
         egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
         egl.eglGetProcAddress.restype = ctypes.c_void_p
@@ -283,7 +283,7 @@ void main() { lop_out_position = in_position; }
 def vertex_shader_source(language: str, crack_free: bool = False, clustered: bool = False) -> str:
     """GLSL 4.50 source of the verification vertex shader: the library of ``shaders/`` plus a main
     that writes grid integers, float position and level to transform feedback. ``clustered``
-    defines ``LOP_CLUSTERED`` (the clustered layout of issue 16)."""
+    defines ``LOP_CLUSTERED`` (the clustered layout, docs/format.md 6.9)."""
     if language == "glsl":
         head = "#version 450\n" + ("#define LOP_CRACK_FREE\n" if crack_free else "#define LOP_NO_VIEW\n")
         head += "#define LOP_CLUSTERED\n" if clustered else ""
@@ -393,7 +393,7 @@ class VertexDecoder:
             resources[2].bind_to_uniform_block(1)
         out = ctx.buffer(reserve=n * FEEDBACK.itemsize)
         try:
-            import moderngl
+            import moderngl  # optional native GL binding, imported where GL runs (its POINTS constant)
 
             self.vao.transform(out, mode=moderngl.POINTS, vertices=n)
             rec = np.frombuffer(out.read(), dtype=FEEDBACK)
@@ -420,7 +420,7 @@ def vertex_decoder(language: str, crack_free: bool = False) -> VertexDecoder:
     return _DECODERS[key]
 
 
-# ---- clustered buffers (issue 16): vertex decoding ----------------------------------------------
+# ---- clustered buffers (docs/format.md 6.9): vertex decoding --------------------------------------
 #
 # Layout (the contract between the CPU reference and these shaders; docs/format.md): vertices in
 # (minimum level, Morton code) order, each bin cut into clusters of at most N vertices;
@@ -504,7 +504,7 @@ class Passthrough:
     (a standard vertex buffer, the paper's "UC" column) to transform feedback."""
 
     def __init__(self, positions):
-        import moderngl
+        import moderngl  # optional native GL binding, imported where GL runs (its POINTS constant)
 
         self.ctx = context()
         self.program = self.ctx.program(vertex_shader=_PASSTHROUGH_VS, varyings=("lop_out_position",))
@@ -688,7 +688,7 @@ class Adapter:
             k.release()
 
 
-# ---- clustered buffers (issue 16): adaption ----------------------------------------------------
+# ---- clustered buffers (docs/format.md 6.9): adaption ----------------------------------------------
 
 def clustered_bits(records, cluster_id, vertex_id, cluster_size: int, level: int) -> tuple[int, int]:
     """(bits of P, bits of plane ``level`` in this buffer's slice) of a clustered buffer at

@@ -2,10 +2,10 @@
 depth-order errors from part-ID images, and difference heatmaps.
 
 This work is based on: Purnomo et al., "Hardware-Compatible Vertex Compression Using Quantization and
-Simplification", Graphics Hardware 2005, section 4.1 (image-space
-error over 20 views; pixels that are background in both renderings are excluded), and Meyer et al.,
-"Adaptive Level-of-Precision for GPU-Rendering", VMV 2011, section 7.3 (PSNR and heat maps of AP
-and CAP against floating-point vertices) and section 3 (coverage, attribute and depth errors).
+Simplification", Graphics Hardware 2005, section 4.1 (image-space error over 20 views; pixels that are
+background in both renderings are excluded), and Meyer et al., "Adaptive Level-of-Precision for
+GPU-Rendering", VMV 2011, section 7.3 (PSNR and heat maps of AP and CAP against floating-point vertices)
+and section 3 (coverage, attribute and depth errors).
 
 Inputs (what ``lopcook.verify.renderer`` reads back):
 
@@ -24,8 +24,7 @@ Definitions (all colour values in [0, 1], i.e. 8-bit code / 255):
   give ``None`` (JSON ``null``; printed as ``inf``): PSNR is infinite, and ``None`` keeps the JSON
   valid. ``psnr_from_mse`` is the single place this is decided.
 * ``max_error``: largest absolute channel difference over all pixels, in [0, 1].
-* ``share_off``: fraction of object pixels whose largest channel difference exceeds 1/255 (so, at
-  8 bits, pixels off by 2 codes or more).
+* ``share_off``: fraction of object pixels whose largest channel difference exceeds 1/255 (2+ codes off).
 * ``psnr_interior``: the same PSNR over the pixels fully covered (alpha 255) in both images only:
   coverage error against the background (silhouettes, holes) is left out; what remains is shading
   (attribute) error, the error k_f controls, plus occlusion edges between surfaces inside the
@@ -270,25 +269,40 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
         ref, tst = np.ascontiguousarray(ref), np.ascontiguousarray(tst)
         r32, t32 = ref.view("<u4")[..., 0], tst.view("<u4")[..., 0]
     if box is not None and ref.ndim == 3 and ref.shape == tst.shape and rid.shape == tid.shape == ref.shape[:2]:
-        hh, ww = ref.shape[:2]
-        r0, r1, c0, c1 = (int(v) for v in box)
-        if r1 <= r0 or c1 <= c0:  # nothing drawn in either: background everywhere
-            r0 = r1 = c0 = c1 = 0
-        else:
-            r0, r1, c0, c1 = max(0, r0 - 1), min(hh, r1 + 1), max(0, c0 - 1), min(ww, c1 + 1)
-        ref, tst = ref[r0:r1, c0:c1], tst[r0:r1, c0:c1]
-        rid, tid = rid[r0:r1, c0:c1], tid[r0:r1, c0:c1]
-        if words:
-            r32, t32 = r32[r0:r1, c0:c1], t32[r0:r1, c0:c1]
-        if ref.size == 0:
-            ref, tst = np.zeros((1, 1, 4), np.uint8), np.zeros((1, 1, 4), np.uint8)
-            rid, tid = np.zeros((1, 1), np.uint32), np.zeros((1, 1), np.uint32)
-            r32 = t32 = np.zeros((1, 1), "<u4")
+        ref, tst, rid, tid, r32, t32 = _crop(box, ref, tst, rid, tid, r32, t32, words)
     if not words:
         return image_metrics(ref, tst), depth_order_errors(rid, tid)
     if rid.shape != tid.shape:
         raise ValueError(f"ID image shapes differ: {rid.shape} vs {tid.shape}")
     h, w = ref.shape[:2]
+    return _word_colour_metrics(ref, tst, r32, t32, w), _id_metrics(rid, tid, h, w)
+
+
+def _crop(box, ref, tst, rid, tid, r32, t32, words: bool) -> tuple:
+    """``view_metrics``'s images cut to ``box`` (row0, row1, col0, col1) widened by one pixel and
+    clipped to the frame: (ref, tst, rid, tid, r32, t32), views of the inputs. An empty box (nothing
+    drawn) gives 1 x 1 background images (RGBA 0, ID 0, word 0): the same metrics as the frame's.
+    ``r32``/``t32`` (the RGBA words) are cut only when ``words``."""
+    hh, ww = ref.shape[:2]
+    r0, r1, c0, c1 = (int(v) for v in box)
+    if r1 <= r0 or c1 <= c0:  # nothing drawn in either: background everywhere
+        r0 = r1 = c0 = c1 = 0
+    else:
+        r0, r1, c0, c1 = max(0, r0 - 1), min(hh, r1 + 1), max(0, c0 - 1), min(ww, c1 + 1)
+    ref, tst = ref[r0:r1, c0:c1], tst[r0:r1, c0:c1]
+    rid, tid = rid[r0:r1, c0:c1], tid[r0:r1, c0:c1]
+    if words:
+        r32, t32 = r32[r0:r1, c0:c1], t32[r0:r1, c0:c1]
+    if ref.size == 0:
+        ref, tst = np.zeros((1, 1, 4), np.uint8), np.zeros((1, 1, 4), np.uint8)
+        rid, tid = np.zeros((1, 1), np.uint32), np.zeros((1, 1), np.uint32)
+        r32 = t32 = np.zeros((1, 1), "<u4")
+    return ref, tst, rid, tid, r32, t32
+
+
+def _word_colour_metrics(ref, tst, r32, t32, w: int) -> dict:
+    """``image_metrics``'s dict from the pixels whose RGBA words differ. ref, tst : (h, w, 4) uint8;
+    r32, t32 : (h, w) ``<u4`` views of the same pixels (alpha in the top byte); ``w`` the row length."""
     # alpha is the top byte of a word: covered in either (alpha != 0), fully covered in both (255)
     n = int(np.count_nonzero((r32 | t32) > np.uint32(0x00FFFFFF)))
     ni = int(np.count_nonzero((r32 & t32) >= np.uint32(0xFF000000)))
@@ -300,20 +314,23 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
     idx = rf[:, :3].astype(np.intp) * 256 + tf[:, :3]
     per_pixel = _ABS_DIFF[idx].max(axis=1) if where.size else np.zeros(0, np.float32)
     if n == 0:
-        colour = {"object_pixels": 0, "sum_sq": 0.0, "mse": 0.0, "psnr": None, "max_error": 0.0, "pixels_off": 0,
-                  "share_off": 0.0, "interior_pixels": 0, "interior_mse": 0.0, "psnr_interior": None}
-    else:
-        sq = _SQ_DIFF[idx]
-        sum_sq = float(np.sum(sq[obj]))
-        mse = sum_sq / (3.0 * n)
-        off = int(np.count_nonzero(per_pixel[obj] > OFF_THRESHOLD + 1e-7))
-        interior_mse = float(np.sum(sq[full])) / (3.0 * ni) if ni else 0.0
-        colour = {"object_pixels": n, "sum_sq": sum_sq, "mse": mse, "psnr": psnr_from_mse(mse),
-                  "max_error": float(per_pixel.max()) if per_pixel.size else 0.0,
-                  "pixels_off": off, "share_off": off / n, "interior_pixels": ni, "interior_mse": interior_mse,
-                  "psnr_interior": psnr_from_mse(interior_mse)}
-    # part IDs: pixels covered in both whose part differs, and of those the ones whose reference
-    # 3x3 neighbourhood (clipped at the border) holds one part only
+        return {"object_pixels": 0, "sum_sq": 0.0, "mse": 0.0, "psnr": None, "max_error": 0.0, "pixels_off": 0,
+                "share_off": 0.0, "interior_pixels": 0, "interior_mse": 0.0, "psnr_interior": None}
+    sq = _SQ_DIFF[idx]
+    sum_sq = float(np.sum(sq[obj]))
+    mse = sum_sq / (3.0 * n)
+    off = int(np.count_nonzero(per_pixel[obj] > OFF_THRESHOLD + 1e-7))
+    interior_mse = float(np.sum(sq[full])) / (3.0 * ni) if ni else 0.0
+    return {"object_pixels": n, "sum_sq": sum_sq, "mse": mse, "psnr": psnr_from_mse(mse),
+            "max_error": float(per_pixel.max()) if per_pixel.size else 0.0,
+            "pixels_off": off, "share_off": off / n, "interior_pixels": ni, "interior_mse": interior_mse,
+            "psnr_interior": psnr_from_mse(interior_mse)}
+
+
+def _id_metrics(rid, tid, h: int, w: int) -> dict:
+    """``depth_order_errors``'s dict from part-ID images rid, tid (h, w) uint32, visiting only the
+    pixels covered in both whose part differs: of those, the ones whose reference 3x3 neighbourhood
+    (clipped at the border) holds one part only are depth-order errors."""
     covered = (rid != 0) & (tid != 0)
     covered_both = int(np.count_nonzero(covered))
     covered &= rid != tid
@@ -330,4 +347,4 @@ def view_metrics(reference, test, reference_ids, test_ids, box=None) -> tuple[di
             for dx in (-1, 0, 1):
                 uniform &= rid[yy, np.clip(x + dx, 0, w - 1)] == centre
         depth_errors = int(np.count_nonzero(uniform))
-    return colour, {"depth_order_errors": depth_errors, "part_mismatch": mismatch, "covered_both": covered_both}
+    return {"depth_order_errors": depth_errors, "part_mismatch": mismatch, "covered_both": covered_both}

@@ -117,8 +117,8 @@ def _crop(rgba: np.ndarray, ids: np.ndarray):
 
 
 def _pack(entry) -> tuple:
-    """A ``_crop`` entry with its two crops compressed (zlib level 1: the background and flat
-    shading compress 10-50x at about 2 ms per megabyte); ``_unpack`` gives back the same arrays."""
+    """A ``_crop`` entry with its two crops compressed (zlib level 1, which the background and flat
+    shading suit; docs/verify.md, "Reuse"); ``_unpack`` gives back the same arrays."""
     box, rgba_c, ids_c = entry
     return (box, zlib.compress(rgba_c.tobytes(), 1), rgba_c.shape, zlib.compress(ids_c.tobytes(), 1),
             ids_c.shape, ids_c.dtype.str)
@@ -719,19 +719,19 @@ class Renderer:
         ``screen_rect`` (outside it no fragment can land: the pixels there are the background the
         whole-viewport render would give, filled in on the CPU). An item whose ``cull_box`` (world
         metres bounding every position it can draw; default its ``box``) is ``outside`` the view is
-        not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``) leaves
-        out the triangles that cover no sample, and those GL would cull as back faces (module doc,
-        "Coverage cull"). Before an item, once
-        ``FINISH_TRIANGLES`` (or the renderer's ``finish_triangles``) triangles (items'
-        ``triangles``) have been drawn since the last one, the context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
+        not drawn (it could not put a fragment in the image); an item's ``cover`` (a ``Coverage``)
+        leaves out the triangles that cover no sample, and those GL would cull as back faces (module
+        doc, "Coverage cull"). Before an item, once ``FINISH_TRIANGLES`` (or the renderer's
+        ``finish_triangles``) triangles (items' ``triangles``) have been drawn since the last one,
+        the context is finished (``glFinish``): the pixels are the same (GL keeps the order of the
         draws), and llvmpipe's binned scene, which otherwise holds every triangle of the frame until
-        the read-back (about 200 MB for 1.4M triangles), holds about that many. After every item
+        the read-back (docs/verify.md, "Flush after every item"), holds about that many. After every item
         the context is flushed (``gpu.flush``: llvmpipe rasterises that item while this process
         culls and binds the next; the pixels are the same). Leaves the context's default 1x1
         framebuffer bound. ``crop``: only the region read back, ``(rgba (r1 - r0, c1 - c0, 4), ids)``
         for ``last_box`` = (r0, r1, c0, c1) (outside it the whole image is background), with no
         whole-image arrays made (read-only views of the read-back, not C-contiguous)."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         ctx = self.ctx
         program = self.decode_program if decoded else self.float_program
@@ -806,7 +806,7 @@ class Renderer:
     def _read_back(self, region, crop: bool):
         """``draw``'s resolve and read-back of ``region`` (x, y, w, h in GL window coordinates):
         ``(rgba, ids)`` as ``draw`` returns them; sets ``last_box``."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         ctx = self.ctx
         # resolve: colour by a blit (average of samples), part IDs by sample 0
@@ -854,7 +854,7 @@ class Textures:
         """The texture of a ``lopcook.types.Texture`` (None for None), built once per content digest: RGBA8
         with mipmaps, trilinear filtering, repeat wrap. Raises LopcookError (exit 2) when the
         image does not decode."""
-        import moderngl
+        import moderngl  # optional native GL binding, imported where a draw needs it
 
         if texture is None:
             return None
@@ -960,9 +960,10 @@ class Harness:
     calibration or the byte-budget fit). A cached render keeps only the box of its object pixels
     (outside it the image is background: RGBA 0 and part ID 0, exactly what the renderer clears to),
     at 4 bytes per pixel of colour and 2 (or 4, past 65535 parts) of part ID; once the cache holds
-    ``raw_bytes`` (default ``RAW_CACHE_BYTES``) further entries are zlib-compressed (``_pack``: 10-50x on these images, about
-    2 ms per megabyte to expand, which only a large cache is worth); renders past ``cache_bytes``
-    (default ``FLOAT_CACHE_BYTES``, counted as stored) are not cached. A hit returns the same arrays a fresh render would (re-expanded to the full size).
+    ``raw_bytes`` (default ``RAW_CACHE_BYTES``) further entries are zlib-compressed (``_pack``;
+    expanding costs time, which only a large cache is worth: docs/verify.md, "Reuse"); renders
+    past ``cache_bytes`` (default ``FLOAT_CACHE_BYTES``, counted as stored) are not cached. A hit
+    returns the same arrays a fresh render would (re-expanded to the full size).
 
     ``view_memo``: the per-view metrics of decoded draws by content (``evaluate``: the digest of
     every item's GPU inputs, ``decoded_items``, with the camera and shading), so that a later

@@ -25,13 +25,15 @@ Bad input (a missing file, a record that does not parse or lacks a pair, a one-s
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import re
 import sys
 from pathlib import Path
 
-from ..errors import LopcookError
+from ..errors import EXIT_VERIFY_FAILED, LopcookError
+from .gpu import shader_dir
 
 #: (GLSL file, HLSL file) pairs of ``shaders/`` that implement the same algorithm
 TWINS = (("decode_bitplanes.glsl", "decode_bitplanes.hlsl"),
@@ -158,7 +160,7 @@ def check(folder: Path | None = None) -> list[str]:
     """Problems of the twins in ``folder`` (default ``lopcook.verify.gpu.shader_dir()``): pairs
     changed since the record (naming the side that changed, or both), function bodies of a
     ``TOKEN_TWINS`` pair that differ. Empty when both agree and match the record."""
-    folder = Path(folder) if folder is not None else _shader_dir()
+    folder = Path(folder) if folder is not None else shader_dir()
     record = read_record(folder)
     out = []
     for g, now in digests(folder).items():
@@ -183,7 +185,7 @@ def update(folder: Path | None = None, force: bool = False) -> dict:
     """Write ``folder / RECORD`` with the current digests and return it. Raises LopcookError (exit
     2) when a pair has only one side changed since the record (unless ``force``) or a decoder
     pair's function bodies differ; nothing is written then."""
-    folder = Path(folder) if folder is not None else _shader_dir()
+    folder = Path(folder) if folder is not None else shader_dir()
     path = folder / RECORD
     old = read_record(folder) if path.exists() else {}
     now = digests(folder)
@@ -205,19 +207,9 @@ def update(folder: Path | None = None, force: bool = False) -> dict:
     return data
 
 
-def _shader_dir() -> Path:
-    from .gpu import shader_dir
-
-    return shader_dir()
-
-
 def main(argv=None) -> int:
     """``python -m lopcook.verify.twins [--update [--force]] [DIR]``: check (exit 0 / 1) or record
     (exit 0) the twins of ``DIR`` (default the shaders folder); bad input exits 2."""
-    import argparse
-
-    from ..errors import EXIT_VERIFY_FAILED
-
     p = argparse.ArgumentParser(prog="python -m lopcook.verify.twins", description=__doc__.split("\n")[0])
     p.add_argument("folder", nargs="?", type=Path, help="shaders folder (default: the one lopcook uses)")
     p.add_argument("--update", action="store_true", help="record the current digests of every pair")

@@ -31,11 +31,13 @@ bodies that differ from the twins' after these rewrites. ``python -m lopcook.ver
 
 from __future__ import annotations
 
+import argparse
 import re
 import sys
 from pathlib import Path
 
-from ..errors import LopcookError
+from ..errors import EXIT_VERIFY_FAILED, LopcookError
+from .gpu import shader_dir
 from .twins import code_digest, functions
 
 #: the twins generated, in output order, and the name of each one's JavaScript string
@@ -268,8 +270,6 @@ def _repo() -> Path:
 def generate(shaders: Path | None = None) -> dict[str, str]:
     """``{relative output path: text}``: each twin's ``runtime/js/glsl/NAME.es.glsl`` and the
     JavaScript module ``runtime/js/lop-glsl.js`` that exports the same texts."""
-    from .gpu import shader_dir
-
     folder = Path(shaders) if shaders is not None else shader_dir()
     out, js = {}, []
     for name, const in SOURCES:
@@ -316,8 +316,6 @@ def function_differences(ours: str, twin: str) -> list[str]:
 def check(shaders: Path | None = None, repo: Path | None = None) -> list[str]:
     """Problems: a generated file missing or different from a fresh generation, or an ES function
     that is not its twin's. Empty when all is in order."""
-    from .gpu import shader_dir
-
     repo = Path(repo) if repo is not None else _repo()
     folder = Path(shaders) if shaders is not None else shader_dir()
     problems = []
@@ -347,10 +345,6 @@ def update(shaders: Path | None = None, repo: Path | None = None) -> list[str]:
 
 def main(argv=None) -> int:
     """``python -m lopcook.verify.webgl [--update]``: check (exit 0 / 1) or write the WebGL2 decoders."""
-    import argparse
-
-    from ..errors import EXIT_VERIFY_FAILED
-
     p = argparse.ArgumentParser(prog="python -m lopcook.verify.webgl", description=__doc__.split("\n")[0])
     p.add_argument("--update", action="store_true", help="write runtime/js/glsl/*.es.glsl and runtime/js/lop-glsl.js")
     args = p.parse_args(argv)
