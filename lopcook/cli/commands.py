@@ -47,6 +47,7 @@ from ..verify.decoders import format_report, parse_levels, verify_decoders
 from ..verify.evaluate import evaluate
 from ..verify.tables import format_table
 from ..version import __version__
+from ..view import ViewerServer, viewer_site
 from .parser import (analyse_settings, check_views, ingest_settings, parse_xyz, settings_from_args,
                      source_ingest_settings)
 
@@ -201,6 +202,27 @@ def cmd_web(args) -> int:
         print(json.dumps(out, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {out['parts']} parts of {args.container}, {out['materials']} materials")
+    return EXIT_OK
+
+
+def cmd_view(args) -> int:
+    site, info = viewer_site(args.container, args.source)
+    server = ViewerServer(site, args.port)
+    if not args.quiet:
+        for w in info["warnings"]:
+            print(f"lopcook: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"url": server.url, "container": args.container, "bytes": info["bytes"],
+                          "materials": info["materials"]}, sort_keys=True), flush=True)
+    elif not args.quiet:
+        print(f"lopcook view: {args.container} ({info['bytes']:,} bytes, {info['materials']} materials) at {server.url}"
+              f"  (Ctrl-C stops)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:  # the way to stop it: not an interruption of work
+        pass
+    finally:
+        server.close()
     return EXIT_OK
 
 
@@ -379,8 +401,8 @@ def cmd_bench(args) -> int:
 
 
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "web": cmd_web,
-            "refine": cmd_refine,
+            "view": cmd_view, "refine": cmd_refine,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report, "bench": cmd_bench}
 
 __all__ = ["COMMANDS", "cmd_analyse", "cmd_bench", "cmd_calibrate", "cmd_cook", "cmd_decode", "cmd_inspect", "cmd_refine",
-           "cmd_report", "cmd_verify"]
+           "cmd_report", "cmd_verify", "cmd_view"]
