@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -378,6 +379,8 @@ def cmd_report(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    args.assets = list(args.assets) + list(args.more_assets)
+    args.cook_args = shlex.split(args.cook_args)
     args.levels = parse_levels(args.levels) if args.levels else list(DEFAULT_LEVELS)
     args.views = check_views(args.views, "--views")
     args.resolution = parse_resolution(args.resolution, "--resolution")

@@ -420,6 +420,15 @@ def _add_bench_parser(sub) -> None:
                    help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
                         "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "
                         "default assets: the corpus)")
+    p.add_argument("--streaming", action="store_true",
+                   help="instead: PSNR of the three.js viewer's render against the float render as a function of "
+                        "the bytes of the container received, three cameras, gltfpack -cc and Draco (gzip -9) as "
+                        "points (streaming.csv/.json/.png; headless Chromium; default assets: bunny, DamagedHelmet, "
+                        "the chess set)")
+    p.add_argument("--assets", nargs="+", default=[], dest="more_assets", metavar="SRC",
+                   help="source files, added to the ASSET arguments")
+    p.add_argument("--cook-args", default="", metavar="ARGS",
+                   help="with --streaming: extra lopcook cook flags of the streamed containers, e.g. '--lods 1/2'")
     _add_common(p)
 
 

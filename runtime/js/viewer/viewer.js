@@ -103,11 +103,28 @@ class StreamingPlugin extends LOPGLTFPlugin {
  * (default: fetch).
  */
 export async function loadModel(gltfUrl, {open = null, onProgress = null} = {}) {
-  const lopLoader = new LOPLoader();
+  const lopLoader = new LOPLoader().setMaterial((c, part) => defaultMaterial(c.manifest.parts[part].attribute_bits.colors != null));
   const loader = new GLTFLoader();
   loader.register((parser) => new StreamingPlugin(parser, lopLoader, open, onProgress));
   const gltf = await loader.loadAsync(gltfUrl);
   return {root: gltf.scene, object: gltf.userData.lop};
+}
+
+/** The material of a primitive the glTF gives none (three-lop's default, for the container and the
+ * float reference alike): grey, dielectric, roughness 0.6; `vertexColors` when the mesh has colours. */
+export function defaultMaterial(vertexColors = false) {
+  return new THREE.MeshStandardMaterial({color: 0xcccccc, roughness: 0.6, metalness: 0, vertexColors});
+}
+
+/** A plain glTF (the bench's float reference) loaded as the viewer draws a model: primitives without
+ * a material get defaultMaterial, as the container's do. Resolves with the glTF scene. */
+export async function loadReference(url) {
+  const gltf = await new GLTFLoader().loadAsync(url);
+  gltf.scene.traverse((m) => {
+    const own = m.isMesh && gltf.parser.associations.get(m.material);
+    if (m.isMesh && !(own && own.materials !== undefined)) m.material = defaultMaterial(!!m.geometry.attributes.color);
+  });
+  return gltf.scene;
 }
 
 /** `fetch(url, init)` whose body reports every chunk: `onBytes(total so far)`. */
