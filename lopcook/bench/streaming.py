@@ -278,14 +278,17 @@ def run_streaming(opts) -> dict:
     from .charts import streaming_chart
 
     t0 = time.perf_counter()
-    out_dir = Path(opts.output)
-    out_dir.mkdir(parents=True, exist_ok=True)
     assets = [str(a) for a in opts.assets] or default_assets()
+    for a in assets:
+        if not Path(a).is_file():
+            raise LopcookError("usage", a, "not found or not a regular file", hint="give source assets with --assets")
     cook_flags = list(COOK_FLAGS) + list(getattr(opts, "cook_args", []) or [])
     chromium = find_chromium()
     if chromium is None:
         raise LopcookError("usage", None, "chromium not found (the streaming bench renders in headless Chromium)",
                            hint="apt-get install chromium, or set LOPCOOK_CHROMIUM")
+    out_dir = Path(opts.output)
+    out_dir.mkdir(parents=True, exist_ok=True)
     avail = P.availability([p for p in ("gltfpack", "draco")])
     site = runtime_site()
     jobs = [prepare_asset(a, out_dir, site, cook_flags, opts) for a in assets]
