@@ -143,13 +143,14 @@ PEER_LINES = (("gltfpack_cc_gzip_bytes", "gltfpack -cc, gzip -9", "tab:blue"),
 
 def streaming_chart(curves: dict, peers: dict, path) -> None:
     """curves: ``{(asset, camera): streaming.Curve}``; peers: ``{asset: {"gltfpack_cc_gzip_bytes",
-    "draco_gzip_bytes"}}`` (None: not run). x: bytes received (log), y: PSNR against the float
-    render; identical images are drawn at ``INF_DB``."""
+    "draco_gzip_bytes"}}`` (None: not run). x: bytes received (log, 1 % to 110 % of the .lop), y:
+    PSNR against the float render; identical images are drawn at ``INF_DB``."""
     plt = pyplot()
     assets = list(dict.fromkeys(a for a, _ in curves))
     fig, axes = plt.subplots(1, max(1, len(assets)), figsize=(5.2 * max(1, len(assets)), 4.4), squeeze=False)
     for ax, asset in zip(axes.ravel(), assets):
         top = 0.0
+        size = next(cv.file_bytes for (a, _), cv in curves.items() if a == asset)
         for (a, camera), cv in curves.items():
             pts = [(b, INF_DB if p is None else p) for (b, p), n in zip(cv.points, cv.covered) if a == asset and n > 0]
             if not pts:
@@ -159,13 +160,14 @@ def streaming_chart(curves: dict, peers: dict, path) -> None:
             top = max(top, float(y.max()))
             ax.step(x, y, where="post", color=CAMERA_COLOURS.get(camera), label=f"lopcook, {camera} camera")
             ax.plot(x[:1], y[:1], "o", ms=4, color=CAMERA_COLOURS.get(camera))
-            size = cv.file_bytes
         ax.axvline(size, color="grey", lw=0.8, ls=":", label="whole .lop")
+        ax.axvspan(0.01 * size, 0.05 * size, color="tab:green", alpha=0.08, lw=0, label="first 5 % of the .lop")
         for key, label, colour in PEER_LINES:
             if peers.get(asset, {}).get(key):
                 ax.axvline(peers[asset][key], color=colour, lw=1.2, ls="--", label=f"{label} (whole file)")
         ax.axhline(40.0, color="grey", lw=0.8, ls="--")
         ax.set_xscale("log")
+        ax.set_xlim(0.01 * size, 1.1 * size)
         ax.set_ylim(0, min(INF_DB, top + 5) if top else INF_DB)
         ax.set_title(asset)
         ax.set_xlabel("bytes received")
