@@ -235,3 +235,16 @@ def test_cli_refuses_bad_input_with_one_line(tmp_path, args, words):
         out, err = proc.communicate(timeout=60)
     assert proc.returncode == 2, (out, err)
     assert out == "" and len(err.strip().splitlines()) == 1 and words in err and "Traceback" not in err
+
+
+def test_a_wheel_ships_every_runtime_file_the_viewer_serves():
+    import fnmatch
+    import tomllib
+
+    files = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["data-files"]
+    tracked = subprocess.run(["git", "-C", str(REPO), "ls-files", "runtime/js"], capture_output=True, text=True,
+                             check=True).stdout.split()
+    for path in tracked:
+        dest = [d for d, globs in files.items() if any(fnmatch.fnmatch(path, g) and Path(g).parent == Path(path).parent
+                                                       for g in globs)]
+        assert dest == ["share/lopcook/" + str(Path(path).parent)], path
