@@ -126,97 +126,103 @@ def _rate(query: str) -> int | None:
     return int(text) if text.isdigit() and len(text) <= 12 else None
 
 
-def _handler(site: Site, port_ref: list):
-    class Handler(http.server.BaseHTTPRequestHandler):
-        server_version = "lopcook"
-        sys_version = ""
-        protocol_version = "HTTP/1.1"
+class _Handler(http.server.BaseHTTPRequestHandler):
+    """The request handler of a ViewerServer; ``site`` and ``port_ref`` (``[port]``) are set on a
+    subclass per server (``_handler``)."""
 
-        def _host_ok(self) -> bool:
-            host = (self.headers.get("Host") or "").strip().lower()
-            return host in (f"127.0.0.1:{port_ref[0]}", f"localhost:{port_ref[0]}")
+    site: Site
+    port_ref: list
+    server_version = "lopcook"
+    sys_version = ""
+    protocol_version = "HTTP/1.1"
 
-        def _status(self, code: int, extra: dict | None = None) -> None:
-            self.send_response(code)
-            for k, v in (extra or {}).items():
-                self.send_header(k, v)
-            self.send_header("Content-Length", "0")
-            self.send_header("Cache-Control", "no-store")
-            self.end_headers()
+    def _host_ok(self) -> bool:
+        host = (self.headers.get("Host") or "").strip().lower()
+        return host in (f"127.0.0.1:{self.port_ref[0]}", f"localhost:{self.port_ref[0]}")
 
-        def _route(self) -> tuple[Route | None, str]:
-            parts = urlsplit(self.path)
-            return site.routes.get(unquote(parts.path, errors="strict")), parts.query
+    def _status(self, code: int, extra: dict | None = None) -> None:
+        self.send_response(code)
+        for k, v in (extra or {}).items():
+            self.send_header(k, v)
+        self.send_header("Content-Length", "0")
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
 
-        def _get(self, head: bool) -> None:
-            if not self._host_ok():
-                return self._status(403)
-            try:
-                route, query = self._route()
-            except UnicodeDecodeError:
-                route, query = None, ""
-            if route is None:
-                return self._status(404)
-            rate = _rate(query) if route.paced else 0
-            if rate is None:
-                return self._status(400)
-            data = route.body()
-            start, end, code = 0, len(data), 200
-            if self.headers.get("Range") is not None:
-                rng = parse_range(self.headers["Range"], len(data))
-                if rng is None:
-                    return self._status(416, {"Content-Range": f"bytes */{len(data)}"})
-                (start, end), code = rng, 206
-            self.send_response(code)
-            self.send_header("Content-Type", route.mime)
-            self.send_header("Content-Length", str(end - start))
-            self.send_header("Accept-Ranges", "bytes")
-            self.send_header("Cache-Control", "no-store")
-            self.send_header("X-Content-Type-Options", "nosniff")
-            if code == 206:
-                self.send_header("Content-Range", f"bytes {start}-{end - 1}/{len(data)}")
-            self.end_headers()
-            if not head:
-                self._send(memoryview(data)[start:end], rate)
+    def _route(self) -> tuple[Route | None, str]:
+        parts = urlsplit(self.path)
+        return self.site.routes.get(unquote(parts.path, errors="strict")), parts.query
 
-        def _send(self, body: memoryview, rate: int) -> None:
-            """Write ``body``, at ``rate`` bytes per second when > 0; a client that hangs up (a
-            replay aborts its fetch) ends it quietly."""
-            try:
-                if rate <= 0:
-                    self.wfile.write(body)
-                    return
-                chunk = max(PACE_MIN_CHUNK, rate // PACE_HZ)
-                t0 = time.monotonic()
-                for at in range(0, len(body), chunk):
-                    wait = t0 + at / rate - time.monotonic()
-                    if wait > 0:
-                        time.sleep(wait)
-                    self.wfile.write(body[at:at + chunk])
-                    self.wfile.flush()
-            except (BrokenPipeError, ConnectionResetError):
-                self.close_connection = True
+    def _get(self, head: bool) -> None:
+        if not self._host_ok():
+            return self._status(403)
+        try:
+            route, query = self._route()
+        except UnicodeDecodeError:
+            route, query = None, ""
+        if route is None:
+            return self._status(404)
+        rate = _rate(query) if route.paced else 0
+        if rate is None:
+            return self._status(400)
+        data = route.body()
+        start, end, code = 0, len(data), 200
+        if self.headers.get("Range") is not None:
+            rng = parse_range(self.headers["Range"], len(data))
+            if rng is None:
+                return self._status(416, {"Content-Range": f"bytes */{len(data)}"})
+            (start, end), code = rng, 206
+        self.send_response(code)
+        self.send_header("Content-Type", route.mime)
+        self.send_header("Content-Length", str(end - start))
+        self.send_header("Accept-Ranges", "bytes")
+        self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        if code == 206:
+            self.send_header("Content-Range", f"bytes {start}-{end - 1}/{len(data)}")
+        self.end_headers()
+        if not head:
+            self._send(memoryview(data)[start:end], rate)
 
-        def do_GET(self):  # noqa: N802 - http.server's naming
-            self._get(head=False)
+    def _send(self, body: memoryview, rate: int) -> None:
+        """Write ``body``, at ``rate`` bytes per second when > 0; a client that hangs up (a
+        replay aborts its fetch) ends it quietly."""
+        try:
+            if rate <= 0:
+                self.wfile.write(body)
+                return
+            chunk = max(PACE_MIN_CHUNK, rate // PACE_HZ)
+            t0 = time.monotonic()
+            for at in range(0, len(body), chunk):
+                wait = t0 + at / rate - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)
+                self.wfile.write(body[at:at + chunk])
+                self.wfile.flush()
+        except (BrokenPipeError, ConnectionResetError):
+            self.close_connection = True
 
-        def do_HEAD(self):  # noqa: N802
-            self._get(head=True)
+    def do_GET(self):  # noqa: N802 - http.server's naming
+        self._get(head=False)
 
-        def do_POST(self):  # noqa: N802
-            if not self._host_ok():
-                return self._status(403)
-            if site.post is None:
-                return self._status(405, {"Allow": "GET, HEAD"})
-            n = int(self.headers.get("Content-Length") or 0)
-            body = self.rfile.read(n)
-            site.post(unquote(urlsplit(self.path).path), body)
-            self._status(204)
+    def do_HEAD(self):  # noqa: N802
+        self._get(head=True)
 
-        def log_message(self, *args):  # quiet: the command prints its URL and nothing per request
-            pass
+    def do_POST(self):  # noqa: N802
+        if not self._host_ok():
+            return self._status(403)
+        if self.site.post is None:
+            return self._status(405, {"Allow": "GET, HEAD"})
+        n = int(self.headers.get("Content-Length") or 0)
+        body = self.rfile.read(n)
+        self.site.post(unquote(urlsplit(self.path).path), body)
+        self._status(204)
 
-    return Handler
+    def log_message(self, *args):  # quiet: the command prints its URL and nothing per request
+        pass
+
+
+def _handler(site: Site, port_ref: list) -> type:
+    return type("Handler", (_Handler,), {"site": site, "port_ref": port_ref})
 
 
 class ViewerServer:
