@@ -221,8 +221,9 @@ def prepare_asset(source: str, out_dir: Path, site: Site, cook_flags, opts) -> d
             "cameras": [{"name": n, "fraction": f} for n, f in CAMERAS], "_scene": scene, "_container": c}
 
 
-def run_jobs(jobs: list[dict], out_dir: Path, site: Site, timeout_s: float) -> dict:
-    """Serve ``site`` with the bench page and ``jobs``, run the page, return ``{(asset, camera): Curve}``."""
+def run_jobs(jobs: list[dict], out_dir: Path, site: Site, timeout_s: float) -> tuple[dict, dict]:
+    """Serve ``site`` with the bench page and ``jobs``, run the page; returns ``{(asset, camera): Curve}``
+    and ``{asset: [[bytes, level drawn], ...]}`` (every cut drawn)."""
     curves = {(j["name"], n): Curve(j["name"], n, len(j["_container"].data)) for j in jobs for n, _ in CAMERAS}
     sink = Collector(curves, out_dir / "images")
     site.post = sink.post
@@ -233,7 +234,7 @@ def run_jobs(jobs: list[dict], out_dir: Path, site: Site, timeout_s: float) -> d
         run_page(server.url + "bench/index.html", sink.done, timeout=timeout_s, size=SIZE)
     if sink.error or (sink.result or {}).get("error"):
         raise LopcookError("bench", None, f"the streaming page failed: {sink.error or sink.result['error']}")
-    return curves
+    return curves, {a["name"]: [[d["bytes"], d["level"]] for d in a["drawn"]] for a in sink.result["assets"]}
 
 
 def summarise(curves: dict, peers: dict, jobs: list[dict]) -> tuple[list[dict], dict, list[dict]]:
@@ -299,7 +300,7 @@ def run_streaming(opts) -> dict:
         for note in peers[j["name"]]["notes"]:
             log(opts, f"{j['name']}: {note}")
     log(opts, f"render {len(jobs)} assets x {len(CAMERAS)} cameras in headless Chromium ({SIZE[0]}x{SIZE[1]})")
-    curves = run_jobs(jobs, out_dir, site, timeout_s=3600.0 * len(jobs))
+    curves, drawn = run_jobs(jobs, out_dir, site, timeout_s=3600.0 * len(jobs))
     rows, results, checks = summarise(curves, peers, jobs)
     write_csv(out_dir / "streaming.csv", rows, CSV_COLUMNS)
     summary = {"generator": "lopcook bench --streaming", "command": "lopcook bench " + " ".join(getattr(opts, "argv", [])),
@@ -307,7 +308,7 @@ def run_streaming(opts) -> dict:
                "cameras": dict(CAMERAS), "cook_flags": cook_flags, "peer_position_bits": PEER_POSITION_BITS,
                "peer_notes": {a: p["notes"] for a, p in peers.items()},
                "lop_gzip_bytes": {j["name"]: gzip9(bytes(j["_container"].data)) for j in jobs},
-               "results": results, "checks": checks, "seconds": round(time.perf_counter() - t0, 1)}
+               "results": results, "levels_drawn": drawn, "checks": checks, "seconds": round(time.perf_counter() - t0, 1)}
     (out_dir / "streaming.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
     streaming_chart(curves, peers, out_dir / "streaming.png")
     for c in checks:

@@ -42,12 +42,12 @@ def run(tmp_path_factory):
     site = runtime_site()
     job = S.prepare_asset(str(REPO / "fixtures" / "unit_sphere.obj"), out, site, [],
                           SimpleNamespace(quiet=True))
-    curves = S.run_jobs([job], out, site, timeout_s=900)
-    return job, curves, out
+    curves, drawn = S.run_jobs([job], out, site, timeout_s=900)
+    return job, curves, out, drawn
 
 
 def test_every_camera_is_drawn_from_the_first_renderable_prefix_to_the_end(run):
-    job, curves, out = run
+    job, curves, out, drawn = run
     data = bytes(job["_container"].data)
     first = _first_renderable(data)
     assert first in job["cuts"]
@@ -58,17 +58,20 @@ def test_every_camera_is_drawn_from_the_first_renderable_prefix_to_the_end(run):
         assert cv.first_image_bytes() == got[0] == first
         assert all(n > 500 for n in cv.covered)
         assert (out / "images" / f"{job['name']}-{name}-reference.png").is_file()
+    data_levels = [from_bytes(data[:b], "prefix", allow_prefix=True).available_level for b, _ in drawn[job["name"]]]
+    assert [lv for _, lv in drawn[job["name"]]] == data_levels  # the page drew what lopcook's reader reads
+    assert data_levels[-1] == job["_container"].available_level
 
 
 def test_the_whole_file_renders_like_the_float_reference(run):
-    job, curves, _ = run
+    job, curves, _, _ = run
     for name, _ in S.CAMERAS:
         final = curves[(job["name"], name)].final_db()
         assert final is None or final >= 40.0, (name, final)
 
 
 def test_the_near_camera_fills_more_of_the_canvas_than_the_far_one(run):
-    job, curves, _ = run
+    job, curves, _, _ = run
     near, mid, far = (curves[(job["name"], n)].covered[-1] for n, _ in S.CAMERAS)
     # the sphere spans 100 %, 40 % and 15 % of the height: covered areas scale about as the squares
     assert near > mid > far
