@@ -183,6 +183,10 @@ def test_vendored_three_files_are_the_release_files():
     assert set(sums) == listed
     for name, digest in sums.items():
         assert hashlib.sha256((VENDOR / name).read_bytes()).hexdigest() == digest, name
+    tracked = subprocess.run(["git", "-C", str(REPO), "ls-files", str(VENDOR.relative_to(REPO))], capture_output=True,
+                             text=True, check=True).stdout.split()
+    assert {Path(t).relative_to(VENDOR.relative_to(REPO)).as_posix() for t in tracked} == set(sums) | {"SHA256SUMS",
+                                                                                                    "README.md"}
     npm = REPO / ".ci" / "node" / "node_modules" / "three"
     if (npm / "package.json").is_file():
         assert json.loads((npm / "package.json").read_text())["version"] == "0.170.0"
