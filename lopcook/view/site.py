@@ -30,10 +30,6 @@ from ..errors import LopcookError
 from ..lop.container import read
 from .server import Site
 
-CONTAINER_URL = "/asset/scene.lop"
-GLTF_URL = "/asset/scene.gltf"
-
-
 def runtime_js_dir() -> Path:
     """The ``runtime/js`` folder holding ``viewer/index.html`` (module doc); LopcookError when none does."""
     env = os.environ.get("LOPCOOK_RUNTIME_JS")
@@ -83,4 +79,4 @@ def viewer_site(container_path: str, source: str | None = None, js_dir=None) -> 
     return site, info
 
 
-__all__ = ["CONTAINER_URL", "GLTF_URL", "add_container", "runtime_js_dir", "runtime_site", "viewer_site"]
+__all__ = ["add_container", "runtime_js_dir", "runtime_site", "viewer_site"]
