@@ -36,6 +36,7 @@ RANKS = {
     "api": 8,
     "outputs": 8,
     "cookjob": 9,
+    "view": 9,
     "report": 10,
     "bench": 10,
     "cli": 11,

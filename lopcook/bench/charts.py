@@ -6,6 +6,8 @@
 (b) ``scaling.png``: cook wall time against triangles, log-log, with the fitted slope, and
     gltfpack ``-si 0.5 -vp 14`` in the same chart.
 (c) ``stages.png``: stacked bars of lopcook's time per stage for every cook.
+(d) ``streaming.png``: PSNR against bytes received of a streamed container, one panel per asset,
+    a step line per camera, the peers' whole files (gzip -9) as vertical lines.
 """
 
 from __future__ import annotations
@@ -134,4 +136,47 @@ def stages_chart(rows: list[dict], path) -> None:
     plt.close(fig)
 
 
-__all__ = ["INF_DB", "pareto_chart", "scaling_chart", "stages_chart", "series_name"]
+CAMERA_COLOURS = {"near": "tab:red", "middle": "tab:orange", "far": "tab:olive"}
+PEER_LINES = (("gltfpack_cc_gzip_bytes", "gltfpack -cc, gzip -9", "tab:blue"),
+              ("draco_gzip_bytes", "Draco, gzip -9", "tab:purple"))
+
+
+def streaming_chart(curves: dict, peers: dict, path) -> None:
+    """curves: ``{(asset, camera): streaming.Curve}``; peers: ``{asset: {"gltfpack_cc_gzip_bytes",
+    "draco_gzip_bytes"}}`` (None: not run). x: bytes received (log, 1 % to 110 % of the .lop), y:
+    PSNR against the float render; identical images are drawn at ``INF_DB``."""
+    plt = pyplot()
+    assets = list(dict.fromkeys(a for a, _ in curves))
+    fig, axes = plt.subplots(1, max(1, len(assets)), figsize=(5.2 * max(1, len(assets)), 4.4), squeeze=False)
+    for ax, asset in zip(axes.ravel(), assets):
+        top = 0.0
+        size = next(cv.file_bytes for (a, _), cv in curves.items() if a == asset)
+        for (a, camera), cv in curves.items():
+            pts = [(b, INF_DB if p is None else p) for (b, p), n in zip(cv.points, cv.covered) if a == asset and n > 0]
+            if not pts:
+                continue
+            x, y = np.array(pts, dtype=np.float64).T
+            x, y = np.append(x, cv.file_bytes), np.append(y, y[-1])
+            top = max(top, float(y.max()))
+            ax.step(x, y, where="post", color=CAMERA_COLOURS.get(camera), label=f"lopcook, {camera} camera")
+            ax.plot(x[:1], y[:1], "o", ms=4, color=CAMERA_COLOURS.get(camera))
+        ax.axvline(size, color="grey", lw=0.8, ls=":", label="whole .lop")
+        ax.axvspan(0.01 * size, 0.05 * size, color="tab:green", alpha=0.08, lw=0, label="first 5 % of the .lop")
+        for key, label, colour in PEER_LINES:
+            if peers.get(asset, {}).get(key):
+                ax.axvline(peers[asset][key], color=colour, lw=1.2, ls="--", label=f"{label} (whole file)")
+        ax.axhline(40.0, color="grey", lw=0.8, ls="--")
+        ax.set_xscale("log")
+        ax.set_xlim(0.01 * size, 1.1 * size)
+        ax.set_ylim(0, min(INF_DB, top + 5) if top else INF_DB)
+        ax.set_title(asset)
+        ax.set_xlabel("bytes received")
+        ax.set_ylabel("PSNR against the float render (dB)")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+__all__ = ["INF_DB", "pareto_chart", "scaling_chart", "stages_chart", "series_name", "streaming_chart"]

@@ -1,6 +1,6 @@
 """``lopcook bench``'s entry: ``run(opts)`` runs what the parsed flags ask for (the accuracy runs per
-asset, the scaling runs, or instead ``--attributes`` or ``--connectivity``) and writes everything
-into ``opts.output``; it returns the summary dict.
+asset, the scaling runs, or instead ``--attributes``, ``--connectivity`` or ``--streaming``) and
+writes everything into ``opts.output``; it returns the summary dict.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from .common import asset_name, corpus_dir, dracopy_version, log, machine, write
 from .compare import DEFAULT_ASSETS, ROW_COLUMNS, bench_asset, result_row
 from .connectivity import ASSETS, main
 from .scaling import bench_scaling
+from .streaming import run_streaming
 from .summary import write_outputs
 
 
@@ -60,6 +61,8 @@ def run(opts) -> dict:
         return run_connectivity(opts)
     if getattr(opts, "attributes", False):
         return run_attributes(opts)
+    if getattr(opts, "streaming", False):
+        return run_streaming(opts)
     t0 = time.perf_counter()
     out_dir = Path(opts.output)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -47,6 +48,7 @@ from ..verify.decoders import format_report, parse_levels, verify_decoders
 from ..verify.evaluate import evaluate
 from ..verify.tables import format_table
 from ..version import __version__
+from ..view import ViewerServer, viewer_site
 from .parser import (analyse_settings, check_views, ingest_settings, parse_xyz, settings_from_args,
                      source_ingest_settings)
 
@@ -204,6 +206,27 @@ def cmd_web(args) -> int:
     return EXIT_OK
 
 
+def cmd_view(args) -> int:
+    site, info = viewer_site(args.container, args.source)
+    server = ViewerServer(site, args.port)
+    if not args.quiet:
+        for w in info["warnings"]:
+            print(f"lopcook: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"url": server.url, "container": args.container, "bytes": info["bytes"],
+                          "materials": info["materials"]}, sort_keys=True), flush=True)
+    elif not args.quiet:
+        print(f"lopcook view: {args.container} ({info['bytes']:,} bytes, {info['materials']} materials) at {server.url}"
+              f"  (Ctrl-C stops)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:  # the way to stop it: not an interruption of work
+        pass
+    finally:
+        server.close()
+    return EXIT_OK
+
+
 def cmd_refine(args) -> int:
     camera, target = parse_xyz(args.camera, "--camera"), parse_xyz(args.target, "--target")
     viewport = parse_resolution(args.viewport, "--viewport")
@@ -356,6 +379,11 @@ def cmd_report(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    args.assets = list(args.assets) + list(args.more_assets)
+    try:
+        args.cook_args = shlex.split(args.cook_args)
+    except ValueError as exc:
+        raise LopcookError("usage", None, f"--cook-args {args.cook_args!r}: {exc}") from None
     args.levels = parse_levels(args.levels) if args.levels else list(DEFAULT_LEVELS)
     args.views = check_views(args.views, "--views")
     args.resolution = parse_resolution(args.resolution, "--resolution")
@@ -379,8 +407,8 @@ def cmd_bench(args) -> int:
 
 
 COMMANDS = {"inspect": cmd_inspect, "analyse": cmd_analyse, "cook": cmd_cook, "decode": cmd_decode, "web": cmd_web,
-            "refine": cmd_refine,
+            "view": cmd_view, "refine": cmd_refine,
             "verify": cmd_verify, "calibrate": cmd_calibrate, "report": cmd_report, "bench": cmd_bench}
 
 __all__ = ["COMMANDS", "cmd_analyse", "cmd_bench", "cmd_calibrate", "cmd_cook", "cmd_decode", "cmd_inspect", "cmd_refine",
-           "cmd_report", "cmd_verify"]
+           "cmd_report", "cmd_verify", "cmd_view"]

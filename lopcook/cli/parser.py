@@ -102,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate_parser(sub)
     _add_decode_parser(sub)
     _add_web_parser(sub)
+    _add_view_parser(sub)
     _add_refine_parser(sub)
     _add_analyse_parser(sub)
     _add_verify_parser(sub)
@@ -212,6 +213,19 @@ def _add_web_parser(sub) -> None:
     p.add_argument("--source", metavar="SRC", default=None,
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")
+    _add_common(p)
+
+
+def _add_view_parser(sub) -> None:
+    """``lopcook view``: the streaming viewer on 127.0.0.1 (lopcook/view/, docs/viewer.md)."""
+    p = sub.add_parser("view", help="serve a page on 127.0.0.1 that streams the container into three.js with its "
+                                    "materials (HUD, bandwidth throttle, level colours); Ctrl-C stops it")
+    p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
+    p.add_argument("--source", metavar="SRC", default=None,
+                   help="source asset to take materials and textures from (default: the manifest's source file "
+                        "beside the container; used only when its sha256 matches)")
+    p.add_argument("--port", type=int, default=0, metavar="N",
+                   help="TCP port on 127.0.0.1, 1..65535 (default 0: any free port; the URL is printed)")
     _add_common(p)
 
 
@@ -406,6 +420,15 @@ def _add_bench_parser(sub) -> None:
                    help="instead: the hierarchy connectivity benchmark (bits per triangle of every coding variant, "
                         "meshoptimizer and Draco, throughput, and the chart against the random-access unit size; "
                         "default assets: the corpus)")
+    p.add_argument("--streaming", action="store_true",
+                   help="instead: PSNR of the three.js viewer's render against the float render as a function of "
+                        "the bytes of the container received, three cameras, gltfpack -cc and Draco (gzip -9) as "
+                        "points (streaming.csv/.json/.png; headless Chromium; default assets: bunny, DamagedHelmet, "
+                        "the chess set)")
+    p.add_argument("--assets", nargs="+", default=[], dest="more_assets", metavar="SRC",
+                   help="source files, added to the ASSET arguments")
+    p.add_argument("--cook-args", default="", metavar="ARGS",
+                   help="with --streaming: extra lopcook cook flags of the streamed containers, e.g. '--lods 1/2'")
     _add_common(p)
 
 
