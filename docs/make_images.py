@@ -34,6 +34,7 @@ from lopcook.report.svg import level_fill
 from lopcook.tune.budget import frame_distance
 from lopcook.verify.baselines import level_scene
 from lopcook.verify.cameras import render_viewing
+from lopcook.verify.evaluate import harness_evaluate_scene
 from lopcook.verify.renderer import Harness, Shading
 
 REPO = Path(__file__).resolve().parent.parent
@@ -66,9 +67,9 @@ def level_render(source: Path, view: int, resolution: tuple[int, int]) -> tuple[
     viewing = render_viewing(m, resolution)
     lo, hi = scene.bounds()
     with Harness(scene, resolution) as h:
-        ev = h.evaluate_scene(coloured, levels=[present[0]], views=[view], extent=float(m["grid"]["extent"]),
-                              viewing=viewing, shading=Shading(ks=0.0), keep_images=True, image_view=view,
-                              distance_m=frame_distance(lo, hi, viewing.fov_y_deg, resolution))
+        ev = harness_evaluate_scene(h, coloured, levels=[present[0]], views=[view], extent=float(m["grid"]["extent"]),
+                                    viewing=viewing, shading=Shading(ks=0.0), keep_images=True, image_view=view,
+                                    distance_m=frame_distance(lo, hi, viewing.fov_y_deg, resolution))
     rgba = ev["images"]["scene"]
     return apply_crop(rgba, crop_box({"scene": rgba})), hist
 

@@ -146,6 +146,9 @@ class Allocation:
     #: whole steps, as ``lopcook.tune.calibrate``), None: not a knob (edges off, or a bit budget)
     e: float | None = None
 
+    def __post_init__(self) -> None:  # every part's entry in record order, shorter ones padded with None
+        object.__setattr__(self, "parts", tuple(tuple(p) + (None,) * (len(CODECS) - len(p)) for p in self.parts))
+
     def key(self) -> tuple:
         return (float(self.x), tuple(tuple(p) for p in self.parts), self.e)
 
@@ -864,8 +867,10 @@ def require_reached(result: dict, path: str | None = None) -> None:
 
 
 def _alloc_text(rec: dict) -> str:
-    """``k_f 2^x, n/uv/c 8/12/- 7/-/-``: the bits per part, runs of equal parts as ``8/6/- x49``."""
-    parts = ["/".join("-" if p[a] is None else str(p[a]) for a in ATTRIBUTES) for p in rec["parts"]]
+    """``k_f 2^x, n/uv/c 8/12/- 7/-/-``: the bits per part of every codec the record lists (codec
+    ``short`` names), runs of equal parts as ``8/6/- x49``."""
+    listed = [c for c in CODECS if any(c.name in p for p in rec["parts"])]
+    parts = ["/".join("-" if p.get(c.name) is None else str(p[c.name]) for c in listed) for p in rec["parts"]]
     runs: list = []
     for t in parts:
         if runs and runs[-1][0] == t:
@@ -873,7 +878,8 @@ def _alloc_text(rec: dict) -> str:
         else:
             runs.append([t, 1])
     edges = "" if rec.get("edge_scale") is None else f", edges {rec['edge_scale']:+g}"
-    return f"k_f 2^{rec['log2_kf_scale']:g}{edges}, n/uv/c " + " ".join(t if n == 1 else f"{t} x{n}" for t, n in runs)
+    names = "/".join(c.short for c in listed)
+    return f"k_f 2^{rec['log2_kf_scale']:g}{edges}, {names} " + " ".join(t if n == 1 else f"{t} x{n}" for t, n in runs)
 
 
 def format_probe(p: dict) -> str:

@@ -82,7 +82,8 @@ class Codec:
         ``"direction"`` (a unit vector that shading reads; components after the third are a
         handedness), ``"texcoord"`` (texture lookups), ``"color"`` (a colour in the image).
     lod_keys : LOD-entry fields the codec writes beside ``attribute_bits`` (the UVs' range).
-    label : the name people read (``"UVs"``); description : its CLI flag's help.
+    label : the name people read (``"UVs"``); short : its abbreviation in compact text (``"uv"``);
+    description : its CLI flag's help.
     """
 
     name: str = ""
@@ -96,6 +97,7 @@ class Codec:
     error_model: str = ""
     lod_keys: tuple[str, ...] = ()
     label: str = ""
+    short: str = ""
     description: str = ""
 
     def check(self, b) -> int:

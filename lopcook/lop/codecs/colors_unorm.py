@@ -43,6 +43,7 @@ class Colors(Codec):
     shader = "lop_decode_color"
     ubo = {"bits": "bits.z", "scale": "scale.y"}
     error_model = "color"
+    short = "c"
     label = "colours"
     description = "bits per vertex-colour channel"
 

@@ -157,6 +157,7 @@ class Normals(Codec):
     shader = "lop_decode_normal"
     ubo = {"bits": "bits.x", "scale": "scale.x"}
     error_model = "direction"
+    short = "n"
     label = "normals"
     description = "octahedral bits per normal component"
 

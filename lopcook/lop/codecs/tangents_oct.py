@@ -45,6 +45,7 @@ def decode_tangents(codes, bits: int = 16) -> np.ndarray:
 
 class Tangents(Codec):
     name, singular, label, components = "tangents", "tangent", "tangents", 4
+    short = "t"
     bits, default_bits = NORMAL_BITS, 16
     format_major = 4
     shader = "lop_decode_tangent"

@@ -117,6 +117,7 @@ class Uvs(Codec):
     ubo = {"bits": "bits.y", "lo": "uv.xy", "step": "uv.zw"}
     error_model = "texcoord"
     lod_keys = ("uv_range", "uv_step")
+    short = "uv"
     label = "UVs"
     description = "bits per UV component over each buffer's range"
 
