@@ -289,7 +289,7 @@ def attributes_section(container, scene) -> dict:
         lod = part["lods"][0]
         bits = part.get("attribute_bits") or lod.get("attribute_bits") or {}
         parts.append({"part": i, "name": part.get("name"), "vertices": int(lod["vertices"]),
-                      "bits": {a: bits.get(a) for a in ATTRIBUTES}, "record_bits": lod.get("record_bits")})
+                      "bits": {a: bits[a] for a in ATTRIBUTES if a in bits}, "record_bits": lod.get("record_bits")})
     try:
         errors = attribute_errors(container, scene)
     except Exception:  # noqa: BLE001 -- a scene that is not the container's source: no attribute errors

@@ -898,7 +898,7 @@ def format_search(result: dict) -> str:
                  f"{result['bits_per_vertex']:.2f} (positions {result['vertex_bits']['positions']:.2f}, attributes "
                  f"{result['vertex_bits']['attributes']:.2f}; the default cook: {result['start_bits_per_vertex']:.2f})")
     for i, p in enumerate(ch["parts"]):
-        bits = ", ".join(f"{a} {p[a]}" for a in ATTRIBUTES if p[a] is not None) or "no attributes"
+        bits = ", ".join(f"{a} {p[a]}" for a in ATTRIBUTES if p.get(a) is not None) or "no attributes"
         lines.append(f"  part {i}: {bits} bits per component")
     lines.append(f"  reduced harness PSNR ({result['statistic']}, worst level): {result['objective_db']:.2f} dB")
     for c in result["confirmation"]:
