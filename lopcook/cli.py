@@ -140,7 +140,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
     p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
+    p.add_argument("-o", "--output", default=None, metavar="OUT.glb",
+                   help=".glb, or .gltf (+ .bin); may be left out when --positions is given")
+    p.add_argument("--positions", default=None, metavar="OUT.f32",
+                   help="write the float32 xyz (little-endian) of every vertex of every part and placement at --level, "
+                        "in manifest order, world metres: the layout runtime/c's lopdump writes, so that readers "
+                        "compare byte for byte (docs/runtime-c.md)")
     p.add_argument("--source", metavar="SRC", default=None,
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")
@@ -759,10 +764,20 @@ def cmd_decode(args) -> int:
     from .emit.gltf_writer import write_gltf
     from .emit.reader import decode_positions, lod_attributes, world_normals
 
+    if args.output is None and args.positions is None:
+        raise LopcookError("usage", args.container, "nothing to write", hint="give -o OUT.glb and/or --positions OUT.f32")
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
-    _check_gltf_output(args)
+    if args.output is not None:
+        _check_gltf_output(args)
+    if args.positions is not None:
+        from .outputs import check_output
+
+        check_output(args.positions, "--positions", extensions=(".f32",), what="float32 positions",
+                     inputs=(args.container,), required=False)
     c = read(args.container)
+    if args.output is None:
+        return _decode_positions(args, c)
     from .emit.preview import preview, source_candidate
     from .outputs import check_not_input
 
@@ -806,6 +821,28 @@ def cmd_decode(args) -> int:
                           "warnings": pv["warnings"]}, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
+    if args.positions is not None:
+        _decode_positions(args, c, quiet=True)
+    return EXIT_OK
+
+
+def _decode_positions(args, c, quiet: bool = False) -> int:
+    """``decode --positions``: ``emit.reader.positions_f32`` written atomically (the checks of
+    ``decode``: a LOD no part has, or a level the file does not hold, exit 2)."""
+    from .atomic import write_atomic
+    from .emit.reader import positions_f32
+
+    deepest = max(len(p["lods"]) for p in c.manifest["parts"])
+    if not 0 <= args.lod < deepest:
+        raise LopcookError("usage", args.container, f"--lod {args.lod}: no part has LOD {args.lod} (the container has "
+                           f"LODs 0..{deepest - 1})")
+    data = positions_f32(c, args.level, args.lod)
+    write_atomic(args.positions, data)
+    if args.json and not quiet:
+        print(json.dumps({"positions": args.positions, "level": args.level, "lod": args.lod, "bytes": len(data),
+                          "vertices": len(data) // 12, "parts": len(c.manifest["parts"])}, sort_keys=True))
+    elif not args.quiet and not quiet:
+        print(f"{args.positions}: {len(data) // 12} vertices decoded at level {args.level}, LOD {args.lod}")
     return EXIT_OK
 
 

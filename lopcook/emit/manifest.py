@@ -49,8 +49,11 @@ def validate_manifest(m, path: str | None) -> None:
     that lacks an informative field the schema requires is refused, with one message naming it.
     """
 
+    reason = ["manifest"]  # the error class (docs/format.md section 12): the section table's checks say section_table
+
     def fail(msg: str) -> None:
-        raise LopcookError("container", path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
+        raise LopcookError("container", path, f"manifest: {msg}", hint="the file is corrupt; cook it again",
+                           reason=reason[0])
 
     def is_int(v) -> bool:
         return isinstance(v, int) and not isinstance(v, bool)
@@ -127,6 +130,7 @@ def validate_manifest(m, path: str | None) -> None:
         count(savings, "lods_dropped", "savings")
 
     # sections: back to back in manifest order
+    reason[0] = "section_table"
     sections = need(m, "sections", list, "manifest")
     names = set()
     offset = 0
@@ -145,6 +149,7 @@ def validate_manifest(m, path: str | None) -> None:
             fail(f"section {name!r} appears twice")
         names.add(name)
 
+    reason[0] = "manifest"
     # grid: finite, representable in float32
     grid = need(m, "grid", dict, "manifest")
     origin = need(grid, "origin", list, "grid")
@@ -237,6 +242,8 @@ def validate_manifest(m, path: str | None) -> None:
             abits = check_bits(lod, where)
             if i_bits is None:
                 i_bits = abits
+            elif abits != i_bits:
+                fail(f"{where}.attribute_bits differ from its part's LOD 0")
             rec = lod.get("attributes")
             if rec is not None and (not isinstance(rec, str) or rec not in names):
                 fail(f"{where}.attributes names no section")
