@@ -384,6 +384,32 @@ static uint64_t lop__field(const uint8_t *p, size_t len, uint64_t bit, unsigned 
     return lop__bits(p, len, bit) & ((UINT64_C(1) << width) - 1);
 }
 
+/* lop__bits where the caller has checked that bytes [bit / 8, bit / 8 + 8) lie in the stream. */
+static uint64_t lop__bits_in(const uint8_t *p, uint64_t bit)
+{
+    uint64_t w;
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    memcpy(&w, p + (bit >> 3), 8);
+#else
+    w = lop__rd64(p + (bit >> 3));
+#endif
+    return w >> (bit & 7);
+}
+
+/* lop__bits, unchecked when `in` says the caller checked the range */
+static uint64_t lop__ld(const uint8_t *p, size_t len, uint64_t bit, int in)
+{
+    return in ? lop__bits_in(p, bit) : lop__bits(p, len, bit);
+}
+
+static const uint8_t lop__zeros[16] = {0};
+
+/* Whether every 8-byte load of lop__bits_in at bits [bit, bit + nbits] stays inside len bytes. */
+static int lop__loads_in(size_t len, uint64_t bit, uint64_t nbits)
+{
+    return ((bit + nbits) >> 3) + 8 <= (uint64_t)len;
+}
+
 typedef struct lop__err {
     lop_result code;
     lop_message *msg;
@@ -2794,6 +2820,9 @@ LOPDEF lop_result lop_select(const lop_file *f, uint32_t part, double distance_m
 
 #define LOP__CHUNK 1024
 
+/* A run of vertices that share a bin and, when clustered, a cluster. `val` holds their top bits at
+   the level (NULL when the sink asked for none and `raw_bits` is nonzero: then the run's fields in
+   P equal its level-1 fields, `raw_bits` bits from bit `raw_bit` of the mandatory words). */
 typedef struct lop__chunk {
     uint32_t j0, n;      /* vertices [j0, j0 + n) */
     int bin, width;      /* their bin and bits per component max(bin, B) */
@@ -2801,6 +2830,9 @@ typedef struct lop__chunk {
     int clustered;       /* a cluster of a clustered buffer: */
     uint32_t header[3];  /* its header words a_t | k_t << 24 */
     int kt[3];
+    const uint8_t *raw;  /* the mandatory words of the buffer */
+    size_t raw_len;
+    uint64_t raw_bit, raw_bits;
 } lop__chunk;
 
 typedef int (*lop__sink)(void *ctx, const lop__chunk *ch);
@@ -2843,21 +2875,62 @@ static void lop__sources(const lop_file *f, const lop_lod *e, int level, lop__sr
     }
 }
 
-/* Unclustered: vertices [j, j + n) of bin k at level B (section 6.6). */
-static void lop__unpack_bin(const lop_lod *e, const lop__srcs *s, int B, int k, uint64_t bit1, uint32_t j,
-                            uint32_t n, uint32_t *val)
+/* Unclustered: vertices [j, j + n) of bin k at level B (section 6.6), their level-1 fields from
+   bit o of the mandatory words. */
+/* Append plane bits to the lanes of n vertices, plane after plane (plane-major: one running bit
+   offset and one 8-entry table per plane). lanes[l] holds x, y, z at bits 0, 21, 42. A plane q
+   gives `nb[q]` (0..3) bits per vertex from bit `at[q]` of `pl[q]`, mapped through `tab[q]`. */
+static void lop__lanes(uint64_t *lanes, uint32_t n, int np, const uint8_t *const *pl, const size_t *len,
+                       const uint64_t *at, const unsigned *nb, const uint64_t (*tab)[8], int in)
 {
-    uint32_t i;
-    uint64_t o = bit1 + 3u * (uint64_t)k * (j - e->vertex_id[k - 1]);
-    uint32_t mk = (1u << k) - 1;
-    int np = B > k ? B - k : 0, q;
-    uint64_t pos[LOP_LEVELS + 1];
-    for (q = 0; q < np; q++)
-        pos[q] = e->plane_start[k + 1 + q] + 3u * (uint64_t)j;
+    int q;
+    uint32_t l;
+    for (l = 0; l < n; l++)
+        lanes[l] = 0;
+    for (q = 0; q < np; q++) {
+        const uint8_t *p = pl[q];
+        const uint64_t *t = tab[q];
+        uint64_t bit = at[q];
+        unsigned step = nb[q], m = (1u << nb[q]) - 1u;
+        if (!step) {
+            for (l = 0; l < n; l++)
+                lanes[l] = lanes[l] << 1 | t[0];
+        } else if (in) {
+            for (l = 0; l < n; l++, bit += step)
+                lanes[l] = lanes[l] << 1 | t[(unsigned)lop__bits_in(p, bit) & m];
+        } else {
+            for (l = 0; l < n; l++, bit += step)
+                lanes[l] = lanes[l] << 1 | t[(unsigned)lop__bits(p, len[q], bit) & m];
+        }
+    }
+}
+
+static void lop__unpack_bin(const lop_lod *e, const lop__srcs *s, int B, int k, uint64_t o, uint32_t j, uint32_t n,
+                            uint32_t *val)
+{
+    uint64_t lanes[LOP__CHUNK], at[LOP_LEVELS], tab[LOP_LEVELS][8];
+    const uint8_t *pl[LOP_LEVELS];
+    size_t len[LOP_LEVELS];
+    unsigned nb[LOP_LEVELS];
+    uint32_t i, mk = (1u << k) - 1;
+    int np = B > k ? B - k : 0, q, in;
+    in = lop__loads_in(s->mand_len, o, 3u * (uint64_t)k * n);
+    for (q = 0; q < np; q++) {
+        int r;
+        pl[q] = s->plane[k + 1 + q];
+        len[q] = s->plane_len[k + 1 + q];
+        at[q] = e->plane_start[k + 1 + q] + 3u * (uint64_t)j;
+        nb[q] = 3;
+        for (r = 0; r < 8; r++)
+            tab[q][r] = lop__spread[r];
+        in = in && lop__loads_in(len[q], at[q], 3u * (uint64_t)n);
+    }
+    if (np && np <= 21)
+        lop__lanes(lanes, n, np, pl, len, at, nb, (const uint64_t(*)[8])tab, in);
     for (i = 0; i < n; i++, o += 3u * (uint64_t)k) {
         uint32_t x, y, z;
         if (k <= 19) {
-            uint64_t m = lop__field(s->mand, s->mand_len, o, (unsigned)(3 * k));
+            uint64_t m = lop__ld(s->mand, s->mand_len, o, in) & ((UINT64_C(1) << (3 * k)) - 1);
             x = (uint32_t)m & mk;
             y = (uint32_t)(m >> k) & mk;
             z = (uint32_t)(m >> (2 * k));
@@ -2867,19 +2940,13 @@ static void lop__unpack_bin(const lop_lod *e, const lop__srcs *s, int B, int k, 
             z = (uint32_t)lop__field(s->mand, s->mand_len, o + 2u * (unsigned)k, (unsigned)k);
         }
         if (np && np <= 21) {
-            uint64_t acc = 0, lane = (UINT64_C(1) << np) - 1;
-            for (q = 0; q < np; q++) {
-                unsigned raw = (unsigned)lop__bits(s->plane[k + 1 + q], s->plane_len[k + 1 + q], pos[q]) & 7u;
-                pos[q] += 3;
-                acc = acc << 1 | lop__spread[raw];
-            }
+            uint64_t acc = lanes[i], lane = (UINT64_C(1) << np) - 1;
             x = x << np | (uint32_t)(acc & lane);
             y = y << np | (uint32_t)((acc >> 21) & lane);
             z = z << np | (uint32_t)(acc >> 42);
         } else {
             for (q = 0; q < np; q++) {
-                unsigned raw = (unsigned)lop__bits(s->plane[k + 1 + q], s->plane_len[k + 1 + q], pos[q]) & 7u;
-                pos[q] += 3;
+                unsigned raw = (unsigned)lop__bits(pl[q], len[q], at[q] + 3u * i) & 7u;
                 x = x << 1 | (raw & 1u);
                 y = y << 1 | ((raw >> 1) & 1u);
                 z = z << 1 | (raw >> 2);
@@ -2891,23 +2958,31 @@ static void lop__unpack_bin(const lop_lod *e, const lop__srcs *s, int B, int k, 
     }
 }
 
-static int lop__walk_binned(const lop_lod *e, const lop__srcs *s, int B, lop__sink sink, void *ctx)
+static int lop__walk_binned(const lop_lod *e, const lop__srcs *s, int B, int need_values, lop__sink sink, void *ctx)
 {
     uint32_t val[3 * LOP__CHUNK];
     uint64_t bit1 = 0;
     int k;
     lop__chunk ch;
     memset(&ch, 0, sizeof ch);
-    ch.val = val;
+    ch.raw = s->mand;
+    ch.raw_len = s->mand_len;
     for (k = 1; k <= LOP_LEVELS; k++) {
         uint32_t j = e->vertex_id[k - 1], end = e->vertex_id[k];
         while (j < end) {
             uint32_t n = end - j < LOP__CHUNK ? end - j : LOP__CHUNK;
-            lop__unpack_bin(e, s, B, k, bit1, j, n, val);
+            uint64_t o = bit1 + 3u * (uint64_t)k * (j - e->vertex_id[k - 1]);
             ch.j0 = j;
             ch.n = n;
             ch.bin = k;
             ch.width = k > B ? k : B;
+            ch.raw_bit = o;
+            ch.raw_bits = k >= B ? 3u * (uint64_t)k * n : 0;
+            ch.val = NULL;
+            if (need_values || !ch.raw_bits) {
+                lop__unpack_bin(e, s, B, k, o, j, n, val);
+                ch.val = val;
+            }
             if (!sink(ctx, &ch))
                 return 0;
             j += n;
@@ -2919,7 +2994,7 @@ static int lop__walk_binned(const lop_lod *e, const lop__srcs *s, int B, lop__si
 
 /* Clustered (section 6.9): cluster after cluster, the level-1 fields then plane bits (stored for
    components with k_t < p, the anchor's otherwise). */
-static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop__sink sink, void *ctx)
+static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, int need_values, lop__sink sink, void *ctx)
 {
     uint32_t val[3 * 1024];
     uint64_t table[8][8];
@@ -2929,8 +3004,9 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop_
     lop__chunk ch;
     memset(&ch, 0, sizeof ch);
     memset(pbit, 0, sizeof pbit);
-    ch.val = val;
     ch.clustered = 1;
+    ch.raw = s->mand;
+    ch.raw_len = s->mand_len;
     for (pat = 0; pat < 8; pat++) /* raw stored bits -> lanes of the components pattern stores */
         for (raw = 0; raw < 8; raw++) {
             uint64_t lanes = 0;
@@ -2943,7 +3019,7 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop_
     for (bin = 1; bin <= LOP_LEVELS; bin++) {
         uint32_t j = e->vertex_id[bin - 1], end = e->vertex_id[bin];
         while (j < end) {
-            uint32_t n = end - j < e->cluster_size ? end - j : e->cluster_size, l, a[3];
+            uint32_t n = end - j < e->cluster_size ? end - j : e->cluster_size, l, a[3], base[3], mask[3];
             int kt[3], t, b = bin > B ? bin : B, w1[3], s1 = 0, np = b - bin;
             int pattern[LOP_LEVELS + 1], nbits[LOP_LEVELS + 1];
             uint64_t anchor_bits[LOP_LEVELS + 1];
@@ -2954,6 +3030,8 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop_
                 a[t] = h & 0xFFFFFFu;
                 ch.kt[t] = kt[t];
                 w1[t] = bin > kt[t] ? bin - kt[t] : 0;
+                base[t] = bin > kt[t] ? a[t] << w1[t] : a[t] >> (kt[t] - bin);
+                mask[t] = (1u << w1[t]) - 1;
                 s1 += w1[t];
             }
             for (p = bin + 1; p <= LOP_LEVELS; p++) {
@@ -2964,51 +3042,70 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop_
                     if (kt[t] >= p)
                         anchor_bits[p] |= (uint64_t)((a[t] >> (kt[t] - p)) & 1u) << (21 * t);
             }
-            for (l = 0; l < n; l++) {
-                uint64_t o = mand_bit + (uint64_t)l * (uint64_t)s1;
-                uint32_t v[3];
-                for (t = 0; t < 3; t++) {
-                    if (bin <= kt[t]) {
-                        v[t] = a[t] >> (kt[t] - bin);
-                    } else {
-                        v[t] = a[t] << (bin - kt[t]) | (uint32_t)lop__field(s->mand, s->mand_len, o, (unsigned)w1[t]);
-                        o += (unsigned)w1[t];
-                    }
-                }
-                if (np > 0 && np <= 21) {
-                    uint64_t acc = 0, lane = (UINT64_C(1) << np) - 1;
-                    for (p = bin + 1; p <= b; p++) {
-                        unsigned r = 0;
-                        if (nbits[p])
-                            r = (unsigned)lop__field(s->plane[p], s->plane_len[p],
-                                                     e->plane_start[p] + pbit[p] + (uint64_t)l * (unsigned)nbits[p],
-                                                     (unsigned)nbits[p]);
-                        acc = acc << 1 | table[pattern[p]][r] | anchor_bits[p];
-                    }
-                    v[0] = v[0] << np | (uint32_t)(acc & lane);
-                    v[1] = v[1] << np | (uint32_t)((acc >> 21) & lane);
-                    v[2] = v[2] << np | (uint32_t)(acc >> 42);
-                } else if (np > 21) {
-                    for (p = bin + 1; p <= b; p++) {
-                        unsigned r = 0;
-                        uint64_t lanes;
-                        if (nbits[p])
-                            r = (unsigned)lop__field(s->plane[p], s->plane_len[p],
-                                                     e->plane_start[p] + pbit[p] + (uint64_t)l * (unsigned)nbits[p],
-                                                     (unsigned)nbits[p]);
-                        lanes = table[pattern[p]][r] | anchor_bits[p];
-                        for (t = 0; t < 3; t++)
-                            v[t] = v[t] << 1 | (uint32_t)((lanes >> (21 * t)) & 1u);
-                    }
-                }
-                val[3 * l] = v[0];
-                val[3 * l + 1] = v[1];
-                val[3 * l + 2] = v[2];
-            }
             ch.j0 = j;
             ch.n = n;
             ch.bin = bin;
             ch.width = b;
+            ch.raw_bit = mand_bit;
+            ch.raw_bits = np == 0 ? (uint64_t)n * (uint64_t)s1 : 0;
+            ch.val = NULL;
+            if (need_values || np) {
+                const uint8_t *pp[LOP_LEVELS];
+                uint64_t pb[LOP_LEVELS], ptab[LOP_LEVELS][8], m1 = s1 <= 57 ? (UINT64_C(1) << s1) - 1 : 0;
+                uint64_t lanes[1024];
+                size_t pl[LOP_LEVELS];
+                unsigned pn[LOP_LEVELS];
+                int q, in = lop__loads_in(s->mand_len, mand_bit, (uint64_t)n * (uint64_t)s1);
+                for (q = 0; q < np && np <= 21; q++) {
+                    p = bin + 1 + q;
+                    pn[q] = (unsigned)nbits[p];
+                    for (raw = 0; raw < 8; raw++)
+                        ptab[q][raw] = table[pattern[p]][raw] | anchor_bits[p];
+                    pp[q] = pn[q] ? s->plane[p] : lop__zeros;
+                    pl[q] = pn[q] ? s->plane_len[p] : sizeof lop__zeros;
+                    pb[q] = pn[q] ? e->plane_start[p] + pbit[p] : 0;
+                    in = in && (!pn[q] || lop__loads_in(pl[q], pb[q], (uint64_t)n * pn[q]));
+                }
+                if (np > 0 && np <= 21)
+                    lop__lanes(lanes, n, np, pp, pl, pb, pn, (const uint64_t(*)[8])ptab, in);
+                for (l = 0; l < n; l++) {
+                    uint64_t o = mand_bit + (uint64_t)l * (uint64_t)s1;
+                    uint32_t v[3];
+                    if (s1 <= 57) {
+                        uint64_t m = lop__ld(s->mand, s->mand_len, o, in) & m1;
+                        v[0] = base[0] | ((uint32_t)m & mask[0]);
+                        v[1] = base[1] | ((uint32_t)(m >> w1[0]) & mask[1]);
+                        v[2] = base[2] | (uint32_t)(m >> (w1[0] + w1[1]));
+                    } else {
+                        for (t = 0; t < 3; t++) {
+                            v[t] = base[t] | (uint32_t)lop__field(s->mand, s->mand_len, o, (unsigned)w1[t]);
+                            o += (unsigned)w1[t];
+                        }
+                    }
+                    if (np > 0 && np <= 21) {
+                        uint64_t acc = lanes[l], lane = (UINT64_C(1) << np) - 1;
+                        v[0] = v[0] << np | (uint32_t)(acc & lane);
+                        v[1] = v[1] << np | (uint32_t)((acc >> 21) & lane);
+                        v[2] = v[2] << np | (uint32_t)(acc >> 42);
+                    } else if (np > 21) {
+                        for (p = bin + 1; p <= b; p++) {
+                            unsigned r = 0;
+                            uint64_t lns;
+                            if (nbits[p])
+                                r = (unsigned)lop__field(s->plane[p], s->plane_len[p],
+                                                         e->plane_start[p] + pbit[p] + (uint64_t)l * (unsigned)nbits[p],
+                                                         (unsigned)nbits[p]);
+                            lns = table[pattern[p]][r] | anchor_bits[p];
+                            for (t = 0; t < 3; t++)
+                                v[t] = v[t] << 1 | (uint32_t)((lns >> (21 * t)) & 1u);
+                        }
+                    }
+                    val[3 * l] = v[0];
+                    val[3 * l + 1] = v[1];
+                    val[3 * l + 2] = v[2];
+                }
+                ch.val = val;
+            }
             if (!sink(ctx, &ch))
                 return 0;
             mand_bit += (uint64_t)n * (uint64_t)s1;
@@ -3021,11 +3118,14 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, lop_
     return 1;
 }
 
-static int lop__walk(const lop_file *f, const lop_lod *e, int B, lop__sink sink, void *ctx)
+/* Every vertex of a buffer at level B, in order, to `sink`. need_values 0: a run whose fields in P
+   equal its level-1 fields is passed as raw bits, without its values. */
+static int lop__walk(const lop_file *f, const lop_lod *e, int B, int need_values, lop__sink sink, void *ctx)
 {
     lop__srcs s;
     lop__sources(f, e, B, &s);
-    return e->cluster_size ? lop__walk_clustered(e, &s, B, sink, ctx) : lop__walk_binned(e, &s, B, sink, ctx);
+    return e->cluster_size ? lop__walk_clustered(e, &s, B, need_values, sink, ctx)
+                           : lop__walk_binned(e, &s, B, need_values, sink, ctx);
 }
 
 /* ---- packing P ----------------------------------------------------------------------------- */
@@ -3054,6 +3154,33 @@ static void lop__put(lop__bw *w, uint64_t v, unsigned bits) /* bits <= 57, v < 2
     } else {
         w->n += bits;
     }
+}
+
+/* nbits bits of a bit stream from bit `bit` on: 64 at a time while the source and the output have
+   room (one shift-merge of two loads per output word), the rest 56 at a time. */
+static void lop__put_bits(lop__bw *w, const uint8_t *src, size_t len, uint64_t bit, uint64_t nbits)
+{
+    unsigned sh = (unsigned)(bit & 7);
+    while (nbits >= 64 && (bit >> 3) + 9 <= (uint64_t)len && w->pos + 2 <= w->cap) {
+        uint64_t v = lop__bits_in(src, bit), out;
+        if (sh)
+            v |= (uint64_t)src[(bit >> 3) + 8] << (64 - sh);
+        out = w->acc | (w->n ? v << w->n : v);
+        w->out[w->pos] = (uint32_t)out;
+        w->out[w->pos + 1] = (uint32_t)(out >> 32);
+        w->pos += 2;
+        w->acc = w->n ? v >> (64 - w->n) : 0;
+        w->total += 64;
+        bit += 64;
+        nbits -= 64;
+    }
+    while (nbits >= 56) {
+        lop__put(w, lop__bits(src, len, bit) & ((UINT64_C(1) << 56) - 1), 56);
+        bit += 56;
+        nbits -= 56;
+    }
+    if (nbits)
+        lop__put(w, lop__field(src, len, bit, (unsigned)nbits), (unsigned)nbits);
 }
 
 static void lop__flush(lop__bw *w)
@@ -3106,6 +3233,10 @@ static int lop__sink_pack(void *ctx, const lop__chunk *ch)
             r[3] = (uint32_t)pk->w.total;
         }
         pk->cluster++;
+        if (!v) { /* the cluster's fields at its own level: as stored */
+            lop__put_bits(&pk->w, ch->raw, ch->raw_len, ch->raw_bit, ch->raw_bits);
+            return 1;
+        }
         for (t = 0; t < 3; t++) {
             wt[t] = ch->width > ch->kt[t] ? (unsigned)(ch->width - ch->kt[t]) : 0u;
             mask[t] = (uint32_t)((UINT64_C(1) << wt[t]) - 1);
@@ -3119,6 +3250,10 @@ static int lop__sink_pack(void *ctx, const lop__chunk *ch)
                 for (t = 0; t < 3; t++)
                     lop__put(&pk->w, v[t] & mask[t], wt[t]);
         }
+        return 1;
+    }
+    if (!v) { /* a bin at or above B: its fields as stored */
+        lop__put_bits(&pk->w, ch->raw, ch->raw_len, ch->raw_bit, ch->raw_bits);
         return 1;
     }
     {
@@ -3214,7 +3349,8 @@ LOPDEF lop_result lop_build(const lop_file *f, uint32_t part, uint32_t lod, int 
     pk.layout = layout;
     pk.records = info.clusters ? records : NULL;
     pk.record_words = info.clusters ? record_words : 0;
-    lop__walk(f, e, level, lop__sink_pack, &pk);
+    lop__walk(f, e, level, layout == LOP_LAYOUT_UNIFORM || (layout == LOP_LAYOUT_BINNED && e->cluster_size),
+              lop__sink_pack, &pk);
     lop__flush(&pk.w);
     return lop_success;
 }
@@ -3227,37 +3363,45 @@ typedef struct lop__floats {
     const float *tf; /* NULL: no placement transform */
 } lop__floats;
 
+/* Section 6.7 then 6.8: c = (2 v + 1) << (24 - b); p = origin + float32(c) * half (each operation
+   one float32 rounding); a placement then ((a0 p0 + a1 p1) + a2 p2) + t per row. */
 LOP__FLOATFN int lop__sink_floats(void *ctx, const lop__chunk *ch)
 {
     LOP__NO_CONTRACT
-    lop__floats *fl = (lop__floats *)ctx;
+    const lop__floats *fl = (const lop__floats *)ctx;
     const uint32_t *v = ch->val;
     float *o = fl->out + 3 * (size_t)ch->j0;
+    const float ox = fl->origin[0], oy = fl->origin[1], oz = fl->origin[2], h = fl->half;
     unsigned s = (unsigned)(LOP_LEVELS - ch->width);
     uint32_t i;
-    int t;
-    for (i = 0; i < ch->n; i++, v += 3, o += 3) {
-        float p[3];
-        for (t = 0; t < 3; t++) {
-            uint32_t c = ((v[t] << 1) | 1u) << s;
-            float cf = (float)c;
-            float prod = cf * fl->half;
-            p[t] = fl->origin[t] + prod;
+    if (!fl->tf) {
+        for (i = 0; i < ch->n; i++, v += 3, o += 3) {
+            float cx = (float)(((v[0] << 1) | 1u) << s), cy = (float)(((v[1] << 1) | 1u) << s);
+            float cz = (float)(((v[2] << 1) | 1u) << s);
+            float tx = cx * h, ty = cy * h, tz = cz * h;
+            o[0] = ox + tx;
+            o[1] = oy + ty;
+            o[2] = oz + tz;
         }
-        if (fl->tf) {
-            const float *a = fl->tf;
-            for (t = 0; t < 3; t++) {
-                float s0 = a[4 * t] * p[0];
-                float s1 = a[4 * t + 1] * p[1];
-                float s2 = a[4 * t + 2] * p[2];
-                float sum = s0 + s1;
-                sum = sum + s2;
-                o[t] = sum + a[4 * t + 3];
-            }
-        } else {
-            o[0] = p[0];
-            o[1] = p[1];
-            o[2] = p[2];
+    } else {
+        const float a00 = fl->tf[0], a01 = fl->tf[1], a02 = fl->tf[2], t0 = fl->tf[3];
+        const float a10 = fl->tf[4], a11 = fl->tf[5], a12 = fl->tf[6], t1 = fl->tf[7];
+        const float a20 = fl->tf[8], a21 = fl->tf[9], a22 = fl->tf[10], t2 = fl->tf[11];
+        for (i = 0; i < ch->n; i++, v += 3, o += 3) {
+            float cx = (float)(((v[0] << 1) | 1u) << s), cy = (float)(((v[1] << 1) | 1u) << s);
+            float cz = (float)(((v[2] << 1) | 1u) << s);
+            float tx = cx * h, ty = cy * h, tz = cz * h;
+            float px = ox + tx, py = oy + ty, pz = oz + tz;
+            float x0 = a00 * px, x1 = a01 * py, x2 = a02 * pz;
+            float y0 = a10 * px, y1 = a11 * py, y2 = a12 * pz;
+            float z0 = a20 * px, z1 = a21 * py, z2 = a22 * pz;
+            float sx = x0 + x1, sy = y0 + y1, sz = z0 + z1;
+            sx = sx + x2;
+            sy = sy + y2;
+            sz = sz + z2;
+            o[0] = sx + t0;
+            o[1] = sy + t1;
+            o[2] = sz + t2;
         }
     }
     return 1;
@@ -3282,7 +3426,7 @@ LOPDEF lop_result lop_decode_positions(const lop_file *f, uint32_t part, uint32_
     fl.origin[2] = (float)pt->grid_origin[2];
     fl.half = (float)(pt->grid_extent / 16777216.0 / 2.0);
     fl.tf = pt->is_placement && !(flags & LOP_LOCAL) ? pt->transform : NULL;
-    lop__walk(f, e, level, lop__sink_floats, &fl);
+    lop__walk(f, e, level, 1, lop__sink_floats, &fl);
     return lop_success;
 }
 
@@ -3315,7 +3459,7 @@ LOPDEF lop_result lop_decode_grid(const lop_file *f, uint32_t part, uint32_t lod
         return lop_error_argument;
     g.values = values;
     g.widths = widths;
-    lop__walk(f, e, level, lop__sink_grid, &g);
+    lop__walk(f, e, level, 1, lop__sink_grid, &g);
     return lop_success;
 }
 
