@@ -361,7 +361,7 @@ static void lop__wrf(uint8_t *p, float f)
 
 /* 64 bits of an LSB-first bit stream from bit `bit` on (at least 57 valid ones); bytes past
    `len` read as zero, so no load leaves the stream. */
-static uint64_t lop__bits(const uint8_t *p, size_t len, uint64_t bit)
+static inline uint64_t lop__bits(const uint8_t *p, size_t len, uint64_t bit)
 {
     uint64_t byte = bit >> 3, w = 0;
     if (byte + 8 <= len) {
@@ -379,13 +379,13 @@ static uint64_t lop__bits(const uint8_t *p, size_t len, uint64_t bit)
 }
 
 /* `width` (0..57) bits at `bit`. */
-static uint64_t lop__field(const uint8_t *p, size_t len, uint64_t bit, unsigned width)
+static inline uint64_t lop__field(const uint8_t *p, size_t len, uint64_t bit, unsigned width)
 {
     return lop__bits(p, len, bit) & ((UINT64_C(1) << width) - 1);
 }
 
 /* lop__bits where the caller has checked that bytes [bit / 8, bit / 8 + 8) lie in the stream. */
-static uint64_t lop__bits_in(const uint8_t *p, uint64_t bit)
+static inline uint64_t lop__bits_in(const uint8_t *p, uint64_t bit)
 {
     uint64_t w;
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
@@ -397,7 +397,7 @@ static uint64_t lop__bits_in(const uint8_t *p, uint64_t bit)
 }
 
 /* lop__bits, unchecked when `in` says the caller checked the range */
-static uint64_t lop__ld(const uint8_t *p, size_t len, uint64_t bit, int in)
+static inline uint64_t lop__ld(const uint8_t *p, size_t len, uint64_t bit, int in)
 {
     return in ? lop__bits_in(p, bit) : lop__bits(p, len, bit);
 }
@@ -3034,9 +3034,10 @@ static int lop__walk_clustered(const lop_lod *e, const lop__srcs *s, int B, int 
                 mask[t] = (1u << w1[t]) - 1;
                 s1 += w1[t];
             }
-            for (p = bin + 1; p <= LOP_LEVELS; p++) {
-                pattern[p] = (kt[0] < p) | (kt[1] < p) << 1 | (kt[2] < p) << 2;
+            for (p = bin + 1; p <= LOP_LEVELS; p++)
                 nbits[p] = (kt[0] < p) + (kt[1] < p) + (kt[2] < p);
+            for (p = bin + 1; p <= b && (need_values || np); p++) {
+                pattern[p] = (kt[0] < p) | (kt[1] < p) << 1 | (kt[2] < p) << 2;
                 anchor_bits[p] = 0;
                 for (t = 0; t < 3; t++)
                     if (kt[t] >= p)
@@ -3138,7 +3139,7 @@ typedef struct lop__bw {
     uint64_t total;    /* bits written */
 } lop__bw;
 
-static void lop__put(lop__bw *w, uint64_t v, unsigned bits) /* bits <= 57, v < 2^bits */
+static inline void lop__put(lop__bw *w, uint64_t v, unsigned bits) /* bits <= 57, v < 2^bits */
 {
     w->acc |= v << w->n;
     w->total += bits;
@@ -3160,20 +3161,27 @@ static void lop__put(lop__bw *w, uint64_t v, unsigned bits) /* bits <= 57, v < 2
    room (one shift-merge of two loads per output word), the rest 56 at a time. */
 static void lop__put_bits(lop__bw *w, const uint8_t *src, size_t len, uint64_t bit, uint64_t nbits)
 {
-    unsigned sh = (unsigned)(bit & 7);
-    while (nbits >= 64 && (bit >> 3) + 9 <= (uint64_t)len && w->pos + 2 <= w->cap) {
-        uint64_t v = lop__bits_in(src, bit), out;
+    unsigned sh = (unsigned)(bit & 7), n = w->n;
+    uint64_t acc = w->acc, pos = w->pos, cap = w->cap;
+    uint32_t *out = w->out;
+    uint64_t words = 0;
+    /* (locals: stores to out[] cannot alias the writer's state) */
+    while (nbits >= 64 && (bit >> 3) + 9 <= (uint64_t)len && pos + 2 <= cap) {
+        uint64_t v = lop__bits_in(src, bit), o;
         if (sh)
             v |= (uint64_t)src[(bit >> 3) + 8] << (64 - sh);
-        out = w->acc | (w->n ? v << w->n : v);
-        w->out[w->pos] = (uint32_t)out;
-        w->out[w->pos + 1] = (uint32_t)(out >> 32);
-        w->pos += 2;
-        w->acc = w->n ? v >> (64 - w->n) : 0;
-        w->total += 64;
+        o = acc | v << n;
+        out[pos] = (uint32_t)o;
+        out[pos + 1] = (uint32_t)(o >> 32);
+        pos += 2;
+        acc = n ? v >> (64 - n) : 0;
         bit += 64;
         nbits -= 64;
+        words++;
     }
+    w->acc = acc;
+    w->pos = pos;
+    w->total += 64 * words;
     while (nbits >= 56) {
         lop__put(w, lop__bits(src, len, bit) & ((UINT64_C(1) << 56) - 1), 56);
         bit += 56;
