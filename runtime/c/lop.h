@@ -293,21 +293,35 @@ LOPDEF lop_result lop_decode_indices(const lop_file *f, uint32_t part, uint32_t 
 #endif
 
 /* Float decodes are single IEEE float32 operations in a fixed order: no contraction into fused
-   multiply-adds (clang: the STDC pragma in each such function; GCC: the optimize attribute). */
+   multiply-adds. Each product that a sum follows goes through lop__fence, an empty asm that keeps it
+   a separate value (compilers honour it even under -ffp-contract=fast, which disregards the STDC
+   pragma); elsewhere a volatile round trip does the same. */
 #if defined(__clang__)
-#define LOP__FLOATFN static
 #define LOP__NO_CONTRACT _Pragma("STDC FP_CONTRACT OFF")
-#elif defined(__GNUC__)
-#define LOP__FLOATFN static __attribute__((optimize("fp-contract=off")))
-#define LOP__NO_CONTRACT
 #else
-#define LOP__FLOATFN static
 #define LOP__NO_CONTRACT
 #endif
+#define LOP__FLOATFN static
+
+static float lop__fence(float x)
+{
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || (defined(__i386__) && defined(__SSE__)))
+    __asm__("" : "+x"(x));
+#elif (defined(__GNUC__) || defined(__clang__)) && defined(__aarch64__)
+    __asm__("" : "+w"(x));
+#elif defined(__GNUC__) || defined(__clang__)
+    __asm__("" : "+m"(x));
+#else
+    volatile float v = x;
+    x = v;
+#endif
+    return x;
+}
+#define LOP__FENCE(x) lop__fence(x)
 
 #define LOP__F32_MAX 3.4028234663852886e38
-#define LOP__MIN_EXTENT 0x1p-75 /* metres: the smallest grid extent lopcook cooks with */
-#define LOP__MAX_REACH 0x1p102  /* metres: the largest |origin| + extent */
+#define LOP__MIN_EXTENT 2.6469779601696886e-23 /* 2^-75 m: the smallest grid extent lopcook cooks with */
+#define LOP__MAX_REACH 5.0706024009129176e30   /* 2^102 m: the largest |origin| + extent */
 
 /* ---- memory, bytes, messages ------------------------------------------------------------- */
 
@@ -575,6 +589,9 @@ static double lop__from_bits(uint64_t u)
     memcpy(&d, &u, 8);
     return d;
 }
+
+/* 2^e as a double, -1022 <= e <= 1023 (C++ before 17 has no hexadecimal float literals) */
+#define LOP__POW2(e) lop__from_bits((uint64_t)((e) + 1023) << 52)
 
 /* q * 2^-shift (q in [2^55, 2^57)), with `sticky` telling whether the exact value exceeds it,
    rounded to nearest even, subnormals and overflow included. */
@@ -1375,12 +1392,12 @@ static double lop__sqrt(double x)
     uint64_t u;
     if (!(x > 0.0))
         return 0.0;
-    while (x < 0x1p-600) {
-        x *= 0x1p600;
+    while (x < LOP__POW2(-600)) {
+        x *= LOP__POW2(600);
         e -= 300;
     }
-    while (x > 0x1p600) {
-        x *= 0x1p-600;
+    while (x > LOP__POW2(600)) {
+        x *= LOP__POW2(-600);
         e += 300;
     }
     memcpy(&u, &x, 8);
@@ -1394,11 +1411,11 @@ static double lop__sqrt(double x)
     }
     y = prev < y ? prev : y;
     while (e > 0) {
-        y *= 0x1p300;
+        y *= LOP__POW2(300);
         e -= 300;
     }
     while (e < 0) {
-        y *= 0x1p-300;
+        y *= LOP__POW2(-300);
         e += 300;
     }
     return y;
@@ -1486,11 +1503,11 @@ static double lop__sigma_max(const double a[9])
 static double lop__ldexp(double x, int e)
 {
     while (e > 1000) {
-        x *= 0x1p1000;
+        x *= LOP__POW2(1000);
         e -= 1000;
     }
     while (e < -1000) {
-        x *= 0x1p-1000;
+        x *= LOP__POW2(-1000);
         e += 1000;
     }
     return x * lop__from_bits((uint64_t)(e + 1023) << 52);
@@ -1751,7 +1768,7 @@ static int lopv_sections(lopv *v, uint32_t m)
         return 0;
     for (i = 0, s = secs + 1; i < v->j->v[secs].count; i++, s = v->j->v[s].next) {
         uint32_t name;
-        int64_t off, len, crc;
+        int64_t off = 0, len = 0, crc = 0;
         snprintf(where, sizeof where, "sections[%u]", (unsigned)i);
         if ((name = lopv_need(v, s, "name", LOPV_STR, where)) == LOPJ_NONE ||
             !lopv_count(v, s, "offset", where, 0, &off) || !lopv_count(v, s, "length", where, 0, &len) ||
@@ -1760,6 +1777,7 @@ static int lopv_sections(lopv *v, uint32_t m)
         if (len == INT64_MAX) /* a length past int64: no file has it */
             return lopv_fail(v, "section '%s' length is not a byte count", v->j->pool + v->j->v[name].str);
         v->name_val[i] = name;
+        memset(&f->sections[i], 0, sizeof f->sections[i]);
         f->sections[i].name = lopv_copy(v, name);
         if (len % 4)
             return lopv_fail(v, "section '%s' length is not a multiple of 4", f->sections[i].name);
@@ -1820,7 +1838,7 @@ static int lopv_positions(lopv *v, uint32_t m, uint32_t *planes_out)
     uint32_t pos, ml, mand, planes, clus;
     int p, tail = 0;
     int32_t want[LOP_LEVELS + 2];
-    char key[4];
+    char key[16];
     lop_file *f = v->f;
     if ((pos = lopv_need(v, m, "positions", LOPV_OBJ, "manifest")) == LOPJ_NONE ||
         (ml = lopv_need(v, pos, "max_level", LOPV_INT, "positions")) == LOPJ_NONE)
@@ -2228,6 +2246,7 @@ static int lopv_parts(lopv *v, uint32_t m)
         uint32_t name, hier, lods, lod, k, pb;
         int32_t shared_of;
         const lop_lod *first = NULL;
+        memset(&tmp, 0, sizeof tmp);
         snprintf(where, sizeof where, "parts[%u]", (unsigned)i);
         if ((name = lopv_need(v, part, "name", LOPV_STR, where)) == LOPJ_NONE)
             return 0;
@@ -2271,6 +2290,7 @@ static int lopv_parts(lopv *v, uint32_t m)
         for (k = 0, lod = lods + 1; k < pt->lod_count; k++, lod = v->j->v[lod].next) {
             lop_lod local, *e = &local;
             char lw[80];
+            memset(&local, 0, sizeof local);
             snprintf(lw, sizeof lw, "parts[%u].lods[%u]", (unsigned)i, (unsigned)k);
             if (lopj_type(v->j, lod) != LOPJ_OBJECT)
                 return lopv_fail(v, "%s is not an object", lw);
@@ -3386,7 +3406,7 @@ LOP__FLOATFN int lop__sink_floats(void *ctx, const lop__chunk *ch)
         for (i = 0; i < ch->n; i++, v += 3, o += 3) {
             float cx = (float)(((v[0] << 1) | 1u) << s), cy = (float)(((v[1] << 1) | 1u) << s);
             float cz = (float)(((v[2] << 1) | 1u) << s);
-            float tx = cx * h, ty = cy * h, tz = cz * h;
+            float tx = LOP__FENCE(cx * h), ty = LOP__FENCE(cy * h), tz = LOP__FENCE(cz * h);
             o[0] = ox + tx;
             o[1] = oy + ty;
             o[2] = oz + tz;
@@ -3398,11 +3418,11 @@ LOP__FLOATFN int lop__sink_floats(void *ctx, const lop__chunk *ch)
         for (i = 0; i < ch->n; i++, v += 3, o += 3) {
             float cx = (float)(((v[0] << 1) | 1u) << s), cy = (float)(((v[1] << 1) | 1u) << s);
             float cz = (float)(((v[2] << 1) | 1u) << s);
-            float tx = cx * h, ty = cy * h, tz = cz * h;
+            float tx = LOP__FENCE(cx * h), ty = LOP__FENCE(cy * h), tz = LOP__FENCE(cz * h);
             float px = ox + tx, py = oy + ty, pz = oz + tz;
-            float x0 = a00 * px, x1 = a01 * py, x2 = a02 * pz;
-            float y0 = a10 * px, y1 = a11 * py, y2 = a12 * pz;
-            float z0 = a20 * px, z1 = a21 * py, z2 = a22 * pz;
+            float x0 = LOP__FENCE(a00 * px), x1 = LOP__FENCE(a01 * py), x2 = LOP__FENCE(a02 * pz);
+            float y0 = LOP__FENCE(a10 * px), y1 = LOP__FENCE(a11 * py), y2 = LOP__FENCE(a12 * pz);
+            float z0 = LOP__FENCE(a20 * px), z1 = LOP__FENCE(a21 * py), z2 = LOP__FENCE(a22 * pz);
             float sx = x0 + x1, sy = y0 + y1, sz = z0 + z1;
             sx = sx + x2;
             sy = sy + y2;
@@ -3596,8 +3616,8 @@ LOPDEF lop_result lop_view_block(const lop_file *f, const float camera[3], void 
     s += f->grid_extent;
     for (b = 1; b <= LOP_LEVELS; b++) {
         double d = 1.7320508075688772 * f->grid_extent * lop__ldexp(1.0, -(b + 1));
-        lop__wrf(out + 16 + 4 * b, (float)(d / k * (1.0 + 2.0 * k) * (1.0 + 0x1p-8)));
-        lop__wrf(out + 144 + 4 * b, (float)(d * (1.0 + 0x1p-10) + 0x1p-21 * s));
+        lop__wrf(out + 16 + 4 * b, (float)(d / k * (1.0 + 2.0 * k) * (1.0 + LOP__POW2(-8))));
+        lop__wrf(out + 144 + 4 * b, (float)(d * (1.0 + LOP__POW2(-10)) + LOP__POW2(-21) * s));
     }
     return lop_success;
 }
@@ -3640,8 +3660,8 @@ LOP__FLOATFN void lop__oct(uint32_t cx, uint32_t cy, int bits, float *n)
 LOP__FLOATFN void lop__uv(uint32_t q0, uint32_t q1, const lop_lod *e, float *uv)
 {
     LOP__NO_CONTRACT
-    float p0 = (float)q0 * e->uv_step[0];
-    float p1 = (float)q1 * e->uv_step[1];
+    float p0 = LOP__FENCE((float)q0 * e->uv_step[0]);
+    float p1 = LOP__FENCE((float)q1 * e->uv_step[1]);
     uv[0] = e->uv_lo[0] + p0;
     uv[1] = e->uv_lo[1] + p1;
 }

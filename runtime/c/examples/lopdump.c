@@ -282,6 +282,7 @@ static void print_json(const lop_file *f, int level, uint32_t lod)
         for (k = 0; k < p->lod_count; k++) {
             const lop_lod *e = &p->lods[k];
             lop_buffer_info info;
+            memset(&info, 0, sizeof info);
             lop_buffer(f, i, k, lop_part_level(f, i, level) < f->available_level ? lop_part_level(f, i, level)
                                                                                    : f->available_level,
                        LOP_LAYOUT_NATIVE, &info);
