@@ -73,74 +73,7 @@ static unsigned char *read_all(const char *path, size_t *size)
     return buf;
 }
 
-static volatile uint32_t g_sink;
-
-/* Every query and decode of every buffer at every level the file holds. */
-static void exercise(const lop_file *f)
-{
-    uint32_t i, k;
-    int level, layout;
-    float cam[3] = {1.0f, 2.0f, 3.0f};
-    unsigned char block[LOP_CLUSTERED_BLOCK_SIZE], view[LOP_VIEW_BLOCK_SIZE];
-    lop_view_block(f, cam, view, sizeof view);
-    lop_required_level(f, 10.0);
-    for (i = 0; i < f->part_count; i++) {
-        uint32_t lod;
-        int sel;
-        lop_select(f, i, 3.0, &lod, &sel);
-        for (k = 0; k < f->parts[i].lod_count; k++) {
-            const lop_lod *e = &f->parts[i].lods[k];
-            size_t n = e->vertices;
-            float *xyz = (float *)malloc(12 * n), *nrm = (float *)malloc(12 * n), *uv = (float *)malloc(8 * n);
-            float *col = (float *)malloc(16 * n), *tan = (float *)malloc(16 * n);
-            uint32_t *grid = (uint32_t *)malloc(12 * n), *idx = (uint32_t *)malloc(12 * (size_t)e->triangles);
-            uint8_t *wid = (uint8_t *)malloc(n);
-            const uint8_t *words;
-            size_t bytes;
-            lop_attributes a;
-            a.normals = nrm;
-            a.uvs = uv;
-            a.colors = col;
-            a.tangents = tan;
-            if (xyz && nrm && uv && col && tan && grid && idx && wid) {
-                lop_decode_attributes(f, i, k, &a, n);
-                lop_decode_indices(f, i, k, idx, 3 * (size_t)e->triangles);
-                lop_attribute_block(f, i, k, block, sizeof block);
-                lop_attribute_words(f, i, k, &words, &bytes);
-                for (level = 0; level <= f->available_level + 1; level++) {
-                    lop_decode_positions(f, i, k, level, xyz, n, 0);
-                    lop_decode_positions(f, i, k, level, xyz, n, LOP_LOCAL);
-                    lop_decode_grid(f, i, k, level, grid, wid, n);
-                    g_sink += n ? (uint32_t)xyz[0] + grid[0] : 0;
-                    for (layout = 0; layout <= 2; layout++) {
-                        lop_buffer_info info;
-                        uint32_t *w, *r;
-                        if (lop_buffer(f, i, k, level, (lop_layout)layout, &info) != lop_success)
-                            continue;
-                        w = (uint32_t *)malloc(4 * (size_t)info.words + 4);
-                        r = (uint32_t *)malloc(16 * (size_t)info.clusters + 16);
-                        if (w && r) {
-                            lop_build(f, i, k, level, (lop_layout)layout, w, (size_t)info.words, r,
-                                      4 * (size_t)info.clusters);
-                            lop_decode_block(f, i, k, level, (lop_layout)layout, block, sizeof block);
-                            g_sink += w[0];
-                        }
-                        free(w);
-                        free(r);
-                    }
-                }
-            }
-            free(xyz);
-            free(nrm);
-            free(uv);
-            free(col);
-            free(tan);
-            free(grid);
-            free(idx);
-            free(wid);
-        }
-    }
-}
+#include "exercise.h"
 
 static int g_bad;
 
@@ -163,7 +96,7 @@ static void verdict(const unsigned char *data, size_t size, int prefix, char *ou
     if (r == lop_success) {
         snprintf(out, cap, "ok:%d", f->available_level);
         if (use)
-            exercise(f);
+            lop_exercise(f, 0);
         lop_close(f);
     } else {
         snprintf(out, cap, "%s", lop_result_name(r));
