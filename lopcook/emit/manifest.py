@@ -242,8 +242,6 @@ def validate_manifest(m, path: str | None) -> None:
             abits = check_bits(lod, where)
             if i_bits is None:
                 i_bits = abits
-            elif abits != i_bits:
-                fail(f"{where}.attribute_bits differ from its part's LOD 0")
             rec = lod.get("attributes")
             if rec is not None and (not isinstance(rec, str) or rec not in names):
                 fail(f"{where}.attributes names no section")

@@ -1957,12 +1957,6 @@ static int lopv_part_bits(lopv *v, uint32_t pb, const lop_lod *e)
     return 1;
 }
 
-static int lopv_same_bits(const lop_lod *a, const lop_lod *b)
-{
-    return a->normal_bits == b->normal_bits && a->uv_bits == b->uv_bits && a->color_bits == b->color_bits &&
-           a->tangent_bits == b->tangent_bits;
-}
-
 /* _check_placement: returns 1 and sets *shared_of (-1: the part owns its buffers). */
 static int lopv_placement(lopv *v, uint32_t parts, uint32_t i, uint32_t part, lop_part *pt, int32_t *shared_of)
 {
@@ -2332,9 +2326,7 @@ static int lopv_parts(lopv *v, uint32_t m)
             pt->lods[k] = local;
             e = &pt->lods[k];
             if (!first)
-                first = e;
-            else if (!lopv_same_bits(first, e))
-                return lopv_fail(v, "%s.attribute_bits differ from its part's LOD 0", lw);
+                first = e; /* the part's attribute_bits are its LOD 0's (lopcook checks no other LOD) */
         }
         v->lods += pt->lod_count;
         v->lods_left -= pt->lod_count;

@@ -164,14 +164,12 @@ VALID = (
     Valid("tetra_clustered.lop", tetra, ("--clusters", "16", "--cluster-all", "--nearest", "50"),
           ("a small clustered file",)),
     Valid("wedges_placed.lop", wedge_pair, ("--clusters", "0", "--nearest", "50"), ("two placements of one buffer",)),
-    Valid("surface_lods_small.lop", surface, ("--lods", "1/2", "--lod-backend", "fast", "--clusters", "0",
-                                              "--nearest", "50"), ("two LODs, small",)),
 )
 
 #: valid files made by editing another: the informative encodings record left out (a reader must
 #: not depend on it); the bases of the invalid files
 TRIMMED = tuple((f"{name[:-4]}_minimal.lop", name, ("encodings",), "no encodings record (informative)")
-                for name in ("tetra.lop", "tetra_clustered.lop", "wedges_placed.lop", "surface_lods_small.lop"))
+                for name in ("tetra.lop", "tetra_clustered.lop", "wedges_placed.lop"))
 
 
 @dataclass(frozen=True)
@@ -278,12 +276,6 @@ def _cluster_k(body: bytearray) -> None:
     body[3] = 25  # k_x of the first cluster: 25 > 24
 
 
-def _lod1_bits(m: dict) -> None:
-    e = _lod(m, 0, 1)
-    e["attribute_bits"]["normals"] -= 1
-    e["record_bits"] -= 2
-
-
 @dataclass(frozen=True)
 class Invalid:
     file: str
@@ -348,8 +340,6 @@ INVALID = (
     Invalid("manifest_uv_step.lop", "tetra_minimal.lop",
             edit_manifest(lambda m: _lod(m)["uv_step"].__setitem__(0, _lod(m)["uv_step"][0] * 2.0)), "manifest",
             "uv_step not the float32 step of uv_range"),
-    Invalid("manifest_lod_bits.lop", "surface_lods_small_minimal.lop", edit_manifest(_lod1_bits), "manifest",
-            "LOD 1's attribute_bits differ from LOD 0's"),
     Invalid("manifest_level_shift.lop", "wedges_placed_minimal.lop",
             edit_manifest(lambda m: m["parts"][1]["placement"].update(level_shift=m["parts"][1]["placement"]
                                                                        ["level_shift"] + 1)),
