@@ -85,3 +85,33 @@ def lopcheck(exe: Path, *args, timeout: int = 1200) -> list[list[str]]:
     assert run.returncode == 0, run.stderr[-4000:]
     assert "runtime error" not in run.stderr and "Sanitizer" not in run.stderr, run.stderr[-4000:]
     return [line.split() for line in run.stdout.splitlines()]
+
+
+#: corpus assets (files under the corpus folder) and the cook flags of the Done-when sweep
+ASSETS = ("stanford-bunny.obj", "DamagedHelmet/DamagedHelmet.gltf", "chess_set_flat.usdc", "CesiumMilkTruck.glb",
+          "Duck.glb", "spot.obj", "fandisk.obj", "UtahTeapot.usd")
+COOKS = {"default": (), "lods": ("--lods", "auto"), "clusters0": ("--clusters", "0"),
+         "no_instances": ("--no-instances",), "nearest": ("--nearest", "0.5"), "hierarchy": ("--hierarchy",)}
+
+
+class Cooks:
+    """Corpus assets cooked once per session (``cooked(asset, name)`` with ``name`` a key of
+    ``COOKS``), by the CLI as a user runs it."""
+
+    def __init__(self, corpus: Path, folder: Path):
+        self.corpus, self.folder, self.done = corpus, folder, {}
+
+    def cooked(self, asset: str, name: str) -> Path:
+        key = (asset, name)
+        if key not in self.done:
+            out = self.folder / f"{Path(asset).stem}-{name}.lop"
+            run = subprocess.run(["nice", os.sys.executable, "-m", "lopcook", "cook", str(self.corpus / asset), "-o",
+                                  str(out), "-q", *COOKS[name]], capture_output=True, text=True, timeout=3600)
+            assert run.returncode == 0, run.stderr
+            self.done[key] = out
+        return self.done[key]
+
+
+@pytest.fixture(scope="session")
+def corpus_cooks(corpus, tmp_path_factory) -> Cooks:
+    return Cooks(corpus, tmp_path_factory.mktemp("cooks"))
