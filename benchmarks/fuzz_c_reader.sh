@@ -10,13 +10,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-600}"
-work="${2:-bench-out/fuzz_c_reader}"
-mkdir -p "$work/corpus"
-make -s -C runtime/c BUILD="$PWD/$work/build" fuzz
+mkdir -p "${2:-bench-out/fuzz_c_reader}/corpus"
+work="$(cd "${2:-bench-out/fuzz_c_reader}" && pwd)"
+make -s -C runtime/c BUILD="$work/build" fuzz
+status=0
 nice "$work/build/fuzz/fuzz_lop" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$work/" \
-  "$work/corpus" fixtures/conformance 2>&1 | tee "$work/fuzz.log" | grep -E "^(stat::|Done|==)|ERROR|SUMMARY" || true
-if ls "$work"/crash-* "$work"/leak-* "$work"/timeout-* >/dev/null 2>&1; then
-  echo "fuzz_c_reader: findings in $work" >&2
+  "$work/corpus" fixtures/conformance > "$work/fuzz.log" 2>&1 || status=$?
+grep -E "^(stat::|Done)|ERROR|SUMMARY" "$work/fuzz.log" || true
+if [ "$status" -ne 0 ] || ls "$work"/crash-* "$work"/leak-* "$work"/timeout-* >/dev/null 2>&1; then
+  echo "fuzz_c_reader: libFuzzer exited $status; findings in $work" >&2
   exit 1
 fi
 echo "fuzz_c_reader: ${seconds} s, no crash, leak or timeout ($work/fuzz.log)"

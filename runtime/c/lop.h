@@ -451,6 +451,21 @@ static lop_result lop__fail(lop__err *e, lop_result code, const char *fmt, ...)
     return code;
 }
 
+/* lop__fail for the functions that answer 1 (sound) or 0 (the error is set) */
+static int lop__fail0(lop__err *e, lop_result code, const char *fmt, ...)
+{
+    if (e->code == lop_success) {
+        e->code = code;
+        if (e->msg) {
+            va_list ap;
+            va_start(ap, fmt);
+            vsnprintf(e->msg->text, sizeof e->msg->text, fmt, ap);
+            va_end(ap);
+        }
+    }
+    return 0;
+}
+
 /* CRC-32 (ISO-HDLC, zlib's), slicing by 8 over tables built per call site (no global state). */
 typedef struct lop__crc {
     uint32_t t[8][256];
@@ -1014,8 +1029,8 @@ static int lopj_value(lopj *p, uint32_t key, uint32_t key_len)
         uint32_t count = 0;
         char close = c == '{' ? '}' : ']';
         if (++p->depth > LOP_JSON_MAX_DEPTH)
-            return lop__fail(p->err, lop_error_manifest_json, "manifest JSON is nested more than %d deep",
-                             LOP_JSON_MAX_DEPTH), 0;
+            return lop__fail0(p->err, lop_error_manifest_json, "manifest JSON is nested more than %d deep",
+                              LOP_JSON_MAX_DEPTH);
         p->pos++;
         lopj_ws(p);
         if (p->pos < p->n && p->s[p->pos] == close) {
@@ -1069,9 +1084,9 @@ static int lopj_value(lopj *p, uint32_t key, uint32_t key_len)
                 for (k = 1; k < count; k++)
                     if (lopj_keycmp(p, m[k - 1], m[k]) == 0) {
                         const lopj_val *d = &p->v[m[k]];
-                        return lop__fail(p->err, lop_error_manifest_json,
+                        return lop__fail0(p->err, lop_error_manifest_json,
                                          "manifest is not valid JSON (duplicate key \"%.*s\")",
-                                         (int)(d->key_len > 60 ? 60 : d->key_len), p->pool + d->key), 0;
+                                         (int)(d->key_len > 60 ? 60 : d->key_len), p->pool + d->key);
                     }
             }
         }
@@ -1123,9 +1138,9 @@ static int lopj_parse(const char *s, size_t n, const lop_allocator *mem, lop__er
     size_t i;
     for (i = 0; i < n; i++)
         if ((unsigned char)s[i] >= 0x80)
-            return lop__fail(err, lop_error_manifest_json,
+            return lop__fail0(err, lop_error_manifest_json,
                              "manifest is not ASCII (byte 0x%02x at %lu)", (unsigned)(unsigned char)s[i],
-                             (unsigned long)i), 0;
+                             (unsigned long)i);
     memset(&p, 0, sizeof p);
     p.s = s;
     p.n = n;
@@ -1150,8 +1165,8 @@ static int lopj_parse(const char *s, size_t n, const lop_allocator *mem, lop__er
             lop__free(mem, p.v);
             lop__free(mem, p.pool);
             lop__free(mem, p.members);
-            return lop__fail(err, lop_error_out_of_memory, "out of memory for a %lu-byte manifest",
-                             (unsigned long)n), 0;
+            return lop__fail0(err, lop_error_out_of_memory, "out of memory for a %lu-byte manifest",
+                             (unsigned long)n);
         }
         if (!lopj_value(&p, 0, UINT32_MAX)) {
             lop__free(mem, p.v);
@@ -1204,15 +1219,6 @@ static uint32_t lopj_get(const lopj *p, uint32_t obj, const char *key)
             hi = mid;
     }
     return LOPJ_NONE;
-}
-
-/* Element `k` of array `arr` (k < count). */
-static uint32_t lopj_at(const lopj *p, uint32_t arr, uint32_t k)
-{
-    uint32_t c = arr + 1;
-    while (k--)
-        c = p->v[c].next;
-    return c;
 }
 
 static int lopj_type(const lopj *p, uint32_t v) { return v == LOPJ_NONE ? -1 : p->v[v].type; }
@@ -1395,7 +1401,7 @@ static int lopj_equal(const lopj *p, uint32_t a, uint32_t b, const char *manifes
    and the Jacobi rotations; x >= 0 and finite. */
 static double lop__sqrt(double x)
 {
-    double y, prev;
+    double y, prev = 0.0;
     int i, e = 0;
     uint64_t u;
     if (!(x > 0.0))
@@ -1555,6 +1561,7 @@ typedef struct lopv {
     char *strings;            /* next free byte of the file's string block */
     lop_lod *lods;            /* next free LOD slot */
     size_t lods_left;         /* LOD slots left */
+    uint32_t *part_node;      /* part i -> its JSON value (placements look up their owner in O(1)) */
     uint32_t parts_cap;       /* part slots */
     int clustered, has_placements, has_tangents;
     lop_result klass;         /* the class lopv_fail reports: manifest, or section_table */
@@ -1583,16 +1590,24 @@ static uint32_t lopv_need(lopv *v, uint32_t obj, const char *key, int kind, cons
 {
     uint32_t m = lopj_get(v->j, obj, key);
     int t;
-    if (m == LOPJ_NONE)
-        return lopv_fail(v, "%s: missing '%s'", where, key), LOPJ_NONE;
+    if (m == LOPJ_NONE) {
+        lopv_fail(v, "%s: missing '%s'", where, key);
+        return LOPJ_NONE;
+    }
     t = lopj_type(v->j, m);
-    if (kind == LOPV_INT && t != LOPJ_INT)
-        return lopv_fail(v, "%s.%s must be an integer", where, key), LOPJ_NONE;
-    if (kind == LOPV_NUM && !lopj_is_num(v->j, m, LOP__F32_MAX))
-        return lopv_fail(v, "%s.%s must be a finite number within the float32 range", where, key), LOPJ_NONE;
+    if (kind == LOPV_INT && t != LOPJ_INT) {
+        lopv_fail(v, "%s.%s must be an integer", where, key);
+        return LOPJ_NONE;
+    }
+    if (kind == LOPV_NUM && !lopj_is_num(v->j, m, LOP__F32_MAX)) {
+        lopv_fail(v, "%s.%s must be a finite number within the float32 range", where, key);
+        return LOPJ_NONE;
+    }
     if ((kind == LOPV_STR && t != LOPJ_STRING) || (kind == LOPV_OBJ && t != LOPJ_OBJECT) ||
-        (kind == LOPV_ARR && t != LOPJ_ARRAY))
-        return lopv_fail(v, "%s.%s has the wrong type", where, key), LOPJ_NONE;
+        (kind == LOPV_ARR && t != LOPJ_ARRAY)) {
+        lopv_fail(v, "%s.%s has the wrong type", where, key);
+        return LOPJ_NONE;
+    }
     return m;
 }
 
@@ -1700,19 +1715,12 @@ static int lopv_informative(lopv *v, uint32_t m)
     if ((viewing = lopv_need(v, m, "viewing", LOPV_OBJ, "manifest")) == LOPJ_NONE ||
         (vp = lopv_need(v, viewing, "viewport", LOPV_ARR, "viewing")) == LOPJ_NONE)
         return 0;
-    if (v->j->v[vp].count != 2 || !lopj_int_in(v->j, lopj_at(v->j, vp, 0), 1, INT64_MAX) ||
-        !lopj_int_in(v->j, lopj_at(v->j, vp, 1), 1, INT64_MAX)) {
-        uint32_t a = v->j->v[vp].count == 2 ? lopj_at(v->j, vp, 0) : LOPJ_NONE;
-        uint32_t b = v->j->v[vp].count == 2 ? lopj_at(v->j, vp, 1) : LOPJ_NONE;
-        /* big positive integers are valid viewport sizes for lopcook: only their sign matters */
-        if (a == LOPJ_NONE || b == LOPJ_NONE || !lopj_is_int(v->j, a) || !lopj_is_int(v->j, b) ||
-            v->j->v[a].i <= 0 || v->j->v[b].i <= 0)
+    for (k = 0, x = vp + 1; k < 2; k++, x = v->j->v[x].next) {
+        /* positive integers (big ones too: only their sign matters to lopcook's validator) */
+        if (v->j->v[vp].count != 2 || !lopj_is_int(v->j, x) || v->j->v[x].i <= 0)
             return lopv_fail(v, "viewing.viewport must be two positive integers");
+        v->f->viewport[k] = v->j->v[x].big || v->j->v[x].i > (int64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)v->j->v[x].i;
     }
-    v->f->viewport[0] = (uint32_t)(v->j->v[lopj_at(v->j, vp, 0)].big ? UINT32_MAX :
-                                   (v->j->v[lopj_at(v->j, vp, 0)].i > UINT32_MAX ? UINT32_MAX : v->j->v[lopj_at(v->j, vp, 0)].i));
-    v->f->viewport[1] = (uint32_t)(v->j->v[lopj_at(v->j, vp, 1)].big ? UINT32_MAX :
-                                   (v->j->v[lopj_at(v->j, vp, 1)].i > UINT32_MAX ? UINT32_MAX : v->j->v[lopj_at(v->j, vp, 1)].i));
     if ((fov = lopv_need(v, viewing, "fov_y_deg", LOPV_NUM, "viewing")) == LOPJ_NONE)
         return 0;
     if (!(lopv_d(v, fov) > 0 && lopv_d(v, fov) < 180))
@@ -2025,7 +2033,8 @@ static int lopv_placement(lopv *v, uint32_t parts, uint32_t i, uint32_t part, lo
     pt->level_shift = shift;
     pt->is_placement = 1;
     ofv = (uint32_t)v->j->v[of].i;
-    owner = lopj_at(v->j, parts, ofv);
+    owner = v->part_node[ofv];
+    (void)parts;
     orec = lopj_get(v->j, owner, "placement");
     x = lopj_get(v->j, orec, "of");
     if (lopj_type(v->j, orec) != LOPJ_OBJECT || x == LOPJ_NONE || !lopj_equal(v->j, x, of, v->text, NULL))
@@ -2245,10 +2254,11 @@ static int lopv_parts(lopv *v, uint32_t m)
         return lopv_fail(v, "no parts");
     for (i = 0, part = parts + 1; i < v->j->v[parts].count; i++, part = v->j->v[part].next) {
         lop_part tmp, *pt = &tmp;
-        uint32_t name, hier, lods, lod, k, pb;
+        uint32_t name, hier, lods, lod, k, pb, ref;
         int32_t shared_of;
         const lop_lod *first = NULL;
         memset(&tmp, 0, sizeof tmp);
+        v->part_node[i] = part;
         snprintf(where, sizeof where, "parts[%u]", (unsigned)i);
         if ((name = lopv_need(v, part, "name", LOPV_STR, where)) == LOPJ_NONE)
             return 0;
@@ -2289,6 +2299,7 @@ static int lopv_parts(lopv *v, uint32_t m)
             return 0;
         pt->lods = v->lods;
         pt->lod_count = v->j->v[lods].count;
+        ref = shared_of >= 0 ? lopj_get(v->j, v->part_node[shared_of], "lods") + 1 : LOPJ_NONE;
         for (k = 0, lod = lods + 1; k < pt->lod_count; k++, lod = v->j->v[lod].next) {
             lop_lod local, *e = &local;
             char lw[80];
@@ -2299,12 +2310,11 @@ static int lopv_parts(lopv *v, uint32_t m)
             if (shared_of >= 0) {
                 static const char *const own[3] = {"geometric_error_m", "min_distance_m", NULL};
                 const lop_part *op = &f->parts[shared_of];
-                uint32_t ref, x, ab;
+                uint32_t x, ab;
                 lop_lod bits;
                 if (pt->lod_count != op->lod_count)
                     return lopv_fail(v, "parts[%u] has %u LODs, the buffers it places (parts[%d]) %u", (unsigned)i,
                                      (unsigned)pt->lod_count, (int)shared_of, (unsigned)op->lod_count);
-                ref = lopj_at(v->j, lopj_get(v->j, lopj_at(v->j, parts, (uint32_t)shared_of), "lods"), k);
                 if (!lopj_equal(v->j, lod, ref, v->text, own))
                     return lopv_fail(v, "%s does not name the buffer of parts[%d].lods[%u] it places", lw,
                                      (int)shared_of, (unsigned)k);
@@ -2318,6 +2328,7 @@ static int lopv_parts(lopv *v, uint32_t m)
                 e->min_distance_m = lopj_is_num(v->j, x, 1.7976931348623157e308) ? lopv_d(v, x) : -1.0;
                 if (!lopv_bits(v, lod, lw, &bits, &ab))
                     return 0;
+                ref = v->j->v[ref].next; /* the owner's next LOD */
             } else if (!lopv_lod(v, lod, lw, e)) {
                 return 0;
             }
@@ -2425,8 +2436,8 @@ static int lop__check_indices(const lop_file *f, lop__err *err)
                 }
             }
             if (worst >= e->vertices)
-                return lop__fail(err, lop_error_indices, "part %u LOD %u: index %u is out of range for %u vertices",
-                                 (unsigned)i, (unsigned)k, (unsigned)worst, (unsigned)e->vertices), 0;
+                return lop__fail0(err, lop_error_indices, "part %u LOD %u: index %u is out of range for %u vertices",
+                                 (unsigned)i, (unsigned)k, (unsigned)worst, (unsigned)e->vertices);
         }
     }
     return 1;
@@ -2460,10 +2471,10 @@ static int lop__check_clusters(lop_file *f, lop__err *err)
                 continue;
             }
             if (e->cluster_words_offset + 3u * (uint64_t)e->cluster_count > head_words)
-                return lop__fail(err, lop_error_clusters, "part %u LOD %u: cluster headers: %llu words past the "
+                return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster headers: %llu words past the "
                                  "section", (unsigned)i, (unsigned)k,
                                  (unsigned long long)(e->cluster_words_offset + 3u * (uint64_t)e->cluster_count -
-                                                      head_words)), 0;
+                                                      head_words));
             memset(words, 0, sizeof words);
             memset(plane, 0, sizeof plane);
             for (bin = 1; bin <= LOP_LEVELS; bin++) {
@@ -2476,9 +2487,9 @@ static int lop__check_clusters(lop_file *f, lop__err *err)
                         uint32_t w = lop__rd32(h + 4 * t);
                         kt[t] = (int)(w >> 24);
                         if (kt[t] > LOP_LEVELS || ((w & 0xFFFFFFu) >> kt[t]) != 0)
-                            return lop__fail(err, lop_error_clusters, "part %u LOD %u: cluster headers: a cluster "
+                            return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster headers: a cluster "
                                              "header has k > 24 or an anchor wider than k bits", (unsigned)i,
-                                             (unsigned)k), 0;
+                                             (unsigned)k);
                     }
                     for (b = 1; b <= LOP_LEVELS; b++) {
                         int w = bin > b ? bin : b, s = 0;
@@ -2495,15 +2506,15 @@ static int lop__check_clusters(lop_file *f, lop__err *err)
             for (b = 1; b <= LOP_LEVELS; b++) {
                 uint64_t w = (words[b] + 31) / 32;
                 if ((w ? w : 1) != e->cluster_p_words[b - 1])
-                    return lop__fail(err, lop_error_clusters, "part %u LOD %u: cluster_p_words (mandatory_words count "
+                    return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster_p_words (mandatory_words count "
                                      "%llu) do not match its clusters (%llu words at level 1)", (unsigned)i,
                                      (unsigned)k, (unsigned long long)e->mandatory_count,
-                                     (unsigned long long)((words[1] + 31) / 32 ? (words[1] + 31) / 32 : 1)), 0;
+                                     (unsigned long long)((words[1] + 31) / 32 ? (words[1] + 31) / 32 : 1));
             }
             for (p = 2; p <= LOP_LEVELS; p++) {
                 if (plane[p] != e->cluster_plane_bits[p - 2])
-                    return lop__fail(err, lop_error_clusters, "part %u LOD %u: cluster_plane_bits do not match its "
-                                     "clusters", (unsigned)i, (unsigned)k), 0;
+                    return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster_plane_bits do not match its "
+                                     "clusters", (unsigned)i, (unsigned)k);
                 bits[p] = lop__sat_add(bits[p], plane[p]);
             }
         }
@@ -2511,8 +2522,8 @@ static int lop__check_clusters(lop_file *f, lop__err *err)
     for (p = 2; p <= f->max_level; p++) {
         const lop_section *s = &f->sections[f->plane_section[p]];
         if (s->data && s->length != 4 * ((bits[p] + 31) / 32))
-            return lop__fail(err, lop_error_clusters, "refinement plane %d is not the %llu bits its buffers hold", p,
-                             (unsigned long long)bits[p]), 0;
+            return lop__fail0(err, lop_error_clusters, "refinement plane %d is not the %llu bits its buffers hold", p,
+                             (unsigned long long)bits[p]);
     }
     return 1;
 }
@@ -2670,7 +2681,8 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
         if (need < j.np || lop__mul(nl, sizeof(lop_lod)) < nl || lop__mul(ns, sizeof(lop_section)) < ns)
             need = 0;
         f = need ? (lop_file *)lop__alloc(&mem, need) : NULL;
-        scratch = (uint32_t *)lop__alloc(&mem, lop__mul(2 * ns + 1, sizeof(uint32_t)));
+        uint32_t parts_all = lopj_type(&j, lopj_get(&j, 0, "parts")) == LOPJ_ARRAY ? j.v[lopj_get(&j, 0, "parts")].count : 0;
+        scratch = (uint32_t *)lop__alloc(&mem, lop__mul(2 * ns + parts_all + 1, sizeof(uint32_t)));
         if (!f || !scratch) {
             lop__fail(&err, lop_error_out_of_memory, "out of memory for the manifest's %lu parts", (unsigned long)np);
             goto fail;
@@ -2685,6 +2697,7 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
         v.parts_cap = (uint32_t)np;
         v.names = scratch;
         v.name_val = scratch + ns;
+        v.part_node = scratch + 2 * ns;
         v.j = &j;
         v.text = (const char *)b + 32;
         v.err = &err;
