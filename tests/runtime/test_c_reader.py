@@ -334,3 +334,22 @@ def test_the_tangent_record_stays_out_of_reach_of_malformed_bits(tmp_path):
                            check=True)
         run = lopdump(exe, tmp_path / "t.lop", "--level", "1")
         assert run.returncode == 2 and ": manifest: " in run.stderr, (bad, run.stderr)
+
+
+# ---- section 9: choosing a LOD and a level -----------------------------------------------------
+
+@pytest.mark.parametrize("name", ["surface_lods.lop", "surface_lods_clustered.lop", "placements.lop", "tetra.lop"])
+def test_lod_and_level_selection_is_lopcooks(c_build, name):
+    """lop_select and lop_required_level give lopcook.selection.select's (LOD, level) per part at
+    distances spread over eight decades (lop.h computes tan without libm: a distance within float
+    rounding of a threshold could differ, and none of these is)."""
+    from lopcook.emit.container import read
+    from lopcook.selection import select
+
+    c = read(str(CONFORMANCE / name))
+    for d in np.geomspace(1e-4, 1e4, 41):
+        run = lopdump(c_build / "gcc" / "lopdump", CONFORMANCE / name, "--level", "1", "--json", "--distance",
+                      repr(float(d)))
+        assert run.returncode == 0, run.stderr
+        got = [tuple(x) for x in json.loads(run.stdout)["selection"]]
+        assert got == [tuple(x) for x in select(c, float(d))], (name, d)

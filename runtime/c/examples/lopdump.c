@@ -1,7 +1,7 @@
 /* lopdump: decode a .lop with lop.h and write what a renderer or a test compares.
 
    lopdump FILE.lop --level B [--lod K] [--prefix] [--positions OUT.f32] [--gpu OUT.bin]
-           [--attributes OUT.bin] [--json]
+           [--attributes OUT.bin] [--json] [--distance D]
 
    --positions  the float32 xyz (little-endian) of every vertex of every part and placement, in
                 manifest order (part, then the LOD's vertex order), world metres (a placement's
@@ -15,7 +15,8 @@
    --attributes per buffer (same order): the indices as uint32, then the float32 decodes of the
                 normals (3, unnormalised), UVs (2), colours (4) and tangents (4) it has.
    --json       one JSON object: version, sizes, levels, and per part its LODs (vertices,
-                triangles, errors, attribute bits) and the bytes of P at level B.
+                triangles, errors, attribute bits) and the bytes of P at level B; with --distance D
+                also `selection`: per part the LOD and level lop_select gives at D metres.
    --prefix     accept a prefix of a file (docs/format.md section 8).
 
    Exit 0, or 2 with one line on stderr (a bad file: its error class and what is wrong). Outputs
@@ -260,7 +261,7 @@ static int write_attributes(const lop_file *f, uint32_t lod, out_file *o)
     return 1;
 }
 
-static void print_json(const lop_file *f, int level, uint32_t lod)
+static void print_json(const lop_file *f, int level, uint32_t lod, double distance)
 {
     uint32_t i, k;
     uint64_t positions = 0;
@@ -297,13 +298,25 @@ static void print_json(const lop_file *f, int level, uint32_t lod)
         printf("]}");
         positions += 12u * (uint64_t)p->lods[lod_of(p, lod)].vertices;
     }
-    printf("],\"positions_bytes\":%llu}\n", (unsigned long long)positions);
+    printf("],\"positions_bytes\":%llu", (unsigned long long)positions);
+    if (distance >= 0) {
+        printf(",\"distance\":%.17g,\"required_level\":%d,\"selection\":[", distance, lop_required_level(f, distance));
+        for (i = 0; i < f->part_count; i++) {
+            uint32_t sl = 0;
+            int sv = 0;
+            lop_select(f, i, distance, &sl, &sv);
+            printf("%s[%u,%d]", i ? "," : "", (unsigned)sl, sv);
+        }
+        printf("]");
+    }
+    printf("}\n");
 }
 
 int main(int argc, char **argv)
 {
     const char *path = NULL, *pos_path = NULL, *gpu_path = NULL, *attr_path = NULL;
     int level = 0, json = 0, prefix = 0, ok = 1, a;
+    double distance = -1.0;
     long lod = 0;
     unsigned char *data;
     size_t size = 0;
@@ -331,6 +344,10 @@ int main(int argc, char **argv)
             gpu_path = argv[++a];
         } else if (!strcmp(s, "--attributes") && a + 1 < argc) {
             attr_path = argv[++a];
+        } else if (!strcmp(s, "--distance") && a + 1 < argc) {
+            distance = strtod(argv[++a], &end);
+            if (*end || !(distance >= 0))
+                return die("--distance %s: expected a distance >= 0 in metres%s", argv[a], "");
         } else if (!strcmp(s, "--json")) {
             json = 1;
         } else if (!strcmp(s, "--prefix")) {
@@ -397,7 +414,7 @@ int main(int argc, char **argv)
     if (!ok)
         fprintf(stderr, "lopdump: %s: could not decode or write the outputs (out of memory or disk full)\n", path);
     else if (json)
-        print_json(f, level, (uint32_t)lod);
+        print_json(f, level, (uint32_t)lod, distance);
     lop_close(f);
     free(data);
     return ok ? 0 : 2;
