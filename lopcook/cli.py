@@ -765,7 +765,8 @@ def cmd_decode(args) -> int:
     from .emit.reader import decode_positions, lod_attributes, world_normals
 
     if args.output is None and args.positions is None:
-        raise LopcookError("usage", args.container, "nothing to write", hint="give -o OUT.glb and/or --positions OUT.f32")
+        raise LopcookError("usage", args.container, "nothing to write",
+                           hint="give -o OUT.glb and/or --positions OUT.f32")
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
     if args.output is not None:

@@ -180,7 +180,8 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     are complete and pass their CRC are kept, and ``available_level`` tells which level they hold.
     """
 
-    def fail(reason: str, msg: str, hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
+    def fail(reason: str, msg: str,
+             hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
         raise LopcookError("container", path, msg, hint=hint, reason=reason)
 
     data = bytes(data)
@@ -264,7 +265,8 @@ def _check_index_values(manifest: dict, sections: dict, fail) -> None:
             dtype = "<u2" if lod["index_width"] == 2 else "<u4"
             idx = np.frombuffer(data, dtype=dtype, count=3 * lod["triangles"])
             if idx.size and int(idx.max()) >= lod["vertices"]:
-                fail("indices", f"part {i} LOD {k}: index {int(idx.max())} is out of range for {lod['vertices']} vertices")
+                fail("indices", f"part {i} LOD {k}: index {int(idx.max())} is out of range for "
+                     f"{lod['vertices']} vertices")
 
 
 def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
@@ -297,8 +299,8 @@ def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
             except ValueError as exc:
                 fail("clusters", f"part {i} LOD {k}: cluster headers: {exc}")
             if lod["cluster_p_words"] != [words_at(cl, b) for b in range(1, 25)]:
-                fail("clusters", f"part {i} LOD {k}: cluster_p_words (mandatory_words count {lod['mandatory_words'][1]}) "
-                     f"do not match its clusters ({words_at(cl, 1)} words at level 1)")
+                fail("clusters", f"part {i} LOD {k}: cluster_p_words (mandatory_words count "
+                     f"{lod['mandatory_words'][1]}) do not match its clusters ({words_at(cl, 1)} words at level 1)")
             if lod["cluster_plane_bits"] != [int(plane_bit(cl, p)[-1]) for p in range(2, 25)]:
                 fail("clusters", f"part {i} LOD {k}: cluster_plane_bits do not match its clusters")
             for p in present:

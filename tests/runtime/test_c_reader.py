@@ -17,8 +17,8 @@ import zlib
 import numpy as np
 import pytest
 
-from c_tools import (CONFORMANCE, RUNTIME, c_build, conformance, expected_of, lopcheck, lopdump, make, sha,  # noqa: F401
-                     tool, verdict)
+from c_tools import c_build  # noqa: F401  (the session's build, a pytest fixture)
+from c_tools import CONFORMANCE, RUNTIME, conformance, expected_of, lopcheck, lopdump, make, sha, tool, verdict
 
 from lopcook import fuzzcases
 from lopcook.emit.attributes import decode_normals

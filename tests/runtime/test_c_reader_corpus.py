@@ -52,5 +52,6 @@ def test_lopcook_decode_positions_equals_lopdump(c_build, corpus_cooks, tmp_path
     run = subprocess.run([sys.executable, "-m", "lopcook", "decode", str(path), "--level", "11", "--positions",
                           str(tmp_path / "py.f32"), "-q"], capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
-    assert lopdump(c_build / "clang" / "lopdump", path, "--level", 11, "--positions", tmp_path / "c.f32").returncode == 0
+    run = lopdump(c_build / "clang" / "lopdump", path, "--level", 11, "--positions", tmp_path / "c.f32")
+    assert run.returncode == 0, run.stderr
     assert sha(tmp_path / "py.f32") == sha(tmp_path / "c.f32")
