@@ -62,7 +62,11 @@
 
 #ifndef LOPDEF
 #ifdef LOP_STATIC
+#if defined(__GNUC__) || defined(__clang__)
+#define LOPDEF static __attribute__((unused)) /* a translation unit may use some of the API only */
+#else
 #define LOPDEF static
+#endif
 #else
 #define LOPDEF extern
 #endif

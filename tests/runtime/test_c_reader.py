@@ -44,6 +44,8 @@ def test_the_makefile_builds_strict_and_sanitized_with_both_compilers(c_build):
 
 @pytest.mark.parametrize("cc,flags", [("gcc", ("-std=c99", "-O0")), ("gcc", ("-std=c99", "-O3")),
                                       ("clang", ("-std=c99", "-O0")), ("clang", ("-std=c99", "-Os")),
+                                      ("gcc", ("-std=c99", "-O2", "-DLOP_STATIC")),
+                                      ("clang", ("-std=c11", "-O2", "-DLOP_STATIC")),
                                       ("g++", ("-std=c++11", "-O2")), ("clang++", ("-std=c++11", "-O2"))])
 def test_the_header_compiles_without_a_warning(tmp_path, cc, flags):
     src = '#define LOP_IMPLEMENTATION\n#include "lop.h"\n#include "lop.h"\nint main(void) { lop_file *f = 0; ' \
