@@ -355,3 +355,55 @@ def test_lod_and_level_selection_is_lopcooks(c_build, name):
         assert run.returncode == 0, run.stderr
         got = [tuple(x) for x in json.loads(run.stdout)["selection"]]
         assert got == [tuple(x) for x in select(c, float(d))], (name, d)
+
+
+# ---- the JSON number parser ---------------------------------------------------------------------
+
+DECIMAL_DRIVER = r'''
+#define LOP_IMPLEMENTATION
+#include "lop.h"
+#include <stdio.h>
+int main(void)
+{
+    char line[1000];
+    while (fgets(line, sizeof line, stdin)) {
+        size_t n = strlen(line);
+        double d;
+        uint64_t u;
+        while (n && line[n - 1] == '\n')
+            line[--n] = 0;
+        d = lop__decimal(line, n);
+        memcpy(&u, &d, 8);
+        printf("%016llx\n", (unsigned long long)u);
+    }
+    return 0;
+}
+'''
+
+
+def test_numbers_parse_to_the_nearest_double(tmp_path, rng):
+    """The manifest's numbers become exactly Python's float() of them (correct rounding, no
+    locale): random doubles and float32 values by their repr, decimal halfway points between
+    adjacent doubles (25 digits), subnormals, overflow and numbers of up to 800 digits."""
+    from fractions import Fraction
+
+    exe = tmp_path / "decimal"
+    run = _compile("gcc", DECIMAL_DRIVER, exe, "-std=c99", "-O2")
+    assert run.returncode == 0, run.stderr
+    words = rng.integers(0, 2**63, size=20000, dtype=np.int64).astype(np.uint64) * np.uint64(2) + \
+        rng.integers(0, 2, size=20000).astype(np.uint64)
+    doubles = words.view(np.float64)
+    values = [repr(float(d)) for d in doubles[np.isfinite(doubles)]]
+    singles = rng.integers(0, 2**32, size=10000, dtype=np.int64).astype(np.uint32).view(np.float32)
+    values += [repr(float(f)) for f in singles[np.isfinite(singles)]]
+    for m, e in zip(rng.integers(2**52, 2**53, size=5000), rng.integers(-1074, 971, size=5000)):
+        values.append(f"{float(Fraction(2 * int(m) + 1) * Fraction(2) ** (int(e) - 1)):.25e}")
+    values += ["0", "-0", "1e-400", "4.9e-324", "2.4703282292062327e-324", "2.4703282292062328e-324",
+               "1.7976931348623157e308", "1.7976931348623158e308", "1e309", "9007199254740993",
+               "1" + "0" * 300, "0." + "0" * 320 + "1", "2.2250738585072011e-308", "1." + "0" * 700 + "1", "9" * 799]
+    out = subprocess.run([str(exe)], input="\n".join(values) + "\n", capture_output=True, text=True, check=True)
+    got = [int(h, 16) for h in out.stdout.split()]
+    want = [struct.unpack("<Q", struct.pack("<d", float(v)))[0] for v in values]
+    assert len(got) == len(values)
+    bad = [v for v, g, w in zip(values, got, want) if g != w]
+    assert not bad, bad[:5]
