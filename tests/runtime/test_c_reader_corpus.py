@@ -28,9 +28,9 @@ def test_lopdump_writes_lopcooks_positions(c_build, corpus_cooks, tmp_path, asse
     path = corpus_cooks.cooked(asset, cook)
     c = read(str(path))
     exe = c_build / "gcc" / "lopdump"
-    out = tmp_path / "c.f32"
     levels = range(1, 25) if asset in EVERY_LEVEL else (1, 6, 11, 16, 24)
     for level in levels:
+        out = tmp_path / f"{level}.f32"
         run = lopdump(exe, path, "--level", level, "--positions", out)
         if level > c.available_level:
             with pytest.raises(LopcookError) as info:
@@ -42,6 +42,7 @@ def test_lopdump_writes_lopcooks_positions(c_build, corpus_cooks, tmp_path, asse
         assert out.read_bytes() == positions_f32(c, level, 0), (asset, cook, level)
     deepest = max(len(p["lods"]) for p in c.manifest["parts"])
     if deepest > 1:  # the coarsest LOD of every part, and a part's coarsest where its chain is shorter
+        out = tmp_path / "coarsest.f32"
         run = lopdump(exe, path, "--level", 11, "--lod", deepest - 1, "--positions", out)
         assert run.returncode == 0 and out.read_bytes() == positions_f32(c, 11, deepest - 1)
 
