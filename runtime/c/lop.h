@@ -305,7 +305,6 @@ LOPDEF lop_result lop_decode_indices(const lop_file *f, uint32_t part, uint32_t 
 #else
 #define LOP__NO_CONTRACT
 #endif
-#define LOP__FLOATFN static
 
 static float lop__fence(float x)
 {
@@ -3410,7 +3409,7 @@ typedef struct lop__floats {
 
 /* Section 6.7 then 6.8: c = (2 v + 1) << (24 - b); p = origin + float32(c) * half (each operation
    one float32 rounding); a placement then ((a0 p0 + a1 p1) + a2 p2) + t per row. */
-LOP__FLOATFN int lop__sink_floats(void *ctx, const lop__chunk *ch)
+static int lop__sink_floats(void *ctx, const lop__chunk *ch)
 {
     LOP__NO_CONTRACT
     const lop__floats *fl = (const lop__floats *)ctx;
@@ -3652,7 +3651,7 @@ static uint32_t lop__attr_field(const uint8_t *d, uint64_t words, uint64_t o, un
     return (lo | hi) & (uint32_t)((UINT64_C(1) << w) - 1);
 }
 
-LOP__FLOATFN void lop__oct(uint32_t cx, uint32_t cy, int bits, float *n)
+static void lop__oct(uint32_t cx, uint32_t cy, int bits, float *n)
 {
     LOP__NO_CONTRACT
     int h = 1 << (bits - 1);
@@ -3674,7 +3673,7 @@ LOP__FLOATFN void lop__oct(uint32_t cx, uint32_t cy, int bits, float *n)
     n[2] = z;
 }
 
-LOP__FLOATFN void lop__uv(uint32_t q0, uint32_t q1, const lop_lod *e, float *uv)
+static void lop__uv(uint32_t q0, uint32_t q1, const lop_lod *e, float *uv)
 {
     LOP__NO_CONTRACT
     float p0 = LOP__FENCE((float)q0 * e->uv_step[0]);
