@@ -35,8 +35,8 @@ def tool(name: str) -> str:
 def make(build: Path, *targets: str, timeout: int = 900) -> None:
     for name in ("make", "gcc", "clang"):
         tool(name)
-    run = subprocess.run(["nice", "make", "-s", "-C", str(RUNTIME), f"BUILD={build}", *targets], capture_output=True,
-                         text=True, timeout=timeout)
+    run = subprocess.run(["nice", "make", "-s", "-j2", "-C", str(RUNTIME), f"BUILD={build}", *targets],
+                         capture_output=True, text=True, timeout=timeout)
     assert run.returncode == 0, run.stdout + run.stderr
 
 
