@@ -213,18 +213,25 @@ int main(int argc, char **argv)
         fail(in, msg.text);
     if (level > f->available_level)
         fail("level not in this file", in);
-    {   /* headless EGL, OpenGL 4.3 core */
+    {   /* headless EGL, OpenGL 4.3 core: Mesa's surfaceless platform, else the default display,
+           else the first EGL device (a GPU driver without a window system) */
         PFNEGLGETPLATFORMDISPLAYEXTPROC gpd = (PFNEGLGETPLATFORMDISPLAYEXTPROC)eglGetProcAddress("eglGetPlatformDisplayEXT");
-        EGLDisplay d = gpd ? gpd(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL) : eglGetDisplay(EGL_DEFAULT_DISPLAY);
-        EGLint n, cfg_attr[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+        PFNEGLQUERYDEVICESEXTPROC qd = (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
+        EGLint n = 0, cfg_attr[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
         EGLint ctx_attr[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
                              EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+        EGLDeviceEXT dev;
+        EGLDisplay d = gpd ? gpd(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL) : EGL_NO_DISPLAY;
         EGLConfig cfg;
-        EGLContext c;
-        if (d == EGL_NO_DISPLAY || !eglInitialize(d, NULL, NULL) || !eglBindAPI(EGL_OPENGL_API) ||
-            !eglChooseConfig(d, cfg_attr, &cfg, 1, &n) || n < 1 ||
-            (c = eglCreateContext(d, cfg, EGL_NO_CONTEXT, ctx_attr)) == EGL_NO_CONTEXT ||
-            !eglMakeCurrent(d, EGL_NO_SURFACE, EGL_NO_SURFACE, c))
+        EGLContext c = EGL_NO_CONTEXT;
+        if (d == EGL_NO_DISPLAY || !eglInitialize(d, NULL, NULL))
+            d = eglGetDisplay(EGL_DEFAULT_DISPLAY);
+        if ((d == EGL_NO_DISPLAY || !eglInitialize(d, NULL, NULL)) && gpd && qd && qd(1, &dev, &n) && n > 0)
+            d = gpd(EGL_PLATFORM_DEVICE_EXT, dev, NULL);
+        if (d != EGL_NO_DISPLAY && eglInitialize(d, NULL, NULL) && eglBindAPI(EGL_OPENGL_API) &&
+            eglChooseConfig(d, cfg_attr, &cfg, 1, &n) && n > 0)
+            c = eglCreateContext(d, cfg, EGL_NO_CONTEXT, ctx_attr);
+        if (c == EGL_NO_CONTEXT || !eglMakeCurrent(d, EGL_NO_SURFACE, EGL_NO_SURFACE, c))
             fail("no OpenGL 4.3 context through EGL (install libegl1 and Mesa, or a GPU driver)", NULL);
     }
     if (!have_mvp) { /* lopcook.verify.cameras: perspective(fov, w/h, near, far) @ look_at(eye, target) */
