@@ -36,14 +36,20 @@ class LopcookError(Exception):
         What the user can do about it.
     exit_code : int
         Process exit code the CLI uses: 2 (bad input/usage) by default, 1 for a failed verification.
+    reason : str | None
+        For a container that cannot be read, its error class (docs/format.md section 12:
+        ``bad_magic``, ``header_crc``, ``manifest``, ...; every reader reports the same class for
+        the same file, ``fixtures/conformance``), or ``"level"`` for a level the file does not
+        hold; None otherwise.
 
     ``str(error)`` is always one line (``one_line``): line breaks inside a message, a hint or a
     quoted name become spaces.
     """
 
     def __init__(self, stage: str, path: str | None, message: str, *, hint: str | None = None,
-                 exit_code: int = EXIT_BAD_INPUT) -> None:
+                 exit_code: int = EXIT_BAD_INPUT, reason: str | None = None) -> None:
         self.stage = stage
+        self.reason = reason
         self.path = None if path is None else str(path)
         self.message = message
         self.hint = hint
@@ -52,7 +58,7 @@ class LopcookError(Exception):
 
     def __reduce__(self):
         # pickles with its fields (an error raised in a forked child is re-raised in the parent)
-        return (_rebuild, (self.stage, self.path, self.message, self.hint, self.exit_code))
+        return (_rebuild, (self.stage, self.path, self.message, self.hint, self.exit_code, self.reason))
 
     def __str__(self) -> str:
         where = f"{self.path}: " if self.path else ""
@@ -62,8 +68,8 @@ class LopcookError(Exception):
         return one_line(text)
 
 
-def _rebuild(stage, path, message, hint, exit_code) -> LopcookError:
-    return LopcookError(stage, path, message, hint=hint, exit_code=exit_code)
+def _rebuild(stage, path, message, hint, exit_code, reason=None) -> LopcookError:
+    return LopcookError(stage, path, message, hint=hint, exit_code=exit_code, reason=reason)
 
 
 def one_line(text: str) -> str:

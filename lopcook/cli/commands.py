@@ -26,7 +26,8 @@ from ..lop.container import read
 from ..emit.gltf_writer import write_gltf
 from ..emit.preview import preview, source_candidate
 from ..emit.web import write_web_gltf
-from ..lop.reader import decode_positions, lod_attributes, world_attributes
+from ..atomic import write_atomic
+from ..lop.reader import decode_positions, lod_attributes, positions_f32, world_attributes
 from ..lop.codecs import CODECS
 from ..lop.summary import describe_container, format_container
 from ..errors import EXIT_OK, EXIT_VERIFY_FAILED, LopcookError
@@ -147,10 +148,18 @@ def _check_gltf_output(args) -> None:
 
 
 def cmd_decode(args) -> int:
+    if args.output is None and args.positions is None:
+        raise LopcookError("usage", args.container, "nothing to write", hint="give -o OUT.glb and/or --positions OUT.f32")
     if not 1 <= args.level <= 24:
         raise LopcookError("usage", None, f"--level {args.level} is outside [1, 24]")
-    _check_gltf_output(args)
+    if args.output is not None:
+        _check_gltf_output(args)
+    if args.positions is not None:
+        check_output(args.positions, "--positions", extensions=(".f32",), what="float32 positions",
+                     inputs=(args.container,), required=False)
     c = read(args.container)
+    if args.output is None:
+        return _decode_positions(args, c)
     source_in = (source_candidate(args.container, c.manifest, args.source),)  # materials are read from it
     check_not_input(args.output, "-o", source_in)
     if args.output.lower().endswith(".gltf"):
@@ -190,6 +199,25 @@ def cmd_decode(args) -> int:
                           "warnings": pv["warnings"]}, sort_keys=True))
     elif not args.quiet:
         print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
+    if args.positions is not None:
+        _decode_positions(args, c, quiet=True)
+    return EXIT_OK
+
+
+def _decode_positions(args, c, quiet: bool = False) -> int:
+    """``decode --positions``: ``lop.reader.positions_f32`` written atomically (the checks of
+    ``decode``: a LOD no part has, or a level the file does not hold, exit 2)."""
+    deepest = max(len(p["lods"]) for p in c.manifest["parts"])
+    if not 0 <= args.lod < deepest:
+        raise LopcookError("usage", args.container, f"--lod {args.lod}: no part has LOD {args.lod} (the container has "
+                           f"LODs 0..{deepest - 1})")
+    data = positions_f32(c, args.level, args.lod)
+    write_atomic(args.positions, data)
+    if args.json and not quiet:
+        print(json.dumps({"positions": args.positions, "level": args.level, "lod": args.lod, "bytes": len(data),
+                          "vertices": len(data) // 12, "parts": len(c.manifest["parts"])}, sort_keys=True))
+    elif not args.quiet and not quiet:
+        print(f"{args.positions}: {len(data) // 12} vertices decoded at level {args.level}, LOD {args.lod}")
     return EXIT_OK
 
 

@@ -196,7 +196,12 @@ def _add_decode_parser(sub) -> None:
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--level", type=int, required=True, metavar="B", help="per-buffer level B in [1, 24]")
     p.add_argument("--lod", type=int, default=0, metavar="K", help="LOD to decode (default 0)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help=".glb, or .gltf (+ .bin)")
+    p.add_argument("-o", "--output", default=None, metavar="OUT.glb",
+                   help=".glb, or .gltf (+ .bin); may be left out when --positions is given")
+    p.add_argument("--positions", default=None, metavar="OUT.f32",
+                   help="write the float32 xyz (little-endian) of every vertex of every part and placement at --level, "
+                        "in manifest order, world metres: the layout runtime/c's lopdump writes, so that readers "
+                        "compare byte for byte (docs/runtime-c.md)")
     p.add_argument("--source", metavar="SRC", default=None,
                    help="source asset to take materials and textures from (default: the manifest's source file "
                         "beside the container; used only when its sha256 matches)")

@@ -194,48 +194,49 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     are complete and pass their CRC are kept, and ``available_level`` tells which level they hold.
     """
 
-    def fail(msg: str, hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
-        raise LopcookError("container", path, msg, hint=hint)
+    def fail(reason: str, msg: str,
+             hint: str = "the file is corrupt or not a lopcook container; cook it again") -> None:
+        raise LopcookError("container", path, msg, hint=hint, reason=reason)
 
     data = bytes(data)
     if len(data) < HEADER_SIZE:
-        fail(f"file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
+        fail("truncated", f"file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
     magic, major, minor, hsize, msize, mcrc, total = _HEADER.unpack_from(data, 0)
     if magic != MAGIC:
-        fail(f"bad magic {magic!r} (expected {MAGIC!r})", "this is not a .lop container")
+        fail("bad_magic", f"bad magic {magic!r} (expected {MAGIC!r})", "this is not a .lop container")
     (hcrc,) = struct.unpack_from("<I", data, 28)
     if zlib.crc32(data[:28]) != hcrc:
-        fail("header checksum mismatch")
+        fail("header_crc", "header checksum mismatch")
     if major not in READABLE_MAJORS:
-        fail(f"container version {major}.{minor} is not supported (this lopcook reads "
+        fail("version", f"container version {major}.{minor} is not supported (this lopcook reads "
              f"{' and '.join(f'{v}.x' for v in READABLE_MAJORS)})",
              "use a lopcook release that reads this version, or cook the source again")
     if hsize != HEADER_SIZE:
-        fail(f"header size {hsize} (expected {HEADER_SIZE})")
+        fail("header", f"header size {hsize} (expected {HEADER_SIZE})")
     if len(data) > total:
-        fail(f"{len(data) - total} bytes of trailing data after the declared end ({total} bytes)")
+        fail("trailing_data", f"{len(data) - total} bytes of trailing data after the declared end ({total} bytes)")
     truncated = len(data) < total
     if truncated and not allow_prefix:
-        fail(f"file is truncated: {len(data)} of {total} bytes", "the copy is incomplete; cook it again")
+        fail("truncated", f"file is truncated: {len(data)} of {total} bytes", "the copy is incomplete; cook it again")
     if HEADER_SIZE + msize > len(data):
-        fail("manifest is truncated")
+        fail("truncated", "manifest is truncated")
     mbytes = data[HEADER_SIZE:HEADER_SIZE + msize]
     if zlib.crc32(mbytes) != mcrc:
-        fail("manifest checksum mismatch")
+        fail("manifest_crc", "manifest checksum mismatch")
     try:
         manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
                               parse_constant=_no_constants)
     except (UnicodeDecodeError, ValueError) as exc:
-        fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
+        fail("manifest_json", f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
     except RecursionError:
-        fail("manifest JSON is nested too deeply")
+        fail("manifest_json", "manifest JSON is nested too deeply")
     validate_manifest(manifest, path)
     if major == VERSION[0] and is_clustered(manifest):
-        fail(f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
+        fail("version", f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
     if major == VERSION[0] and has_placements(manifest) and minor < PLACEMENT_MINOR:
-        fail(f"container version {major}.{minor} must not hold placements (they need 3.x)")
+        fail("version", f"container version {major}.{minor} must not hold placements (they need 3.x)")
     if major < attributes_major(manifest):
-        fail(f"container version {major}.{minor} must not hold the attributes it lists (they need "
+        fail("version", f"container version {major}.{minor} must not hold the attributes it lists (they need "
              f"{attributes_major(manifest)}.x)")
     base = HEADER_SIZE + msize
     sections: dict = {}
@@ -243,25 +244,25 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     for entry in manifest["sections"]:
         start = base + entry["offset"]
         if start != expected_end:
-            fail(f"section {entry['name']!r} does not follow the previous one")
+            fail("section_table", f"section {entry['name']!r} does not follow the previous one")
         end = start + entry["length"]
         expected_end = end
         if end > len(data):
             if truncated:
                 break
-            fail(f"section {entry['name']!r} runs past the end of the file")
+            fail("section_table", f"section {entry['name']!r} runs past the end of the file")
         payload = data[start:end]
         if zlib.crc32(payload) != entry["crc32"]:
-            fail(f"section {entry['name']!r} checksum mismatch")
+            fail("section_crc", f"section {entry['name']!r} checksum mismatch")
         sections[entry["name"]] = payload
     if not truncated and expected_end != total:
-        fail(f"sections end at byte {expected_end}, file size says {total}")
+        fail("section_table", f"sections end at byte {expected_end}, file size says {total}")
     _check_index_values(manifest, sections, fail)
     _check_cluster_sizes(manifest, sections, fail)
     container = Container(manifest=manifest, sections=sections, path=path, data=data)
     container.available_level = _available_level(manifest, sections)
     if container.available_level < 1:
-        fail("the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
+        fail("truncated", "the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
     return container
 
 
@@ -277,7 +278,8 @@ def _check_index_values(manifest: dict, sections: dict, fail) -> None:
             dtype = "<u2" if lod["index_width"] == 2 else "<u4"
             idx = np.frombuffer(data, dtype=dtype, count=3 * lod["triangles"])
             if idx.size and int(idx.max()) >= lod["vertices"]:
-                fail(f"part {i} LOD {k}: index {int(idx.max())} is out of range for {lod['vertices']} vertices")
+                fail("indices", f"part {i} LOD {k}: index {int(idx.max())} is out of range for "
+                     f"{lod['vertices']} vertices")
 
 
 def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
@@ -304,17 +306,17 @@ def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
             try:
                 cl = from_header(head[off:off + count], vid, lod["cluster_size"])
             except ValueError as exc:
-                fail(f"part {i} LOD {k}: cluster headers: {exc}")
+                fail("clusters", f"part {i} LOD {k}: cluster headers: {exc}")
             if lod["cluster_p_words"] != [words_at(cl, b) for b in range(1, 25)]:
-                fail(f"part {i} LOD {k}: cluster_p_words (mandatory_words count {lod['mandatory_words'][1]}) "
-                     f"do not match its clusters ({words_at(cl, 1)} words at level 1)")
+                fail("clusters", f"part {i} LOD {k}: cluster_p_words (mandatory_words count "
+                     f"{lod['mandatory_words'][1]}) do not match its clusters ({words_at(cl, 1)} words at level 1)")
             if lod["cluster_plane_bits"] != [int(plane_bit(cl, p)[-1]) for p in range(2, 25)]:
-                fail(f"part {i} LOD {k}: cluster_plane_bits do not match its clusters")
+                fail("clusters", f"part {i} LOD {k}: cluster_plane_bits do not match its clusters")
             for p in present:
                 plane_bits[p] += int(plane_bit(cl, p)[-1])
     for p, bits in plane_bits.items():
         if len(sections[pos["planes"][str(p)]]) != 4 * ((bits + 31) // 32):
-            fail(f"refinement plane {p} is not the {bits} bits its buffers hold")
+            fail("clusters", f"refinement plane {p} is not the {bits} bits its buffers hold")
 
 
 def _available_level(manifest: dict, sections: dict) -> int:

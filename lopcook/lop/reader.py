@@ -167,10 +167,10 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     the mandatory bits (the buffer packed at level 1), then one bit per refinement plane 2..B for
     the vertices whose minimum level is below that plane."""
     if not 1 <= level <= LEVELS:
-        raise LopcookError("usage", c.path, f"level {level} is outside [1, 24]")
+        raise LopcookError("usage", c.path, f"level {level} is outside [1, 24]", reason="level")
     if level > c.available_level:
         raise LopcookError("usage", c.path, f"level {level} is not in this file (it holds levels up to "
-                           f"{c.available_level})", hint="use a lower --level or the complete file")
+                           f"{c.available_level})", hint="use a lower --level or the complete file", reason="level")
     e = lod_entry(c, part, lod)
     vid = np.asarray(e["vertex_id"], dtype=np.int64)
     off, count = e["mandatory_words"]
@@ -262,6 +262,19 @@ def decode_positions(c: Container, part: int, lod: int, level: int, *, float32: 
     if tf is not None:
         pos = _placed(pos, tf, float32)
     return to_grid(values, widths), widths, pos
+
+
+def positions_f32(c: Container, level: int, lod: int = 0) -> bytes:
+    """``lopcook decode --positions``: the float32 xyz (little-endian) of every vertex of every part
+    and placement in manifest order (part, then its LOD's binned vertex order), world metres
+    (``decode_positions``: a placement's transform applied), each part at LOD ``lod`` or its
+    coarsest when its chain is shorter (as ``decode`` draws it), every buffer at level B. The
+    layout every reader's dump reproduces byte for byte (``runtime/c/examples/lopdump``)."""
+    out = []
+    for i, part in enumerate(c.manifest["parts"]):
+        k = min(int(lod), len(part["lods"]) - 1)
+        out.append(np.ascontiguousarray(decode_positions(c, i, k, level)[2], dtype="<f4").tobytes())
+    return b"".join(out)
 
 
 def _placed(pos, tf, float32: bool):

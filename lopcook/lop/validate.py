@@ -47,13 +47,16 @@ def is_num(v, limit: float = F32_MAX) -> bool:
 
 
 class _Checker:
-    """The failure and typed-field helpers every validator shares (``path`` names the file)."""
+    """The failure and typed-field helpers every validator shares (``path`` names the file;
+    ``reason`` is the error class a failure reports, docs/format.md section 12.1)."""
 
     def __init__(self, path: str | None):
         self.path = path
+        self.reason = "manifest"
 
     def fail(self, msg: str) -> None:
-        raise LopcookError("container", self.path, f"manifest: {msg}", hint="the file is corrupt; cook it again")
+        raise LopcookError("container", self.path, f"manifest: {msg}", hint="the file is corrupt; cook it again",
+                           reason=self.reason)
 
     def need(self, obj, key, kind, where):
         if not isinstance(obj, dict) or key not in obj:
@@ -131,7 +134,9 @@ def check_informative(m: dict, c: _Checker) -> None:
 
 def check_sections(m: dict, c: _Checker) -> dict:
     """The section table: back to back in manifest order, unique names, lengths multiples of 4,
-    32-bit CRCs. Returns ``{name: length}`` in table order."""
+    32-bit CRCs. Returns ``{name: length}`` in table order. Failures here are of class
+    ``section_table``."""
+    c.reason = "section_table"
     sections = c.need(m, "sections", list, "manifest")
     length: dict = {}
     offset = 0
@@ -149,6 +154,7 @@ def check_sections(m: dict, c: _Checker) -> dict:
         if name in length:
             c.fail(f"section {name!r} appears twice")
         length[name] = s["length"]
+    c.reason = "manifest"
     return length
 
 
