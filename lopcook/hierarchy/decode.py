@@ -69,8 +69,9 @@ class _NodeDecoder:
     ``owner`` (t,) node of each decoded subtri and ``corn`` (3t,) its corners, flat, in the
     encoding of :func:`decode_records`; ``pend_of[v]``: the indices into ``corn`` of the ancestor
     corners that reached node v and wait for v's control bits (None when none); ``path``: the
-    ancestors of the node being decoded, by depth. ``R`` holds the bytes of the current node's
-    record as one integer whose lowest bit is bit ``Rend`` of the record data."""
+    ancestors of the node being decoded, by depth. ``R`` holds the bytes around the current node's
+    record as one big-endian integer ending at bit ``Rend`` of the data: data bit ``pos`` (MSB
+    first) is bit ``Rend - pos - 1`` of ``R``."""
 
     def __init__(self, h):
         var = h.variant
