@@ -55,8 +55,8 @@ class ColocatedGroups:
             start[1:] = ranked[1:] != ranked[:-1]
             self.starts = np.flatnonzero(start)
             return
-        # one column at a time and each temporary freed once used: at 4M vertices this is the cook's
-        # peak (docs/performance.md, "Memory at 1.1M and 4.4M")
+        # one column at a time and each temporary freed once used: on large scenes this is the
+        # cook's memory peak (docs/performance.md, "Memory at 1.1M and 4.4M")
         key = q[:, 0].astype(np.int64) << 40
         key |= q[:, 1].astype(np.int64) << 16
         key |= q[:, 2].astype(np.int64) >> 8
@@ -110,16 +110,12 @@ def attribute_levels(e_v: dict, kf: dict, eps: float, extent: float, n: int) -> 
     reason[level == 1] = REASON_CODE["none"]
     return level, reason, over
 
-def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None) -> Analysis:
-    """Minimum bit level m_v for every vertex of every part (see module doc and PartAnalysis)."""
-    timings: dict = {}
-    t0 = time.perf_counter()
-    grid = grid or Grid.fit([p.positions for p in scene.parts])
-    quantized = [grid.quantize(p.positions) for p in scene.parts]
-    timings["grid"] = time.perf_counter() - t0
 
-    # (2) attribute error and level
-    t0 = time.perf_counter()
+def _attribute_levels(scene: Scene, settings: AnalyseSettings, extent: float):
+    """Step (2): per part, E_v of every shading attribute k_f covers and the attribute level.
+
+    Returns lists over the parts: level (n,) int64, reason (n,) uint8, e_v dict, k_f dict,
+    degenerate triangle count, count of vertices whose bound needs more than 24 bits."""
     attr_level, attr_reason, e_vs, kfs, degenerate, unsatisfied = [], [], [], [], [], []
     for part in scene.parts:
         n = part.n_vertices
@@ -132,13 +128,68 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
         deg = int(np.count_nonzero(degen))
         for (name, _), e_t in zip(named, e_ts):
             e_v[name] = vertex_max(frames.tri, e_t, n)
-        level, reason, over = attribute_levels(e_v, kf, settings.position_eps, grid.extent, n)
+        level, reason, over = attribute_levels(e_v, kf, settings.position_eps, extent, n)
         unsatisfied.append(over)
         attr_level.append(level)
         attr_reason.append(reason)
         e_vs.append(e_v)
         kfs.append(kf)
         degenerate.append(deg)
+    return attr_level, attr_reason, e_vs, kfs, degenerate, unsatisfied
+
+
+def _depth_levels(scene: Scene, settings: AnalyseSettings, extent: float, attr_level: list):
+    """Step (3): per part the depth level (n,) int64, the distance (n,) float64 metres and the
+    capped flags (n,) bool, in the mode ``settings.depth``; and the touching and intersecting
+    pairs of part names."""
+    positions = [p.positions for p in scene.parts]
+    indices = [p.indices for p in scene.parts]
+    names = [p.name for p in scene.parts]
+    depth = settings.depth
+    touching: list = []
+    intersecting: list = []
+    if depth == "off":
+        depth_level = [np.ones(p.n_vertices, np.int64) for p in scene.parts]
+        depth_dist = [np.full(p.n_vertices, np.inf) for p in scene.parts]
+        capped = [np.zeros(p.n_vertices, bool) for p in scene.parts]
+    elif depth is DepthMode.FIXED:
+        res = depth_levels(positions, indices, extent, threshold=settings.depth_threshold)
+        depth_level = [np.where(c > 0, int(settings.depth_level), 1).astype(np.int64) for c in res.level]
+        depth_dist, capped = res.distance, res.capped
+        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
+    else:
+        res = depth_levels(positions, indices, extent, floors=attr_level, ceiling=settings.depth_ceiling)
+        depth_level, depth_dist, capped = res.level, res.distance, res.capped
+        touching = [(names[i], names[j]) for i, j in res.touching]
+        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
+    return depth_level, depth_dist, capped, touching, intersecting
+
+
+def _combine(attr_level: list, attr_reason: list, depth_level: list, capped: list):
+    """Step (4): per part m_v = max(attribute, depth level) (n,) int64 and its reason (n,) uint8
+    (``depth`` or ``depth-capped`` where the depth level is the larger)."""
+    combined, reasons = [], []
+    for k in range(len(attr_level)):
+        lv = np.maximum(attr_level[k], depth_level[k])
+        reason = attr_reason[k].copy()
+        by_depth = depth_level[k] > attr_level[k]
+        reason[by_depth] = np.where(capped[k][by_depth], REASON_CODE["depth-capped"], REASON_CODE["depth"])
+        combined.append(lv)
+        reasons.append(reason)
+    return combined, reasons
+
+
+def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Grid | None = None) -> Analysis:
+    """Minimum bit level m_v for every vertex of every part (see module doc and PartAnalysis)."""
+    timings: dict = {}
+    t0 = time.perf_counter()
+    grid = grid or Grid.fit([p.positions for p in scene.parts])
+    quantized = [grid.quantize(p.positions) for p in scene.parts]
+    timings["grid"] = time.perf_counter() - t0
+
+    # (2) attribute error and level
+    t0 = time.perf_counter()
+    attr_level, attr_reason, e_vs, kfs, degenerate, unsatisfied = _attribute_levels(scene, settings, grid.extent)
     timings["attribute_error"] = time.perf_counter() - t0
 
     # (2b) discontinuities E_v cannot see: hard edges, folds, boundaries, seams (reason "edge")
@@ -153,38 +204,12 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
 
     # (3) depth
     t0 = time.perf_counter()
-    positions = [p.positions for p in scene.parts]
-    indices = [p.indices for p in scene.parts]
-    names = [p.name for p in scene.parts]
-    depth = settings.depth
-    touching: list = []
-    intersecting: list = []
-    if depth == "off":
-        depth_level = [np.ones(p.n_vertices, np.int64) for p in scene.parts]
-        depth_dist = [np.full(p.n_vertices, np.inf) for p in scene.parts]
-        capped = [np.zeros(p.n_vertices, bool) for p in scene.parts]
-    elif depth is DepthMode.FIXED:
-        res = depth_levels(positions, indices, grid.extent, threshold=settings.depth_threshold)
-        depth_level = [np.where(c > 0, int(settings.depth_level), 1).astype(np.int64) for c in res.level]
-        depth_dist, capped = res.distance, res.capped
-        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
-    else:
-        res = depth_levels(positions, indices, grid.extent, floors=attr_level, ceiling=settings.depth_ceiling)
-        depth_level, depth_dist, capped = res.level, res.distance, res.capped
-        touching = [(names[i], names[j]) for i, j in res.touching]
-        intersecting = [(names[i], names[j]) for i, j in res.intersecting]
+    depth_level, depth_dist, capped, touching, intersecting = _depth_levels(scene, settings, grid.extent, attr_level)
     timings["depth"] = time.perf_counter() - t0
 
     # (4) combine, (5) co-located vertices share the maximum
     t0 = time.perf_counter()
-    combined, reasons = [], []
-    for k in range(len(scene.parts)):
-        lv = np.maximum(attr_level[k], depth_level[k])
-        reason = attr_reason[k].copy()
-        by_depth = depth_level[k] > attr_level[k]
-        reason[by_depth] = np.where(capped[k][by_depth], REASON_CODE["depth-capped"], REASON_CODE["depth"])
-        combined.append(lv)
-        reasons.append(reason)
+    combined, reasons = _combine(attr_level, attr_reason, depth_level, capped)
     allq = np.concatenate(quantized)
     alll = np.concatenate(combined)
     shared = colocated_max(allq, alll)
@@ -212,6 +237,7 @@ def analyse(scene: Scene, settings: AnalyseSettings = DEFAULT_ANALYSE, grid: Gri
             depth_capped=int(np.count_nonzero(capped[k])),
         ))
         start += n
+    names = [p.name for p in scene.parts]
     return Analysis(grid=grid, parts=parts, part_names=names, settings=settings, touching=touching,
                     intersecting=intersecting, timings=timings, colocated_raised=raised_total)
 

@@ -1,4 +1,4 @@
-"""Inputs of the average-case (screen-space) bound on the bits of normals and UVs (issue 15, item 3).
+"""Inputs of the average-case (screen-space) bound on the bits of normals and UVs.
 
 The bit choice itself is ``lopcook.analyse.attribute_bits.default_bits``; this module measures what it
 needs from the scene and the shading: how strongly the harness's lighting responds to a normal
@@ -22,9 +22,6 @@ facing normals have the projected-area density ``p(theta) = sin(2 theta)`` on [0
   ``slope_rms^2 * delta^2 / 2``.
 * ``lighting_rms = sqrt(E[(a + d cos theta)^2])``: what a change of the base colour is multiplied by.
 
-Defaults (ks 0.5, n 32, a 0.15, d 0.65): slope_rms = 0.693 per radian (against the worst-case
-k_f = ks * n = 16 per unit normal change and the true maximum 3.52 per radian), lighting_rms = 0.603.
-
 Texture gradient (``texture_gradient_rms``): the root mean square, over the part's surface area
 (7 fixed barycentric samples per triangle weighted by its area, the density of the pixels the
 surface covers on screen), of the forward-difference derivative of the texture along u and along v
@@ -37,8 +34,9 @@ scene), so the mip level can only be too fine and the gradient too large (conser
 per pixel ``rho = R sqrt(A_uv / A) / (2^B / (sqrt(3) extent))`` (R the texture's larger side,
 A_uv the part's UV area, A its surface area in square metres); the mip level is
 ``max(0, floor(log2(rho)))``, the finer of the two levels the trilinear filter blends (again the
-larger gradient). Design level
-``VIEW_LEVEL = 11``: the level at which the issue states bits per vertex and quality.
+larger gradient). Design level ``VIEW_LEVEL = 11``: the per-buffer level at which bits per vertex
+and quality targets are stated. slope_rms and lighting_rms at the harness's defaults (0.693 per
+radian, 0.603) and their derivation: docs/attributes.md.
 """
 
 from __future__ import annotations
@@ -52,7 +50,7 @@ from ..types import Texture
 #: the verify harness's Phong ambient and diffuse weights (lopcook.verify.renderer.AMBIENT / DIFFUSE)
 HARNESS_AMBIENT = 0.15
 HARNESS_DIFFUSE = 0.65
-#: per-buffer level of the design view (the level the issue's bits per vertex and PSNR are stated at)
+#: per-buffer level of the design view (the level bits per vertex and PSNR targets are stated at)
 VIEW_LEVEL = 11
 #: barycentric sample points per triangle for the area-weighted texture statistics
 _BARY = np.array([[1 / 3, 1 / 3, 1 / 3], [0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6],

@@ -19,6 +19,7 @@ import numpy as np
 from ..settings import AnalyseSettings
 from ..types import Texture
 from ..grid import BITS, dx, smallest_level
+from .attribute_bound import clear_gradient_cache
 
 
 def attribute_level(e_v: np.ndarray, kf: float, eps: float, extent: float) -> np.ndarray:
@@ -70,8 +71,6 @@ def clear_slope_cache() -> None:
     """Forget the texture slopes computed so far in this process (``texture_slope`` caches them by
     texture digest) and the gradient images of the attribute bound (``attribute_bound``), so
     that the next analysis pays what a fresh cook pays."""
-    from .attribute_bound import clear_gradient_cache
-
     _SLOPE_CACHE.clear()
     clear_gradient_cache()
 

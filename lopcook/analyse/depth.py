@@ -16,39 +16,19 @@ is reported (never a silent 24-bit blow-up). Parts with a vertex behind the face
 it is nearest to (inside a closed part: e.g. chess pieces sunk into the board) are reported as
 intersecting.
 
-Implementation (``depth_levels``). The binding radius of a vertex is ``2 * dx(floor)``: beyond it
-the depth level would not exceed the level the vertex already has (``floor``, e.g. from its
-attribute error), so the exact distance there cannot change m_v. For a vertex v of part i, let S(v)
-be the other parts whose bounding box lies within the binding radius of v (box distance ``bd``).
-The distance reported for v is the exact minimum over S(v) of its distance to their surfaces (inf
-if S(v) is empty); the nearest part is the one reaching it (on equal distances, the first in i's
-visiting order: other parts by box-to-box distance, nearest first, then by index). Exact distances
-come from one libigl AABB tree per part, built on demand; at most ``TREE_BUDGET_TRIANGLES``
-triangles' trees are kept at once (a part's tree is freed after the last part that may query it,
-and the least recently used first when the budget is reached, except the trees part i's step 3 may
-still query), which changes no distance. For each part i:
-
-1. the (vertex, part) pairs of S: for each other part j, the vertices whose ``bd`` to j's box is
-   within their binding radius. This must not cost a pass over all vertices of i per j (a board
-   under 48 chess pieces would make that O(n * parts)): the vertices of each part are sorted by
-   binding radius (largest first), then along a Morton curve, and cut into blocks of ``_BLOCK``
-   with a bounding box and a largest radius each; only the blocks within their largest radius of
-   j's box are opened.
-2. every vertex queries first the part of S(v) whose box is nearest to it, usually the nearest
-   surface, so the running best is tight from the start;
-3. then every other part of S(v) whose ``bd`` is not above the running best.
-
-Any part j of S(v) with d(v, j) equal to the minimum has ``bd <= d(v, j) <= best`` at any time,
-so it is queried: the result is the minimum whatever the visiting order, and equal to what
-visiting every part of S(v) would give. A part is queried only when no part was already found
-closer than its box, so the queries are a subset of those of visiting the parts in i's fixed order
-(``DepthResult.queries`` counts them). The intersection test (above) runs on every query; these
-always include every vertex inside the other part's box (``bd = 0``), hence every vertex sunk into
-a closed part. A vertex outside the box of a part that is *not* closed can also lie behind that
-part's nearest face; it is tested only if that part was queried for it, i.e. if no other part was
-found nearer than the box. Cost O(n log n) for scenes whose parts are spatially separated;
-``depth_levels_reference`` is the paper's O(n*m) scan and gives identical levels (tests compare
-them).
+Guarantees (``depth_levels``). The binding radius of a vertex is ``2 * dx(floor)`` (``floor`` the
+level it already has, e.g. from its attribute error): beyond it the exact distance cannot change
+m_v. For a vertex v of part i, S(v) are the other parts whose bounding box lies within the binding
+radius of v (box distance ``bd``). The distance reported for v is the exact minimum over S(v) of
+its distance to their surfaces (inf if S(v) is empty); the nearest part is the one reaching it (on
+equal distances, the first in i's visiting order: other parts by box-to-box distance, nearest
+first, then by index). For each part i: (1) the (vertex, part) pairs of S, found block by block
+(``_Blocks``); (2) every vertex queries first the part of S(v) whose box is nearest to it; (3) then
+every other part of S(v) whose ``bd`` is not above the running best. At most
+``TREE_BUDGET_TRIANGLES`` triangles' distance trees are kept at once, which changes no distance.
+The levels equal those of ``depth_levels_reference``, the paper's O(n*m) scan (tests compare
+them). Why the search is exact, its cost, and which intersections it can miss: docs/analyse.md,
+"The spatial search of depth_levels".
 """
 
 from __future__ import annotations
@@ -194,6 +174,147 @@ def _finish(levels_raw, distance, nearest, ceiling, n_parts, inside_pairs):
     return level, capped, sorted(touching), sorted(inside_pairs)
 
 
+def _binding_radius(pos: list, extent: float, floors, threshold) -> list:
+    """Per part (n_i,) float64 metres: the distance beyond which a vertex's exact distance cannot
+    change its level: ``threshold`` (paper mode), else ``2 * dx(floor)`` (floors None: 1)."""
+    if threshold is not None:
+        return [np.full(p.shape[0], float(threshold)) for p in pos]
+    fl = floors if floors is not None else [np.ones(p.shape[0], np.int64) for p in pos]
+    # beyond 2*dx(floor) the depth level is <= floor: no need to know the distance exactly
+    return [2.0 * dx(np.maximum(np.asarray(f), 1), extent) for f in fl]
+
+
+def _box_distances(lo: np.ndarray, hi: np.ndarray, i: int) -> np.ndarray:
+    """(P,) distance from part i's bounding box to every part's box (lo, hi (P, 3)); inf at i."""
+    gap = np.maximum(np.maximum(lo - hi[i], lo[i] - hi), 0.0)
+    box_d = np.sqrt((gap * gap).sum(axis=1))
+    box_d[i] = np.inf
+    return box_d
+
+
+class _NearestParts:
+    """The running nearest-part search of :func:`depth_levels` (module doc, steps 1 to 3).
+
+    ``best[i]`` (n_i,) float64 metres and ``nearest[i]`` (n_i,) int64 hold each vertex's nearest
+    other part so far. Distance trees (one libigl AABB and its (m, 3) int64 triangles per part)
+    are kept in ``trees``, least recently used first, within ``budget`` triangles except those
+    ``pinned`` (the current part's step 3 may still query them); ``queries`` counts the exact
+    point-to-part distances, ``builds`` the trees built, ``inside_pairs`` the intersecting pairs."""
+
+    def __init__(self, pos: list, tris: list, detect_intersections: bool):
+        self.pos, self.tris = pos, tris
+        self.detect_intersections = detect_intersections
+        self.best = [np.full(p.shape[0], np.inf) for p in pos]
+        self.nearest = [np.full(p.shape[0], -1, dtype=np.int64) for p in pos]
+        # part -> (igl.AABB, its (m, 3) int64 triangles), least recently used first
+        self.trees: OrderedDict[int, tuple] = OrderedDict()
+        self.builds = 0
+        self.pinned: set[int] = set()  # parts whose trees the current part's pass (c) may still query
+        self.evicted: set[int] = set()  # parts whose trees were evicted before their last user
+        self.budget = TREE_BUDGET_TRIANGLES
+        self.inside_pairs: set[tuple[int, int]] = set()
+        self.queries = 0
+
+    def free_before(self, last_user: np.ndarray, i: int) -> None:
+        """Free the trees of the parts no part from i on may query (``last_user`` (P,) < i)."""
+        for j in [j for j in self.trees if last_user[j] <= i - 1]:
+            del self.trees[j]
+
+    def _tree(self, j: int) -> tuple:
+        """Part j's (AABB tree, int64 triangles), built if needed. Least recently used trees go
+        first while the new one would pass the budget, except those this part's pass (c) may
+        still query (evicting them would build them again). A tree built again raises the
+        budget by its size, so a scene whose neighbourhoods do not fit the budget stops
+        rebuilding."""
+        trees = self.trees
+        if j in trees:
+            trees.move_to_end(j)
+            return trees[j]
+        size_j = self.tris[j].shape[0]
+        if j in self.evicted:
+            self.budget += size_j
+        alive = sum(t[1].shape[0] for t in trees.values())
+        for k in [k for k in trees if k not in self.pinned]:
+            if alive + size_j <= self.budget:
+                break
+            alive -= trees.pop(k)[1].shape[0]
+            self.evicted.add(k)
+        tj = np.ascontiguousarray(self.tris[j], dtype=np.int64)
+        # imported here: a scene whose parts never come near each other builds no tree
+        # (docs/performance.md, "Start-up")
+        import igl
+
+        tree = igl.AABB()
+        tree.init(self.pos[j], tj)
+        trees[j] = (tree, tj)
+        self.builds += 1
+        return trees[j]
+
+    def query(self, i: int, j: int, cand: np.ndarray, rank: np.ndarray) -> None:
+        """Exact distances from vertices ``cand`` of part i to part j; keep the smaller (equal
+        distances: the part earliest in i's visiting order ``rank`` (P,) wins)."""
+        tree, tj = self._tree(j)
+        pos = self.pos
+        best, nearest = self.best[i], self.nearest[i]
+        points = pos[i][cand]
+        d2, face, closest = tree.squared_distance(pos[j], tj, points)
+        self.queries += cand.size
+        d = np.sqrt(d2)
+        cur = best[cand]
+        better = d < cur
+        # equal distances: the part earliest in i's visiting order wins (as if visited in that order)
+        tie = (d == cur) & (nearest[cand] >= 0)
+        if tie.any():
+            better |= tie & (rank[j] < rank[nearest[cand]])
+        best[cand[better]] = d[better]
+        nearest[cand[better]] = j
+        pair = (min(i, j), max(i, j))
+        if self.detect_intersections and pair not in self.inside_pairs:
+            if _any_inside(points, face, closest, pos[j], tj):
+                self.inside_pairs.add(pair)
+
+    def part(self, i: int, order: np.ndarray, rank: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+             radius: np.ndarray) -> None:
+        """The nearest other part of every vertex of part i among the parts ``order`` (nearest
+        box first), with binding radii ``radius`` (n_i,) metres (module doc, steps 1 to 3)."""
+        pos_i = self.pos[i]
+        # (a) the (vertex, part) pairs whose box distance is within the vertex's binding radius
+        blocks = _Blocks(pos_i, radius)
+        pairs = []
+        for j in order:
+            verts = blocks.near(lo[j], hi[j])
+            if verts.size == 0:
+                continue
+            bd = _bbox_distance(pos_i[verts], lo[j], hi[j])
+            keep = bd <= radius[verts]
+            if keep.any():
+                pairs.append((int(j), verts[keep], bd[keep]))
+        # (b) every vertex first queries the part whose box is nearest to it (usually the nearest
+        # surface, so best is tight from the start) ...
+        first = np.full(pos_i.shape[0], -1, dtype=np.int64)
+        first_bd = np.full(pos_i.shape[0], np.inf)
+        for j, verts, bd in pairs:
+            closer = bd < first_bd[verts]
+            first_bd[verts[closer]] = bd[closer]
+            first[verts[closer]] = j
+        best = self.best[i]
+        self.pinned.clear()
+        for j, verts, bd in pairs:
+            cand = verts[first[verts] == j]
+            if cand.size:
+                self.query(i, j, cand, rank)
+                # pass (c) queries j only where bd <= best, and best only falls: if no vertex is
+                # there now, none will be, and j's tree may be evicted
+                if np.any((bd <= best[verts]) & (first[verts] != j)):
+                    self.pinned.add(j)
+        # (c) ... then every other part whose box is not farther than the best distance so far
+        for j, verts, bd in pairs:
+            cand = verts[(bd <= best[verts]) & (first[verts] != j)]
+            if cand.size:
+                self.query(i, j, cand, rank)
+            self.pinned.discard(j)
+
+
 def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent: float, *,
                  floors: list[np.ndarray] | None = None, ceiling: int = DEFAULT_CEILING,
                  threshold: float | None = None, detect_intersections: bool = True) -> DepthResult:
@@ -217,134 +338,35 @@ def depth_levels(positions: list[np.ndarray], indices: list[np.ndarray], extent:
     bounds = [_bounds(p) for p in pos]
     lo = np.array([b[0] for b in bounds]).reshape(n_parts, 3)
     hi = np.array([b[1] for b in bounds]).reshape(n_parts, 3)
-    if threshold is not None:
-        radius = [np.full(p.shape[0], float(threshold)) for p in pos]
-    else:
-        fl = floors if floors is not None else [np.ones(p.shape[0], np.int64) for p in pos]
-        # beyond 2*dx(floor) the depth level is <= floor: no need to know the distance exactly
-        radius = [2.0 * dx(np.maximum(np.asarray(f), 1), extent) for f in fl]
-    best = [np.full(p.shape[0], np.inf) for p in pos]
-    nearest = [np.full(p.shape[0], -1, dtype=np.int64) for p in pos]
-    # part -> (igl.AABB, its (m, 3) int64 triangles), least recently used first
-    trees: OrderedDict[int, tuple] = OrderedDict()
-    builds = [0]
-    pinned: set[int] = set()  # parts whose trees the current part's pass (c) may still query
-    evicted: set[int] = set()  # parts whose trees were evicted before their last user
-    budget = [TREE_BUDGET_TRIANGLES]
-    inside_pairs: set[tuple[int, int]] = set()
-    queries = 0
+    radius = _binding_radius(pos, extent, floors, threshold)
+    search = _NearestParts(pos, tris, detect_intersections)
     rmax = np.array([r.max() if r.size else 0.0 for r in radius])
-
-    def query(i: int, j: int, cand: np.ndarray, rank: np.ndarray) -> None:
-        """Exact distances from vertices ``cand`` of part i to part j; keep the smaller."""
-        nonlocal queries
-        if j in trees:
-            trees.move_to_end(j)
-        else:
-            # least recently used trees go first while the new one would pass the budget, except
-            # those this part's pass (c) may still query (evicting them would build them again).
-            # A tree built again raises the budget by its size, so a scene whose neighbourhoods do
-            # not fit the budget stops rebuilding.
-            if j in evicted:
-                budget[0] += tris[j].shape[0]
-            alive = sum(t[1].shape[0] for t in trees.values())
-            for k in [k for k in trees if k not in pinned]:
-                if alive + tris[j].shape[0] <= budget[0]:
-                    break
-                alive -= trees.pop(k)[1].shape[0]
-                evicted.add(k)
-            tj = np.ascontiguousarray(tris[j], dtype=np.int64)
-            # imported here: a scene whose parts never come near each other builds no tree
-            # (docs/performance.md, "Start-up")
-            import igl
-
-            tree = igl.AABB()
-            tree.init(pos[j], tj)
-            trees[j] = (tree, tj)
-            builds[0] += 1
-        tree, tj = trees[j]
-        points = pos[i][cand]
-        d2, face, closest = tree.squared_distance(pos[j], tj, points)
-        queries += cand.size
-        d = np.sqrt(d2)
-        cur = best[i][cand]
-        better = d < cur
-        # equal distances: the part earliest in i's visiting order wins (as if visited in that order)
-        tie = (d == cur) & (nearest[i][cand] >= 0)
-        if tie.any():
-            better |= tie & (rank[j] < rank[nearest[i][cand]])
-        best[i][cand[better]] = d[better]
-        nearest[i][cand[better]] = j
-        if detect_intersections and (min(i, j), max(i, j)) not in inside_pairs:
-            if _any_inside(points, face, closest, pos[j], tj):
-                inside_pairs.add((min(i, j), max(i, j)))
-
-    def box_distances(i: int) -> np.ndarray:
-        gap = np.maximum(np.maximum(lo - hi[i], lo[i] - hi), 0.0)
-        box_d = np.sqrt((gap * gap).sum(axis=1))
-        box_d[i] = np.inf
-        return box_d
-
     # the last part whose loop may query part j (its box within that part's largest radius): part
     # j's tree and int64 triangles are freed once that part is done, the same distances either way
     last_user = np.full(n_parts, -1, dtype=np.int64)
     for i in range(n_parts if n_parts >= 2 else 0):
-        last_user[box_distances(i) <= rmax[i]] = i
-
+        last_user[_box_distances(lo, hi, i) <= rmax[i]] = i
     for i in range(n_parts if n_parts >= 2 else 0):
         # other parts ordered by box-to-box distance, nearest first (the tie-break for `nearest`)
-        box_d = box_distances(i)
+        box_d = _box_distances(lo, hi, i)
         order = np.argsort(box_d, kind="stable")
         order = order[box_d[order] <= rmax[i]]
-        for j in [j for j in trees if last_user[j] <= i - 1]:
-            del trees[j]
+        search.free_before(last_user, i)
         if order.size == 0:
             continue
         rank = np.empty(n_parts, dtype=np.int64)
         rank[order] = np.arange(order.size)
-        # (a) the (vertex, part) pairs whose box distance is within the vertex's binding radius
-        blocks = _Blocks(pos[i], radius[i])
-        pairs = []
-        for j in order:
-            verts = blocks.near(lo[j], hi[j])
-            if verts.size == 0:
-                continue
-            bd = _bbox_distance(pos[i][verts], lo[j], hi[j])
-            keep = bd <= radius[i][verts]
-            if keep.any():
-                pairs.append((int(j), verts[keep], bd[keep]))
-        # (b) every vertex first queries the part whose box is nearest to it (usually the nearest
-        # surface, so best is tight from the start) ...
-        first = np.full(pos[i].shape[0], -1, dtype=np.int64)
-        first_bd = np.full(pos[i].shape[0], np.inf)
-        for j, verts, bd in pairs:
-            closer = bd < first_bd[verts]
-            first_bd[verts[closer]] = bd[closer]
-            first[verts[closer]] = j
-        pinned.clear()
-        for j, verts, bd in pairs:
-            cand = verts[first[verts] == j]
-            if cand.size:
-                query(i, j, cand, rank)
-                # pass (c) queries j only where bd <= best, and best only falls: if no vertex is
-                # there now, none will be, and j's tree may be evicted
-                if np.any((bd <= best[i][verts]) & (first[verts] != j)):
-                    pinned.add(j)
-        # (c) ... then every other part whose box is not farther than the best distance so far
-        for j, verts, bd in pairs:
-            cand = verts[(bd <= best[i][verts]) & (first[verts] != j)]
-            if cand.size:
-                query(i, j, cand, rank)
-            pinned.discard(j)
-
+        search.part(i, order, rank, lo, hi, radius[i])
+    best, nearest = search.best, search.nearest
+    inside_pairs = search.inside_pairs
     if threshold is not None:
         raw = [np.where(b < threshold, 2, 1).astype(np.int64) for b in best]
         level = [r - 1 for r in raw]  # 1 = critical, 0 = not
         capped = [np.zeros(p.shape[0], bool) for p in pos]
-        return DepthResult(level, best, nearest, capped, [], sorted(inside_pairs), queries, builds[0])
+        return DepthResult(level, best, nearest, capped, [], sorted(inside_pairs), search.queries, search.builds)
     raw = [level_from_distance(b, extent) for b in best]
     level, capped, touching, inter = _finish(raw, best, nearest, ceiling, n_parts, inside_pairs)
-    return DepthResult(level, best, nearest, capped, touching, inter, queries, builds[0])
+    return DepthResult(level, best, nearest, capped, touching, inter, search.queries, search.builds)
 
 
 def _unit_face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:

@@ -2,12 +2,10 @@
 
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 4 (per-buffer level B by the half-pixel criterion) and 5.1 (E_v, the attribute error), and
-extends 5.1 to jumps. E_v = ||A M^-1|| is the gradient of an attribute *inside* a triangle. Where
-the attribute jumps *between* triangles -- a hard edge (co-located vertices with split normals), a
-UV or colour seam, a fold sharper than a pixel, an open boundary -- no triangle holds the jump, and
-on flat faces E_v = 0 puts the vertices at level 1. Yet moving such an edge changes the colour of
-every pixel it sweeps by the whole jump: coverage error, which k_f cannot reach (on the corpus
-most of the CAP squared error lies within 2 pixels of silhouettes and hard edges: ``docs/analyse.md``).
+extends 5.1 to jumps *between* triangles -- a hard edge (co-located vertices with split normals), a
+UV or colour seam, a fold sharper than a pixel, an open boundary: no triangle's E_v holds the jump,
+yet moving such an edge changes every pixel it sweeps by the whole jump (coverage error, which k_f
+cannot reach; why, and what the constraint costs on the corpus: docs/analyse.md, section 2b).
 
 The model. At per-buffer level B the camera is where a B-bit grid cell projects to ``pixel_error``
 pixels (``lopcook.viewing``: dx(B) = pixel_error * s_B, s_B metres per pixel). A vertex decoded at
@@ -17,9 +15,8 @@ most J * d. Requiring that to stay within ``edge_eps`` for every per-buffer leve
 
     m_v >= B_v + ceil(log2(pixel_error * J_v / edge_eps)),   clamped to [1, 24]
 
-(no constraint when the logarithm is <= 0: the per-buffer level alone is enough). ``edge_eps`` is
-the aggregate knob (colour units; a PSNR target tolerates a larger per-pixel error on the few edge
-pixels than ``eps`` allows everywhere; ``lopcook calibrate`` measures it). B_v and J_v:
+(no constraint when the logarithm is <= 0: the per-buffer level alone is enough). ``edge_eps``
+(colour units) is the aggregate knob ``lopcook calibrate`` measures. B_v and J_v:
 
 * **folds** (geometry): cut space into cubes of one pixel at level B (side s_B, power-of-two cells
   of the 24-bit grid, and a second lattice shifted by half a cell). A cell whose vertex normals

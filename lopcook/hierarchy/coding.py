@@ -336,28 +336,73 @@ def _table_for(variant, kind):
 
 def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layout | None = None,
                         st: Subtris | None = None) -> Coded:
-    """Code the tree's triangles with ``variant``; returns the records and the measured bits."""
+    """Code the tree's triangles with ``variant``; returns the records and the measured bits.
+
+    Steps: (1) the slot symbols of empty and non-manifold records, (2) the control bits and,
+    with ``candidates``, each subtri's candidate index, (3) each subtri's height symbol, (4) its
+    corners (ID differences, or CAME paths), (5) the control bits as tokens, (6) the Huffman
+    tables and the records packed in (record, position) order."""
     _check_variant(variant)
     if lay is None:
         lay = layout(tree, variant.restructure)
     if st is None:
         st = subtris(tree, lay)
-    compact = variant.numbering == "compact"
-    ident = lay.lo if compact else lay.pre
-    L, R, size, depth = lay.left, lay.right, lay.size, lay.depth
-    rank_of = lay.internal_rank
     toks = _Tokens()
     m = st.v.shape[0]
-    owner_rank = rank_of[st.v]
-    nm = st.nm
+    owner_rank = lay.internal_rank[st.v]
     # position in record
-    slotpos = 2 * np.where(nm, 3 + st.rank * 4, st.orient * 4)  # even: symbols, odd: raw tails
-    # NONE symbols for manifold-coded nodes lacking a slot
+    slotpos = 2 * np.where(st.nm, 3 + st.rank * 4, st.orient * 4)  # even: symbols, odd: raw tails
+    depth_bits = bitlen(lay.depth)
+    internal, nmn = _slot_tokens(toks, lay, st, depth_bits)
+    # control bits (and their sources) first: the candidate lists come from them
+    if variant.internal == "control":
+        w, bit, ckey, cti, cj = control_bits(lay, st, with_source=True)
+    cand = np.full(m, -1, np.int64)
+    if variant.candidates and w.size:
+        cand = _candidate_index(lay, st, w, cti)
+    usec = cand >= 0
+    hval = np.where(usec, -2 - cand, st.h)
+    toks.add("H", _key(owner_rank, slotpos), hval, depth_bits[st.v])
+    if variant.corner == "id":
+        _external_tokens(toks, variant, lay, st, owner_rank, slotpos, ~usec)
+        if variant.internal == "explicit":
+            _explicit_tokens(toks, variant, lay, st, owner_rank, slotpos)
+    else:
+        _path_tokens(toks, lay, st, owner_rank, slotpos)
+    n_control = 0
+    if variant.internal == "control":
+        n_control = int(w.shape[0])
+        if variant.control == "raw":
+            toks.add_raw(_key(lay.internal_rank[w], ckey), bit.astype(np.uint64), 1)
+        else:
+            pred = predict_control(tree, lay, st, w, cti, cj)
+            _add_predicted(toks, lay.internal_rank, w, bit ^ pred)
+    tables, K, Ln, cat, data, total = _pack_tokens(toks, variant)
+    n_int = int(internal.shape[0])
+    record_bits = np.bincount(K >> 32, weights=Ln, minlength=n_int).astype(np.int64)
+    bits = {"records": int(total),
+            "tables": 8 * sum(len(t.to_bytes()) for t in tables.values()),
+            "structure": int(lay.left.shape[0]),  # one preorder bit per node (the blob's shape bits)
+            "control": int(Ln[cat == "C"].sum()) if variant.control == "predicted" else
+            n_control,
+            "control_count": n_control,
+            "nonmanifold_nodes": int(nmn.sum()),
+            "triangles": int(m)}
+    for name in tables:
+        bits[f"table_{name}"] = int(Ln[cat == name].sum())
+    return Coded(variant, tables, data, record_bits, bits)
+
+
+def _slot_tokens(toks: _Tokens, lay: Layout, st: Subtris, depth_bits: np.ndarray):
+    """Tokens of the records' slot structure: ``NONE`` for an empty slot of a manifold record,
+    ``NONMANIFOLD`` then the two orientation counts ``N(n0) N(n1)`` for a record with more than
+    one subtri of an orientation. Returns (internal nodes (I,), non-manifold flag per node)."""
+    L = lay.left
+    rank_of = lay.internal_rank
     internal = np.flatnonzero(L >= 0)
     n0 = np.bincount(st.v[st.orient == 0], minlength=L.shape[0])
     n1 = np.bincount(st.v[st.orient == 1], minlength=L.shape[0])
     nmn = (n0 > 1) | (n1 > 1)
-    depth_bits = bitlen(depth)
     for slot, cnt in ((0, n0), (1, n1)):
         empty = internal[(~nmn[internal]) & (cnt[internal] == 0)]
         toks.add("H", _key(rank_of[empty], slot * 8), np.full(empty.shape, NONE), depth_bits[empty])
@@ -368,90 +413,110 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
                            hint="split the part")
     toks.add("N", _key(rank_of[nmi], 2), n0[nmi], N_ESC_BITS)
     toks.add("N", _key(rank_of[nmi], 4), n1[nmi], N_ESC_BITS)
-    # control bits (and their sources) first: the candidate lists come from them
-    if variant.internal == "control":
-        w, bit, ckey, cti, cj = control_bits(lay, st, with_source=True)
-    cand = np.full(m, -1, np.int64)
-    if variant.candidates and w.size:
-        n_ids = int(lay.lo.max()) + 1
-        ck = w * n_ids + lay.lo[st.c[cti]]
-        _, first = np.unique(ck, return_index=True)
-        first = np.sort(first)  # arrival order (entries are sorted by record, then key)
-        dw, dk = w[first], ck[first]
-        gs = np.r_[0, np.flatnonzero(np.diff(dw)) + 1]
-        idx = np.arange(dw.shape[0]) - np.repeat(gs, np.diff(np.r_[gs, dw.shape[0]]))
-        o = np.argsort(dk)
-        sk = st.v * n_ids + lay.lo[st.c]
-        j = np.minimum(np.searchsorted(dk[o], sk), max(dk.shape[0] - 1, 0))
-        hit = dk[o][j] == sk
-        cand = np.where(hit, idx[o][j], -1)
-        cand[cand >= CAND_MAX] = -1
-    usec = cand >= 0
-    hval = np.where(usec, -2 - cand, st.h)
-    toks.add("H", _key(owner_rank, slotpos), hval, depth_bits[st.v])
-    keep = ~usec
+    return internal, nmn
+
+
+def _candidate_index(lay: Layout, st: Subtris, w: np.ndarray, cti: np.ndarray) -> np.ndarray:
+    """(m,) int64 per subtri: the index of its external corner among the distinct external
+    corners of the ancestor subtris whose control bits reach its owner (in arrival order), or
+    -1 when it is not among them or the index is ``CAND_MAX`` or more. ``w``, ``cti``: the
+    control bits' nodes and source subtris (:func:`control_bits` with ``with_source``)."""
+    n_ids = int(lay.lo.max()) + 1
+    ck = w * n_ids + lay.lo[st.c[cti]]
+    _, first = np.unique(ck, return_index=True)
+    first = np.sort(first)  # arrival order (entries are sorted by record, then key)
+    dw, dk = w[first], ck[first]
+    gs = np.r_[0, np.flatnonzero(np.diff(dw)) + 1]
+    idx = np.arange(dw.shape[0]) - np.repeat(gs, np.diff(np.r_[gs, dw.shape[0]]))
+    o = np.argsort(dk)
+    sk = st.v * n_ids + lay.lo[st.c]
+    j = np.minimum(np.searchsorted(dk[o], sk), max(dk.shape[0] - 1, 0))
+    hit = dk[o][j] == sk
+    cand = np.where(hit, idx[o][j], -1)
+    cand[cand >= CAND_MAX] = -1
+    return cand
+
+
+def _external_tokens(toks: _Tokens, variant: Variant, lay: Layout, st: Subtris, owner_rank, slotpos, keep):
+    """The external difference ``c.id - base`` of the subtris ``keep`` (those not coded as a
+    candidate), against the range below their common ancestor ``vp`` (its other child's subtree
+    when refining): one ``E`` symbol, or (bucket) a bit-length symbol per height context and
+    the bits below the leading one raw."""
+    compact = variant.numbering == "compact"
+    ident = lay.lo if compact else lay.pre
+    L, R, size = lay.left, lay.right, lay.size
     vp = st.vp
-    if variant.corner == "id":
-        # external difference and its range
-        if compact:
-            if variant.refine:
-                base = np.where(st.vleft, lay.lo[R[vp]], lay.lo[vp])
-                rng = np.where(st.vleft, size[R[vp]], size[L[vp]])
-            else:
-                base, rng = lay.lo[vp], size[vp]
+    if compact:
+        if variant.refine:
+            base = np.where(st.vleft, lay.lo[R[vp]], lay.lo[vp])
+            rng = np.where(st.vleft, size[R[vp]], size[L[vp]])
         else:
-            if variant.refine:
-                base = np.where(st.vleft, lay.pre[R[vp]], lay.pre[vp])
-                rng = np.where(st.vleft, 2 * size[R[vp]] - 1, 2 * size[L[vp]] + 1)
-            else:
-                base, rng = lay.pre[vp], 2 * size[vp] - 1
-        ediff = ident[st.c] - base
-        if variant.external == "value":
-            toks.add(_table_for(variant, "E"), _key(owner_rank[keep], slotpos[keep] + 2), ediff[keep],
-                     bitlen(rng - 1)[keep])
+            base, rng = lay.lo[vp], size[vp]
+    else:
+        if variant.refine:
+            base = np.where(st.vleft, lay.pre[R[vp]], lay.pre[vp])
+            rng = np.where(st.vleft, 2 * size[R[vp]] - 1, 2 * size[L[vp]] + 1)
         else:
-            bk = bitlen(ediff)
-            ctx = np.minimum(st.h, H_CONTEXTS) - 1
-            for k in np.unique(ctx[keep]).tolist():
-                sel = keep & (ctx == k)
-                toks.add(context_table(k), _key(owner_rank[sel], slotpos[sel] + 2), bk[sel],
-                         bitlen(bitlen(rng - 1))[sel])
-            mant = keep & (bk >= 2)
-            toks.add_raw(_key(owner_rank[mant], slotpos[mant] + 3),
-                         (ediff[mant] - (np.int64(1) << (bk[mant] - 1))).astype(np.uint64),
-                         bk[mant] - 1)
-        if variant.internal == "explicit":
-            v = st.v
-            ia = ident[st.a] - ident[v]
-            ra = size[L[v]] if compact else 2 * size[L[v]] + 1
-            if variant.refine:
-                ib = ident[st.b] - ident[R[v]]
-                rb = size[R[v]] if compact else 2 * size[R[v]] - 1
-            else:
-                ib = ident[st.b] - ident[v]
-                rb = size[v] if compact else 2 * size[v]
-            tb = _table_for(variant, "I")
-            toks.add(tb, _key(owner_rank, slotpos + 4), ia, bitlen(ra - 1))
-            toks.add(tb, _key(owner_rank, slotpos + 6), ib, bitlen(rb - 1))
-    else:  # CAME-like relative paths: length symbol + raw path bits (first step implied)
-        side = np.where(st.vleft, R[vp], L[vp])
-        lc = depth[st.c] - depth[side]
-        pb = bitlen(int(depth.max()))
-        toks.add("P", _key(owner_rank, slotpos + 2), lc, pb)
-        toks.add_raw(_key(owner_rank, slotpos + 3), np.zeros(m, np.uint64), lc)
-        for j, (x, ch) in enumerate(((st.a, L[st.v]), (st.b, R[st.v]))):
-            lx = depth[x] - depth[ch]
-            toks.add("P", _key(owner_rank, slotpos + 4 + 2 * j), lx, pb)
-            toks.add_raw(_key(owner_rank, slotpos + 5 + 2 * j), np.zeros(m, np.uint64), lx)
-    n_control = 0
-    if variant.internal == "control":
-        n_control = int(w.shape[0])
-        if variant.control == "raw":
-            toks.add_raw(_key(rank_of[w], ckey), bit.astype(np.uint64), 1)
-        else:
-            pred = predict_control(tree, lay, st, w, cti, cj)
-            _add_predicted(toks, rank_of, w, bit ^ pred)
-    # ---- build tables and pack ----
+            base, rng = lay.pre[vp], 2 * size[vp] - 1
+    ediff = ident[st.c] - base
+    if variant.external == "value":
+        toks.add(_table_for(variant, "E"), _key(owner_rank[keep], slotpos[keep] + 2), ediff[keep],
+                 bitlen(rng - 1)[keep])
+        return
+    bk = bitlen(ediff)
+    ctx = np.minimum(st.h, H_CONTEXTS) - 1
+    for k in np.unique(ctx[keep]).tolist():
+        sel = keep & (ctx == k)
+        toks.add(context_table(k), _key(owner_rank[sel], slotpos[sel] + 2), bk[sel],
+                 bitlen(bitlen(rng - 1))[sel])
+    mant = keep & (bk >= 2)
+    toks.add_raw(_key(owner_rank[mant], slotpos[mant] + 3),
+                 (ediff[mant] - (np.int64(1) << (bk[mant] - 1))).astype(np.uint64),
+                 bk[mant] - 1)
+
+
+def _explicit_tokens(toks: _Tokens, variant: Variant, lay: Layout, st: Subtris, owner_rank, slotpos):
+    """Relative ID (explicit variants): the internal corners as ``I`` differences against the
+    owner (``a``) and against the right child when refining (``b``)."""
+    compact = variant.numbering == "compact"
+    ident = lay.lo if compact else lay.pre
+    L, R, size = lay.left, lay.right, lay.size
+    v = st.v
+    ia = ident[st.a] - ident[v]
+    ra = size[L[v]] if compact else 2 * size[L[v]] + 1
+    if variant.refine:
+        ib = ident[st.b] - ident[R[v]]
+        rb = size[R[v]] if compact else 2 * size[R[v]] - 1
+    else:
+        ib = ident[st.b] - ident[v]
+        rb = size[v] if compact else 2 * size[v]
+    tb = _table_for(variant, "I")
+    toks.add(tb, _key(owner_rank, slotpos + 4), ia, bitlen(ra - 1))
+    toks.add(tb, _key(owner_rank, slotpos + 6), ib, bitlen(rb - 1))
+
+
+def _path_tokens(toks: _Tokens, lay: Layout, st: Subtris, owner_rank, slotpos):
+    """CAME-like relative paths: per corner a path-length symbol ``P`` and the path's raw bits
+    (the implied first step omitted; measured only, so the bits are zeros of the right count)."""
+    L, R, depth = lay.left, lay.right, lay.depth
+    m = st.v.shape[0]
+    side = np.where(st.vleft, R[st.vp], L[st.vp])
+    lc = depth[st.c] - depth[side]
+    pb = bitlen(int(depth.max()))
+    toks.add("P", _key(owner_rank, slotpos + 2), lc, pb)
+    toks.add_raw(_key(owner_rank, slotpos + 3), np.zeros(m, np.uint64), lc)
+    for j, (x, ch) in enumerate(((st.a, L[st.v]), (st.b, R[st.v]))):
+        lx = depth[x] - depth[ch]
+        toks.add("P", _key(owner_rank, slotpos + 4 + 2 * j), lx, pb)
+        toks.add_raw(_key(owner_rank, slotpos + 5 + 2 * j), np.zeros(m, np.uint64), lx)
+
+
+def _pack_tokens(toks: _Tokens, variant: Variant):
+    """Build one bounded Huffman table per symbol stream (empty ``H E I D N`` tables the
+    variant names too), code every token and pack all of them in (record, position) order.
+
+    Returns (tables, K keys, Ln bit lengths, cat table name or "raw" per token, data, total
+    bits), the token arrays in packing order."""
     sizes = table_sizes(variant)
     tables = {}
     keys, codes, lens, cats = [], [], [], []
@@ -478,19 +543,7 @@ def encode_connectivity(tree: VertexTree, variant: Variant = PROPOSED, lay: Layo
     order = np.argsort(K, kind="stable")
     K, C, Ln, cat = K[order], C[order], Ln[order], cat[order]
     data, total = pack_bits(C, Ln)
-    n_int = int(internal.shape[0])
-    record_bits = np.bincount(K >> 32, weights=Ln, minlength=n_int).astype(np.int64)
-    bits = {"records": int(total),
-            "tables": 8 * sum(len(t.to_bytes()) for t in tables.values()),
-            "structure": int(L.shape[0]),  # one preorder bit per node (the blob's shape bits)
-            "control": int(Ln[cat == "C"].sum()) if variant.control == "predicted" else
-            n_control,
-            "control_count": n_control,
-            "nonmanifold_nodes": int(nmn.sum()),
-            "triangles": int(m)}
-    for name in tables:
-        bits[f"table_{name}"] = int(Ln[cat == name].sum())
-    return Coded(variant, tables, data, record_bits, bits)
+    return tables, K, Ln, cat, data, total
 
 
 def control_bits(lay: Layout, st: Subtris, with_source: bool = False):

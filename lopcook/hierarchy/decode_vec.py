@@ -225,18 +225,11 @@ class _Corners:
         return t
 
 
-def decode_records_vec(h, nodes):
-    """Vectorised :func:`lopcook.hierarchy.decode.decode_records` (same arguments, same result,
-    same errors), for variants where :func:`supported` is true."""
-    var = h.variant
-    if not supported(var):
-        _fail(f"variant {var} is not decoded level by level")
-    T = _tables(h)
-    left, right, parent, depth, size, lo = h.left, h.right, h.parent, h.depth, h.size, h.lo
+def _check_nodes(h, nodes) -> np.ndarray:
+    """Check that ``nodes`` (k,) int64 (k > 0) are internal nodes, strictly ascending and closed
+    under ancestors (else the per-node decoder's error). Returns (N,) bool: the node set."""
+    left, parent = h.left, h.parent
     N = left.shape[0]
-    nodes = np.asarray(nodes, np.int64).reshape(-1)
-    if nodes.size == 0:
-        return np.zeros(0, np.int64), np.zeros((0, 3), np.int64)
     bad = (nodes < 0) | (nodes >= N)
     if not bad.any():
         bad = left[nodes] < 0
@@ -251,10 +244,21 @@ def decode_records_vec(h, nodes):
     orphan = (par >= 0) & ~in_set[np.maximum(par, 0)]
     if orphan.any():
         _fail(f"node {int(nodes[orphan][0])} decoded before its ancestors")
-    refine = var.refine
-    cands_on = var.candidates
-    starts = h.record_starts
-    dep = depth[nodes]
+    return in_set
+
+
+def decode_records_vec(h, nodes):
+    """Vectorised :func:`lopcook.hierarchy.decode.decode_records` (same arguments, same result,
+    same errors), for variants where :func:`supported` is true."""
+    var = h.variant
+    if not supported(var):
+        _fail(f"variant {var} is not decoded level by level")
+    T = _tables(h)
+    nodes = np.asarray(nodes, np.int64).reshape(-1)
+    if nodes.size == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3), np.int64)
+    in_set = _check_nodes(h, nodes)
+    dep = h.depth[nodes]
     by_level = np.argsort(dep, kind="stable")
     level_bounds = np.searchsorted(dep[by_level], np.arange(int(dep.max()) + 2))
     store = _Corners(2 * nodes.shape[0] + 16)
@@ -264,148 +268,203 @@ def decode_records_vec(h, nodes):
     A = None
     for d in range(int(dep.max()) + 1):
         U = nodes[by_level[level_bounds[d]:level_bounds[d + 1]]]
-        nU = U.shape[0]
-        if not nU:
+        if not U.shape[0]:
             break
         if d == 0:
             A = U[:, None]
         else:
-            A = np.concatenate([A[np.searchsorted(prevU, parent[U])], U[:, None]], axis=1)
-        r = h.rank[U]
-        pos = starts[r].astype(np.int64)
-        end = starts[r + 1].astype(np.int64)
-        rd = _Reader(T, pos, end, U)
-        allU = np.arange(nU)
-        a_idx = np.searchsorted(U, arr_node)
-        kpend = np.bincount(a_idx, minlength=nU)
-        a_first = np.r_[0, np.cumsum(kpend)[:-1]]
-        # candidates (ours): the distinct external corners of the arrived corners, in order
-        if cands_on and arr_ref.size:
-            ext = store.c[arr_ref - arr_ref % 3 + 2]
-            o = np.lexsort((np.arange(ext.shape[0]), ext, a_idx))
-            first = np.ones(o.shape[0], bool)
-            first[1:] = (a_idx[o][1:] != a_idx[o][:-1]) | (ext[o][1:] != ext[o][:-1])
-            keep = np.zeros(ext.shape[0], bool)
-            keep[o[first]] = True
-            cand_val = ext[keep]
-            cand_n = np.bincount(a_idx[keep], minlength=nU)
-            cand_first = np.r_[0, np.cumsum(cand_n)[:-1]]
-        else:
-            cand_val = np.zeros(0, np.int64)
-            cand_n = np.zeros(nU, np.int64)
-            cand_first = cand_n
-        dbits = int(d).bit_length()
-        s0 = rd.sym(T.H, allU, dbits)
-        nm = s0 == NONMANIFOLD
-        nslots = np.full(nU, 2, np.int64)
-        n0 = np.zeros(nU, np.int64)
-        if nm.any():
-            im = np.flatnonzero(nm)
-            n0[im] = rd.sym(T.N, im, N_ESC_BITS)
-            n1 = rd.sym(T.N, im, N_ESC_BITS)
-            nslots[im] = n0[im] + n1
-            over = nslots[im] > rd.end[im] - rd.pos[im]
-            if over.any():
-                j = im[over][0]
-                _fail(f"record overrun: {nslots[j]} subtris in {rd.end[j] - rd.pos[j]} bits at node {U[j]}")
-        sub_i, sub_k, sub_o, sub_c = [], [], [], []
-        for k in range(int(nslots.max()) if nU else 0):
-            act = np.flatnonzero(nslots > k)
-            if k == 0:
-                s = s0[act]
-                mm = nm[act]
-                if mm.any():
-                    s = s.copy()
-                    s[mm] = rd.sym(T.H, act[mm], dbits)
-            else:
-                s = rd.sym(T.H, act, dbits)
-            normal = ~nm[act]
-            real = ~(normal & (s == NONE))
-            act, s, normal = act[real], s[real], normal[real]
-            if not act.size:
-                continue
-            is_c = (s <= -2) & cands_on
-            hbad = ~is_c & ((s < 1) | (s > d))
-            if hbad.any():
-                j = int(np.flatnonzero(hbad)[0])
-                _fail(f"height {s[j]} at node {U[act[j]]} (depth {d})")
-            c = np.zeros(act.shape[0], np.int64)
-            if is_c.any():
-                ic = np.flatnonzero(is_c)
-                ci = -2 - s[ic]
-                cb = ci >= cand_n[act[ic]]
-                if cb.any():
-                    j = int(np.flatnonzero(cb)[0])
-                    _fail(f"candidate {ci[j]} of {cand_n[act[ic[j]]]} at node {U[act[ic[j]]]}")
-                c[ic] = cand_val[cand_first[act[ic]] + ci]
-            ie = np.flatnonzero(~is_c)
-            if ie.size:
-                ii = act[ie]
-                hh = s[ie]
-                vp = A[ii, d - hh]
-                if refine:
-                    ch = A[ii, d - hh + 1]
-                    vleft = ch == left[vp]
-                    base = np.where(vleft, lo[right[vp]], lo[vp])
-                    rng = np.where(vleft, size[right[vp]], size[left[vp]])
-                else:
-                    base, rng = lo[vp], size[vp]
-                if T.bucket:
-                    ctx = np.minimum(hh, H_CONTEXTS) - 1
-                    bk = rd.bucket(ii, ctx, _bitlen(_bitlen(rng - 1)))
-                    if ((bk < 0) | (bk > 32)).any():
-                        j = int(np.flatnonzero((bk < 0) | (bk > 32))[0])
-                        _fail(f"difference bucket {bk[j]} at node {U[ii[j]]}")
-                    e = bk.copy()
-                    big = np.flatnonzero(bk >= 2)
-                    if big.size:
-                        e[big] = (np.int64(1) << (bk[big] - 1)) | rd.raw(ii[big], bk[big] - 1)
-                else:
-                    e = rd.sym(T.E, ii, _bitlen(rng - 1))
-                ebad = (e < 0) | (e >= rng)
-                if ebad.any():
-                    j = int(np.flatnonzero(ebad)[0])
-                    _fail(f"external difference {e[j]} outside [0, {rng[j]}) at node {U[ii[j]]}")
-                c[ie] = base + e
-            sub_i.append(act)
-            sub_k.append(np.full(act.shape[0], k, np.int64))
-            sub_o.append(np.where(normal, k, (k >= n0[act]).astype(np.int64)))
-            sub_c.append(c)
-        # control bits, one per arrived corner, in arrival order (1 = right child)
-        short = rd.pos + kpend > rd.end
-        if short.any():
-            j = int(np.flatnonzero(short)[0])
-            _fail(f"record of node {U[j]} too short for {kpend[j]} control bits")
-        if arr_ref.size:
-            bitpos = rd.pos[a_idx] + (np.arange(arr_ref.shape[0]) - a_first[a_idx])
-            bit = _take(_window(T.W, bitpos), 1)
-            rd.pos += kpend
-            dest_p = np.where(bit == 1, right[U[a_idx]], left[U[a_idx]])
-        else:
-            dest_p = np.zeros(0, np.int64)
-        left_over = rd.pos != rd.end
-        if left_over.any():
-            j = int(np.flatnonzero(left_over)[0])
-            _fail(f"record of node {U[j]} has {rd.end[j] - rd.pos[j]} bits left over")
-        # this level's subtris; their internal corners go to the children
-        if sub_i:
-            si = np.concatenate(sub_i)
-            so = np.concatenate(sub_o)
-            t = store.add(U[si], np.concatenate(sub_k), np.concatenate(sub_c))
-        else:
-            si = so = t = np.zeros(0, np.int64)
-        Lu, Ru = left[U[si]], right[U[si]]
-        ref = np.concatenate([arr_ref, 3 * t + so, 3 * t + 1 - so])
-        dest = np.concatenate([dest_p, Lu, Ru])
-        grp = np.concatenate([np.zeros(arr_ref.shape[0], np.int64), np.ones(2 * t.shape[0], np.int64)])
-        seq = np.concatenate([np.arange(arr_ref.shape[0]), t, t])
-        leaf = left[dest] < 0
-        store.c[ref] = np.where(leaf, lo[dest], -(dest + 1))
-        go = ~leaf & in_set[dest]
-        ref, dest, grp, seq = ref[go], dest[go], grp[go], seq[go]
-        o = np.lexsort((seq, grp, dest))
-        arr_node, arr_ref = dest[o], ref[o]
+            A = np.concatenate([A[np.searchsorted(prevU, h.parent[U])], U[:, None]], axis=1)
+        arr_node, arr_ref = _decode_level(h, T, store, d, U, A, arr_node, arr_ref, in_set)
         prevU = U
     t = store.t
     o = np.lexsort((store.slot[:t], store.owner[:t]))
     return store.owner[:t][o], store.c[:3 * t].reshape(-1, 3)[o]
+
+
+def _decode_level(h, T, store, d, U, A, arr_node, arr_ref, in_set):
+    """Decode the records of the nodes ``U`` (ascending) of tree level ``d``, whose ancestor
+    paths are the rows of ``A`` (nU, d + 1): their subtris into ``store``, then the control bits
+    of the ancestor corners ``arr_ref`` (indices into ``store.c``) that arrived at nodes
+    ``arr_node``. Returns the (arr_node, arr_ref) of the corners arriving at the next level."""
+    nU = U.shape[0]
+    r = h.rank[U]
+    pos = h.record_starts[r].astype(np.int64)
+    end = h.record_starts[r + 1].astype(np.int64)
+    rd = _Reader(T, pos, end, U)
+    a_idx = np.searchsorted(U, arr_node)
+    kpend = np.bincount(a_idx, minlength=nU)
+    a_first = np.r_[0, np.cumsum(kpend)[:-1]]
+    cands = _candidates(h.variant.candidates, store, arr_ref, a_idx, nU)
+    subs = _level_subtris(h, T, rd, d, U, A, cands)
+    dest_p = _control_bits(h, T, rd, U, kpend, a_idx, a_first, arr_ref)
+    left_over = rd.pos != rd.end
+    if left_over.any():
+        j = int(np.flatnonzero(left_over)[0])
+        _fail(f"record of node {U[j]} has {rd.end[j] - rd.pos[j]} bits left over")
+    return _route(h, store, U, subs, arr_ref, dest_p, in_set)
+
+
+def _candidates(cands_on, store, arr_ref, a_idx, nU):
+    """Candidates (ours): per node of the level, the distinct external corners of the ancestor
+    corners that arrived at it, in arrival order. Returns (values, count (nU,), first (nU,))."""
+    if cands_on and arr_ref.size:
+        ext = store.c[arr_ref - arr_ref % 3 + 2]
+        o = np.lexsort((np.arange(ext.shape[0]), ext, a_idx))
+        first = np.ones(o.shape[0], bool)
+        first[1:] = (a_idx[o][1:] != a_idx[o][:-1]) | (ext[o][1:] != ext[o][:-1])
+        keep = np.zeros(ext.shape[0], bool)
+        keep[o[first]] = True
+        cand_val = ext[keep]
+        cand_n = np.bincount(a_idx[keep], minlength=nU)
+        cand_first = np.r_[0, np.cumsum(cand_n)[:-1]]
+    else:
+        cand_val = np.zeros(0, np.int64)
+        cand_n = np.zeros(nU, np.int64)
+        cand_first = cand_n
+    return cand_val, cand_n, cand_first
+
+
+def _slot_counts(rd, T, nm, U):
+    """Subtri slots per record: 2, or n0 + n1 for the non-manifold records ``nm`` (their two
+    counts read here). Returns (nslots (nU,), n0 (nU,)) int64."""
+    nU = U.shape[0]
+    nslots = np.full(nU, 2, np.int64)
+    n0 = np.zeros(nU, np.int64)
+    if nm.any():
+        im = np.flatnonzero(nm)
+        n0[im] = rd.sym(T.N, im, N_ESC_BITS)
+        n1 = rd.sym(T.N, im, N_ESC_BITS)
+        nslots[im] = n0[im] + n1
+        over = nslots[im] > rd.end[im] - rd.pos[im]
+        if over.any():
+            j = im[over][0]
+            _fail(f"record overrun: {nslots[j]} subtris in {rd.end[j] - rd.pos[j]} bits at node {U[j]}")
+    return nslots, n0
+
+
+def _level_subtris(h, T, rd, d, U, A, cands):
+    """The subtris of the level's records, slot by slot in lockstep. Returns four lists of
+    arrays, one entry per slot: record index into U, slot k, orientation, external corner."""
+    nU = U.shape[0]
+    dbits = int(d).bit_length()
+    s0 = rd.sym(T.H, np.arange(nU), dbits)
+    nm = s0 == NONMANIFOLD
+    nslots, n0 = _slot_counts(rd, T, nm, U)
+    sub_i, sub_k, sub_o, sub_c = [], [], [], []
+    for k in range(int(nslots.max()) if nU else 0):
+        act = np.flatnonzero(nslots > k)
+        if k == 0:
+            s = s0[act]
+            mm = nm[act]
+            if mm.any():
+                s = s.copy()
+                s[mm] = rd.sym(T.H, act[mm], dbits)
+        else:
+            s = rd.sym(T.H, act, dbits)
+        normal = ~nm[act]
+        real = ~(normal & (s == NONE))
+        act, s, normal = act[real], s[real], normal[real]
+        if not act.size:
+            continue
+        sub_i.append(act)
+        sub_k.append(np.full(act.shape[0], k, np.int64))
+        sub_o.append(np.where(normal, k, (k >= n0[act]).astype(np.int64)))
+        sub_c.append(_third_corners(h, T, rd, d, U, A, act, s, cands))
+    return sub_i, sub_k, sub_o, sub_c
+
+
+def _third_corners(h, T, rd, d, U, A, act, s, cands):
+    """External corners of the subtris of records ``act`` from their slot symbols ``s``: a
+    candidate index (symbol <= -2) or a height in [1, d] followed by a coded difference."""
+    cand_val, cand_n, cand_first = cands
+    is_c = (s <= -2) & h.variant.candidates
+    hbad = ~is_c & ((s < 1) | (s > d))
+    if hbad.any():
+        j = int(np.flatnonzero(hbad)[0])
+        _fail(f"height {s[j]} at node {U[act[j]]} (depth {d})")
+    c = np.zeros(act.shape[0], np.int64)
+    if is_c.any():
+        ic = np.flatnonzero(is_c)
+        ci = -2 - s[ic]
+        cb = ci >= cand_n[act[ic]]
+        if cb.any():
+            j = int(np.flatnonzero(cb)[0])
+            _fail(f"candidate {ci[j]} of {cand_n[act[ic[j]]]} at node {U[act[ic[j]]]}")
+        c[ic] = cand_val[cand_first[act[ic]] + ci]
+    ie = np.flatnonzero(~is_c)
+    if ie.size:
+        c[ie] = _external_corners(h, T, rd, d, U, A, act[ie], s[ie])
+    return c
+
+
+def _external_corners(h, T, rd, d, U, A, ii, hh):
+    """Leaf IDs of external corners coded as (height ``hh``, difference) in records ``ii``: the
+    difference (a value, or a bucket and its raw bits) is read against the range below the
+    ancestor ``hh`` levels up (its other child's subtree when the variant refines)."""
+    left, right, size, lo = h.left, h.right, h.size, h.lo
+    vp = A[ii, d - hh]
+    if h.variant.refine:
+        ch = A[ii, d - hh + 1]
+        vleft = ch == left[vp]
+        base = np.where(vleft, lo[right[vp]], lo[vp])
+        rng = np.where(vleft, size[right[vp]], size[left[vp]])
+    else:
+        base, rng = lo[vp], size[vp]
+    if T.bucket:
+        ctx = np.minimum(hh, H_CONTEXTS) - 1
+        bk = rd.bucket(ii, ctx, _bitlen(_bitlen(rng - 1)))
+        if ((bk < 0) | (bk > 32)).any():
+            j = int(np.flatnonzero((bk < 0) | (bk > 32))[0])
+            _fail(f"difference bucket {bk[j]} at node {U[ii[j]]}")
+        e = bk.copy()
+        big = np.flatnonzero(bk >= 2)
+        if big.size:
+            e[big] = (np.int64(1) << (bk[big] - 1)) | rd.raw(ii[big], bk[big] - 1)
+    else:
+        e = rd.sym(T.E, ii, _bitlen(rng - 1))
+    ebad = (e < 0) | (e >= rng)
+    if ebad.any():
+        j = int(np.flatnonzero(ebad)[0])
+        _fail(f"external difference {e[j]} outside [0, {rng[j]}) at node {U[ii[j]]}")
+    return base + e
+
+
+def _control_bits(h, T, rd, U, kpend, a_idx, a_first, arr_ref):
+    """One control bit per arrived corner, in arrival order (1 = right child). Returns the
+    child (arr_ref.size,) each arrived corner goes to."""
+    short = rd.pos + kpend > rd.end
+    if short.any():
+        j = int(np.flatnonzero(short)[0])
+        _fail(f"record of node {U[j]} too short for {kpend[j]} control bits")
+    if not arr_ref.size:
+        return np.zeros(0, np.int64)
+    bitpos = rd.pos[a_idx] + (np.arange(arr_ref.shape[0]) - a_first[a_idx])
+    bit = _take(_window(T.W, bitpos), 1)
+    rd.pos += kpend
+    return np.where(bit == 1, h.right[U[a_idx]], h.left[U[a_idx]])
+
+
+def _route(h, store, U, subs, arr_ref, dest_p, in_set):
+    """Store the level's subtris and send every corner below this level to its child: a leaf's
+    ID where the child is a leaf, else ``-(child + 1)`` and, when the child is to be decoded, an
+    arrival there (ordered by child; arrived corners first, then the level's subtris in order).
+    Returns the next level's (arr_node, arr_ref)."""
+    left, lo = h.left, h.lo
+    sub_i, sub_k, sub_o, sub_c = subs
+    if sub_i:
+        si = np.concatenate(sub_i)
+        so = np.concatenate(sub_o)
+        t = store.add(U[si], np.concatenate(sub_k), np.concatenate(sub_c))
+    else:
+        si = so = t = np.zeros(0, np.int64)
+    Lu, Ru = left[U[si]], h.right[U[si]]
+    ref = np.concatenate([arr_ref, 3 * t + so, 3 * t + 1 - so])
+    dest = np.concatenate([dest_p, Lu, Ru])
+    grp = np.concatenate([np.zeros(arr_ref.shape[0], np.int64), np.ones(2 * t.shape[0], np.int64)])
+    seq = np.concatenate([np.arange(arr_ref.shape[0]), t, t])
+    leaf = left[dest] < 0
+    store.c[ref] = np.where(leaf, lo[dest], -(dest + 1))
+    go = ~leaf & in_set[dest]
+    ref, dest, grp, seq = ref[go], dest[go], grp[go], seq[go]
+    o = np.lexsort((seq, grp, dest))
+    return dest[o], ref[o]

@@ -460,6 +460,37 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     ``positions``: (n, 3) uint32 grid positions of the input vertices, required exactly when the
     blob was written with ``store_positions=False`` (and ignored otherwise)."""
     buf = bytes(buf)
+    total, variant = _read_header(buf)
+    body = buf[16:total - 4]
+    n, N, n_roots, m, p = _read_counts(body)
+    (keep_order, external, has_reach, has_open), (ox, oy, oz, step), p = _read_node_flags(body, p, n, N, n_roots)
+    if external and positions is None:
+        raise LopcookError("usage", None, "hierarchy: this blob keeps its positions outside; pass positions=",
+                           hint="read it through lopcook.hierarchy.container, which decodes them from the planes")
+    isint, repside, p = _read_shape_bits(body, p, n, N, n_roots)
+    I = n - n_roots
+    if not external:
+        positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
+        p += 12 * n
+    error, axis, angle, p = _unpack_selection(body, p, N)
+    reach, open_leaf, p = _read_optional(body, p, n, N, has_reach, has_open)
+    vol, positions, p = _read_vertex_order(body, p, n, external, keep_order, positions)
+    left, right, parent, depth, size, lo = _shape_arrays(isint, n_roots)
+    tables, p = _read_tables(body, p, variant)
+    starts, data = _read_records(body, p, I)
+    rank = np.full(N, -1, np.int64)
+    rank[left >= 0] = np.arange(I)
+    node_leaf = _representative_leaves(left, right, lo, repside)
+    return Hierarchy(n_leaves=n, n_nodes=N, n_triangles=m, variant=variant, left=left, right=right,
+                     parent=parent, depth=depth, size=size, lo=lo, positions=positions,
+                     node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
+                     vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
+                     rank=rank, bits={"connectivity": int(starts[-1])},
+                     origin=np.array([ox, oy, oz]), step=step, reach=reach, open_leaf=open_leaf)
+
+
+def _read_header(buf: bytes):
+    """The 16-byte header and the CRC: returns (total blob length in bytes, Variant)."""
     total = blob_length(buf)
     if total > len(buf):
         _fail(f"truncated: {len(buf)} bytes, the header announces {total}")
@@ -475,7 +506,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         C._check_variant(variant)
     except LopcookError:
         _fail(f"invalid variant flags {flags:#x}")
-    body = buf[16:total - 4]
+    return total, variant
+
+
+def _read_counts(body: bytes):
+    """Leaves n, nodes N, roots, triangles m (varints), checked against each other; and the
+    next byte offset."""
     p = 0
     n, p = get_varint(body, p, "hierarchy")
     N, p = get_varint(body, p, "hierarchy")
@@ -483,6 +519,13 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     m, p = get_varint(body, p, "hierarchy")
     if not (n >= 1 and N == 2 * n - n_roots and 1 <= n_roots <= n) or m > 4 * N + 16:
         _fail(f"inconsistent counts (leaves {n}, nodes {N}, roots {n_roots}, triangles {m})")
+    return n, N, n_roots, m, p
+
+
+def _read_node_flags(body: bytes, p: int, n: int, N: int, n_roots: int):
+    """The node-data flag byte and the grid placement (origin, step: 4 float64), after checking
+    that the fixed-size node data fits. Returns ((keep_order, external, has_reach, has_open),
+    (ox, oy, oz, step), p)."""
     if p >= len(body):
         _fail("truncated before the node data")
     flag = body[p]
@@ -495,9 +538,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     p += 32
     if flag > 15 or (external and not keep_order) or not (np.isfinite([ox, oy, oz, step]).all() and step > 0):
         _fail("invalid header (vertex order flag or grid placement)")
-    if external and positions is None:
-        raise LopcookError("usage", None, "hierarchy: this blob keeps its positions outside; pass positions=",
-                           hint="read it through lopcook.hierarchy.container, which decodes them from the planes")
+    return (keep_order, external, has_reach, has_open), (ox, oy, oz, step), p
+
+
+def _read_shape_bits(body: bytes, p: int, n: int, N: int, n_roots: int):
+    """The preorder "is internal" bit of each node (N,) and the representative side bit of each
+    internal node (n - n_roots,), both uint8; and the next offset."""
     isint = np.unpackbits(np.frombuffer(body, np.uint8, (N + 7) // 8, p))[:N]
     p += (N + 7) // 8
     I = n - n_roots
@@ -505,10 +551,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         _fail("tree structure bits do not match the node counts")
     repside = np.unpackbits(np.frombuffer(body, np.uint8, (I + 7) // 8, p))[:I]
     p += (I + 7) // 8
-    if not external:
-        positions = np.frombuffer(body, "<u4", 3 * n, p).reshape(n, 3).astype(np.uint32)
-        p += 12 * n
-    error, axis, angle, p = _unpack_selection(body, p, N)
+    return isint, repside, p
+
+
+def _read_optional(body: bytes, p: int, n: int, N: int, has_reach: int, has_open: int):
+    """The optional per-node reach radii ((N,) float32, finite and >= 0) and per-leaf boundary
+    bits ((n,) bool), None where absent; and the next offset."""
     reach = None
     if has_reach:
         if p + 4 * N > len(body):
@@ -523,6 +571,13 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
             _fail("truncated boundary bits")
         open_leaf = np.unpackbits(np.frombuffer(body, np.uint8, (n + 7) // 8, p))[:n].astype(bool)
         p += (n + 7) // 8
+    return reach, open_leaf, p
+
+
+def _read_vertex_order(body: bytes, p: int, n: int, external: int, keep_order: int, positions):
+    """The leaf -> input vertex permutation (n,) int64 (None when not stored): packed at
+    ``index_width(n)`` bits when the positions are external (then the given (n, 3) positions are
+    put in leaf order), else n uint32. Returns (vertex order, leaf positions, next offset)."""
     vol = None
     if external:
         w = index_width(n)
@@ -544,7 +599,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         p += 4 * n
         if not np.array_equal(np.sort(vol), np.arange(n)):
             _fail("vertex order is not a permutation")
-    left, right, parent, depth, size, lo = _shape_arrays(isint, n_roots)
+    return vol, positions, p
+
+
+def _read_tables(body: bytes, p: int, variant: C.Variant):
+    """The Huffman tables (a count, then name byte + table each; every table the variant reads
+    must be there). Returns (dict name -> Table, next offset)."""
     if p >= len(body):
         _fail("truncated before the tables")
     nt = body[p]
@@ -566,6 +626,12 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         needed.add("C")
     if not needed <= set(tables):
         _fail(f"missing tables {sorted(needed - set(tables))}")
+    return tables, p
+
+
+def _read_records(body: bytes, p: int, I: int):
+    """The record index (I varint bit lengths) and the connectivity bytes, which must end the
+    body. Returns (record start bits (I + 1,), connectivity bytes)."""
     rb, p = get_varints(body, p, I, "hierarchy record index")
     nbytes, p = get_varint(body, p, "hierarchy")
     if p + nbytes != len(body):
@@ -573,10 +639,13 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
     starts = np.r_[0, np.cumsum(rb)]
     if starts[-1] > 8 * nbytes:
         _fail("record index runs past the connectivity bytes")
-    data = body[p:]
-    rank = np.full(N, -1, np.int64)
-    rank[left >= 0] = np.arange(I)
-    # representative leaf of each node: follow the representative side down to a leaf
+    return starts, body[p:]
+
+
+def _representative_leaves(left, right, lo, repside) -> np.ndarray:
+    """(N,) leaf ID of each node's representative: follow the representative side (bit 1: the
+    right child) down to a leaf."""
+    N = left.shape[0]
     side = np.zeros(N, np.uint8)
     side[left >= 0] = repside
     x = np.arange(N)
@@ -585,10 +654,4 @@ def decode_hierarchy(buf: bytes, positions: np.ndarray | None = None) -> Hierarc
         if not inner.any():
             break
         x = np.where(inner, np.where(side[x] == 1, right[np.maximum(x, 0)], left[x]), x)
-    node_leaf = lo[x]
-    return Hierarchy(n_leaves=n, n_nodes=N, n_triangles=m, variant=variant, left=left, right=right,
-                     parent=parent, depth=depth, size=size, lo=lo, positions=positions,
-                     node_leaf=node_leaf, error=error, cone_axis=axis, cone_angle=angle,
-                     vertex_of_leaf=vol, tables=tables, data=data, record_starts=starts,
-                     rank=rank, bits={"connectivity": int(starts[-1])},
-                     origin=np.array([ox, oy, oz]), step=step, reach=reach, open_leaf=open_leaf)
+    return lo[x]

@@ -218,7 +218,7 @@ def _depth_by_levels(parent, left, right):
 
 def _collapse_forest(n, tri, pos):
     """Leaves 0..n-1, internal nodes from the quadric simplifier's collapse sequence."""
-    import fast_simplification
+    import fast_simplification  # native: loaded only when a hierarchy is built
 
     left = [-1] * n
     right = [-1] * n

@@ -94,42 +94,14 @@ _PACK_BITS = 63
 _MAX_WALK = 64
 
 
-def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg: float = 60.0) -> NormalResult:
-    """Area-weighted, crease-aware vertex normals.
+def _face_normals(positions: np.ndarray, tri: np.ndarray):
+    """Face cross products of (m, 3) triangles ``tri`` over (n, 3) float64 ``positions``.
 
-    Parameters
-    ----------
-    positions : (n, 3) float64
-    indices : (m, 3) integer, counter-clockwise
-    crease_angle_deg : float, degrees in [0, 180]; 180 = smooth everywhere
-
-    Returns
-    -------
-    NormalResult (see class doc). Vertices used by no triangle keep one copy with normal +Y.
-    New vertices are numbered by (original vertex, first corner of the group); each normal is the
-    float64 sum of its group's face cross products in corner order, normalised, then float32:
-    the result is deterministic and does not depend on the sort or graph algorithms used.
-
-    Memory: int32 corner ids where 3m < 2^31; the largest temporaries are (m, 3) float64 arrays
-    and one int64 per half-edge (docs/performance.md has the measured peak).
-    """
-    n = positions.shape[0]
-    m = int(np.shape(indices)[0])
-    c = 3 * m
-    small = max(c, n) < (1 << 31) - 1
-    cid = np.int32 if small else np.int64  # corner / vertex ids
-    tri = np.asarray(indices).astype(cid, copy=False).reshape(m, 3)
-    if m == 0:
-        return NormalResult(indices=np.zeros((0, 3), np.uint32), source_vertex=np.arange(n, dtype=np.int64),
-                            normals=np.tile(np.array([0.0, 1.0, 0.0], np.float32), (n, 1)), fallback=n)
-    ov = tri.ravel()  # original vertex per corner
-    weld, nw = weld_labels(positions, cid)
-    seams = nw < n
-    if seams:
-        a = weld[ov]  # welded vertex per corner
-    else:
-        weld = np.arange(n, dtype=cid)
-        a = ov
+    Returns ``(fn, unit, degenerate, any_degenerate)``: fn (m, 3) float64 cross products (twice
+    the area, the operations of ``np.cross`` in its order: ``mesh.face_normals`` gives the same
+    bits); unit (m, 3) float64 unit normals (zero for zero-area faces); degenerate (m,) bool
+    (length <= 1e-300); any_degenerate: whether any face is."""
+    m = tri.shape[0]
     fn = np.empty((m, 3))
     p0 = np.take(positions, tri[:, 0], axis=0)
     e1 = np.take(positions, tri[:, 1], axis=0)
@@ -137,7 +109,6 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     e2 = np.take(positions, tri[:, 2], axis=0)
     e2 -= p0
     del p0
-    # the operations of np.cross, in its order (face_normals gives the same bits)
     np.multiply(e1[:, 1], e2[:, 2], out=fn[:, 0])
     fn[:, 0] -= e1[:, 2] * e2[:, 1]
     np.multiply(e1[:, 2], e2[:, 0], out=fn[:, 1])
@@ -152,9 +123,19 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         unit = np.where(degenerate[:, None], 0.0, fn / np.where(degenerate, 1.0, flen)[:, None])
     else:
         unit = fn / flen[:, None]
-    del flen
+    return fn, unit, degenerate, any_degenerate
 
-    # half-edges: corner h = 3f + k of face f goes from a[h] to b[h] = a[next corner]
+
+def _manifold_pairs(a: np.ndarray, nw: int, cid):
+    """The two half-edges of every manifold edge of the welded mesh.
+
+    ``a`` (3m,) welded vertex per corner (ids < ``nw``, dtype ``cid``); half-edge h = corner
+    3f + k goes from ``a[h]`` to the next corner's vertex. Returns ``(forward, h1, h2)``: forward
+    (3m,) bool, whether half-edge h runs from the smaller to the larger vertex id; h1, h2 (p,)
+    ``cid`` the half-edges of each edge used by exactly two half-edges (h1 < h2), edges in order
+    of (smaller id, larger id)."""
+    m = a.size // 3
+    c = a.size
     b = a.reshape(m, 3)[:, [1, 2, 0]].ravel()
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
@@ -187,79 +168,96 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
     del key
     pair = np.flatnonzero(eq[1:-1] & ~eq[:-2] & ~eq[2:])
     del eq
-    h1, h2 = order[pair], order[pair + 1]
-    del order, pair
-    if crease_angle_deg < 180.0:
-        cos_limit = np.cos(np.radians(crease_angle_deg))
-        f1, f2 = h1 // 3, h2 // 3
-        smooth = np.empty(h1.size, dtype=bool)
-        for s0 in range(0, h1.size, _CHUNK):  # (k, 3) gathers, not (pairs, 3)
-            g1, g2 = f1[s0:s0 + _CHUNK], f2[s0:s0 + _CHUNK]
-            ok = np.einsum("ij,ij->i", np.take(unit, g1, axis=0), np.take(unit, g2, axis=0)) >= cos_limit - 1e-12
-            if any_degenerate:
-                ok |= degenerate[g1] | degenerate[g2]
-            smooth[s0:s0 + _CHUNK] = ok
-        del f1, f2
-        h1, h2 = h1[smooth], h2[smooth]
-        del smooth
-    del unit, degenerate
-    # corners of one vertex are linked across its smooth manifold edges; consistently oriented
-    # neighbours have opposite half-edges (h2 runs from b[h1] to a[h1])
-    same_dir = forward[h1] == forward[h2]
-    del forward
-    fan = np.bincount(a, minlength=nw).astype(cid, copy=False)  # corners per welded vertex
-    if not same_dir.any():
-        del same_dir
-        # next corner around the vertex (-1 at a break: a half-edge without a smooth twin)
-        succ, clean = fan_successors(h1, h2, a, nw, cid)
-        del h1, h2
-        simple_v = single_fans(succ, a, fan, clean, cid, _MAX_WALK)
-        del clean
-        cplx = np.flatnonzero(~simple_v[a]).astype(cid, copy=False)  # corners of the other vertices
-        if cplx.size:
-            nx = succ[cplx]
-            nx = np.where(nx >= 0, nx, cplx)
-            # the corner before y around its vertex: twin of y's incoming half-edge, where
-            # twin(x) = prev(succ[x])
-            pv = succ[_prev_corner(cplx)]
-            pv = np.where(pv >= 0, _prev_corner(np.maximum(pv, 0)), cplx)
-            nx = np.searchsorted(cplx, nx).astype(cid, copy=False)
-            pv = np.searchsorted(cplx, pv).astype(cid, copy=False)
-            rounds = max(int(fan[a[cplx]].max()) - 1, 1).bit_length()
-            low = _orbit_min(nx, pv, rounds)  # local index of the group's smallest corner
-            del nx, pv
-        else:
-            low = np.zeros(0, dtype=cid)
-        del succ
-    else:  # inconsistently oriented neighbours: every vertex through the general grouping
-        cb1 = _next_corner(h1)  # corner at the other end of half-edge h1
-        cb2 = _next_corner(h2)
-        link_u = np.concatenate([h1, cb1])
-        link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
-        del h1, h2, cb1, cb2, same_dir
-        _, lab = graph_components(link_u, link_v, c)  # (scipy.sparse, imported only on this branch)
-        del link_u, link_v
-        _, first = np.unique(lab, return_index=True)  # labels are numbered by smallest corner
-        low = first.astype(cid)[lab]
-        del lab, first
-        simple_v = np.zeros(nw, dtype=bool)
-        cplx = np.arange(c, dtype=cid)
+    return forward, order[pair], order[pair + 1]
 
-    # group label per corner: the welded vertex for single-group vertices, nw + j for the j-th
-    # group (in order of smallest corner) of the others
+
+def _smooth_pairs(h1: np.ndarray, h2: np.ndarray, unit: np.ndarray, degenerate: np.ndarray,
+                  any_degenerate: bool, crease_angle_deg: float):
+    """The half-edge pairs (h1, h2) whose faces' unit normals ``unit`` (m, 3) are at most
+    ``crease_angle_deg`` degrees apart (cosine >= cos(angle) - 1e-12), or where either face is
+    ``degenerate``; tested ``_CHUNK`` pairs at a time."""
+    cos_limit = np.cos(np.radians(crease_angle_deg))
+    f1, f2 = h1 // 3, h2 // 3
+    smooth = np.empty(h1.size, dtype=bool)
+    for s0 in range(0, h1.size, _CHUNK):  # (k, 3) gathers, not (pairs, 3)
+        g1, g2 = f1[s0:s0 + _CHUNK], f2[s0:s0 + _CHUNK]
+        ok = np.einsum("ij,ij->i", np.take(unit, g1, axis=0), np.take(unit, g2, axis=0)) >= cos_limit - 1e-12
+        if any_degenerate:
+            ok |= degenerate[g1] | degenerate[g2]
+        smooth[s0:s0 + _CHUNK] = ok
+    del f1, f2
+    return h1[smooth], h2[smooth]
+
+
+def _fan_groups(a: np.ndarray, h1: np.ndarray, h2: np.ndarray, fan: np.ndarray, nw: int, cid):
+    """Corner groups when every smooth pair is consistently oriented (h2 runs from the end of h1
+    to its start).
+
+    ``a`` (3m,) welded vertex per corner; ``fan`` (nw,) corners per welded vertex. Returns
+    ``(simple_v, cplx, low)``: simple_v (nw,) bool, vertices whose corners form one group (the
+    walk around the fan visits them all); cplx (k,) ascending corners of the other vertices;
+    low (k,) local index into ``cplx`` of the smallest corner of each one's group (pointer
+    doubling on the "next corner around the vertex" map)."""
+    # next corner around the vertex (-1 at a break: a half-edge without a smooth twin)
+    succ, clean = fan_successors(h1, h2, a, nw, cid)
+    del h1, h2
+    simple_v = single_fans(succ, a, fan, clean, cid, _MAX_WALK)
+    del clean
+    cplx = np.flatnonzero(~simple_v[a]).astype(cid, copy=False)  # corners of the other vertices
+    if cplx.size:
+        nx = succ[cplx]
+        nx = np.where(nx >= 0, nx, cplx)
+        # the corner before y around its vertex: twin of y's incoming half-edge, where
+        # twin(x) = prev(succ[x])
+        pv = succ[_prev_corner(cplx)]
+        pv = np.where(pv >= 0, _prev_corner(np.maximum(pv, 0)), cplx)
+        nx = np.searchsorted(cplx, nx).astype(cid, copy=False)
+        pv = np.searchsorted(cplx, pv).astype(cid, copy=False)
+        rounds = max(int(fan[a[cplx]].max()) - 1, 1).bit_length()
+        low = _orbit_min(nx, pv, rounds)  # local index of the group's smallest corner
+        del nx, pv
+    else:
+        low = np.zeros(0, dtype=cid)
+    return simple_v, cplx, low
+
+
+def _graph_groups(h1: np.ndarray, h2: np.ndarray, same_dir: np.ndarray, c: int, nw: int, cid):
+    """Corner groups when some smooth pair is inconsistently oriented: connected components of
+    the corner links over all ``c`` corners (same result form as :func:`_fan_groups`, with every
+    vertex treated as complex: simple_v all False, cplx = all corners)."""
+    cb1 = _next_corner(h1)  # corner at the other end of half-edge h1
+    cb2 = _next_corner(h2)
+    link_u = np.concatenate([h1, cb1])
+    link_v = np.concatenate([np.where(same_dir, h2, cb2), np.where(same_dir, cb2, h2)])
+    del h1, h2, cb1, cb2, same_dir
+    _, lab = graph_components(link_u, link_v, c)  # (scipy.sparse, imported only on this branch)
+    del link_u, link_v
+    _, first = np.unique(lab, return_index=True)  # labels are numbered by smallest corner
+    low = first.astype(cid)[lab]
+    del lab, first
+    return np.zeros(nw, dtype=bool), np.arange(c, dtype=cid), low
+
+
+def _group_labels(a: np.ndarray, cplx: np.ndarray, low: np.ndarray, nw: int, cid):
+    """Group label per corner: the welded vertex ``a`` for single-group vertices, ``nw + j`` for
+    the j-th group (in order of smallest corner) of the corners ``cplx``. Returns ``(label (3m,),
+    croot (g,) smallest corner of complex group j, n_labels = nw + g)``."""
     is_root = low == np.arange(low.size, dtype=cid)
     number = np.cumsum(is_root, dtype=cid)
     n_cplx = int(number[-1]) if number.size else 0
     number -= 1
     label = a.copy()
     label[cplx] = nw + number[low]
-    croot = cplx[is_root]  # smallest corner of complex group j
-    del number, is_root, low
-    n_labels = nw + n_cplx
+    croot = cplx[is_root]
+    return label, croot, nw + n_cplx
 
-    # a group made only of zero-area triangles has no direction: merge its corners into the group
-    # of the same welded vertex that has one and the smallest first corner (so degenerate slivers
-    # do not split vertices); a single-group vertex has no other group to merge into
+
+def _merge_directionless(label: np.ndarray, fn: np.ndarray, a: np.ndarray, cplx: np.ndarray,
+                         croot: np.ndarray, nw: int, n_labels: int, c: int, cid) -> np.ndarray:
+    """(n_labels, 3) float64 sums of the face cross products ``fn`` per group, after merging each
+    group made only of zero-area triangles into the group of the same welded vertex that has a
+    direction and the smallest first corner (so degenerate slivers do not split vertices; a
+    single-group vertex has no other group to merge into). Updates ``label`` in place."""
     gsum = _group_sum(label, fn, n_labels)
     if cplx.size:
         clab = label[cplx] - nw
@@ -275,38 +273,45 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
                 j_of_root[croot] = np.arange(croot.size, dtype=cid)
                 label[cplx[take]] = nw + j_of_root[donor[wv[take]]]
                 gsum = _group_sum(label, fn, n_labels)
-                del j_of_root
-            del donor, take, wv
-        del clab, good
-    del fn
+    return gsum
 
-    # new vertex = (original vertex, group), numbered by original vertex, then first corner.
-    # The original vertices of a single-group welded vertex have one new vertex each.
-    if seams:
-        used = np.zeros(n, dtype=bool)
-        used[ov] = True
-    else:
-        used = fan > 0
+
+def _complex_vertices(ov: np.ndarray, label: np.ndarray, cplx: np.ndarray, n_labels: int, c: int, cid):
+    """The distinct (original vertex, group) pairs of the corners ``cplx``.
+
+    Returns ``(p_ov, p_label, rank, pinv)``: per pair (p,) its original vertex, its group label
+    and its rank among the pairs of the same original vertex (ordered by first corner); pinv
+    (k,) the pair of each corner of ``cplx``."""
+    clab = label[cplx]
+    cov = ov[cplx]
+    pkey = cov.astype(np.int64) * np.int64(n_labels) + clab
+    _, pfirst, pinv = np.unique(pkey, return_index=True, return_inverse=True)
+    del pkey
+    pinv = pinv.ravel()
+    p_ov = cov[pfirst]
+    p_label = clab[pfirst]
+    p_first = cplx[pfirst]
+    del clab, cov, pfirst
+    porder = np.argsort(p_ov.astype(np.int64) * np.int64(c) + p_first)
+    s_ov = p_ov[porder]
+    rank = np.empty(porder.size, dtype=cid)
+    rank[porder] = np.arange(porder.size, dtype=cid) - np.searchsorted(s_ov, s_ov).astype(cid)
+    return p_ov, p_label, rank, pinv
+
+
+def _new_vertices(n: int, c: int, ov, weld, used, simple_v, label, cplx, n_labels: int, cid):
+    """Number the new vertices: one per (original vertex, group), ordered by original vertex,
+    then first corner; the original vertices of a single-group welded vertex have one each.
+
+    ``used`` (n,) bool original vertices referenced by a corner; ``simple_v`` (nw,) single-group
+    welded vertices. Returns ``(new_index (3m,) cid, row (n',) group label of each new vertex,
+    source_vertex (n',) int64)``."""
     count = used.astype(cid)
     cplx_v = ~simple_v[weld]  # original vertices at welded vertices with several groups
     count[cplx_v] = 0
     if cplx.size:
-        clab = label[cplx]
-        cov = ov[cplx]
-        pkey = cov.astype(np.int64) * np.int64(n_labels) + clab
-        _, pfirst, pinv = np.unique(pkey, return_index=True, return_inverse=True)
-        del pkey
-        pinv = pinv.ravel()
-        p_ov = cov[pfirst]
-        p_label = clab[pfirst]
-        p_first = cplx[pfirst]
-        del clab, cov, pfirst
-        porder = np.argsort(p_ov.astype(np.int64) * np.int64(c) + p_first)
-        s_ov = p_ov[porder]
-        rank = np.empty(porder.size, dtype=cid)
-        rank[porder] = np.arange(porder.size, dtype=cid) - np.searchsorted(s_ov, s_ov).astype(cid)
+        p_ov, p_label, rank, pinv = _complex_vertices(ov, label, cplx, n_labels, c, cid)
         count += np.bincount(p_ov, minlength=n).astype(cid)
-        del porder, s_ov
     offset = np.cumsum(count, dtype=np.int64) - count
     total = int(offset[-1] + count[-1]) if n else 0
     new_index = offset.astype(cid)[ov]
@@ -317,12 +322,13 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         at = offset[p_ov] + rank
         row[at] = p_label
         new_index[cplx] = at[pinv]
-        del at, rank, pinv, p_label, p_first
     source_vertex = np.repeat(np.arange(n, dtype=np.int64), count)
-    normals = np.take(gsum, row, axis=0)
-    del gsum, row
+    return new_index, row, source_vertex
 
-    # unused vertices keep a copy (so indices of used vertices and counts stay explainable)
+
+def _result(new_index, source_vertex, normals, used, m: int) -> NormalResult:
+    """Append one copy of each unused vertex (normal zero), normalise the (n', 3) float64 group
+    sums ``normals`` (+Y where the length is <= 1e-300, counted as fallback), pack the result."""
     unused = np.flatnonzero(~used)
     if unused.size:
         source_vertex = np.concatenate([source_vertex, unused])
@@ -336,3 +342,74 @@ def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg
         normals=normals.astype(np.float32),
         fallback=int(np.count_nonzero(bad)),
     )
+
+
+def compute_normals(positions: np.ndarray, indices: np.ndarray, crease_angle_deg: float = 60.0) -> NormalResult:
+    """Area-weighted, crease-aware vertex normals.
+
+    Parameters
+    ----------
+    positions : (n, 3) float64
+    indices : (m, 3) integer, counter-clockwise
+    crease_angle_deg : float, degrees in [0, 180]; 180 = smooth everywhere
+
+    Returns
+    -------
+    NormalResult (see class doc). Vertices used by no triangle keep one copy with normal +Y.
+    New vertices are numbered by (original vertex, first corner of the group); each normal is the
+    float64 sum of its group's face cross products in corner order, normalised, then float32:
+    the result is deterministic and does not depend on the sort or graph algorithms used.
+
+    Memory: int32 corner ids where 3m < 2^31; the largest temporaries are (m, 3) float64 arrays
+    and one int64 per half-edge (docs/performance.md has the measured peak).
+    """
+    n = positions.shape[0]
+    m = int(np.shape(indices)[0])
+    c = 3 * m
+    small = max(c, n) < (1 << 31) - 1
+    cid = np.int32 if small else np.int64  # corner / vertex ids
+    tri = np.asarray(indices).astype(cid, copy=False).reshape(m, 3)
+    if m == 0:
+        return NormalResult(indices=np.zeros((0, 3), np.uint32), source_vertex=np.arange(n, dtype=np.int64),
+                            normals=np.tile(np.array([0.0, 1.0, 0.0], np.float32), (n, 1)), fallback=n)
+    # (1) weld by exact position: ``a`` the welded vertex of each corner
+    ov = tri.ravel()  # original vertex per corner
+    weld, nw = weld_labels(positions, cid)
+    seams = nw < n
+    if seams:
+        a = weld[ov]
+    else:
+        weld = np.arange(n, dtype=cid)
+        a = ov
+    # (2) face cross products; (3) the smooth manifold edges
+    fn, unit, degenerate, any_degenerate = _face_normals(positions, tri)
+    forward, h1, h2 = _manifold_pairs(a, nw, cid)
+    if crease_angle_deg < 180.0:
+        h1, h2 = _smooth_pairs(h1, h2, unit, degenerate, any_degenerate, crease_angle_deg)
+    del unit, degenerate
+    # (4) corners of one vertex are linked across its smooth manifold edges; consistently oriented
+    # neighbours have opposite half-edges (h2 runs from b[h1] to a[h1])
+    same_dir = forward[h1] == forward[h2]
+    del forward
+    fan = np.bincount(a, minlength=nw).astype(cid, copy=False)  # corners per welded vertex
+    if not same_dir.any():
+        del same_dir
+        simple_v, cplx, low = _fan_groups(a, h1, h2, fan, nw, cid)
+    else:  # inconsistently oriented neighbours: every vertex through the general grouping
+        simple_v, cplx, low = _graph_groups(h1, h2, same_dir, c, nw, cid)
+        del same_dir
+    del h1, h2
+    # (5) group labels and sums; (6) new vertices, each with its group's sum, then normalised
+    label, croot, n_labels = _group_labels(a, cplx, low, nw, cid)
+    del low
+    gsum = _merge_directionless(label, fn, a, cplx, croot, nw, n_labels, c, cid)
+    del fn
+    if seams:
+        used = np.zeros(n, dtype=bool)
+        used[ov] = True
+    else:
+        used = fan > 0
+    new_index, row, source_vertex = _new_vertices(n, c, ov, weld, used, simple_v, label, cplx, n_labels, cid)
+    normals = np.take(gsum, row, axis=0)
+    del gsum, row
+    return _result(new_index, source_vertex, normals, used, m)
