@@ -28,8 +28,8 @@ Arguments as for pymeshlab:
 Error: ``error_m`` is meshoptimizer's ``result_error`` with ``meshopt_SimplifyErrorAbsolute``: the
 square root of the largest collapse's quadric error, in metres for the position part (the
 attribute terms, unitless, are added into it). It is an estimate of the distance from the
-simplified mesh to its *input*, not a bound (docs/performance.md: 0.06 to 1.4 times the measured
-symmetric Hausdorff distance, median 0.46). Along a chain built from the previous LOD, the
+simplified mesh to its *input*, not a bound (its ratio to the measured symmetric Hausdorff
+distance: docs/lod.md). Along a chain built from the previous LOD, the
 distance to LOD 0 is at most the sum of the steps' distances (triangle inequality); ``accumulate``
 sums the steps' errors that way.
 

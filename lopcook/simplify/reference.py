@@ -205,7 +205,7 @@ class Reference:
 
         Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
         cut into chunks by median splits (``chunks``); one libigl tree per chunk is built, queried
-        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). The
+        and freed in turn (memory: one chunk's tree, not the whole one's). The
         chunks are swept once, in order; a point is queried in every chunk whose bounding box is
         within its best distance so far (its bound before its first query). The chunk that holds
         its closest face is always within that distance, so the distance is the exact closest one,
