@@ -6,6 +6,10 @@ k_f calibration when ``settings.tune.target_psnr`` is set (``lopcook.tune.calibr
 byte-budget fit when ``settings.tune.target_bytes`` is set (``lopcook.tune.budget``). The
 returned Container holds its bytes (``.data``) and what the cook did (``.result``, a
 ``CookResult`` with ``calibration`` and ``budget`` records when those ran).
+
+This module is imported with ``lopcook`` itself, by every command and every batch worker: the
+stages (ingest, pipeline, tune, verify) are imported inside the functions that use them, so that
+``import lopcook`` loads none of them.
 """
 
 from __future__ import annotations
@@ -13,10 +17,11 @@ from __future__ import annotations
 import time
 from fractions import Fraction
 
-from .lop.container import Container
-from .lop.container import read as _read
 from .errors import EXIT_VERIFY_FAILED, LopcookError
-from .memory import small_pages
+from .lop.container import Container, from_bytes
+from .lop.container import read as _read
+from .lop.memo import code_memo
+from .memory import release_free_memory, small_pages
 from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
 from .types import Scene
@@ -24,6 +29,7 @@ from .types import Scene
 
 def load(path, settings: Settings = DEFAULTS) -> Scene:
     """Load a glTF/GLB, OBJ or USD file into a validated Scene (``settings.ingest``)."""
+    # a stage: imported where it is used (module doc)
     from .ingest import load as _load
 
     with small_pages():
@@ -72,6 +78,7 @@ def search_harness(settings: Settings) -> tuple:
     (``tune.confirm``, verify's 20 views at 1280 x 720 by default) at its levels among 6..11
     (``CONFIRM_LEVELS``, the gate's ``verify --levels 6-11``) for a direct search (``tune.direct``),
     else the reduced ``tune.calibration``."""
+    # a stage: imported where it is used (module doc)
     from .tune.calibrate import CONFIRM_LEVELS
 
     t = settings.tune
@@ -84,6 +91,7 @@ def search_harness(settings: Settings) -> tuple:
 
 def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True, loosen_edges: bool = True) -> dict:
     """The k_f calibration of ``settings.tune`` (``calibration``)."""
+    # a stage: imported where it is used (module doc)
     from .tune.calibrate import WATCH_DB, calibrate
 
     t = settings.tune
@@ -103,6 +111,7 @@ def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True, l
 def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True, loosen_edges: bool = True):
     """``tune.target_psnr``: the calibration, its manifest record and the settings it chose;
     LopcookError (exit 1) when the target is not reached."""
+    # a stage: imported where it is used (module doc)
     from .tune.calibrate import calibration_record, require_reached
 
     cal = calibration(scene, settings, progress, complete, loosen_edges)
@@ -113,6 +122,7 @@ def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True
 
 def _budget(scene: Scene, settings: Settings, options: dict, say):
     """``tune.target_bytes``: the fitted container's bytes, the chain's CookResult and the record."""
+    # a stage: imported where it is used (module doc)
     from .tune.budget import fit, float_bytes
 
     t = settings.tune
@@ -131,6 +141,7 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
     Purnomo's greedy search over every attribute's bits (``lopcook.tune.attributes``). Returns
     (the record for ``cook --json``, the manifest record, the chosen Settings); LopcookError (exit
     1) when a target is missed even at the default bits, (exit 2) when the budget is unreachable."""
+    # a stage: imported where it is used (module doc)
     from .tune.attributes import allocate, format_probe, require_reached, search_record
 
     t = settings.tune
@@ -163,8 +174,6 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
     with small_pages():
         if t.target_psnr is None and t.vertex_bits is None:
             return _cook(scene, settings, progress)
-        from .lop.memo import code_memo
-
         # the searches cook the scene again and again, mostly with some attribute's bits unchanged
         with code_memo():
             return _cook(scene, settings, progress)
@@ -172,7 +181,7 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
 
 def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     """``cook``'s body."""
-    from .lop.container import from_bytes
+    # a stage: imported where it is used (module doc)
     from .pipeline import run
 
     say = progress
@@ -206,24 +215,7 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
         timings["attribute_search"] = time.perf_counter() - t0
     analysis = None
     if calibration is not None or search is not None:
-        # the searches' renders are not needed by the cook that follows, nor their prepared analysis
-        # once it gave the chosen thresholds' levels (the same as a fresh analysis: the same bytes)
-        from .analyse.prepared import held
-        from .analyse.prepared import release_shared as release_prepared
-        from .pipeline import plain
-        from .verify.renderer import release_shared as release_harnesses
-
-        release_harnesses()
-        prepared = held(scene, settings.analyse)
-        if prepared is not None and plain(settings) and settings.tune.target_bytes is None:
-            t0 = time.perf_counter()
-            analysis = prepared.analyse(settings.analyse.eps, settings.analyse.edge_eps)
-            timings["analyse.prepared"] = time.perf_counter() - t0
-        del prepared
-        release_prepared()
-        from .memory import release_free_memory
-
-        release_free_memory()
+        analysis = _after_searches(scene, settings, timings)
     options = settings.to_manifest()["options"]
     if record is not None:
         options["calibration"] = record
@@ -245,6 +237,31 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     result.settings = settings
     container.result = result
     return container
+
+
+def _after_searches(scene: Scene, settings: Settings, timings: dict):
+    """Release what the searches held: their renders are not needed by the cook that follows, nor
+    their prepared analysis once it gave the chosen thresholds' levels (the same as a fresh
+    analysis: the same bytes). Returns that Analysis of ``scene`` at ``settings.analyse`` on the
+    plain path (``lopcook.pipeline.plain``) without a byte budget, else None; its time goes to
+    ``timings["analyse.prepared"]``."""
+    # a stage: imported where it is used (module doc)
+    from .analyse.prepared import held
+    from .analyse.prepared import release_shared as release_prepared
+    from .pipeline import plain
+    from .verify.renderer import release_shared as release_harnesses
+
+    analysis = None
+    release_harnesses()
+    prepared = held(scene, settings.analyse)
+    if prepared is not None and plain(settings) and settings.tune.target_bytes is None:
+        t0 = time.perf_counter()
+        analysis = prepared.analyse(settings.analyse.eps, settings.analyse.edge_eps)
+        timings["analyse.prepared"] = time.perf_counter() - t0
+    del prepared
+    release_prepared()
+    release_free_memory()
+    return analysis
 
 
 __all__ = ["load", "cook", "read", "calibration", "budget_target", "Container", "Settings"]

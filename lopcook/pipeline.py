@@ -38,13 +38,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import isolate
+from . import isolate, memory  # memory.available_bytes: read at call time
 from .analyse import Analysis, analyse, colocated_max
 from .analyse.result import REASON_CODE
 from .analyse.attribute_bits import part_bits
 from .emit import BufferInput, assemble, encode_buffer, plane_payload
 from .lop.codecs import CODECS, AttributeBits
 from .lop.container import Container, built, file_size, section_table
+from .lop.placement import level_shift, local_level, mesh_grid, resident_level, sigma, touching_parts, transform_f32
 from .errors import LopcookError
 from .grid import BITS, Grid
 from .hierarchy.container import add_hierarchy
@@ -53,15 +54,17 @@ from .progress import NONE, Progress
 from .selection import selection_ranges
 from .settings import DEFAULTS, Settings
 from .simplify import lod_chain
+from .simplify.instances import copies, placed_chain
+from .simplify.parallel import run_chains
+from .simplify.workers import workers as lod_workers
 from .types import Scene
 from .viewing import Viewing, required_level
 
 #: LOD cooks of at least this many LOD 0 vertices analyse and encode in two processes (``parallel``)
 PARALLEL_VERTICES = 100_000
 
-#: ... and when the system has at least this much memory available per LOD 0 vertex: the children
-#: beside the LOD chains added about 760 B per vertex to the process tree at 1.1M triangles, so
-#: this leaves room for twice that
+#: ... and when the system has at least this much memory available per LOD 0 vertex: twice what the
+#: analysis and encoding children add to the process tree per vertex (measured: docs/lod.md)
 PARALLEL_BYTES_PER_VERTEX = 1600
 
 
@@ -164,9 +167,6 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
     worker processes (``lopcook.simplify.parallel``; threads would not help: pymeshlab is not
     thread-safe, and fast-simplification and libigl hold the GIL); the result is the serial one.
     ``on_lod(k, part)``: called as a one-part scene's chain accepts its LOD k (``lod_chain``)."""
-    from .simplify.instances import copies, placed_chain
-    from .simplify.parallel import run_chains
-
     ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
     seams = settings.simplify.seams.value
     out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
@@ -190,13 +190,10 @@ def parallel(scene: Scene) -> bool:
     ``$LOPCOOK_LOD_WORKERS=1`` turns it off), at least ``PARALLEL_VERTICES`` LOD 0 vertices, and
     the system's available memory at least ``PARALLEL_BYTES_PER_VERTEX`` per vertex (the children
     add their working memory to the cook's; docs/performance.md). The bytes are the same either way."""
-    from .memory import available_bytes
-    from .simplify.workers import workers
-
     n = sum(p.n_vertices for p in scene.parts)
-    if workers() < 2 or n < PARALLEL_VERTICES:
+    if lod_workers() < 2 or n < PARALLEL_VERTICES:
         return False
-    avail = available_bytes()
+    avail = memory.available_bytes()
     return avail is None or avail >= PARALLEL_BYTES_PER_VERTEX * n
 
 
@@ -464,9 +461,6 @@ def resolve_instances(scene: Scene, settings: Settings, *, budget: bool = False)
     want = (len(scene.parts) >= 2 and not settings.simplify.hierarchy and not budget
             and settings.tune.target_bytes is None)
     if want:
-        from .lop.placement import touching_parts
-        from .simplify.instances import copies
-
         groups = [[lead] + [i for i, _, _ in members] for lead, members in copies(scene.parts) if members]
         if groups:
             grid = Grid.fit([p.positions for p in scene.parts])
@@ -547,9 +541,6 @@ def placement_groups(scene: Scene, parts_chain, quantized, rows) -> list[dict]:
     grid) when one of its vertices shares a 24-bit scene-grid cell with another part's
     (``placement.touching_parts``, any LOD); members must have the same LOD chain length and the
     same kept LODs (``rows``), so that their LOD entries can name one buffer set."""
-    from .lop.placement import touching_parts
-    from .simplify.instances import copies
-
     flat, owner = [], []
     for i, qs in enumerate(quantized):
         for q in qs:
@@ -583,10 +574,6 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
     cook the scene as without ``--instances``. ``analysis``: ``run``'s, on its ``plain`` path (LOD 0
     only): used for the scene's levels instead of analysing it again (the same levels: the
     co-located sharing ``analyse_lods`` applies is the one ``analyse`` made)."""
-    from .lop.placement import (level_shift, local_level, mesh_grid, resident_level, sigma,
-                                 transform_f32)
-    from .analyse import colocated_max
-
     if settings.simplify.hierarchy:
         raise LopcookError("usage", scene.source, "--instances does not combine with --hierarchy",
                            hint="cook with one of them")
@@ -594,19 +581,76 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
         raise LopcookError("usage", scene.source, "--instances does not combine with a byte budget (--target-bytes)",
                            hint="cook without --instances")
     timings: dict = {}
+    parts_chain, errors, reports, cap, grid, analyses, levels, raised = _instanced_levels(
+        scene, settings, timings, progress, analysis)
+    all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
+    t0 = time.perf_counter()
+    groups = placement_groups(scene, parts_chain, [[b.quantized for b in bufs] for bufs in all_buffers], rows)
+    placement, mesh_grids, group_buffers, shifts_of = _shared_buffers(groups, parts_chain, levels, all_buffers,
+                                                                      grid)
+    if auto and not placement:
+        return None
+    kept = [[b for b, r in zip(bufs, rs) if r.kept] for bufs, rs in zip(all_buffers, rows)]
+    for owner, bufs in group_buffers.items():
+        kept[owner] = [b for b, r in zip(bufs, rows[owner]) if r.kept]
+    stored = [kept[i] for i in range(len(kept)) if placement.get(i, (i,))[0] == i]
+    highest_min = int(max(int(np.max(b.min_level)) for bufs in stored for b in bufs))
+    vlevel = view_level(grid.extent, settings.viewing)
+    if max_level is None:
+        if vlevel is None:
+            max_level = BITS
+        else:
+            res = [resident_level(vlevel, sh) for sh in shifts_of.values()]
+            max_level = max([vlevel, highest_min] + res)
+    max_level = int(max_level)
+    # shared mesh-grid buffers and the parts left on the scene grid are clustered as any buffer
+    encoded = [[] if placement.get(i, (i,))[0] != i else [encode_buffer(b, max_level, settings.emit.clusters,
+                                                                        cluster_all=settings.emit.cluster_all)
+                                                          for b in kept[i]]
+               for i in range(len(kept))]
+    manifest, sections = assemble(scene, grid, encoded, max_level=max_level, options=options,
+                                  viewing=settings.viewing)
+    manifest = _placement_manifest(manifest, placement, mesh_grids, kept, encoded)
+    container = built(manifest, sections)
+    timings["emit"] = time.perf_counter() - t0
+    result = CookResult(container=container, analysis=analyses[0], timings_s=timings, lods=rows,
+                        lod_reports=reports, grid_extent_m=float(grid.extent), lod_max_error_m=cap,
+                        view_level=vlevel, highest_min_level=highest_min, max_level=max_level,
+                        planes_dropped=list(range(max_level + 1, BITS + 1)),
+                        lods_dropped=int(sum(not r.kept for rs in rows for r in rs)),
+                        bytes_without_savings=len(container.data), colocated_raised_across_lods=raised)
+    _account(result)
+    return result
+
+
+def _instanced_levels(scene: Scene, settings: Settings, timings: dict, progress: Progress, analysis=None):
+    """``_instanced``'s steps (1)-(3): ``(parts_chain, errors, reports, cap, grid, analyses, levels,
+    raised)`` as ``_lod_stage`` and ``analyse_lods`` give them, or from ``analysis`` (LOD 0 only,
+    analysed on the scene grid) when it is given; the analysis time goes to ``timings``."""
     if analysis is not None:
         parts_chain, errors, reports, cap = [[p] for p in scene.parts], [[0.0] for _ in scene.parts], [], None
         grid, analyses, raised = analysis.grid, [analysis], 0
         levels = [[pa.min_level] for pa in analysis.parts]
-    else:
-        parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
-        t0 = time.perf_counter()
-        grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
-                                                      first=first)
-        timings["analyse"] = time.perf_counter() - t0
-    all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
+        return parts_chain, errors, reports, cap, grid, analyses, levels, raised
+    parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
     t0 = time.perf_counter()
-    groups = placement_groups(scene, parts_chain, [[b.quantized for b in bufs] for bufs in all_buffers], rows)
+    grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
+                                                  first=first)
+    timings["analyse"] = time.perf_counter() - t0
+    return parts_chain, errors, reports, cap, grid, analyses, levels, raised
+
+
+def _shared_buffers(groups: list[dict], parts_chain, levels, all_buffers, grid: Grid):
+    """The buffers each group of copies (``placement_groups``) shares on its mesh grid
+    (``lopcook.lop.placement.mesh_grid``): per LOD the lead's chain quantized there, its minimum
+    levels the maximum over the placements of their world levels converted (``local_level`` by
+    each placement's ``level_shift``), then shared between co-located vertices. A copy that would
+    need more than 24 mesh-grid bits stays on the scene grid; a group left with fewer than two
+    placements stores nothing once.
+
+    Returns ``(placement, mesh_grids, group_buffers, shifts_of)``: part -> (owner, the manifest's
+    3 x 4 transform, level shift); owner -> its mesh Grid; owner -> [BufferInput per LOD]; owner ->
+    the level shift of each of its placements."""
     placement: dict = {}  # part -> (owner, transform, shift)
     mesh_grids: dict = {}  # owner -> Grid
     group_buffers: dict = {}  # owner -> [BufferInput per LOD]
@@ -643,39 +687,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
         shifts_of[owner] = [s for _, _, s in members]
         for i, tf, s in members:
             placement[i] = (owner, tf, s)
-    if auto and not placement:
-        return None
-    kept = [[b for b, r in zip(bufs, rs) if r.kept] for bufs, rs in zip(all_buffers, rows)]
-    for owner, bufs in group_buffers.items():
-        kept[owner] = [b for b, r in zip(bufs, rows[owner]) if r.kept]
-    stored = [kept[i] for i in range(len(kept)) if placement.get(i, (i,))[0] == i]
-    highest_min = int(max(int(np.max(b.min_level)) for bufs in stored for b in bufs))
-    vlevel = view_level(grid.extent, settings.viewing)
-    if max_level is None:
-        if vlevel is None:
-            max_level = BITS
-        else:
-            res = [resident_level(vlevel, sh) for sh in shifts_of.values()]
-            max_level = max([vlevel, highest_min] + res)
-    max_level = int(max_level)
-    # shared mesh-grid buffers and the parts left on the scene grid are clustered as any buffer
-    encoded = [[] if placement.get(i, (i,))[0] != i else [encode_buffer(b, max_level, settings.emit.clusters,
-                                                                        cluster_all=settings.emit.cluster_all)
-                                                          for b in kept[i]]
-               for i in range(len(kept))]
-    manifest, sections = assemble(scene, grid, encoded, max_level=max_level, options=options,
-                                  viewing=settings.viewing)
-    manifest = _placement_manifest(manifest, placement, mesh_grids, kept, encoded)
-    container = built(manifest, sections)
-    timings["emit"] = time.perf_counter() - t0
-    result = CookResult(container=container, analysis=analyses[0], timings_s=timings, lods=rows,
-                        lod_reports=reports, grid_extent_m=float(grid.extent), lod_max_error_m=cap,
-                        view_level=vlevel, highest_min_level=highest_min, max_level=max_level,
-                        planes_dropped=list(range(max_level + 1, BITS + 1)),
-                        lods_dropped=int(sum(not r.kept for rs in rows for r in rs)),
-                        bytes_without_savings=len(container.data), colocated_raised_across_lods=raised)
-    _account(result)
-    return result
+    return placement, mesh_grids, group_buffers, shifts_of
 
 
 def _max_bits(bits):

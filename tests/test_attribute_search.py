@@ -15,6 +15,12 @@ from lopcook.errors import LopcookError
 from lopcook.tune import attributes as TA
 
 
+def parts(*rows) -> tuple:
+    """An allocation's ``parts`` from rows of the first codecs' bits (normals, UVs, colours): every
+    codec after them (tangents, ...) None."""
+    return tuple(tuple(r) + (None,) * (len(TA.ATTRIBUTES) - len(r)) for r in rows)
+
+
 class Analytic:
     """The search's interface (cost, quality, full, probes) over a separable convex model: every
     step of every knob costs 2 bits per vertex, and each error term falls 4x per step (as
@@ -46,7 +52,7 @@ class Analytic:
 def brute_force(model: Analytic, budget: float) -> float:
     best = -math.inf
     for x, bn, bu in itertools.product(np.arange(-8.0, 8.01, 0.5), range(4, 17), range(6, 17)):
-        a = TA.Allocation(float(x), ((bn, bu, None),))
+        a = TA.Allocation(float(x), parts((bn, bu)))
         if model.cost(a) <= budget:
             best = max(best, -10.0 * math.log10(model.error(a)))
     return best
@@ -55,14 +61,14 @@ def brute_force(model: Analytic, budget: float) -> float:
 @pytest.mark.parametrize("budget", [40.0, 52.0, 64.0, 80.0])
 def test_budget_search_fits_and_finds_the_brute_force_optimum(budget):
     m = Analytic()
-    start = TA.Allocation(0.0, ((12, 12, None),))
+    start = TA.Allocation(0.0, parts((12, 12)))
     got = TA.search_budget(m, start, budget)
     assert m.cost(got) <= budget
     assert -10.0 * math.log10(m.error(got)) == pytest.approx(brute_force(m, budget), abs=1e-9)
 
 
 def test_budget_search_is_deterministic_and_reports_an_unreachable_budget():
-    start = TA.Allocation(0.0, ((12, 12, None),))
+    start = TA.Allocation(0.0, parts((12, 12)))
     a, b = Analytic(), Analytic()
     assert TA.search_budget(a, start, 60.0) == TA.search_budget(b, start, 60.0)
     assert a.probes == b.probes
@@ -73,7 +79,7 @@ def test_budget_search_is_deterministic_and_reports_an_unreachable_budget():
 
 def test_target_search_passes_and_costs_no_more_than_needed():
     m = Analytic(weights=(1e-4, 30.0, 5.0))  # the start passes: 40 dB
-    start = TA.Allocation(0.0, ((12, 12, None),))
+    start = TA.Allocation(0.0, parts((12, 12)))
     got, ok = TA.search_target(m, start, 30.0)
     assert ok and m.quality(got) >= 30.0
     # no single knob step down still passes (a local minimum of cost at the target)
@@ -82,7 +88,7 @@ def test_target_search_passes_and_costs_no_more_than_needed():
         assert down is None or m.quality(down) < 30.0 or m.cost(down) >= m.cost(got)
     assert m.cost(got) <= m.cost(start)
     # a start below the target is raised until it passes
-    low = TA.Allocation(-4.0, ((4, 6, None),))
+    low = TA.Allocation(-4.0, parts((4, 6)))
     got, ok = TA.search_target(Analytic(weights=m.w), low, 30.0)
     assert ok and m.quality(got) >= 30.0
     # an unreachable target reports it
@@ -91,17 +97,17 @@ def test_target_search_passes_and_costs_no_more_than_needed():
 
 
 def test_knobs_and_steps_respect_the_ranges():
-    a = TA.Allocation(0.0, ((16, 6, None), (None, None, 8)))
+    a = TA.Allocation(0.0, parts((16, 6), (None, None, 8)))
     names = [k.name for k in TA.knobs(a)]
     assert names == ["positions", "normals[0]", "uvs[0]", "colors[1]"]
     ks = {k.name: k for k in TA.knobs(a)}
     assert TA.step(a, ks["normals[0]"], +1) is None and TA.step(a, ks["uvs[0]"], -1) is None
-    assert TA.step(a, ks["colors[1]"], -1).parts == TA.Allocation(0.0, ((16, 6, None), (None, None, 7))).parts
+    assert TA.step(a, ks["colors[1]"], -1).parts == parts((16, 6), (None, None, 7))
     assert TA.step(a, ks["positions"], -1).x == -TA.POSITION_STEP
     assert TA.step(TA.Allocation(TA.POSITION_RANGE[1], a.parts), ks["positions"], +1) is None
-    many = TA.Allocation(0.0, tuple((10, 10, None) for _ in range(TA.MAX_PART_KNOBS + 1)))
+    many = TA.Allocation(0.0, parts(*[(10, 10)] * (TA.MAX_PART_KNOBS + 1)))
     shared = [k for k in TA.knobs(many) if k.attribute == "normals"]
-    assert len(shared) == 1 and TA.step(many, shared[0], +1).parts[-1][:3] == (11, 10, None)
+    assert len(shared) == 1 and TA.step(many, shared[0], +1).parts[-1] == parts((11, 10))[0]
 
 
 # ---- the real search on a small fixture (cook --vertex-bits, report) -----------------------------
@@ -186,7 +192,11 @@ def test_report_shows_the_allocation_and_the_curve(budget_cooks):
     from lopcook.lop.container import read
 
     c = read(d / "a.lop")
-    assert [p["bits"] for p in a["parts"]] == c.manifest["options"]["attribute_search"]["choice"]["parts"]
+    # the report lists every codec; the record a codec newer than the first format only where set
+    chosen = c.manifest["options"]["attribute_search"]["choice"]["parts"]
+    assert len(a["parts"]) == len(chosen)
+    assert [{k: p["bits"][k] for k in rec} for p, rec in zip(a["parts"], chosen)] == chosen
+    assert all(v is None for p, rec in zip(a["parts"], chosen) for k, v in p["bits"].items() if k not in rec)
     assert a["search"]["mode"] == "budget" and a["vertex_bits"]["total"] <= n
     assert a["errors"][0]["normal_deg_max"] >= 0.0
     text = out.read_text()
@@ -209,12 +219,12 @@ def test_target_psnr_chooses_attribute_bits_that_pass(gl, tmp_path):
 
 
 def test_fallbacks_walk_back_to_the_anchor():
-    start = TA.Allocation(0.0, ((16, 12, None), (None, None, 8)))
-    choice = TA.Allocation(-1.0, ((8, 7, None), (None, None, 5)))
+    start = TA.Allocation(0.0, parts((16, 12), (None, None, 8)))
+    choice = TA.Allocation(-1.0, parts((8, 7), (None, None, 5)))
     got = TA.fallbacks(choice, start)
     assert [r for r, _ in got] == ["anchor positions", "halfway", "anchor"]
     assert got[0][1] == TA.Allocation(0.0, choice.parts)
-    assert got[1][1] == TA.Allocation(0.0, ((12, 10, None), (None, None, 7)))  # halfway, rounded up
+    assert got[1][1] == TA.Allocation(0.0, parts((12, 10), (None, None, 7)))  # halfway, rounded up
     assert got[2][1] == start
     # a choice at the anchor's k_f skips the first step; the anchor itself has nothing to fall back to
     assert [r for r, _ in TA.fallbacks(TA.Allocation(0.0, choice.parts), start)] == ["halfway", "anchor"]
@@ -224,7 +234,7 @@ def test_fallbacks_walk_back_to_the_anchor():
 @pytest.mark.parametrize("n,cut", [(1, 1), (1, 0), (2, 1), (7, 0), (7, 3), (7, 7), (16, 11), (33, 32)])
 def test_last_passing_bisects_the_path(n, cut):
     # a path of n allocations whose first `cut` pass the gate (monotone verdict)
-    path = [TA.Allocation(-0.5 * i, ((8, 7, None),)) for i in range(n)]
+    path = [TA.Allocation(-0.5 * i, parts((8, 7))) for i in range(n)]
     calls = []
 
     def gate(a, k):
@@ -240,10 +250,10 @@ def test_last_passing_bisects_the_path(n, cut):
 
 
 def test_moved_knobs_names_what_differs():
-    a = TA.Allocation(0.0, ((8, 7, None), (None, 9, 8)))
+    a = TA.Allocation(0.0, parts((8, 7), (None, 9, 8)))
     assert TA.moved_knobs(a, a) == []
     assert TA.moved_knobs(a, TA.Allocation(-0.5, a.parts)) == ["positions"]
-    assert TA.moved_knobs(a, TA.Allocation(0.0, ((8, 6, None), (None, 9, 7)))) == ["uvs[0]", "colors[1]"]
+    assert TA.moved_knobs(a, TA.Allocation(0.0, parts((8, 6), (None, 9, 7)))) == ["uvs[0]", "colors[1]"]
 
 
 def test_refine_on_gate_freezes_what_the_reduced_harness_misjudged():
@@ -251,7 +261,7 @@ def test_refine_on_gate_freezes_what_the_reduced_harness_misjudged():
     # DamagedHelmet's and Duck's textures at level 12 do): the search's own choice misses it
     model = Analytic()
     target = 30.0
-    start = TA.Allocation(4.0, ((16, 16, None),))
+    start = TA.Allocation(4.0, parts((16, 16)))
     choice, ok = TA.search_target(model, start, target)
     assert ok and choice.parts[0][1] < 10
     gated = []
@@ -274,5 +284,5 @@ def test_refine_on_gate_freezes_what_the_reduced_harness_misjudged():
 
 
 def test_progress_text_folds_runs_of_equal_parts():
-    rec = TA.Allocation(-1.0, ((8, 6, None),) * 49 + ((None, None, 5), (8, 6, None))).record()
+    rec = TA.Allocation(-1.0, parts(*[(8, 6)] * 49, (None, None, 5), (8, 6))).record()
     assert TA._alloc_text(rec) == "k_f 2^-1, n/uv/c 8/6/- x49 -/-/5 8/6/-"

@@ -58,7 +58,7 @@ def simplify_pymeshlab(positions, faces, target, *, uvs=None, weld=False, lock_b
     """MeshLab quadric edge collapse. With ``uvs`` (per vertex) the texture-aware variant runs on
     per-wedge UVs; ``weld`` first merges vertices with identical positions (seams become
     per-wedge UV discontinuities instead of boundaries)."""
-    import pymeshlab
+    import pymeshlab  # optional native simplifier: loads when a chain first uses it
 
     ms = pymeshlab.MeshSet()
     p = np.ascontiguousarray(positions, dtype=np.float64)
@@ -85,7 +85,7 @@ def simplify_pymeshlab(positions, faces, target, *, uvs=None, weld=False, lock_b
 
 def parametrise_xatlas(positions: np.ndarray, indices: np.ndarray):
     """xatlas: (vertex mapping into the input vertices, new indices, uvs float32)."""
-    import xatlas
+    import xatlas  # optional parametriser: loads only for seams='xatlas' or parametrise
 
     vmap, ind, uv = xatlas.parametrize(np.ascontiguousarray(positions, dtype=np.float32),
                                        np.ascontiguousarray(indices, dtype=np.uint32))

@@ -1,145 +1,40 @@
 """LOD chains: simplify each part to a chain of coarser meshes and measure each one's error.
 
-A chain for one part is LOD 0 (the part itself, error 0) followed by simplifications to target
-triangle counts ``round(ratio * n0)`` for ratios 1/2, 1/4, 1/8, ... (or the ratios given). It stops
-at the first LOD whose error exceeds ``max_error_m`` (the error the farthest view can still show:
-no distance would select a coarser LOD, so it is not kept), when a target falls below
-``min_triangles``, or when a LOD cannot be produced (see *Failures*).
+This work is based on: Garland and Heckbert, "Surface Simplification Using Quadric Error
+Metrics", SIGGRAPH 1997 (every backend is a quadric edge collapse). The whole description, with
+the reasons for each rule: docs/lod.md, "The chain driver in full".
 
-Backends
---------
-``"pymeshlab"``
-    MeshLab's quadric edge collapse (``meshing_decimation_quadric_edge_collapse``; with UVs the
-    texture-aware ``..._with_texture`` variant, whose quadrics include the texture coordinates).
-    Boundary-aware (``preserveboundary``: open-boundary vertices are locked), normal-aware
-    (``preservenormal``: no collapse may flip a face), ``planarquadric`` and, without UVs,
-    ``preservetopology``.
-``"fast"``
-    fast-simplification (a quadric collapse on positions only). Its collapse map (``return_collapses``) tells which input vertex every
-    output vertex is. Open borders are locked (``preserve_border``) like pymeshlab's with
-    ``preserve_boundary=True`` (the default): boundary vertices keep their exact positions, so
-    parts that share a boundary do not crack apart at any LOD.
+``lod_chain(part, ratios, backend, ...) -> (lods, report)``: ``lods[0]`` is the part itself
+(error 0), then simplifications to ``round(ratio * n0)`` triangles for ratios 1/2, 1/4, 1/8, ...
+(or those given). The chain stops at the first LOD whose error exceeds ``max_error_m`` (metres: no
+distance would select it; it is not kept), when a target falls below ``min_triangles``, or when
+no backend can make a LOD.
 
-``"meshopt"``
-    meshoptimizer's attribute-aware edge collapse (``lopcook.simplify.meshopt``): output vertices
-    are input vertices; seams collapse along themselves.
-``"auto"``
-    meshoptimizer; for a LOD whose input has at most ``AUTO_BOTH_TRIANGLES`` triangles pymeshlab
-    as well, keeping the result that reaches its target (within ``TARGET_TOLERANCE``) with the
-    lower measured error (a note gives both). Small inputs are where pymeshlab can win (fandisk's
-    sharp creases, the last LODs of a chain) and where it costs little (docs/lod.md). There, with
-    ``seams="auto"`` and UVs, a LOD made from LOD 0 (a chain's first LOD, and the retries from
-    LOD 0 below) is also made by fast-simplification with the seams locked, kept where it reaches
-    the target with a lower error; and a LOD of at most
-    ``AUTO_TINY_TARGET`` triangles is also made from LOD 0 (when LOD 0 has at most
-    ``AUTO_TINY_LOD0``), the lower error kept.
-
-All run on the mesh welded by position (or split only at UV seams, see below), so attribute seams
-never tear the surface. Normals, colours (and UVs where the backend does not supply them) are
-carried over by *closest-point transfer* from LOD 0: each LOD vertex takes the barycentric
-interpolation of LOD 0's attributes at its closest point on LOD 0. This is more accurate than
-copying the collapse-map representative's attributes, whose position has moved. A face corner
-whose own side of the surface (LOD 0's face nearest to the LOD face's centroid, refined by a query
-a quarter of the way from the corner to the centroid) extrapolates to clearly different values at
-the vertex (normals more than 30 degrees apart, UVs 5e-3, colours 0.02: another side of a crease
-or seam) takes that side's values instead, so hard edges and seams split LOD vertices again while
-smooth fields keep one vertex per position. Normals are renormalised; colours clipped to [0, 1].
-
-Where every vertex of a result is bit for bit a vertex of LOD 0 (meshoptimizer never moves a
-vertex, so this holds along a whole meshoptimizer chain), the attributes are instead *copied*:
-each face corner takes the normals, colours and transferred UVs of one LOD 0 vertex at its
-position, bit for bit (``transfer.exact_sources``, ``transfer.exact_corner_sources``: where LOD 0
-has several vertices there, the one on the corner's side, and with the backend's UVs the one with
-those UVs). The LOD -> LOD 0 distance is then exactly 0 at the vertices and only the face
-centroids are queried, against LOD 0 in chunks (``Reference.query_bounded``) rather than one
-tree over all of it. Results whose positions moved (pymeshlab, fast-simplification) keep the
-closest-point transfer.
-
-UV seams (``seams=``)
----------------------
-``"lock"`` (default)
-    The mesh is split along UV seams (vertices unique by (position, uv)) so that every seam is an
-    open boundary, and the backend locks boundary vertices: every seam edge, seam vertex and UV
-    island of the source survives exactly (``SeamStats`` equal), seam vertices keep their exact
-    positions on both sides (no cracks) and the source texture stays valid. The price: faces
-    touching a seam cannot be simplified, so a densely seamed mesh stops reducing early (docs/lod.md).
-    A backend driven into that wall makes forced, bad collapses, so a LOD that misses its target
-    is redone at 1.1x the count reached and the clearly better of the two kept, with a note; one
-    that misses by more than 2x is a failure, and a result whose ``SeamStats``
-    (``lopcook.simplify.topology``) differ from its input's is a failure too. pymeshlab's texture-aware quadric
-    supplies the UVs of interior vertices; with ``fast`` the collapse map gives each output
-    vertex's UV island and UVs are interpolated inside that island (unmoved vertices keep theirs
-    bit for bit).
-``"simplify"`` (pymeshlab only)
-    The texture-aware quadric on the position-welded mesh with per-wedge UVs: seams are simplified
-    along with the mesh (fewer seam edges; islands may merge, vanish or split); the UVs are
-    MeshLab's. Reaches targets where ``"lock"`` cannot. With ``fast`` it means ``"ignore"``.
-``"auto"``
-    ``"simplify"`` for every LOD that reaches its target that way; a LOD that misses it by more
-    than ``TARGET_TOLERANCE`` (meshoptimizer keeps seam vertices it classes as complex: three or
-    more UV copies, or seam sides that do not pair up) is also made as with ``"ignore"`` and the
-    result nearer its target (then the lower error) kept, with a note. Seams never stop the chain,
-    and co-located seam vertices keep one position in both modes; a LOD made the ``"ignore"`` way
-    may smear the texture along the seams its faces straddle.
-``"ignore"``
-    Geometry ignores UVs; UVs come from the closest-point transfer. Triangles that straddle a
-    source seam get UVs from two islands and smear the texture along the seam (the loss is
-    reported through ``SeamStats``).
-``"xatlas"``
-    As ``"ignore"``, then every LOD gets a fresh xatlas atlas. The source texture does **not**
-    match the new atlas: ``Lod.part.texture`` is set to None and a note says the texture must be
-    re-baked (lopcook does not bake textures).
-
-``parametrise(part)`` gives a part without UVs an xatlas atlas (for a texture-space analysis);
-``lod_chain(..., parametrise=True)`` does this to LOD 0 first, so the whole chain shares one atlas
-(kept by ``"lock"``). There is no texture to carry in that case.
-
-Error
------
-``Lod.hausdorff_m`` is the symmetric Hausdorff distance between the LOD and LOD 0 in metres,
-*measured* with libigl point-to-mesh distances (AABB trees), at a cost that follows the LOD's size:
-
-* LOD -> LOD 0: every vertex and face centroid of the LOD (the queries the attribute transfer
-  makes anyway; a vertex that is a LOD 0 vertex is at distance 0 and is not queried). Centroids
-  catch faces that bridge a concavity or cut a corner, which vertices alone miss.
-* LOD 0 -> LOD: a deterministic sample of LOD 0's vertices, spread evenly over LOD 0 (coarse to
-  fine in Morton order), as many as the LOD has vertices and at least 65,536 (all of them on
-  smaller meshes), plus the vertices next to the samples that are at least half the sampled
-  maximum away (``lopcook.simplify.error.sampled_ref_to_lod``).
-
-Sampled, it is a lower bound of the continuous Hausdorff distance (the distance may peak inside a
-face or at a vertex not sampled). ``Lod.error_bound_m`` bounds what the sample can miss: every
-LOD 0 vertex is at most that far from the LOD (1-Lipschitz distance from its sampled neighbour),
-and every LOD vertex and centroid from LOD 0. ``Lod.error_m`` is the monotone envelope along the
-chain, ``max(hausdorff_m, previous error_m)``: the value to select LODs by, non-decreasing by
-construction (the LOD is kept and a note says when the measured value dropped). How close the
-sample comes to querying every vertex and centroid: docs/lod.md. Chains simplify
-each LOD from the previous one (``chain="previous"``, default) or from LOD 0 (``chain="source"``);
-error is always measured against LOD 0. A chained LOD that misses its target by more than 5% is
-redone from LOD 0 and the closer one kept (why ``"previous"`` is the default: docs/lod.md).
-
-Failures (never raised for mesh-quality reasons; each is a note)
-----------------------------------------------------------------
-* parts under 4 triangles: not simplified (LOD 0 only);
-* zero-area and repeated-index faces: dropped before simplification and from every result;
-* non-manifold input (edges with more than two faces, bow-tie vertices): counted in the notes; the
-  backends handle it (pymeshlab's ``preservetopology`` is turned off for it);
-* a backend that raises, returns NaN/out-of-range data, flipped faces (more than
-  ``max_flipped_fraction`` of faces facing more than 120 degrees away from LOD 0's nearest face
-  at the centroid and at two of three points half-way to the corners, or a closed mesh whose
-  signed volume changes sign) or a count more than 2x off its target: the other backend is tried;
-  if it fails too the LOD is not produced (``Lod.failed``) and the chain keeps the previous LODs;
-* a backend that crashes the process: inputs of ``isolate.MIN_FACES`` faces or more are simplified
-  in a forked child (``lopcook.isolate``), so a segmentation fault is a failure like the
-  others and the backend's memory is freed when the result is back.
-
-Copies of one mesh in a scene are simplified once (``lopcook.simplify.instances``, used by
-``lopcook.pipeline``).
+- Backends (``SELECTABLE``): ``"pymeshlab"`` (MeshLab's quadric collapse, texture-aware with
+  UVs), ``"fast"`` (fast-simplification), ``"meshopt"`` (meshoptimizer: output vertices are input
+  vertices), ``"auto"`` (meshoptimizer, and on inputs of at most ``AUTO_BOTH_TRIANGLES``
+  triangles pymeshlab too, the lower measured error kept).
+- UV seams (``SEAM_MODES``): ``"lock"`` keeps every seam exactly (``SeamStats`` equal, a failure
+  otherwise); ``"simplify"`` simplifies them with the mesh; ``"auto"`` simplifies them and,
+  where that misses its target, also ignores them (the better kept); ``"ignore"`` transfers UVs
+  from LOD 0; ``"xatlas"`` makes a
+  fresh atlas (the texture is dropped: re-bake it).
+- Attributes: copied bit for bit from LOD 0 where every LOD vertex is a LOD 0 vertex, else the
+  closest-point transfer from LOD 0 with corners split again at creases and seams
+  (``lopcook.simplify.transfer``); normals unit length, colours in [0, 1].
+- Error (metres, against LOD 0 whatever ``chain``): ``Lod.hausdorff_m`` the measured symmetric
+  Hausdorff distance (the LOD's vertices and centroids, a deterministic sample of LOD 0's
+  vertices: a lower bound of the continuous distance); ``Lod.error_bound_m`` an upper bound of the
+  distance of every LOD vertex and centroid and every LOD 0 vertex to the other mesh;
+  ``Lod.error_m`` = max(hausdorff_m, previous error_m), non-decreasing along the chain.
+- Failures never raise for mesh-quality reasons: a backend that raises, returns unusable data,
+  flips more than ``max_flipped_fraction`` of the faces or misses its target by more than 2x falls
+  back to the others; a LOD none can make ends the chain (``Lod.failed``); each is a note. Inputs
+  of ``isolate.MIN_FACES`` faces or more are simplified in a forked child (a crash is a failure).
+- Deterministic: the same part and arguments give the same chain.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import time
 from dataclasses import dataclass, field, replace
@@ -154,34 +49,23 @@ from ..types import MeshPart
 from .backends import BACKENDS, SELECTABLE, TOPOLOGY_BLIND, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, sampled_ref_to_lod
 from .reference import Reference
-from .topology import mesh_defects, seam_stats
+from .topology import SeamStats, mesh_defects, seam_stats
 from .transfer import transfer_attributes
 from .types import BackendFailure
 
-if TYPE_CHECKING:
-    from .topology import SeamStats
-
-
 SEAM_MODES = ("lock", "simplify", "ignore", "xatlas", "auto")
-
 
 #: a LOD whose triangle count is off its target by more than this fraction gets a note
 TARGET_TOLERANCE = 0.05
 
-
-
-
 #: with locked seams, a LOD that runs into them is redone at this many times the count reached
 _SHORT_OF_WALL = 1.1
-
 
 #: parts with fewer triangles are never simplified
 MIN_SIMPLIFY_TRIANGLES = 4
 
-
 #: a result with more flipped faces than this fraction counts as a failure
 MAX_FLIPPED_FRACTION = 0.02
-
 
 #: ``backend="auto"`` runs pymeshlab as well as meshoptimizer on inputs of at most this many
 #: triangles (where pymeshlab costs well under a second and can measure lower: docs/lod.md)
@@ -193,11 +77,9 @@ AUTO_TINY_LOD0 = 20_000
 
 #: a LOD the chain makes again from LOD 0 (its target missed from the previous LOD) falls back to
 #: the other backends only where LOD 0 has at most this many triangles; above it they would spend
-#: minutes (pymeshlab: 88 s on 4.4M triangles) on a LOD the same backends have just failed to make
-#: from the previous LOD (docs/lod.md)
+#: minutes on a LOD the same backends have just failed to make from the previous LOD (measured:
+#: docs/lod.md)
 RETRY_FALLBACK_TRIANGLES = 100_000
-
-
 
 
 @dataclass
@@ -382,7 +264,14 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
               _retry: bool = False, on_part=None) -> tuple[Lod, int]:
     """One LOD; returns (lod, fallbacks used). ``on_part(part)``: called with the LOD's mesh as
     soon as its attributes are transferred, before its error is measured (the cook starts the
-    LOD's analysis then; the chain may still drop or replace it)."""
+    LOD's analysis then; the chain may still drop or replace it).
+
+    (1) ``"auto"`` backend or seams: the choice between two runs (``_simplify_auto``,
+    ``_seams_auto``); (2) inputs too small to simplify, or a target at or above the input: the
+    input unchanged; (3) each backend in turn (the one asked for, then the others when
+    ``fallback``) until one gives a usable result (``_attempt``), measured (``_measured``) and,
+    with locked seams, stopped short of the wall it ran into (``_short_of_wall``); (4) none did:
+    a failed LOD (the input)."""
     t0 = time.perf_counter()
     notes: list = []
     if backend not in SELECTABLE:
@@ -402,122 +291,176 @@ def _simplify(part: MeshPart, ratio: float, target: int, backend: str, seams: st
         notes.append(f"target {target} >= {part.n_triangles} input triangles: not simplified")
         return _unchanged(part, ref, ratio, target, t0, notes, seams), 0
     attempts = [backend] + ([b for b in BACKENDS if b != backend] if fallback else [])
-    # one zero-area mask for the defect counts and the backend's input
-    degenerate = ref.degenerate if part is ref.part else degenerate_mask(part.positions, part.indices.astype(np.int64))
-    # the defect counts decide pymeshlab's topology flag; the other backends ignore it, so for them
-    # the counts are made while the backend runs in its child (the note keeps its place)
-    topo: dict = {}
-    note_at = len(notes)
-
-    def nonmanifold() -> bool:
-        if not topo:
-            defects = ref.defects if part is ref.part else mesh_defects(part.positions, part.indices, degenerate)
-            topo["bad"] = defects["nonmanifold_edges"] > 0 or defects["nonmanifold_vertices"] > 0
-            if topo["bad"]:
-                notes.insert(note_at, f"non-manifold input: {defects['nonmanifold_edges']} edges with more than "
-                                      f"two faces, {defects['nonmanifold_vertices']} bow-tie vertices (topology "
-                                      f"preservation off)")
-        return topo["bad"]
-
+    source = _Input(part, ref, notes)
     used_fallbacks = 0
-    input_seams = None
     for i, name in enumerate(attempts):
         mode = seams if part.uvs is not None else "-"
         if mode == "simplify" and name == "fast":
             notes.append("fast cannot simplify seams with the mesh: seams='ignore' used")
             mode = "ignore"
-        work_mode = "ignore" if mode in ("-", "xatlas") else mode
         try:
-            work, dropped = prepare(part, work_mode, degenerate)
-            msg = f"{dropped} zero-area faces dropped before simplification"
-            if dropped and msg not in notes:
-                notes.append(msg)
-            if work.faces.shape[0] < MIN_SIMPLIFY_TRIANGLES:
-                raise BackendFailure(f"only {work.faces.shape[0]} non-degenerate triangles")
-            tgt = min(target, work.faces.shape[0] - 1)
-            # large inputs: in a child process (its memory is freed on return; a crash is a failure)
-            job = isolate.begin(run_backend, name, work, tgt, preserve_boundary,
-                                topology=True if name in TOPOLOGY_BLIND else not nonmanifold(),
-                                faces=work.faces.shape[0])
-            try:  # forked: the defect counts and LOD 0's search structures, made while this process would only wait
-                nonmanifold()  # first: its temporaries are freed before the structures are built
-                if job.forked:
-                    ref.warm()
-            except BaseException:
-                job.cancel()
-                raise
-            raw = job.result()
-            del job  # it holds the result too
-            res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
-            del raw  # check_result copied what it keeps: the result's arrays are freed here
-            if work.mode != "lock":
-                # only the locked seams' UVs (transfer.lock_uvs) read the work mesh past the
-                # backend: otherwise its arrays (welded positions, int64 faces) are freed before
-                # the transfer and measurement, where the LOD's peak is
-                work = replace(work, positions=None, faces=None, uvs=None)
-            if dropped_out:
-                notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
-            lod_part, info = transfer_attributes(res, ref, part, work, mode, max_flipped_fraction)
-            del res, work  # not needed past the transfer; freed before the LOD's error tree is built
-            if mode == "xatlas":
-                try:
-                    lod_part = _xatlas_part(lod_part)
-                    notes.append("xatlas atlas: the source texture does not match it (texture dropped; re-bake)")
-                except Exception as exc:  # noqa: BLE001 - a parametriser failure keeps transferred UVs
-                    notes.append(f"xatlas failed ({type(exc).__name__}: {exc}); UVs transferred instead")
-            lod_part.validate()
-            stats = seam_stats(lod_part)
-            if mode == "lock":
-                if input_seams is None:
-                    input_seams = ref.seams if part is ref.part else seam_stats(part)
-                if stats != input_seams:
-                    raise BackendFailure(f"UV seams not kept with seams='lock' ({input_seams.as_dict()} -> "
-                                   f"{stats.as_dict()})")
+            lod_part, info, stats = _attempt(source, name, mode, target, preserve_boundary, max_flipped_fraction)
         except Exception as exc:  # noqa: BLE001 - any backend failure falls back, never raises
             what = str(exc) if isinstance(exc, BackendFailure) else f"{type(exc).__name__}: {exc}"
             nxt = attempts[i + 1] if i + 1 < len(attempts) else None
             notes.append(f"{name} failed: {what}; " + (f"falling back to {nxt}" if nxt else "keeping the previous LOD"))
             used_fallbacks += 1 if nxt else 0
             continue
-        if info["flipped"]:
-            notes.append(f"{info['flipped']} faces face against the source surface (under the "
-                         f"{max_flipped_fraction:.0%} threshold; kept)")
-        if on_part is not None:
-            on_part(lod_part)
-        ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part, on_ref=info.pop("on_ref", None))
-        release_free_memory()  # the transfer's and the LOD tree's temporaries
-        h = max(info["lod_to_ref"], ref_to_lod)
-        tri = lod_part.n_triangles
-        if abs(tri - target) > TARGET_TOLERANCE * target:
-            why = " (seams locked: faces touching a UV seam cannot be simplified)" if mode == "lock" else ""
-            notes.append(f"{tri} triangles for a target of {target} ({(tri - target) / target:+.1%}){why}")
-        if stats is not None and ref.seams is not None and stats != ref.seams and mode != "xatlas":
-            notes.append(f"UV seams changed ({mode}): {ref.seams.as_dict()} -> {stats.as_dict()}")
-        lod = Lod(part=lod_part, target_ratio=ratio, target_triangles=target, triangles=tri, hausdorff_m=h,
-                  error_m=h, backend=name, seams=mode, seconds=time.perf_counter() - t0, notes=notes,
-                  one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats,
-                  error_bound_m=max(info["lod_to_ref"], ref_to_lod_bound))
-        short = int(round(tri * _SHORT_OF_WALL))
-        if mode == "lock" and tri > (1 + TARGET_TOLERANCE) * target and short < part.n_triangles and not _retry:
-            # the locked seams stopped the backend: its last collapses were forced ones. Stop short of
-            # that wall and keep whichever is clearly better.
-            alt, _ = _simplify(part, ratio, short, name, seams, ref, preserve_boundary, False,
-                               max_flipped_fraction, _retry=True)
-            if not alt.failed and alt.hausdorff_m < 0.5 * lod.hausdorff_m:
-                miss = " triangles for a target of "
-                alt.notes = ([n for n in notes if miss not in n and " faces face against " not in n]
-                             + [f"seams locked: the backend stopped at {tri} triangles with error {h:.3g} m; "
-                                f"stopping short at {alt.triangles} triangles gives {alt.hausdorff_m:.3g} m (kept); "
-                                f"{alt.triangles} triangles for a target of {target} "
-                                f"({(alt.triangles - target) / target:+.1%})"]
-                             + [n for n in alt.notes if n not in notes and miss not in n])
-                alt.target_triangles = target
-                alt.seconds = time.perf_counter() - t0
+        lod = _measured(lod_part, info, stats, ref, ratio, target, name, mode, t0, notes, max_flipped_fraction,
+                        on_part)
+        if not _retry:
+            alt = _short_of_wall(part, lod, seams, ref, preserve_boundary, max_flipped_fraction, t0)
+            if alt is not None:
                 return alt, used_fallbacks
         return lod, used_fallbacks
-    nonmanifold()  # the note, where no backend ran
+    source.nonmanifold()  # the note, where no backend ran
     lod = _unchanged(part, ref, ratio, target, t0, notes, seams, failed=True, backend="none")
     return lod, used_fallbacks
+
+
+class _Input:
+    """What every backend's try at one LOD shares about its input ``part``, each computed once:
+    its zero-area face mask (``degenerate``, (faces,) bool), whether it is non-manifold
+    (``nonmanifold``, which also puts the note first in ``notes``) and its UV seams (``seams``)."""
+
+    def __init__(self, part: MeshPart, ref: Reference, notes: list):
+        self.part, self.ref, self.notes = part, ref, notes
+        # one zero-area mask for the defect counts and the backend's input
+        self.degenerate = (ref.degenerate if part is ref.part
+                           else degenerate_mask(part.positions, part.indices.astype(np.int64)))
+        self._note_at = len(notes)
+        self._bad: bool | None = None
+        self._seams: SeamStats | None = None
+
+    def nonmanifold(self) -> bool:
+        """Whether the input has edges of more than two faces or bow-tie vertices (counted once;
+        the note goes where it was when this object was made)."""
+        if self._bad is None:
+            part, ref = self.part, self.ref
+            defects = ref.defects if part is ref.part else mesh_defects(part.positions, part.indices, self.degenerate)
+            self._bad = defects["nonmanifold_edges"] > 0 or defects["nonmanifold_vertices"] > 0
+            if self._bad:
+                self.notes.insert(self._note_at, f"non-manifold input: {defects['nonmanifold_edges']} edges with "
+                                                 f"more than two faces, {defects['nonmanifold_vertices']} bow-tie "
+                                                 f"vertices (topology preservation off)")
+        return self._bad
+
+    def seams(self) -> SeamStats:
+        """The input's ``SeamStats`` (it has UVs)."""
+        if self._seams is None:
+            self._seams = self.ref.seams if self.part is self.ref.part else seam_stats(self.part)
+        return self._seams
+
+
+def _attempt(source: _Input, name: str, mode: str, target: int, preserve_boundary: bool,
+             max_flipped_fraction: float):
+    """Backend ``name``'s LOD of ``source.part`` in seam mode ``mode``: ``(LOD mesh, the transfer's
+    info dict, its SeamStats or None)``; BackendFailure (or any exception) when it is unusable.
+
+    (1) the input welded or split for the mode (``prepare``), zero-area faces dropped; (2) the
+    backend run, in a forked child for large inputs (``isolate.begin``), while this process counts
+    the defects and builds LOD 0's search structures; (3) its result checked (``check_result``);
+    (4) the attributes transferred from LOD 0 (``transfer_attributes``); (5) with ``"xatlas"`` a
+    fresh atlas; (6) with ``"lock"`` every seam must be kept."""
+    part, ref, notes = source.part, source.ref, source.notes
+    work_mode = "ignore" if mode in ("-", "xatlas") else mode
+    work, dropped = prepare(part, work_mode, source.degenerate)
+    msg = f"{dropped} zero-area faces dropped before simplification"
+    if dropped and msg not in notes:
+        notes.append(msg)
+    if work.faces.shape[0] < MIN_SIMPLIFY_TRIANGLES:
+        raise BackendFailure(f"only {work.faces.shape[0]} non-degenerate triangles")
+    tgt = min(target, work.faces.shape[0] - 1)
+    # large inputs: in a child process (its memory is freed on return; a crash is a failure). The
+    # defect counts decide pymeshlab's topology flag; the other backends ignore it, so for them the
+    # counts are made while the backend runs in its child (the note keeps its place)
+    job = isolate.begin(run_backend, name, work, tgt, preserve_boundary,
+                        topology=True if name in TOPOLOGY_BLIND else not source.nonmanifold(),
+                        faces=work.faces.shape[0])
+    try:  # forked: the defect counts and LOD 0's search structures, made while this process would only wait
+        source.nonmanifold()  # first: its temporaries are freed before the structures are built
+        if job.forked:
+            ref.warm()
+    except BaseException:
+        job.cancel()
+        raise
+    raw = job.result()
+    del job  # it holds the result too
+    res, dropped_out = check_result(raw, tgt, work.faces.shape[0])
+    del raw  # check_result copied what it keeps: the result's arrays are freed here
+    if work.mode != "lock":
+        # only the locked seams' UVs (transfer.lock_uvs) read the work mesh past the
+        # backend: otherwise its arrays (welded positions, int64 faces) are freed before
+        # the transfer and measurement, where the LOD's peak is
+        work = replace(work, positions=None, faces=None, uvs=None)
+    if dropped_out:
+        notes.append(f"{name}: {dropped_out} degenerate faces dropped from its result")
+    lod_part, info = transfer_attributes(res, ref, part, work, mode, max_flipped_fraction)
+    del res, work  # not needed past the transfer; freed before the LOD's error tree is built
+    if mode == "xatlas":
+        try:
+            lod_part = _xatlas_part(lod_part)
+            notes.append("xatlas atlas: the source texture does not match it (texture dropped; re-bake)")
+        except Exception as exc:  # noqa: BLE001 - a parametriser failure keeps transferred UVs
+            notes.append(f"xatlas failed ({type(exc).__name__}: {exc}); UVs transferred instead")
+    lod_part.validate()
+    stats = seam_stats(lod_part)
+    if mode == "lock" and stats != source.seams():
+        raise BackendFailure(f"UV seams not kept with seams='lock' ({source.seams().as_dict()} -> "
+                             f"{stats.as_dict()})")
+    return lod_part, info, stats
+
+
+def _measured(lod_part: MeshPart, info: dict, stats, ref: Reference, ratio: float, target: int, name: str,
+              mode: str, t0: float, notes: list, max_flipped_fraction: float, on_part=None) -> Lod:
+    """The ``Lod`` of a usable result ``lod_part`` (``_attempt``'s): its error measured against
+    LOD 0 in both directions (metres: the transfer's LOD -> LOD 0 distance, the sampled LOD 0 ->
+    LOD one, ``sampled_ref_to_lod``), with the notes on flipped faces, a missed target and changed
+    seams. ``on_part(lod_part)`` is called first (before the measurement)."""
+    if info["flipped"]:
+        notes.append(f"{info['flipped']} faces face against the source surface (under the "
+                     f"{max_flipped_fraction:.0%} threshold; kept)")
+    if on_part is not None:
+        on_part(lod_part)
+    ref_to_lod, ref_to_lod_bound, _ = sampled_ref_to_lod(ref, lod_part, on_ref=info.pop("on_ref", None))
+    release_free_memory()  # the transfer's and the LOD tree's temporaries
+    h = max(info["lod_to_ref"], ref_to_lod)
+    tri = lod_part.n_triangles
+    if abs(tri - target) > TARGET_TOLERANCE * target:
+        why = " (seams locked: faces touching a UV seam cannot be simplified)" if mode == "lock" else ""
+        notes.append(f"{tri} triangles for a target of {target} ({(tri - target) / target:+.1%}){why}")
+    if stats is not None and ref.seams is not None and stats != ref.seams and mode != "xatlas":
+        notes.append(f"UV seams changed ({mode}): {ref.seams.as_dict()} -> {stats.as_dict()}")
+    return Lod(part=lod_part, target_ratio=ratio, target_triangles=target, triangles=tri, hausdorff_m=h,
+               error_m=h, backend=name, seams=mode, seconds=time.perf_counter() - t0, notes=notes,
+               one_sided_m=(info["lod_to_ref"], ref_to_lod), flipped=info["flipped"], seam_stats=stats,
+               error_bound_m=max(info["lod_to_ref"], ref_to_lod_bound))
+
+
+def _short_of_wall(part: MeshPart, lod: Lod, seams: str, ref: Reference, preserve_boundary: bool,
+                   max_flipped_fraction: float, t0: float) -> Lod | None:
+    """With locked seams, a ``lod`` of ``part`` that stopped more than ``TARGET_TOLERANCE`` above
+    its target ran into the seams: its last collapses were forced ones. The same backend is run
+    again to ``_SHORT_OF_WALL`` times the count reached (no fallback); that LOD, with the notes
+    merged, when its error is under half of ``lod``'s, else None."""
+    tri, target, h, notes = lod.triangles, lod.target_triangles, lod.hausdorff_m, lod.notes
+    short = int(round(tri * _SHORT_OF_WALL))
+    if not (lod.seams == "lock" and tri > (1 + TARGET_TOLERANCE) * target and short < part.n_triangles):
+        return None
+    alt, _ = _simplify(part, lod.target_ratio, short, lod.backend, seams, ref, preserve_boundary, False,
+                       max_flipped_fraction, _retry=True)
+    if alt.failed or not alt.hausdorff_m < 0.5 * lod.hausdorff_m:
+        return None
+    miss = " triangles for a target of "
+    alt.notes = ([n for n in notes if miss not in n and " faces face against " not in n]
+                 + [f"seams locked: the backend stopped at {tri} triangles with error {h:.3g} m; "
+                    f"stopping short at {alt.triangles} triangles gives {alt.hausdorff_m:.3g} m (kept); "
+                    f"{alt.triangles} triangles for a target of {target} "
+                    f"({(alt.triangles - target) / target:+.1%})"]
+                 + [n for n in alt.notes if n not in notes and miss not in n])
+    alt.target_triangles = target
+    alt.seconds = time.perf_counter() - t0
+    return alt
 
 
 def simplify(part: MeshPart, ratio: float, backend: str = "pymeshlab", *, seams: str = "lock",
@@ -556,6 +499,10 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
         exists (before its error is measured, so the chain may still drop or replace it): the cook
         starts its analysis then
     Other arguments as for ``simplify``. ``error_m`` is non-decreasing along the returned chain.
+
+    Per ratio: (1) the LOD from the previous one (or from LOD 0) (``_simplify``); (2) made from
+    LOD 0 as well where that missed its target or, with ``"auto"``, is tiny (``_again_from_lod0``);
+    (3) kept, or the chain ends (``_accept``).
     """
     if chain not in ("previous", "source"):
         raise ValueError(f"chain must be 'previous' or 'source', got {chain!r}")
@@ -574,16 +521,12 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
                seconds=0.0, seam_stats=ref.seams)
     lods = [lod0]
     n0 = part.n_triangles
+    args = (backend, seams, ref, preserve_boundary, fallback, max_flipped_fraction)
     if n0 < MIN_SIMPLIFY_TRIANGLES:
         report.stop_reason = f"{n0} triangles (< {MIN_SIMPLIFY_TRIANGLES}): LOD 0 only"
         report.notes.append(report.stop_reason)
     else:
-        if ratios is None:
-            ratios = halvings(max_levels, n0, min_triangles)
-            if not ratios:
-                report.stop_reason = f"no target of at least {min_triangles} triangles"
-        ratios = sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)
-        for ratio in ratios:
+        for ratio in _ratios(ratios, n0, min_triangles, max_levels, report):
             target = int(round(ratio * n0))
             if target < min_triangles:
                 report.stop_reason = f"target {target} below min_triangles {min_triangles}"
@@ -592,55 +535,11 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             # the cook's analysis of this LOD starts as soon as its mesh exists (``on_lod`` again
             # below keeps that start when the chain accepts the same mesh)
             early = None if on_lod is None else (lambda p, k=len(lods): on_lod(k, p))
-            lod, used = _simplify(start, ratio, target, backend, seams, ref, preserve_boundary, fallback,
-                                  max_flipped_fraction, on_part=early)
+            lod, used = _simplify(start, ratio, target, *args, on_part=early)
             report.fallbacks += used
-            missed = start is not part and (lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target)
-            # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
-            # LOD 0's own collapse order can do much better (fandisk at 6 triangles: docs/lod.md)
-            tiny = start is not part and backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
-            if missed or tiny:
-                # the previous LOD's collapses may block this target, or decide a tiny LOD's shape:
-                # make it from LOD 0 as well
-                again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary,
-                                         fallback and n0 <= RETRY_FALLBACK_TRIANGLES, max_flipped_fraction,
-                                         on_part=early)
-                nearer = missed and not again.failed and (
-                    lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
-                # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
-                # a tiny target is not "near" it, yet no worse a LOD)
-                lower = not nearer and tiny and (_better(again, lod) or (
-                    not again.failed and again.triangles <= lod.triangles and again.hausdorff_m < lod.hausdorff_m))
-                if missed or lower:
-                    report.fallbacks += used2
-                if nearer:
-                    again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
-                                          f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
-                elif lower:
-                    again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
-                                          f"{lod.hausdorff_m:.3g} m from the previous LOD")
-                if nearer or lower:
-                    lod = again
-            if lod.failed:
-                report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
-                report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                break
-            if lod.triangles >= lods[-1].triangles:
-                report.stop_reason = (f"LOD {ratio:g} has {lod.triangles} triangles, no fewer than the previous "
-                                      f"LOD's {lods[-1].triangles}; dropped")
-                report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                break
-            if lod.hausdorff_m < lods[-1].error_m:
-                lod.notes.append(f"measured error {lod.hausdorff_m:.3g} m below the previous LOD's "
-                                 f"{lods[-1].error_m:.3g} m: error_m raised to keep the chain monotone")
-            lod.error_m = max(lod.hausdorff_m, lods[-1].error_m)
-            if max_error_m is not None and lod.error_m > max_error_m:
-                report.stop_reason = (f"LOD {ratio:g} error {lod.error_m:.3g} m exceeds max_error_m "
-                                      f"{max_error_m:.3g} m; dropped")
-                report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
-                break
-            if lod.triangles < min_triangles:
-                report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
+            if start is not part:
+                lod = _again_from_lod0(lod, part, ratio, target, args, early, report)
+            if not _accept(lod, lods[-1], ratio, max_error_m, min_triangles, report):
                 break
             lods.append(lod)
             if on_lod is not None:
@@ -653,6 +552,84 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
     report.lods = [lod.summary() for lod in lods]
     report.seconds = time.perf_counter() - t0
     return lods, report
+
+
+def _ratios(ratios, n0: int, min_triangles: int, max_levels: int, report: LodReport) -> list[float]:
+    """The chain's ratios, distinct, in (0, 1) and decreasing: ``ratios``, or by default the
+    halvings of ``n0`` triangles down to ``min_triangles`` (at most ``max_levels``; none: the
+    report's stop reason says so)."""
+    if ratios is None:
+        ratios = halvings(max_levels, n0, min_triangles)
+        if not ratios:
+            report.stop_reason = f"no target of at least {min_triangles} triangles"
+    return sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)
+
+
+def _again_from_lod0(lod: Lod, part: MeshPart, ratio: float, target: int, args: tuple, early,
+                     report: LodReport) -> Lod:
+    """``lod``, made from the previous LOD, or the same target made from LOD 0 ``part``: the
+    previous LOD's collapses may block the target (``lod`` failed or missed it by more than
+    ``TARGET_TOLERANCE``: the one nearer the target is kept) or, with ``backend="auto"``, decide a
+    tiny LOD's shape (at most ``AUTO_TINY_TARGET`` triangles of a LOD 0 of at most
+    ``AUTO_TINY_LOD0``: LOD 0's own collapse order is kept where it is better, or no larger and
+    lower in error). ``args`` = (backend, seams, ref, preserve_boundary, fallback,
+    max_flipped_fraction) as ``_simplify`` takes them; the fallbacks run from LOD 0 only where it
+    has at most ``RETRY_FALLBACK_TRIANGLES`` triangles."""
+    backend, seams, ref, preserve_boundary, fallback, max_flipped_fraction = args
+    n0 = part.n_triangles
+    missed = lod.failed or abs(lod.triangles - target) > TARGET_TOLERANCE * target
+    # backend auto, a few dozen triangles: the previous LODs' collapses decide the shape, and
+    # LOD 0's own collapse order can do much better (docs/lod.md)
+    tiny = backend == "auto" and target <= AUTO_TINY_TARGET and n0 <= AUTO_TINY_LOD0
+    if not (missed or tiny):
+        return lod
+    again, used2 = _simplify(part, ratio, target, backend, seams, ref, preserve_boundary,
+                             fallback and n0 <= RETRY_FALLBACK_TRIANGLES, max_flipped_fraction, on_part=early)
+    nearer = missed and not again.failed and (
+        lod.failed or abs(again.triangles - target) < abs(lod.triangles - target))
+    # a tiny LOD: kept when better, or no larger and lower in error (a triangle short of
+    # a tiny target is not "near" it, yet no worse a LOD)
+    lower = not nearer and tiny and (_better(again, lod) or (
+        not again.failed and again.triangles <= lod.triangles and again.hausdorff_m < lod.hausdorff_m))
+    if missed or lower:
+        report.fallbacks += used2
+    if nearer:
+        again.notes.insert(0, f"simplified from LOD 0: from the previous LOD it "
+                              f"{'failed' if lod.failed else f'gave {lod.triangles} triangles'}")
+    elif lower:
+        again.notes.insert(0, f"simplified from LOD 0: {again.hausdorff_m:.3g} m against "
+                              f"{lod.hausdorff_m:.3g} m from the previous LOD")
+    return again if nearer or lower else lod
+
+
+def _accept(lod: Lod, previous: Lod, ratio: float, max_error_m: float | None, min_triangles: int,
+            report: LodReport) -> bool:
+    """Whether ``lod`` joins the chain after ``previous``; setting its ``error_m`` to the monotone
+    envelope max(hausdorff_m, previous.error_m). False (the chain ends, the report says why) when
+    it failed, has no fewer triangles than ``previous``, an error above ``max_error_m`` or fewer
+    than ``min_triangles`` triangles."""
+    if lod.failed:
+        report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
+        report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+        return False
+    if lod.triangles >= previous.triangles:
+        report.stop_reason = (f"LOD {ratio:g} has {lod.triangles} triangles, no fewer than the previous "
+                              f"LOD's {previous.triangles}; dropped")
+        report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+        return False
+    if lod.hausdorff_m < previous.error_m:
+        lod.notes.append(f"measured error {lod.hausdorff_m:.3g} m below the previous LOD's "
+                         f"{previous.error_m:.3g} m: error_m raised to keep the chain monotone")
+    lod.error_m = max(lod.hausdorff_m, previous.error_m)
+    if max_error_m is not None and lod.error_m > max_error_m:
+        report.stop_reason = (f"LOD {ratio:g} error {lod.error_m:.3g} m exceeds max_error_m "
+                              f"{max_error_m:.3g} m; dropped")
+        report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
+        return False
+    if lod.triangles < min_triangles:
+        report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
+        return False
+    return True
 
 
 def chain_warnings(reports: list[dict]) -> list[str]:

@@ -93,7 +93,7 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
     ``on_ref``: (LOD 0 vertices,) bool or None; where True the vertex is known to be a vertex of
     the LOD (``transfer_attributes``' ``info["on_ref"]``): its distance is 0 and is not queried.
     The values are those of querying it."""
-    import igl
+    import igl  # libigl (native) loads when a LOD is first measured
 
     order = ref.sample_order
     pts = order.points

@@ -30,6 +30,7 @@ import numpy as np
 from ..lop.codecs import CODECS
 from ..lop.codecs.normals_oct import NORMALS
 from ..types import MeshPart
+from .error import hausdorff
 
 #: largest position residual of the affine fit, relative to the part's bounding-box diagonal
 RTOL = 1e-9
@@ -157,8 +158,6 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
     LOD 0 is ``copy`` itself, every other LOD ``place``d, errors scaled by the similarity scale or
     measured (module doc), the chain cut where an error exceeds ``max_error_m``. Returns
     ``(lods, report)`` for the copy."""
-    from .error import hausdorff
-
     t0 = time.perf_counter()
     s = similarity_scale(a)
     out = [replace(lods[0], part=copy, notes=list(lods[0].notes))]

@@ -19,8 +19,8 @@ Arguments as for pymeshlab:
   exactly, as with pymeshlab on the seam-split mesh. ``weld=True`` (``seams="simplify"``): seams
   collapse along themselves.
 * ``lock_border``: open-boundary vertices (of the mesh welded by position) are locked, through the
-  lock array as well as ``meshopt_SimplifyLockBorder``: the flag alone moved 589 of DamagedHelmet's
-  1520 border vertices (border vertices that are also seam vertices are not "border" to it).
+  lock array as well as ``meshopt_SimplifyLockBorder``: the flag alone does not lock border
+  vertices that are also seam vertices (they are not "border" to it; docs/lod.md).
 * ``topology`` is accepted for signature compatibility: meshoptimizer's collapses never change the
   topology of manifold regions anyway.
 * ``normals`` (n, 3), optional: added to the attribute metric (weight ``NORMAL_WEIGHT``).
@@ -28,8 +28,8 @@ Arguments as for pymeshlab:
 Error: ``error_m`` is meshoptimizer's ``result_error`` with ``meshopt_SimplifyErrorAbsolute``: the
 square root of the largest collapse's quadric error, in metres for the position part (the
 attribute terms, unitless, are added into it). It is an estimate of the distance from the
-simplified mesh to its *input*, not a bound (docs/performance.md: 0.06 to 1.4 times the measured
-symmetric Hausdorff distance, median 0.46). Along a chain built from the previous LOD, the
+simplified mesh to its *input*, not a bound (its ratio to the measured symmetric Hausdorff
+distance: docs/lod.md). Along a chain built from the previous LOD, the
 distance to LOD 0 is at most the sum of the steps' distances (triangle inequality); ``accumulate``
 sums the steps' errors that way.
 
@@ -150,7 +150,7 @@ def simplify_meshopt(positions, faces, target, *, uvs=None, weld=False, lock_bor
     lock = np.zeros(n, dtype=bool)
     if uvs is not None and not weld:
         lock |= seam_vertices(p)
-    if lock_border:  # meshopt_SimplifyLockBorder alone let DamagedHelmet's border vertices move
+    if lock_border:  # meshopt_SimplifyLockBorder alone leaves border vertices on a seam free to move
         lock |= border_vertices(p, f.reshape(-1, 3))
     lock = np.ascontiguousarray(lock, dtype=np.uint8)
     p32 = np.ascontiguousarray(p, dtype=np.float32)

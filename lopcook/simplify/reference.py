@@ -26,7 +26,7 @@ from .workers import workers
 
 
 #: ``Reference.query_bounded`` builds libigl trees over chunks of at most about this many LOD 0
-#: faces (a tree over 1.1M faces takes about 265 MB)
+#: faces (a tree takes about 240 bytes per face: docs/lod.md)
 CHUNK_FACES = 1 << 18
 
 #: ``Reference.query_bounded`` groups its points by the cells of a grid of this many cells per axis
@@ -170,7 +170,7 @@ class Reference:
 
     def query(self, points: np.ndarray):
         """Closest points on LOD 0 (libigl AABB tree built once): (squared distance, face, point)."""
-        import igl
+        import igl  # libigl (native) loads when LOD 0 is first queried
 
         if self._tree is None:
             self._pos = np.ascontiguousarray(self.positions, dtype=np.float64)
@@ -182,12 +182,12 @@ class Reference:
 
     def query_any(self, points: np.ndarray):
         """``query``'s (squared distance, face, point) for any ``points`` (q, 3), without a tree
-        over all of LOD 0 above ``CHUNK_FACES`` faces (there a tree takes about 240 bytes a face:
-        about 1 GB at 4.4M faces). Each point's distance is at most its distance to the nearest
-        vertex of LOD 0's faces (a point of the surface), found in ``near_index``'s KD-tree; with
-        that bound ``query_bounded`` (``query_near`` for at most one point per
-        ``NEAR_POINTS_PER_FACE`` faces) gives the exact closest distance and point (the face may
-        differ where several are equally close). At most ``CHUNK_FACES`` faces: ``query``."""
+        over all of LOD 0 above ``CHUNK_FACES`` faces (a tree takes about 240 bytes a face). Each
+        point's distance is at most its distance to the nearest vertex of LOD 0's faces (a point
+        of the surface), found in ``near_index``'s KD-tree; with that bound ``query_bounded``
+        (``query_near`` for at most one point per ``NEAR_POINTS_PER_FACE`` faces) gives the exact
+        closest distance and point (the face may differ where several are equally close). At most
+        ``CHUNK_FACES`` faces: ``query``."""
         if self.faces.shape[0] <= CHUNK_FACES:
             return self.query(points)
         pts = np.ascontiguousarray(points, dtype=np.float64)
@@ -205,7 +205,7 @@ class Reference:
 
         Meshes of at most ``CHUNK_FACES`` faces use ``query``'s tree. Larger ones: LOD 0's faces
         cut into chunks by median splits (``chunks``); one libigl tree per chunk is built, queried
-        and freed in turn (memory: one chunk's tree, 1/8 of the whole one's at 1.1M faces). The
+        and freed in turn (memory: one chunk's tree, not the whole one's). The
         chunks are swept once, in order; a point is queried in every chunk whose bounding box is
         within its best distance so far (its bound before its first query). The chunk that holds
         its closest face is always within that distance, so the distance is the exact closest one,
@@ -267,7 +267,7 @@ class Reference:
         """For the chunks ``cs`` in order: ``(c, points, squared distance, face, closest point or
         None)`` of the points whose ``best`` reaches the chunk's box (tested among the chunk's
         ``cand``), ``best`` (this call's own copy) lowered as they are found."""
-        import igl
+        import igl  # libigl (native) loads when LOD 0 is first queried
 
         pos = np.ascontiguousarray(self.positions, dtype=np.float64)
         out = []
@@ -300,7 +300,7 @@ class Reference:
         are split in two at the median of their longest axis, again until each group's faces are
         at most ``CHUNK_FACES`` (one tree per group); a single point with more faces than that is
         queried with ``query_bounded``."""
-        import igl
+        import igl  # libigl (native) loads when LOD 0 is first queried
 
         pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
@@ -341,7 +341,7 @@ class Reference:
         """``(KD-tree over the referenced vertices, their ids, longest edge)`` for ``query_near``,
         built once."""
         if self._near is None:
-            from scipy.spatial import cKDTree
+            from scipy.spatial import cKDTree  # scipy loads only for a LOD 0 above CHUNK_FACES faces
 
             f, p = self.faces, self.positions
             # one contiguous 1-D array per axis and corner ((m,) temporaries; strided (m, 3) gathers

@@ -1,94 +1,40 @@
 """Every attribute's bits chosen by image error: Purnomo's greedy +-1-bit search.
 
 This work is based on: Purnomo, Bilodeau, Cohen and Kumar, "Hardware-Compatible Vertex Compression
-Using Quantization and Simplification", Graphics Hardware 2005, sections 4.1 (the image-space
-metric: renders of the quantized model against the original from the 20 faces of an icosahedron,
-error over object pixels) and 4.2 (Fig. 3: the greedy bit-reduce / bit-increase operators, ended
-when the error stops decreasing). Meyer et al. 2011 section 5.1 give the positions' knob (the k_f
-of ``k_f * E_v * dx(b) <= eps``).
+Using Quantization and Simplification", Graphics Hardware 2005, sections 4.1 (the quantized model
+rendered against the original from the 20 faces of an icosahedron, error over object pixels) and
+4.2 (Fig. 3: the greedy bit-reduce / bit-increase operators); Meyer et al. 2011 section 5.1 give
+the positions' knob (the k_f of ``k_f * E_v * dx(b) <= eps``). The method in full, with its
+reasons: docs/attributes.md, "The attribute search in full".
 
-The allocation (``Allocation``). Per part: the bits per field of each attribute codec in record
-order (``RANGES``, from ``lopcook.lop.codecs``: normals 4..16, UVs 6..16, colours 4..8, ...), each
-None where the part has no such attribute; and one
-scale of the positions' k_f for the whole scene, ``x`` = log2 sigma on the grid of
-``POSITION_STEP`` (every attribute's k_f times sigma, as ``lopcook.tune.calibrate``: a probe cooks
-with ``eps / sigma``; the per-vertex LOP levels stay the analysis's). It is cooked through
-``Settings.attributes.parts`` (``lopcook.settings.AttributeSettings``) and the ordinary pipeline
-(``lopcook.pipeline.run``), so a probe's container is exactly what ``cook`` writes for it.
+An allocation (``Allocation``): per part the bits per field of each attribute codec in record
+order (``RANGES``, from ``lopcook.lop.codecs``), None where the part has no such attribute; one
+scale of the positions' k_f, ``x`` = log2 sigma on the grid of ``POSITION_STEP``; with edges a
+knob, their strictness ``e``. It is cooked through ``Settings.attributes.parts`` and
+``lopcook.pipeline.run``, so a probe's container is exactly what ``cook`` writes for it.
 
-The knobs (``knobs``). Each knob moves one quantity by one step: ``positions`` (x by
-``POSITION_STEP``), and per part and attribute ``normals[i]``, ``uvs[i]``, ... (one bit per field).
-With more than ``MAX_PART_KNOBS`` parts carrying an attribute, one knob moves that attribute on
-every part at once (each clipped to its range): the search's cost grows with the knobs, and a
-scene of many small parts gains little from per-part bits.
+The knobs (``knobs``) move one quantity one step each: positions, edges, and per part and
+attribute one bit per field (past ``MAX_PART_KNOBS`` parts, one knob for all of them). The cost
+(``vertex_bits``): bits per vertex at level ``COST_LEVEL`` over every LOD-0 vertex, the CAP
+position buffer's plus the attribute records'. The error (``Search.quality``): each probe rendered
+quantized (CAP positions, the container's own decoded attributes) against the float source on
+the search's harness; the objective is the worst level's PSNR statistic (dB; ``INF_DB`` for an
+identical render).
 
-The cost (``vertex_bits``): bits per vertex at level ``COST_LEVEL`` (11) over every LOD-0 vertex of
-the scene: the CAP position buffer's bits at that level (``lopcook.lop.summary.memory_rows``,
-word padding included) plus each part's record bits ``S = 2 b_n + 2 b_u + 4 b_c`` times its
-vertices (``lopcook inspect``'s ``vertex_bits`` total at 11, vertex-weighted).
+The searches (``allocate``). ``"budget"`` (``cook --vertex-bits N``): bit-reduce until the cost
+is at most N, then rounds of bit-increase or swap while the error falls (at most
+``MAX_ROUNDS``). ``"target"`` (``cook --target-psnr DB``): from the anchor (the k_f calibration's
+choice, the default bits) bit-increase until the target is reached, then bit-reduce
+(``_best_predicted``, ``_jump``) and swaps while it still passes; the choice is confirmed on the
+gate's harness (``refine_on_gate``, then ``fallbacks`` toward the anchor). With ``watch`` (the
+direct search) the search's harness is the gate's and probes render the watched levels first,
+stopping at their first miss.
 
-The error (``Search.quality``). Each probe is rendered **quantized**: CAP positions decoded on the
-GPU and the container's own decoded normals, UVs and colours (``lopcook.verify.evaluate`` with
-``attributes="container"``), against the float source, on the reduced harness (the calibration's:
-``TuneSettings.calibration``, default 8 views at 640 x 360, levels 6..12). The objective is the
-worst level's PSNR statistic: ``"mean"`` (the PSNR of the view-averaged MSE over object pixels:
-Purnomo average the views' errors) for a bit budget; the tune's ``psnr_stat`` (default ``"min"``
-over views, the gate's) for a quality target. An identical render counts as ``INF_DB``.
-
-The searches. ``budget`` (``cook --vertex-bits N``): from the start allocation (the default cook's
-bound-based bits and k_f), Purnomo's bit-reduce operator (every knob one step down, rendered; the
-least error wins; ties: the lower cost, then the knob order) until the cost is <= N; then rounds of
-(a) bit-increase while it fits (the least error among the steps up that keep cost <= N, taken when
-it lowers the error), else (b) Purnomo's swap: the bit-reduce winner (among the steps down that
-save bits) followed by the best bit-increase of another knob that fits, taken when it lowers the
-error; at most ``MAX_ROUNDS``
-rounds. The result fits N by construction (its cost is computed from its own container).
-``target`` (``cook --target-psnr DB``): from the start (the k_f calibration's choice with the
-default attribute bits, the **anchor**): while it misses, the bit-increase winner (least error)
-until it reaches the target; then while it passes, the bit-reduce winner (least error among the
-steps down that lower the cost) while it still passes, and when it does not, the swap of that
-winner with the bit-increase of another knob that passes and still costs less than the current
-choice (the cheapest such). Then one **confirmation** on verify's harness (``TuneSettings.confirm``,
-20 views at 1280 x 720): when the choice misses there (the reduced harness crops the object at
-high levels, so it flatters coarse positions and UVs on magnified textures), ``refine_on_gate``:
-``last_passing`` bisects the search's path (the passing choices in the order taken, cost falling)
-for the last one that passes the gate (at most 1 + ceil(log2(len(path))) gate renders), freezes
-the knobs of the step after it (``moved_knobs``: what the reduced harness misjudged) and searches
-on from there with the others, confirmed the same way (at most ``MAX_FREEZES`` freezes; the
-record's ``frozen``); when even the path's first misses, ``fallbacks`` walk
-back toward the anchor (the choice's bits at the anchor's k_f, then halfway to the anchor's bits,
-then the anchor), the first that passes the gate is taken; ``reached`` is False (exit 1 in ``cook``) only when the anchor
-misses too, so the search never ends below the default cook's quality.
-
-Direct search (``allocate(..., watch=...)``, ``cook --target-psnr``'s default, after the direct k_f
-calibration of ``lopcook.tune.calibrate``, "Watched levels"): the reduced harness *is* the gate's
-(20 views at 1280 x 720, levels 6..11), a probe renders the watched levels only (the calibration's,
-least margin first) and stops at the first that misses the target, and the confirmation renders
-the choice's other levels (the watched ones are memoised). A level the choice misses there is
-watched from then on, and ``refine_on_gate`` / ``fallbacks`` go on as above, each gated
-allocation rendered at every level. Nothing the search sees can differ from the gate.
-
-Predicted steps (``_best_predicted``, the target search's rounds). Each round of bit-reduce
-predicts every step at the current objective plus its knob's last measured effect of one step
-(dB; a knob never measured is rendered first), renders the steps in that order, and ends the
-round once a rendered step passes and no step left is predicted within ``PREDICT_TOL`` dB of it:
-the least-error step of Purnomo's operator as far as the measured effects tell, without rendering
-the steps that cannot win (a knob whose step missed by several dB is not rendered again until
-every likelier step has missed).
-
-Jumps (``_jump``): after a passing step of a knob whose effect per step is small against the
-margin left (positions on textured assets move by tenths of a dB per half step of log2 k_f), the
-knob is tried ``n`` steps further at once, n = min(``MAX_JUMP``, (objective - target -
-``JUMP_MARGIN_DB``) / max(-effect, ``JUMP_MIN_DB``)); a passing jump is taken (the steps it
-passed over join the path, unrendered, so ``refine_on_gate`` can still stop between them) and the
-next jump is tried at the effect it measured; a failing one (it stops at its first view below the
-target: a few draws) is tried again half as far, and then the greedy steps go on. Measured
-effects are not guarantees: every choice is confirmed by the gate as above.
-
-Determinism: probes are made in a fixed order, ties are broken by cost and knob order, and the
-renderer is deterministic (llvmpipe), so the same command makes the same probes, chooses the same
-allocation and writes the same bytes. Every probe is recorded (``probes``: allocation, bits per
-vertex, PSNR per level, step), the error-against-bits curve of Purnomo's Fig. 11.
+Guarantees: a budget search's choice fits its budget (its cost is computed from its own
+container); a target search never ends below the default cook's quality (``reached`` is False
+only when the anchor misses the gate too). Deterministic: probes in a fixed order, ties broken by
+cost and knob order, a deterministic renderer: the same command writes the same bytes. Every probe
+is recorded (``probes``): the error-against-bits curve of Purnomo's Fig. 11.
 """
 
 from __future__ import annotations
@@ -97,10 +43,20 @@ import math
 import time
 from dataclasses import dataclass, replace
 
+import numpy as np
+
+from ..analyse.prepared import shared as shared_prepared
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
 from ..lop.codecs import CODECS
 from ..lop.memo import with_code_memo
+from ..lop.reader import lod_attributes
+from ..lop.summary import memory_rows
+from ..pipeline import plain, run
+from ..settings import AttributeSettings
+from ..verify import renderer
+from ..verify.buffers import source_order
 from ..verify.evaluate import harness_evaluate
+from .calibrate import stop_rule, view_rule
 
 #: the searched attributes, in record order, with their bit ranges (``lopcook.lop.codecs``)
 RANGES = {c.name: c.bits for c in CODECS}
@@ -230,8 +186,6 @@ def vertex_bits(c, level: int = COST_LEVEL) -> dict:
     buffer bits at ``level`` / vertices), "attributes" (sum of n_i * record bits / vertices),
     "total", "vertices", "per_part" [{"vertices", "record_bits"}]}. The record bits are the
     manifest's ``record_bits`` (the packed record, ``lopcook.lop.record``)."""
-    from ..lop.summary import memory_rows
-
     verts = attr = 0
     per_part = []
     for part in c.manifest["parts"]:
@@ -259,8 +213,6 @@ def container_allocation(c, x: float = 0.0) -> Allocation:
 def cook_settings(settings, alloc: Allocation):
     """``settings`` with ``alloc`` applied: eps divided by 2^x, edge_eps by 2^e (at most 1) when
     edges are a knob, and ``attributes.parts`` set."""
-    from ..settings import AttributeSettings
-
     base = getattr(settings, "attributes", None) or AttributeSettings()
     analyse = {"eps": settings.analyse.eps / 2.0**float(alloc.x)}
     if alloc.e is not None:
@@ -274,10 +226,8 @@ class Search:
     "min" or "mean"; ``progress(dict)`` is called with each probe."""
 
     def __init__(self, scene, settings, *, harness, statistic: str, progress=None, watch=None, goal=None):
-        from ..verify.renderer import shared_harness
-
         #: the watched levels of a direct search (render order; None: every level of the harness) and
-        #: the target a probe's renders stop at (``allocate``, module doc "Direct search")
+        #: the target a probe's renders stop at (``allocate``; "Direct search" in docs/attributes.md)
         self.watch = None if watch is None else [int(b) for b in watch]
         self.goal = None if goal is None else float(goal)
         self.scene = scene
@@ -287,7 +237,7 @@ class Search:
         self.progress = progress
         # the k_f calibration's reduced harness when it ran on this scene (its float renders and
         # decoded draws are reused: ``shared_harness``)
-        self.h = shared_harness(scene, self.resolution).harness
+        self.h = renderer.shared_harness(scene, self.resolution).harness
         self.costs: dict = {}
         self._margin: dict = {}  # level -> PSNR of the last passing probe (a direct search's render order)
         self._position_bits: dict = {}  # (x, e) -> positions' bits per vertex at COST_LEVEL
@@ -308,8 +258,6 @@ class Search:
         before it renders them). On the plain path the analysis comes from one ``PreparedAnalysis``
         of the search (only what eps changes is recomputed: the same minimum levels, so the same
         bytes, as a fresh cook)."""
-        from ..pipeline import plain, run
-
         k = alloc.key()
         for i, (key, kept) in enumerate(self._recent):
             if key == k:
@@ -319,9 +267,7 @@ class Search:
         analysis = None
         if plain(s):
             if self._prepared is None:  # the k_f calibration's, when it ran on this scene
-                from ..analyse.prepared import shared
-
-                self._prepared = shared(self.scene, self.settings.analyse)
+                self._prepared = shared_prepared(self.scene, self.settings.analyse)
             analysis = self._prepared.analyse(s.analyse.eps, s.analyse.edge_eps)
         c = run(self.scene, s, options=s.to_manifest()["options"], analysis=analysis).container
         self._recent = (self._recent + [(k, c)])[-KEEP_COOKED:]
@@ -359,8 +305,6 @@ class Search:
         cost = self.cost(alloc)
         levels, stop, stop_view = self.levels, None, None
         if self.watch is not None and self.goal is not None:
-            from .calibrate import stop_rule, view_rule
-
             # the watched levels, least margin first as the last passing probe measured them (a step
             # that misses usually misses where the margin was least: the miss is then found first)
             watch = sorted(self.watch, key=lambda b: (self._margin.get(b, -INF_DB), self.watch.index(b)))
@@ -430,11 +374,11 @@ def _best(search: Search, cands: list[tuple[Knob, Allocation]], name: str,
 def _best_predicted(search, cands: list[tuple[Knob, Allocation]], name: str, q_cur: float, effect: dict,
                     target: float, measured: list) -> tuple | None:
     """``_best`` of the steps down ``cands`` from an allocation of objective ``q_cur``, rendering
-    fewer (module doc, "Predicted steps"): each step is predicted at ``q_cur`` plus its knob's last
-    measured effect (``effect``; a knob never measured is rendered first), and rendered in order of
-    prediction; once a rendered step passes ``target`` and no step left is predicted within
-    ``PREDICT_TOL`` dB of it, the rest are not rendered. ``measured`` receives (knob, objective) of
-    each step rendered."""
+    fewer ("Predicted steps" in docs/attributes.md): each step is predicted at ``q_cur`` plus its
+    knob's last measured effect (``effect``; a knob never measured is rendered first), and rendered
+    in order of prediction; once a rendered step passes ``target`` and no step left is predicted
+    within ``PREDICT_TOL`` dB of it, the rest are not rendered. ``measured`` receives (knob,
+    objective) of each step rendered."""
     order = sorted(range(len(cands)), key=lambda i: (-(q_cur + effect[cands[i][0].name])
                                                     if cands[i][0].name in effect else -INF_DB, i))
     best = None
@@ -456,8 +400,8 @@ def _best_predicted(search, cands: list[tuple[Knob, Allocation]], name: str, q_c
 
 def _jump(search, cur: Allocation, knob: Knob, q: float, effect: dict, target: float, frozen) -> Allocation:
     """After a passing step down of ``knob`` to ``cur`` (objective ``q``): when its effect per
-    step is small against the margin left, try that knob ``n`` steps further at once (module doc,
-    "Jumps"), n = min(``MAX_JUMP``, (q - target - ``JUMP_MARGIN_DB``) / max(-effect,
+    step is small against the margin left, try that knob ``n`` steps further at once ("Jumps" in
+    docs/attributes.md), n = min(``MAX_JUMP``, (q - target - ``JUMP_MARGIN_DB``) / max(-effect,
     ``JUMP_MIN_DB``)); a passing jump is taken (added to the path), a failing one is tried again
     half as far (while that is 2 steps or more), and then the greedy steps go on from where they
     are; after a passing jump the next is tried at once, with the effect per step that jump
@@ -688,15 +632,11 @@ def gate_quality(scene, c, confirm, levels, statistic: str, stop_below: float | 
     (those rendered)}. ``stop_below`` (dB): the renders end after the first level that misses it
     (the levels in the order given). ``cooked_here``: ``c`` was cooked from ``scene`` by the caller
     (the harness then skips checking that it was: ``harness_evaluate``'s ``cooked_from``)."""
-    from ..verify.renderer import shared_harness
-
     stop = stop_view = None
     if stop_below is not None:
-        from .calibrate import stop_rule, view_rule
-
         stop, stop_view = stop_rule(float(stop_below), statistic), view_rule(float(stop_below), statistic)
     # the k_f calibration's gate harness: its float renders, and its draws of the same buffers, are reused
-    with shared_harness(scene, tuple(confirm[1])) as h:
+    with renderer.shared_harness(scene, tuple(confirm[1])) as h:
         res = harness_evaluate(h, c, levels=levels, views=confirm[0], variants=("cap",), attributes="container",
                                stop=stop, stop_view=stop_view, cooked_from=scene if cooked_here else None)
     per = [r["cap"][f"psnr_{statistic}"] for r in res["levels"]]
@@ -712,11 +652,6 @@ def attribute_errors(c, scene) -> list[dict]:
     (degrees, max and mean over vertices, decoded normal normalised) and UVs' error in texels
     (max over vertices of the per-component error times the texture's size; in UV units when the
     part has no texture). Vertices matched by order (``lopcook.verify.buffers.source_order``)."""
-    import numpy as np
-
-    from ..lop.reader import lod_attributes
-    from ..verify.buffers import source_order
-
     orders = source_order(c, scene)
     out = []
     for i, p in enumerate(scene.parts):
@@ -755,9 +690,8 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
     """Run one search (module doc). ``mode`` "budget" (``goal`` bits per vertex) or "target"
     (``goal`` dB); ``settings`` the cook's (for "target" the k_f calibration's choice already
     applied); ``harness`` (views, (w, h), levels) the reduced harness; ``confirm`` (views, (w, h))
-    the gate's or None. ``watch`` (target mode): the watched levels of a direct search (module doc,
-    "Direct search"; ``harness`` is then the gate's, and so is ``confirm``), None: every probe renders
-    every level.
+    the gate's or None. ``watch`` (target mode): the watched levels of a direct search (module doc;
+    ``harness`` is then the gate's, and so is ``confirm``), None: every probe renders every level.
 
     Returns the search record: {"mode", "goal", "statistic", "harness", "start" and "choice"
     (allocation records), "bits_per_vertex" (choice's, at ``COST_LEVEL``), "vertex_bits" (its
@@ -767,15 +701,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
     if mode not in MODES:
         raise ValueError(f"mode {mode!r}")
     t0 = time.perf_counter()
-    from ..pipeline import plain, run
-
-    analysis = None
-    if plain(settings):  # the prepared analysis the search's probes use (the same buffers)
-        from ..analyse.prepared import shared
-
-        analysis = shared(scene, settings.analyse).analyse(settings.analyse.eps, settings.analyse.edge_eps)
-    base = run(scene, settings, options=settings.to_manifest()["options"], analysis=analysis).container
-    del analysis
+    base = _base_cook(scene, settings)
     start = container_allocation(base, 0.0)
     if mode == "target" and settings.analyse.edges:  # the edge constraint's strictness is a knob too
         start = replace(start, e=0.0)
@@ -784,19 +710,7 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
                     watch=watch if direct else None, goal=goal if direct else None)
     conf = []
     frozen: list = []
-    all_levels = [int(b) for b in harness[2]]
-
-    def gate(c) -> dict:
-        """The gate's verdict on container ``c``: every level; a direct search renders the watched
-        levels first, stops at the first miss and watches the level it missed from then on."""
-        if not direct:
-            return gate_quality(scene, c, confirm, all_levels, statistic, cooked_here=True)
-        order = search.watch + [b for b in all_levels if b not in search.watch]
-        g = gate_quality(scene, c, confirm, order, statistic, stop_below=float(goal), cooked_here=True)
-        if g["objective_db"] < float(goal) and g["levels"] and g["levels"][-1] not in search.watch:
-            search.watch.append(g["levels"][-1])
-        return g
-
+    gate = _gate(search, confirm, [int(b) for b in harness[2]], statistic, float(goal), direct)
     try:
         if mode == "budget":
             choice = search_budget(search, start, float(goal))
@@ -810,26 +724,9 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
         if confirm is not None:
             g = gate(c)
             conf.append(dict(g, allocation=choice.record(), role="choice"))
-            gated = {choice.key(): g["objective_db"]}
             if mode == "target":
-                reached = g["objective_db"] >= float(goal)
-                if not reached:
-                    got = refine_on_gate(search, choice, float(goal),
-                                         lambda a, role: _gate_record(search, a, gate, float(goal), conf, role,
-                                                                      gated))
-                    if got is not None:
-                        choice, frozen = got
-                        c, objective, reached = search.cook(choice), search.quality(choice, "confirm path"), True
-                # walk back toward the anchor (``fallbacks``)
-                for role, a in fallbacks(choice, start):
-                    if reached:
-                        break
-                    ca = search.cook(a)
-                    ga = gate(ca)
-                    conf.append(dict(ga, allocation=a.record(), role=role))
-                    if ga["objective_db"] >= float(goal) or role == "anchor":
-                        choice, c, objective = a, ca, search.quality(a, f"confirm {role}")
-                        reached = ga["objective_db"] >= float(goal)
+                choice, c, objective, reached, frozen = _confirm_target(search, start, choice, c, objective, g,
+                                                                        float(goal), gate, conf)
     finally:
         search.close()
     vb = vertex_bits(c)
@@ -842,6 +739,63 @@ def allocate(scene, settings, *, mode: str, goal: float, harness, confirm=None, 
             "watch": None if search.watch is None else list(search.watch),
             "probes": search.probes, "seconds": round(time.perf_counter() - t0, 3),
             "attribute_errors": attribute_errors(c, scene), "_settings": cook_settings(settings, choice)}
+
+
+def _base_cook(scene, settings):
+    """The container of the cook ``settings`` make (the search's start), its analysis on the plain
+    path from the scene's prepared analysis (the one the search's probes use: the same buffers)."""
+    analysis = None
+    if plain(settings):  # the prepared analysis the search's probes use (the same buffers)
+        analysis = shared_prepared(scene, settings.analyse).analyse(settings.analyse.eps, settings.analyse.edge_eps)
+    base = run(scene, settings, options=settings.to_manifest()["options"], analysis=analysis).container
+    del analysis
+    return base
+
+
+def _gate(search: Search, confirm, levels: list, statistic: str, goal: float, direct: bool):
+    """``gate(container) -> dict``: the gate's verdict (``gate_quality`` on ``confirm``) at every
+    level of ``levels``; a direct search renders the watched levels first, stops at the first miss
+    and watches the level it missed from then on (``search.watch``)."""
+
+    def gate(c) -> dict:
+        if not direct:
+            return gate_quality(search.scene, c, confirm, levels, statistic, cooked_here=True)
+        order = search.watch + [b for b in levels if b not in search.watch]
+        g = gate_quality(search.scene, c, confirm, order, statistic, stop_below=goal, cooked_here=True)
+        if g["objective_db"] < goal and g["levels"] and g["levels"][-1] not in search.watch:
+            search.watch.append(g["levels"][-1])
+        return g
+
+    return gate
+
+
+def _confirm_target(search: Search, start: Allocation, choice: Allocation, c, objective: float, g: dict,
+                    goal: float, gate, conf: list) -> tuple:
+    """A target search's choice after its gate render ``g``: kept when it passes; else the path
+    refined on the gate (``refine_on_gate``), and, when that finds nothing, the ``fallbacks``
+    toward the anchor ``start`` rendered on the gate until one passes (the anchor itself is taken
+    either way). Every gate render is appended to ``conf``. Returns ``(choice, its container, its
+    objective on the search's harness, reached, the frozen knob names)``."""
+    frozen: list = []
+    gated = {choice.key(): g["objective_db"]}
+    reached = g["objective_db"] >= goal
+    if not reached:
+        got = refine_on_gate(search, choice, goal,
+                             lambda a, role: _gate_record(search, a, gate, goal, conf, role, gated))
+        if got is not None:
+            choice, frozen = got
+            c, objective, reached = search.cook(choice), search.quality(choice, "confirm path"), True
+    # walk back toward the anchor (``fallbacks``)
+    for role, a in fallbacks(choice, start):
+        if reached:
+            break
+        ca = search.cook(a)
+        ga = gate(ca)
+        conf.append(dict(ga, allocation=a.record(), role=role))
+        if ga["objective_db"] >= goal or role == "anchor":
+            choice, c, objective = a, ca, search.quality(a, f"confirm {role}")
+            reached = ga["objective_db"] >= goal
+    return choice, c, objective, reached, frozen
 
 
 def search_record(result: dict) -> dict:

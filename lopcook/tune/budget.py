@@ -1,72 +1,34 @@
 """Byte-budget fit: the LOD and per-buffer level with the least image error within N bytes.
 
 This work is based on: Purnomo, Bilodeau, Cohen, Kumar, "Hardware-Compatible Vertex Compression
-Using Quantization and Simplification", Graphics Hardware 2005, section 5 (combining quantization
-and simplification under a total size; Fig. 8: trade vertices against bits per vertex and keep the
-least image error; Fig. 11: error against bits per vertex for one size; Fig. 12: 1/6 of the
-original size) and section 4.1 (image-space error over 20 views); with the positions of Meyer et
-al. 2011 (binned adaptive precision buffers, ``lopcook.emit``).
+Using Quantization and Simplification", Graphics Hardware 2005, section 5 (quantization and
+simplification under one total size; Figs. 8, 11, 12) and section 4.1 (image-space error over
+20 views); the positions are Meyer et al. 2011's binned adaptive precision buffers
+(``lopcook.emit``). The steps in full: docs/budget.md, "The fit, step by step".
 
-Steps of ``fit``:
+``fit(scene, target_bytes, settings) -> (container bytes, info)``:
 
-1. Cook the LOD chain (``lopcook.pipeline.run``; default ratios 1/2, 1/4, 1/8, ... as
-   ``lod_chain`` makes them, ``default_ratios``), all on one grid, every plane the viewing allows.
-2. For every LOD k and level B in 1..(highest level in the file): the **candidate (k, B)** is the
-   container holding only LOD k with every vertex at B bits per component: planes above B are not
-   written and vertices whose minimum level is above B are stored at B (``build(max_level=B)``,
-   in the cook's cluster layout;
-   their count is ``clamped_vertices``: the budget trades their shading guarantee for bytes, and
-   the image error measures what that costs). Its GPU buffer at level B is exactly AP at B of the
-   chain's LOD k (``lopcook.verify.buffers.ap_buffer``), which is what is rendered.
-3. Bytes of a candidate (``candidate_bytes``), by ``scope``:
+1. The LOD chain is cooked on one grid (``lopcook.pipeline.run``; default ratios
+   ``default_ratios``: 1/2, 1/4, ... as ``lod_chain`` makes them).
+2. A candidate (k, B) is LOD k alone with every vertex at B bits per component: planes above B
+   are not written, vertices whose minimum level is above B are stored at B
+   (``clamped_vertices``). Its GPU buffer at B is AP at B of the chain's LOD k.
+3. Its bytes (``candidate_bytes``), by ``scope`` (``SCOPES``): ``"positions"`` the GPU-resident
+   position buffer at B in the cook's cluster layout (float size: 12 bytes per LOD-0 vertex);
+   ``"vertices"`` plus the stored attribute records (float: float32 normals, UVs, colours);
+   ``"all"`` plus the stored index buffer (float: 32-bit indices of LOD 0).
+4. Its image error: rendered against the float source (LOD 0) from ``views`` at ``resolution``,
+   every candidate at one camera distance (``camera_distance``); the score is ``psnr_mean``, the
+   PSNR of the view-averaged MSE over object pixels (dB; None = identical).
+5. Rendered per LOD: the largest fitting level (``level_fit``) and ``levels_per_lod - 1`` below
+   it; a LOD that fits at the file's highest level dominates every coarser one.
+6. The choice: the highest ``psnr_mean`` (ties: fewer bytes, then the finer LOD), written from the
+   same buffers (one LOD per part, planes 2..B); the record (``budget_record``, with the
+   quantize-only and simplify-only baselines) goes to the manifest's ``options.budget``.
 
-   * ``"positions"`` (default): the GPU-resident position buffer at level B of the container
-     that would be written (``lopcook.emit.PositionSizer``; the written container's ``cap_bytes``
-     at B, ``lopcook.lop.summary.memory_rows``). Unclustered (``cook --clusters 0``): 3 B bits
-     per vertex, whole 32-bit words per buffer (AP at B). Clustered (the default,
-     ``settings.emit.clusters``): each buffer in the layout the cook's encoding chooses for it
-     (``clustering_wins``): the words of P with every vertex at B bits less its cluster's shared
-     top bits, plus 16 B per cluster record and the 128-byte ClusterId table. Float size: 12 bytes
-     per LOD-0 vertex (``memory_rows``'s ``float32_bytes``).
-   * ``"vertices"``: plus the normals, UVs and colours as stored in the container (the packed
-     attribute record, ``4 ceil(n S / 32)`` bytes per buffer for S = 2 b_n + 2 b_u + 4 b_c
-     bits per vertex at the part's attribute bits; the section lengths). Float size: plus float32
-     normals (12), UVs (8) and colours (16) per LOD-0 vertex where the part has them. This is
-     Purnomo's "number of vertices times bits per vertex".
-   * ``"all"``: plus the index buffer as stored (16-bit indices for buffers of at most 65,535
-     vertices, else 32-bit). Float size: plus 32-bit indices of LOD 0 (12 bytes per triangle).
-
-   A multi-part scene sums over parts; "LOD k" of a part with a shorter chain is its last LOD.
-   Bits per vertex (the chart's x axis) = 8 * bytes / vertices of the candidate.
-4. Image error: the candidate rendered against the float source (LOD 0) from ``views`` of the 20
-   icosahedron views at ``resolution`` (default 640x360), all at **one camera distance** (Purnomo
-   measures every candidate at one viewing setup; ``camera_distance``): the ``--nearest`` distance
-   when the viewing conditions give it (the closest any camera gets: where errors show most), else
-   the *frame distance* ``r / sin(a/2)`` from the nearest point of the scene's bounding box, with
-   ``r`` its half diagonal and ``a`` the smaller of the vertical and horizontal fields of view --
-   the whole object in view and as large as that allows in every direction, as Purnomo's renders
-   show it. The score is ``psnr_mean``: the PSNR of the mean over views of the MSE over object pixels
-   (``lopcook.verify.metrics``; None = identical = infinitely good).
-5. Which candidates are rendered: per LOD, the largest level that fits (``level_fit``) and the
-   ``levels_per_lod - 1`` levels below it (fewer bits at the same LOD only add error; they are
-   rendered for the chart and as a check); a LOD that fits at the file's highest level is rendered
-   at that level only, and every coarser LOD is then *dominated* (fewer triangles, no more bits to
-   gain) and not rendered. Every LOD's row says which of these applied.
-6. The choice: the rendered candidate with the highest ``psnr_mean`` (ties: fewer bytes, then the
-   finer LOD). It is written with ``lopcook.emit.build`` from the same buffers (same grid, same
-   bits as rendered): one LOD per part (``min_distance_m`` 0: it is shown at every distance),
-   planes 2..B. The record (``budget_record``) goes to the manifest's ``options.budget``.
-7. Baselines, for the record and the report: **quantize only** = LOD 0 at its largest fitting
-   level (a rendered candidate); **simplify only** = the finest LOD whose *float* buffer fits
-   (float32 positions, and float32 attributes / 32-bit indices in the wider scopes), rendered as a
-   float scene (``lopcook.verify.evaluate.harness_evaluate_scene``; its positions are the chain's 24-bit grid positions,
-   within extent * 2^-25 of the simplifier's output, below float32 rounding at that extent).
-
-Nothing fits -- not even the smallest candidate, the coarsest LOD at level 1 -- is a
-``LopcookError`` (exit 2) naming the smallest candidate's bytes.
-
-Cost: one cook of the chain plus ``views`` renders per rendered candidate (the float reference is
-rendered once per view and cached); measured costs are in docs/budget.md.
+Nothing fits (not even the coarsest LOD at level 1): ``LopcookError`` (exit 2) naming the smallest
+candidate's bytes. The same scene, target and settings give the same bytes (the renderer is
+deterministic). Measured costs: docs/budget.md.
 """
 
 from __future__ import annotations
@@ -77,13 +39,17 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..emit import PositionSizer, build
+from ..errors import LopcookError
 from ..lop.binning import LEVELS
 from ..lop.manifest import FLOAT32_BYTES_PER_VERTEX
-from ..errors import LopcookError
+from ..pipeline import run
 from ..settings import DEFAULT_LOD_LEVELS, DEFAULTS, BudgetScope, LodSpec, Settings, halvings
 from ..simplify import MIN_SIMPLIFY_TRIANGLES
-from ..types import Scene
+from ..types import MeshPart, Scene
+from ..verify.buffers import lod_indices
 from ..verify.evaluate import harness_evaluate, harness_evaluate_scene
+from ..verify.renderer import Harness, Shading
 from ..viewing import Viewing
 
 SCOPES = tuple(s.value for s in BudgetScope)
@@ -218,8 +184,6 @@ def _round(p):
 
 def _simplified_scene(scene: Scene, grid, buffers, lods: list[int]) -> Scene:
     """The float scene of LOD ``lods[i]`` per part: 24-bit grid positions, float attributes."""
-    from ..types import MeshPart
-
     parts = []
     for i, (p, k) in enumerate(zip(scene.parts, lods)):
         b = buffers[i][k]
@@ -240,12 +204,14 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     ----------
     scene : the source (LOD 0; the float reference of every render).
     target_bytes : N, the budget in bytes under ``scope`` (int > 0).
-    settings, viewing : analysis settings and viewing conditions (recorded; ``viewing.nearest_m``
-        also fixes the camera distance and which planes exist).
-    lod_ratios : LOD chain ratios (default ``default_ratios``); lod_backend: ``"pymeshlab"``/``"fast"``.
+    settings : the cook's: analysis settings and viewing conditions (recorded; ``viewing.nearest_m``
+        also fixes the camera distance and which planes exist), the chain's ratios
+        (``simplify.lods``, default ``default_ratios``) and backend (``simplify.backend``), the
+        position layout (``emit.clusters``, ``emit.cluster_all``).
     scope : ``"positions"``, ``"vertices"`` or ``"all"`` (module doc, step 3).
     views : N icosahedron views or a list of indices; resolution : (w, h) pixels of the renders.
     levels_per_lod : levels rendered per LOD, the largest fitting one and those below it (>= 1).
+    samples : MSAA samples of the renders.
     options : manifest options of the written container (``budget`` is added).
     progress : optional callable(str) for stage lines.
 
@@ -253,11 +219,6 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     (``budget_record``), ``info["cook"]`` the chain's ``lopcook.pipeline.CookResult``,
     ``info["timings_s"]`` (``cook``, ``render``, ``emit``).
     """
-    from ..emit import PositionSizer, build
-    from ..pipeline import run
-    from ..verify.buffers import lod_indices
-    from ..verify.renderer import Harness, Shading
-
     _check_scope(scope)
     target = int(target_bytes)
     if target <= 0:
@@ -278,23 +239,64 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
     cooked = run(scene, chain, options=options, keep_buffers=True)
     c = cooked.container
     timings["cook"] = time.perf_counter() - t0
-    depth = max(len(p["lods"]) for p in c.manifest["parts"])
     n_cluster, every = settings.emit.clusters, settings.emit.cluster_all
+    position_bytes = _position_bytes(cooked.buffers, n_cluster, every)
+    fsize = float_bytes(scene, scope)
+
+    # (2)+(3) bytes of every candidate; the largest fitting level per LOD
+    lod_rows, plan = _plan(c, target, scope, position_bytes, levels_per_lod, scene.source)
+
+    # (4)+(5) render the candidates (and the simplify-only baseline) at one camera distance
+    t0 = time.perf_counter()
+    distance, rule = camera_distance(scene, viewing, resolution)
+    candidates, simplify, view_ids, camera_level = _render(scene, cooked, plan, lod_rows, target, scope,
+                                                           position_bytes, views, resolution, samples, distance,
+                                                           viewing, say)
+    timings["render"] = time.perf_counter() - t0
+
+    # (6) the choice, written from the same buffers
+    best = min(candidates, key=lambda x: (-_psnr_key(x["psnr_mean"]), x["bytes"], x["lod"], -x["level"]))
+    quantize = next((x for x in candidates if x["lod"] == 0 and x["level"] == lod_rows[0]["level_fit"]), None)
+    record = budget_record(target=target, scope=scope, float_size=fsize, distance=distance, rule=rule,
+                           camera_level=camera_level, views=view_ids, resolution=resolution, samples=samples,
+                           ratios=ratios, backend=lod_backend, lod_rows=lod_rows, candidates=candidates,
+                           chosen=best, quantize=quantize, simplify=simplify, levels_per_lod=levels_per_lod)
+    t0 = time.perf_counter()
+    chosen_lods = lod_indices(c, best["lod"])
+    buffers = [[replace(cooked.buffers[i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
+    opts = dict(options or {})
+    opts["budget"] = record
+    data = build(scene, cooked.analysis, options=opts, viewing=viewing, lods=buffers, max_level=best["level"],
+                 cluster_size=n_cluster, cluster_all=every)
+    timings["emit"] = time.perf_counter() - t0
+    say(f"budget: chose LOD {best['lod']} at level {best['level']}: {best['bytes']:,} of {target:,} bytes")
+    return data, {"budget": record, "cook": cooked, "analysis": cooked.analysis, "timings_s": timings}
+
+
+def _position_bytes(buffers, n_cluster, every: bool):
+    """``position_bytes(i, k, b)``: bytes of part i's LOD k positions written at highest plane b,
+    as ``build`` will write them (``lopcook.emit.PositionSizer`` over ``buffers[i][k]``, the
+    chain's BufferInputs, in the layout of ``n_cluster`` / ``every``); each memoised."""
     sizers: dict = {}
     sizes: dict = {}
 
     def position_bytes(i: int, k: int, b: int) -> int:
-        """Position bytes of part i's LOD k written at highest plane b (as ``build`` will write it)."""
         if (i, k, b) not in sizes:
             if (i, k) not in sizers:
-                sizers[i, k] = PositionSizer(cooked.buffers[i][k], n_cluster, cluster_all=every)
+                sizers[i, k] = PositionSizer(buffers[i][k], n_cluster, cluster_all=every)
             sizes[i, k, b] = sizers[i, k].bytes_at(b)
         return sizes[i, k, b]
 
-    available = int(c.available_level)
-    fsize = float_bytes(scene, scope)
+    return position_bytes
 
-    # (2)+(3) bytes of every candidate; the largest fitting level per LOD
+
+def _plan(c, target: int, scope: str, position_bytes, levels_per_lod: int, source) -> tuple[list, list]:
+    """Steps (2)+(3) and (5): per LOD of the chain's container ``c`` its row for the record (lod,
+    vertices, triangles, geometric_error_m, level_fit, bytes_at_level_1, float_bytes, status
+    rendered / does not fit / dominated) and the plan ``[(k, lods, levels to render)]``.
+    LopcookError (budget, exit 2) when no LOD fits even at level 1 (``source``: the scene's file)."""
+    depth = max(len(p["lods"]) for p in c.manifest["parts"])
+    available = int(c.available_level)
     lod_rows, plan = [], []
     dominated = False
     for k in range(depth):
@@ -320,17 +322,25 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
         lod_rows.append(row)
     if not plan:
         smallest = min(lod_rows, key=lambda r: (r["bytes_at_level_1"], r["lod"]))
-        raise LopcookError("budget", scene.source,
+        raise LopcookError("budget", source,
                            f"nothing fits in {target:,} bytes ({scope} scope): the smallest candidate, LOD "
                            f"{smallest['lod']} ({smallest['vertices']:,} vertices) at level 1, takes "
                            f"{smallest['bytes_at_level_1']:,} bytes",
                            hint=f"give --target-bytes {smallest['bytes_at_level_1']} or more, coarser --lods, "
                                 f"or a narrower --budget-scope")
+    return lod_rows, plan
 
-    # (4)+(5) render the candidates (and the simplify-only baseline) at one camera distance
-    t0 = time.perf_counter()
-    distance, rule = camera_distance(scene, viewing, resolution)
+
+def _render(scene: Scene, cooked, plan: list, lod_rows: list, target: int, scope: str, position_bytes, views,
+            resolution, samples: int, distance: float, viewing: Viewing, say):
+    """Step (4): every planned candidate of the chain ``cooked`` (a CookResult) rendered as AP at
+    its level against the float source at ``distance`` metres, and the simplify-only baseline (the
+    finest LOD whose float size fits ``target``, rendered as a float scene under ``viewing``), on
+    one harness.
+    Returns ``(candidates, simplify-only record or None, the view indices, the camera's level)``."""
+    c = cooked.container
     extent = float(c.manifest["grid"]["extent"])
+    available = int(c.available_level)
     candidates = []
     simplify = None
     with Harness(scene, resolution, samples, cache_float=True) as h:
@@ -358,25 +368,7 @@ def fit(scene: Scene, target_bytes: int, settings: Settings = DEFAULTS, *, scope
             simplify = {"lod": row["lod"], "vertices": row["vertices"], "triangles": row["triangles"],
                         "bytes": row["float_bytes"], "bits_per_vertex": 8.0 * row["float_bytes"] / max(row["vertices"], 1),
                         "psnr_mean": _round(s["psnr_mean"]), "psnr_min": _round(s["psnr_min"])}
-    timings["render"] = time.perf_counter() - t0
-
-    # (6) the choice, written from the same buffers
-    best = min(candidates, key=lambda x: (-_psnr_key(x["psnr_mean"]), x["bytes"], x["lod"], -x["level"]))
-    quantize = next((x for x in candidates if x["lod"] == 0 and x["level"] == lod_rows[0]["level_fit"]), None)
-    record = budget_record(target=target, scope=scope, float_size=fsize, distance=distance, rule=rule,
-                           camera_level=camera_level, views=view_ids, resolution=resolution, samples=samples,
-                           ratios=ratios, backend=lod_backend, lod_rows=lod_rows, candidates=candidates,
-                           chosen=best, quantize=quantize, simplify=simplify, levels_per_lod=levels_per_lod)
-    t0 = time.perf_counter()
-    chosen_lods = lod_indices(c, best["lod"])
-    buffers = [[replace(cooked.buffers[i][k], min_distance_m=0.0)] for i, k in enumerate(chosen_lods)]
-    opts = dict(options or {})
-    opts["budget"] = record
-    data = build(scene, cooked.analysis, options=opts, viewing=viewing, lods=buffers, max_level=best["level"],
-                 cluster_size=n_cluster, cluster_all=every)
-    timings["emit"] = time.perf_counter() - t0
-    say(f"budget: chose LOD {best['lod']} at level {best['level']}: {best['bytes']:,} of {target:,} bytes")
-    return data, {"budget": record, "cook": cooked, "analysis": cooked.analysis, "timings_s": timings}
+    return candidates, simplify, view_ids, camera_level
 
 
 def budget_record(*, target, scope, float_size, distance, rule, camera_level, views, resolution, samples, ratios,

@@ -2,109 +2,36 @@
 
 This work is based on: Meyer et al., "Adaptive Level-of-Precision for GPU-Rendering", VMV 2011,
 sections 5.1 (the minimum level of a vertex: the smallest b with k_f * E_v * dx(b) <= eps) and 7
-("For CAP we empirically choose k_f to avoid shading artifacts"). Here k_f is measured instead:
-every probe cooks the scene and renders its CAP buffers against the float source with the
-harness of ``lopcook.verify.evaluate`` (Purnomo et al. 2005, section 4.1: views on an icosahedron,
-error over object pixels).
+(k_f chosen empirically for CAP). Here k_f is measured: every probe cooks the scene and renders its
+CAP buffers against the float source with the harness of ``lopcook.verify.evaluate`` (Purnomo et
+al. 2005, section 4.1: views on an icosahedron, error over object pixels). The method in full,
+with its reasons: docs/tune.md, "The calibration in full".
 
-The knob. k_f enters the analysis only through the test ``k_f * E_v * dx(b) <= eps``. The
-calibration searches a dimensionless scale ``sigma`` applied to **every** attribute's k_f at once
-(normals: ks * n, UVs: the texture's slope, colours), so the ratios between attributes the analysis
-derived are kept. Scaling every k_f by sigma is the same test as dividing eps by sigma (up to float
-rounding), which is how a probe is cooked: ``AnalyseSettings(eps = eps / sigma)``, all other
-settings unchanged (depth constraints included; they do not depend on sigma). Reported per probe:
-``sigma``, ``eps`` (colour units), ``kf`` (sigma times the analysis's k_f per attribute, colour per
-attribute unit; ``kf_normal`` = sigma * ks * n, the paper's Phong k_f, when the scene has normals).
+The knobs: ``sigma`` scales every attribute's k_f at once (a probe cooks with ``eps / sigma``; the
+ratios between attributes are kept), searched on the grid ``lo + k * tolerance`` of log2 sigma
+(``LOG2_RANGE``, ``TOLERANCE``); with ``search="kf+edge"`` also the edge strictness x_e
+(``edge_eps = settings.edge_eps / 2^x_e``, at most 1, whole steps, at most ``EDGE_RANGE``).
 
-Memory grows with sigma (every minimum level is a non-decreasing function of it), and the PSNR
-nearly always does too. A probe passes when, at every level, the CAP PSNR statistic is >= the
-target: ``statistic="min"`` (default) the minimum over views (every view must reach it; a view
-identical to the float render counts as infinite), ``"mean"`` the PSNR of the view-averaged MSE
-(Purnomo et al. average the per-view errors; one view with few object pixels weighs less).
+A probe (``probe``) passes when at every level its CAP PSNR statistic reaches the target: ``"min"``
+over views (an identical render counts as infinite) or ``"mean"`` (the PSNR of the view-averaged
+MSE). Its memory (``cap_percent``, % of float32 positions) needs no render (``cap_memory``).
 
-The model (``model_search``). The search runs on the grid ``lo + k * tolerance`` of log2 sigma
-(defaults [-8, 8] and 0.25: sigma within 19%) and returns its least passing point whose grid
-neighbour below fails (or ``lo`` when it passes; None when ``hi`` fails: the target is unreachable,
-e.g. the coverage error of vertices whose attributes do not vary, flat faces, does not depend on
-k_f). Shading error is a quantization error: MSE falls about 4x per doubling of the k_f scale (per
-level of the bits it buys), so per level PSNR is modelled as linear in log2 sigma, 6.02 dB per
-doubling from one probe, the secant through the two probes nearest the crossing from two (its slope
-clipped to [0.2, 12] dB: a flat curve, e.g. edge-limited, sends the next probe to the range's end). The first probe is the default cook's k_f (sigma 1, the anchor of the
-confirmation); each next probe is the grid point where the model predicts every level reaches the
-target (+0.1 dB), strictly inside the bracket of the highest failing and lowest passing probes;
-when two predictions in a row have not halved the bracket a bisection follows, and after ``MODEL_STEPS``
-predictions only bisections are made. When the first probe fails, ``hi`` is probed next. Typical
-cost: 3-6 probes per search instead of the bisection's 8. The chosen sigma passed when probed; if
-the PSNR is not monotonic in sigma somewhere inside the bracket, a smaller passing sigma may exist
-(the curve shows it).
+The search (``calibrate``): (1) k_f by ``model_search`` (PSNR per level linear in log2 sigma:
+``SLOPE_DB`` per doubling from one probe, the secant of two, a bisection when predictions stall);
+with ``"kf+edge"`` (2a) the edges loosened at that k_f, (2b) made stricter when no k_f passes, (2c)
+loosened and paid for with more k_f; of the passing pairs the least mean CAP memory is chosen.
+``watch_db`` (the direct search): the probes render on the gate's own harness, the anchor (the
+default cook, sigma 1) names the watched levels and every other probe renders those first,
+stopping at its first miss; ``complete`` renders the choice at every level. ``confirm`` (a reduced
+harness): the choice is confirmed on the gate's harness (``CONFIRM``, levels ``CONFIRM_LEVELS``),
+moving toward the default cook while it misses (at most ``CONFIRM_STEPS`` gate probes).
 
-The second knob: ``edge_eps`` of the discontinuity constraint (``lopcook.analyse.discontinuity``;
-hard edges, sub-pixel folds, open boundaries and seams need m >= B_v + ceil(log2(0.5 J / edge_eps)),
-which k_f cannot set: on flat-shaded assets the coverage error along edges does not depend on k_f).
-It is searched as a strictness ``x_e`` (``edge_eps = settings.edge_eps / 2^x_e``, at most 1, in whole
-steps: with J = 1 one step is one bit on every edge vertex). ``search="kf+edge"`` (the default when
-the settings have ``edges`` on) is a coordinate search: (1) the k_f search above at x_e = 0; (2a)
-if it reached the target, the loosest x_e in [-log2(1 / edge_eps), 0] that still passes at the chosen
-sigma (less memory on edge vertices; bisection on whole steps, the loosest probed first); (2b) if it
-did not, the least x_e in (0, EDGE_RANGE] passing at the largest sigma, then the k_f search again at
-that x_e; (2c) after (2a), if the edges could not be loosened all the way and the loosest edges at
-the sigma of (1) cost less memory than the best choice so far, the k_f search above that sigma with
-the loosest edges, at most ``EDGE_KF_PROBES`` probes, over the grid points whose memory (known
-without rendering) is below the best choice's, and stopped by a failing probe that already costs as
-much.
-Of the passing pairs (1), (2a), (2c) the one with the least CAP memory (mean over the levels) is
-chosen (which wins on which kind of asset: docs/tune.md). Every choice
-passed when probed; a joint optimum of the two knobs is not guaranteed (the curve lists every
-probe). ``search="kf"`` keeps edge_eps as given.
-
-Cost and the reduced harness. Each probe = analyse + build + CAP renders at every level and view
-(AP is not rendered; float renders are computed once and reused, they do not depend on sigma). The
-analysis is split (``lopcook.analyse.prepared.PreparedAnalysis``, one per search): the grid, E_v,
-the discontinuities' fold levels and seam jumps and the depth distances are computed once, a probe
-pays only the per-threshold levels (the same minimum levels as a fresh ``analyse``).
-Defaults for speed: ``CAL_VIEWS`` = 8 of the 20 views and ``CAL_RESOLUTION`` = 640 x 360. An object
-covers the same pixels at level B whatever the resolution (``lopcook.verify.cameras``), so a smaller
-viewport crops close-ups instead of shrinking the object; fewer views sample the sphere of
-directions more coarsely. Measured costs: docs/performance.md ("Calibration").
-
-Watched levels (the direct search, ``watch_db``; ``cook --target-psnr``'s default). The search
-renders on the gate's harness itself (20 views at 1280 x 720, levels 6..11), so nothing it sees can
-differ from the gate, and it renders there only what decides a probe. The **anchor** (the default
-cook, sigma 1) is rendered level by level upward until two levels in a row are ``watch_db`` dB
-above the least so far (``scout_rule``: the PSNR climbs with the level as the object grows on
-screen); the levels rendered whose PSNR is within ``watch_db`` dB of the least are **watched**, in
-order of margin. Every other probe renders the watched levels only, least
-margin first, and stops at the first that misses the target: a failing probe usually costs one
-level (at levels 6-8 the object covers a small part of the frame, so those are also the cheapest),
-a passing one the watched levels. The choice is then rendered at every level (``complete``); if it
-misses an unwatched level, that level is watched too and the search runs again (its probes are
-memoised by content: only the new level is rendered). So the result passes every level or, as
-before, ``reached`` is False. The float renders are made once per (level, view) and cached.
-
-Harnesses. Both harnesses (the reduced one and the gate's) are ``shared_harness``es of the scene:
-they stay open after the search, so that the attribute search of the same cook
-(``lopcook.tune.attributes``) finds their float renders cached and every decoded draw already made
-memoised by content (``Harness.view_memo``); their results equal fresh harnesses'.
-
-Confirmation. The reduced harness is not the gate (fewer views can miss the worst one, and a small
-object is sensitive to its sub-pixel placement; docs/tune.md has the measured misses), so the
-choice is **confirmed** once with the gate's harness (``confirm``, default ``lopcook verify``'s 20
-views at 1280 x 720, at the levels of ``confirm_levels``, default ``CONFIRM_LEVELS`` = 6..11, those of
-the gate ``lopcook verify --levels 6-11``; float renders cached, cropped, so a further probe there
-renders CAP only; a gate probe stops rendering at its first level that misses the target). A
-search never ends below the default cook's quality: when the gate misses the target, the
-confirmation moves toward the **anchor** -- the default cook's knobs (sigma 1, x_e 0), or the
-choice's on a knob where it is stricter -- first as far as the model needs (per level, the gate's
-shortfall at the choice against the PSNR the reduced harness gains between the choice and the
-anchor, aiming 0.25 dB above the target; whole grid steps), then to the anchor itself; only when
-the anchor is stricter than the default cook does it step further (log2 sigma + ``tolerance`` and
-x_e + 1); after a pass on the k_f line it tries the point the gate's own secant (failed choice,
-pass) predicts -- at most ``CONFIRM_STEPS`` probes on the gate in all. The passing gate probe with the
-least memory is the choice; ``reached`` is False (exit 1 in ``cook``) only when every gate probe
-missed, i.e. when even the anchor -- the default cook, for a choice looser than it -- fails the
-gate. ``confirm=None`` (CLI ``--no-calibration-confirm``) skips it. With the paper's CAP alone
-(``edges`` off) hard-surface assets cannot reach 40 dB at any k_f: their residual error is coverage
-along hard edges and sub-pixel folds whose vertices have E_v = 0 (docs/analyse.md, section 2b).
+Guarantees: the choice passed when probed (on the gate's harness when confirmed or direct); a
+search never ends below the default cook's quality: ``reached`` is False (exit 1 in ``cook``) when
+no knob in the range passes or when even the default cook's knobs miss the gate. A joint optimum of
+the two knobs is not guaranteed (the curve lists every probe). The harnesses are shared
+(``shared_harness``): the attribute search that follows reuses their renders. Deterministic: the
+same command makes the same probes and the same choice.
 """
 
 from __future__ import annotations
@@ -113,15 +40,19 @@ import math
 import time
 from dataclasses import replace
 
-
-from ..lop.memo import with_code_memo
+from ..analyse import analyse, attribute_kf
+from ..analyse.prepared import shared as shared_prepared
+from ..emit import build
 from ..errors import EXIT_VERIFY_FAILED, LopcookError
+from ..lop.container import from_bytes
+from ..lop.memo import with_code_memo
 from ..settings import DEFAULT_ANALYSE, DEFAULTS, AnalyseSettings
-from ..viewing import Viewing
-from ..verify.buffers import DEFAULT_LEVELS
+from ..verify import metrics as M
+from ..verify.buffers import DEFAULT_LEVELS, position_bytes
 from ..verify.cameras import VIEW_COUNT, select_views
 from ..verify.evaluate import harness_evaluate
 from ..verify.renderer import RESOLUTION, Harness, shared_harness
+from ..viewing import Viewing
 
 CAL_VIEWS = DEFAULTS.tune.calibration.views
 CAL_RESOLUTION = DEFAULTS.tune.calibration.resolution
@@ -156,8 +87,6 @@ INF_DB = 200.0
 
 def _kf_dict(scene, settings: AnalyseSettings, sigma: float) -> dict:
     """sigma times the k_f the analysis uses per attribute present in the scene (max over parts)."""
-    from ..analyse import attribute_kf
-
     out: dict = {}
     for part in scene.parts:
         for name, kf in attribute_kf(part, settings).items():
@@ -179,8 +108,6 @@ def _edge_eps(settings: AnalyseSettings, edge_scale: float) -> float:
 
 def _statistic(per_view, statistic: str):
     """A level's PSNR statistic over its views' metrics (None: identical renders)."""
-    from ..verify import metrics as M
-
     if statistic == "mean":
         return M.mean_mse_psnr([m["mse"] for m in per_view])
     return min((m["psnr"] for m in per_view if m["psnr"] is not None), default=None)
@@ -251,16 +178,11 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     as the cook will store it and a probe draws what the cook of the same knobs draws. A probe that
     draws exactly what an earlier one drew on the same harness (e.g. edge_eps 1 and 0.5 when no
     vertex's bound tells them apart: the same buffers and attribute bits) takes the earlier renders'
-    numbers (``Harness.view_memo``, keyed by the content of every draw). (Until this was keyed by
-    content, probes with the same minimum levels shared renders even when eps gave them different
-    attribute bits.) ``prepared``: a ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and
-    ``settings`` (the same minimum levels as ``analyse``, without recomputing what does not depend
-    on eps and edge_eps); None analyses from scratch.
+    numbers (``Harness.view_memo``, keyed by the content of every draw). ``prepared``: a
+    ``lopcook.analyse.prepared.PreparedAnalysis`` of ``scene`` and ``settings`` (the same minimum
+    levels as ``analyse``, without recomputing what does not depend on eps and edge_eps); None
+    analyses from scratch.
     """
-    from ..analyse import analyse
-    from ..emit import build
-    from ..lop.container import from_bytes
-
     t0 = time.perf_counter()
     s = replace(settings, eps=settings.eps / float(sigma), edge_eps=_edge_eps(settings, edge_scale))
     analysis = analyse(scene, s) if prepared is None else prepared.analyse(s.eps, s.edge_eps)
@@ -277,8 +199,13 @@ def probe(scene, settings: AnalyseSettings, sigma: float, harness: Harness, *, l
     stop_view = None if stop_below is None else view_rule(float(stop_below[0]), stop_below[1])
     res = harness_evaluate(harness, c, levels=levels, views=views, variants=("cap",), stop=stop, stop_view=stop_view,
                            cooked_from=scene)
-    from ..verify.buffers import position_bytes
+    return _probe_record(scene, settings, sigma, s, edge_scale, c, res, levels, t0)
 
+
+def _probe_record(scene, settings: AnalyseSettings, sigma: float, s: AnalyseSettings, edge_scale: float, c, res,
+                  levels, t0: float) -> dict:
+    """``probe``'s result (its doc) from the probe's settings ``s`` (eps / sigma, edge_eps), its
+    container ``c`` and ``harness_evaluate``'s ``res``; ``seconds`` counted from ``t0``."""
     lods = [0] * len(c.manifest["parts"])
     f32 = 12 * sum(int(p["lods"][0]["vertices"]) for p in c.manifest["parts"])
     cap_bytes = [int(position_bytes(c, lods, int(b))["cap"]) for b in levels]  # memory needs no render
@@ -314,11 +241,6 @@ def cap_memory(scene, settings: AnalyseSettings, x: float, e: float, levels, cac
     """Mean over ``levels`` of the CAP memory (% of float32 positions) of the cook at log2 sigma ``x``
     and edge strictness ``e``: what ``probe`` reports as ``cap_percent``, from the analysis and the
     build alone (no render). ``cache`` (a dict) keeps results by (x, e); ``prepared`` as in ``probe``."""
-    from ..analyse import analyse
-    from ..emit import build
-    from ..lop.container import from_bytes
-    from ..verify.buffers import position_bytes
-
     if cache is not None and (x, e) in cache:
         return cache[(x, e)]
     s = replace(settings, eps=settings.eps / 2.0**x, edge_eps=_edge_eps(settings, e))
@@ -358,7 +280,7 @@ def _level_psnrs(p: dict, statistic: str, levels=None) -> list:
 
 def _predict(points: list[tuple[float, list[float]]], targets: list[float]) -> float:
     """The least log2 sigma at which every level is predicted to reach its target (dB), from probes
-    ``points`` = [(log2 sigma, PSNR per level)] of one edge strictness (module doc, "The model").
+    ``points`` = [(log2 sigma, PSNR per level)] of one edge strictness ("The model" in docs/tune.md).
 
     Per level: PSNR is taken as linear in log2 sigma through the two probes nearest the level's
     crossing (the highest failing and the lowest passing one when both exist), its slope clipped
@@ -475,94 +397,44 @@ def model_search(run, ok, lo: float, hi: float, tol: float, start: float, psnrs,
 def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolerance: float, target_psnr: float,
              statistic: str, confirm, *, edges: bool, levels, viewing, options, ingest_options, progress,
              run_reduced, dry, prepared=None, confirm_levels=None, clusters: tuple | None = None) -> dict:
-    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness (module doc,
-    "Confirmation"); ``curve`` holds the reduced harness's probes by (x, e), ``run_reduced(x, e)``
-    probes there, ``dry(x, e)`` is the memory of a cook without rendering it. While the gate misses
-    the target: the moves that cost less memory than the anchor (the default cook's knobs, or the
-    choice's where it is stricter) and not the same as the choice -- toward the anchor as far as
-    the model needs, and one step stricter on the edges -- cheaper first, then the anchor, then (only when the anchor is stricter
-    than the default) steps stricter on both knobs; after a pass on the k_f line, the point the
-    gate's own secant (failed choice, pass) predicts; at most ``CONFIRM_STEPS`` probes on the gate
-    in all. The passing probe with the least memory is kept. ``confirm_levels``: the levels of
-    ``levels`` rendered on the gate (None: all; ``calibrate`` passes those of ``CONFIRM_LEVELS``);
-    ``prepared`` as in ``probe``."""
+    """Check the choice (log2 sigma ``x``, edge strictness ``e``) on the gate's harness
+    ("Confirmation" in docs/tune.md); ``curve`` holds the reduced harness's probes by (x, e),
+    ``run_reduced(x, e)`` probes there, ``dry(x, e)`` is the memory of a cook without rendering it.
+    While the gate misses the target: the moves that cost less memory than the anchor (the default
+    cook's knobs, or the choice's where it is stricter) and not the same as the choice -- toward
+    the anchor as far as the model needs (``_toward_anchor``), and one step stricter on the edges
+    -- cheaper first, then the anchor, then (only when the anchor is stricter than the default)
+    steps stricter on both knobs (``_gate_moves``); after a pass on the k_f line, the point the
+    gate's own secant (failed choice, pass) predicts (``_gate_secant``); at most ``CONFIRM_STEPS``
+    probes on the gate in all. The passing probe with the least memory is kept.
+    ``confirm_levels``: the levels of ``levels`` rendered on the gate (None: all; ``calibrate``
+    passes those of ``CONFIRM_LEVELS``); ``prepared`` as in ``probe``."""
     views, resolution = confirm
     clevels = [b for b in levels if confirm_levels is None or b in set(int(v) for v in confirm_levels)] or list(levels)
     at = [levels.index(b) for b in clevels]  # the gate's levels among the reduced harness's
     out = {"views": views if isinstance(views, int) else list(views),
            "resolution": [int(resolution[0]), int(resolution[1])], "passed": False, "probes": []}
-    probed: dict = {}
     # the float renders are cached (cropped to the object's box, capped): a second probe renders CAP only
     with shared_harness(scene, resolution) as h:
-        def run(c):
-            if c not in probed:
-                p = probe(scene, settings, 2.0**c[0], h, levels=clevels, views=views, viewing=viewing,
-                          options=options, ingest_options=ingest_options, edge_scale=c[1],
-                          stop_below=(target_psnr, statistic), prepared=prepared, clusters=clusters)
-                p["confirm"] = True
-                probed[c] = p
-                out["probes"].append(p)
-                if progress is not None:
-                    progress(p)
-            return probed[c]
-
-        def ok(c) -> bool:
-            return _passes(run(c), target_psnr, statistic)
-
-        def snap_x(v: float) -> float:  # whole tolerance steps above x, at most hi
-            return min(hi, x + tolerance * math.ceil((v - x) / tolerance - 1e-9)) if v > x else x
-
+        gate = _GateProbes(scene, settings, h, out["probes"], progress, target_psnr, statistic,
+                           dict(levels=clevels, views=views, viewing=viewing, options=options,
+                                ingest_options=ingest_options, stop_below=(target_psnr, statistic),
+                                prepared=prepared, clusters=clusters))
         c0 = (x, e)
-        if not ok(c0):
-            anchor = (snap_x(max(x, 0.0)), max(e, 0.0) if edges else e)
+        if not gate.ok(c0):
+            anchor = (_snap_up(max(x, 0.0), x, hi, tolerance), max(e, 0.0) if edges else e)
             moves = []
             if anchor != c0:
-                # per level: how much the gate misses what the reduced harness saw at the choice, and
-                # how far toward the anchor the reduced harness's PSNR rises by that much
-                red0 = [_level_psnrs(curve[c0], statistic)[i] for i in at]
-                red1 = [_level_psnrs(run_reduced(*anchor), statistic)[i] for i in at]
-                gate0 = _level_psnrs(run(c0), statistic)
-                t = 0.0
-                for r0, r1, g0 in zip(red0, red1, gate0):
-                    if g0 >= target_psnr + CONFIRM_MARGIN_DB:
-                        continue
-                    gain = r1 - r0
-                    t = max(t, 1.0 if gain <= 0 else (target_psnr + CONFIRM_MARGIN_DB - g0) / gain)
-                t = min(1.0, t)
-                mid = (snap_x(x + t * (anchor[0] - x)), e + math.ceil(t * (anchor[1] - e) - 1e-9))
-                moves.append(mid)
+                moves.append(_toward_anchor(c0, anchor, curve[c0], run_reduced(*anchor), gate.run(c0), at,
+                                            target_psnr, statistic, hi, tolerance))
             if edges and e + 1.0 <= EDGE_RANGE:  # coverage along edges does not depend on k_f
                 moves.append((x, e + 1.0))
-            # the cheaper move first (memory is known without rendering), only moves cheaper than the
-            # anchor, then the anchor
-            # (a move whose memory equals the choice's changes no bit that matters: skipped)
-            limit = dry(*anchor) if anchor != c0 else math.inf
-            moves = sorted((m for m in dict.fromkeys(moves)
-                            if m != c0 and m != anchor and dry(*c0) != dry(*m) < limit),
-                           key=lambda m: (dry(*m), m))
-            if anchor != c0:
-                moves.append(anchor)
-            # past the anchor only when it is stricter than the default cook (the choice was)
-            stricter = anchor[0] > 0.0 or (edges and anchor[1] > 0.0)
-            cur = anchor
-            while stricter and len(moves) < CONFIRM_STEPS - 1:
-                nxt = (min(hi, cur[0] + tolerance), min(float(EDGE_RANGE), cur[1] + 1.0) if edges else cur[1])
-                if nxt == cur:
-                    break
-                moves.append(nxt)
-                cur = nxt
+            moves = _gate_moves(moves, c0, anchor, dry, edges, hi, tolerance)
             for m in moves[:CONFIRM_STEPS - 1]:
-                if ok(m):
-                    # a pass on the k_f line: the gate's own secant between the failed choice and
-                    # the pass may find less memory that passes (one more probe, if the budget has it)
-                    if m[1] == e and m[0] > x and len(probed) < CONFIRM_STEPS:
-                        g0, g1 = _level_psnrs(probed[c0], statistic), _level_psnrs(probed[m], statistic)
-                        n = min(len(g0), len(g1))
-                        guess = _predict([(x, g0[:n]), (m[0], g1[:n])], [target_psnr + CONFIRM_MARGIN_DB] * n)
-                        between = (snap_x(guess), e)
-                        if x < between[0] < m[0]:
-                            ok(between)
+                if gate.ok(m):
+                    _gate_secant(gate, c0, m, hi, tolerance, target_psnr, statistic)
                     break
+        probed = gate.probed
         passing = [c for c in probed if _passes(probed[c], target_psnr, statistic)]
         chosen = min(passing, key=lambda c: (sum(probed[c]["cap_percent"]), c)) if passing else None
         out["passed"] = chosen is not None
@@ -570,6 +442,96 @@ def _confirm(scene, settings, x: float, e: float, curve: dict, hi: float, tolera
             probed.values(), key=lambda p: min(_level_psnrs(p, statistic)))
         out["chosen_knobs"] = chosen
     return out
+
+
+class _GateProbes:
+    """``probe``s on the gate's harness ``h`` for ``_confirm``, each made once per knobs
+    (log2 sigma, x_e), marked ``"confirm"``, appended to ``record`` and passed to
+    ``progress``; ``kw``: ``probe``'s keyword arguments (levels, views, ``stop_below``, ...)."""
+
+    def __init__(self, scene, settings, h, record: list, progress, target_psnr: float, statistic: str, kw: dict):
+        self.scene, self.settings, self.h, self.record, self.progress = scene, settings, h, record, progress
+        self.target_psnr, self.statistic, self.kw = target_psnr, statistic, kw
+        self.probed: dict = {}
+
+    def run(self, c) -> dict:
+        if c not in self.probed:
+            p = probe(self.scene, self.settings, 2.0**c[0], self.h, edge_scale=c[1], **self.kw)
+            p["confirm"] = True
+            self.probed[c] = p
+            self.record.append(p)
+            if self.progress is not None:
+                self.progress(p)
+        return self.probed[c]
+
+    def ok(self, c) -> bool:
+        return _passes(self.run(c), self.target_psnr, self.statistic)
+
+
+def _snap_up(v: float, x: float, hi: float, tolerance: float) -> float:
+    """``v`` rounded up to whole ``tolerance`` steps above ``x``, at most ``hi`` (``x`` itself when
+    ``v`` is not above it)."""
+    return min(hi, x + tolerance * math.ceil((v - x) / tolerance - 1e-9)) if v > x else x
+
+
+def _toward_anchor(c0, anchor, reduced0: dict, reduced1: dict, gate0: dict, at: list, target_psnr: float,
+                   statistic: str, hi: float, tolerance: float) -> tuple:
+    """The knobs a fraction t of the way from the choice ``c0`` to ``anchor`` (log2 sigma rounded up
+    to the grid, x_e up to whole steps), t in [0, 1] the least that, per gate level that misses
+    (``gate0``, the choice's gate probe), the reduced harness's gain between the choice
+    (``reduced0``) and the anchor (``reduced1``) covers: aiming ``CONFIRM_MARGIN_DB`` above the
+    target. ``at``: the gate's levels' indices among the reduced harness's."""
+    x, e = c0
+    red0 = [_level_psnrs(reduced0, statistic)[i] for i in at]
+    red1 = [_level_psnrs(reduced1, statistic)[i] for i in at]
+    g = _level_psnrs(gate0, statistic)
+    t = 0.0
+    for r0, r1, g0 in zip(red0, red1, g):
+        if g0 >= target_psnr + CONFIRM_MARGIN_DB:
+            continue
+        gain = r1 - r0
+        t = max(t, 1.0 if gain <= 0 else (target_psnr + CONFIRM_MARGIN_DB - g0) / gain)
+    t = min(1.0, t)
+    return (_snap_up(x + t * (anchor[0] - x), x, hi, tolerance), e + math.ceil(t * (anchor[1] - e) - 1e-9))
+
+
+def _gate_moves(moves: list, c0, anchor, dry, edges: bool, hi: float, tolerance: float) -> list:
+    """The knobs the gate probes in order after the choice ``c0`` missed: of ``moves`` those that
+    cost less memory than ``anchor`` (``dry``, no render) and not the same as the choice, cheaper
+    first (a move whose memory equals the choice's changes no bit that matters: skipped), then the
+    anchor, then -- only when the anchor is stricter than the default cook -- steps stricter on
+    both knobs, up to ``CONFIRM_STEPS - 1`` moves in all."""
+    limit = dry(*anchor) if anchor != c0 else math.inf
+    moves = sorted((m for m in dict.fromkeys(moves)
+                    if m != c0 and m != anchor and dry(*c0) != dry(*m) < limit),
+                   key=lambda m: (dry(*m), m))
+    if anchor != c0:
+        moves.append(anchor)
+    # past the anchor only when it is stricter than the default cook (the choice was)
+    stricter = anchor[0] > 0.0 or (edges and anchor[1] > 0.0)
+    cur = anchor
+    while stricter and len(moves) < CONFIRM_STEPS - 1:
+        nxt = (min(hi, cur[0] + tolerance), min(float(EDGE_RANGE), cur[1] + 1.0) if edges else cur[1])
+        if nxt == cur:
+            break
+        moves.append(nxt)
+        cur = nxt
+    return moves
+
+
+def _gate_secant(gate: _GateProbes, c0, m, hi: float, tolerance: float, target_psnr: float,
+                 statistic: str) -> None:
+    """After the gate passed at ``m`` on the k_f line of the failed choice ``c0``: the point the
+    gate's own secant between them predicts, probed when it lies strictly between them (it may
+    pass with less memory) and the budget of ``CONFIRM_STEPS`` gate probes has room."""
+    x, e = c0
+    if m[1] == e and m[0] > x and len(gate.probed) < CONFIRM_STEPS:
+        g0, g1 = _level_psnrs(gate.probed[c0], statistic), _level_psnrs(gate.probed[m], statistic)
+        n = min(len(g0), len(g1))
+        guess = _predict([(x, g0[:n]), (m[0], g1[:n])], [target_psnr + CONFIRM_MARGIN_DB] * n)
+        between = (_snap_up(guess, x, hi, tolerance), e)
+        if x < between[0] < m[0]:
+            gate.ok(between)
 
 
 @with_code_memo
@@ -593,8 +555,8 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     harness, default 20 views at 1280 x 720; None: no confirmation; skipped when it equals the
     search harness), ``confirm_levels`` (the levels of ``levels`` confirmed there, default
     ``CONFIRM_LEVELS`` = 6..11, the gate's ``verify --levels 6-11``; None: every level),
-    ``watch_db`` (None: every probe renders every level; a number: the direct search of the module
-    doc, "Watched levels", with the anchor's margin ``watch_db`` dB; give the gate's harness as
+    ``watch_db`` (None: every probe renders every level; a number: the direct search ("Watched
+    levels" in docs/tune.md), with the anchor's margin ``watch_db`` dB; give the gate's harness as
     ``views``/``resolution``/``levels`` and ``confirm=None``), ``complete`` (direct search: render
     the choice at every level before returning it, and search again watching the level it missed;
     False leaves that to the caller: ``lopcook.tune.attributes`` completes its own choice),
@@ -612,6 +574,41 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     ``watch`` (the watched levels, in render order; None without ``watch_db``) and ``complete``
     (whether the choice was rendered at every level).
     """
+    search, lo, hi = _checked(search, settings, statistic, target_psnr, log2_range)
+    viewing = viewing or Viewing()
+    levels = [int(b) for b in levels]
+    t0 = time.perf_counter()
+    # what no probe changes, computed once (and kept for the attribute search)
+    prepared = shared_prepared(scene, settings)
+    direct = watch_db is not None
+    with shared_harness(scene, resolution) as h:
+        ks = _KfSearch(scene, settings, h, dict(views=views, viewing=viewing, options=options,
+                                                 ingest_options=ingest_options, prepared=prepared, clusters=clusters),
+                       target_psnr=target_psnr, statistic=statistic, levels=levels, lo=lo, hi=hi, tolerance=tolerance,
+                       progress=progress, direct=direct)
+        if direct:
+            ks.scout(float(watch_db))
+        reached, x, e, chosen, whole = ks.settle(search, loosen_edges, complete)
+        confirmation = None
+        same = confirm is not None and _same_harness(confirm, views, resolution)
+        if reached and confirm is not None and not same and not direct:
+            confirmation = _confirm(scene, settings, x, e, ks.probes, hi, tolerance, target_psnr, statistic, confirm,
+                                    edges=search == "kf+edge" and bool(settings.edges), levels=levels,
+                                    viewing=viewing, options=options, ingest_options=ingest_options,
+                                    progress=progress, run_reduced=ks.run, dry=ks.dry, prepared=prepared,
+                                    confirm_levels=confirm_levels, clusters=clusters)
+            reached = confirmation["passed"]
+            chosen = confirmation.pop("chosen")
+            confirmation.pop("chosen_knobs")
+        if direct and complete:
+            reached = reached and whole
+    return _calibration_result(target_psnr, statistic, reached, chosen, search, ks, views, resolution, settings,
+                               lo, hi, tolerance, confirmation, t0)
+
+
+def _checked(search: str | None, settings: AnalyseSettings, statistic: str, target_psnr: float, log2_range):
+    """``calibrate``'s arguments checked: ``(search, lo, hi)``, the search defaulted ("kf+edge" when
+    ``settings.edges``, else "kf"); LopcookError (usage) for any value out of its range."""
     search = search or ("kf+edge" if settings.edges else "kf")
     if search not in SEARCHES:
         raise LopcookError("usage", None, f"calibration search must be one of {SEARCHES}, got {search!r}")
@@ -622,160 +619,16 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
     lo, hi = (float(v) for v in log2_range)
     if not lo < hi:
         raise LopcookError("usage", None, f"log2 k_f range must have lo < hi, got {log2_range}")
-    viewing = viewing or Viewing()
-    levels = [int(b) for b in levels]
-    t0 = time.perf_counter()
-    probes: dict = {}
-    dry_cache: dict = {}
-    targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
-    start = min(hi, max(lo, 0.0))  # the default cook's k_f
-    from ..analyse.prepared import shared
+    return search, lo, hi
 
-    prepared = shared(scene, settings)  # what no probe changes, computed once (and kept for the attribute search)
-    direct = watch_db is not None
-    watch: list | None = None  # the watched levels, in render order (direct search)
-    with shared_harness(scene, resolution) as h:
-        def order() -> list:
-            return list(watch) + [b for b in levels if b not in watch]
 
-        def settled(p: dict) -> bool:
-            """Whether a direct probe's verdict holds for the watched levels: it failed on a level it
-            rendered, or it rendered every watched level."""
-            return not _passes(p, target_psnr, statistic) or set(watch) <= set(p["levels"])
-
-        def run(x: float, e: float = 0.0) -> dict:
-            if (x, e) not in probes or (direct and not settled(probes[(x, e)])):
-                extra = {}
-                if direct:  # the watched levels first (least margin first), up to the first that fails
-                    extra = dict(levels=order(), stop_below=(float(target_psnr), statistic), watch=len(watch))
-                p = probe(scene, settings, 2.0**x, h, **{"levels": levels, **extra}, views=views, viewing=viewing,
-                          options=options, ingest_options=ingest_options, edge_scale=e, prepared=prepared,
-                          clusters=clusters)
-                probes[(x, e)] = p
-                if progress is not None:
-                    progress(p)
-            return probes[(x, e)]
-
-        def ok(x: float, e: float = 0.0) -> bool:
-            return _passes(run(x, e), target_psnr, statistic)
-
-        def passes(p: dict) -> bool:
-            return _passes(p, target_psnr, statistic)
-
-        def psnrs(p: dict) -> list:
-            return _level_psnrs(p, statistic, levels if direct else None)
-
-        def kf_search(e: float, a: float, x_start: float, give_up=None):
-            return model_search(lambda t: run(t, e), passes, a, hi, tolerance, x_start, psnrs, targets, give_up)
-
-        def memory(c) -> float:
-            return sum(run(*c)["cap_percent"]) / len(levels)
-
-        def dry(x: float, e: float) -> float:  # the memory of a probe, without rendering it
-            if (x, e) in probes:
-                return memory((x, e))
-            return cap_memory(scene, settings, x, e, levels, dry_cache, prepared=prepared, clusters=clusters)
-
-        def least_passing(f, a: float, b: float):
-            """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
-            if f(a):
-                return a
-            if not f(b):
-                return None
-            while b - a > 1.0:  # f(a) fails, f(b) passes
-                m = float(math.floor(0.5 * (a + b)))
-                if m <= a:
-                    break
-                if f(m):
-                    b = m
-                else:
-                    a = m
-            return b
-
-        def choose():
-            """(reached, x, e) of one search over the knobs (module doc, steps 1-2c)."""
-            # (1) k_f at the given edge_eps
-            e = 0.0
-            x = kf_search(e, lo, start)
-            candidates = [] if x is None else [(x, e)]
-            if search == "kf+edge" and settings.edges:
-                loosest = float(-math.floor(math.log2(1.0 / float(settings.edge_eps))))
-                if x is not None and loosest < 0 and loosen_edges:
-                    # (2a) loosen the edges while the target holds at the chosen k_f
-                    e1 = least_passing(lambda t: ok(x, t), loosest, 0.0)
-                    candidates.append((x, e1))
-                    if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
-                        best = min(memory(c) for c in candidates)
-                        if memory((x, loosest)) < best:
-                            guess = _predict([(x, psnrs(run(x, loosest)))], targets)
-                            guess = x + tolerance * max(1, math.ceil((guess - x) / tolerance - 1e-9))
-                            x1 = model_search(lambda t: run(t, loosest), passes, x, hi, tolerance, guess,
-                                              psnrs, targets, reach_check=False, max_probes=EDGE_KF_PROBES,
-                                              give_up=lambda p: sum(p["cap_percent"]) / len(levels) >= best,
-                                              before=lambda t: dry(t, loosest) >= best)
-                            if x1 is not None:
-                                candidates.append((x1, loosest))
-                elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
-                    e_found = least_passing(lambda t: ok(hi, t), 1.0, float(EDGE_RANGE))
-                    if e_found is not None:
-                        e = e_found
-                        x = kf_search(e, lo, hi)
-                        candidates = [(x, e)]
-            # only candidates whose verdict holds for the watched levels (a direct search's watch may
-            # have grown since one was found)
-            candidates = [c for c in candidates if ok(*c)]
-            if candidates:  # the least position memory, averaged over the levels (ties: less k_f)
-                x, e = min(candidates, key=lambda c: (memory(c), c[0]))
-                return True, x, e
-            return False, hi, e
-
-        if direct:
-            # the anchor (the default cook), levels ascending until the PSNR has climbed clear of its
-            # least (``scout_rule``): its margins name the watched levels
-            anchor = probe(scene, settings, 2.0**start, h, levels=sorted(levels), views=views, viewing=viewing,
-                           options=options, ingest_options=ingest_options, prepared=prepared,
-                           stop=scout_rule(statistic, float(watch_db)), clusters=clusters)
-            probes[(start, 0.0)] = anchor
-            if progress is not None:
-                progress(anchor)
-            per = dict(zip(anchor["levels"], _level_psnrs(anchor, statistic)))
-            least = min(per.values())
-            watch = sorted((b for b in per if per[b] < least + float(watch_db)), key=lambda b: (per[b], b))
-        whole = False
-        for _ in range(len(levels) + 1):
-            reached, x, e = choose()
-            chosen = run(x, e)
-            if not (direct and complete and reached):
-                break
-            if set(chosen["levels"]) < set(levels):  # the choice at every level, the watched ones first
-                chosen = probe(scene, settings, 2.0**x, h, levels=order(), views=views, viewing=viewing,
-                               options=options, ingest_options=ingest_options, edge_scale=e, prepared=prepared,
-                               stop_below=(float(target_psnr), statistic), clusters=clusters)
-                probes[(x, e)] = chosen
-                if progress is not None:
-                    progress(chosen)
-            if passes(chosen):
-                whole = True
-                break
-            # it missed a level nobody watched: watch it too, and search again
-            missed = chosen["levels"][-1]
-            if missed in watch:
-                break
-            watch.append(missed)
-        confirmation = None
-        same = confirm is not None and _same_harness(confirm, views, resolution)
-        if reached and confirm is not None and not same and not direct:
-            confirmation = _confirm(scene, settings, x, e, probes, hi, tolerance, target_psnr, statistic, confirm,
-                                    edges=search == "kf+edge" and bool(settings.edges), levels=levels,
-                                    viewing=viewing, options=options, ingest_options=ingest_options,
-                                    progress=progress, run_reduced=run, dry=dry, prepared=prepared,
-                                    confirm_levels=confirm_levels, clusters=clusters)
-            reached = confirmation["passed"]
-            chosen = confirmation.pop("chosen")
-            confirmation.pop("chosen_knobs")
-        if direct and complete:
-            reached = reached and whole
-    curve = [probes[k] for k in sorted(probes)]  # by sigma, then edge strictness
+def _calibration_result(target_psnr: float, statistic: str, reached: bool, chosen: dict, search: str, ks,
+                        views, resolution, settings: AnalyseSettings, lo: float, hi: float, tolerance: float,
+                        confirmation, t0: float) -> dict:
+    """``calibrate``'s result (its doc): the choice ``chosen`` (a probe), the curve of every probe of
+    the search ``ks`` (a ``_KfSearch``), sorted by sigma, then edge strictness."""
+    curve = [ks.probes[k] for k in sorted(ks.probes)]  # by sigma, then edge strictness
+    watch = ks.watch
     return {
         "target_psnr": float(target_psnr),
         "statistic": statistic,
@@ -791,7 +644,7 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         "kf_normal": chosen["kf_normal"],
         "chosen": chosen,
         "curve": curve,
-        "levels": levels,
+        "levels": ks.levels,
         "views": views if isinstance(views, int) else list(views),
         "resolution": [int(resolution[0]), int(resolution[1])],
         "base_eps": float(settings.eps),
@@ -802,6 +655,179 @@ def calibrate(scene, settings: AnalyseSettings = DEFAULT_ANALYSE, *, target_psnr
         "complete": bool(chosen.get("complete", True)),
         "seconds": round(time.perf_counter() - t0, 3),
     }
+
+
+class _KfSearch:
+    """The probes of one ``calibrate`` search on the harness ``h``, each made once per knobs
+    (log2 sigma ``x``, edge strictness ``e``) and kept in ``probes`` (the curve); ``kw``:
+    ``probe``'s keyword arguments common to every probe (views, viewing, options, prepared, ...).
+    ``direct``: the watched levels (``watch``, set by ``scout``) are rendered first and a probe
+    stops at its first miss; a probe whose verdict does not cover a level watched since is made
+    again."""
+
+    def __init__(self, scene, settings: AnalyseSettings, h, kw: dict, *, target_psnr: float, statistic: str,
+                 levels: list, lo: float, hi: float, tolerance: float, progress, direct: bool):
+        self.scene, self.settings, self.h, self.kw = scene, settings, h, kw
+        self.target_psnr, self.statistic, self.levels = target_psnr, statistic, levels
+        self.lo, self.hi, self.tolerance = lo, hi, tolerance
+        self.progress, self.direct = progress, direct
+        self.probes: dict = {}
+        self.dry_cache: dict = {}
+        self.targets = [float(target_psnr) + MODEL_MARGIN_DB] * len(levels)
+        self.start = min(hi, max(lo, 0.0))  # the default cook's k_f
+        self.watch: list | None = None  # the watched levels, in render order (direct search)
+
+    def order(self) -> list:
+        """The levels in render order: the watched ones first."""
+        return list(self.watch) + [b for b in self.levels if b not in self.watch]
+
+    def settled(self, p: dict) -> bool:
+        """Whether a direct probe's verdict holds for the watched levels: it failed on a level it
+        rendered, or it rendered every watched level."""
+        return not self.passes(p) or set(self.watch) <= set(p["levels"])
+
+    def _made(self, p: dict, x: float, e: float) -> dict:
+        self.probes[(x, e)] = p
+        if self.progress is not None:
+            self.progress(p)
+        return p
+
+    def run(self, x: float, e: float = 0.0) -> dict:
+        """The probe at (x, e), made when not made yet (or not settled, direct)."""
+        if (x, e) not in self.probes or (self.direct and not self.settled(self.probes[(x, e)])):
+            extra = {}
+            if self.direct:  # the watched levels first (least margin first), up to the first that fails
+                extra = dict(levels=self.order(), stop_below=(float(self.target_psnr), self.statistic),
+                             watch=len(self.watch))
+            p = probe(self.scene, self.settings, 2.0**x, self.h, **{"levels": self.levels, **extra}, edge_scale=e,
+                      **self.kw)
+            self._made(p, x, e)
+        return self.probes[(x, e)]
+
+    def ok(self, x: float, e: float = 0.0) -> bool:
+        return self.passes(self.run(x, e))
+
+    def passes(self, p: dict) -> bool:
+        return _passes(p, self.target_psnr, self.statistic)
+
+    def psnrs(self, p: dict) -> list:
+        return _level_psnrs(p, self.statistic, self.levels if self.direct else None)
+
+    def kf_search(self, e: float, a: float, x_start: float, give_up=None):
+        """``model_search`` over log2 sigma in [a, hi] at edge strictness ``e``, from ``x_start``."""
+        return model_search(lambda t: self.run(t, e), self.passes, a, self.hi, self.tolerance, x_start, self.psnrs,
+                            self.targets, give_up)
+
+    def memory(self, c) -> float:
+        """Mean CAP memory over the levels (% of float32 positions) of the probe at knobs ``c``."""
+        return sum(self.run(*c)["cap_percent"]) / len(self.levels)
+
+    def dry(self, x: float, e: float) -> float:
+        """The memory of a probe, without rendering it."""
+        if (x, e) in self.probes:
+            return self.memory((x, e))
+        return cap_memory(self.scene, self.settings, x, e, self.levels, self.dry_cache,
+                          prepared=self.kw["prepared"], clusters=self.kw["clusters"])
+
+    def scout(self, watch_db: float) -> None:
+        """The direct search's anchor (the default cook), levels ascending until the PSNR has climbed
+        clear of its least (``scout_rule``): the levels within ``watch_db`` dB of the least are
+        watched, least margin first."""
+        anchor = probe(self.scene, self.settings, 2.0**self.start, self.h, levels=sorted(self.levels),
+                       stop=scout_rule(self.statistic, watch_db), **self.kw)
+        self._made(anchor, self.start, 0.0)
+        per = dict(zip(anchor["levels"], _level_psnrs(anchor, self.statistic)))
+        least = min(per.values())
+        self.watch = sorted((b for b in per if per[b] < least + watch_db), key=lambda b: (per[b], b))
+
+    def settle(self, search: str, loosen_edges: bool, complete: bool):
+        """``(reached, x, e, chosen probe, whole)``: the choice of ``choose``; a direct search with
+        ``complete`` renders it at every level (the watched ones first) and, when it misses a level
+        nobody watched, watches that level too and chooses again. ``whole``: the choice passed at
+        every level."""
+        whole = False
+        for _ in range(len(self.levels) + 1):
+            reached, x, e = self.choose(search, loosen_edges)
+            chosen = self.run(x, e)
+            if not (self.direct and complete and reached):
+                break
+            if set(chosen["levels"]) < set(self.levels):  # the choice at every level, the watched ones first
+                chosen = probe(self.scene, self.settings, 2.0**x, self.h, levels=self.order(), edge_scale=e,
+                               stop_below=(float(self.target_psnr), self.statistic), **self.kw)
+                self._made(chosen, x, e)
+            if self.passes(chosen):
+                whole = True
+                break
+            # it missed a level nobody watched: watch it too, and search again
+            missed = chosen["levels"][-1]
+            if missed in self.watch:
+                break
+            self.watch.append(missed)
+        return reached, x, e, chosen, whole
+
+    def choose(self, search: str, loosen_edges: bool):
+        """(reached, x, e) of one search over the knobs (module doc, steps 1-2c)."""
+        # (1) k_f at the given edge_eps
+        e = 0.0
+        x = self.kf_search(e, self.lo, self.start)
+        candidates = [] if x is None else [(x, e)]
+        if search == "kf+edge" and self.settings.edges:
+            loosest = float(-math.floor(math.log2(1.0 / float(self.settings.edge_eps))))
+            if x is not None and loosest < 0 and loosen_edges:
+                candidates += self._looser_edges(x, loosest)
+            elif x is None:  # (2b) stricter edges at the largest k_f, then k_f again
+                e_found = _least_passing(lambda t: self.ok(self.hi, t), 1.0, float(EDGE_RANGE))
+                if e_found is not None:
+                    e = e_found
+                    x = self.kf_search(e, self.lo, self.hi)
+                    candidates = [(x, e)]
+        # only candidates whose verdict holds for the watched levels (a direct search's watch may
+        # have grown since one was found)
+        candidates = [c for c in candidates if self.ok(*c)]
+        if candidates:  # the least position memory, averaged over the levels (ties: less k_f)
+            x, e = min(candidates, key=lambda c: (self.memory(c), c[0]))
+            return True, x, e
+        return False, self.hi, e
+
+    def _looser_edges(self, x: float, loosest: float) -> list:
+        """Steps (2a) and (2c) after k_f ``x`` passed at the given edges: the candidates (x, e1),
+        e1 the loosest edges in [``loosest``, 0] that still pass at ``x``, and, when the edges
+        could not be loosened all the way and the loosest edges at ``x`` cost less memory than the
+        best so far, (x1, loosest) with the k_f above ``x`` that passes there (at most
+        ``EDGE_KF_PROBES`` probes, over points whose memory is below the best)."""
+        # (2a) loosen the edges while the target holds at the chosen k_f
+        e1 = _least_passing(lambda t: self.ok(x, t), loosest, 0.0)
+        out = [(x, e1)]
+        if e1 > loosest:  # (2c) the loosest edges, paid for with more k_f, while that can cost less
+            best = min(self.memory(c) for c in [(x, 0.0)] + out)
+            if self.memory((x, loosest)) < best:
+                guess = _predict([(x, self.psnrs(self.run(x, loosest)))], self.targets)
+                guess = x + self.tolerance * max(1, math.ceil((guess - x) / self.tolerance - 1e-9))
+                n = len(self.levels)
+                x1 = model_search(lambda t: self.run(t, loosest), self.passes, x, self.hi, self.tolerance, guess,
+                                  self.psnrs, self.targets, reach_check=False, max_probes=EDGE_KF_PROBES,
+                                  give_up=lambda p: sum(p["cap_percent"]) / n >= best,
+                                  before=lambda t: self.dry(t, loosest) >= best)
+                if x1 is not None:
+                    out.append((x1, loosest))
+        return out
+
+
+def _least_passing(f, a: float, b: float):
+    """Smallest whole t in [a, b] with f(t) (f non-decreasing in t); None when f(b) fails."""
+    if f(a):
+        return a
+    if not f(b):
+        return None
+    while b - a > 1.0:  # f(a) fails, f(b) passes
+        m = float(math.floor(0.5 * (a + b)))
+        if m <= a:
+            break
+        if f(m):
+            b = m
+        else:
+            a = m
+    return b
 
 
 def calibrated_settings(settings: AnalyseSettings, result: dict) -> AnalyseSettings:

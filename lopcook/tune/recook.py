@@ -31,7 +31,10 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..analyse import analyse
+from ..analyse.bitlevel import clear_slope_cache
 from ..errors import LopcookError
+from ..pipeline import run
 from ..progress import NONE, Progress
 from ..settings import Settings
 
@@ -52,10 +55,6 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
     (LOD 0 of every part: warnings), "lod_reports": [per part LodReport dict] (empty without
     LODs)}``. ``file_bytes``: the container file's bytes (default: read from ``container.path``).
     """
-    from ..analyse import analyse
-    from ..analyse.bitlevel import clear_slope_cache
-    from ..pipeline import run
-
     clear_slope_cache()  # time what a fresh cook pays
     m = container.manifest
     options = m.get("options") or {}
