@@ -12,10 +12,22 @@ Method: Q. Meyer, G. Sussner, G. Greiner, M. Stamminger, "Adaptive Level-of-Prec
 GPU-Rendering", VMV 2011.
 """
 
-from .version import __version__  # noqa: E402
+from importlib import import_module
 
-from .api import cook, load, read  # noqa: E402
-from .lop.container import Container  # noqa: E402
-from .settings import DEFAULTS, Settings  # noqa: E402
+from .version import __version__
+
+#: the API's names, each resolved from its module when first used (PEP 562), so that importing any
+#: lopcook module (a batch worker parsing flags, ``lopcook --help``) loads no pipeline stage
+_API = {"load": "api", "cook": "api", "read": "api", "Container": "lop.container", "Settings": "settings",
+        "DEFAULTS": "settings"}
+
+
+def __getattr__(name: str):
+    if name not in _API:
+        raise AttributeError(f"module 'lopcook' has no attribute {name!r}")
+    value = getattr(import_module(f".{_API[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = ["__version__", "load", "cook", "read", "Container", "Settings", "DEFAULTS"]

@@ -7,15 +7,13 @@ byte-budget fit when ``settings.tune.target_bytes`` is set (``lopcook.tune.budge
 returned Container holds its bytes (``.data``) and what the cook did (``.result``, a
 ``CookResult`` with ``calibration`` and ``budget`` records when those ran).
 
-This module is imported with ``lopcook`` itself, by every command and every batch worker: the
-stages (ingest, pipeline, tune, verify) are imported inside the functions that use them, so that
-``import lopcook`` loads none of them.
+``import lopcook`` does not load this module (nor the stages it imports): the package's face
+resolves ``lopcook.cook``, ``load`` and ``read`` when first used (PEP 562).
 """
 
 from __future__ import annotations
 
 import time
-from fractions import Fraction
 
 from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .lop.container import Container, from_bytes
@@ -24,14 +22,22 @@ from .lop.memo import code_memo
 from .memory import release_free_memory, small_pages
 from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
+from .analyse.prepared import held
+from .analyse.prepared import release_shared as release_prepared
+from .ingest import load as _load
+from .pipeline import plain, run
+from .settings import budget_target
+from .tune.attributes import allocate, format_probe, search_record
+from .tune.attributes import require_reached as require_allocated
+from .tune.budget import fit, float_bytes
+from .tune.calibrate import CONFIRM_LEVELS, WATCH_DB, calibrate, calibration_record
+from .tune.calibrate import require_reached as require_calibrated
 from .types import Scene
+from .verify.renderer import release_shared as release_harnesses
 
 
 def load(path, settings: Settings = DEFAULTS) -> Scene:
     """Load a glTF/GLB, OBJ or USD file into a validated Scene (``settings.ingest``)."""
-    # a stage: imported where it is used (module doc)
-    from .ingest import load as _load
-
     with small_pages():
         return _load(str(path), settings.ingest)
 
@@ -39,24 +45,6 @@ def load(path, settings: Settings = DEFAULTS) -> Scene:
 def read(path, *, allow_prefix: bool = False) -> Container:
     """Read and check a .lop container (every corruption is one LopcookError)."""
     return _read(str(path), allow_prefix=allow_prefix)
-
-
-def budget_target(text: str, float_size: int | None = None) -> int | None:
-    """``--target-bytes``: an integer number of bytes, or P/Q of ``float_size`` (rounded down).
-    With ``float_size`` None only the syntax is checked (returns None for a fraction)."""
-    t = str(text).strip().replace("_", "").replace(",", "")
-    try:
-        value = Fraction(t)
-    except (ValueError, ZeroDivisionError):
-        raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a number of bytes (e.g. 150000) "
-                           "or a fraction of the float size (e.g. 1/6)") from None
-    if "/" not in t:
-        if value.denominator != 1 or value <= 0:
-            raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a positive whole number of bytes")
-        return int(value)
-    if not value > 0:
-        raise LopcookError("usage", None, f"--target-bytes {text!r}: the fraction must be positive")
-    return None if float_size is None else int(value * float_size)
 
 
 def calibration(scene: Scene, settings: Settings, progress: Progress = NONE, complete: bool = True,
@@ -78,9 +66,6 @@ def search_harness(settings: Settings) -> tuple:
     (``tune.confirm``, verify's 20 views at 1280 x 720 by default) at its levels among 6..11
     (``CONFIRM_LEVELS``, the gate's ``verify --levels 6-11``) for a direct search (``tune.direct``),
     else the reduced ``tune.calibration``."""
-    # a stage: imported where it is used (module doc)
-    from .tune.calibrate import CONFIRM_LEVELS
-
     t = settings.tune
     if t.direct:
         gate = t.confirm if t.confirm is not None else settings.render
@@ -91,9 +76,6 @@ def search_harness(settings: Settings) -> tuple:
 
 def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True, loosen_edges: bool = True) -> dict:
     """The k_f calibration of ``settings.tune`` (``calibration``)."""
-    # a stage: imported where it is used (module doc)
-    from .tune.calibrate import WATCH_DB, calibrate
-
     t = settings.tune
     views, resolution, levels, direct = search_harness(settings)
     confirm = None if t.confirm is None or direct else (t.confirm.views, t.confirm.resolution)
@@ -111,20 +93,14 @@ def _search(scene: Scene, settings: Settings, on_probe, complete: bool = True, l
 def _calibrate(scene: Scene, settings: Settings, progress, complete: bool = True, loosen_edges: bool = True):
     """``tune.target_psnr``: the calibration, its manifest record and the settings it chose;
     LopcookError (exit 1) when the target is not reached."""
-    # a stage: imported where it is used (module doc)
-    from .tune.calibrate import calibration_record, require_reached
-
     cal = calibration(scene, settings, progress, complete, loosen_edges)
-    require_reached(cal, scene.source)
+    require_calibrated(cal, scene.source)
     chosen = settings.with_(analyse={"eps": cal["eps"], "edge_eps": cal["edge_eps"]})
     return cal, calibration_record(cal), chosen
 
 
 def _budget(scene: Scene, settings: Settings, options: dict, say):
     """``tune.target_bytes``: the fitted container's bytes, the chain's CookResult and the record."""
-    # a stage: imported where it is used (module doc)
-    from .tune.budget import fit, float_bytes
-
     t = settings.tune
     fsize = float_bytes(scene, t.budget_scope.value)
     target = budget_target(t.target_bytes, fsize)
@@ -141,9 +117,6 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
     Purnomo's greedy search over every attribute's bits (``lopcook.tune.attributes``). Returns
     (the record for ``cook --json``, the manifest record, the chosen Settings); LopcookError (exit
     1) when a target is missed even at the default bits, (exit 2) when the budget is unreachable."""
-    # a stage: imported where it is used (module doc)
-    from .tune.attributes import allocate, format_probe, require_reached, search_record
-
     t = settings.tune
     budget = t.vertex_bits is not None
     confirm = None if t.confirm is None else (t.confirm.views, t.confirm.resolution)
@@ -162,7 +135,7 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
                        statistic="mean" if budget else t.psnr_stat.value, progress=on_probe,
                        watch=None if budget else watch)
     chosen = res.pop("_settings")
-    require_reached(res, scene.source)
+    require_allocated(res, scene.source)
     return res, search_record(res), chosen
 
 
@@ -181,9 +154,6 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
 
 def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     """``cook``'s body."""
-    # a stage: imported where it is used (module doc)
-    from .pipeline import run
-
     say = progress
     timings: dict = {}
     calibration = record = None
@@ -245,12 +215,6 @@ def _after_searches(scene: Scene, settings: Settings, timings: dict):
     analysis: the same bytes). Returns that Analysis of ``scene`` at ``settings.analyse`` on the
     plain path (``lopcook.pipeline.plain``) without a byte budget, else None; its time goes to
     ``timings["analyse.prepared"]``."""
-    # a stage: imported where it is used (module doc)
-    from .analyse.prepared import held
-    from .analyse.prepared import release_shared as release_prepared
-    from .pipeline import plain
-    from .verify.renderer import release_shared as release_harnesses
-
     analysis = None
     release_harnesses()
     prepared = held(scene, settings.analyse)

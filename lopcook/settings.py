@@ -24,7 +24,7 @@ from .viewing import Viewing
 __all__ = ["BITS", "DepthMode", "TextureSlope", "LodBackend", "SeamMode", "PsnrStat", "SearchKnobs", "BudgetScope",
            "LodSpec", "AttributeSettings", "IngestSettings", "SimplifySettings", "AnalyseSettings", "Viewing", "RenderSettings",
            "TuneSettings", "EmitSettings", "CLUSTER_SIZE_RANGE", "Settings", "DEFAULTS", "DEFAULT_INGEST", "DEFAULT_ANALYSE", "parse_resolution",
-           "parse_lods"]
+           "parse_lods", "budget_target"]
 
 
 class DepthMode(str, Enum):
@@ -134,6 +134,24 @@ class LodSpec:
         if self.auto:
             return "auto"
         return ",".join(str(Fraction(x).limit_denominator(1 << 20)) for x in self.ratios)
+
+
+def budget_target(text: str, float_size: int | None = None) -> int | None:
+    """``--target-bytes``: an integer number of bytes, or P/Q of ``float_size`` (rounded down).
+    With ``float_size`` None only the syntax is checked (returns None for a fraction)."""
+    t = str(text).strip().replace("_", "").replace(",", "")
+    try:
+        value = Fraction(t)
+    except (ValueError, ZeroDivisionError):
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a number of bytes (e.g. 150000) "
+                           "or a fraction of the float size (e.g. 1/6)") from None
+    if "/" not in t:
+        if value.denominator != 1 or value <= 0:
+            raise LopcookError("usage", None, f"--target-bytes {text!r}: expected a positive whole number of bytes")
+        return int(value)
+    if not value > 0:
+        raise LopcookError("usage", None, f"--target-bytes {text!r}: the fraction must be positive")
+    return None if float_size is None else int(value * float_size)
 
 
 def parse_lods(text: str | None) -> LodSpec | None:

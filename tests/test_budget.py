@@ -17,7 +17,7 @@ from lopcook.tune import budget as BG
 
 FAST = Settings(simplify=SimplifySettings(backend="fast"))
 from tests.support import fixtures as F
-from lopcook.api import budget_target as _budget_target
+from lopcook.settings import budget_target as _budget_target
 from lopcook.cli import main
 from lopcook.lop.container import from_bytes, read
 from lopcook.lop.summary import memory_rows

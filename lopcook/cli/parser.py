@@ -14,15 +14,14 @@ import argparse
 import math
 from dataclasses import replace
 
-from ..api import budget_target
 from ..errors import LopcookError
 from ..ingest import EXTENSIONS, describe_formats, formats_table
 from ..isolate import cpus
-from ..progress import MODES
 from ..lop.codecs import CODECS
-from ..settings import (CLUSTER_SIZE_RANGE, DEFAULTS, AnalyseSettings, AttributeSettings, BudgetScope, DepthMode, EmitSettings, IngestSettings,
-                        LodBackend, PsnrStat, RenderSettings, SearchKnobs, SeamMode, Settings, SimplifySettings,
-                        TuneSettings, parse_lods, parse_resolution)
+from ..progress import MODES
+from ..settings import (CLUSTER_SIZE_RANGE, DEFAULTS, AnalyseSettings, AttributeSettings, BudgetScope, DepthMode,
+                        EmitSettings, IngestSettings, LodBackend, PsnrStat, RenderSettings, SearchKnobs, SeamMode,
+                        Settings, SimplifySettings, TuneSettings, budget_target, parse_lods, parse_resolution)
 from ..verify.decoders import parse_levels
 from ..version import __version__
 from ..viewing import Viewing
