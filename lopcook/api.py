@@ -15,6 +15,7 @@ from fractions import Fraction
 
 from .lop.container import Container
 from .lop.container import read as _read
+from .lop.stream import to_stream
 from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .memory import small_pages
 from .progress import NONE, Progress
@@ -239,6 +240,13 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     else:
         result = run(scene, settings, options=options, progress=progress, analysis=analysis)
         container = result.container
+    if settings.emit.stream:  # the final container only: the searches' probes keep the default layout
+        from .pipeline import _account
+
+        t0 = time.perf_counter()
+        container = result.container = to_stream(container)
+        _account(result)  # the LOD rows count the streaming file's (stored) section bytes
+        timings["stream"] = time.perf_counter() - t0
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration
     result.attribute_search = search
