@@ -43,7 +43,7 @@ from ..atomic import write_atomic  # noqa: F401  (re-exported: the writer of .lo
 from ..errors import LopcookError
 from .clusters import from_header, plane_bit, words_at
 from .codecs import CODECS, AttributeBits
-from .encoding import EncodingError, decode_section
+from .encoding import MANIFEST_MARK, EncodingError, decode_manifest, decode_section, encode_manifest
 from .layout import Layout, is_stream, layout_of
 from .manifest import Manifest
 from .validate import validate_manifest
@@ -210,6 +210,8 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> b
     manifest = dict(manifest)
     manifest["sections"] = table
     mbytes = manifest_bytes(manifest)
+    if is_stream(manifest):  # the one thing every reader fetches first: stored encoded (format.md 4)
+        mbytes = encode_manifest(mbytes)
     total = HEADER_SIZE + len(mbytes) + offset
     major, minor = version_of(manifest)
     head = _HEADER.pack(MAGIC, major, minor, HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
@@ -280,13 +282,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     mbytes = data[HEADER_SIZE:HEADER_SIZE + msize]
     if zlib.crc32(mbytes) != mcrc:
         fail("manifest checksum mismatch")
-    try:
-        manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
-                              parse_constant=_no_constants)
-    except (UnicodeDecodeError, ValueError) as exc:
-        fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
-    except RecursionError:
-        fail("manifest JSON is nested too deeply")
+    manifest = _parse_manifest(mbytes, major, minor, fail)
     validate_manifest(manifest, path)
     if major == VERSION[0] and is_clustered(manifest):
         fail(f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
@@ -310,6 +306,39 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         fail("the file ends before the first stage's mandatory position bits" if container.stream
              else "the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
     return container
+
+
+def manifest_text(stored: bytes, major: int = STREAM_VERSION[0]) -> bytes:
+    """The JSON text of a manifest's stored bytes: as they are, or decoded when encoded (a 4.x
+    file's manifest may be: docs/format.md 4). EncodingError for an encoded manifest that does not
+    decode; ValueError for one in a file older than 4.x."""
+    if not stored[:1] == bytes([MANIFEST_MARK]):
+        return bytes(stored)
+    if major < STREAM_VERSION[0]:
+        raise ValueError(f"an encoded manifest needs {STREAM_VERSION[0]}.x")
+    return decode_manifest(bytes(stored))
+
+
+def manifest_of(data: bytes) -> dict:
+    """The manifest of a container's bytes, unchecked (for tools that edit files: the checks are
+    ``from_bytes``'s)."""
+    msize, major = struct.unpack_from("<I", data, 12)[0], struct.unpack_from("<H", data, 4)[0]
+    return json.loads(manifest_text(data[HEADER_SIZE:HEADER_SIZE + msize], major))
+
+
+def _parse_manifest(mbytes: bytes, major: int, minor: int, fail) -> dict:
+    """The manifest object of its stored bytes (decoded when encoded), strict JSON."""
+    try:
+        text = manifest_text(mbytes, major)
+    except ValueError as exc:  # EncodingError included
+        fail(f"container version {major}.{minor} must not hold an encoded manifest (it needs "
+             f"{STREAM_VERSION[0]}.x)" if not isinstance(exc, EncodingError) else f"manifest (encoded): {exc}")
+    try:
+        return json.loads(text.decode("ascii"), object_pairs_hook=_no_duplicates, parse_constant=_no_constants)
+    except (UnicodeDecodeError, ValueError) as exc:
+        fail(f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
+    except RecursionError:
+        fail("manifest JSON is nested too deeply")
 
 
 def _index_lods(manifest: dict) -> dict:

@@ -14,10 +14,12 @@ Readers decode with bounded memory: DEFLATE never produces more than ``size`` by
 is at most ``DEFLATE_MAX_RATIO * length`` bytes and at least ``1 + m + 16``. ``decode_section``
 raises one ``LopcookError("container", ...)`` naming the section for anything else.
 The writer (``encode_section``) keeps an encoding only when it saves ``MIN_SAVING`` of the bytes.
+A 4.x manifest may be stored encoded too (``encode_manifest``: a 0x00 byte, its size, DEFLATE).
 """
 
 from __future__ import annotations
 
+import struct
 import zlib
 
 import meshoptimizer
@@ -35,6 +37,8 @@ MIN_SAVING = 0.05
 LEVEL, WBITS, MEM_LEVEL = 9, -15, 9
 #: EXT_meshopt_compression triangle stream: header byte of bitstream version 1, table bytes
 TRIANGLES_HEADER, TABLE_BYTES = 0xE1, 16
+#: the first byte of an encoded manifest: no JSON text starts with it
+MANIFEST_MARK = 0x00
 
 
 class EncodingError(ValueError):
@@ -47,11 +51,11 @@ def deflate(data: bytes) -> bytes:
     return z.compress(bytes(data)) + z.flush()
 
 
-def inflate(stored: bytes, limit: int, *, exact: bool) -> bytes:
+def inflate(stored: bytes, limit: int, *, exact: bool, padded: bool = True) -> bytes:
     """Inflate the raw DEFLATE stream at the start of ``stored`` (a section's stored bytes, padding
     included). ``limit``: the most bytes it may give (``size``); ``exact``: it must give exactly
     ``limit``. The stream must end inside ``stored``, whose remaining bytes must be the section's
-    zero padding (fewer than 4, all zero). EncodingError otherwise."""
+    zero padding (fewer than 4, all zero; none without ``padded``). EncodingError otherwise."""
     z = zlib.decompressobj(WBITS)
     try:
         out = z.decompress(stored, limit + 1)
@@ -65,10 +69,31 @@ def inflate(stored: bytes, limit: int, *, exact: bool) -> bytes:
         raise EncodingError(f"the deflate stream gives {len(out)} bytes, not the {limit} its size says")
     tail = z.unused_data
     end = len(stored) - len(tail)
-    if len(stored) != 4 * -(-end // 4) or tail.count(0) != len(tail):
+    if not padded and tail:
+        raise EncodingError(f"the deflate stream ends at byte {end} of its {len(stored)} bytes")
+    if padded and (len(stored) != 4 * -(-end // 4) or tail.count(0) != len(tail)):
         raise EncodingError(f"the deflate stream ends at byte {end}, not in the last word of its "
                             f"{len(stored)} stored bytes with zero padding after it")
     return out
+
+
+def encode_manifest(text: bytes) -> bytes:
+    """The stored bytes of an encoded manifest (docs/format.md 4): ``MANIFEST_MARK``, the JSON
+    text's size (uint32 little-endian), the raw DEFLATE stream of the text."""
+    return bytes([MANIFEST_MARK]) + struct.pack("<I", len(text)) + deflate(text)
+
+
+def decode_manifest(stored: bytes) -> bytes:
+    """The JSON text of an encoded manifest (``encode_manifest``): the stream must give exactly
+    its size (at most ``DEFLATE_MAX_RATIO`` times its bytes) and end at the manifest's last byte.
+    EncodingError otherwise."""
+    if len(stored) < 5 or stored[0] != MANIFEST_MARK:
+        raise EncodingError("an encoded manifest starts with 0x00 and its 4-byte size")
+    (size,) = struct.unpack_from("<I", stored, 1)
+    if size > DEFLATE_MAX_RATIO * (len(stored) - 5):
+        raise EncodingError(f"the encoded manifest claims {size} bytes, more than {DEFLATE_MAX_RATIO} times its "
+                            f"{len(stored) - 5} stored bytes")
+    return inflate(stored[5:], size, exact=True, padded=False)
 
 
 def _table_ok(table: bytes) -> bool:

@@ -1008,8 +1008,9 @@ class Reader {
     const mbytes = this.bytes.subarray(HEADER_SIZE, HEADER_SIZE + h.manifestSize);
     if (crc32(mbytes) !== h.manifestCrc) this.fail('manifest checksum mismatch');
     let manifest;
+    const text = this.manifestText(mbytes);
     try {
-      manifest = parseJson(asciiText(mbytes));
+      manifest = parseJson(asciiText(text));
     } catch (exc) {
       if (exc instanceof RangeError || /nested too deeply/.test(exc.message)) this.fail('manifest JSON is nested too deeply');
       this.fail(`manifest is not valid JSON (${String(exc.message).split(/\s+/).join(' ').slice(0, 160)})`);
@@ -1032,6 +1033,25 @@ class Reader {
     const whole = Math.min(this.sectionsEnd, h.fileSize);
     if (this.growable && this.bytes.length < whole && whole <= MAX_PREALLOCATION) {
       this.grow(whole); // size a stream's buffer once (a larger one grows as bytes arrive)
+    }
+  }
+
+  /** The JSON text of the manifest's stored bytes: as they are, or decoded when the first byte is
+   * 0x00 (a 4.x file's encoded manifest: its uint32 size, then raw DEFLATE; format.md 4). */
+  manifestText(mbytes) {
+    if (mbytes.length === 0 || mbytes[0] !== 0) return mbytes;
+    const h = this.header;
+    if (h.major < STREAM_MAJOR) this.fail(`container version ${h.major}.${h.minor} must not hold an encoded manifest (it needs ${STREAM_MAJOR}.x)`);
+    try {
+      if (mbytes.length < 5) throw new Error('an encoded manifest starts with 0x00 and its 4-byte size');
+      const size = u32le(mbytes, 1), body = mbytes.subarray(5);
+      if (size > DEFLATE_MAX_RATIO * body.length) throw new Error(`the encoded manifest claims ${size} bytes, more than ${DEFLATE_MAX_RATIO} times its ${body.length} stored bytes`);
+      const {out, end} = inflateRaw(body, size, true);
+      if (end !== body.length) throw new Error(`the deflate stream ends at byte ${end} of its ${body.length} bytes`);
+      return out;
+    } catch (exc) {
+      if (exc instanceof LopError) throw exc;
+      this.fail(`manifest (encoded): ${exc.message}`);
     }
   }
 

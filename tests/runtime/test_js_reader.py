@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import runtime_support as rs
-from lopcook import fuzzcases as fz
+from tests.support import fuzzcases as fz
 from lopcook.lop import reader
 from lopcook.lop.container import from_bytes
 
