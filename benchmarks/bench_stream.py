@@ -5,10 +5,12 @@ to, and the time of the rewrite against the cook it follows (measured in the sam
 Not a test. Usage::
 
     .venv/bin/python benchmarks/bench_stream.py [--corpus DIR] [--assets a,b] [--flags "--lods auto"]
-        [--gltfpack PATH] [-o OUT.json]
+        [--gltfpack PATH] [--cooked DIR] [-o OUT.json]
 
 ``--gltfpack``: also gltfpack -cc's whole file and its gzip -9 (the peer point of the streaming
-target; the chess set, which gltfpack cannot read, is written as GLB first). Prints a table per
+target; the chess set, which gltfpack cannot read, is written as GLB first). ``--cooked DIR``: take
+the default cooks from ``DIR/<source file name>.lods.lop`` (benchmarks/cook_hashes.sh's names)
+instead of cooking (no cook time then). Prints a table per
 asset; ``-o`` writes every figure as JSON.
 """
 
@@ -100,13 +102,13 @@ def gltfpack_point(exe: str, src: Path, scene, tmp: Path) -> dict:
     return {"bytes": len(data), "gzip9_bytes": squeezed(data, ["gzip", "-9", "-c"])}
 
 
-def measure(name: str, src: Path, flags: list, gltfpack: str | None, tmp: Path) -> dict:
+def measure(name: str, src: Path, flags: list, gltfpack: str | None, tmp: Path, cooked: Path | None) -> dict:
     args = build_parser().parse_args(["cook", str(src), "-o", "x.lop", *flags])
     settings = settings_from_args(args)
-    scene = api.load(src, settings)
+    scene = api.load(src, settings) if gltfpack or cooked is None else None
     t0 = time.perf_counter()
-    default = api.cook(scene, settings)
-    cook_s = time.perf_counter() - t0
+    default = api.cook(scene, settings) if cooked is None else from_bytes((cooked / f"{src.name}.lods.lop").read_bytes())
+    cook_s = time.perf_counter() - t0 if cooked is None else None
     t0 = time.perf_counter()
     stream = to_stream(default)
     stream_s = time.perf_counter() - t0
@@ -141,8 +143,8 @@ def report(r: dict) -> str:
              f"manifest {d['manifest_bytes']:,} / {s['manifest_bytes']:,} B",
              f"  first renderable: default {pct(d['first_renderable_bytes'], d['bytes'])}, "
              f"stream {pct(s['first_renderable_bytes'], s['bytes'])}",
-             f"  time: cook {r['seconds']['cook']:.2f} s, to_stream {r['seconds']['to_stream']:.2f} s "
-             f"({100.0 * r['seconds']['to_stream'] / r['seconds']['cook']:.1f} % of the cook), "
+             f"  time: cook {r['seconds']['cook'] or 0:.2f} s, to_stream {r['seconds']['to_stream']:.2f} s "
+             f"({100.0 * r['seconds']['to_stream'] / (r['seconds']['cook'] or float('inf')):.1f} % of the cook), "
              f"reading the stream file {r['seconds']['read_stream']:.2f} s"]
     if "gltfpack_cc" in r:
         g = r["gltfpack_cc"]
@@ -167,12 +169,14 @@ def main(argv=None) -> int:
     p.add_argument("--assets", default=",".join(ASSETS))
     p.add_argument("--flags", default="--lods auto")
     p.add_argument("--gltfpack", default=None, help="a gltfpack executable (npm gltfpack 1.3.0)")
+    p.add_argument("--cooked", type=Path, default=None, help="read the default cooks from DIR/<source>.lods.lop")
     p.add_argument("-o", "--output", type=Path, default=None)
     args = p.parse_args(argv)
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.assets.split(","):
-            r = measure(name, args.corpus / ASSETS[name], shlex.split(args.flags), args.gltfpack, Path(tmp))
+            r = measure(name, args.corpus / ASSETS[name], shlex.split(args.flags), args.gltfpack, Path(tmp),
+                        args.cooked)
             print(report(r), flush=True)
             results.append(r)
     if args.output:

@@ -151,6 +151,18 @@ def test_valid_cases_read_and_hold_their_features(case):
         assert any((p.get("placement") or {}).get("of", i) != i for i, p in enumerate(c.manifest["parts"]))
 
 
+def test_stream_manifests_follow_the_schema():
+    import jsonschema  # test extra
+
+    schema = json.loads((sc.REPO / "schema" / "container.schema.json").read_text())
+    check = jsonschema.Draft202012Validator(schema)
+    for name, data, _ in sc.stream_cases():
+        assert not [e.message for e in check.iter_errors(from_bytes(data).manifest)], name
+    bad = manifest_of(sc.cooked("stream_plates.lop"))
+    bad["sections"][0]["encoding"] = "lzma"
+    assert list(check.iter_errors(bad))
+
+
 MARKERS = {"version": "must not hold", "manifest": "manifest"}
 
 

@@ -1,8 +1,8 @@
 """Where a buffer's position bits lie: the default layout and the streaming layout's stages.
 
 docs/format.md sections 6.4-6.5 (default layout: one ``positions/mandatory``, one section per
-refinement plane, every stored buffer in each) and section 14 (streaming layout, version 4.0: a
-part with n LODs has its LOD k in stage n - 1 - k; each stage has its own
+refinement plane, every stored buffer in each) and section 14 (streaming layout, version 4.0: each
+LOD entry names its ``stage``, stage 0 holding every part's coarsest LOD; each stage has its own
 ``positions/stageS/clusters``, ``mandatory``, ``planePP`` for the planes up to its level L_s that
 hold bits, and ``deferred`` for planes L_s + 1 .. max_level). Both are a list of ``Stage``\\ s (the
 default layout is one stage at level ``max_level``), so the readers, the validator and the
@@ -166,9 +166,8 @@ def layout_of(manifest: dict) -> Layout:
     buffers: list = [[] for _ in range(count)]
     stage_of: dict = {}
     for i, part in enumerate(parts):
-        n = len(part["lods"])
         for k, e in enumerate(part["lods"]):
-            s = n - 1 - k if stream else 0
+            s = int(e["stage"]) if stream else 0
             stage_of[(i, k)] = s
             if _owner(part, i) == i and 0 <= s < count:
                 buffers[s].append((i, k, e))

@@ -1,19 +1,25 @@
 """The streaming layout's writer: a default-layout container rewritten coarse to fine.
 
 docs/format.md section 14 (version 4.0, ``cook --stream``). ``to_stream(container)`` keeps every
-vertex, its bins, its attribute record and its position bits, and changes where they lie: stage s
-holds the LOD n - 1 - s of every part with n LODs (so stage 0 is every part's coarsest LOD), each
-stage its buffers' index and attribute sections followed by its own position sections, and the
-planes above a stage's level L_s (``stage_levels``) at the end of the file. Index sections get the
+vertex, its bins, its attribute record and its position bits, and changes where they lie: stage 0
+holds every part's coarsest LOD, and the other buffers follow in the order a camera coming closer
+needs them (``stage_keys``), each stage its buffers' index and attribute sections followed by its
+own position sections, and the planes above a stage's level L_s (``stage_levels``) at the end of
+the file. Index sections get the
 vertex-cache triangle order of meshoptimizer and the triangle codec's rotations; every section is
 encoded where that saves ``encoding.MIN_SAVING`` (docs/format.md 15). The result decodes, buffer
 for buffer and level for level, to the same vertices as the input, and its triangles are the
 input's (same winding) in another order and rotation.
 
-Stage levels: LOD k is drawn from its selection distance ``min_distance_m`` outward, where the
-half-pixel criterion asks for ``required_level(min_distance_m)`` bits at most (Meyer et al. 2011,
-section 4; ``lopcook.viewing``); a shared buffer (placements) takes the most any placement asks
-for after its level shift.
+Stages: LOD k of a part is selected for camera distances in [t_k, t_{k+1}) (``min_distance_m`` of
+it and of the next coarser LOD; ``lopcook.selection``), so a camera at distance d needs exactly the
+buffers with t_{k+1} > d. A buffer's key is ``required_level(t_{k+1})``, the level of the farthest
+camera that selects it (0 for a coarsest LOD), and stages are the distinct keys in ascending order:
+a camera at level B needs the stages up to key B, and a prefix never holds a finer LOD before a
+coarser one of the same part. Stage levels: LOD k is drawn from t_k outward, where the half-pixel
+criterion asks for ``required_level(t_k)`` bits at most (Meyer et al. 2011, section 4;
+``lopcook.viewing``); a shared buffer (placements) takes the most any placement asks for after its
+level shift, and the earliest key of its placements.
 """
 
 from __future__ import annotations
@@ -54,19 +60,41 @@ def buffer_level(manifest: dict, i: int, k: int) -> int:
     return min(best, max_level)
 
 
-def stage_levels(manifest: dict) -> list[int]:
-    """L_s of every stage of the streaming layout of a default-layout manifest: the largest
-    ``buffer_level`` over the stage's buffers."""
-    longest = max(len(p["lods"]) for p in manifest["parts"])
-    levels = [1] * longest
-    for i, part in enumerate(manifest["parts"]):
+def stage_keys(manifest: dict) -> dict:
+    """{(part, lod): key} of every stored buffer (module doc): ``required_level`` of the next
+    coarser LOD's ``min_distance_m`` (0 for the coarsest LOD; 24 where it is not recorded), the
+    least over a shared buffer's placements, made non-decreasing from a part's coarsest LOD to
+    its finest."""
+    m = manifest
+    viewing, extent = viewing_of(m), float(m["grid"]["extent"])
+    keys: dict = {}
+    for j, part in enumerate(m["parts"]):
         pl = part.get("placement")
-        if isinstance(pl, dict) and pl["of"] != i:
-            continue
-        n = len(part["lods"])
-        for k in range(n):
-            levels[n - 1 - k] = max(levels[n - 1 - k], buffer_level(manifest, i, k))
-    return levels
+        owner = int(pl["of"]) if isinstance(pl, dict) else j
+        n, key = len(part["lods"]), 0
+        for k in range(n - 2, -1, -1):  # coarse to fine
+            d = part["lods"][k + 1].get("min_distance_m")
+            key = max(key, LEVELS if d is None else int(np.asarray(required_level(float(d), extent, viewing))))
+            keys[(owner, k)] = min(keys.get((owner, k), key), key)
+        keys[(owner, n - 1)] = 0
+    return keys
+
+
+def stage_levels(manifest: dict, stages: list) -> list[int]:
+    """L_s of every stage (``stages``: per stage its (part, lod) buffers): the largest
+    ``buffer_level`` over the stage's buffers."""
+    return [max(buffer_level(manifest, i, k) for i, k in buffers) for buffers in stages]
+
+
+def assign_stages(manifest: dict) -> tuple[list, dict]:
+    """``(stages, stage_of)``: per stage its stored buffers (part, lod) in manifest order, and the
+    stage of each: the rank of its key among the distinct keys (``stage_keys``)."""
+    keys = stage_keys(manifest)
+    rank = {key: s for s, key in enumerate(sorted(set(keys.values())))}
+    stages: list = [[] for _ in rank]
+    for (i, k) in sorted(keys):
+        stages[rank[keys[(i, k)]]].append((i, k))
+    return stages, {b: rank[key] for b, key in keys.items()}
 
 
 def _bits(data: bytes) -> np.ndarray:
@@ -145,15 +173,9 @@ def to_stream(c: Container) -> Container:
         raise LopcookError("container", c.path, "only a complete file can be rewritten in the streaming layout",
                            hint="read the whole file")
     old, max_level = c.layout, int(m["positions"]["max_level"])
-    levels = stage_levels(m)
-    stages = [[] for _ in levels]
-    for i, part in enumerate(m["parts"]):
-        pl = part.get("placement")
-        if isinstance(pl, dict) and pl["of"] != i:
-            continue  # a placement of another part's buffers stores none
-        n = len(part["lods"])
-        for k, e in enumerate(part["lods"]):
-            stages[n - 1 - k].append((i, k, e))
+    order, stage_of = assign_stages(m)
+    levels = stage_levels(m, order)
+    stages = [[(i, k, m["parts"][i]["lods"][k]) for i, k in buffers] for buffers in order]
     planes = {p: _bits(c.sections[name]) for p, name in old.stages[0].planes.items()}
     sections, tail, moved = [], [], {}
     for s, buffers in enumerate(stages):
@@ -167,18 +189,18 @@ def to_stream(c: Container) -> Container:
         if deferred:
             fields, stored = encode_section(deferred)
             tail.append((stage_name(s, "deferred"), stored, fields))
-    manifest = _stream_manifest(m, levels, moved, max_level)
+    manifest = _stream_manifest(m, levels, moved, stage_of, max_level)
     return built(manifest, sections + tail, path=c.path)
 
 
-def _stream_manifest(m: dict, levels: list, moved: dict, max_level: int) -> dict:
-    """The manifest of the streaming file: ``positions.stages``, every LOD entry's words counted
-    in its stage (a placement's entries repeat its owner's), ``options.stream``."""
+def _stream_manifest(m: dict, levels: list, moved: dict, stage_of: dict, max_level: int) -> dict:
+    """The manifest of the streaming file: ``positions.stages``, every LOD entry's ``stage`` and
+    words counted in its stage (a placement's entries repeat its owner's), ``options.stream``."""
     parts = []
     for i, part in enumerate(m["parts"]):
         pl = part.get("placement")
         own = int(pl["of"]) if isinstance(pl, dict) else i
-        lods = [dict(e, **moved[(own, k)]) for k, e in enumerate(part["lods"])]
+        lods = [dict(e, stage=stage_of[(own, k)], **moved[(own, k)]) for k, e in enumerate(part["lods"])]
         parts.append(dict(part, lods=lods))
     out = {key: v for key, v in m.items() if key != "sections"}
     out["parts"] = parts

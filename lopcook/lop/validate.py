@@ -264,13 +264,13 @@ def check_stages(c: _Checker, pos: dict, max_level: int) -> dict:
 
 
 def check_stream_layout(m: dict, c: _Checker, length: dict, totals: "_Totals") -> None:
-    """A streaming file: as many stages as the longest LOD chain, the section table exactly the
-    list of docs/format.md 14.3, and each stage's position sections as long as its buffers need
-    (planes and the deferred section exactly)."""
-    longest = max(len(p["lods"]) for p in m["parts"])
-    if len(m["positions"]["stages"]) != longest:
-        c.fail(f"positions.stages has {len(m['positions']['stages'])} stages, the longest LOD chain {longest}")
+    """A streaming file: every stage holds a stored buffer, the section table is exactly the list
+    of docs/format.md 14.3, and each stage's position sections are as long as its buffers need
+    (planes and the deferred section exactly). ``check_stage`` has checked each LOD's stage."""
     lay = layout_of(m)
+    empty = [st.index for st in lay.stages if not st.buffers]
+    if empty:
+        c.fail(f"positions.stages[{empty[0]}] holds no buffer")
     want, have = lay.expected_sections(), list(length)
     if have != want:
         at = next((j for j, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))
@@ -358,14 +358,30 @@ def check_part(m: dict, c: _Checker, i: int, part, extent: float, length: dict, 
         where = f"parts[{i}].lods[{k}]"
         if not isinstance(lod, dict):
             c.fail(f"{where} is not an object")
+        stage_index = check_stage(m, c, lod, where, k, len(lods), lods) if stream else 0
+        if "stage" in lod and not stream:
+            c.fail(f"{where}.stage is only allowed in the streaming layout (positions.stages)")
         if shared_of is None:
-            stage = totals.stage(len(lods) - 1 - k if stream else 0)
+            stage = totals.stage(stage_index)
             lod_bits = check_lod(c, lod, where, length, stage, stream or "clusters" in m["positions"])
         else:
             lod_bits = check_shared_lod(c, lod, where, m["parts"][shared_of], shared_of, k, len(lods))
         bits = lod_bits if bits is None else bits
     if c.need(part, "attribute_bits", dict, f"parts[{i}]") != bits.as_dict():
         c.fail(f"parts[{i}].attribute_bits is not the attribute_bits its LODs share")
+
+
+def check_stage(m: dict, c: _Checker, lod: dict, where: str, k: int, n: int, lods: list) -> int:
+    """A LOD entry's ``stage`` in the streaming layout (docs/format.md 14.1): an integer naming a
+    stage, 0 for the part's coarsest LOD, never below the stage of a coarser LOD of the part."""
+    s = c.need(lod, "stage", int, where)
+    if not 0 <= s < len(m["positions"]["stages"]):
+        c.fail(f"{where}.stage {s} names no stage (the file has {len(m['positions']['stages'])})")
+    if k == n - 1 and s != 0:
+        c.fail(f"{where}.stage must be 0: a part's coarsest LOD is in the first stage")
+    if k < n - 1 and isinstance(lods[k + 1], dict) and is_int(lods[k + 1].get("stage")) and s < lods[k + 1]["stage"]:
+        c.fail(f"{where}.stage {s} comes before the stage of the coarser LOD {k + 1}")
+    return s
 
 
 def check_hierarchy(c: _Checker, i: int, part: dict, length: dict) -> None:

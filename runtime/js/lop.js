@@ -329,12 +329,13 @@ export function validateManifest(m, path = null) {
   checkEncodedIndices(m, ctx);
 }
 
-/** The streaming layout (format.md 14): as many stages as the longest LOD chain, the section table
- * exactly the list of 14.3, each stage's sections as long as its buffers need. */
+/** The streaming layout (format.md 14): every stage holds a stored buffer, the section table is
+ * exactly the list of 14.3, each stage's sections as long as its buffers need (checkStage has
+ * checked each LOD's stage). */
 function checkStreamLayout(m, length, stageAcc, {fail}) {
-  const longest = Math.max(...m.parts.map((p) => p.lods.length));
-  if (m.positions.stages.length !== longest) fail(`positions.stages has ${m.positions.stages.length} stages, the longest LOD chain ${longest}`);
   const lay = layoutOf(m);
+  const empty = lay.stages.find((st) => !st.buffers.length);
+  if (empty) fail(`positions.stages[${empty.index}] holds no buffer`);
   const want = expectedSections(lay), have = [...length.keys()];
   const at = want.findIndex((v, k) => have[k] !== v);
   if (at >= 0 || have.length !== want.length) {
@@ -517,6 +518,8 @@ function checkPart(m, parts, i, extent, names, length, pos, stageAcc, ctx) {
   lods.forEach((lod, k) => {
     const where = `parts[${i}].lods[${k}]`;
     if (!isDict(lod)) fail(`${where} is not an object`);
+    const stage = pos.stream ? checkStage(m, lod, where, k, lods, ctx) : 0;
+    if (!pos.stream && has(lod, 'stage')) fail(`${where}.stage is only allowed in the streaming layout (positions.stages)`);
     if (sharedOf !== null) {
       const ref = parts[sharedOf].lods;
       if (lods.length !== ref.length) fail(`parts[${i}] has ${lods.length} LODs, the buffers it places (parts[${sharedOf}]) ${ref.length}`);
@@ -526,11 +529,23 @@ function checkPart(m, parts, i, extent, names, length, pos, stageAcc, ctx) {
       iBits = iBits === null ? checkBits(lod, where, ctx) : iBits;
       return;
     }
-    const abits = checkLod(lod, where, names, length, pos, stageAcc(pos.stream ? lods.length - 1 - k : 0), ctx);
+    const abits = checkLod(lod, where, names, length, pos, stageAcc(stage), ctx);
     if (iBits === null) iBits = abits;
   });
   const pb = need(part, 'attribute_bits', 'dict', `parts[${i}]`);
   if (!pyEqual(pb, bitsDict(iBits))) fail(`parts[${i}].attribute_bits is not the attribute_bits its LODs share`);
+}
+
+/** A LOD entry's stage in the streaming layout (format.md 14.1): an integer naming a stage, 0 for
+ * the part's coarsest LOD, never below the stage of a coarser LOD of the part. */
+function checkStage(m, lod, where, k, lods, {fail, need}) {
+  const s = need(lod, 'stage', 'int', where);
+  const count = m.positions.stages.length;
+  if (!(s >= 0 && s < count)) fail(`${where}.stage ${s} names no stage (the file has ${count})`);
+  if (k === lods.length - 1 && s !== 0) fail(`${where}.stage must be 0: a part's coarsest LOD is in the first stage`);
+  const next = lods[k + 1];
+  if (k < lods.length - 1 && isDict(next) && isIntAt(next, 'stage') && s < next.stage) fail(`${where}.stage ${s} comes before the stage of the coarser LOD ${k + 1}`);
+  return s;
 }
 
 function checkLod(lod, where, names, length, pos, acc, ctx) {
@@ -727,10 +742,9 @@ export function layoutOf(m) {
   const buffers = Array.from({length: count}, () => []);
   const stageOf = new Map();
   m.parts.forEach((part, i) => {
-    const n = part.lods.length;
     const own = !isDict(part.placement) || part.placement.of === i;
     part.lods.forEach((e, k) => {
-      const st = stream ? n - 1 - k : 0;
+      const st = stream ? e.stage : 0;
       stageOf.set(`${i}/${k}`, st);
       if (own && st >= 0 && st < count) buffers[st].push([i, k, e]);
     });

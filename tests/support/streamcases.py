@@ -234,6 +234,12 @@ def stream_invalid_cases() -> list[tuple[str, bytes, str, str]]:
          "a stage level above max_level", "manifest"),
         ("stream_no_stages.lop", edit_manifest(data, lambda mm: mm["positions"].update(stages=[])),
          "positions.stages empty", "manifest"),
+        ("stream_coarsest_not_first.lop", edit_manifest(data, lambda mm: mm["parts"][0]["lods"][-1].update(stage=1)),
+         "a part's coarsest LOD outside stage 0", "manifest"),
+        ("stream_finer_first.lop", edit_manifest(data, lambda mm: mm["parts"][0]["lods"][0].update(stage=0)),
+         "a finer LOD in an earlier stage than a coarser one", "manifest"),
+        ("stream_stage_missing.lop", edit_manifest(data, lambda mm: mm["parts"][1]["lods"][0].pop("stage")),
+         "a LOD entry without its stage", "manifest"),
         ("encoding_unknown.lop", with_section(data, dfl, stored, {"encoding": "lzma", "size": len(raw)}),
          "an unknown encoding", "manifest"),
         ("encoding_no_size.lop", edit_manifest(data, lambda mm: next(
