@@ -60,13 +60,15 @@ def bytes_for(c, wants: dict) -> int | None:
 
 def view_rows(default, stream) -> list[dict]:
     """Per harness camera level B (``verify.cameras.camera_distance``): each part's LOD there
-    (``lopcook.selection``) and the bytes both layouts need to draw it at B."""
+    (``lopcook.selection``) and the bytes both layouts need to draw it at B (a placement at its
+    converted level, ``Manifest.part_level``)."""
     m = stream.manifest
     rows = []
     for b in CAMERA_LEVELS:
         d = camera_distance(b, float(m["grid"]["extent"]), viewing_of(m))
         sel = select(m, d)
-        wants = {(i, k): min(lv, m["positions"]["max_level"]) for i, (k, lv) in enumerate(sel)}
+        # each part at its own level: a placement's shared buffer at the level its shift converts to (format.md 6.8)
+        wants = {(i, k): min(stream.entries.part_level(i, lv), m["positions"]["max_level"]) for i, (k, lv) in enumerate(sel)}
         rows.append({"level": b, "distance_m": d, "lods": sorted({k for k, _ in sel}),
                      "triangles": sum(m["parts"][i]["lods"][k]["triangles"] for i, (k, _) in enumerate(sel)),
                      "default_bytes": bytes_for(default, wants), "stream_bytes": bytes_for(stream, wants)})

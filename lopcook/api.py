@@ -241,18 +241,25 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
         result = run(scene, settings, options=options, progress=progress, analysis=analysis)
         container = result.container
     if settings.emit.stream:  # the final container only: the searches' probes keep the default layout
-        from .pipeline import _account
-
-        t0 = time.perf_counter()
-        container = result.container = to_stream(container)
-        _account(result)  # the LOD rows count the streaming file's (stored) section bytes
-        timings["stream"] = time.perf_counter() - t0
+        container = _streamed(result, container, timings)
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration
     result.attribute_search = search
     result.settings = settings
     container.result = result
     return container
+
+
+def _streamed(result, container: Container, timings: dict) -> Container:
+    """``container`` in the streaming layout (``cook --stream``: ``lopcook.lop.stream.to_stream``),
+    set as ``result``'s, whose LOD rows then count the streaming file's stored section bytes."""
+    from .pipeline import _account  # the pipeline is imported lazily here, as by ``_cook``
+
+    t0 = time.perf_counter()
+    result.container = to_stream(container)
+    _account(result)
+    timings["stream"] = time.perf_counter() - t0
+    return result.container
 
 
 __all__ = ["load", "cook", "read", "calibration", "budget_target", "Container", "Settings"]

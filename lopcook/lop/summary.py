@@ -263,7 +263,7 @@ def _layout_lines(d: dict, max_parts: int) -> list[str]:
     lines = []
     if d.get("stages"):
         size = max(d.get("file_size") or 1, 1)
-        lines.append(f"  streaming layout, {_n(len(d['stages']), 'stage')} (stage s: LOD n-1-s of each part with n LODs); "
+        lines.append(f"  streaming layout, {_n(len(d['stages']), 'stage')} (stage 0: every part's coarsest LOD); "
                      f"first renderable at {d['stages'][0]['bytes_renderable']:,} B "
                      f"({100.0 * d['stages'][0]['bytes_renderable'] / size:.1f}%)")
         lines.append(f"  {'stage':>7} {'buffers':>8} {'level':>6} {'held':>5} {'renderable at':>14} {'at its level':>13}")
