@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 from lopcook import api  # noqa: E402
 from lopcook.cli.parser import build_parser, settings_from_args  # noqa: E402
 from lopcook.lop.container import from_bytes  # noqa: E402
-from lopcook.lop.stream import to_stream  # noqa: E402
+from lopcook.emit.stages import streamed  # noqa: E402
 from lopcook.selection import select, viewing_of  # noqa: E402
 from lopcook.verify.cameras import camera_distance  # noqa: E402
 
@@ -112,7 +112,7 @@ def measure(name: str, src: Path, flags: list, gltfpack: str | None, tmp: Path, 
     default = api.cook(scene, settings) if cooked is None else from_bytes((cooked / f"{src.name}.lods.lop").read_bytes())
     cook_s = time.perf_counter() - t0 if cooked is None else None
     t0 = time.perf_counter()
-    stream = to_stream(default)
+    stream = streamed(default)
     stream_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     from_bytes(stream.data)

@@ -15,7 +15,7 @@ from fractions import Fraction
 
 from .lop.container import Container
 from .lop.container import read as _read
-from .lop.stream import to_stream
+from .emit.stages import streamed
 from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .memory import small_pages
 from .progress import NONE, Progress
@@ -251,12 +251,12 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
 
 
 def _streamed(result, container: Container, timings: dict) -> Container:
-    """``container`` in the streaming layout (``cook --stream``: ``lopcook.lop.stream.to_stream``),
+    """``container`` in the streaming layout (``cook --stream``: ``lopcook.emit.stages.streamed``),
     set as ``result``'s, whose LOD rows then count the streaming file's stored section bytes."""
     from .pipeline import _account  # the pipeline is imported lazily here, as by ``_cook``
 
     t0 = time.perf_counter()
-    result.container = to_stream(container)
+    result.container = streamed(container)
     _account(result)
     timings["stream"] = time.perf_counter() - t0
     return result.container

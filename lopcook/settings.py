@@ -521,7 +521,7 @@ class EmitSettings:
         bytes summed over levels 6-12), else written unclustered (docs/clusters.md, "Per-buffer
         choice").
     stream : bool  write the streaming layout with encoded sections (``cook --stream``, container
-        version 4.0, ``lopcook.lop.stream.to_stream``; docs/format.md 14-15); default False: the
+        version 4.0, ``lopcook.emit.stages.streamed``; docs/format.md 14-15); default False: the
         default layout, whose bytes do not change.
     """
 

@@ -2,7 +2,7 @@
 
 A streaming file decodes, buffer for buffer and at every level, to exactly the default layout's
 vertices and attributes, and to its triangles with their winding (in another order, each perhaps
-rotated); ``cook --stream`` is ``to_stream`` of the default cook; every prefix is read per stage
+rotated); ``cook --stream`` is ``streamed`` (the stages rewrite) of the default cook; every prefix is read per stage
 (stage levels, decodes equal to the complete file's, a prefix before stage 0 refused with one
 line); stage levels are the selection distances' required levels; hostile encoded sections and
 layout lies are refused with one line (``tests.support.streamcases``); the encoders and decoders
@@ -21,7 +21,7 @@ import pytest
 from lopcook.errors import LopcookError
 from lopcook.lop import encoding, reader
 from lopcook.lop.container import from_bytes, manifest_of
-from lopcook.lop.stream import buffer_level, to_stream
+from lopcook.emit.stages import buffer_level, streamed
 from tests.support import streamcases as sc
 
 #: the cases decoded against their default-layout cook (the others are read, not compared)
@@ -67,11 +67,11 @@ def test_stream_decodes_as_the_default_layout(pairs, name):
 
 
 @pytest.mark.parametrize("name", COMPARED[:2])
-def test_cook_stream_is_to_stream_of_the_default(pairs, name):
+def test_cook_stream_is_the_rewrite_of_the_default(pairs, name):
     """The same sections and manifest; only ``savings.bytes_without_savings`` (the default layout's
     size of the same cook) counts the options record's ``"stream": true`` in the --stream cook."""
     d, s = pairs[name]
-    t = to_stream(d)
+    t = streamed(d)
     assert [(x["name"], x["crc32"]) for x in t.manifest["sections"]] == [(x["name"], x["crc32"]) for x in s.manifest["sections"]]
     a, b = dict(t.manifest), dict(s.manifest)
     sa, sb = a.pop("savings", None), b.pop("savings", None)
@@ -79,7 +79,8 @@ def test_cook_stream_is_to_stream_of_the_default(pairs, name):
     if sa is not None:
         assert sb["bytes_without_savings"] - sa["bytes_without_savings"] == len(',"stream":true')
         assert {**sa, "bytes_without_savings": 0} == {**sb, "bytes_without_savings": 0}
-    assert to_stream(s) is s  # already streaming
+    with pytest.raises(LopcookError, match="default layout"):
+        streamed(s)  # already streaming
 
 
 def test_stage_levels_follow_the_selection_distances():

@@ -42,19 +42,20 @@ function decodeAll(c, levels) {
 function streamed(data, chunks) {
   const events = [];
   const s = new lop.LopStream({onUpdate: (st) => events.push([st.event, st.level, st.bytes, st.stage])});
-  const levels = [];
+  const levels = [], stages = [];
   let at = 0;
   try {
     for (const end of chunks) {
       s.push(data.subarray(at, end));
       at = end;
-      levels.push(s.container ? s.container.stageLevels : [0]);
+      levels.push(s.level);
+      stages.push(s.container ? s.container.stageLevels : [0]);
     }
     s.end();
-    return {levels, events, error: null};
+    return {levels, stages, events, error: null};
   } catch (exc) {
     if (!(exc instanceof lop.LopError)) throw exc;
-    return {levels, events, error: exc.message, at};
+    return {levels, stages, events, error: exc.message, at};
   }
 }
 

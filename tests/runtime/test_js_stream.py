@@ -1,6 +1,6 @@
 """runtime/js/lop.js on the streaming layout and encoded sections (docs/format.md 14-15) against
 lopcook's reader: identical decodes of every corpus container rewritten in the streaming layout
-(``lopcook.lop.stream.to_stream``, what ``cook --stream`` writes) at levels 6, 11, 16 and 24; the
+(``lopcook.emit.stages.streamed``, what ``cook --stream`` writes) at levels 6, 11, 16 and 24; the
 same verdict and stage levels on every cut of a streaming file and on the hostile files of
 ``tests.support.streamcases``; a LopStream whose stage levels after every chunk are those of the
 same prefix, with one event per stage that improves; and the same verdict as zlib and
@@ -18,25 +18,25 @@ import runtime_support as rs
 from lopcook.errors import LopcookError
 from lopcook.lop.container import from_bytes
 from lopcook.lop.encoding import deflate
-from lopcook.lop.stream import to_stream
+from lopcook.emit.stages import streamed
 from test_js_reader import NAMES, compare, js_verdicts, run_js
 from tests.support import streamcases as sc
 
 
 @pytest.fixture(scope="module")
-def streamed(cooked, tmp_path_factory) -> dict:
+def stream_files(cooked, tmp_path_factory) -> dict:
     """{name: path} of every cooked container in the streaming layout."""
     out = tmp_path_factory.mktemp("streamed")
     files = {}
     for name, path in cooked.items():
         files[name] = out / f"{name}.lop"
-        files[name].write_bytes(to_stream(from_bytes(path.read_bytes())).data)
+        files[name].write_bytes(streamed(from_bytes(path.read_bytes())).data)
     return files
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_stream_decodes_equal_the_python_reader(node, streamed, tmp_path, name):
-    path = streamed[name]
+def test_stream_decodes_equal_the_python_reader(node, stream_files, tmp_path, name):
+    path = stream_files[name]
     c = from_bytes(path.read_bytes(), str(path))
     got = run_js(node, [{"id": name, "file": str(path), "decode": True, "levels": list(rs.LEVELS)}], tmp_path)[name]
     assert got["ok"], got["error"]
@@ -58,11 +58,11 @@ def _cuts(data: bytes) -> list[int]:
 
 
 @pytest.mark.parametrize("name", ["duck-lods", "chess_set_flat"])
-def test_stream_prefixes_get_the_python_verdict(node, streamed, tmp_path, name):
+def test_stream_prefixes_get_the_python_verdict(node, stream_files, tmp_path, name):
     """Every section boundary of a streaming file (and a byte before it): lop.js accepts what
     lopcook accepts, with the same stage levels, and decodes every buffer that arrived as lopcook
     does; the refusals are one line naming the file."""
-    data = streamed[name].read_bytes()
+    data = stream_files[name].read_bytes()
     cuts = _cuts(data)[:: max(1, len(_cuts(data)) // 150)]
     cases = []
     for cut in cuts:
@@ -80,11 +80,11 @@ def test_stream_prefixes_get_the_python_verdict(node, streamed, tmp_path, name):
             compare(g["buffers"], rs.reference(from_bytes(data[:cut], allow_prefix=True), [1, 6, 11, 24]), f"cut {cut}")
 
 
-def test_stream_events_follow_the_stages(node, streamed, tmp_path):
+def test_stream_events_follow_the_stages(node, stream_files, tmp_path):
     """LopStream over chunks of 1 byte to 16 KiB: after each chunk its stage levels are lopcook's
     for the same prefix; the events are 'manifest', 'renderable' (stage 0), one 'lod' per later
     stage as it becomes renderable, in stage order, 'plane' for every later rise, 'complete'."""
-    path = streamed["duck-lods"]
+    path = stream_files["duck-lods"]
     data = path.read_bytes()
     rng = np.random.default_rng(9)
     ends = sorted({int(x) for x in np.cumsum(np.minimum(rng.geometric(1 / 2000, 2000), 16384)) if x < len(data)}
@@ -94,7 +94,7 @@ def test_stream_events_follow_the_stages(node, streamed, tmp_path):
     stages = len(from_bytes(data).stage_levels)
     head = 32 + struct.unpack_from("<I", data, 12)[0]  # before it, no manifest: one level 0
     want = [_stage_levels(data[:e]) or [0] * (stages if e >= head else 1) for e in ends]
-    assert got["levels"] == want
+    assert got["stages"] == want
     events = got["events"]
     assert events[0][0] == "manifest" and events[1][0] == "renderable" and events[1][3] == 0 and events[-1][0] == "complete"
     lods = [e[3] for e in events if e[0] == "lod"]

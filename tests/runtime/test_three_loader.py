@@ -20,7 +20,7 @@ import runtime_support as rs
 from browser import NODE_MODULES, REPO, BrowserUnavailable, locate, run_page
 from lopcook import api
 from lopcook.lop.container import read
-from lopcook.lop.stream import to_stream
+from lopcook.emit.stages import streamed
 from lopcook.emit.web import write_web_gltf
 from lopcook.verify import metrics
 from lopcook.verify.cameras import camera_distance, look_at, make_camera, perspective, render_viewing
@@ -90,7 +90,7 @@ def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=STRE
     for name, src in streams:
         lop = cooked["stanford-bunny"].parent / f"{name}.lop"
         if name.endswith("-stream"):
-            lop.write_bytes(to_stream(read(str(cooked[name[:-len("-stream")]]))).data)
+            lop.write_bytes(streamed(read(str(cooked[name[:-len("-stream")]]))).data)
         job, _ = _camera_job(read(str(lop)), api.load(corpus / src), 9, 3)
         jobs["streams"].append({"name": name, "lop": f"/lop/{name}.lop", "chunks": 20, **job})
     (root / "jobs.json").write_text(json.dumps(jobs))
