@@ -23,9 +23,10 @@ from .memory import release_free_memory, small_pages
 from .progress import NONE, Progress
 from .settings import DEFAULTS, Settings
 from .analyse.prepared import held
+from .emit.stages import streamed
 from .analyse.prepared import release_shared as release_prepared
 from .ingest import load as _load
-from .pipeline import plain, run
+from .pipeline import account, plain, run
 from .settings import budget_target
 from .tune.attributes import allocate, format_probe, search_record
 from .tune.attributes import require_reached as require_allocated
@@ -201,12 +202,24 @@ def _cook(scene: Scene, settings: Settings, progress: Progress) -> Container:
     else:
         result = run(scene, settings, options=options, progress=progress, analysis=analysis)
         container = result.container
+    if settings.emit.stream:  # the final container only: the searches' probes keep the default layout
+        container = _streamed(result, container, timings)
     result.timings_s = dict(timings, **result.timings_s)
     result.calibration = calibration
     result.attribute_search = search
     result.settings = settings
     container.result = result
     return container
+
+
+def _streamed(result, container: Container, timings: dict) -> Container:
+    """``container`` in the streaming layout (``cook --stream``: ``lopcook.emit.stages.streamed``),
+    set as ``result``'s, whose LOD rows then count the streaming file's stored section bytes."""
+    t0 = time.perf_counter()
+    result.container = streamed(container)
+    account(result)
+    timings["stream"] = time.perf_counter() - t0
+    return result.container
 
 
 def _after_searches(scene: Scene, settings: Settings, timings: dict):

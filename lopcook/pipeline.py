@@ -330,7 +330,7 @@ def _plain(scene: Scene, settings: Settings, options: dict, keep_buffers: bool, 
                         grid_extent_m=float(analysis.grid.extent),
                         highest_min_level=int(max(int(pa.min_level.max()) for pa in analysis.parts)),
                         bytes_without_savings=len(container.data), buffers=buffers if keep_buffers else None)
-    _account(result)
+    account(result)
     return result
 
 
@@ -434,7 +434,7 @@ def _emit_with_savings(scene, grid, first: Analysis, all_buffers, rows, settings
     return built(manifest, sections), full_size, planes_dropped, lods_dropped, kept_buffers
 
 
-def _account(result: CookResult) -> None:
+def account(result: CookResult) -> None:
     """Fill every kept LodRow's byte counts from the container's typed manifest (the one
     accounting, ``lopcook.lop.manifest.LodEntry``)."""
     entries = result.container.entries
@@ -530,7 +530,7 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
                         planes_dropped=planes_dropped, lods_dropped=int(lods_dropped),
                         bytes_without_savings=full_size, colocated_raised_across_lods=raised,
                         buffers=kept if keep_buffers else None)
-    _account(result)
+    account(result)
     return result
 
 
@@ -619,7 +619,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
                         planes_dropped=list(range(max_level + 1, BITS + 1)),
                         lods_dropped=int(sum(not r.kept for rs in rows for r in rs)),
                         bytes_without_savings=len(container.data), colocated_raised_across_lods=raised)
-    _account(result)
+    account(result)
     return result
 
 

@@ -538,10 +538,14 @@ class EmitSettings:
         clustered only when that makes it smaller (``lopcook.emit.clustering_wins``: GPU-resident
         bytes summed over levels 6-12), else written unclustered (docs/clusters.md, "Per-buffer
         choice").
+    stream : bool  write the streaming layout with encoded sections (``cook --stream``, container
+        version 4.0, ``lopcook.emit.stages.streamed``; docs/format.md 14-15); default False: the
+        default layout, whose bytes do not change.
     """
 
     clusters: int | None = DEFAULT_CLUSTER_SIZE
     cluster_all: bool = False
+    stream: bool = False
 
     def __post_init__(self) -> None:
         lo, hi = CLUSTER_SIZE_RANGE
@@ -592,6 +596,8 @@ class Settings:
             options["clusters"] = int(self.emit.clusters)
             if self.emit.cluster_all:
                 options["cluster_all"] = True
+        if self.emit.stream:
+            options["stream"] = True
         return {"options": options, "viewing": self.viewing.as_dict()}
 
     @classmethod
@@ -628,6 +634,9 @@ class Settings:
                 if options.get("cluster_all", False) not in (False, True):
                     raise ValueError(f"options.cluster_all must be true when present, got {options['cluster_all']!r}")
                 emit = EmitSettings(clusters=options["clusters"], cluster_all=options.get("cluster_all", False))
+            if options.get("stream", False) not in (False, True):
+                raise ValueError(f"options.stream must be true when present, got {options['stream']!r}")
+            emit = replace(emit, stream=bool(options.get("stream", False)))
             v = manifest["viewing"]
             viewing = Viewing(viewport=(int(v["viewport"][0]), int(v["viewport"][1])),
                               fov_y_deg=float(v["fov_y_deg"]),

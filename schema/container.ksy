@@ -1,6 +1,6 @@
 meta:
   id: lopcook_lop
-  title: lopcook level-of-precision container (.lop), versions 2.0, 3.0 (clustered position buffers, placements) and 4.0 (tangents)
+  title: lopcook level-of-precision container (.lop), versions 2.0, 3.0 (clustered position buffers, placements) and 4.0 (tangents, the streaming layout, encoded sections)
   application: lopcook (offline asset cooker, Meyer et al. 2011 adaptive level-of-precision)
   file-extension: lop
   license: MIT
@@ -71,6 +71,18 @@ seq:
       "positions/plane02" .. "positions/planeNN" (two-digit plane number, NN =
       manifest.positions.max_level).
 
+      Version 4.0 may use the streaming layout instead (manifest positions.stages; docs/format.md
+      section 14): stage s (every LOD entry names its stage; stage 0 holds every part's coarsest
+      LOD) holds, for each of
+      its buffers, "part{i}/lod{k}/indices", "part{i}/lod{k}/attributes" (and for k = 0 the
+      part's hierarchy), then "positions/stage{s}/clusters" (when a buffer of the stage is
+      clustered), "positions/stage{s}/mandatory" and "positions/stage{s}/planePP" for the
+      planes 2..stages[s].level that hold bits; after every stage,
+      "positions/stage{s}/deferred" holds planes level+1..max_level of stage s concatenated
+      (each 4 ceil(bits/32) bytes). And a 4.0 section may be stored encoded (its table entry
+      has "encoding" and "size"; encoded_section): decode it first, then interpret the
+      decoded bytes as below.
+
       Interpret a section with: indices_section, attributes_section (normals, UVs, colours
       of one buffer; attribute_record reads vertex j's), hierarchy_section (a part's vertex
       hierarchy), cluster_section (positions/clusters), mandatory_section (positions/mandatory),
@@ -100,7 +112,9 @@ types:
           position buffers (manifest positions.clusters; cluster_section) or placement parts
           (cook --instances, parts[].placement); a file with neither is written as 2.0. 3.x
           means "may hold clusters and/or placements". 4 when some part has tangents
-          (lod.attribute_bits.tangents; 4.x may also hold clusters and placements). A writer writes the oldest major that
+          (lod.attribute_bits.tangents), the file is in the streaming layout
+          (positions.stages) or a section or the manifest is encoded (4.x may also hold
+          clusters and placements). A writer writes the oldest major that
           reads the file correctly. A reader refuses a major version it does not know (an
           incompatible change of layout or meaning): a 2.x reader must not read clustered
           buffers, whose words and planes it would misread, nor placements, whose mesh-grid
@@ -120,7 +134,9 @@ types:
           Offset 8, uint32, bytes: size of this header, always 32 in version 1.
       - id: len_manifest
         type: u4
-        doc: Offset 12, uint32, bytes M of the JSON manifest that follows the header.
+        doc: |
+          Offset 12, uint32, bytes M of the manifest that follows the header, as stored: the
+          JSON text, or in a 4.x file an encoded_manifest (its first byte is 0x00).
       - id: crc32_manifest
         type: u4
         doc: |
@@ -143,6 +159,69 @@ types:
       ofs_sections:
         value: len_header + len_manifest
         doc: File offset of the section area; every manifest section offset is relative to it.
+
+  encoded_manifest:
+    doc: |
+      Version 4.x: a manifest stored encoded (docs/format.md 4; lopcook writes it for files in
+      the streaming layout). Its first byte is 0x00, which no JSON text starts with.
+      header.crc32_manifest covers all M stored bytes; section offsets still count from 32 + M.
+    seq:
+      - id: mark
+        contents: [0x00]
+        doc: Tells an encoded manifest from JSON text.
+      - id: len_text
+        type: u4
+        doc: Bytes D of the JSON text; at most 1032 (M - 5).
+      - id: stream
+        size-eos: true
+        doc: |
+          Raw DEFLATE (RFC 1951) of the D bytes of JSON text, ending at the manifest's last
+          byte (no padding), under the rules of encoded_section.
+
+  encoded_section:
+    doc: |
+      Version 4.0: a section whose table entry has "encoding" and "size" (docs/format.md 15).
+      length and crc32 cover these stored bytes; decoding gives "size" bytes (a multiple of 4),
+      which every other type here describes. encoding "deflate": the stream is a raw DEFLATE
+      stream (RFC 1951; no zlib or gzip wrapper) of those bytes, valid as zlib's inflate reads
+      it, giving exactly "size" bytes (size <= 1032 length). encoding "meshopt-deflate" (a LOD's
+      indices only): the inflated bytes are a meshopt_triangle_stream of the LOD's m triangles,
+      decoded to 3 m indices (each < n) written as index_width-byte integers plus zero padding.
+    seq:
+      - id: stream
+        size: _io.size - len_padding
+        doc: The encoded stream; it ends inside the last 4 bytes of the section.
+      - id: padding
+        size-eos: true
+        doc: 0-3 zero bytes to a multiple of 4 (the last stream byte is the one holding its last bit).
+    params:
+      - id: len_padding
+        type: u1
+        doc: length - e, e the stream's bytes (known once it is inflated).
+
+  meshopt_triangle_stream:
+    doc: |
+      EXT_meshopt_compression mode 1 ("TRIANGLES") bitstream version 1 of m triangles
+      (meshoptimizer's meshopt_encodeIndexBuffer), the inflated bytes of a "meshopt-deflate"
+      section; decoded as docs/format.md 15.2 writes out (edge and vertex FIFOs of 16 entries,
+      initially 0xFFFFFFFF; a triangle may come out rotated, same winding).
+    params:
+      - id: num_triangles
+        type: u4
+        doc: lod.triangles.
+    seq:
+      - id: header
+        contents: [0xe1]
+        doc: Bitstream version 1.
+      - id: codes
+        size: num_triangles
+        doc: One code byte per triangle.
+      - id: data
+        size: _io.size - _io.pos - 16
+        doc: Extra bytes the codes read (zigzag LEB128 index deltas, explicit codeaux bytes); must be read exactly.
+      - id: table
+        size: 16
+        doc: The codeaux table; bytes 14 and 15 are 0 and no nibble of bytes 0..13 is 0xF.
 
   section_list:
     doc: |

@@ -157,7 +157,7 @@ def cmd_decode(args) -> int:
     if args.positions is not None:
         check_output(args.positions, "--positions", extensions=(".f32",), what="float32 positions",
                      inputs=(args.container,), required=False)
-    c = read(args.container)
+    c = read(args.container, allow_prefix=True)  # a prefix decodes at the levels it holds (format.md 8)
     if args.output is None:
         return _decode_positions(args, c)
     source_in = (source_candidate(args.container, c.manifest, args.source),)  # materials are read from it
@@ -169,6 +169,7 @@ def cmd_decode(args) -> int:
     if not 0 <= args.lod < deepest:
         raise LopcookError("usage", args.container, f"--lod {args.lod}: no part has LOD {args.lod} (the container has "
                            f"LODs 0..{deepest - 1})")
+    _check_prefix_level(c, args)
     meshes, coarsest, lods = [], [], []
     for i, part in enumerate(parts):
         # a part whose chain stopped early (too few triangles, or a LOD no distance selects) is
@@ -219,6 +220,19 @@ def _decode_positions(args, c, quiet: bool = False) -> int:
     elif not args.quiet and not quiet:
         print(f"{args.positions}: {len(data) // 12} vertices decoded at level {args.level}, LOD {args.lod}")
     return EXIT_OK
+
+
+def _check_prefix_level(c, args) -> None:
+    """``decode --level B`` of a file that holds less (a prefix, format.md 8 and 14.4): one usage
+    error naming the first buffer below B and the levels the file holds."""
+    for i, part in enumerate(c.manifest["parts"]):
+        lod = min(args.lod, len(part["lods"]) - 1)
+        have = c.level_of(i, lod)
+        if args.level > have:
+            held = f"holds levels up to {have}" if have else "has not arrived"
+            raise LopcookError("usage", args.container, f"--level {args.level}: part {part['name']!r} LOD {lod} "
+                               f"{held} in this file ({len(c.data):,} of {c.file_size:,} bytes)",
+                               hint=f"use --level {have} or lower" if have else "use a coarser --lod or more of the file")
 
 
 def cmd_web(args) -> int:
@@ -283,7 +297,7 @@ def cmd_refine(args) -> int:
 
 def cmd_inspect(args) -> int:
     if _is_container(args.source):
-        c = read(args.source)
+        c = read(args.source, allow_prefix=True)  # a prefix: each buffer's available level (format.md 8)
         desc = describe_container(c, file_bytes=os.path.getsize(args.source))
         if args.json:
             print(json.dumps(desc, indent=1, sort_keys=True))

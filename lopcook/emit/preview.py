@@ -274,9 +274,11 @@ def instance_nodes(c, lods: list[int], meshes: list[dict], keys: list) -> tuple[
             m = meshes[i]
             if lods[i] != lods[lead] or not all(_same(lm[f], m[f]) for f in ("indices", "uvs", "colors")):
                 continue
-            if fine_lead is None:
-                fine_lead = decode_positions(c, lead, lods[lead], 24)[2].astype(np.float64)
-            fit = fit_trs(fine_lead, decode_positions(c, i, lods[i], 24)[2].astype(np.float64), tol)
+            # the finest level both hold (24 in a complete file; a prefix holds less: format.md 8)
+            fine = min(24, c.level_of(lead, lods[lead]), c.level_of(i, lods[i]))
+            if fine_lead is None or fine_lead[0] != fine:
+                fine_lead = (fine, decode_positions(c, lead, lods[lead], fine)[2].astype(np.float64))
+            fit = fit_trs(fine_lead[1], decode_positions(c, i, lods[i], fine)[2].astype(np.float64), tol)
             if fit is None or fit[3] > tol:
                 continue
             t, quat, s, _ = fit

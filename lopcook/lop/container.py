@@ -25,7 +25,9 @@ header's size field or by the file size: flipping any byte is detected.
 Prefix property: the position sections come last, mandatory bits first and then refinement
 planes in ascending order, so a file truncated after plane B still has a complete header,
 manifest, attributes and planes up to B: ``read(..., allow_prefix=True)`` returns it with
-``available_level == B`` and decodes level B exactly.
+``available_level == B`` and decodes level B exactly. In the streaming layout (version 4.0,
+``lopcook.lop.layout``) every stage has its own level (``Container.stage_levels``); an encoded
+section (``lopcook.lop.encoding``) is decoded as soon as it is complete.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ from ..atomic import write_atomic  # noqa: F401  (re-exported: the writer of .lo
 from ..errors import LopcookError
 from .clusters import from_header, plane_bit, words_at
 from .codecs import CODECS, AttributeBits
+from .encoding import MANIFEST_MARK, EncodingError, decode_manifest, decode_section, encode_manifest
+from .layout import Layout, is_stream, layout_of
 from .manifest import Manifest
 from .validate import validate_manifest
 
@@ -50,10 +54,13 @@ VERSION = (2, 0)  # 2.0: one packed attribute record per buffer
 #: ignored ``cluster_size`` or ``placement`` would decode them wrongly, so they carry the next
 #: major; files with neither stay 2.0, byte for byte. 3.x = may hold clusters and/or placements.
 CLUSTERED_VERSION = (3, 0)
+#: files in the streaming layout or with encoded sections (docs/format.md 14, 15): a 3.x reader
+#: would misplace every position bit or read compressed bytes as data
+STREAM_VERSION = (4, 0)
 #: the minor that an earlier build wrote for placements without clusters (2.1); still read
 PLACEMENT_MINOR = 1
 #: majors this reader reads: 2, 3, and those that attribute codecs introduced (``Codec.format_major``)
-READABLE_MAJORS = tuple(range(VERSION[0], max([CLUSTERED_VERSION[0]] + [c.format_major for c in CODECS]) + 1))
+READABLE_MAJORS = tuple(range(VERSION[0], max([STREAM_VERSION[0]] + [c.format_major for c in CODECS]) + 1))
 HEADER_SIZE = 32
 _HEADER = struct.Struct("<4sHHIIIQ")  # 28 bytes, then the header CRC
 
@@ -78,6 +85,7 @@ class Container:
     sections: dict = field(default_factory=dict)
     available_level: int = 0
     path: str | None = None
+    stage_levels: list = field(default_factory=list)
     data: bytes | None = field(default=None, repr=False)
     result: object = field(default=None, repr=False)
 
@@ -86,6 +94,40 @@ class Container:
         """The typed view of the manifest (``lopcook.lop.manifest.Manifest``): parts, LODs and
         their byte accounting."""
         return Manifest.of(self.manifest)
+
+    @property
+    def file_size(self) -> int:
+        """The file's size as its header gives it (more than ``len(data)`` for a prefix)."""
+        return int(struct.unpack_from("<Q", self.data, 20)[0]) if self.data else 0
+
+    @property
+    def is_prefix(self) -> bool:
+        """Whether these bytes are a prefix of the file (format.md 8): some sections have not arrived."""
+        return self.data is not None and len(self.data) < self.file_size
+
+    def section_end(self, name: str) -> int:
+        """The file offset just after section ``name`` (where a prefix must end to hold it)."""
+        base = HEADER_SIZE + int(struct.unpack_from("<I", self.data, 12)[0])
+        t = next(t for t in self.manifest["sections"] if t["name"] == name)
+        return base + int(t["offset"]) + int(t["length"])
+
+    @property
+    def layout(self) -> Layout:
+        """Where every buffer's position bits lie (``lopcook.lop.layout``; cached)."""
+        if "_layout" not in self.__dict__:
+            self.__dict__["_layout"] = layout_of(self.manifest)
+        return self.__dict__["_layout"]
+
+    @property
+    def stream(self) -> bool:
+        """Whether the container is in the streaming layout (docs/format.md 14)."""
+        return is_stream(self.manifest)
+
+    def level_of(self, part: int, lod: int) -> int:
+        """The highest level buffer (part, lod) decodes at in these bytes: its stage's level
+        (``available_level`` in the default layout); 0 when its sections have not arrived."""
+        k = min(int(lod), len(self.manifest["parts"][part]["lods"]) - 1)
+        return int(self.stage_levels[self.layout.stage_of[(int(part), k)]])
 
     def write(self, path) -> None:
         """Write the container's bytes to ``path`` atomically (a temp file, then a rename)."""
@@ -102,14 +144,17 @@ class Container:
                                f"(the file holds levels up to {self.available_level})") from None
 
 
-def section_table(sections: list[tuple[str, bytes]]) -> tuple[list[dict], list[bytes]]:
-    """The manifest's ``sections`` table (name, offset, length, crc32) and the padded payloads."""
+def section_table(sections: list[tuple]) -> tuple[list[dict], list[bytes]]:
+    """The manifest's ``sections`` table (name, offset, length, crc32) and the padded stored
+    payloads. ``sections``: ``(name, bytes)``, or ``(name, stored bytes, {"encoding", "size"})``
+    for an encoded section (``lopcook.lop.encoding``)."""
     table = []
     offset = 0
     payloads = []
-    for name, data in sections:
+    for name, data, *fields in sections:
         data = _pad4(bytes(data))
-        table.append({"name": name, "offset": offset, "length": len(data), "crc32": zlib.crc32(data)})
+        table.append({"name": name, "offset": offset, "length": len(data), "crc32": zlib.crc32(data),
+                      **(fields[0] if fields else {})})
         payloads.append(data)
         offset += len(data)
     return table, payloads
@@ -138,11 +183,21 @@ def attributes_major(manifest: dict) -> int:
                                for p in manifest.get("parts", [])])
 
 
+def has_encoded(manifest: dict) -> bool:
+    """Whether a section of the manifest's table is encoded (docs/format.md 15)."""
+    table = manifest.get("sections") if isinstance(manifest, dict) else None
+    return isinstance(table, list) and any(isinstance(t, dict) and ("encoding" in t or "size" in t) for t in table)
+
+
 def version_of(manifest: dict) -> tuple[int, int]:
     """The version a file with this manifest is written as: the oldest that reads it correctly
-    (``CLUSTERED_VERSION`` with clustered buffers or placements, else ``VERSION``; a later major
-    when an attribute codec needs it)."""
-    base = CLUSTERED_VERSION if is_clustered(manifest) or has_placements(manifest) else VERSION
+    (``STREAM_VERSION`` in the streaming layout or with encoded sections, ``CLUSTERED_VERSION``
+    with clustered buffers or placements, else ``VERSION``; a later major when an attribute codec
+    needs it)."""
+    if is_stream(manifest) or has_encoded(manifest):
+        base = STREAM_VERSION
+    else:
+        base = CLUSTERED_VERSION if is_clustered(manifest) or has_placements(manifest) else VERSION
     major = attributes_major(manifest)
     return base if major <= base[0] else (major, 0)
 
@@ -155,6 +210,8 @@ def to_bytes(manifest: dict, sections: list[tuple[str, bytes]], table=None) -> b
     manifest = dict(manifest)
     manifest["sections"] = table
     mbytes = manifest_bytes(manifest)
+    if is_stream(manifest):  # the one thing every reader fetches first: stored encoded (format.md 4)
+        mbytes = encode_manifest(mbytes)
     total = HEADER_SIZE + len(mbytes) + offset
     major, minor = version_of(manifest)
     head = _HEADER.pack(MAGIC, major, minor, HEADER_SIZE, len(mbytes), zlib.crc32(mbytes), total)
@@ -167,10 +224,13 @@ def built(manifest: dict, sections: list[tuple[str, bytes]], path: str | None = 
     them back (``to_bytes`` followed by ``from_bytes`` gives an equal Container)."""
     table, payloads = section_table(sections)
     data = to_bytes(manifest, sections, (table, payloads))
-    full = dict(manifest, sections=table)
-    c = Container(manifest=json.loads(manifest_bytes(full)), sections={t["name"]: p for t, p in zip(table, payloads)},
-                  path=path, data=data)
-    c.available_level = _available_level(c.manifest, c.sections)
+    full = json.loads(manifest_bytes(dict(manifest, sections=table)))
+    lods = _index_lods(full)
+    decoded = {t["name"]: p if "encoding" not in t else decode_section(t, p, lods.get(t["name"]))
+               for t, p in zip(table, payloads)}
+    c = Container(manifest=full, sections=decoded, path=path, data=data)
+    c.stage_levels = c.layout.levels(decoded)
+    c.available_level = _available_level(c)
     return c
 
 
@@ -223,13 +283,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     mbytes = data[HEADER_SIZE:HEADER_SIZE + msize]
     if zlib.crc32(mbytes) != mcrc:
         fail("manifest_crc", "manifest checksum mismatch")
-    try:
-        manifest = json.loads(mbytes.decode("ascii"), object_pairs_hook=_no_duplicates,
-                              parse_constant=_no_constants)
-    except (UnicodeDecodeError, ValueError) as exc:
-        fail("manifest_json", f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
-    except RecursionError:
-        fail("manifest_json", "manifest JSON is nested too deeply")
+    manifest = _parse_manifest(mbytes, major, minor, fail)
     validate_manifest(manifest, path)
     if major == VERSION[0] and is_clustered(manifest):
         fail("version", f"container version {major}.{minor} must not hold clustered position buffers (they need 3.x)")
@@ -238,9 +292,71 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
     if major < attributes_major(manifest):
         fail("version", f"container version {major}.{minor} must not hold the attributes it lists (they need "
              f"{attributes_major(manifest)}.x)")
-    base = HEADER_SIZE + msize
+    if major < STREAM_VERSION[0] and (is_stream(manifest) or has_encoded(manifest)):
+        fail("version", f"container version {major}.{minor} must not hold the streaming layout or encoded sections (they "
+             f"need {STREAM_VERSION[0]}.x)")
+    sections, expected_end = _read_sections(data, HEADER_SIZE + msize, manifest, truncated, fail)
+    if not truncated and expected_end != total:
+        fail("section_table", f"sections end at byte {expected_end}, file size says {total}")
+    _check_index_values(manifest, sections, fail)
+    container = Container(manifest=manifest, sections=sections, path=path, data=data)
+    _check_cluster_sizes(container, fail)
+    container.stage_levels = container.layout.levels(sections)
+    container.available_level = _available_level(container)
+    if container.stage_levels[0] < 1:
+        fail("truncated", "the file ends before the first stage's mandatory position bits" if container.stream
+             else "the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
+    return container
+
+
+def manifest_text(stored: bytes, major: int = STREAM_VERSION[0]) -> bytes:
+    """The JSON text of a manifest's stored bytes: as they are, or decoded when encoded (a 4.x
+    file's manifest may be: docs/format.md 4). EncodingError for an encoded manifest that does not
+    decode; ValueError for one in a file older than 4.x."""
+    if not stored[:1] == bytes([MANIFEST_MARK]):
+        return bytes(stored)
+    if major < STREAM_VERSION[0]:
+        raise ValueError(f"an encoded manifest needs {STREAM_VERSION[0]}.x")
+    return decode_manifest(bytes(stored))
+
+
+def manifest_of(data: bytes) -> dict:
+    """The manifest of a container's bytes, unchecked (for tools that edit files: the checks are
+    ``from_bytes``'s)."""
+    msize, major = struct.unpack_from("<I", data, 12)[0], struct.unpack_from("<H", data, 4)[0]
+    return json.loads(manifest_text(data[HEADER_SIZE:HEADER_SIZE + msize], major))
+
+
+def _parse_manifest(mbytes: bytes, major: int, minor: int, fail) -> dict:
+    """The manifest object of its stored bytes (decoded when encoded), strict JSON."""
+    try:
+        text = manifest_text(mbytes, major)
+    except ValueError as exc:  # EncodingError included
+        if isinstance(exc, EncodingError):
+            fail("encoding", f"manifest (encoded): {exc}")
+        fail("version", f"container version {major}.{minor} must not hold an encoded manifest (it needs "
+             f"{STREAM_VERSION[0]}.x)")
+    try:
+        return json.loads(text.decode("ascii"), object_pairs_hook=_no_duplicates, parse_constant=_no_constants)
+    except (UnicodeDecodeError, ValueError) as exc:
+        fail("manifest_json", f"manifest is not valid JSON ({' '.join(str(exc).split())[:160]})")
+    except RecursionError:
+        fail("manifest_json", "manifest JSON is nested too deeply")
+
+
+def _index_lods(manifest: dict) -> dict:
+    """{index section name: (triangles, index_width, vertices)} of every LOD (what a
+    ``meshopt-deflate`` section decodes with)."""
+    return {e["indices"]: (e["triangles"], e["index_width"], e["vertices"])
+            for part in manifest["parts"] for e in part["lods"]}
+
+
+def _read_sections(data: bytes, base: int, manifest: dict, truncated: bool, fail) -> tuple[dict, int]:
+    """{name: decoded payload} of every complete section (CRC checked, encoded ones decoded), up
+    to the first incomplete one in a truncated file; and where the table says the sections end."""
     sections: dict = {}
     expected_end = base
+    lods = None
     for entry in manifest["sections"]:
         start = base + entry["offset"]
         if start != expected_end:
@@ -254,16 +370,14 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         payload = data[start:end]
         if zlib.crc32(payload) != entry["crc32"]:
             fail("section_crc", f"section {entry['name']!r} checksum mismatch")
+        if "encoding" in entry:
+            lods = lods if lods is not None else _index_lods(manifest)
+            try:
+                payload = decode_section(entry, payload, lods.get(entry["name"]))
+            except EncodingError as exc:
+                fail("encoding", f"section {entry['name']!r} ({entry['encoding']}): {exc}")
         sections[entry["name"]] = payload
-    if not truncated and expected_end != total:
-        fail("section_table", f"sections end at byte {expected_end}, file size says {total}")
-    _check_index_values(manifest, sections, fail)
-    _check_cluster_sizes(manifest, sections, fail)
-    container = Container(manifest=manifest, sections=sections, path=path, data=data)
-    container.available_level = _available_level(manifest, sections)
-    if container.available_level < 1:
-        fail("truncated", "the file ends before the mandatory position bits", "the copy is incomplete; cook it again")
-    return container
+    return sections, expected_end
 
 
 def _check_index_values(manifest: dict, sections: dict, fail) -> None:
@@ -278,60 +392,46 @@ def _check_index_values(manifest: dict, sections: dict, fail) -> None:
             dtype = "<u2" if lod["index_width"] == 2 else "<u4"
             idx = np.frombuffer(data, dtype=dtype, count=3 * lod["triangles"])
             if idx.size and int(idx.max()) >= lod["vertices"]:
-                fail("indices", f"part {i} LOD {k}: index {int(idx.max())} is out of range for "
-                     f"{lod['vertices']} vertices")
+                fail("indices", f"part {i} LOD {k}: index {int(idx.max())} is out of range for {lod['vertices']} vertices")
 
 
-def _check_cluster_sizes(manifest: dict, sections: dict, fail) -> None:
-    """With clustered buffers: every cluster header is sound (k <= 24, anchors within k bits) and
-    ``mandatory_words`` and every plane present are exactly as long as the headers say (the
-    manifest alone cannot say it). Vectorised per buffer."""
-    if not is_clustered(manifest) or manifest["positions"]["clusters"] not in sections:
-        return
-    pos = manifest["positions"]
-    head = np.frombuffer(sections[pos["clusters"]], "<u4")
-    present = [p for p in range(2, pos["max_level"] + 1) if pos["planes"][str(p)] in sections]
-    plane_bits = {p: 0 for p in present}
-    for i, part in enumerate(manifest["parts"]):
-        pl = part.get("placement")
-        if isinstance(pl, dict) and pl.get("of") != i:
-            continue  # a placement of another part's buffers stores none (validate_manifest checked its entries)
-        for k, lod in enumerate(part["lods"]):
-            vid = np.asarray(lod["vertex_id"], dtype=np.int64)
+def _check_cluster_sizes(c: Container, fail) -> None:
+    """With clustered buffers, per stage whose cluster headers have arrived: every header is sound
+    (k <= 24, anchors within k bits), and ``cluster_p_words``, ``cluster_plane_bits`` and every
+    plane present are exactly what the headers say (the manifest alone cannot say it).
+    Vectorised per buffer."""
+    sections, max_level = c.sections, c.layout.max_level
+    for st in c.layout.stages:
+        if st.clusters is None or st.clusters not in sections:
+            continue
+        head = np.frombuffer(sections[st.clusters], "<u4")
+        for i, k, lod in st.buffers:
             if "cluster_size" not in lod:
-                for p in present:
-                    plane_bits[p] += 3 * int(vid[p - 1])
                 continue
+            vid = np.asarray(lod["vertex_id"], dtype=np.int64)
             off, count = lod["cluster_words"]
             try:
                 cl = from_header(head[off:off + count], vid, lod["cluster_size"])
             except ValueError as exc:
                 fail("clusters", f"part {i} LOD {k}: cluster headers: {exc}")
             if lod["cluster_p_words"] != [words_at(cl, b) for b in range(1, 25)]:
-                fail("clusters", f"part {i} LOD {k}: cluster_p_words (mandatory_words count "
-                     f"{lod['mandatory_words'][1]}) do not match its clusters ({words_at(cl, 1)} words at level 1)")
+                fail("clusters", f"part {i} LOD {k}: cluster_p_words (mandatory_words count {lod['mandatory_words'][1]}) "
+                     f"do not match its clusters ({words_at(cl, 1)} words at level 1)")
             if lod["cluster_plane_bits"] != [int(plane_bit(cl, p)[-1]) for p in range(2, 25)]:
                 fail("clusters", f"part {i} LOD {k}: cluster_plane_bits do not match its clusters")
-            for p in present:
-                plane_bits[p] += int(plane_bit(cl, p)[-1])
-    for p, bits in plane_bits.items():
-        if len(sections[pos["planes"][str(p)]]) != 4 * ((bits + 31) // 32):
-            fail("clusters", f"refinement plane {p} is not the {bits} bits its buffers hold")
+        if c.layout.stream:
+            continue  # validate_manifest checked every plane's exact length against cluster_plane_bits
+        for p in range(2, max_level + 1):
+            name = st.planes[p]
+            if name in sections and len(sections[name]) != 4 * ((st.bits[p] + 31) // 32):
+                fail("clusters", f"refinement plane {p} is not the {st.bits[p]} bits its buffers hold")
 
 
-def _available_level(manifest: dict, sections: dict) -> int:
-    pos = manifest["positions"]
-    if pos["mandatory"] not in sections or ("clusters" in pos and pos["clusters"] not in sections):
-        return 0
-    for name in manifest["sections"]:
-        if name["name"] not in sections and not name["name"].startswith("positions/"):
-            return 0  # an attribute section is missing: not a usable prefix
-    level = 1
-    for p in range(2, pos["max_level"] + 1):
-        if pos["planes"][str(p)] not in sections:
-            break
-        level = p
-    return level
+def _available_level(c: Container) -> int:
+    """The level every buffer decodes at: the default layout's one stage level; in the streaming
+    layout the lowest stage level (0 while a stage has not arrived; ``Container.level_of`` gives
+    each buffer's own)."""
+    return int(min(c.stage_levels))
 
 
 def read(path: str, *, allow_prefix: bool = False) -> Container:

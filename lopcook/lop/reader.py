@@ -9,6 +9,10 @@ cluster headers, its clustered mandatory words and its plane slices (which skip 
 its anchors imply); ``clustered_gpu_buffer`` gives its clustered P and cluster records, and
 ``decode_positions`` decodes that with ``clusters.decode_clustered``. ``gpu_buffer`` of a clustered
 buffer still gives the unclustered P of the same vertices (for the unclustered shaders).
+
+Position sections are found through the container's layout (``lopcook.lop.layout``): the default
+layout's ``positions/mandatory`` and planes, or in the streaming layout the sections of the
+buffer's stage; a buffer decodes up to its own level (``Container.level_of``).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from .codecs import CODECS, AttributeBits
 from .codecs.normals_oct import NORMALS
 from .container import Container
 from .indices import decode_indices
+from .layout import plane_bytes
 from .placement import split, to_world
 from .record import decode_record
 
@@ -103,35 +108,30 @@ def world_normals(c: Container, part: int, normals):
     return world_attributes(c, part, {NORMALS.name: normals})[NORMALS.name]
 
 
-def _buffer_order(c: Container):
-    """(part, lod, entry) in manifest order: the order buffers appear inside plane sections (a
-    placement that shares another part's buffers holds none)."""
-    for i, p in enumerate(c.manifest["parts"]):
-        if owner(c, i) != i:
-            continue
-        for k, e in enumerate(p["lods"]):
-            yield i, k, e
+def plane_slice(c: Container, part: int, lod: int, p: int) -> tuple[np.ndarray, int]:
+    """``(bytes, start)``: the uint8 bytes of refinement plane p of the stage holding buffer
+    (part, lod) (its own section, or its part of the stage's deferred section) and the bit offset
+    of the buffer's slice in them (the earlier buffers of the stage, in manifest order). A
+    placement reads its owner's slice."""
+    part = owner(c, part)
+    stage = c.layout.stage(part, lod)
+    loc = stage.plane_location(p)
+    if loc is None:
+        return np.zeros(0, np.uint8), 0
+    name, offset = loc
+    data = np.frombuffer(c.section(name), np.uint8)[offset:offset + plane_bytes(stage.bits[p])]
+    return data, stage.slice_start(part, lod, p)
 
 
-def _plane_bits(c: Container, p: int) -> np.ndarray:
-    """Refinement plane p as a 0/1 uint8 stream (cached on the container)."""
+def _plane_bits(c: Container, part: int, lod: int, p: int) -> tuple[np.ndarray, int]:
+    """Plane p of buffer (part, lod)'s stage as a 0/1 uint8 stream (cached on the container per
+    stage) and the buffer's bit offset in it."""
     cache = c.__dict__.setdefault("_plane_cache", {})
-    if p not in cache:
-        data = np.frombuffer(c.section(c.manifest["positions"]["planes"][str(p)]), np.uint8)
-        cache[p] = np.unpackbits(data, bitorder="little")
-    return cache[p]
-
-
-def _plane_offsets(c: Container, p: int) -> dict:
-    """(part, lod) -> bit offset of that buffer's slice of plane p (buffers in manifest order)."""
-    cache = c.__dict__.setdefault("_offset_cache", {})
-    if p not in cache:
-        offsets, start = {}, 0
-        for i, k, e in _buffer_order(c):
-            offsets[(i, k)] = start
-            start += plane_slice_bits(e, p)
-        cache[p] = offsets
-    return cache[p]
+    key = (c.layout.stage_of[(owner(c, part), lod)], p)
+    data, start = plane_slice(c, part, lod, p)
+    if key not in cache:
+        cache[key] = np.unpackbits(data, bitorder="little")
+    return cache[key], start
 
 
 def plane_slice_bits(entry: dict, p: int) -> int:
@@ -151,7 +151,7 @@ def buffer_clusters(c: Container, part: int, lod: int) -> Clusters | None:
     cache = c.__dict__.setdefault("_cluster_cache", {})
     if (part, lod) not in cache:
         off, count = e["cluster_words"]
-        head = np.frombuffer(c.section(c.manifest["positions"]["clusters"]), dtype="<u4")
+        head = np.frombuffer(c.section(c.layout.stage(part, lod).clusters or "positions/clusters"), dtype="<u4")
         if off + count > head.size:
             raise LopcookError("container", c.path, "cluster header words out of range")
         try:
@@ -168,13 +168,18 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
     the vertices whose minimum level is below that plane."""
     if not 1 <= level <= LEVELS:
         raise LopcookError("usage", c.path, f"level {level} is outside [1, 24]", reason="level")
-    if level > c.available_level:
-        raise LopcookError("usage", c.path, f"level {level} is not in this file (it holds levels up to "
-                           f"{c.available_level})", hint="use a lower --level or the complete file", reason="level")
     e = lod_entry(c, part, lod)
+    have = c.level_of(part, lod)
+    if level > have and not c.stream:
+        raise LopcookError("usage", c.path, f"level {level} is not in this file (it holds levels up to {have})",
+                           hint="use a lower --level or the complete file", reason="level")
+    if level > have:
+        raise LopcookError("usage", c.path, f"level {level} of part {part} LOD {lod} is not in this file ("
+                           + (f"its stage holds levels up to {have})" if have else "its stage has not arrived)"),
+                           hint="use a lower --level, a coarser --lod or the complete file", reason="level")
     vid = np.asarray(e["vertex_id"], dtype=np.int64)
     off, count = e["mandatory_words"]
-    mandatory = np.frombuffer(c.section(c.manifest["positions"]["mandatory"]), dtype="<u4")
+    mandatory = np.frombuffer(c.section(c.layout.stage(owner(c, part), lod).mandatory), dtype="<u4")
     if off + count > mandatory.size:
         raise LopcookError("container", c.path, "mandatory position words out of range")
     words = mandatory[off:off + count]
@@ -187,8 +192,7 @@ def top_values(c: Container, part: int, lod: int, level: int) -> tuple[np.ndarra
         g = int(vid[p - 1])
         if g == 0:
             continue
-        stream = _plane_bits(c, p)
-        start = _plane_offsets(c, p)[(owner(c, part), lod)]
+        stream, start = _plane_bits(c, part, lod, p)
         if start + 3 * g > stream.size:
             raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
         bits = stream[start:start + 3 * g].reshape(g, 3).astype(np.uint32)
@@ -211,8 +215,7 @@ def _clustered_top_values(c: Container, part: int, lod: int, level: int, words: 
         bit = (cl.anchor[ci].astype(np.int64) >> np.maximum(kt - p, 0)) & 1
         keep = kt < p
         want = int(keep.sum())
-        stream = _plane_bits(c, p)
-        start = _plane_offsets(c, p)[(owner(c, part), lod)]  # a placement reads its owner's slice
+        stream, start = _plane_bits(c, part, lod, p)  # a placement reads its owner's slice
         if start + want > stream.size:
             raise LopcookError("container", c.path, f"plane {p} is shorter than its buffers")
         bit[keep] = stream[start:start + want]

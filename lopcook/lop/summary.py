@@ -1,4 +1,8 @@
-"""Summaries of a container for ``lopcook cook`` and ``lopcook inspect OUT.lop`` (text and JSON)."""
+"""Summaries of a container for ``lopcook cook`` and ``lopcook inspect OUT.lop`` (text and JSON).
+
+A prefix of a file (docs/format.md 8) is described as far as it goes: every LOD's
+``available_level`` (0 when its sections have not arrived), and in the streaming layout (14)
+every stage's level and the bytes a reader needs for it."""
 
 from __future__ import annotations
 
@@ -47,7 +51,7 @@ def cluster_stats(c: Container) -> dict | None:
         if (p.get("placement") or {}).get("of", i) != i:  # a placement draws its owner's buffers: once
             continue
         for k, e in enumerate(p["lods"]):
-            if "cluster_size" not in e:
+            if "cluster_size" not in e or c.level_of(i, k) < 1:  # a prefix: headers not arrived
                 continue
             cl = buffer_clusters(c, i, k)
             sizes.add(int(e["cluster_size"]))
@@ -158,10 +162,26 @@ def attribute_waste(part: dict) -> dict:
             "aligned_bits_per_vertex": aligned_waste(bits)}
 
 
+def stage_rows(c: Container) -> list[dict] | None:
+    """Per stage of a streaming file (docs/format.md 14), None in the default layout: its
+    ``level`` L_s, ``available_level`` in these bytes, ``buffers``, and ``bytes_renderable`` /
+    ``bytes_at_level``: the file bytes a reader needs for the stage at level 1 / at L_s (every
+    section up to its mandatory bits / up to its last stored plane)."""
+    if not c.stream:
+        return None
+    rows = []
+    for st, have in zip(c.layout.stages, c.stage_levels):
+        ends = st.sections()
+        rows.append({"stage": st.index, "level": st.level, "available_level": int(have), "buffers": len(st.buffers),
+                     "bytes_renderable": c.section_end(st.mandatory), "bytes_at_level": c.section_end(ends[-1])})
+    return rows
+
+
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
     m = c.manifest
-    sections = [{"name": s["name"], "bytes": s["length"]} for s in m["sections"]]
+    sections = [{"name": s["name"], "bytes": s["length"], **({"encoding": s["encoding"], "decoded_bytes": s["size"]}
+                                                             if "encoding" in s else {})} for s in m["sections"]]
     by_kind: dict = {}
     for s in m["sections"]:
         kind = s["name"].rsplit("/", 1)[-1]
@@ -169,12 +189,13 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         by_kind[kind] = by_kind.get(kind, 0) + s["length"]
     parts = []
     vb = vertex_bits(c)
-    for p in m["parts"]:
+    for i, p in enumerate(m["parts"]):
         lods = [{"vertices": e["vertices"], "triangles": e["triangles"], "geometric_error_m": e["geometric_error_m"],
                  "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
                  "attributes": [x.name for x in CODECS if (e.get("attribute_bits") or {}).get(x.name)],
-                 "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0)}
-                for e in p["lods"]]
+                 "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0),
+                 "available_level": c.level_of(i, k), "stage": c.layout.stage_of[(i, k)]}
+                for k, e in enumerate(p["lods"])]
         parts.append({"name": p["name"], "source": p["source"], "lods": lods,
                       "attribute_bits": p.get("attribute_bits"), "vertex_bits": vb["parts"][len(parts)],
                       "attribute_waste": attribute_waste(p)})
@@ -199,6 +220,10 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         "options": m["options"],
         "available_level": c.available_level,
         "max_level": m["positions"]["max_level"],
+        "layout": "stream" if c.stream else "default",
+        "file_size": c.file_size,
+        "prefix": c.is_prefix,
+        "stages": stage_rows(c),
         # stored buffers: a placement draws its owner's buffers and owns none (cook --instances)
         "totals": {"parts": len(parts), "buffers": sum(len(p["lods"]) for i, p in enumerate(m["parts"])
                                                        if (p.get("placement") or {}).get("of", i) == i),
@@ -232,15 +257,40 @@ def _hist0(h) -> str:
     return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
 
 
+def _layout_lines(d: dict, max_parts: int) -> list[str]:
+    """``format_container``'s lines on the streaming layout's stages and, in a prefix or a
+    streaming file, every buffer's available level."""
+    lines = []
+    if d.get("stages"):
+        size = max(d.get("file_size") or 1, 1)
+        lines.append(f"  streaming layout, {_n(len(d['stages']), 'stage')} (stage 0: every part's coarsest LOD); "
+                     f"first renderable at {d['stages'][0]['bytes_renderable']:,} B "
+                     f"({100.0 * d['stages'][0]['bytes_renderable'] / size:.1f}%)")
+        lines.append(f"  {'stage':>7} {'buffers':>8} {'level':>6} {'held':>5} {'renderable at':>14} {'at its level':>13}")
+        for r in d["stages"]:
+            lines.append(f"  {r['stage']:>7} {r['buffers']:>8} {r['level']:>6} {r['available_level']:>5} "
+                         f"{r['bytes_renderable']:>12,} B {r['bytes_at_level']:>11,} B")
+    if d.get("prefix") or d.get("stages"):
+        lines.append("  available level of each buffer (LOD 0, 1, ...; 0: not arrived):")
+        for p in d["parts"][:max_parts]:
+            lines.append(f"    {p['name'][-48:]:<48} " + " ".join(str(e["available_level"]) for e in p["lods"]))
+        if len(d["parts"]) > max_parts:
+            lines.append(f"    … {len(d['parts']) - max_parts} more parts (use --json for all)")
+    return lines
+
+
 def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 20) -> str:
     t = d["totals"]
+    size = (f"{d['file_bytes'] or 0:,} of {d['file_size']:,} bytes (a prefix)" if d.get("prefix")
+            else f"{d['file_bytes'] or 0:,} bytes")
     lines = [
-        f"{d['file']}: {d['format']} by {d['generator']}, {d['file_bytes'] or 0:,} bytes, levels 1..{d['available_level']}",
+        f"{d['file']}: {d['format']} by {d['generator']}, {size}, levels 1..{d['available_level']}",
         f"  source {d['source']['file']} ({d['source']['format']}); {_n(t['parts'], 'part')}, "
         f"{_n(t['buffers'], 'buffer')}, "
         f"{t['vertices']:,} vertices, {t['triangles']:,} triangles; grid extent {d['grid']['extent']:.6g} m",
         "  minimum levels (level:vertices): " + _hist(t["histogram"]),
         "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
+        *_layout_lines(d, max_parts),
         "",
         f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions of "
         f"{'LOD 0' if any(len(p['lods']) > 1 for p in d['parts']) else 'every part'} vs their float32 "

@@ -9,8 +9,9 @@ Schema level: every field a reader uses (the decoding fields, and the informativ
 ``generator``, ``viewing``, ``options``, ``stats`` and ``savings`` that ``inspect`` shows) has its
 JSON type; integers are not booleans or floats. Semantic level: the grid finite, its extent at
 least ``MIN_EXTENT`` and ``|origin| + extent <= MAX_GRID_REACH``; sections back to back in
-manifest order, names unique, lengths multiples of 4; the position sections last, mandatory then
-planes in level order; every LOD's ``vertex_id``, ``mandatory_words``, index width, section
+manifest order, names unique, lengths multiples of 4, an encoded section's ``encoding`` and
+``size`` within their bounds; the position sections last, mandatory then planes in level order (in
+the streaming layout: the exact section list of its stages); every LOD's ``vertex_id``, ``mandatory_words``, index width, section
 lengths, attribute bits (by codec: ``lopcook.lop.codecs``) and cluster records consistent; a
 placement's transform, grid and level shift. This module is strict rather than the readers
 tolerant: a manifest that lacks an informative field the schema requires is refused.
@@ -25,6 +26,8 @@ import numpy as np
 from ..errors import LopcookError
 from ..grid import MIN_EXTENT
 from .codecs import CODECS, AttributeBits
+from .encoding import DEFLATE_MAX_RATIO, ENCODINGS, MESHOPT, TABLE_BYTES
+from .layout import is_stream, layout_of, plane_bytes
 from .manifest import FORMAT, LEVELS
 from .placement import level_shift, sigma, split
 
@@ -92,7 +95,11 @@ def validate_manifest(m, path: str | None) -> None:
     totals = _Totals(pos)
     for i, part in enumerate(parts):
         check_part(m, c, i, part, extent, length, totals)
-    totals.check_lengths(c, pos, length)
+    if is_stream(m):
+        check_stream_layout(m, c, length, totals)
+    else:
+        totals.check_lengths(c, pos, length)
+    check_encoded_indices(m, c)
 
 
 def check_informative(m: dict, c: _Checker) -> None:
@@ -134,8 +141,9 @@ def check_informative(m: dict, c: _Checker) -> None:
 
 def check_sections(m: dict, c: _Checker) -> dict:
     """The section table: back to back in manifest order, unique names, lengths multiples of 4,
-    32-bit CRCs. Returns ``{name: length}`` in table order. Failures here are of class
-    ``section_table``."""
+    32-bit CRCs, an encoded section's fields (``check_encoded``). Returns ``{name: decoded
+    length}`` in table order (``size`` for an encoded section, else ``length``). Failures here are
+    of class ``section_table``."""
     c.reason = "section_table"
     sections = c.need(m, "sections", list, "manifest")
     length: dict = {}
@@ -153,9 +161,51 @@ def check_sections(m: dict, c: _Checker) -> dict:
         offset += s["length"]
         if name in length:
             c.fail(f"section {name!r} appears twice")
-        length[name] = s["length"]
+        length[name] = check_encoded(c, s, name)
     c.reason = "manifest"
     return length
+
+
+def check_encoded(c: _Checker, s: dict, name: str) -> int:
+    """An encoded section's ``encoding`` and ``size`` (docs/format.md 15): both or neither, a known
+    encoding, ``size`` a multiple of 4 and, for ``deflate``, at most ``DEFLATE_MAX_RATIO`` times
+    the stored length. Returns the section's decoded length."""
+    if "encoding" not in s and "size" not in s:
+        return s["length"]
+    enc = c.need(s, "encoding", str, f"section {name!r}")
+    size = c.count(s, "size", f"section {name!r}")
+    if enc not in ENCODINGS:
+        c.fail(f"section {name!r} has the unknown encoding {enc!r} (known: {', '.join(ENCODINGS)})")
+    if size % 4:
+        c.fail(f"section {name!r} size is not a multiple of 4")
+    if enc != MESHOPT and size > DEFLATE_MAX_RATIO * s["length"]:
+        c.fail(f"section {name!r} claims {size} decoded bytes, more than {DEFLATE_MAX_RATIO} times its "
+               f"{s['length']} stored bytes")
+    return size
+
+
+def check_encoded_indices(m: dict, c: _Checker) -> None:
+    """A ``meshopt-deflate`` section is a LOD's ``indices`` and nothing else, its ``size`` the
+    3 m indices' bytes and its stored length enough for a triangle stream of m triangles."""
+    named: dict = {}
+    for part in m["parts"]:
+        for e in part["lods"]:
+            named.setdefault(e["indices"], e)
+            if e.get("attributes"):
+                named[e["attributes"]] = None
+        if isinstance(part.get("hierarchy"), dict):
+            named[part["hierarchy"]["section"]] = None
+    for s in m["sections"]:
+        if s.get("encoding") != MESHOPT:
+            continue
+        e = named.get(s["name"])
+        if e is None:
+            c.fail(f"section {s['name']!r} is encoded {MESHOPT} but is no LOD's index section")
+        want = 4 * -(-3 * e["triangles"] * e["index_width"] // 4)
+        if s["size"] != want:
+            c.fail(f"section {s['name']!r} size {s['size']} is not the {want} bytes of its {e['triangles']} triangles")
+        if e["triangles"] + 1 + TABLE_BYTES > DEFLATE_MAX_RATIO * s["length"]:
+            c.fail(f"section {s['name']!r}: {s['length']} stored bytes cannot hold {e['triangles']} triangles")
 
 
 def check_grid(m: dict, c: _Checker) -> float:
@@ -178,11 +228,14 @@ def check_grid(m: dict, c: _Checker) -> float:
 
 def check_positions(m: dict, c: _Checker, length: dict) -> dict:
     """``positions``: max level, the sections it names, and the position sections last, in
-    level order (the prefix property). Returns the record."""
+    level order (the prefix property); in the streaming layout its ``stages`` (their section
+    list is checked by ``check_stream_layout``). Returns the record."""
     pos = c.need(m, "positions", dict, "manifest")
     max_level = c.need(pos, "max_level", int, "positions")
     if not 1 <= max_level <= LEVELS:
         c.fail("positions.max_level must be in [1, 24]")
+    if "stages" in pos:
+        return check_stages(c, pos, max_level)
     if c.need(pos, "mandatory", str, "positions") not in length:
         c.fail("positions.mandatory names no section")
     planes = c.need(pos, "planes", dict, "positions")
@@ -199,12 +252,88 @@ def check_positions(m: dict, c: _Checker, length: dict) -> dict:
     return pos
 
 
+def check_stages(c: _Checker, pos: dict, max_level: int) -> dict:
+    """The streaming layout's ``positions`` (docs/format.md 14.2): ``stages`` a non-empty list of
+    ``{"level": L}`` with L in 1..max_level, and none of the default layout's section names."""
+    for key in ("mandatory", "planes", "clusters"):
+        if key in pos:
+            c.fail(f"positions.{key} must not be given with positions.stages (the streaming layout)")
+    stages = c.need(pos, "stages", list, "positions")
+    if not stages:
+        c.fail("positions.stages is empty")
+    for s, st in enumerate(stages):
+        if not isinstance(st, dict) or set(st) != {"level"}:
+            c.fail(f"positions.stages[{s}] must hold exactly level")
+        if not 1 <= c.need(st, "level", int, f"positions.stages[{s}]") <= max_level:
+            c.fail(f"positions.stages[{s}].level must be in [1, {max_level}]")
+    return pos
+
+
+def check_stream_layout(m: dict, c: _Checker, length: dict, totals: "_Totals") -> None:
+    """A streaming file: every stage holds a stored buffer, the section table is exactly the list
+    of docs/format.md 14.3, and each stage's position sections are as long as its buffers need
+    (planes and the deferred section exactly). ``check_stage`` has checked each LOD's stage."""
+    lay = layout_of(m)
+    empty = [st.index for st in lay.stages if not st.buffers]
+    if empty:
+        c.fail(f"positions.stages[{empty[0]}] holds no buffer")
+    want, have = lay.expected_sections(), list(length)
+    if have != want:
+        at = next((j for j, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))
+        c.fail(f"the sections are not those of the streaming layout in its order: section {at} is "
+               f"{have[at] if at < len(have) else 'missing'!r}, expected {want[at] if at < len(want) else 'none'!r}")
+    for st in lay.stages:
+        t = totals.stage(st.index)
+        if st.clusters and length[st.clusters] < 4 * t.headers:
+            c.fail(f"{st.clusters} is shorter than the cluster headers it holds")
+        if length[st.mandatory] < 4 * t.words:
+            c.fail(f"{st.mandatory} is shorter than the buffers it holds")
+        for p, name in st.planes.items():
+            if length[name] != plane_bytes(st.bits[p]):
+                c.fail(f"{name} is not the {st.bits[p]} bits its buffers hold")
+        if st.deferred:
+            want_bytes = sum(plane_bytes(st.bits[p]) for p in range(st.level + 1, lay.max_level + 1))
+            if length[st.deferred] != want_bytes:
+                c.fail(f"{st.deferred} is not the {want_bytes} bytes of planes {st.level + 1}..{lay.max_level}")
+
+
+class _StageTotals:
+    """What the buffers of one stage add up to: mandatory words, cluster header words, clustered
+    buffers, bits per plane."""
+
+    def __init__(self, max_level: int):
+        self.words = self.headers = self.clustered = 0
+        self.plane_bits = {p: 0 for p in range(2, max_level + 1)}
+
+
 class _Totals:
-    """What the LODs add up to, checked against the position sections at the end."""
+    """What the LODs add up to per stage (one stage in the default layout), checked against the
+    position sections at the end."""
 
     def __init__(self, pos: dict):
-        self.words = self.headers = self.clustered = 0
-        self.plane_bits = {p: 0 for p in range(2, pos["max_level"] + 1)}
+        self.max_level = pos["max_level"]
+        self.stages: dict = {}
+
+    def stage(self, s: int) -> _StageTotals:
+        if s not in self.stages:
+            self.stages[s] = _StageTotals(self.max_level)
+        return self.stages[s]
+
+    @property
+    def words(self):
+        return self.stage(0).words
+
+    @property
+    def headers(self):
+        return self.stage(0).headers
+
+    @property
+    def clustered(self):
+        return self.stage(0).clustered
+
+    @property
+    def plane_bits(self):
+        return self.stage(0).plane_bits
 
     def check_lengths(self, c: _Checker, pos: dict, length: dict) -> None:
         if "clusters" in pos and not self.clustered:
@@ -230,17 +359,35 @@ def check_part(m: dict, c: _Checker, i: int, part, extent: float, length: dict, 
         c.fail(f"parts[{i}] has no LODs")
     shared_of = check_placement(m, c, i, part, extent)
     bits = None
+    stream = "stages" in m["positions"]
     for k, lod in enumerate(lods):
         where = f"parts[{i}].lods[{k}]"
         if not isinstance(lod, dict):
             c.fail(f"{where} is not an object")
+        stage_index = check_stage(m, c, lod, where, k, len(lods), lods) if stream else 0
+        if "stage" in lod and not stream:
+            c.fail(f"{where}.stage is only allowed in the streaming layout (positions.stages)")
         if shared_of is None:
-            lod_bits = check_lod(c, lod, where, length, totals, "clusters" in m["positions"])
+            stage = totals.stage(stage_index)
+            lod_bits = check_lod(c, lod, where, length, stage, stream or "clusters" in m["positions"])
         else:
             lod_bits = check_shared_lod(c, lod, where, m["parts"][shared_of], shared_of, k, len(lods))
         bits = lod_bits if bits is None else bits
     if c.need(part, "attribute_bits", dict, f"parts[{i}]") != bits.as_dict():
         c.fail(f"parts[{i}].attribute_bits is not the attribute_bits its LODs share")
+
+
+def check_stage(m: dict, c: _Checker, lod: dict, where: str, k: int, n: int, lods: list) -> int:
+    """A LOD entry's ``stage`` in the streaming layout (docs/format.md 14.1): an integer naming a
+    stage, 0 for the part's coarsest LOD, never below the stage of a coarser LOD of the part."""
+    s = c.need(lod, "stage", int, where)
+    if not 0 <= s < len(m["positions"]["stages"]):
+        c.fail(f"{where}.stage {s} names no stage (the file has {len(m['positions']['stages'])})")
+    if k == n - 1 and s != 0:
+        c.fail(f"{where}.stage must be 0: a part's coarsest LOD is in the first stage")
+    if k < n - 1 and isinstance(lods[k + 1], dict) and is_int(lods[k + 1].get("stage")) and s < lods[k + 1]["stage"]:
+        c.fail(f"{where}.stage {s} comes before the stage of the coarser LOD {k + 1}")
+    return s
 
 
 def check_hierarchy(c: _Checker, i: int, part: dict, length: dict) -> None:
@@ -272,9 +419,10 @@ def check_attribute_bits(c: _Checker, lod: dict, where: str) -> AttributeBits:
     return AttributeBits.of(ab)
 
 
-def check_lod(c: _Checker, lod: dict, where: str, length: dict, totals: _Totals, clustered: bool) -> AttributeBits:
+def check_lod(c: _Checker, lod: dict, where: str, length: dict, totals: _StageTotals,
+              clustered: bool) -> AttributeBits:
     """A stored buffer: counts, VertexId, indices, attribute record, mandatory words, clusters, and
-    the lengths of its sections."""
+    the lengths of its sections. ``totals``: its stage's running totals."""
     n = c.need(lod, "vertices", int, where)
     tri = c.need(lod, "triangles", int, where)
     if n < 1 or tri < 1:
@@ -313,7 +461,7 @@ def check_lod(c: _Checker, lod: dict, where: str, length: dict, totals: _Totals,
     return bits
 
 
-def check_lod_positions(c: _Checker, lod: dict, where: str, vid: list, mw: list, totals: _Totals,
+def check_lod_positions(c: _Checker, lod: dict, where: str, vid: list, mw: list, totals: _StageTotals,
                         clustered: bool) -> None:
     """``mandatory_words`` (and a clustered buffer's ``cluster_*`` records) against its bins; adds
     the buffer's words, headers and plane bits to ``totals``. The buffer at level 1 holds

@@ -48,7 +48,7 @@ from ..lop.bitplane import decode, reconstruct_float32, to_grid
 from ..lop.clusters import cluster_bit, decode_clustered
 from ..lop.codecs import CODECS, AttributeBits
 from ..lop.reader import (buffer_clusters, clustered_gpu_buffer, gpu_buffer, lod_entry, owner, part_grid,
-                          plane_slice_bits, top_values)
+                          plane_slice, plane_slice_bits, top_values)
 from ..lop.record import decode_record
 from ..viewing import Viewing, nearest_box_distance
 from . import gpu
@@ -215,24 +215,17 @@ def plane_source(c, part: int, lod: int):
 
 
 def stored_plane_source(c, part: int, lod: int):
-    """``plane(p) -> (words, bit_offset)``: the container's plane section p as stored (uint32 words)
-    and the bit offset of buffer (part, lod)'s slice inside it (buffers in manifest order, each
-    ``reader.plane_slice_bits`` long). For a clustered buffer this is the slice the
+    """``plane(p) -> (words, bit_offset)``: the container's plane p as stored (uint32 words; in the
+    streaming layout the plane of the buffer's stage) and the bit offset of buffer (part, lod)'s
+    slice inside it (buffers in manifest order, each ``reader.plane_slice_bits`` long). For a
+    clustered buffer this is the slice the
     ``LOP_CLUSTERED`` add-plane kernel reads (anchor-implied components skipped)."""
     part = owner(c, part)  # a placement's buffer is its owner's
     lod_entry(c, part, lod)  # LopcookError for a part or LOD that does not exist
 
     def plane(p: int):
-        start = 0
-        for i, pp in enumerate(c.manifest["parts"]):
-            if owner(c, i) != i:
-                continue  # shared buffers are stored once, with their owner
-            for k, e in enumerate(pp["lods"]):
-                if (i, k) == (part, lod):
-                    data = c.section(c.manifest["positions"]["planes"][str(p)])
-                    return np.frombuffer(data, dtype="<u4"), start
-                start += plane_slice_bits(e, p)
-        raise LopcookError("usage", c.path, f"part {part} has no LOD {lod}")
+        data, start = plane_slice(c, part, lod, p)  # the buffer's stage's plane (docs/format.md 14)
+        return np.frombuffer(data.tobytes(), dtype="<u4"), start
 
     return plane
 

@@ -25,11 +25,22 @@
 // Every failure throws LopError, whose message is one line naming the file, what is wrong and
 // what to do. Safe on untrusted input: every read is bounds-checked against the bytes received;
 // a hostile file is refused with LopError, never read outside its bytes.
+//
+// Both layouts of format.md are read: the default one and the streaming layout of version 4.0
+// (section 14: stages, coarsest LODs first, each buffer decoding at its stage's level), and
+// encoded sections (section 15), decoded by ./lop-codecs.js as soon as they are complete.
+
+import {DEFLATE_MAX_RATIO, decodeTriangles, inflateRaw} from './lop-codecs.js';
 
 /** The manifest's format string. */
 export const FORMAT = 'lopcook.lop';
-/** Container majors this reader knows (2.x, 3.x: clusters and placements, 4.x: tangents). */
+/** Container majors this reader knows (2.x, 3.x: clusters and placements, 4.x: tangents, the
+ * streaming layout, encoded sections). */
 export const READABLE_MAJORS = Object.freeze([2, 3, 4]);
+/** The first major that may hold the streaming layout and encoded sections (format.md 14, 15). */
+export const STREAM_MAJOR = 4;
+/** The encodings a section may have (format.md 15). */
+export const ENCODINGS = Object.freeze(['deflate', 'meshopt-deflate']);
 /** Bits of the position grid and the highest level. */
 export const LEVELS = 24;
 /** Bytes of the header. */
@@ -295,14 +306,75 @@ export function validateManifest(m, path = null) {
   const pos = checkPositions(m, names, order, ctx);
   const parts = need(m, 'parts', 'list', 'manifest');
   if (!parts.length) fail('no parts');
-  const acc = {wordsNext: 0, headersNext: 0, nClustered: 0, planeBits: new Map()};
-  for (let p = 2; p <= pos.max_level; p++) acc.planeBits.set(p, 0);
-  for (let i = 0; i < parts.length; i++) checkPart(m, parts, i, extent, names, length, pos, acc, ctx);
-  if (pos.clustered && !acc.nClustered) fail('positions.clusters is present but no buffer is clustered');
-  if (pos.clustered && length.get(pos.clusters) < 4 * acc.headersNext) fail('positions.clusters is shorter than the cluster headers it holds');
-  if (length.get(pos.mandatory) < 4 * acc.wordsNext) fail('positions.mandatory is shorter than the buffers it holds');
-  for (const [p, bits] of acc.planeBits) {
-    if (length.get(pos.planes[String(p)]) < Math.ceil(bits / 8)) fail(`refinement plane ${p} is shorter than its ${bits} bits`);
+  const stages = new Map(); // stage -> running totals of its buffers (one stage in the default layout)
+  const stageAcc = (s) => {
+    if (!stages.has(s)) {
+      const acc = {wordsNext: 0, headersNext: 0, nClustered: 0, planeBits: new Map()};
+      for (let p = 2; p <= pos.max_level; p++) acc.planeBits.set(p, 0);
+      stages.set(s, acc);
+    }
+    return stages.get(s);
+  };
+  for (let i = 0; i < parts.length; i++) checkPart(m, parts, i, extent, names, length, pos, stageAcc, ctx);
+  if (pos.stream) checkStreamLayout(m, length, stageAcc, ctx);
+  else {
+    const acc = stageAcc(0);
+    if (pos.clustered && !acc.nClustered) fail('positions.clusters is present but no buffer is clustered');
+    if (pos.clustered && length.get(pos.clusters) < 4 * acc.headersNext) fail('positions.clusters is shorter than the cluster headers it holds');
+    if (length.get(pos.mandatory) < 4 * acc.wordsNext) fail('positions.mandatory is shorter than the buffers it holds');
+    for (const [p, bits] of acc.planeBits) {
+      if (length.get(pos.planes[String(p)]) < Math.ceil(bits / 8)) fail(`refinement plane ${p} is shorter than its ${bits} bits`);
+    }
+  }
+  checkEncodedIndices(m, ctx);
+}
+
+/** The streaming layout (format.md 14): every stage holds a stored buffer, the section table is
+ * exactly the list of 14.3, each stage's sections as long as its buffers need (checkStage has
+ * checked each LOD's stage). */
+function checkStreamLayout(m, length, stageAcc, {fail}) {
+  const lay = layoutOf(m);
+  const empty = lay.stages.find((st) => !st.buffers.length);
+  if (empty) fail(`positions.stages[${empty.index}] holds no buffer`);
+  const want = expectedSections(lay), have = [...length.keys()];
+  const at = want.findIndex((v, k) => have[k] !== v);
+  if (at >= 0 || have.length !== want.length) {
+    const j = at >= 0 ? at : Math.min(have.length, want.length);
+    fail(`the sections are not those of the streaming layout in its order: section ${j} is ${repr(j < have.length ? have[j] : 'missing')}, expected ${repr(j < want.length ? want[j] : 'none')}`);
+  }
+  for (const st of lay.stages) {
+    const acc = stageAcc(st.index);
+    if (st.clusters && length.get(st.clusters) < 4 * acc.headersNext) fail(`${st.clusters} is shorter than the cluster headers it holds`);
+    if (length.get(st.mandatory) < 4 * acc.wordsNext) fail(`${st.mandatory} is shorter than the buffers it holds`);
+    for (const [p, name] of st.planes) {
+      if (length.get(name) !== planeBytes(st.bits.get(p))) fail(`${name} is not the ${st.bits.get(p)} bits its buffers hold`);
+    }
+    if (st.deferred) {
+      let bytes = 0;
+      for (let p = st.level + 1; p <= lay.maxLevel; p++) bytes += planeBytes(st.bits.get(p));
+      if (length.get(st.deferred) !== bytes) fail(`${st.deferred} is not the ${bytes} bytes of planes ${st.level + 1}..${lay.maxLevel}`);
+    }
+  }
+}
+
+/** A meshopt-deflate section is a LOD's indices and nothing else, its size the 3 m indices' bytes,
+ * its stored length enough for a triangle stream of m triangles (format.md 15.2). */
+function checkEncodedIndices(m, {fail}) {
+  const named = new Map();
+  for (const part of m.parts) {
+    for (const e of part.lods) {
+      if (!named.has(e.indices)) named.set(e.indices, e);
+      if (e.attributes != null) named.set(e.attributes, null);
+    }
+    if (isDict(part.hierarchy)) named.set(part.hierarchy.section, null);
+  }
+  for (const s of m.sections) {
+    if (s.encoding !== 'meshopt-deflate') continue;
+    const e = named.get(s.name);
+    if (!e) fail(`section ${repr(s.name)} is encoded meshopt-deflate but is no LOD's index section`);
+    const want = 4 * Math.ceil((3 * e.triangles * e.index_width) / 4);
+    if (s.size !== want) fail(`section ${repr(s.name)} size ${s.size} is not the ${want} bytes of its ${e.triangles} triangles`);
+    if (e.triangles + 17 > DEFLATE_MAX_RATIO * s.length) fail(`section ${repr(s.name)}: ${s.length} stored bytes cannot hold ${e.triangles} triangles`);
   }
 }
 
@@ -336,7 +408,8 @@ function checkInformative(m, {fail, need, count}) {
   }
 }
 
-function checkSections(m, {fail, need, count}) {
+function checkSections(m, ctx) {
+  const {fail, need, count} = ctx;
   const sections = need(m, 'sections', 'list', 'manifest');
   const names = new Set();
   const length = new Map();
@@ -350,9 +423,22 @@ function checkSections(m, {fail, need, count}) {
     offset += s.length;
     if (names.has(name)) fail(`section ${repr(name)} appears twice`);
     names.add(name);
-    length.set(name, s.length);
+    length.set(name, checkEncoded(s, name, ctx));
   });
   return {names, length, order: sections.map((s) => s.name)};
+}
+
+/** An encoded section's `encoding` and `size` (format.md 15): both or neither, a known encoding,
+ * size a multiple of 4 and, for deflate, at most 1032 times the stored length. Returns the
+ * section's decoded length. */
+function checkEncoded(s, name, {fail, need, count}) {
+  if (!has(s, 'encoding') && !has(s, 'size')) return s.length;
+  const enc = need(s, 'encoding', 'str', `section ${repr(name)}`);
+  const size = count(s, 'size', `section ${repr(name)}`);
+  if (!ENCODINGS.includes(enc)) fail(`section ${repr(name)} has the unknown encoding ${repr(enc)} (known: ${ENCODINGS.join(', ')})`);
+  if (size % 4) fail(`section ${repr(name)} size is not a multiple of 4`);
+  if (enc !== 'meshopt-deflate' && size > DEFLATE_MAX_RATIO * s.length) fail(`section ${repr(name)} claims ${size} decoded bytes, more than ${DEFLATE_MAX_RATIO} times its ${s.length} stored bytes`);
+  return size;
 }
 
 function checkGrid(grid, {fail, need}) {
@@ -369,6 +455,17 @@ function checkPositions(m, names, order, {fail, need}) {
   const pos = need(m, 'positions', 'dict', 'manifest');
   const maxLevel = need(pos, 'max_level', 'int', 'positions');
   if (!(maxLevel >= 1 && maxLevel <= LEVELS)) fail('positions.max_level must be in [1, 24]');
+  if (has(pos, 'stages')) { // the streaming layout (format.md 14.2); its section list: checkStreamLayout
+    for (const key of ['mandatory', 'planes', 'clusters']) if (has(pos, key)) fail(`positions.${key} must not be given with positions.stages (the streaming layout)`);
+    const stages = need(pos, 'stages', 'list', 'positions');
+    if (!stages.length) fail('positions.stages is empty');
+    stages.forEach((st, s) => {
+      if (!isDict(st) || Object.keys(st).join(',') !== 'level') fail(`positions.stages[${s}] must hold exactly level`);
+      const level = need(st, 'level', 'int', `positions.stages[${s}]`);
+      if (!(level >= 1 && level <= maxLevel)) fail(`positions.stages[${s}].level must be in [1, ${maxLevel}]`);
+    });
+    return {max_level: maxLevel, stream: true, clustered: true};
+  }
   if (!names.has(need(pos, 'mandatory', 'str', 'positions'))) fail('positions.mandatory names no section');
   const planes = need(pos, 'planes', 'dict', 'positions');
   for (let p = 2; p <= maxLevel; p++) {
@@ -381,7 +478,7 @@ function checkPositions(m, names, order, {fail, need}) {
   for (let p = 2; p <= maxLevel; p++) tail.push(planes[String(p)]);
   const end = order.slice(Math.max(0, order.length - tail.length));
   if (end.length !== tail.length || end.some((v, k) => v !== tail[k])) fail('position sections are not last and in level order');
-  return {max_level: maxLevel, mandatory: pos.mandatory, planes, clustered, clusters: clustered ? pos.clusters : null};
+  return {max_level: maxLevel, mandatory: pos.mandatory, planes, clustered, clusters: clustered ? pos.clusters : null, stream: false};
 }
 
 function checkBits(lod, where, {fail, need}) {
@@ -401,7 +498,7 @@ function checkBits(lod, where, {fail, need}) {
   return {normals: ab.normals, uvs: ab.uvs, colors: ab.colors, tangents: tangents ? ab.tangents : null};
 }
 
-function checkPart(m, parts, i, extent, names, length, pos, acc, ctx) {
+function checkPart(m, parts, i, extent, names, length, pos, stageAcc, ctx) {
   const {fail, need} = ctx;
   const part = parts[i];
   need(part, 'name', 'str', `parts[${i}]`);
@@ -421,6 +518,8 @@ function checkPart(m, parts, i, extent, names, length, pos, acc, ctx) {
   lods.forEach((lod, k) => {
     const where = `parts[${i}].lods[${k}]`;
     if (!isDict(lod)) fail(`${where} is not an object`);
+    const stage = pos.stream ? checkStage(m, lod, where, k, lods, ctx) : 0;
+    if (!pos.stream && has(lod, 'stage')) fail(`${where}.stage is only allowed in the streaming layout (positions.stages)`);
     if (sharedOf !== null) {
       const ref = parts[sharedOf].lods;
       if (lods.length !== ref.length) fail(`parts[${i}] has ${lods.length} LODs, the buffers it places (parts[${sharedOf}]) ${ref.length}`);
@@ -430,11 +529,23 @@ function checkPart(m, parts, i, extent, names, length, pos, acc, ctx) {
       iBits = iBits === null ? checkBits(lod, where, ctx) : iBits;
       return;
     }
-    const abits = checkLod(lod, where, names, length, pos, acc, ctx);
+    const abits = checkLod(lod, where, names, length, pos, stageAcc(stage), ctx);
     if (iBits === null) iBits = abits;
   });
   const pb = need(part, 'attribute_bits', 'dict', `parts[${i}]`);
   if (!pyEqual(pb, bitsDict(iBits))) fail(`parts[${i}].attribute_bits is not the attribute_bits its LODs share`);
+}
+
+/** A LOD entry's stage in the streaming layout (format.md 14.1): an integer naming a stage, 0 for
+ * the part's coarsest LOD, never below the stage of a coarser LOD of the part. */
+function checkStage(m, lod, where, k, lods, {fail, need}) {
+  const s = need(lod, 'stage', 'int', where);
+  const count = m.positions.stages.length;
+  if (!(s >= 0 && s < count)) fail(`${where}.stage ${s} names no stage (the file has ${count})`);
+  if (k === lods.length - 1 && s !== 0) fail(`${where}.stage must be 0: a part's coarsest LOD is in the first stage`);
+  const next = lods[k + 1];
+  if (k < lods.length - 1 && isDict(next) && isIntAt(next, 'stage') && s < next.stage) fail(`${where}.stage ${s} comes before the stage of the coarser LOD ${k + 1}`);
+  return s;
 }
 
 function checkLod(lod, where, names, length, pos, acc, ctx) {
@@ -606,6 +717,97 @@ function checkPlacement(m, parts, i, part, worldExtent, {fail}) {
 }
 
 // ============================================================================================
+// layouts: where each buffer's position bits lie (lopcook/lop/layout.py; format.md 6.4-6.5, 14)
+
+/** Bytes of a plane holding `bits` bits: whole uint32 words. */
+export const planeBytes = (bits) => 4 * Math.ceil(bits / 32);
+
+/** Bits of one buffer's slice of plane p: 3 VertexId[p-1], or a clustered one's cluster_plane_bits[p-2]. */
+const sliceBits = (e, p) => (has(e, 'cluster_size') ? e.cluster_plane_bits[p - 2] : 3 * e.vertex_id[p - 1]);
+
+/** Whether a manifest is in the streaming layout (format.md 14). */
+export const isStream = (m) => isDict(m) && isDict(m.positions) && has(m.positions, 'stages');
+
+/**
+ * The stages of a manifest whose LOD entries are sound (lopcook.lop.layout.layout_of): `{stream,
+ * maxLevel, stages, stageOf: Map "part/lod" -> stage}`; a stage is `{index, buffers: [[part, lod,
+ * entry], ...] (stored buffers, manifest order), level (L_s; max_level in the default layout),
+ * mandatory, clusters (null when none), planes: Map p -> section name (the planes stored as
+ * sections), deferred (null when none), bits: Map p -> bits of plane p, required: the sections that
+ * must be complete before any level of the stage decodes}`. The default layout is one stage.
+ */
+export function layoutOf(m) {
+  const pos = m.positions, maxLevel = pos.max_level, stream = isStream(m);
+  const count = stream ? pos.stages.length : 1;
+  const buffers = Array.from({length: count}, () => []);
+  const stageOf = new Map();
+  m.parts.forEach((part, i) => {
+    const own = !isDict(part.placement) || part.placement.of === i;
+    part.lods.forEach((e, k) => {
+      const st = stream ? e.stage : 0;
+      stageOf.set(`${i}/${k}`, st);
+      if (own && st >= 0 && st < count) buffers[st].push([i, k, e]);
+    });
+  });
+  const stages = buffers.map((bufs, si) => {
+    const bits = new Map();
+    for (let p = 2; p <= maxLevel; p++) bits.set(p, bufs.reduce((a, [, , e]) => a + sliceBits(e, p), 0));
+    if (!stream) {
+      const planes = new Map();
+      for (let p = 2; p <= maxLevel; p++) planes.set(p, pos.planes[String(p)]);
+      const required = m.sections.map((t) => t.name).filter((n) => !n.startsWith('positions/'));
+      return {index: 0, buffers: bufs, level: maxLevel, mandatory: pos.mandatory, clusters: has(pos, 'clusters') ? pos.clusters : null, planes, deferred: null, bits, required};
+    }
+    const level = pos.stages[si].level, name = (kind) => `positions/stage${si}/${kind}`;
+    const planes = new Map();
+    for (let p = 2; p <= level; p++) if (bits.get(p)) planes.set(p, name(`plane${String(p).padStart(2, '0')}`));
+    let deferred = null;
+    for (let p = level + 1; p <= maxLevel; p++) if (bits.get(p)) deferred = name('deferred');
+    const required = [];
+    for (const [i, k, e] of bufs) {
+      required.push(e.indices);
+      if (e.attributes != null) required.push(e.attributes);
+      if (k === 0 && isDict(m.parts[i].hierarchy)) required.push(m.parts[i].hierarchy.section);
+    }
+    const clustered = bufs.some(([, , e]) => has(e, 'cluster_size'));
+    return {index: si, buffers: bufs, level, mandatory: name('mandatory'), clusters: clustered ? name('clusters') : null, planes, deferred, bits, required};
+  });
+  return {stream, maxLevel, stages, stageOf};
+}
+
+/** A stage's position sections in file order (the deferred one excluded). */
+const stageSections = (st) => [...(st.clusters ? [st.clusters] : []), st.mandatory, ...[...st.planes.keys()].sort((a, b) => a - b).map((p) => st.planes.get(p))];
+
+/** The section list of a streaming file, in order (format.md 14.3). */
+export function expectedSections(lay) {
+  const out = [];
+  for (const st of lay.stages) out.push(...st.required, ...stageSections(st));
+  for (const st of lay.stages) if (st.deferred) out.push(st.deferred);
+  return out;
+}
+
+/** [section name, byte offset] of plane p of a stage, null when the plane holds no bits. */
+export function planeLocation(st, p, maxLevel) {
+  if (!st.bits.get(p)) return null;
+  if (st.planes.has(p)) return [st.planes.get(p), 0];
+  let offset = 0;
+  for (let q = st.level + 1; q < p; q++) offset += planeBytes(st.bits.get(q));
+  return p <= maxLevel ? [st.deferred, offset] : null;
+}
+
+/** A stage's level given the complete sections `present` (a Set or Map of names; format.md 8, 14.4). */
+export function stageLevel(st, present, maxLevel) {
+  for (const name of [...st.required, ...(st.clusters ? [st.clusters] : []), st.mandatory]) if (!present.has(name)) return 0;
+  let level = 1;
+  for (let p = 2; p <= st.level; p++) {
+    if (st.planes.has(p) && !present.has(st.planes.get(p))) return level;
+    level = p;
+  }
+  if (st.level < maxLevel && (st.deferred === null || present.has(st.deferred))) return maxLevel;
+  return level;
+}
+
+// ============================================================================================
 // bins, clusters and plane slices (lopcook/emit/binning.py, clusters.py)
 
 /** BitId at per-buffer level B: Float64Array(25), BitId[k] = bit offset after bin k (format.md 6.2). */
@@ -702,6 +904,14 @@ function wordsOf(bytes) {
 }
 const LITTLE_ENDIAN = new Uint8Array(new Uint32Array([1]).buffer)[0] === 1;
 
+/** A deflate stream ending at byte `end` of a section's stored bytes: the rest is its zero padding
+ * (fewer than 4 bytes, format.md 15.1). */
+function checkPadding(stored, end) {
+  if (stored.length !== 4 * Math.ceil(end / 4) || stored.subarray(end).some((b) => b !== 0)) {
+    throw new Error(`the deflate stream ends at byte ${end}, not in the last word of its ${stored.length} stored bytes with zero padding after it`);
+  }
+}
+
 /** Whether a manifest holds clustered buffers / placements / tangents. */
 const isClustered = (m) => isDict(m) && isDict(m.positions) && has(m.positions, 'clusters');
 const hasPlacements = (m) => isDict(m) && Array.isArray(m.parts) && m.parts.some((p) => isDict(p) && has(p, 'placement'));
@@ -726,6 +936,7 @@ class Reader {
     this.table = null; // [{name, start, end, crc32}] absolute file offsets
     this.next = 0; // index into table of the first section not yet complete
     this.present = new Map(); // name -> [start, end)
+    this.decoded = new Map(); // name -> Uint8Array, the decoded bytes of an encoded section
     this.words = new Map(); // name -> Uint32Array cache
     this.clusterChecks = null; // with clustered buffers: expected exact bytes of each plane section
     this.growable = true; // false once a whole input is adopted (its bytes are used as they are)
@@ -811,8 +1022,9 @@ class Reader {
     const mbytes = this.bytes.subarray(HEADER_SIZE, HEADER_SIZE + h.manifestSize);
     if (crc32(mbytes) !== h.manifestCrc) this.fail('manifest checksum mismatch');
     let manifest;
+    const text = this.manifestText(mbytes);
     try {
-      manifest = parseJson(asciiText(mbytes));
+      manifest = parseJson(asciiText(text));
     } catch (exc) {
       if (exc instanceof RangeError || /nested too deeply/.test(exc.message)) this.fail('manifest JSON is nested too deeply');
       this.fail(`manifest is not valid JSON (${String(exc.message).split(/\s+/).join(' ').slice(0, 160)})`);
@@ -822,8 +1034,13 @@ class Reader {
     if (h.major === 2 && isClustered(manifest)) this.fail(`container version ${v} must not hold clustered position buffers (they need 3.x)`);
     if (h.major === 2 && hasPlacements(manifest) && h.minor < 1) this.fail(`container version ${v} must not hold placements (they need 3.x)`);
     if (h.major < TANGENT_MAJOR && hasTangents(manifest)) this.fail(`container version ${v} must not hold tangents (they need 4.x)`);
+    if (h.major < STREAM_MAJOR && (isStream(manifest) || manifest.sections.some((t) => has(t, 'encoding') || has(t, 'size')))) {
+      this.fail(`container version ${v} must not hold the streaming layout or encoded sections (they need ${STREAM_MAJOR}.x)`);
+    }
     const base = HEADER_SIZE + h.manifestSize;
-    this.table = manifest.sections.map((s) => ({name: s.name, start: base + s.offset, end: base + s.offset + s.length, crc32: s.crc32}));
+    this.table = manifest.sections.map((s) => ({name: s.name, start: base + s.offset, end: base + s.offset + s.length, crc32: s.crc32,
+      encoding: has(s, 'encoding') ? s.encoding : null, size: s.size}));
+    this.layout = layoutOf(manifest);
     this.sectionsEnd = this.table.length ? this.table[this.table.length - 1].end : base;
     this.manifest = manifest;
     MANIFEST_SIZE.set(manifest, h.manifestSize);
@@ -833,23 +1050,76 @@ class Reader {
     }
   }
 
+  /** The JSON text of the manifest's stored bytes: as they are, or decoded when the first byte is
+   * 0x00 (a 4.x file's encoded manifest: its uint32 size, then raw DEFLATE; format.md 4). */
+  manifestText(mbytes) {
+    if (mbytes.length === 0 || mbytes[0] !== 0) return mbytes;
+    const h = this.header;
+    if (h.major < STREAM_MAJOR) this.fail(`container version ${h.major}.${h.minor} must not hold an encoded manifest (it needs ${STREAM_MAJOR}.x)`);
+    try {
+      if (mbytes.length < 5) throw new Error('an encoded manifest starts with 0x00 and its 4-byte size');
+      const size = u32le(mbytes, 1), body = mbytes.subarray(5);
+      if (size > DEFLATE_MAX_RATIO * body.length) throw new Error(`the encoded manifest claims ${size} bytes, more than ${DEFLATE_MAX_RATIO} times its ${body.length} stored bytes`);
+      const {out, end} = inflateRaw(body, size, true);
+      if (end !== body.length) throw new Error(`the deflate stream ends at byte ${end} of its ${body.length} bytes`);
+      return out;
+    } catch (exc) {
+      if (exc instanceof LopError) throw exc;
+      this.fail(`manifest (encoded): ${exc.message}`);
+    }
+  }
+
   completeSection(s) {
     const payload = this.bytes.subarray(s.start, s.end);
     if (crc32(payload) !== s.crc32) this.fail(`section '${s.name}' checksum mismatch`);
+    if (s.encoding !== null) this.decoded.set(s.name, this.decode(s, payload));
     this.present.set(s.name, [s.start, s.end]);
     this.checkIndices(s.name);
-    const pos = this.manifest.positions;
-    if (has(pos, 'clusters') && s.name === pos.clusters) this.checkClusterHeaders();
+    const st = this.layout.stages.find((x) => x.clusters === s.name);
+    if (st) this.checkClusterHeaders(st);
     if (this.clusterChecks && this.clusterChecks.has(s.name) && s.end - s.start !== this.clusterChecks.get(s.name).bytes) {
       const {p, bits} = this.clusterChecks.get(s.name);
       this.fail(`refinement plane ${p} is not the ${bits} bits its buffers hold`);
     }
   }
 
-  /** Bytes of a complete section (a view of the received bytes), or null. */
+  /** The decoded bytes of an encoded section (format.md 15), or LopError naming it. */
+  decode(s, stored) {
+    try {
+      if (s.encoding === 'deflate') {
+        const {out, end} = inflateRaw(stored, s.size, true);
+        checkPadding(stored, end);
+        return out;
+      }
+      const lod = this.indexLods().get(s.name);
+      const {out: stream, end} = inflateRaw(stored, DEFLATE_MAX_RATIO * stored.length, false);
+      checkPadding(stored, end);
+      const idx = decodeTriangles(stream, lod.triangles, lod.vertices);
+      const out = new Uint8Array(s.size);
+      if (lod.index_width === 2) for (let j = 0; j < idx.length; j++) { out[2 * j] = idx[j] & 0xFF; out[2 * j + 1] = idx[j] >>> 8; }
+      else for (let j = 0; j < idx.length; j++) for (let b = 0; b < 4; b++) out[4 * j + b] = (idx[j] >>> (8 * b)) & 0xFF;
+      return out;
+    } catch (exc) {
+      if (exc instanceof LopError) throw exc;
+      if (exc instanceof RangeError) this.fail(`section '${s.name}' (${s.encoding}): its decoded bytes do not fit in memory`, 'read a prefix, or a smaller file');
+      this.fail(`section '${s.name}' (${s.encoding}): ${exc.message}`);
+    }
+  }
+
+  /** index section name -> its LOD entry (what a meshopt-deflate section decodes with). */
+  indexLods() {
+    if (!this._indexLods) {
+      this._indexLods = new Map();
+      for (const part of this.manifest.parts) for (const e of part.lods) if (!this._indexLods.has(e.indices)) this._indexLods.set(e.indices, e);
+    }
+    return this._indexLods;
+  }
+
+  /** Bytes of a complete section (a view of the received bytes, or its decoded bytes), or null. */
   section(name) {
     const r = this.present.get(name);
-    return r === undefined ? null : this.bytes.subarray(r[0], r[1]);
+    if (r === undefined) return null;
+    return this.decoded.get(name) || this.bytes.subarray(r[0], r[1]);
   }
 
   sectionWords(name) {
@@ -882,21 +1152,21 @@ class Reader {
     }
   }
 
-  /** Cluster headers sound, cluster_p_words / cluster_plane_bits as the headers give, and the exact
-   * size every plane must have (lopcook.emit.container._check_cluster_sizes). */
-  checkClusterHeaders() {
-    const m = this.manifest, pos = m.positions;
-    const head = this.sectionWords(pos.clusters);
+  /** A stage's cluster headers sound, cluster_p_words / cluster_plane_bits as the headers give, and
+   * in the default layout the exact size every plane must have (lopcook.lop.container._check_cluster_sizes;
+   * the streaming layout's plane sizes follow from the manifest, which validateManifest checked). */
+  checkClusterHeaders(st) {
+    const pos = this.manifest.positions;
+    const head = this.sectionWords(st.clusters);
     const planeBits = new Map();
     for (let p = 2; p <= pos.max_level; p++) planeBits.set(p, 0);
-    this.clusters = new Map();
-    m.parts.forEach((part, i) => {
-      if (isDict(part.placement) && part.placement.of !== i) return;
-      part.lods.forEach((lod, k) => {
+    if (!this.clusters) this.clusters = new Map();
+    for (const [i, k, lod] of st.buffers) {
+      {
         const vid = lod.vertex_id;
         if (!has(lod, 'cluster_size')) {
           for (const p of planeBits.keys()) planeBits.set(p, planeBits.get(p) + 3 * vid[p - 1]);
-          return;
+          continue;
         }
         const [off, count] = lod.cluster_words;
         let cl;
@@ -915,8 +1185,9 @@ class Reader {
         }
         for (const p of planeBits.keys()) planeBits.set(p, planeBits.get(p) + clusterPlaneBits(cl, p));
         this.clusters.set(`${i}/${k}`, cl);
-      });
-    });
+      }
+    }
+    if (this.layout.stream) return;
     this.clusterChecks = new Map();
     for (const [p, bits] of planeBits) this.clusterChecks.set(pos.planes[String(p)], {p, bits, bytes: 4 * Math.ceil(bits / 32)});
     for (const [name, want] of this.clusterChecks) { // planes already complete
@@ -925,18 +1196,16 @@ class Reader {
     }
   }
 
-  /** The highest level whose position sections are all complete, 0 when no level is (format.md 8). */
+  /** Every stage's level (format.md 8, 14.4; one stage in the default layout), [0] before the manifest. */
+  stageLevels() {
+    if (!this.manifest) return [0];
+    return this.layout.stages.map((st) => stageLevel(st, this.present, this.layout.maxLevel));
+  }
+
+  /** The highest level every buffer can be decoded at, 0 when some buffer cannot (format.md 8); in
+   * the streaming layout the lowest stage level. */
   availableLevel() {
-    if (!this.manifest) return 0;
-    const pos = this.manifest.positions;
-    if (!this.present.has(pos.mandatory) || (has(pos, 'clusters') && !this.present.has(pos.clusters))) return 0;
-    for (const s of this.table) if (!this.present.has(s.name) && !s.name.startsWith('positions/')) return 0;
-    let level = 1;
-    for (let p = 2; p <= pos.max_level; p++) {
-      if (!this.present.has(pos.planes[String(p)])) break;
-      level = p;
-    }
-    return level;
+    return Math.min(...this.stageLevels());
   }
 
   /** The checks of a file that will not grow: not truncated (unless `allowPrefix`), and usable. */
@@ -947,7 +1216,9 @@ class Reader {
     if (!this.manifest) this.fail('manifest is truncated');
     if (!truncated && this.next < this.table.length) this.fail(`section '${this.table[this.next].name}' runs past the end of the file`);
     if (!truncated && this.sectionsEnd !== this.header.fileSize) this.fail(`sections end at byte ${this.sectionsEnd}, file size says ${this.header.fileSize}`);
-    if (this.availableLevel() < 1) this.fail('the file ends before the mandatory position bits', INCOMPLETE);
+    if (this.stageLevels()[0] < 1) {
+      this.fail(this.layout.stream ? "the file ends before the first stage's mandatory position bits" : 'the file ends before the mandatory position bits', INCOMPLETE);
+    }
   }
 }
 
@@ -1034,8 +1305,25 @@ export class LopContainer {
   get path() { return this._r.path; }
   get header() { return this._r.header; }
   get manifest() { return this._r.manifest; }
-  /** The highest per-buffer level every buffer can be decoded at, 0 before the first renderable state. */
+  /** The highest per-buffer level every buffer can be decoded at, 0 before the first renderable
+   * state (in the streaming layout: while a stage has not arrived; `levelOf` gives each buffer's). */
   get availableLevel() { return this._r.availableLevel(); }
+  /** Every stage's level in the bytes received (format.md 14.4; one stage in the default layout). */
+  get stageLevels() { return this._r.stageLevels(); }
+  /** The stages (layoutOf): which buffers each holds and where their position bits lie. */
+  get layout() { return this._r.layout; }
+  /** Whether the container is in the streaming layout (format.md 14). */
+  get stream() { return this._r.layout.stream; }
+
+  /** The stage of buffer (part, lod) (a part's coarsest when its chain is shorter). */
+  stageOf(part, lod) {
+    const lods = this.manifest.parts[part].lods;
+    return this._r.layout.stageOf.get(`${part}/${Math.min(lod, lods.length - 1)}`);
+  }
+
+  /** The highest level buffer (part, lod) decodes at in the bytes received: its stage's level; 0
+   * when its sections have not arrived. */
+  levelOf(part, lod) { return this.stageLevels[this.stageOf(part, lod)]; }
   /** Bytes of the file received (the whole file for `parse`). */
   get bytesReceived() { return this._r.received; }
   /** The file's size as its header gives it. */
@@ -1105,7 +1393,7 @@ export class LopContainer {
     const key = `${o}/${lod}`;
     let cl = this._clusters.get(key) || (this._r.clusters && this._r.clusters.get(key));
     if (!cl) {
-      const head = this.sectionWords(this.manifest.positions.clusters);
+      const head = this.sectionWords(this.layout.stages[this.stageOf(o, lod)].clusters);
       const [off, count] = e.cluster_words;
       if (off + count > head.length) throw new LopError('container', this.path, 'cluster header words out of range');
       cl = clustersFromHeader(head.subarray(off, off + count), e.vertex_id, e.cluster_size);
@@ -1114,27 +1402,41 @@ export class LopContainer {
     return cl;
   }
 
-  /** Bits of buffer (owner part, lod)'s slice of plane p and where it starts in the plane (bits). */
+  /** Where buffer (owner part, lod)'s slice of plane p starts in its stage's plane p (bits; the
+   * stage's earlier buffers in manifest order). */
   planeSlice(part, lod, p) {
-    if (!this._planeOffsets.has(p)) {
+    const si = this.stageOf(this.owner(part), lod);
+    const key = `${si}/${p}`;
+    if (!this._planeOffsets.has(key)) {
       const offsets = new Map();
       let start = 0;
-      this.manifest.parts.forEach((pt, i) => {
-        if (this.owner(i) !== i) return;
-        pt.lods.forEach((e, k) => {
-          offsets.set(`${i}/${k}`, start);
-          start += has(e, 'cluster_size') ? e.cluster_plane_bits[p - 2] : 3 * e.vertex_id[p - 1];
-        });
-      });
-      this._planeOffsets.set(p, offsets);
+      for (const [i, k, e] of this.layout.stages[si].buffers) {
+        offsets.set(`${i}/${k}`, start);
+        start += sliceBits(e, p);
+      }
+      this._planeOffsets.set(key, offsets);
     }
-    return this._planeOffsets.get(p).get(`${this.owner(part)}/${lod}`);
+    return this._planeOffsets.get(key).get(`${this.owner(part)}/${lod}`);
   }
 
-  _checkLevel(level) {
+  /** The bytes of plane p of buffer (part, lod)'s stage (its section, or its part of the stage's
+   * deferred section); an empty array when the plane holds no bits. */
+  planeBytes(part, lod, p) {
+    const st = this.layout.stages[this.stageOf(this.owner(part), lod)];
+    const loc = planeLocation(st, p, this.layout.maxLevel);
+    if (loc === null) return new Uint8Array(0);
+    return this.section(loc[0]).subarray(loc[1], loc[1] + planeBytes(st.bits.get(p)));
+  }
+
+  _checkLevel(level, part, lod) {
     if (!(Number.isInteger(level) && level >= 1 && level <= LEVELS)) throw new LopError('usage', this.path, `level ${level} is outside [1, 24]`);
-    if (level > this.availableLevel) {
-      throw new LopError('usage', this.path, `level ${level} is not in this file (it holds levels up to ${this.availableLevel})`, 'use a lower --level or the complete file');
+    const have = this.levelOf(part, lod);
+    if (level > have && !this.stream) {
+      throw new LopError('usage', this.path, `level ${level} is not in this file (it holds levels up to ${have})`, 'use a lower --level or the complete file');
+    }
+    if (level > have) {
+      throw new LopError('usage', this.path, `level ${level} of part ${part} LOD ${lod} is not in this file (${have ? `its stage holds levels up to ${have}` : 'its stage has not arrived'})`,
+        'use a lower --level, a coarser --lod or the complete file');
     }
   }
 
@@ -1146,7 +1448,8 @@ export class LopContainer {
    * B + 1 after B reads one plane.
    */
   topValues(part, lod, level) {
-    this._checkLevel(level);
+    this.lodEntry(part, lod);
+    this._checkLevel(level, part, lod);
     const o = this.owner(part);
     const e = this.lodEntry(o, lod);
     const key = `${o}/${lod}`;
@@ -1165,7 +1468,7 @@ export class LopContainer {
   }
 
   _mandatoryValues(o, lod, e) {
-    const all = this.sectionWords(this.manifest.positions.mandatory);
+    const all = this.sectionWords(this.layout.stages[this.stageOf(o, lod)].mandatory);
     const [off, count] = e.mandatory_words;
     if (off + count > all.length) throw new LopError('container', this.path, 'mandatory position words out of range');
     const words = all.subarray(off, off + count);
@@ -1202,7 +1505,7 @@ export class LopContainer {
   _addPlane(o, lod, e, cl, values, p) {
     const g = e.vertex_id[p - 1];
     if (g === 0) return;
-    const plane = this.section(this.manifest.positions.planes[String(p)]);
+    const plane = this.planeBytes(o, lod, p);
     let bit = this.planeSlice(o, lod, p);
     const stored = cl === null ? 3 * g : e.cluster_plane_bits[p - 2];
     if (bit + stored > 8 * plane.length) throw new LopError('container', this.path, `plane ${p} is shorter than its buffers`);
@@ -1423,10 +1726,23 @@ export function toWorld(positions, tf) {
 /**
  * The names of the sections a renderer needs for `level` (format.md section 8): every non-position
  * section (indices, attribute records, hierarchies), the cluster anchors, the mandatory bits and
- * planes 2..level. Later layouts (per-LOD position sections) change only this function and
- * `planRanges`.
+ * planes 2..level. In the streaming layout (section 14) `level` is a number (every stage at that
+ * level) or an array of one level per stage (0: the stage is not wanted): each wanted stage's
+ * sections, its planes up to min(level, L_s) and, above L_s, its deferred planes.
  */
 export function sectionsForLevel(manifest, level) {
+  if (isStream(manifest)) {
+    const lay = layoutOf(manifest);
+    const want = new Set();
+    lay.stages.forEach((st, s) => {
+      const b = Array.isArray(level) ? (level[s] || 0) : level;
+      if (b < 1) return;
+      for (const name of [...st.required, ...(st.clusters ? [st.clusters] : []), st.mandatory]) want.add(name);
+      for (const [p, name] of st.planes) if (p <= b) want.add(name);
+      if (b > st.level && st.deferred) want.add(st.deferred);
+    });
+    return want;
+  }
   const pos = manifest.positions;
   const want = new Set(manifest.sections.filter((s) => !s.name.startsWith('positions/')).map((s) => s.name));
   if (has(pos, 'clusters')) want.add(pos.clusters);
@@ -1465,19 +1781,25 @@ function manifestLength(manifest) {
  * A container read as its bytes arrive. `push(chunk)` appends a Uint8Array; `onUpdate(state)` is
  * called each time the renderable state improves:
  *
- *   state = {event, container, level, bytes, fileSize}
+ *   state = {event, container, level, stage, stageLevels, bytes, fileSize}
  *   event: 'manifest'   the header and manifest arrived (nothing renderable yet; sizes and the
  *                       section table are known: plan ranges, allocate)
- *          'renderable' the first renderable state: every index and attribute section, the
- *                       cluster anchors and the mandatory bits (level >= 1)
- *          'plane'      a higher level: the planes up to `level` arrived
+ *          'renderable' the first renderable state: in the default layout every index and
+ *                       attribute section, the cluster anchors and the mandatory bits (level >= 1);
+ *                       in the streaming layout stage 0: every part's coarsest LOD
+ *          'lod'        (streaming layout) stage `stage` became renderable: the next finer LOD of
+ *                       every part with one (container.levelOf gives each buffer's level)
+ *          'plane'      a higher level: the planes up to `level` arrived (in the streaming layout,
+ *                       of stage `stage`)
  *          'complete'   the whole file arrived and passed every check (`end()`)
  *
- * `level` is the highest per-buffer level every buffer can be decoded at (container.availableLevel);
- * a finer LOD never arrives separately in today's layout (every LOD's sections come before the
- * positions). A corrupt byte throws LopError from `push` as soon as the section holding it is
- * complete; what was renderable before stays valid. Bytes are kept once (one buffer sized by the
- * manifest), so nothing needs to be fetched twice.
+ * `level` is the highest per-buffer level every buffer can be decoded at (container.availableLevel)
+ * in the default layout, the level of stage `stage` in the streaming layout; `stageLevels` every
+ * stage's level (one entry in the default layout). In the default layout a finer LOD never arrives
+ * separately (every LOD's sections come before the positions): `stage` is 0. A streaming file gives
+ * one event per stage that improved, coarse to fine. A corrupt byte throws LopError from `push` as
+ * soon as the section holding it is complete; what was renderable before stays valid. Bytes are
+ * kept once (one buffer sized by the manifest), so nothing needs to be fetched twice.
  */
 export class LopStream {
   constructor({path = null, onUpdate = null} = {}) {
@@ -1485,6 +1807,7 @@ export class LopStream {
     this._c = new LopContainer(this._r);
     this._onUpdate = onUpdate;
     this._level = 0;
+    this._stages = null; // the stage levels last reported (streaming layout)
     this._manifest = false;
     this._done = false;
   }
@@ -1517,6 +1840,19 @@ export class LopStream {
       this._manifest = true;
       this._emit('manifest');
     }
+    if (!r.manifest) return;
+    if (r.layout.stream) {
+      const now = r.stageLevels();
+      if (this._stages === null) this._stages = now.map(() => 0);
+      if (now[0] < 1) return; // nothing drawable before stage 0
+      now.forEach((level, s) => {
+        if (level <= this._stages[s]) return;
+        const first = this._stages[s] === 0;
+        this._stages[s] = level;
+        this._emit(s === 0 && first ? 'renderable' : first ? 'lod' : 'plane', s, level);
+      });
+      return;
+    }
     const level = r.availableLevel();
     if (level > this._level) {
       const first = this._level === 0;
@@ -1525,9 +1861,12 @@ export class LopStream {
     }
   }
 
-  _emit(event) {
+  _emit(event, stage = 0, stageLevel = null) {
     if (this._onUpdate) {
-      this._onUpdate({event, container: this._c, level: this._r.availableLevel(), bytes: this._r.received, fileSize: this._r.header.fileSize});
+      const r = this._r;
+      const level = stageLevel === null ? r.availableLevel() : stageLevel;
+      this._onUpdate({event, container: this._c, level, stage, stageLevels: r.manifest ? r.stageLevels() : [0],
+        bytes: r.received, fileSize: r.header.fileSize});
     }
   }
 }
@@ -1615,13 +1954,15 @@ export class LopRangeReader {
     return this.container;
   }
 
-  /** Fetch what level `level` needs (every section up to its plane); resolves with the container. */
+  /** Fetch what level `level` needs (every section up to its plane; in the streaming layout a
+   * number for every stage or one level per stage, as sectionsForLevel takes): the bytes from what
+   * is held to the end of the last section needed, in one request (this reader keeps a prefix, so
+   * a streaming file's deferred planes bring the stages before them along); resolves with the
+   * container. */
   async fetchLevel(level) {
     const c = await this.open();
-    for (const [start, end] of planRanges(c.manifest, level, this._s.bytes)) {
-      if (start !== this._s.bytes) throw new LopError('usage', String(this.url), 'this layout needs sparse ranges, which this reader does not read');
-      await this._get(start, end);
-    }
+    const ranges = planRanges(c.manifest, level, this._s.bytes);
+    if (ranges.length) await this._get(this._s.bytes, ranges[ranges.length - 1][1]);
     if (this.complete && !this._s._done) this._s.end();
     return c;
   }

@@ -222,6 +222,11 @@ function placementUniforms(c, part) {
  * `bytes` / `fileSize` what has arrived, and each rise of the level dispatches
  * `{type: 'refine', level, bytes}`; `complete` resolves when the whole file has arrived (and
  * rejects when it turns out corrupt). `container` is the lop.js container (manifest, CPU decoders).
+ *
+ * A file in the streaming layout (format.md 14) arrives stage by stage, coarsest LODs first: a
+ * part's THREE.LOD holds the LODs that have arrived (the coarsest drawn at every distance until a
+ * finer one comes), `update()` adds each finer LOD as its stage arrives and draws every buffer at
+ * its own stage's level (`{type: 'refine', level, stage, bytes}` per stage that improved).
  */
 export class LOPObject extends THREE.Group {
   constructor(container, {maxLevel = lop.LEVELS, material = null} = {}) {
@@ -234,8 +239,48 @@ export class LOPObject extends THREE.Group {
     this.fileSize = container.fileSize;
     this._buffers = new Map();
     this._material = material;
-    this.refine(container.availableLevel);
+    this._parts = new Map(); // part -> {node, centre, material, lods: Set} of a streamed THREE.LOD
+    this._stages = [];
+    if (container.stream) this.level = Math.min(container.stageLevels[0], maxLevel);
+    else this.refine(container.availableLevel);
     container.manifest.parts.forEach((_, i) => this.add(this.createPart(i)));
+    if (container.stream) this.update();
+  }
+
+  /** The level buffer (part, lod) is drawn at: the level that has arrived (its stage's in the
+   * streaming layout), capped by maxLevel. */
+  levelOf(part, lod) {
+    const c = this.container;
+    return Math.min(c.stream ? c.levelOf(part, lod) : this.level, this.maxLevel);
+  }
+
+  /** Streaming layout: add the LODs whose stage has arrived and draw every buffer at its stage's
+   * level (called as stages and planes arrive). */
+  update() {
+    const c = this.container;
+    if (!c.stream) return this.refine(c.availableLevel);
+    for (const [part, st] of this._parts) {
+      c.manifest.parts[part].lods.forEach((e, k) => {
+        if (st.lods.has(k) || c.levelOf(part, k) < 1) return;
+        const mesh = this.createMesh(part, k, st.material ? st.material.clone() : null); // patched per mesh
+        mesh.position.copy(st.centre).negate();
+        st.node.addLevel(mesh, e.min_distance_m || 0);
+        st.lods.add(k);
+      });
+    }
+    for (const b of this._buffers.values()) {
+      const want = this.levelOf(b.owner, b.lod);
+      if (want > b.level) b.setLevel(want);
+    }
+    c.stageLevels.forEach((level, s) => {
+      const want = Math.min(level, this.maxLevel);
+      if (want > (this._stages[s] || 0)) {
+        this._stages[s] = want;
+        this.level = Math.max(this.level, want);
+        this.dispatchEvent({type: 'refine', level: want, stage: s, bytes: this.bytes});
+      }
+    });
+    return undefined;
   }
 
   /** The shared GPU state of stored buffer (owner part, lod). */
@@ -244,7 +289,8 @@ export class LOPObject extends THREE.Group {
     const key = `${owner}/${lod}`;
     if (!this._buffers.has(key)) {
       const b = new LOPBuffer(this.container, owner, lod);
-      if (this.level) b.setLevel(this.level);
+      const level = this.levelOf(owner, lod);
+      if (level) b.setLevel(level);
       this._buffers.set(key, b);
     }
     return this._buffers.get(key);
@@ -282,12 +328,21 @@ export class LOPObject extends THREE.Group {
     return mesh;
   }
 
-  /** Part `part` as an Object3D: its LOD 0 Mesh, or a THREE.LOD of all its LODs. */
+  /** Part `part` as an Object3D: its LOD 0 Mesh, or a THREE.LOD of all its LODs (in the streaming
+   * layout, of those that have arrived; `update` adds the others). */
   createPart(part, material = null) {
     const lods = this.container.manifest.parts[part].lods;
     if (lods.length === 1) return this.createMesh(part, 0, material);
     const node = new THREE.LOD();
     node.name = this.container.manifest.parts[part].name;
+    if (this.container.stream) {
+      const coarsest = lods.length - 1; // stage 0: there whenever the object exists
+      const centre = this._bounds(part, coarsest).getCenter(new THREE.Vector3());
+      node.position.copy(centre);
+      this._parts.set(part, {node, centre, material: material ? material.clone() : null, lods: new Set()}); // unpatched
+      this.update();
+      return node;
+    }
     const centre = this._bounds(part, 0).getCenter(new THREE.Vector3());
     node.position.copy(centre); // distances are measured from the part's centre
     const materials = lods.map((_, k) => (material && k ? material.clone() : material)); // before patching
@@ -303,8 +358,8 @@ export class LOPObject extends THREE.Group {
    * decode grown by the block radius dx(level) (times the placement's largest scale). */
   _bounds(part, lod) {
     const c = this.container;
-    const level = Math.max(1, this.level);
-    const {positions} = c.decodePositions(part, lod, Math.min(level, c.availableLevel));
+    const level = Math.max(1, this.levelOf(part, lod));
+    const {positions} = c.decodePositions(part, lod, level);
     const box = new THREE.Box3();
     const v = new THREE.Vector3();
     for (let j = 0; j < positions.length; j += 3) box.expandByPoint(v.set(positions[j], positions[j + 1], positions[j + 2]));
@@ -381,9 +436,10 @@ export class LOPLoader extends THREE.Loader {
       if (state.event === 'renderable') {
         object = new LOPObject(state.container, {maxLevel: this.maxLevel, material: this.materialFactory});
         resolveFirst(object);
-      } else if (object !== null && (state.event === 'plane' || state.event === 'complete')) {
+      } else if (object !== null && ['plane', 'lod', 'complete'].includes(state.event)) {
         object.bytes = state.bytes;
-        object.refine(state.level);
+        if (state.container.stream) object.update();
+        else object.refine(state.level);
       }
     };
     let done;

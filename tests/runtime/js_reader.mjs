@@ -17,10 +17,11 @@ const digest = (a) => (a === null ? null : createHash('sha256').update(new Uint8
 function decodeAll(c, levels) {
   const out = [];
   c.manifest.parts.forEach((part, i) => part.lods.forEach((_, k) => {
+    if (c.levelOf(i, k) < 1) return; // a streaming prefix: the buffer's stage has not arrived
     const attrs = c.attributes(i, k);
     const rec = {part: i, lod: k, indices: digest(Uint32Array.from(c.indices(i, k))), levels: {}};
     for (const name of ['normals', 'uvs', 'colors', 'tangents']) rec[name] = digest(attrs[name]);
-    for (const level of levels) {
+    for (const level of levels.filter((b) => b <= c.levelOf(i, k))) {
       const d = c.decodePositions(i, k, level);
       const r = {positions: digest(d.positions), grid: digest(d.grid)};
       if (c.owner(i) === i) {
@@ -40,20 +41,21 @@ function decodeAll(c, levels) {
 
 function streamed(data, chunks) {
   const events = [];
-  const s = new lop.LopStream({onUpdate: (st) => events.push([st.event, st.level, st.bytes])});
-  const levels = [];
+  const s = new lop.LopStream({onUpdate: (st) => events.push([st.event, st.level, st.bytes, st.stage])});
+  const levels = [], stages = [];
   let at = 0;
   try {
     for (const end of chunks) {
       s.push(data.subarray(at, end));
       at = end;
       levels.push(s.level);
+      stages.push(s.container ? s.container.stageLevels : [0]);
     }
     s.end();
-    return {levels, events, error: null};
+    return {levels, stages, events, error: null};
   } catch (exc) {
     if (!(exc instanceof lop.LopError)) throw exc;
-    return {levels, events, error: exc.message, at};
+    return {levels, stages, events, error: exc.message, at};
   }
 }
 
@@ -85,8 +87,9 @@ for (const job of jobs.cases) {
   try {
     const c = lop.parse(data, {path: job.file, allowPrefix: !!job.allow_prefix});
     out.available_level = c.availableLevel;
+    out.stage_levels = c.stageLevels;
     out.version = [c.header.major, c.header.minor];
-    if (job.decode) out.buffers = decodeAll(c, (job.levels || []).filter((b) => b <= c.availableLevel));
+    if (job.decode) out.buffers = decodeAll(c, job.levels || []);
     out.ok = true;
   } catch (exc) {
     if (!(exc instanceof lop.LopError)) {

@@ -30,7 +30,7 @@ from lopcook.lop.codecs import AttributeBits
 from lopcook.lop.codecs.normals_oct import decode_normals, encode_normals
 from lopcook.lop.record import record_fields, unpack_record
 from lopcook.lop import reader
-from lopcook.lop.container import READABLE_MAJORS, from_bytes, to_bytes
+from lopcook.lop.container import from_bytes, to_bytes
 from lopcook.errors import LopcookError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -210,19 +210,16 @@ def sha(a) -> str | None:
 
 def verdict(data: bytes, *, allow_prefix: bool = False, decode: bool = True) -> tuple[bool, int | None, str | None]:
     """``(accepted, available level, message)`` of the Python reader: ``from_bytes`` and, with
-    ``decode``, every buffer's positions and attributes at the available level. A 4.x file (which
-    lopcook's reader does not read yet) is judged as the same bytes labelled 3.0: a 4.x reader
-    reads a file without tangents as a 3.x one."""
-    if len(data) >= 28 and data[:4] == b"LOPC" and struct.unpack_from("<H", data, 4)[0] == 4 \
-            and 4 not in READABLE_MAJORS and zlib.crc32(data[:28]) == struct.unpack_from("<I", data, 28)[0]:
-        data = set_version(data, 3, 0)
+    ``decode``, every buffer's positions and attributes at its level (``Container.level_of``; a
+    streaming prefix's buffers whose stage has not arrived are not decoded)."""
     try:
         c = from_bytes(data, "x.lop", allow_prefix=allow_prefix)
         if decode:
             for i, p in enumerate(c.manifest["parts"]):
                 for k in range(len(p["lods"])):
-                    reader.decode_positions(c, i, k, c.available_level)
-                    reader.lod_attributes(c, i, k)
+                    if c.level_of(i, k):
+                        reader.decode_positions(c, i, k, c.level_of(i, k))
+                        reader.lod_attributes(c, i, k)
         return True, c.available_level, None
     except LopcookError as exc:
         return False, None, str(exc)
@@ -235,10 +232,12 @@ def reference(c, levels) -> list[dict]:
     out = []
     for i, p in enumerate(c.manifest["parts"]):
         for k in range(len(p["lods"])):
+            if not c.level_of(i, k):
+                continue  # a streaming prefix: the buffer's stage has not arrived
             a = reader.lod_attributes(c, i, k)
             rec = {"part": i, "lod": k, "indices": sha(a["indices"]), "normals": sha(a["normals"]),
                    "uvs": sha(a["uvs"]), "colors": sha(a["colors"]), "tangents": None, "levels": {}}
-            for b in levels:
+            for b in [b for b in levels if b <= c.level_of(i, k)]:
                 grid, _, pos = reader.decode_positions(c, i, k, b)
                 r = {"positions": sha(pos), "grid": sha(grid)}
                 if reader.owner(c, i) == i:

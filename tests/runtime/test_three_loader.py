@@ -20,6 +20,7 @@ import runtime_support as rs
 from browser import NODE_MODULES, REPO, BrowserUnavailable, locate, run_page
 from lopcook import api
 from lopcook.lop.container import read
+from lopcook.emit.stages import streamed
 from lopcook.emit.web import write_web_gltf
 from lopcook.verify import metrics
 from lopcook.verify.cameras import camera_distance, look_at, make_camera, perspective, render_viewing
@@ -60,7 +61,13 @@ def _camera_job(c, scene, level: int, view: int) -> tuple[dict, object]:
             "phong": [sh.ambient, sh.diffuse, sh.ks, sh.shininess], "base": sh.base}, cam
 
 
-def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=("stanford-bunny", "DamagedHelmet")):
+#: streamed jobs: (container name, source); "-stream" names the default cook rewritten in the
+#: streaming layout (docs/format.md 14: its LODs arrive coarse to fine)
+STREAMS = (("stanford-bunny", "stanford-bunny.obj"), ("DamagedHelmet", "DamagedHelmet/DamagedHelmet.gltf"),
+           ("duck-lods-stream", "Duck.glb"))
+
+
+def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=STREAMS):
     """Run the page (three_render.js) for ``renders`` (name, source, level, view) and ``streams``
     (container names) with everything under ``root``; returns (the page's result, {job: the
     harness's CAP image}, {job: the harness's image metrics dict})."""
@@ -80,9 +87,11 @@ def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=("st
                        variants=("cap",), image_view=view)
         assert res["levels"][0]["camera_distance_m"] == pytest.approx(cam.box_distance, rel=1e-9)
         cap[key] = res["images"]["cap"]
-    sources = {"stanford-bunny": "stanford-bunny.obj", "DamagedHelmet": "DamagedHelmet/DamagedHelmet.gltf"}
-    for name in streams:
-        job, _ = _camera_job(read(str(cooked[name])), api.load(corpus / sources[name]), 9, 3)
+    for name, src in streams:
+        lop = cooked["stanford-bunny"].parent / f"{name}.lop"
+        if name.endswith("-stream"):
+            lop.write_bytes(streamed(read(str(cooked[name[:-len("-stream")]]))).data)
+        job, _ = _camera_job(read(str(lop)), api.load(corpus / src), 9, 3)
         jobs["streams"].append({"name": name, "lop": f"/lop/{name}.lop", "chunks": 20, **job})
     (root / "jobs.json").write_text(json.dumps(jobs))
     got = run_page(PAGE, {"/runtime/js/": REPO / "runtime/js", "/tests/": HERE, "/web/": root,
@@ -155,5 +164,22 @@ def test_streamed_container_draws_before_its_last_byte(renders, name):
     assert s["first"]["bytes"] < s["fileSize"] and s["first"]["level"] >= 1
     assert metrics.object_mask(first).sum() > 1000  # the model is on the canvas before the last byte
     assert s["refines"] and s["refines"][-1][0] == s["level"] == s["wholeLevel"] == 24
-    assert [lv for lv, _ in s["refines"]] == sorted({lv for lv, _ in s["refines"]})
+    assert [lv for lv, *_ in s["refines"]] == sorted({lv for lv, *_ in s["refines"]})
     assert np.array_equal(last, whole)  # refined in place to exactly what the whole file draws
+
+
+def test_streaming_layout_draws_its_coarsest_lods_first(renders):
+    """A file in the streaming layout: on the canvas from stage 0 (every part's coarsest LOD) on,
+    refined stage by stage ('refine' per stage that improves, each stage's level rising), and
+    at the end exactly what a whole-file parse draws."""
+    got, _, _ = renders
+    s = next(x for x in got["streams"] if x["name"] == "duck-lods-stream")
+    posts = got["_posts"]
+    first, last, whole = (_image(posts, f"/image/duck-lods-stream/{k}") for k in ("first", "last", "whole"))
+    assert s["first"]["bytes"] < s["fileSize"] // 2 and metrics.object_mask(first).sum() > 1000
+    stages = {st for _, _, st in s["refines"]}
+    assert set(range(1, len(s["stageLevels"]))) <= stages and s["stageLevels"] == [24] * len(s["stageLevels"])
+    for st in stages:
+        levels = [lv for lv, _, x in s["refines"] if x == st]
+        assert levels == sorted(set(levels))
+    assert np.array_equal(last, whole)

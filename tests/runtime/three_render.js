@@ -159,7 +159,7 @@ async function streamJob(r, job) {
   const refines = [];
   const object = await new LOPLoader().loadFrom(new Response(stream));
   const first = {level: object.level, bytes: object.bytes};
-  object.addEventListener('refine', (e) => refines.push([e.level, e.bytes]));
+  object.addEventListener('refine', (e) => refines.push([e.level, e.bytes, e.stage === undefined ? null : e.stage]));
   scene.add(object);
   r.render(scene, cam);
   await post(`/image/${job.name}/first`, pixels(r));
@@ -171,7 +171,8 @@ async function streamJob(r, job) {
   scene.add(whole);
   r.render(scene, cam);
   await post(`/image/${job.name}/whole`, pixels(r));
-  return {name: job.name, first, refines, level: object.level, wholeLevel: whole.level, fileSize: bytes.length};
+  return {name: job.name, first, refines, level: object.level, wholeLevel: whole.level, fileSize: bytes.length,
+    stageLevels: object.container.stageLevels};
 }
 
 const messages = []; // console errors and warnings (three reports shader compile errors there)

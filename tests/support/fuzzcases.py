@@ -251,6 +251,7 @@ def generate(root: str | os.PathLike, *, seed: int = 17) -> list[Case]:
     _obj_cases(w, rng)
     _usd_cases(w, rng)
     _lop_cases(w, rng)
+    _stream_cases(w)
     names = [c.name for c in w.cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return w.cases
@@ -1003,6 +1004,22 @@ def _lop_cases(w: _Writer, rng) -> None:
         blob[pos] ^= int(rng.integers(1, 256))
         lop(f"flip_{k:02d}_at_{pos}", bytes(blob), "refuse", ("decode",))
     lop("top_level_list", _lop_pack(b"[]", payload), "refuse")
+
+
+def _stream_cases(w: _Writer) -> None:
+    """Streaming-layout files (docs/format.md 14-15, ``tests.support.streamcases``): a valid one,
+    prefixes (inspect reads them; decode --level 24 above a buffer's level is refused cleanly),
+    and hostile ones: lying stages and section orders, encoded sections that do not decode
+    (deflate streams corrupt, cut short, expanding beyond their size; triangle streams of the
+    wrong version, reading past their data, indices out of range) and an encoded manifest."""
+    from . import streamcases  # cooks two fixtures: only when the corpus is generated
+
+    name, data, _ = streamcases.stream_cases()[0]
+    w.case(f"stream/{name}", {"a.lop": data}, "a.lop", ("inspect", "decode"), "ok")
+    for name, blob, _, levels in streamcases.stream_prefix_cases():
+        w.case(f"stream/{name}", {"a.lop": blob}, "a.lop", ("inspect", "decode"), "clean")
+    for name, blob, _, _ in streamcases.stream_invalid_cases():
+        w.case(f"stream/{name}", {"a.lop": blob}, "a.lop", ("inspect", "decode"), "refuse")
 
 
 # ============================================================================ runner
