@@ -41,7 +41,7 @@ sys.path.insert(0, str(REPO / "tests"))
 from support import dumps  # noqa: E402  (tests/ on the path: run as a script or imported by a test)
 
 from lopcook import api  # noqa: E402
-from lopcook.cli import build_parser, settings_from_args  # noqa: E402
+from lopcook.cli.parser import build_parser, settings_from_args  # noqa: E402
 from lopcook.lop.container import READABLE_MAJORS, from_bytes, manifest_bytes  # noqa: E402
 from lopcook.errors import LopcookError  # noqa: E402
 from lopcook.types import MeshPart, Scene  # noqa: E402

@@ -18,7 +18,8 @@ from lopcook.lop.binning import LEVELS
 from lopcook.lop.reader import (buffer_clusters, clustered_gpu_buffer, gpu_buffer, lod_attributes, owner, part_grid,
                                  positions_f32)
 from lopcook.verify.buffers import ap_buffer
-from lopcook.verify.gpu import attribute_block, cluster_decode_block, decode_block
+from lopcook.verify.attribute_gpu import attribute_block
+from lopcook.verify.gpu import cluster_decode_block, decode_block
 
 
 def _lod(c, i: int, lod: int) -> int:
@@ -54,11 +55,9 @@ def gpu(c, level: int, lod: int = 0) -> bytes:
         ap = ap_buffer(c, i, k, level)
         words = np.ascontiguousarray(ap.words, "<u4")
         out += [decode_block(ap.vertex_id, ap.bit_id, level, origin, half, words.size), words.tobytes()]
-        rng = e.get("uv_range")
         sec = e.get("attributes")
         nwords = len(c.section(sec)) // 4 if sec is not None else 0
-        out.append(attribute_block(e["attribute_bits"], rng[0] if rng else (0.0, 0.0), e.get("uv_step") or (0.0, 0.0),
-                                   nwords))
+        out.append(attribute_block(e["attribute_bits"], e, nwords))
     return b"".join(out)
 
 
