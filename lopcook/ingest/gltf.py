@@ -10,9 +10,10 @@ in detail: docs/ingest.md, "glTF").
   root node); world = parent @ local, local = ``matrix`` or T * R * S (3.5.2). Modes 4-6 become
   triangles (3.7.2.1), points and lines are skipped with a warning; vertices are never merged
   (vertex count = accessor count). ``mesh_key`` is ``mesh{mi}/prim{k}``.
-* attributes: POSITION, NORMAL, TEXCOORD_n (n = the base-colour texture's ``texCoord``), COLOR_0
-  (linear RGBA), in every component type of core glTF and KHR_mesh_quantization, normalized or
-  not (3.11 decoding), strided, sparse or without a bufferView (zeros).
+* attributes: POSITION, NORMAL, TANGENT (by the node's matrix, w flipped where it mirrors),
+  TEXCOORD_n (n = the base-colour texture's ``texCoord``), COLOR_0 (linear RGBA), in every
+  component type of core glTF and KHR_mesh_quantization, normalized or not (3.11 decoding),
+  strided, sparse or without a bufferView (zeros).
 * ``EXT_mesh_gpu_instancing``: one part per instance and primitive (``.../instance<i>``), at the
   node's world matrix @ TRANSLATION @ ROTATION @ SCALE; copies share ``mesh_key``.
 * the base-colour image (bufferView, data URI or relative file) is the part's ``texture``,
@@ -86,6 +87,7 @@ SUPPORTED_REQUIRED_PREFIXES = ("KHR_materials_",)
 ATTR_COMPONENTS = {
     "POSITION": (5126, 5120, 5121, 5122, 5123),
     "NORMAL": (5126, 5120, 5122),
+    "TANGENT": (5126, 5120, 5122),
     "TEXCOORD": (5126, 5120, 5121, 5122, 5123),
     "COLOR": (5126, 5121, 5123),
     # EXT_mesh_gpu_instancing: float, or KHR_mesh_quantization's types (ROTATION normalized)
@@ -774,14 +776,41 @@ class _GltfReader:
             if det < 0:
                 tri = tri[:, ::-1]
             normals = None if geom["normals"] is None else geom["normals"] @ normal_matrix
+            tangents = None if geom["tangents"] is None else _world_tangents(geom["tangents"], lin, det)
             name = f"{node_name}/{mesh_name}" + (f"/prim{k}" if len(prims) > 1 else "")
             label = f"node {ni}" + (f" {node['name']!r}" if node.get("name") else "")
             mlabel = f"mesh {mi}" + (f" {mesh['name']!r}" if mesh.get("name") else "")
             out.append(make_part(name, pos, tri, settings=self.settings, normals=normals, uvs=geom["uvs"],
-                                 colors=geom["colors"], source=f"{label} / {mlabel} / primitive {k}",
+                                 colors=geom["colors"], extra={"tangents": tangents},
+                                 source=f"{label} / {mlabel} / primitive {k}",
                                  texture=geom["texture"], mesh_key=f"mesh{mi}/prim{k}",
                                  double_sided=geom["double_sided"]))
         return out
+
+    def _tangents(self, tangents: np.ndarray | None, normals: np.ndarray | None, what: str) -> np.ndarray | None:
+        """A primitive's TANGENT (n, 4) made usable: dropped with a warning without NORMAL (glTF
+        requires both); xyz of zero length or not finite replaced by a unit vector perpendicular
+        to the normal, and w not +-1 snapped to its sign (0 to +1), each with a warning."""
+        if tangents is None:
+            return None
+        if normals is None:
+            self.warn(f"{what}: TANGENT without NORMAL (glTF requires both); tangents dropped")
+            return None
+        xyz, w = tangents[:, :3].astype(np.float64), tangents[:, 3].astype(np.float64)
+        length = np.linalg.norm(xyz, axis=1)
+        bad = ~(length > 1e-20) | ~np.isfinite(length)
+        if bad.any():
+            self.warn(f"{what}: {int(bad.sum())} tangents are zero or not finite (replaced by a direction "
+                      "perpendicular to the normal)")
+            n = np.asarray(normals, np.float64)[bad]
+            axis = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+            xyz[bad] = np.cross(n, axis)
+        odd = ~np.isin(w, (-1.0, 1.0))
+        if odd.any():
+            self.warn(f"{what}: {int(odd.sum())} tangents have a handedness w other than +1 or -1 (read as its "
+                      "sign, 0 as +1)")
+            w = np.where(w < 0.0, -1.0, 1.0)
+        return np.concatenate([xyz, w[:, None]], axis=1)
 
     def _geometry_of(self, mi: int, k: int, prim: dict, mesh: dict) -> dict | None:
         """Local-space arrays of one primitive, decoded once and shared by every placement.
@@ -840,6 +869,7 @@ class _GltfReader:
             bad = int((~(length > 1e-20)).sum() + (~np.isfinite(length)).sum())
             if bad:
                 self.warn(f"{what}: {bad} normals are zero or not finite (replaced by +Y)")
+        tangents = self._tangents(attribute("TANGENT", (4,)), normals, what)
         texture, tex_coord = self.base_color(prim.get("material"))
         self.where = what
         uv_name = f"TEXCOORD_{tex_coord}"
@@ -876,10 +906,20 @@ class _GltfReader:
             self.warn(f"{what}: no triangles; skipped")
             return None
         return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
-                "colors": colors, "texture": texture, "double_sided": self.double_sided(prim.get("material"))}
+                "colors": colors, "tangents": tangents, "texture": texture, "double_sided": self.double_sided(prim.get("material"))}
 
 
 # ---------------------------------------------------------------------- pure functions
+
+def _world_tangents(tangents: np.ndarray, lin: np.ndarray, det: float) -> np.ndarray:
+    """(n, 4) tangents under a node's linear part ``lin`` (3, 3): xyz mapped by ``lin`` (tangents
+    lie in the surface: not the inverse transpose) and made unit, w flipped where the node
+    mirrors (``det < 0``, where the winding is flipped too)."""
+    xyz = tangents[:, :3] @ lin.T
+    length = np.linalg.norm(xyz, axis=1, keepdims=True)
+    xyz = xyz / np.where(length > 0, length, 1.0)
+    return np.concatenate([xyz, tangents[:, 3:] * (-1.0 if det < 0 else 1.0)], axis=1)
+
 
 def _triangulate(flat: np.ndarray, mode: int, what: str, src: str) -> np.ndarray:
     """(k,) vertex indices of a TRIANGLES/STRIP/FAN primitive -> (m, 3) int64 CCW triangles.
