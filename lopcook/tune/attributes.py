@@ -864,7 +864,7 @@ def require_reached(result: dict, path: str | None = None) -> None:
 
 def _alloc_text(rec: dict) -> str:
     """``k_f 2^x, n/uv/c 8/12/- 7/-/-``: the bits per part, runs of equal parts as ``8/6/- x49``."""
-    parts = ["/".join("-" if p[a] is None else str(p[a]) for a in ATTRIBUTES) for p in rec["parts"]]
+    parts = ["/".join("-" if p.get(a) is None else str(p[a]) for a in ATTRIBUTES) for p in rec["parts"]]
     runs: list = []
     for t in parts:
         if runs and runs[-1][0] == t:
@@ -891,7 +891,7 @@ def format_search(result: dict) -> str:
                  f"{result['bits_per_vertex']:.2f} (positions {result['vertex_bits']['positions']:.2f}, attributes "
                  f"{result['vertex_bits']['attributes']:.2f}; the default cook: {result['start_bits_per_vertex']:.2f})")
     for i, p in enumerate(ch["parts"]):
-        bits = ", ".join(f"{a} {p[a]}" for a in ATTRIBUTES if p[a] is not None) or "no attributes"
+        bits = ", ".join(f"{a} {p[a]}" for a in ATTRIBUTES if p.get(a) is not None) or "no attributes"
         lines.append(f"  part {i}: {bits} bits per component")
     lines.append(f"  reduced harness PSNR ({result['statistic']}, worst level): {result['objective_db']:.2f} dB")
     for c in result["confirmation"]:
