@@ -206,7 +206,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
                    help="HTML file to write; the JSON goes beside it with the suffix .json")
     p.add_argument("--levels", default=None, metavar="LEVELS",
-                   help=f"per-buffer levels in [1, 24], e.g. 6-12 (default {_levels_text(D.render.levels)})")
+                   help=f"per-buffer levels in [1, 24], e.g. 6-12 (default {_levels_text(D.render.levels)}, "
+                        "those the file holds)")
+    p.add_argument("--min-psnr", type=float, default=40.0, metavar="DB",
+                   help="the verdict's threshold: PASS when CAP's PSNR reaches DB at every rendered level and "
+                        "view, else FAIL and exit 1 (default 40)")
     _add_harness(p)
     _add_crease_angle(p)
     p.add_argument("--no-analyse", action="store_true",
@@ -939,7 +943,10 @@ def cmd_verify(args) -> int:
         report["decoders"] = verify_decoders(c, dec_levels, languages, adapt=not args.no_adapt)
         ok = ok and report["decoders"]["ok"]
     if args.source is not None:
-        render = _render_check(args, c, levels if levels is not None else list(D.render.levels))
+        from .verify.evaluate import levels_in_file
+
+        render = _render_check(args, c, levels if levels is not None else levels_in_file(D.render.levels,
+                                                                                          c.available_level))
         report["render"] = render
         ok = ok and render["ok"]
     report["ok"] = bool(ok)
@@ -980,11 +987,17 @@ def cmd_report(args) -> int:
                  inputs=inputs)
     views = _views(args.views, "--views")
     resolution = _resolution(args.resolution, "--resolution")
-    levels = parse_levels(args.levels, args.container) if args.levels is not None else list(D.render.levels)
+    levels = parse_levels(args.levels, args.container) if args.levels is not None else None
+    if not math.isfinite(args.min_psnr):
+        raise LopcookError("usage", None, f"--min-psnr {args.min_psnr}: expected a number of dB")
     from .ingest import sniff
 
     sniff(args.source)  # a missing file, a directory, a FIFO or device: its own one-line reason
     c = read(args.container, allow_prefix=True)
+    if levels is None:
+        from .verify.evaluate import levels_in_file
+
+        levels = levels_in_file(D.render.levels, c.available_level)
     crease = args.crease_angle
     if crease is None:
         crease = ((c.manifest.get("options") or {}).get("ingest") or {}).get("crease_angle_deg")
@@ -1011,16 +1024,23 @@ def cmd_report(args) -> int:
                                               progress=progress)
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
     with progress.stage("page"):
-        rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
+        rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range,
+                           min_psnr=args.min_psnr)
         html_path, json_path = write_html(rep, ev.get("images"), out)
+    passed = rep["verdict"]["result"] == "PASS"
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))
-    elif not args.quiet:
+    elif not args.quiet or not passed:
+        from .report.verdict import verdict_line
         from .verify.tables import format_table
 
-        print(format_table(ev))
+        if not args.quiet:
+            print(format_table(ev))
+        print(f"  {verdict_line(rep['verdict'])}")
         print(f"  wrote {html_path} and {json_path}")
-    return EXIT_OK
+    from .errors import EXIT_VERIFY_FAILED
+
+    return EXIT_OK if passed else EXIT_VERIFY_FAILED
 
 
 def _add_bench_parser(sub) -> None:
