@@ -70,7 +70,7 @@ def worst_part(images: dict | None, names: list[str]) -> dict | None:
     i = int(np.argmax(sums))
     if not sums[i] > 0.0 or i > len(names):
         return None
-    return {"index": i - 1, "name": str(names[i - 1]), "share": float(sums[i] / total)}
+    return {"index": i - 1, "name": str(names[i - 1]), "share": min(1.0, float(sums[i] / total))}
 
 
 def verdict(rows: list[dict], view_ids: list[int], min_psnr: float, worst: dict | None = None) -> dict:
