@@ -386,15 +386,19 @@ def attributes_section(container, scene) -> dict:
     error in texels: ``lopcook.tune.attributes.attribute_errors``; None when the scene does not match
     the container), and the attribute search's record (manifest ``options.attribute_search``:
     allocation, probes = the error-against-bits curve of Purnomo et al. 2005, Fig. 11) or None."""
-    from ..tune.attributes import ATTRIBUTES, COST_LEVEL, attribute_errors, vertex_bits
+    from ..lop.codecs import CODECS
+    from ..tune.attributes import COST_LEVEL, attribute_errors, vertex_bits
 
     m = container.manifest
     parts = []
     for i, part in enumerate(m["parts"]):
         lod = part["lods"][0]
         bits = part.get("attribute_bits") or lod.get("attribute_bits") or {}
+        # every codec of the first format, a newer one only where the part has it (as the attribute
+        # search's allocation record: ``lopcook.tune.attributes.Allocation.record``)
+        shown = {c.name: bits.get(c.name) for c in CODECS if c.format_major == 2 or bits.get(c.name) is not None}
         parts.append({"part": i, "name": part.get("name"), "vertices": int(lod["vertices"]),
-                      "bits": {a: bits.get(a) for a in ATTRIBUTES}, "record_bits": lod.get("record_bits")})
+                      "bits": shown, "record_bits": lod.get("record_bits")})
     try:
         errors = attribute_errors(container, scene)
     except Exception:  # noqa: BLE001 -- a scene that is not the container's source: no attribute errors
