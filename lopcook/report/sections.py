@@ -47,8 +47,10 @@ def banner_html(rep: dict) -> str:
         what = f"every rendered {term('level')} and {term('view')} reaches {thr} {term('CAP')} {term('PSNR')}."
     else:
         lv = ", ".join(str(b) for b in v["failing_levels"])
-        what = (f'{v["failing_views"]:,} rendered {term("view", "views")} are under {thr} {term("CAP")} '
-                f'{term("PSNR")}, at {term("level", "levels" if len(v["failing_levels"]) > 1 else "level")} {lv}.')
+        total = sum(len((r.get("cap") or {}).get("psnr_views") or []) for r in rep["levels"])
+        what = (f'{v["failing_views"]:,} of {total:,} rendered {term("view", "views")} are under {thr} '
+                f'{term("CAP")} {term("PSNR")}, at {term("level", "levels" if len(v["failing_levels"]) > 1 else "level")} '
+                f'{lv}.')
     if w is None:
         worst = " Every CAP render equals the float32 render."
     else:
