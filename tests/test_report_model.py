@@ -226,7 +226,8 @@ def test_lod_names_one_way_everywhere():
     out = RM.rename_notes(notes, kept, names, 1000)
     assert out[0] == "LOD 2 (1/4 of the triangles): 3 faces face against the source surface"
     assert out[1] == "the dropped LOD (target 1/16 of the triangles): fast failed: x; falling back"
-    assert out[2] == "chain stopped: the dropped LOD (target 1/16 of the triangles) could not be produced; previous LODs kept"
+    assert out[2] == ("chain stopped: the dropped LOD (target 1/16 of the triangles) could not be produced; "
+                      "previous LODs kept")
     assert out[3:] == notes[3:]  # indices and LOD 0 as they are
 
 
@@ -283,7 +284,8 @@ def test_clusters_rows_grouped_with_their_count():
     from lopcook.report.sections import clusters_html, group_rows
 
     rows = [{"level": b, "cap_bytes": 100 if b <= 13 else 100 + b, "cap_percent": 1.0,
-             "unclustered_cap_bytes": 120 if b <= 13 else 120 + b, "unclustered_cap_percent": 1.2} for b in range(1, 25)]
+             "unclustered_cap_bytes": 120 if b <= 13 else 120 + b, "unclustered_cap_percent": 1.2}
+            for b in range(1, 25)]
     groups = group_rows(rows, ("cap_bytes", "unclustered_cap_bytes"))
     assert [(a, b) for a, b, _ in groups] == [(1, 13)] + [(b, b) for b in range(14, 25)]
     rep = {"clusters": {"clusters": 5, "cluster_size": [64], "buffers": 1, "record_bytes": 80,

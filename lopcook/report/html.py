@@ -6,11 +6,12 @@ writes, for headless checks, into ``body``'s data attributes: ``images-ok`` / ``
 chart)), written beside its ``report.json``. The histogram's
 log scale is a CSS-only toggle (a checkbox).
 
-Sections, in order: accuracy per level (Table 1 of Meyer et al. 2011: AP and CAP memory and PSNR,
-depth-order errors, the uniform 16-bit baseline), memory vs PSNR chart, minimum-level histogram
-(linear or log) and level image, images of one view at every level (float, AP, CAP, heat maps with
-their colour scale, and a zoom where the error is worst), the level and view with the most
-depth-order errors, the source's parts, levels of detail, cook (re-cook status and stage timings),
+Sections, in order: the verdict banner and the terms box (``sections``), accuracy per level (Table 1
+of Meyer et al. 2011: AP and CAP memory and PSNR, depth-order errors, the uniform 16-bit baseline),
+memory vs PSNR chart, minimum-level histogram (linear or log), clusters, level image, images of one
+view at every level (float, AP, CAP at native size and enlarged, heat maps with their colour scale,
+and a zoom where the error is worst), the worst view, the level and view with the most depth-order
+errors, the source's parts, levels of detail and every LOD as selected, cook (re-cook status and stage timings),
 warnings (grouped and worded, ``text.warning_groups``), k_f calibration and byte budget when the
 container records them. Input: the dict of ``lopcook.report.model.build_report``; the page is a
 function of it and the images only.
@@ -29,7 +30,8 @@ from ..ingest.summary import attribute_labels
 from ..verify.metrics import depth_error_mask
 from .images import apply_crop, crop_box, depth_overlay
 from .model import lod_name, report_json_bytes
-from .sections import CAPTIONS, banner_html, clusters_html, figure, lod_renders_html, native_figure, terms_html, worst_html
+from .sections import (CAPTIONS, banner_html, clusters_html, figure, lod_renders_html, native_figure, terms_html,
+                       worst_html)
 from .svg import attribute_search_svg, budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
 from .text import escape, fmt_pct, fmt_psnr, term, warning_groups
 
@@ -377,7 +379,8 @@ def lod_table_html(lods: dict) -> str:
     for part in lods["parts"]:
         for r in part["lods"]:
             out.append(f'<tr data-part="{e(part["part"])}" data-lod="{r["lod"]}"><td>{e(part["part"])}</td>'
-                       f"<td class=\"name\">{e(r.get('name') or r['lod'])}</td><td>{r['triangles']:,}</td><td>{r['vertices']:,}</td>"
+                       f"<td class=\"name\">{e(r.get('name') or r['lod'])}</td><td>{r['triangles']:,}</td>"
+                       f"<td>{r['vertices']:,}</td>"
                        f"<td>{r['geometric_error_m']:.4g}</td><td>{_dist(r['min_distance_m'])}</td>"
                        f"<td>{_dist(r['max_distance_m'])}</td><td>{r['bytes']:,}</td></tr>")
     out.append("</tbody></table></div>")

@@ -48,9 +48,9 @@ def banner_html(rep: dict) -> str:
     else:
         lv = ", ".join(str(b) for b in v["failing_levels"])
         total = sum(len((r.get("cap") or {}).get("psnr_views") or []) for r in rep["levels"])
+        levels = term("level", "levels" if len(v["failing_levels"]) > 1 else "level")
         what = (f'{v["failing_views"]:,} of {total:,} rendered {term("view", "views")} are under {thr} '
-                f'{term("CAP")} {term("PSNR")}, at {term("level", "levels" if len(v["failing_levels"]) > 1 else "level")} '
-                f'{lv}.')
+                f'{term("CAP")} {term("PSNR")}, at {levels} {lv}.')
     if w is None:
         worst = " Every CAP render equals the float32 render."
     else:
@@ -155,15 +155,16 @@ def lod_renders_html(rep: dict, images: dict) -> str:
         crop, imgs = r["crop"], s["images"]
         out.append(f'<section class="lod" data-lod="{r["lod"]}"><h3>{escape(head)}</h3><div class="imgs">')
         if crop["scale"] > 1:
-            out.append(native_figure(f"img-lod{r['lod']}-native", imgs["cap"], crop, f"LOD {r['lod']} CAP, native size"))
+            out.append(native_figure(f"img-lod{r['lod']}-native", imgs["cap"], crop,
+                                     f"LOD {r['lod']} CAP, native size"))
         out.append(figure(f"img-lod{r['lod']}-cap", apply_crop(imgs["cap"], crop),
                           f"LOD {r['lod']} CAP, {crop['scale']}x"))
         out.append(figure(f"img-lod{r['lod']}-float", apply_crop(imgs["float"], crop),
                           f"float32 source, {crop['scale']}x"))
         out.append("</div></section>")
     if vp.get("viewport"):
-        out.append(f'<p class="note">Render viewport {rep["render"]["resolution"][0]}x{rep["render"]["resolution"][1]}, '
-                   f'field of view {vp.get("fov_y_deg", 60):g} degrees.</p>')
+        w, h = rep["render"]["resolution"]
+        out.append(f'<p class="note">Render viewport {w}x{h}, field of view {vp.get("fov_y_deg", 60):g} degrees.</p>')
     return "".join(out)
 
 
@@ -196,8 +197,9 @@ def clusters_html(rep: dict) -> list[str]:
            "<th>unclustered B</th><th>%</th></tr></thead><tbody>"]
     for lo, hi, r in group_rows(rows, ("cap_bytes", "unclustered_cap_bytes")):
         lv = str(lo) if lo == hi else f"{lo}-{hi} ({hi - lo + 1} levels)"
-        out.append(f'<tr data-levels="{lo}-{hi}"><td>{lv}</td><td>{r["cap_bytes"]:,}</td><td>{r["cap_percent"]:.1f}</td>'
-                   f"<td>{r['unclustered_cap_bytes']:,}</td><td>{r['unclustered_cap_percent']:.1f}</td></tr>")
+        out.append(f'<tr data-levels="{lo}-{hi}"><td>{lv}</td><td>{r["cap_bytes"]:,}</td>'
+                   f'<td>{r["cap_percent"]:.1f}</td><td>{r["unclustered_cap_bytes"]:,}</td>'
+                   f'<td>{r["unclustered_cap_percent"]:.1f}</td></tr>')
     hist = cs["k_histogram"]
     out.append("</tbody></table></div><p>Anchor bits k per cluster component (k: count; k not listed: none): "
                + e(" ".join(f"{k}:{v}" for k, v in enumerate(hist) if v)) + "</p>")

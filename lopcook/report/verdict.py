@@ -104,7 +104,8 @@ def verdict_line(v: dict, source: str | None = None) -> str:
             f"view {w['view']}{part}")
     if v["result"] == "FAIL":
         lv = ", ".join(str(b) for b in v["failing_levels"])
-        head += f" ({v['failing_views']} views under the threshold at level{'s' if len(v['failing_levels']) > 1 else ''} {lv})"
+        plural = "s" if len(v["failing_levels"]) > 1 else ""
+        head += f" ({v['failing_views']} views under the threshold at level{plural} {lv})"
     return head + (f" [{source}]" if source else "")
 
 
