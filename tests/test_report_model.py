@@ -222,13 +222,14 @@ def test_lod_names_one_way_everywhere():
     names = ["LOD 0 (all triangles)", "LOD 1 (1/2 of the triangles)", "LOD 2 (1/4 of the triangles)"]
     notes = ["LOD 0.25: 3 faces face against the source surface", "LOD 0.0625: fast failed: x; falling back",
              "chain stopped: LOD 0.0625 could not be produced; previous LODs kept", "LOD 2: kept as it is",
-             "no UVs: LOD 0 parametrised with xatlas"]
-    out = RM.rename_notes(notes, kept, names, 1000)
+             "no UVs: LOD 0 parametrised with xatlas", "LOD 0.0009765625: dropped"]
+    out = RM.rename_notes(notes, kept, names)
     assert out[0] == "LOD 2 (1/4 of the triangles): 3 faces face against the source surface"
     assert out[1] == "the dropped LOD (target 1/16 of the triangles): fast failed: x; falling back"
     assert out[2] == ("chain stopped: the dropped LOD (target 1/16 of the triangles) could not be produced; "
                       "previous LODs kept")
-    assert out[3:] == notes[3:]  # indices and LOD 0 as they are
+    assert out[3:5] == notes[3:5]  # indices and LOD 0 as they are
+    assert out[5] == "the dropped LOD (target 1/1024 of the triangles): dropped"  # the ratio's own fraction
 
 
 def test_lod_table_names_and_renamed_notes():

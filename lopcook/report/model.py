@@ -130,17 +130,21 @@ def depth_record(depth: dict | None) -> dict | None:
             "pixels": int(mask.sum()), "crop": crop}
 
 
-def fraction_text(triangles: int, source_triangles: int) -> str:
-    """The share of the source's triangles a LOD keeps, as the page names it: "all" (the source's
-    count), "1/n" when within 5 % of a unit fraction (n >= 2), else a percentage to two significant
-    digits ("0.37 %")."""
-    if source_triangles <= 0 or triangles >= source_triangles:
-        return "all"
-    f = triangles / source_triangles
+def share_text(f: float) -> str:
+    """A share in (0, 1) as the page writes it: "1/n" when within 5 % of a unit fraction (n >= 2),
+    else a percentage to two significant digits ("45 %")."""
     n = round(1.0 / f) if f > 0 else 0
     if n >= 2 and abs(f * n - 1.0) <= 0.05:
         return f"1/{n}"
     return f"{100.0 * f:.2g} %"
+
+
+def fraction_text(triangles: int, source_triangles: int) -> str:
+    """The share of the source's triangles a LOD keeps, as the page names it: "all" (the source's
+    count), else ``share_text`` ("1/4", "45 %")."""
+    if source_triangles <= 0 or triangles >= source_triangles:
+        return "all"
+    return share_text(triangles / source_triangles)
 
 
 def lod_name(k: int, triangles: int, source_triangles: int) -> str:
@@ -154,7 +158,7 @@ def lod_name(k: int, triangles: int, source_triangles: int) -> str:
 _RATIO_NAME = re.compile(r"\bLOD (\d+(?:\.\d+)?(?:e-?\d+)?)(?=[: ])")
 
 
-def rename_notes(notes: list[str], kept: list[dict], names: list[str], source_triangles: int) -> list[str]:
+def rename_notes(notes: list[str], kept: list[dict], names: list[str]) -> list[str]:
     """``notes`` with every LOD named by its target ratio ("LOD 0.25") named as the page names LODs
     (``lod_name``): the LOD of ``kept`` (the chain's LOD summaries, ``target_ratio`` each, index
     order) with that ratio, or, for a ratio no kept LOD has (a LOD the chain dropped), "the dropped
@@ -169,8 +173,7 @@ def rename_notes(notes: list[str], kept: list[dict], names: list[str], source_tr
         for k, t in enumerate(ratios):
             if k < len(names) and abs(t - r) <= 1e-5 * max(t, r):
                 return names[k]
-        target = max(1, int(round(r * source_triangles)))
-        return f"the dropped LOD (target {fraction_text(target, source_triangles)} of the triangles)"
+        return f"the dropped LOD (target {share_text(r)} of the triangles)"
 
     return [_RATIO_NAME.sub(name, str(n)) for n in notes]
 
@@ -221,7 +224,7 @@ def lod_table(manifest: dict, reports: list | None = None, source_triangles: lis
         notes = [str(n) for n in rec.get("notes") or []]
         if rec.get("stop_reason") and rec.get("stop_reason") != "all ratios done":
             notes.append(f"chain stopped: {rec['stop_reason']}")
-        notes = rename_notes(notes, rec.get("lods") or [], [r["name"] for r in rows], src)
+        notes = rename_notes(notes, rec.get("lods") or [], [r["name"] for r in rows])
         out.append({"part": part["name"], "lods": rows, "notes": notes})
     return out
 
@@ -424,5 +427,5 @@ def report_json_bytes(rep: dict) -> bytes:
 
 __all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "scene_parts",
            "level_image_record", "depth_record", "lod_table", "fraction_text", "lod_name", "rename_notes",
-           "scene_lod_names", "extra_view_record", "lod_render_record", "images_section",
+           "scene_lod_names", "extra_view_record", "lod_render_record", "images_section", "share_text",
            "uniform16_section", "build_report", "budget_section", "attributes_section", "report_json_bytes"]
