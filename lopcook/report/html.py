@@ -388,9 +388,12 @@ def lod_table_html(lods: dict) -> str:
     if sv:
         out.append(f'<p class="note">Not written (no view needs them): {sv["lods_dropped"]} LODs, planes '
                    f'{e(sv["planes_dropped"] or "none")}; {sv["bytes_saved"]:,} bytes saved.</p>')
-    notes = [f"{p['part']}: {n}" for p in lods["parts"] for n in p.get("notes") or []]
+    one = len(lods["parts"]) == 1  # one part: its name is the table's, not repeated on every note
+    notes = [n if one else f"{p['part']}: {n}" for p in lods["parts"] for n in p.get("notes") or []]
     if notes:
-        out.append('<ul id="lod-notes">' + "".join(f'<li class="note">{e(n)}</li>' for n in notes) + "</ul>")
+        ul = '<ul id="lod-notes">' + "".join(f'<li class="note">{e(n)}</li>' for n in notes) + "</ul>"
+        out.append(ul if len(notes) <= OPEN_ITEMS else
+                   f"<details><summary>the LOD chain's {len(notes):,} notes</summary>{ul}</details>")
     return "".join(out)
 
 
