@@ -268,6 +268,7 @@ def test_lod_plan_renders_each_lod_where_it_is_first_selected():
     for p in plan[:2] + near[:1]:
         assert p["level"] == min(20, int(required_level(p["distance_m"], 0.2, v)))
     assert plan[2] == {"lod": 2, "selection_distance_m": None, "distance_m": None, "level": None}
+    assert max(p["level"] for p in lod_plan(m, (640, 360), 0.4, available=3)[:2]) <= 3  # a file cut short
     # the same pixels: the object's size in pixels at the render distance equals the container's
     assert v.pixel_size(plan[1]["distance_m"]) == pytest.approx(
         render_viewing(m, (1920, 1080)).pixel_size(1.5))

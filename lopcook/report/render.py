@@ -49,7 +49,6 @@ REPORT_FINISH_TRIANGLES = 1 << 20
 #: never from below it (``choose_view``)
 MAX_ELEVATION_DEG = 45.0
 
-
 #: LOD 0 is rendered this much (relative) short of where the next LOD takes over (``lod_plan``)
 LOD0_MARGIN = 2.0**-20
 
@@ -162,7 +161,7 @@ def unpack_images(images: dict | None) -> dict | None:
     return {k: v.array() if isinstance(v, _Packed) else v for k, v in images.items()}
 
 
-def lod_plan(manifest: dict, resolution, frame_m: float) -> list[dict]:
+def lod_plan(manifest: dict, resolution, frame_m: float, available: int | None = None) -> list[dict]:
     """Where each LOD index of a container is rendered: per k in 0..(longest chain - 1),
     ``{"lod", "selection_distance_m", "distance_m", "level"}``.
 
@@ -174,14 +173,15 @@ def lod_plan(manifest: dict, resolution, frame_m: float) -> list[dict]:
     pixels it covers when selected in the container's viewport; for LOD 0 ``frame_m`` (the object
     fills the frame), or, when nearer, just short of where the next LOD rendered takes over (LOD 0
     is never seen farther). ``level``: the per-buffer level the half-pixel criterion selects at
-    that distance under the render's viewing, clamped to the file's levels."""
+    that distance under the render's viewing, clamped to the file's levels (``available``, default
+    the manifest's ``positions.max_level``: a file cut short holds fewer)."""
     from ..verify.cameras import render_viewing
     from ..viewing import required_level
 
     viewing = render_viewing(manifest, resolution)
     height = int((manifest.get("viewing") or {}).get("viewport", [0, resolution[1]])[1]) or int(resolution[1])
     extent = float(manifest["grid"]["extent"])
-    top = max(1, int(manifest["positions"].get("max_level", 24)))
+    top = max(1, int(available if available is not None else manifest["positions"].get("max_level", 24)))
     deepest = max(len(p["lods"]) for p in manifest["parts"])
     out = []
     for k in range(deepest):
@@ -245,7 +245,7 @@ def _lod_renders(h, c, scene, view: int, resolution) -> list[dict]:
     lo, hi = scene.bounds()
     fov = float((c.manifest.get("viewing") or {}).get("fov_y_deg", 60.0))
     out = []
-    for p in lod_plan(c.manifest, resolution, frame_distance(lo, hi, fov, resolution)):
+    for p in lod_plan(c.manifest, resolution, frame_distance(lo, hi, fov, resolution), c.available_level):
         rec = dict(p, psnr=None, object_pixels=None, images=None)
         if p["distance_m"] is not None:
             e = h.evaluate(c, levels=[p["level"]], views=[view], variants=("cap",), keep_images=True,
