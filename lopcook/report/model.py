@@ -15,13 +15,19 @@ Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT ov
 bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
 rendered with the same cameras as AP and CAP, one PSNR row per level.
 
-Images: ``images`` records the view shown, one crop and one zoom per level (``per_level``:
-``level_image_record``), the depth-order view (``depth``: ``depth_record``) and the heat maps' full
-scale; the pixels themselves are only in the page. ``scene_parts`` lists the source's parts and
-their attributes (N* = normals computed by lopcook).
+Verdict: ``verdict`` (``lopcook.report.verdict.verdict``): PASS or FAIL against ``min_psnr``, the
+worst level, view and part.
+
+Images: ``images`` records the view shown (``view_pixels``, ``view_angles``: why), one crop and one
+zoom per level (``per_level``: ``level_image_record``), the worst view (``worst``:
+``extra_view_record``), every LOD at its selection distance (``lods``: ``lod_render_record``), the
+depth-order view (``depth``: ``depth_record``) and the heat maps' full scale; the pixels themselves
+are only in the page. ``scene_parts`` lists the source's parts and their attributes (N* = normals
+computed by lopcook).
 
 LODs: ``lods`` holds the container's LOD table (``lod_table``: triangles, vertices, Hausdorff error,
-selection distance range and bytes per part and LOD).
+selection distance range and bytes per part and LOD) and ``names``, each LOD index named one way
+everywhere: "LOD 1 (1/2 of the triangles)" (``lod_name``).
 """
 
 from __future__ import annotations
