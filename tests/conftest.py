@@ -137,3 +137,25 @@ def plates():
 
     s = load(str(FIXTURES / "two_plates.glb"))
     return s, cook_container(s)
+
+
+@pytest.fixture(scope="session")
+def cooked(tmp_path_factory):
+    """``cooked(source, *flags)``: the path of ``source`` cooked by ``lopcook cook source -o X.lop
+    *flags``, once per session: the same source and flags give the same bytes, so one cook serves
+    every test that reports, inspects or decodes it (a calibrated cook takes tens of seconds)."""
+    from lopcook.cli import main
+
+    folder = tmp_path_factory.mktemp("cooked")
+    cache: dict = {}
+
+    def cook(source, *flags) -> Path:
+        key = (str(source), tuple(str(f) for f in flags))
+        if key not in cache:
+            out = folder / f"{Path(source).stem}-{len(cache)}.lop"
+            rc = main(["-q", "cook", str(source), "-o", str(out), *key[1]])
+            assert rc == 0, f"cook {source} {' '.join(key[1])}: exit {rc}"
+            cache[key] = out
+        return cache[key]
+
+    return cook

@@ -185,9 +185,10 @@ def test_report_shows_the_allocation_and_the_curve(budget_cooks):
 
     src, d, n, _ = budget_cooks
     out = d / "report.html"
-    assert main(["-q", "report", str(d / "a.lop"), "--source", str(src), "-o", str(out), "--levels", "6-7",
-                 "--views", "2", "--resolution", "160x90"]) == 0
+    rc = main(["-q", "report", str(d / "a.lop"), "--source", str(src), "-o", str(out), "--levels", "6-7",
+               "--views", "2", "--resolution", "160x90"])
     rep = json.loads(out.with_suffix(".json").read_text())
+    assert rc == (1 if rep["verdict"]["result"] == "FAIL" else 0)  # a bit budget may miss 40 dB
     a = rep["attributes"]
     from lopcook.lop.container import read
 

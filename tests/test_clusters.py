@@ -407,17 +407,17 @@ def test_default_cook_is_clustered_and_clusters_0_is_not(tmp_path):
 
 def test_report_section_shows_clustered_against_unclustered_and_the_k_histogram(tmp_path):
     from lopcook.lop.summary import describe_container
-    from lopcook.report.html import _clusters_html
+    from lopcook.report.sections import clusters_html
 
     c = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--clusters", "16", tmp_path=tmp_path).read_bytes())
     d = describe_container(c)
-    html = "".join(_clusters_html({"clusters": d["clusters"], "memory": d["memory"], "available_level": 24}))
+    html = "".join(clusters_html({"clusters": d["clusters"], "memory": d["memory"], "available_level": 24}))
     r12 = next(r for r in d["memory"] if r["level"] == 12)
     assert "<h2>Clusters</h2>" in html and f"<td>{r12['cap_bytes']:,}</td>" in html
     assert f"<td>{r12['unclustered_cap_bytes']:,}</td>" in html
     assert " ".join(f"{k}:{v}" for k, v in enumerate(d["clusters"]["k_histogram"]) if v) in html
     plain = from_bytes(cook(FIXTURES / "unit_sphere.glb", "--clusters", "0", tmp_path=tmp_path, name="p.lop").read_bytes())
-    assert describe_container(plain)["clusters"] is None and _clusters_html({"clusters": None}) == []
+    assert describe_container(plain)["clusters"] is None and clusters_html({"clusters": None}) == []
 
 
 def test_clusters_with_hierarchy_lods_and_dropped_planes(tmp_path):

@@ -44,11 +44,18 @@ def _schema():
 
 
 def _expected_images(rep) -> int:
-    """Images the page shows: the level image, five per level (float, AP, CAP, two heat maps), four per
-    zoom (float, AP, CAP, the variant's heat map) and three for the depth-order view."""
+    """Images the page shows: the level image, five per level (float, AP, CAP, two heat maps) and CAP
+    at native size where the crop is enlarged, four per zoom (float, AP, CAP, the variant's heat
+    map), three for the depth-order view, the worst view when it is not the shown one (float, AP,
+    CAP, CAP heat map, native CAP where enlarged, three per zoom), and per LOD rendered its CAP and
+    float (and native CAP where enlarged)."""
     im = rep["images"]
-    return (1 + 5 * len(im["per_level"]) + 4 * sum(1 for r in im["per_level"] if r["zoom"])
-            + (3 if im["depth"] else 0))
+    n = (1 + sum(5 + (r["crop"]["scale"] > 1) for r in im["per_level"])
+         + 4 * sum(1 for r in im["per_level"] if r["zoom"]) + (3 if im["depth"] else 0))
+    w = im["worst"]
+    if w and w["view"] != im["view"]:
+        n += 4 + (w["crop"]["scale"] > 1) + (3 if w["zoom"] else 0)
+    return n + sum(2 + (r["crop"]["scale"] > 1) for r in im["lods"] if r["crop"])
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -357,7 +364,8 @@ def test_lod_table(lod_report):
     assert '<table id="lods">' in text
     for r in rows:
         m_ = re.search(rf'<tr data-part="[^"]*" data-lod="{r["lod"]}">(.*?)</tr>', text)
-        cells = [html.unescape(x) for x in re.findall(r"<td>(.*?)</td>", m_.group(1))]
+        cells = [html.unescape(x) for x in re.findall(r"<td[^>]*>(.*?)</td>", m_.group(1))]
+        assert cells[1] == r["name"] == rep["lods"]["names"][r["lod"]]
         assert cells[2] == f"{r['triangles']:,}" and cells[7] == f"{r['bytes']:,}"
         assert cells[4] == f"{r['geometric_error_m']:.4g}"
 
@@ -424,8 +432,9 @@ def test_progress_stages(reports, tmp_path, capsys):
     cap = capsys.readouterr()
     err = cap.err.splitlines()
     assert any(re.fullmatch(r"lopcook: ingest two_plates\.glb: in [\d.]+ s", x) for x in err), err
-    # 2 levels: 2 container evaluations, 2 baseline ones, the depth-order view and the level image
-    assert any(re.fullmatch(r"lopcook: render: 6 of 6 in [\d.]+ s", x) for x in err), err
+    # 2 levels: 2 container evaluations, 2 baseline ones, the worst view, the LOD renders, the
+    # depth-order view and the level image
+    assert any(re.fullmatch(r"lopcook: render: 8 of 8 in [\d.]+ s", x) for x in err), err
     assert any(x.startswith("lopcook: re-cook") for x in err) and any(x.startswith("lopcook: page:") for x in err)
     assert "lopcook:" not in cap.out and "wrote" in cap.out
     assert main(["report", lop, "--source", src, "-o", str(out), *ARGS]) == 0

@@ -61,6 +61,20 @@ def test_calibration_chart_needs_a_curve():
     assert "target 40 dB" in text and text.count("<circle") == 2
 
 
+def test_calibration_chart_of_a_recorded_curve():
+    """``cook --target-psnr`` records each probe's CAP memory per calibrated level (a list): the
+    chart plots the largest, and the record of a real calibration draws (it raised TypeError)."""
+    cal = {"target_psnr": 40.0, "levels": [6, 7, 8], "curve": [
+        {"cap_percent": [46.2, 46.1, 46.5], "psnr_min": 38.9, "log2_sigma": -1.5, "levels": [7]},
+        {"cap_percent": [50.7, 50.8, 50.9], "psnr_min": 44.9, "log2_sigma": 0.0, "levels": [6, 7, 8]},
+        {"cap_percent": [47.9, 47.8, 48.2], "psnr_min": 43.6, "log2_sigma": -1.0, "levels": [6, 7, 8]}]}
+    text = S.calibration_svg(cal)
+    assert text.count('<circle cx=') == 3 and "target 40 dB" in text
+    assert "k_f scale: 46.5 %, 38.9 dB" in text and "k_f scale: 50.9 %, 44.9 dB" in text
+    xs = [float(x) for x in re.findall(r'<circle cx="([\d.]+)"', text)]
+    assert xs == sorted(xs)  # drawn in order of memory
+
+
 def _texts(svg: str) -> list[tuple]:
     """(box, text, class) of every unrotated <text> of a chart, boxes from its x, y, font size and
     anchor (S.text_box: an upper estimate of the glyphs' extent)."""

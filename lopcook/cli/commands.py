@@ -39,6 +39,7 @@ from ..memory import release_free_memory
 from ..outputs import check_not_input, check_output
 from ..progress import make
 from ..report import analysis_warnings, build_report, render_for_report, write_html
+from ..report.verdict import verdict_line
 from ..settings import DEFAULTS as D
 from ..settings import parse_resolution
 from ..tune.attributes import format_search
@@ -46,7 +47,7 @@ from ..tune.budget import format_budget
 from ..tune.calibrate import format_calibration
 from ..tune.recook import recook
 from ..verify.decoders import format_report, parse_levels, verify_decoders
-from ..verify.evaluate import evaluate
+from ..verify.evaluate import evaluate, levels_in_file
 from ..verify.tables import format_table
 from ..version import __version__
 from ..view import ViewerServer, viewer_site
@@ -361,7 +362,8 @@ def cmd_verify(args) -> int:
         report["decoders"] = verify_decoders(c, dec_levels, languages, adapt=not args.no_adapt)
         ok = ok and report["decoders"]["ok"]
     if args.source is not None:
-        render = _render_check(args, c, levels if levels is not None else list(D.render.levels))
+        render = _render_check(args, c, levels if levels is not None else levels_in_file(D.render.levels,
+                                                                                          c.available_level))
         report["render"] = render
         ok = ok and render["ok"]
     report["ok"] = bool(ok)
@@ -388,10 +390,14 @@ def cmd_report(args) -> int:
                  inputs=inputs)
     views = check_views(args.views, "--views")
     resolution = parse_resolution(args.resolution, "--resolution")
-    levels = parse_levels(args.levels, args.container) if args.levels is not None else list(D.render.levels)
+    levels = parse_levels(args.levels, args.container) if args.levels is not None else None
+    if not math.isfinite(args.min_psnr):
+        raise LopcookError("usage", None, f"--min-psnr {args.min_psnr}: expected a number of dB")
 
     sniff(args.source)  # a missing file, a directory, a FIFO or device: its own one-line reason
     c = read(args.container, allow_prefix=True)
+    if levels is None:
+        levels = levels_in_file(D.render.levels, c.available_level)
     ingest = source_ingest_settings(args, c.manifest)
     progress = _progress(args)
     with progress.stage(f"ingest {os.path.basename(args.source)}"):
@@ -410,14 +416,18 @@ def cmd_report(args) -> int:
                                               progress=progress)
     desc = describe_container(c, file_bytes=os.path.getsize(args.container))
     with progress.stage("page"):
-        rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range)
+        rep = build_report(c, scene, ev, desc, warnings=warnings, uniform16=ev16, cook=cook, level_range=level_range,
+                           min_psnr=args.min_psnr)
         html_path, json_path = write_html(rep, ev.get("images"), out)
+    passed = rep["verdict"]["result"] == "PASS"
     if args.json:
         print(json.dumps(rep, indent=1, sort_keys=True))
-    elif not args.quiet:
-        print(format_table(ev))
+    elif not args.quiet or not passed:
+        if not args.quiet:
+            print(format_table(ev))
+        print(f"  {verdict_line(rep['verdict'])}")
         print(f"  wrote {html_path} and {json_path}")
-    return EXIT_OK
+    return EXIT_OK if passed else EXIT_VERIFY_FAILED
 
 
 def cmd_bench(args) -> int:

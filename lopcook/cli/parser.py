@@ -308,7 +308,11 @@ def _add_report_parser(sub) -> None:
     p.add_argument("-o", "--output", metavar="REPORT.html", required=True,
                    help="HTML file to write; the JSON goes beside it with the suffix .json")
     p.add_argument("--levels", default=None, metavar="LEVELS",
-                   help=f"per-buffer levels in [1, 24], e.g. 6-12 (default {levels_text(D.render.levels)})")
+                   help=f"per-buffer levels in [1, 24], e.g. 6-12 (default {levels_text(D.render.levels)}, "
+                        "those the file holds)")
+    p.add_argument("--min-psnr", type=float, default=40.0, metavar="DB",
+                   help="the verdict's threshold: PASS when CAP's PSNR reaches DB at every rendered level and "
+                        "view, else FAIL and exit 1 (default 40)")
     _add_harness(p)
     _add_crease_angle(p)
     p.add_argument("--no-analyse", action="store_true",

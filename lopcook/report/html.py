@@ -6,11 +6,12 @@ writes, for headless checks, into ``body``'s data attributes: ``images-ok`` / ``
 chart)), written beside its ``report.json``. The histogram's
 log scale is a CSS-only toggle (a checkbox).
 
-Sections, in order: accuracy per level (Table 1 of Meyer et al. 2011: AP and CAP memory and PSNR,
-depth-order errors, the uniform 16-bit baseline), memory vs PSNR chart, minimum-level histogram
-(linear or log) and level image, images of one view at every level (float, AP, CAP, heat maps with
-their colour scale, and a zoom where the error is worst), the level and view with the most
-depth-order errors, the source's parts, levels of detail, cook (re-cook status and stage timings),
+Sections, in order: the verdict banner and the terms box (``sections``), accuracy per level (Table 1
+of Meyer et al. 2011: AP and CAP memory and PSNR, depth-order errors, the uniform 16-bit baseline),
+memory vs PSNR chart, minimum-level histogram (linear or log), clusters, level image, images of one
+view at every level (float, AP, CAP at native size and enlarged, heat maps with their colour scale,
+and a zoom where the error is worst), the worst view, the level and view with the most depth-order
+errors, the source's parts, levels of detail and every LOD as selected, cook (re-cook status and stage timings),
 warnings (grouped and worded, ``text.warning_groups``), k_f calibration and byte budget when the
 container records them. Input: the dict of ``lopcook.report.model.build_report``; the page is a
 function of it and the images only.
@@ -27,35 +28,51 @@ from pathlib import Path
 from ..atomic import write_atomic
 from ..ingest.summary import attribute_labels
 from ..verify.metrics import depth_error_mask
-from .images import apply_crop, crop_box, depth_overlay, png_data_uri
-from .model import report_json_bytes
+from .images import apply_crop, crop_box, depth_overlay
+from .model import lod_name, report_json_bytes
+from .sections import (CAPTIONS, banner_html, clusters_html, figure, lod_renders_html, native_figure, terms_html,
+                       worst_html)
 from .svg import attribute_search_svg, budget_svg, calibration_svg, heatmap_scale_svg, histogram_svg, memory_psnr_svg
-from .text import escape, fmt_pct, fmt_psnr, warning_groups
+from .text import escape, fmt_pct, fmt_psnr, term, warning_groups
+
+
+def budget_lod_name(b: dict, k: int) -> str:
+    """A LOD of the byte-budget's candidate chain named as the page names LODs (``model.lod_name``:
+    its share of the source's triangles, the chain's LOD 0)."""
+    lods = {int(x["lod"]): x for x in b.get("lods") or []}
+    if k in lods and 0 in lods:
+        return lod_name(k, int(lods[k]["triangles"]), int(lods[0]["triangles"]))
+    return f"LOD {k}"
 
 
 def budget_html(b: dict) -> str:
-    """The "Byte budget" section: the definition, the chart (``budget_svg``) and the candidate table."""
+    """The "Byte budget" section: the definition, the chart (``budget_svg``) and the candidate table.
+    The candidates' LODs are those of the fit's own chain (the file holds the chosen one as its LOD 0)."""
     e = escape
     cam, ch = b["camera"], b["chosen"]
     base = b.get("baselines") or {}
     q, s = base.get("quantize_only"), base.get("simplify_only")
     out = [f'<h2>Byte budget</h2><p id="budget-summary">Budget <b>{b["target_bytes"]:,} bytes</b> ({e(b["scope"])}: '
-           f'{100 * b.get("fraction_of_float", 0):.1f} % of the float size {b["float_bytes"]:,} B). Chosen: <b>LOD '
-           f'{ch["lod"]} at level {ch["level"]}</b>, {ch["bytes"]:,} bytes, {fmt_psnr(ch["psnr_mean"])} dB. Quantize '
-           f'only: ' + ("nothing fits" if not q else f'LOD 0 at level {q["level"]}, {fmt_psnr(q["psnr_mean"])} dB')
+           f'{100 * b.get("fraction_of_float", 0):.1f} % of the float size {b["float_bytes"]:,} B). Chosen: <b>'
+           f'{e(budget_lod_name(b, ch["lod"]))} at level {ch["level"]}</b>, {ch["bytes"]:,} bytes, '
+           f'{fmt_psnr(ch["psnr_mean"])} dB (the file holds it as its LOD 0). Quantize only: '
+           + ("nothing fits" if not q else f'{e(budget_lod_name(b, 0))} at level {q["level"]}, '
+                                           f'{fmt_psnr(q["psnr_mean"])} dB')
            + '; simplify only: ' + ("nothing fits" if not s else
-                                   f'LOD {s["lod"]} in float32, {fmt_psnr(s["psnr_mean"])} dB') + ".</p>",
+                                   f'{e(budget_lod_name(b, s["lod"]))} in float32, {fmt_psnr(s["psnr_mean"])} dB')
+           + ".</p>",
            f'<p class="note">Every candidate rendered against the float source from {len(cam["views"])} views at '
            f'{cam["resolution"][0]}x{cam["resolution"][1]}, camera {cam["distance_m"]:.4g} m from the bounding box '
            f'({e(cam["rule"])} distance; level {cam["level"]} there). PSNR of the view-averaged MSE over object '
-           f'pixels (Purnomo et al. 2005, Fig. 11).</p>', budget_svg(b),
+           f'pixels (Purnomo et al. 2005, Fig. 11). LODs of the fit\'s own chain.</p>', budget_svg(b),
            '<div class="scroll"><table id="budget"><thead><tr><th>LOD</th><th>level</th><th>vertices</th><th>bytes</th>'
            "<th>bits/vertex</th><th>PSNR mean dB</th><th>PSNR min dB</th></tr></thead><tbody>"]
     for c in b["candidates"]:
         chosen = (c["lod"], c["level"]) == (ch["lod"], ch["level"])
         cls = ' class="chosen"' if chosen else ""
         out.append(f'<tr data-lod="{c["lod"]}" data-level="{c["level"]}"{cls}>'
-                   f'<td>{c["lod"]}{" (chosen)" if chosen else ""}</td><td>{c["level"]}</td><td>{c["vertices"]:,}</td>'
+                   f'<td class="name">{e(budget_lod_name(b, c["lod"]))}{" (chosen)" if chosen else ""}</td>'
+                   f'<td>{c["level"]}</td><td>{c["vertices"]:,}</td>'
                    f'<td>{c["bytes"]:,}</td><td>{c["bits_per_vertex"]:.1f}</td><td>{fmt_psnr(c["psnr_mean"])}</td>'
                    f'<td>{fmt_psnr(c.get("psnr_min"))}</td></tr>')
     out.append("</tbody></table></div>")
@@ -125,7 +142,15 @@ figure{margin:0}figure img{width:100%;image-rendering:pixelated;border:1px solid
 figcaption{font-size:0.85em;color:#555}.warn{color:#a40}.note{font-size:0.85em;color:#555}
 .hist .hist-log{display:none}#hist-log:checked~.hist-linear{display:none}#hist-log:checked~.hist-log{display:block}
 .warn-group h3{margin:0.8em 0 0.2em;font-size:1em}.warn-group p{margin:0.2em 0}
-section.level{border-top:1px solid #ddd;margin-top:0.8em}"""
+section.level{border-top:1px solid #ddd;margin-top:0.8em}
+figure.native img{width:auto;max-width:100%;image-rendering:auto}
+.verdict{border:2px solid;border-radius:4px;padding:0.3em 0.9em;margin:0.6em 0}.verdict p{margin:0.3em 0}
+.verdict.pass{border-color:#2a7a2a;background:#eef8ee}.verdict.fail{border-color:#b00020;background:#fdecee}
+.verdict .result{font-size:1.3em}.verdict.pass .result{color:#2a7a2a}.verdict.fail .result{color:#b00020}
+abbr[title]{text-decoration:underline dotted;cursor:help}
+#terms{font-size:0.9em;margin:0.5em 0}#terms dl{display:grid;grid-template-columns:max-content 1fr;gap:0.15em 0.8em;
+margin:0.4em 0}#terms dt{font-weight:bold}#terms dd{margin:0}
+@media (max-width:700px){#terms dl{grid-template-columns:1fr}}"""
 
 _SCRIPT = """<script>window.addEventListener('load',function(){var n=0,b=document.body.dataset;
 document.querySelectorAll('img').forEach(function(i){if(i.complete&&i.naturalWidth>0)n++;});
@@ -139,19 +164,10 @@ if(a.left<c.right-0.5&&c.left<a.right-0.5&&a.top<c.bottom-0.5&&c.top<a.bottom-0.
 b.textOverlaps=String(o);b.textClipped=String(x);});
 </script>"""
 
-#: captions of the image kinds
-CAPTIONS = {"float": "float32", "ap": "AP", "cap": "CAP", "ap_heatmap": "AP error heat map",
-            "cap_heatmap": "CAP error heat map"}
 #: image kinds shown at every level, in order
 LEVEL_KINDS = ("float", "ap", "cap", "ap_heatmap", "cap_heatmap")
 #: at most this many names are listed openly under a warning; more go in a collapsed list
 OPEN_ITEMS = 6
-
-
-def _figure(img_id: str, a, caption: str, alt: str | None = None) -> str:
-    e = escape
-    return (f'<figure><img id="{e(img_id)}" alt="{e(alt or caption)}" width="{a.shape[1]}" height="{a.shape[0]}" '
-            f'src="{png_data_uri(a)}"><figcaption>{e(caption)}</figcaption></figure>')
 
 
 def _box_text(box) -> str:
@@ -169,6 +185,23 @@ def crop_note(crop: dict) -> str:
             f"one rendered pixel is a {sc}x{sc} block.")
 
 
+def view_note(rep: dict) -> str:
+    """Why the shown view was chosen (``lopcook.report.render.choose_view``), with its angles."""
+    im = rep["images"]
+    i = per_view_index(rep, im["view"])
+    angles = im.get("view_angles")
+    if i is None or not angles:
+        return f"View {im['view']}."
+    elev, az = angles[i]
+    parts = " after the most parts seen" if im.get("view_parts") else ""
+    if not 0.0 <= elev <= 45.0:
+        return (f"View {im['view']} (eye {elev:.0f} degrees above the horizon): no front or three-quarter view was "
+                f"rendered (see --views); of the rendered views, the one covering the most pixels{parts}.")
+    return (f"View {im['view']} (eye {elev:.0f} degrees above the horizon, {abs(az):.0f} degrees from the front): "
+            f"a view a person recognises, chosen among the front and three-quarter views (eye at most 45 degrees "
+            f"above the horizon, never below) as the one covering the most pixels at the coarsest level{parts}.")
+
+
 def level_images_html(rep: dict, images: dict) -> str:
     """The "Images at every level" section: per level, the float, AP, CAP renders and both heat maps
     (one crop per level, ``images.per_level[i].crop``), then the zoom on the window where the error
@@ -178,10 +211,11 @@ def level_images_html(rep: dict, images: dict) -> str:
     per = images.get("per_level") or [images]
     rows = {r["level"]: r for r in rep["levels"]}
     out = [f'<h2>Images at every level (view {im["view"]})</h2>',
-           f'<p class="note">View {im["view"]}: of the views showing the most parts at the coarsest level, the one '
-           "with the largest AP error there; every level shows the same view, its camera at the distance where the "
-           "half-pixel criterion selects that level. "
-           "Heat maps: the largest channel difference per pixel against float32.</p>",
+           f'<p class="note" id="view-choice">{e(view_note(rep))} Every level shows the same view, its camera at the '
+           f"distance where the half-pixel criterion selects that level; the worst view is shown "
+           '<a href="#worst">below</a>. Heat maps: the largest channel difference per pixel against float32. '
+           "Small objects are shown at their native size (one rendered pixel to one screen pixel) beside the "
+           "enlarged crop.</p>",
            '<div class="heat-legend">' + heatmap_scale_svg(im.get("heatmap_vmax", 0.25)) + "</div>"]
     for rec, imgs in zip(im.get("per_level") or [], per):
         lv, crop, zoom = rec["level"], rec["crop"], rec["zoom"]
@@ -195,9 +229,11 @@ def level_images_html(rep: dict, images: dict) -> str:
             head += f", CAP PSNR {fmt_psnr(cap['psnr_views'][vi])} dB in this view"
         out.append(f'<section class="level" id="level-{lv}" data-level="{lv}"><h3>{e(head)}</h3>'
                    f'<p class="note crop">{e(crop_note(crop))}</p><div class="imgs">')
+        if crop["scale"] > 1 and imgs.get("cap") is not None:
+            out.append(native_figure(f"img-L{lv}-native", imgs["cap"], crop, "CAP, native size"))
         for k in LEVEL_KINDS:
             if imgs.get(k) is not None:
-                out.append(_figure(f"img-L{lv}-{k}", apply_crop(imgs[k], crop), CAPTIONS[k]))
+                out.append(figure(f"img-L{lv}-{k}", apply_crop(imgs[k], crop), CAPTIONS[k]))
         out.append("</div>")
         if zoom:
             v = zoom["variant"]
@@ -207,7 +243,7 @@ def level_images_html(rep: dict, images: dict) -> str:
                        f"{100 * zoom['share']:.0f} % of this view's {v.upper()} squared error.</p><div class=\"imgs\">")
             for k in ("float", "ap", "cap", f"{v}_heatmap"):
                 if imgs.get(k) is not None:
-                    out.append(_figure(f"img-L{lv}-zoom-{k}", apply_crop(imgs[k], zoom),
+                    out.append(figure(f"img-L{lv}-zoom-{k}", apply_crop(imgs[k], zoom),
                                        f"{CAPTIONS[k]}, zoom {zoom['scale']}x"))
             out.append("</div>")
         else:
@@ -242,9 +278,9 @@ def depth_html(rep: dict, images: dict) -> str:
                f'than the float render inside a part (magenta below). Over all levels and views: AP '
                f'{total.get("ap", 0):,}, CAP {total.get("cap", 0):,} pixels.</p>'
                f'<p class="note">{e(crop_note(crop))}</p><div class="imgs">')
-    out.append(_figure("img-depth-float", apply_crop(im["float"], crop), "float32"))
-    out.append(_figure(f"img-depth-{v}", apply_crop(im[v], crop), CAPTIONS[v]))
-    out.append(_figure("img-depth-mask", apply_crop(depth_overlay(im["float"], mask), crop),
+    out.append(figure("img-depth-float", apply_crop(im["float"], crop), "float32"))
+    out.append(figure(f"img-depth-{v}", apply_crop(im[v], crop), CAPTIONS[v]))
+    out.append(figure("img-depth-mask", apply_crop(depth_overlay(im["float"], mask), crop),
                        f"depth-order error pixels of {v.upper()} (magenta)"))
     out.append("</div>")
     return "".join(out)
@@ -331,7 +367,9 @@ def lod_table_html(lods: dict) -> str:
     e = escape
     how = (f"simplified with {e(lods['backend'])} at ratios {e(lods['ratios'])}" if lods.get("backend")
            else "no LOD options recorded")
-    out = [f"<h2>Levels of detail</h2><p class=\"note\">{how}. Error: symmetric Hausdorff distance to LOD 0 as "
+    out = [f"<h2>Levels of detail</h2><p class=\"note\">{how}. {term('LOD', 'LODs')} are named by their share "
+           "of the source's triangles, the same way in this table, the notes and the renders. Error: symmetric "
+           f"{term('Hausdorff error', 'Hausdorff distance')} to LOD 0 as "
            "recorded in the container. Distances: the camera range over which lopcook.selection picks the LOD under "
            "the container's viewing. Bytes: index + attribute sections, the LOD's mandatory bits and its bits in "
            "the refinement planes.</p>",
@@ -341,7 +379,8 @@ def lod_table_html(lods: dict) -> str:
     for part in lods["parts"]:
         for r in part["lods"]:
             out.append(f'<tr data-part="{e(part["part"])}" data-lod="{r["lod"]}"><td>{e(part["part"])}</td>'
-                       f"<td>{r['lod']}</td><td>{r['triangles']:,}</td><td>{r['vertices']:,}</td>"
+                       f"<td class=\"name\">{e(r.get('name') or r['lod'])}</td><td>{r['triangles']:,}</td>"
+                       f"<td>{r['vertices']:,}</td>"
                        f"<td>{r['geometric_error_m']:.4g}</td><td>{_dist(r['min_distance_m'])}</td>"
                        f"<td>{_dist(r['max_distance_m'])}</td><td>{r['bytes']:,}</td></tr>")
     out.append("</tbody></table></div>")
@@ -349,9 +388,12 @@ def lod_table_html(lods: dict) -> str:
     if sv:
         out.append(f'<p class="note">Not written (no view needs them): {sv["lods_dropped"]} LODs, planes '
                    f'{e(sv["planes_dropped"] or "none")}; {sv["bytes_saved"]:,} bytes saved.</p>')
-    notes = [f"{p['part']}: {n}" for p in lods["parts"] for n in p.get("notes") or []]
+    one = len(lods["parts"]) == 1  # one part: its name is the table's, not repeated on every note
+    notes = [n if one else f"{p['part']}: {n}" for p in lods["parts"] for n in p.get("notes") or []]
     if notes:
-        out.append('<ul id="lod-notes">' + "".join(f'<li class="note">{e(n)}</li>' for n in notes) + "</ul>")
+        ul = '<ul id="lod-notes">' + "".join(f'<li class="note">{e(n)}</li>' for n in notes) + "</ul>"
+        out.append(ul if len(notes) <= OPEN_ITEMS else
+                   f"<details><summary>the LOD chain's {len(notes):,} notes</summary>{ul}</details>")
     return "".join(out)
 
 
@@ -380,25 +422,45 @@ def time_bought(rep: dict, seconds: float) -> str:
     return text + "."
 
 
-def _clusters_html(rep: dict) -> list[str]:
-    """Clustered buffers (cook --clusters N): memory per level clustered (P, records, ClusterId)
-    against the same vertices unclustered, and the histogram of the anchors' k; [] when unclustered."""
-    cs = rep.get("clusters")
-    if not cs:
-        return []
+def _source_triangles(rep: dict) -> int:
+    """The source's triangles (every part once), or the file's when the parts are not recorded."""
+    parts = rep.get("scene_parts") or []
+    return sum(int(p["triangles"]) for p in parts) if parts else int(rep["triangles"])
+
+
+def _lod_count(rep: dict) -> str:
+    """" and 10 LODs (138,881 triangles in all)" for a file with LODs, else ""."""
+    names = (rep.get("lods") or {}).get("names") or []
+    if len(names) <= 1:
+        return ""
+    return f" and {len(names)} LODs ({rep['triangles']:,} triangles in all)"
+
+
+def _head_html(rep: dict) -> list[str]:
+    """The page's start: the document head, the title, the verdict banner, the source line, the
+    terms box and the accuracy table (Table 1)."""
     e = escape
-    rows = [r for r in rep.get("memory") or [] if "unclustered_cap_bytes" in r and r["level"] <= rep["available_level"]]
-    out = [f"<h2>Clusters</h2><p>{cs['clusters']:,} clusters of N = {e('/'.join(str(v) for v in cs['cluster_size']))} "
-           f"vertices in {cs['buffers']:,} buffers; the clustered memory counts P, {cs['record_bytes']:,} B of cluster "
-           "records and 128 B of ClusterId per buffer.</p>",
-           '<div class="scroll"><table id="clusters"><thead><tr><th>level</th><th>clustered B</th><th>%</th>'
-           "<th>unclustered B</th><th>%</th></tr></thead><tbody>"]
-    for r in rows:
-        out.append(f"<tr><td>{r['level']}</td><td>{r['cap_bytes']:,}</td><td>{r['cap_percent']:.1f}</td>"
-                   f"<td>{r['unclustered_cap_bytes']:,}</td><td>{r['unclustered_cap_percent']:.1f}</td></tr>")
-    hist = cs["k_histogram"]
-    out.append("</tbody></table></div><p>Anchor bits k per cluster component (k: count): "
-               + e(" ".join(f"{k}:{v}" for k, v in enumerate(hist) if v)) + "</p>")
+    nparts = rep["parts"]
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           '<meta name="viewport" content="width=device-width, initial-scale=1">',
+           f"<title>lopcook report: {e(rep['container'])}</title><style>{_CSS}</style></head><body>",
+           f"<h1>lopcook report: {e(rep['container'])}</h1>", banner_html(rep),
+           f"<p>source <b>{e(rep['source'])}</b>: {nparts:,} part{'' if nparts == 1 else 's'}, {rep['vertices']:,} "
+           f"vertices, {_source_triangles(rep):,} triangles; the file holds levels 1..{rep['available_level']}"
+           f"{_lod_count(rep)}. Rendered at "
+           f"{rep['render']['resolution'][0]}x{rep['render']['resolution'][1]}, {rep['render']['samples']}x MSAA, "
+           f"{len(rep['render']['views'])} views on {e(rep['render']['device'])}.</p>",
+           terms_html(),
+           "<h2>Accuracy per level (Table 1)</h2>",
+           f'<div class="scroll"><table id="levels"><thead><tr><th>{term("level")}</th><th>{term("AP")} memory %</th>'
+           f"<th>AP {term('PSNR')} dB min / mean</th><th>{term('CAP')} memory %</th><th>CAP PSNR dB min / mean</th>"
+           f"<th>{term('depth-order error')} px AP / CAP</th>"
+           f"<th>16-bit ({rep['baselines']['uniform16']['percent_of_float32']:.1f} %) PSNR dB min / mean</th></tr>"
+           "</thead><tbody>"]
+    for row in table_rows(rep):
+        out.append(f'<tr data-level="{e(row[0])}">' + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
+    out.append(f'</tbody></table></div><p class="note">Memory: GPU-resident position bytes vs float32 '
+               f'({rep["float32_bytes"]:,} B). PSNR over object pixels against the float render; inf = identical.</p>')
     return out
 
 
@@ -408,25 +470,7 @@ def render_html(rep: dict, images: dict | None) -> str:
     None: no image sections). A function of its inputs only. The page fits any width from a phone's
     up: tables scroll sideways inside their box, images and charts shrink to the column."""
     e = escape
-    nparts = rep["parts"]
-    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-           '<meta name="viewport" content="width=device-width, initial-scale=1">',
-           f"<title>lopcook report: {e(rep['container'])}</title><style>{_CSS}</style></head><body>",
-           f"<h1>lopcook report: {e(rep['container'])}</h1>",
-           f"<p>source <b>{e(rep['source'])}</b>: {nparts:,} part{'' if nparts == 1 else 's'}, {rep['vertices']:,} "
-           f"vertices, {rep['triangles']:,} triangles; levels 1..{rep['available_level']} in the file. Rendered at "
-           f"{rep['render']['resolution'][0]}x{rep['render']['resolution'][1]}, {rep['render']['samples']}x MSAA, "
-           f"{len(rep['render']['views'])} views on {e(rep['render']['device'])}.</p>",
-           "<h2>Accuracy per level (Table 1)</h2>",
-           '<div class="scroll"><table id="levels"><thead><tr><th>level</th><th>AP memory %</th>'
-           "<th>AP PSNR dB min / mean</th><th>CAP memory %</th><th>CAP PSNR dB min / mean</th>"
-           "<th>depth-order error px AP / CAP</th>"
-           f"<th>16-bit ({rep['baselines']['uniform16']['percent_of_float32']:.1f} %) PSNR dB min / mean</th></tr>"
-           "</thead><tbody>"]
-    for row in table_rows(rep):
-        out.append(f'<tr data-level="{e(row[0])}">' + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
-    out.append(f'</tbody></table></div><p class="note">Memory: GPU-resident position bytes vs float32 '
-               f'({rep["float32_bytes"]:,} B). PSNR over object pixels against the float render; inf = identical.</p>')
+    out = _head_html(rep)
     shared = [r for r in rep.get("memory") or [] if "cap_bytes_all_copies" in r and 6 <= r["level"] <= 11]
     if shared:  # cook --instances: each distinct mesh stored once
         lo, hi = shared[0], shared[-1]
@@ -444,7 +488,7 @@ def render_html(rep: dict, images: dict | None) -> str:
     out.append('<h2>Minimum-level histogram</h2><div class="hist"><input type="checkbox" id="hist-log">'
                '<label for="hist-log"> log scale</label><div class="hist-linear">' + histogram_svg(rep["histogram"])
                + '</div><div class="hist-log">' + histogram_svg(rep["histogram"], log=True) + "</div></div>")
-    out.extend(_clusters_html(rep))
+    out.extend(clusters_html(rep))
     im = rep.get("images")
     if images and im:
         if images.get("levels") is not None:
@@ -453,13 +497,16 @@ def render_html(rep: dict, images: dict | None) -> str:
                 lo, hi = im["level_range"]
                 cap_text += f", levels {lo} (blue) to {hi} (red), colours as in the histogram"
             a = apply_crop(images["levels"], crop_box({"levels": images["levels"]}))
-            out.append('<div class="imgs">' + _figure("img-levels", a, cap_text) + "</div>")
+            out.append('<div class="imgs">' + figure("img-levels", a, cap_text) + "</div>")
         out.append(level_images_html(rep, images))
+        out.append(worst_html(rep, images))
         out.append(depth_html(rep, images))
     out.append(parts_html(rep))
     lods = rep.get("lods")
     if lods and lods.get("parts"):
         out.append(lod_table_html(lods))
+    if images and im:
+        out.append(lod_renders_html(rep, images))
     out.append("<h2>Cook</h2>")
     cook, tim = rep.get("cook"), rep.get("cook_timings_s")
     if cook:
@@ -477,7 +524,7 @@ def render_html(rep: dict, images: dict | None) -> str:
     cal = rep.get("calibration")
     if cal:
         svg = calibration_svg(cal)
-        out.append(f"<h2>k_f calibration</h2><p>target {e(cal.get('target_psnr'))} dB "
+        out.append(f"<h2>{term('k_f')} calibration</h2><p>target {e(cal.get('target_psnr'))} dB "
                    f"({e(cal.get('statistic'))}), reached: {e(cal.get('reached'))}, k_f {e(cal.get('kf'))}</p>"
                    + (svg or ""))
     if rep.get("budget"):

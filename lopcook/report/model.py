@@ -15,13 +15,19 @@ Uniform 16-bit quantization baseline (KHR_mesh_quantization: normalized SHORT ov
 bounding cube, VEC3 padded to 8 bytes per vertex = 66.7 % of float32; ``lopcook.verify.baselines``):
 rendered with the same cameras as AP and CAP, one PSNR row per level.
 
-Images: ``images`` records the view shown, one crop and one zoom per level (``per_level``:
-``level_image_record``), the depth-order view (``depth``: ``depth_record``) and the heat maps' full
-scale; the pixels themselves are only in the page. ``scene_parts`` lists the source's parts and
-their attributes (N* = normals computed by lopcook).
+Verdict: ``verdict`` (``lopcook.report.verdict.verdict``): PASS or FAIL against ``min_psnr``, the
+worst level, view and part.
+
+Images: ``images`` records the view shown (``view_pixels``, ``view_angles``: why), one crop and one
+zoom per level (``per_level``: ``level_image_record``), the worst view (``worst``:
+``extra_view_record``), every LOD at its selection distance (``lods``: ``lod_render_record``), the
+depth-order view (``depth``: ``depth_record``) and the heat maps' full scale; the pixels themselves
+are only in the page. ``scene_parts`` lists the source's parts and their attributes (N* = normals
+computed by lopcook).
 
 LODs: ``lods`` holds the container's LOD table (``lod_table``: triangles, vertices, Hausdorff error,
-selection distance range and bytes per part and LOD).
+selection distance range and bytes per part and LOD) and ``names``, each LOD index named one way
+everywhere: "LOD 1 (1/2 of the triangles)" (``lod_name``).
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 
 import numpy as np
 
@@ -36,6 +43,7 @@ from ..version import __version__
 from ..verify.baselines import UNIFORM16_BYTES_PER_VERTEX
 from ..verify.metrics import depth_error_mask
 from .images import crop_box, squared_error, worst_window
+from .verdict import DEFAULT_MIN_PSNR, verdict
 
 #: bytes per vertex of float32 positions (3 x 4)
 FLOAT32_BYTES_PER_VERTEX = 12
@@ -128,10 +136,60 @@ def depth_record(depth: dict | None) -> dict | None:
             "pixels": int(mask.sum()), "crop": crop}
 
 
-def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
+def share_text(f: float) -> str:
+    """A share in (0, 1) as the page writes it: "1/n" when within 5 % of a unit fraction (n >= 2),
+    else a percentage to two significant digits ("45 %")."""
+    n = round(1.0 / f) if f > 0 else 0
+    if n >= 2 and abs(f * n - 1.0) <= 0.05:
+        return f"1/{n}"
+    return f"{100.0 * f:.2g} %"
+
+
+def fraction_text(triangles: int, source_triangles: int) -> str:
+    """The share of the source's triangles a LOD keeps, as the page names it: "all" (the source's
+    count), else ``share_text`` ("1/4", "45 %")."""
+    if source_triangles <= 0 or triangles >= source_triangles:
+        return "all"
+    return share_text(triangles / source_triangles)
+
+
+def lod_name(k: int, triangles: int, source_triangles: int) -> str:
+    """A LOD's name everywhere on the page (tables, notes, renders): ``LOD 1 (1/4 of the triangles)``,
+    ``LOD 0 (all triangles)``; the share is of the source's triangles (``fraction_text``)."""
+    frac = fraction_text(int(triangles), int(source_triangles))
+    return f"LOD {k} (all triangles)" if frac == "all" else f"LOD {k} ({frac} of the triangles)"
+
+
+#: a LOD named by its target ratio in the simplifier's notes: "LOD 0.25: ..." (``lopcook.simplify.chain``)
+_RATIO_NAME = re.compile(r"\bLOD (\d+(?:\.\d+)?(?:e-?\d+)?)(?=[: ])")
+
+
+def rename_notes(notes: list[str], kept: list[dict], names: list[str]) -> list[str]:
+    """``notes`` with every LOD named by its target ratio ("LOD 0.25") named as the page names LODs
+    (``lod_name``): the LOD of ``kept`` (the chain's LOD summaries, ``target_ratio`` each, index
+    order) with that ratio, or, for a ratio no kept LOD has (a LOD the chain dropped), "the dropped
+    LOD (target 1/64 of the triangles)". A ratio of 1 or more is an index already and left as it is."""
+    ratios = [float(x.get("target_ratio", 0.0) or 0.0) for x in kept]
+
+    def name(mt: re.Match) -> str:
+        text = mt.group(1)
+        r = float(text)
+        if r >= 1.0 or ("." not in text and "e" not in text):
+            return mt.group(0)
+        for k, t in enumerate(ratios):
+            if k < len(names) and abs(t - r) <= 1e-5 * max(t, r):
+                return names[k]
+        return f"the dropped LOD (target {share_text(r)} of the triangles)"
+
+    return [_RATIO_NAME.sub(name, str(n)) for n in notes]
+
+
+def lod_table(manifest: dict, reports: list | None = None, source_triangles: list[int] | None = None) -> list[dict]:
     """Per part of a container manifest, its LODs as written: ``{"part", "lods": [...], "notes"}``.
 
-    Each LOD: ``lod`` (index), ``triangles``, ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
+    Each LOD: ``lod`` (index), ``name`` (``lod_name``: "LOD 1 (1/4 of the triangles)", the share of
+    ``source_triangles[i]``, the source part's triangles; default LOD 0's), ``triangles``,
+    ``vertices``, ``geometric_error_m`` (symmetric Hausdorff
     distance to LOD 0, metres, as recorded), ``min_distance_m`` / ``max_distance_m`` (the camera
     distances, metres, over which ``lopcook.selection.select`` picks it under the manifest's viewing:
     from its own ``min_distance_m`` to the next larger one of the part; ``max_distance_m`` None =
@@ -142,7 +200,8 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     whose minimum level is below the plane, rounded up to bytes per plane) and ``bytes``, the sum.
     ``notes``: the LOD report notes of that part: ``reports[i]["notes"]`` (``LodReport.as_dict`` of
     the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
-    (``options.lods.reports[i].notes``), else empty."""
+    (``options.lods.reports[i].notes``), else empty; LODs in them named as in the table
+    (``rename_notes``)."""
     from ..lop.manifest import Manifest
 
     typed = Manifest.of(manifest)
@@ -151,6 +210,8 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
     out = []
     for i, part in enumerate(manifest["parts"]):
         starts = [e.get("min_distance_m") for e in part["lods"]]
+        src = int(source_triangles[i]) if source_triangles and i < len(source_triangles) else \
+            int(part["lods"][0]["triangles"])
         rows = []
         for k, e in enumerate(part["lods"]):
             lo = starts[k] if starts[k] is not None else 0.0
@@ -158,7 +219,8 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
             t = typed.parts[i].lods[k]
             index_bytes, attribute_bytes = t.index_bytes, t.attribute_bytes
             mandatory, planes = t.mandatory_bytes, t.plane_bytes(typed.max_level)
-            rows.append({"lod": k, "triangles": int(e["triangles"]), "vertices": int(e["vertices"]),
+            rows.append({"lod": k, "name": lod_name(k, int(e["triangles"]), src),
+                         "triangles": int(e["triangles"]), "vertices": int(e["vertices"]),
                          "geometric_error_m": float(e.get("geometric_error_m", 0.0)),
                          "min_distance_m": float(lo), "max_distance_m": min(later) if later else None,
                          "index_bytes": index_bytes, "attribute_bytes": attribute_bytes,
@@ -168,8 +230,65 @@ def lod_table(manifest: dict, reports: list | None = None) -> list[dict]:
         notes = [str(n) for n in rec.get("notes") or []]
         if rec.get("stop_reason") and rec.get("stop_reason") != "all ratios done":
             notes.append(f"chain stopped: {rec['stop_reason']}")
+        notes = rename_notes(notes, rec.get("lods") or [], [r["name"] for r in rows])
         out.append({"part": part["name"], "lods": rows, "notes": notes})
     return out
+
+
+def scene_lod_names(manifest: dict, source_triangles: list[int]) -> list[str]:
+    """The name of each LOD index of the whole scene (``lod_name``): LOD k draws every part at
+    min(k, its last LOD) (``lopcook.verify.buffers.lod_indices``), its share of the source's triangles."""
+    deepest = max(len(p["lods"]) for p in manifest["parts"])
+    total = int(sum(source_triangles))
+    return [lod_name(k, sum(int(p["lods"][min(k, len(p["lods"]) - 1)]["triangles"]) for p in manifest["parts"]),
+                     total) for k in range(deepest)]
+
+
+def extra_view_record(d: dict | None) -> dict | None:
+    """The record of the worst view (``render_for_report``'s ``worst``): ``level``, ``view``, ``psnr``
+    (CAP, dB), ``part`` (``verdict.worst_part``), ``crop`` and ``zoom`` (as ``level_image_record``)."""
+    if not d:
+        return None
+    rec = level_image_record(dict(d["images"], level=d["level"]))
+    return {"level": int(d["level"]), "view": int(d["view"]), "psnr": float(d["psnr"]), "part": d.get("part"),
+            "crop": rec["crop"], "zoom": rec["zoom"]}
+
+
+def lod_render_record(r: dict, names: list[str], manifest: dict) -> dict:
+    """One LOD render's record (``render._lod_renders``): ``lod``, ``name``, ``triangles`` (all parts at
+    that LOD), ``geometric_error_m`` (the largest over parts), ``selection_distance_m`` (None: LOD 0
+    or never selected), ``distance_m`` (the render's camera), ``level``, ``psnr`` (CAP against float
+    LOD 0, dB; None: identical), ``object_pixels`` (the float render's) and ``crop`` (None: not rendered)."""
+    k = int(r["lod"])
+    entries = [p["lods"][min(k, len(p["lods"]) - 1)] for p in manifest["parts"]]
+    imgs = r.get("images")
+    crop = None if not imgs else crop_box({x: imgs[x] for x in ("float", "cap") if imgs.get(x) is not None})
+    return {"lod": k, "name": names[k], "triangles": int(sum(int(e["triangles"]) for e in entries)),
+            "geometric_error_m": float(max(float(e.get("geometric_error_m", 0.0)) for e in entries)),
+            "selection_distance_m": r["selection_distance_m"], "distance_m": r["distance_m"], "level": r["level"],
+            "psnr": r["psnr"], "object_pixels": r["object_pixels"], "crop": crop}
+
+
+def images_section(imgs: dict | None, level_range, names: list[str] | None = None, manifest: dict | None = None):
+    """The ``images`` record of ``report.json`` from ``render_for_report``'s images (None: None)."""
+    if not imgs:
+        return None
+    from ..verify.metrics import HEATMAP_VMAX
+
+    per_level = imgs.get("per_level") or [imgs]
+    skip = ("levels", "per_level", "depth", "worst", "lods")
+    images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
+              "crop": crop_box({k: v for k, v in imgs.items() if k not in skip}),
+              "per_level": [level_image_record(x) for x in per_level],
+              "depth": depth_record(imgs.get("depth")),
+              "heatmap_vmax": float(HEATMAP_VMAX), "view_parts": imgs.get("view_parts"),
+              "view_pixels": imgs.get("view_pixels"), "view_angles": imgs.get("view_angles"),
+              "worst": extra_view_record(imgs.get("worst")),
+              "lods": [lod_render_record(r, names, manifest) for r in imgs.get("lods") or []]
+              if names is not None and manifest is not None else []}
+    if "levels" in imgs and level_range is not None:
+        images["level_range"] = [int(level_range[0]), int(level_range[1])]
+    return images
 
 
 def uniform16_section(evaluation_16: dict | None, scene, n_vertices: int) -> dict:
@@ -192,11 +311,13 @@ def uniform16_section(evaluation_16: dict | None, scene, n_vertices: int) -> dic
 
 
 def build_report(container, scene, evaluation: dict, container_desc: dict, *, warnings: dict | None = None,
-                 uniform16: dict | None = None, cook: dict | None = None, level_range=None) -> dict:
+                 uniform16: dict | None = None, cook: dict | None = None, level_range=None,
+                 min_psnr: float = DEFAULT_MIN_PSNR) -> dict:
     """Every number of the report, JSON-ready (see module docstring). ``uniform16``: the
     ``evaluate_scene`` result of ``baselines.uniform_quantized_scene`` (None: not rendered);
     ``cook``: ``lopcook.tune.recook.recook``'s result (None: not re-cooked); ``level_range``: (lo, hi) of
-    the level-colour ramp of the ``levels`` image."""
+    the level-colour ramp of the ``levels`` image; ``min_psnr``: the verdict's threshold, dB
+    (``lopcook.report.verdict``)."""
     ev = evaluation
     m = container.manifest
     extent = float(m["grid"]["extent"])
@@ -219,20 +340,12 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
                     "touching": [], "intersecting": [], "degenerate_triangles": None, "depth_capped": None,
                     "depth_ceiling": None, "attribute_unsatisfied": None}
     depth_total = {v: sum(r[v]["depth_order_errors"] for r in levels if v in r) for v in ("ap", "cap")}
-    images = None
-    if imgs:
-        from ..verify.metrics import HEATMAP_VMAX
-
-        per_level = imgs.get("per_level") or [imgs]
-        images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
-                  "crop": crop_box({k: v for k, v in imgs.items() if k not in ("levels", "per_level", "depth")}),
-                  "per_level": [level_image_record(x) for x in per_level],
-                  "depth": depth_record(imgs.get("depth")),
-                  "heatmap_vmax": float(HEATMAP_VMAX), "view_parts": imgs.get("view_parts")}
-        if "levels" in imgs and level_range is not None:
-            images["level_range"] = [int(level_range[0]), int(level_range[1])]
+    src_tri = [p.n_triangles for p in scene.parts]
+    names = scene_lod_names(m, src_tri)
+    images = images_section(imgs, level_range, names, m)
     rep = {
         "kind": "report",
+        "verdict": verdict(ev["levels"], list(ev["views"]), min_psnr, (imgs or {}).get("worst")),
         "generator": f"lopcook {__version__}",
         "container": _name(ev.get("container") or container.path),
         "source": _name(ev.get("source")),
@@ -265,7 +378,8 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
     rep["lods"] = {"backend": (options.get("lods") or {}).get("backend"),
                    "ratios": (options.get("lods") or {}).get("ratios"),
                    "savings": m.get("savings"),
-                   "parts": lod_table(m, None if cook is None else cook.get("lod_reports"))}
+                   "names": names,
+                   "parts": lod_table(m, None if cook is None else cook.get("lod_reports"), src_tri)}
     budget = budget_section(m)
     if budget is not None:  # optional key: containers written by cook --target-bytes
         rep["budget"] = budget
@@ -281,15 +395,19 @@ def attributes_section(container, scene) -> dict:
     error in texels: ``lopcook.tune.attributes.attribute_errors``; None when the scene does not match
     the container), and the attribute search's record (manifest ``options.attribute_search``:
     allocation, probes = the error-against-bits curve of Purnomo et al. 2005, Fig. 11) or None."""
-    from ..tune.attributes import ATTRIBUTES, COST_LEVEL, attribute_errors, vertex_bits
+    from ..lop.codecs import CODECS
+    from ..tune.attributes import COST_LEVEL, attribute_errors, vertex_bits
 
     m = container.manifest
     parts = []
     for i, part in enumerate(m["parts"]):
         lod = part["lods"][0]
         bits = part.get("attribute_bits") or lod.get("attribute_bits") or {}
+        # every codec of the first format, a newer one only where the part has it (as the attribute
+        # search's allocation record: ``lopcook.tune.attributes.Allocation.record``)
+        shown = {c.name: bits.get(c.name) for c in CODECS if c.format_major == 2 or bits.get(c.name) is not None}
         parts.append({"part": i, "name": part.get("name"), "vertices": int(lod["vertices"]),
-                      "bits": {a: bits[a] for a in ATTRIBUTES if a in bits}, "record_bits": lod.get("record_bits")})
+                      "bits": shown, "record_bits": lod.get("record_bits")})
     try:
         errors = attribute_errors(container, scene)
     except Exception:  # noqa: BLE001 -- a scene that is not the container's source: no attribute errors
@@ -314,5 +432,6 @@ def report_json_bytes(rep: dict) -> bytes:
 
 
 __all__ = ["FLOAT32_BYTES_PER_VERTEX", "VARIANT_KEYS", "IMAGE_KEYS", "analysis_warnings", "scene_parts",
-           "level_image_record", "depth_record", "lod_table",
+           "level_image_record", "depth_record", "lod_table", "fraction_text", "lod_name", "rename_notes",
+           "scene_lod_names", "extra_view_record", "lod_render_record", "images_section", "share_text",
            "uniform16_section", "build_report", "budget_section", "attributes_section", "report_json_bytes"]

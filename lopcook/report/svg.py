@@ -302,10 +302,22 @@ def heatmap_scale_svg(vmax: float, steps: int = 64) -> str:
             f'and above (white)</title>' + "".join(parts) + "</svg>")
 
 
+def _memory_percent(v) -> float | None:
+    """A calibration probe's CAP memory (% of float32) as one number: the record holds one value per
+    calibrated level (``lopcook.tune.calibrate.probe``), the chart plots the largest (the finest level's
+    buffers); an older record's single number is taken as it is."""
+    if isinstance(v, (list, tuple)):
+        vals = [float(x) for x in v if x is not None]
+        return max(vals) if vals else None
+    return None if v is None else float(v)
+
+
 def calibration_svg(cal: dict) -> str | None:
     """The k_f calibration curve of a ``--target-psnr`` container (``options.calibration``): CAP memory %
-    of float32 against PSNR min per k_f scale, the target as a dashed line; None without a curve."""
-    curve = [c for c in (cal or {}).get("curve") or [] if c.get("cap_percent") is not None]
+    of float32 (the largest over the calibrated levels, ``_memory_percent``) against PSNR min (over the
+    levels each probe rendered) per k_f scale, the target as a dashed line; None without a curve."""
+    curve = [dict(c, cap_percent=_memory_percent(c.get("cap_percent"))) for c in (cal or {}).get("curve") or []]
+    curve = [c for c in curve if c["cap_percent"] is not None]
     if not curve:
         return None
     curve = sorted(curve, key=lambda c: c["cap_percent"])
@@ -315,7 +327,8 @@ def calibration_svg(cal: dict) -> str | None:
     xs = [c["cap_percent"] for c in curve]
     xlo, xhi = max(0.0, min(xs) - 2), max(xs) + 2
     p = Plot(xlo, xhi, ylo, yhi)
-    p.axes("CAP memory, % of float32", "PSNR min, dB", ticks(xlo, xhi, 5), ticks(ylo, yhi) + [None])
+    p.axes("CAP memory, % of float32 (largest over the levels)", "PSNR min, dB", ticks(xlo, xhi, 5),
+           ticks(ylo, yhi) + [None])
     if cal.get("target_psnr") is not None and ylo <= cal["target_psnr"] <= yhi:
         Y = p.y(cal["target_psnr"])
         p.parts.append(f'<line x1="{p.l}" y1="{Y:.1f}" x2="{p.w - p.r}" y2="{Y:.1f}" stroke="#2ca02c" '
@@ -369,6 +382,17 @@ def attribute_search_svg(search: dict) -> str | None:
                  [("probes", "#1f77b4"), ("start (square)", "#d62728"), ("chosen (ring)", "#000")])
 
 
+def _budget_lod(b: dict, k: int) -> str:
+    """A budget candidate's LOD in the chart's legend: ``LOD 2 (1/4)``, the share of the fit chain's
+    LOD 0 triangles (``lopcook.report.model.fraction_text``), or ``LOD 2`` when not recorded."""
+    from .model import fraction_text
+
+    lods = {int(x["lod"]): x for x in b.get("lods") or []}
+    if k in lods and 0 in lods:
+        return f"LOD {k} ({fraction_text(int(lods[k]['triangles']), int(lods[0]['triangles']))})"
+    return f"LOD {k}"
+
+
 LOD_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
 
 
@@ -396,9 +420,10 @@ def budget_svg(b: dict) -> str:
     for i, k in enumerate(lods):
         colour = LOD_COLOURS[i % len(LOD_COLOURS)]
         series = sorted((c for c in cands if c["lod"] == k), key=lambda c: c["level"])
-        p.series([(c["bits_per_vertex"], c["psnr_mean"]) for c in series], colour, f"LOD {k}",
+        name = _budget_lod(b, k)
+        p.series([(c["bits_per_vertex"], c["psnr_mean"]) for c in series], colour, name,
                  [str(c["level"]) for c in series])
-        legend.append((f"LOD {k}", colour))
+        legend.append((name, colour))
     fit = {}
     for c in cands:
         if c["lod"] not in fit or c["level"] > fit[c["lod"]]["level"]:

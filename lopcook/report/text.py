@@ -20,6 +20,41 @@ def escape(s) -> str:
     return html.escape(str(s), quote=True)
 
 
+#: the page's terms, each explained where it first appears (an ``<abbr>`` title, ``term``) and in
+#: the "Terms" box under the verdict; the wording follows the README's glossary
+TERMS = {
+    "level": "bits per coordinate a vertex is drawn with, 1..24: level b is at most "
+             "sqrt(3) x extent x 2^-(b+1) metres off its source position",
+    "per-buffer level": "the level a renderer picks for a whole buffer from the camera distance: the fewest "
+                        "bits whose position error stays under half a pixel (Meyer et al. 2011, section 4)",
+    "minimum level": "the fewest bits a vertex may ever have (m_v): its shading error k_f x E_v x dx stays "
+                     "under eps, and its depth order against other parts is kept",
+    "AP": "adaptive precision: every vertex of a buffer at the per-buffer level. Smallest, but shading and "
+          "depth order can break at low levels",
+    "CAP": "constrained adaptive precision: each vertex at the larger of the per-buffer level and its minimum "
+           "level. What lopcook writes, and what the verdict judges",
+    "PSNR": "peak signal-to-noise ratio of a render against the float32 source's render, over object pixels, in "
+            "dB; higher is closer, inf = identical; 40 dB is the quality line",
+    "view": "one of 20 camera directions on an icosahedron around the object (Purnomo et al. 2005); the report "
+            "renders the views given by --views",
+    "LOD": "level of detail: a simplified copy of a part with fewer triangles, selected from the camera distance "
+           "where its error projects to at most the pixel error. Not a level",
+    "k_f": "the shader's slope: change of shaded colour per change of a shading attribute (Phong: specular "
+           "coefficient x exponent; a texture: its steepest slope); cook --target-psnr calibrates it",
+    "depth-order error": "a pixel where a different part shows than in the float render, away from part "
+                         "outlines: parts that swap places in depth",
+    "Hausdorff error": "the largest distance between a LOD's surface and LOD 0's, both ways, in metres",
+    "float32": "the source's positions as 32-bit floats, 12 bytes per vertex: the reference every render is "
+               "compared with",
+}
+
+
+def term(name: str, text: str | None = None) -> str:
+    """``text`` (default ``name``) as HTML with the term's explanation (``TERMS``) as its tooltip:
+    ``<abbr title="...">AP</abbr>``."""
+    return f'<abbr title="{escape(TERMS[name])}">{escape(text or name)}</abbr>'
+
+
 def plural(n: int, one: str, many: str | None = None) -> str:
     """``n`` with thousands separators and the noun in the right number: ``1 vertex``, ``3 vertices``."""
     return f"{n:,} {one if n == 1 else (many or one + 's')}"
@@ -79,4 +114,4 @@ def warning_groups(w: dict) -> list[dict]:
     return groups
 
 
-__all__ = ["fmt_pct", "fmt_psnr", "escape", "plural", "warning_groups"]
+__all__ = ["TERMS", "fmt_pct", "fmt_psnr", "escape", "term", "plural", "warning_groups"]

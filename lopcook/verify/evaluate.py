@@ -87,6 +87,14 @@ def parse_levels(levels, camera_levels, available: int, path) -> tuple[list[int]
     return lv, cl
 
 
+def levels_in_file(levels, available: int) -> list[int]:
+    """The default levels of a render check a file can give: those of ``levels`` (e.g.
+    ``DEFAULTS.render.levels``, 6..12) up to ``available`` (the file's highest level), or
+    ``[available]`` when it holds none of them (a file cut short, or fitted to a byte budget)."""
+    kept = [int(b) for b in levels if int(b) <= int(available)]
+    return kept or [int(available)]
+
+
 def summarise(per_view: list[dict], depth: list[dict], nbytes: int, f32: int) -> dict:
     """One variant's row entry (the keys documented in ``evaluate``) from its per-view
     ``metrics.image_metrics`` and ``metrics.depth_order_errors`` dicts, its position bytes
@@ -600,5 +608,5 @@ def evaluate_scene(test_scene, scene, *, levels=DEFAULT_LEVELS, views=VIEW_COUNT
         return harness_evaluate_scene(h, test_scene, levels=levels, views=views, **kw)
 
 
-__all__ = ["evaluate", "evaluate_scene", "harness_evaluate", "harness_evaluate_scene", "parse_levels",
+__all__ = ["evaluate", "evaluate_scene", "harness_evaluate", "harness_evaluate_scene", "parse_levels", "levels_in_file",
            "camera_rows", "render_rows", "summarise", "variant_key", "view_header"]
