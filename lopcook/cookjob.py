@@ -12,8 +12,8 @@ with the same flags.
 3. cooks (``lopcook.api.cook``) and reports the LOD chains' warnings;
 4. writes the container and the depfile atomically (``lopcook.atomic``).
 
-Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is a
-usage error (``LopcookError``, exit 2) and nothing is written. Returns ``(summary, result)``:
+Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is an
+error of the stage it arose in (``LopcookError``, exit 2) and nothing is written. Returns ``(summary, result)``:
 ``summary`` is the ``lopcook cook --json`` dict (``describe_container`` plus stage timings in
 seconds, warnings, touching and intersecting part pairs, the LOD reports, and the calibration,
 budget and attribute-search records when those ran); ``result`` is the container's ``CookResult``.
@@ -58,9 +58,9 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     ingest_s = time.perf_counter() - t0
     _check_outputs(outputs, tuple(scene.dependencies) + (source,), report)
     depfile = _depfile_text(outputs, source, scene)
-    report([f"{source}: {w}" for w in scene.warnings])
+    report([f"{source}: {w}" for w in scene.warnings], "ingest")
     container = api.cook(scene, settings, progress=progress)
-    report(chain_warnings(container.result.lod_reports))
+    report(chain_warnings(container.result.lod_reports), "simplify")
     t0 = time.perf_counter()
     container.write(outputs.output)
     if depfile is not None:
@@ -70,15 +70,17 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     return cook_summary(container, scene, ingest_s, write_s), container.result
 
 
-def _reporter(outputs: CookOutputs, warn) -> Callable[[list[str]], None]:
-    """``report(lines)``: nothing for no lines; under ``strict`` the first line as a usage error
-    (with the count of the others); else ``warn(lines)``."""
-    def report(lines: list[str]) -> None:
+def _reporter(outputs: CookOutputs, warn) -> Callable[[list[str], str], None]:
+    """``report(lines, stage)``: nothing for no lines; under ``strict`` the first line as an error
+    of ``stage`` (``ingest``, ``simplify``, ``output``: where the warning arose, never "usage"),
+    with the count of the others; else ``warn(lines)``."""
+    def report(lines: list[str], stage: str) -> None:
         if not lines:
             return
         if outputs.strict:
             more = f" (and {len(lines) - 1} more warnings)" if len(lines) > 1 else ""
-            raise LopcookError("usage", None, f"--strict: {lines[0]}{more}")
+            raise LopcookError(stage, None, f"{lines[0]}{more}",
+                               hint="--strict treats every warning as an error; without it the cook warns and goes on")
         if warn is not None:
             warn(lines)
     return report
@@ -95,7 +97,7 @@ def _check_outputs(outputs: CookOutputs, inputs: tuple, report) -> None:
                      forbidden=SOURCE_EXTENSIONS + (".lop",), required=False)
     check_distinct(("-o", outputs.output), ("--depfile", outputs.depfile))
     if len(inputs) == 1 and not outputs.output.lower().endswith(".lop"):
-        report([f"{outputs.output}: a .lop container is written to a file not named .lop"])
+        report([f"{outputs.output}: a .lop container is written to a file not named .lop"], "output")
 
 
 def _depfile_text(outputs: CookOutputs, source: str, scene) -> str | None:
