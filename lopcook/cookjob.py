@@ -9,7 +9,9 @@ with the same flags.
    dependencies (textures, ``.mtl``, ``.bin``, referenced USD layers);
 2. ingests (``lopcook.api.load``), formats the depfile text (a path Make cannot hold is a usage
    error before anything is written), and reports the scene's warnings;
-3. cooks (``lopcook.api.cook``) and reports the LOD chains' warnings;
+3. cooks (``lopcook.api.cook``, given the container's final path: the manifest records where the
+   source lies relative to its folder, ``source.path``, read by ``decode``) and reports the LOD
+   chains' warnings;
 4. writes the container and the depfile atomically (``lopcook.atomic``).
 
 Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is an
@@ -44,7 +46,10 @@ class CookOutputs:
 
     output: str                 #: the container (``.lop``), written atomically
     depfile: str | None = None  #: a Make-style depfile listing every file read, or None
-    strict: bool = False        #: every warning is a usage error (exit 2); nothing is written
+    strict: bool = False        #: every warning is an error (exit 2); nothing is written
+    #: where the container ends up when ``output`` is a scratch file moved there afterwards (a
+    #: batch worker); the manifest's ``source.path`` is relative to its folder (default ``output``)
+    destination: str | None = None
 
 
 def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress: Progress = NONE,
@@ -59,7 +64,7 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     _check_outputs(outputs, tuple(scene.dependencies) + (source,), report)
     depfile = _depfile_text(outputs, source, scene)
     report([f"{source}: {w}" for w in scene.warnings], "ingest")
-    container = api.cook(scene, settings, progress=progress)
+    container = api.cook(scene, settings, progress=progress, output=outputs.destination or outputs.output)
     report(chain_warnings(container.result.lod_reports), "simplify")
     t0 = time.perf_counter()
     container.write(outputs.output)

@@ -265,8 +265,9 @@ def _add_decode_parser(sub) -> None:
                         "in manifest order, world metres: the layout runtime/c's lopdump writes, so that readers "
                         "compare byte for byte (docs/runtime-c.md)")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     _add_common(p)
 
 
@@ -278,8 +279,9 @@ def _add_web_parser(sub) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.gltf",
                    help=".gltf (+ .bin of its images) or .glb; it refers to the container by a relative URI")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     _add_common(p)
 
 
@@ -289,8 +291,9 @@ def _add_view_parser(sub) -> None:
                                     "materials (HUD, bandwidth throttle, level colours); Ctrl-C stops it")
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     p.add_argument("--port", type=int, default=0, metavar="N",
                    help="TCP port on 127.0.0.1, 1..65535 (default 0: any free port; the URL is printed)")
     _add_common(p)
