@@ -140,10 +140,20 @@ def _attribute_search(scene: Scene, settings: Settings, progress, watch=None):
     return res, search_record(res), chosen
 
 
-def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE) -> Container:
+def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NONE,
+         output: str | None = None) -> Container:
     """Cook ``scene`` into a container (module doc). ``progress``: stage reporting
-    (``lopcook.progress``). Deterministic: the same scene and settings give the same bytes.
-    numpy allocates without huge pages meanwhile (``lopcook.memory.small_pages``)."""
+    (``lopcook.progress``). ``output``: the path the container will be written to; the manifest
+    then records where the source lies relative to its folder (``source.path``, as ``lopcook
+    cook`` does; ``decode`` looks there), else it records no path. Deterministic: the same scene,
+    settings and relative layout give the same bytes. numpy allocates without huge pages
+    meanwhile (``lopcook.memory.small_pages``)."""
+    if output is not None:
+        from dataclasses import replace
+
+        from .emit.preview import recorded_source_path  # lazy: the decode helpers load the material readers
+
+        scene = replace(scene, recorded_path=recorded_source_path(scene.source, output))
     t = settings.tune
     with small_pages():
         if t.target_psnr is None and t.vertex_bits is None:

@@ -9,11 +9,13 @@ with the same flags.
    dependencies (textures, ``.mtl``, ``.bin``, referenced USD layers);
 2. ingests (``lopcook.api.load``), formats the depfile text (a path Make cannot hold is a usage
    error before anything is written), and reports the scene's warnings;
-3. cooks (``lopcook.api.cook``) and reports the LOD chains' warnings;
+3. cooks (``lopcook.api.cook``, given the container's final path: the manifest records where the
+   source lies relative to its folder, ``source.path``, read by ``decode``) and reports the LOD
+   chains' warnings;
 4. writes the container and the depfile atomically (``lopcook.atomic``).
 
-Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is a
-usage error (``LopcookError``, exit 2) and nothing is written. Returns ``(summary, result)``:
+Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is an
+error of the stage it arose in (``LopcookError``, exit 2) and nothing is written. Returns ``(summary, result)``:
 ``summary`` is the ``lopcook cook --json`` dict (``describe_container`` plus stage timings in
 seconds, warnings, touching and intersecting part pairs, the LOD reports, and the calibration,
 budget and attribute-search records when those ran); ``result`` is the container's ``CookResult``.
@@ -44,7 +46,10 @@ class CookOutputs:
 
     output: str                 #: the container (``.lop``), written atomically
     depfile: str | None = None  #: a Make-style depfile listing every file read, or None
-    strict: bool = False        #: every warning is a usage error (exit 2); nothing is written
+    strict: bool = False        #: every warning is an error (exit 2); nothing is written
+    #: where the container ends up when ``output`` is a scratch file moved there afterwards (a
+    #: batch worker); the manifest's ``source.path`` is relative to its folder (default ``output``)
+    destination: str | None = None
 
 
 def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress: Progress = NONE,
@@ -58,9 +63,9 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     ingest_s = time.perf_counter() - t0
     _check_outputs(outputs, tuple(scene.dependencies) + (source,), report)
     depfile = _depfile_text(outputs, source, scene)
-    report([f"{source}: {w}" for w in scene.warnings])
-    container = api.cook(scene, settings, progress=progress)
-    report(chain_warnings(container.result.lod_reports))
+    report([f"{source}: {w}" for w in scene.warnings], "ingest")
+    container = api.cook(scene, settings, progress=progress, output=outputs.destination or outputs.output)
+    report(chain_warnings(container.result.lod_reports), "simplify")
     t0 = time.perf_counter()
     container.write(outputs.output)
     if depfile is not None:
@@ -70,15 +75,17 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     return cook_summary(container, scene, ingest_s, write_s), container.result
 
 
-def _reporter(outputs: CookOutputs, warn) -> Callable[[list[str]], None]:
-    """``report(lines)``: nothing for no lines; under ``strict`` the first line as a usage error
-    (with the count of the others); else ``warn(lines)``."""
-    def report(lines: list[str]) -> None:
+def _reporter(outputs: CookOutputs, warn) -> Callable[[list[str], str], None]:
+    """``report(lines, stage)``: nothing for no lines; under ``strict`` the first line as an error
+    of ``stage`` (``ingest``, ``simplify``, ``output``: where the warning arose, never "usage"),
+    with the count of the others; else ``warn(lines)``."""
+    def report(lines: list[str], stage: str) -> None:
         if not lines:
             return
         if outputs.strict:
             more = f" (and {len(lines) - 1} more warnings)" if len(lines) > 1 else ""
-            raise LopcookError("usage", None, f"--strict: {lines[0]}{more}")
+            raise LopcookError(stage, None, f"{lines[0]}{more}",
+                               hint="--strict treats every warning as an error; without it the cook warns and goes on")
         if warn is not None:
             warn(lines)
     return report
@@ -95,7 +102,7 @@ def _check_outputs(outputs: CookOutputs, inputs: tuple, report) -> None:
                      forbidden=SOURCE_EXTENSIONS + (".lop",), required=False)
     check_distinct(("-o", outputs.output), ("--depfile", outputs.depfile))
     if len(inputs) == 1 and not outputs.output.lower().endswith(".lop"):
-        report([f"{outputs.output}: a .lop container is written to a file not named .lop"])
+        report([f"{outputs.output}: a .lop container is written to a file not named .lop"], "output")
 
 
 def _depfile_text(outputs: CookOutputs, source: str, scene) -> str | None:

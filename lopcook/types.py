@@ -223,6 +223,11 @@ class Scene:
         current directory (the source's directory joined with the reference, ``os.path.normpath``)
         when ``source`` is relative, absolute when it is absolute; an absolute reference stays
         absolute. Empty for a Scene not made by an importer.
+    recorded_path : str or None
+        The manifest's ``source.path``: where the source is, relative to the folder of the
+        container being written (``lopcook.emit.preview.recorded_source_path``), so that
+        ``decode`` finds it there. Set by ``lopcook.cook(..., output=PATH)`` (``lopcook cook``
+        and batch give it); None (``cook`` without ``output``): no ``source.path``.
     """
 
     parts: tuple[MeshPart, ...]
@@ -232,6 +237,7 @@ class Scene:
     up_axis: str = "Y"
     warnings: tuple[str, ...] = field(default_factory=tuple)
     dependencies: tuple[str, ...] = field(default_factory=tuple)
+    recorded_path: str | None = None
 
     @property
     def n_vertices(self) -> int:

@@ -41,13 +41,6 @@ class Golden:
     argv: tuple[str, ...]
     sha256: str | None
 
-    def argv_into(self, folder: Path) -> list[str]:
-        """The recorded command with its ``-o`` output redirected into ``folder``."""
-        argv = list(self.argv)
-        i = argv.index("-o")
-        argv[i + 1] = str(Path(folder) / argv[i + 1])
-        return argv
-
     @property
     def source(self) -> Path:
         """The source file the command cooks (the first argument after ``cook``)."""
@@ -82,15 +75,25 @@ def entries(text: str | None = None) -> list[Golden]:
 
 
 def cook(golden: Golden, folder: Path) -> Path:
-    """Run the recorded command (from the repository root) writing into ``folder``; the path."""
+    """Run the recorded command writing into ``folder``; the path. The cook runs in a mirror of
+    the repository's ``fixtures/`` (a symlink per file) under ``folder``, writing
+    ``fixtures/golden/NAME.lop`` there: the manifest records the source's path relative to the
+    container's folder (``../two_plates.glb``), so the pinned bytes are those of a cook into
+    ``fixtures/golden/`` itself, wherever ``folder`` is."""
     from lopcook.cli import main
 
-    folder.mkdir(parents=True, exist_ok=True)
-    with contextlib.chdir(REPO):
-        rc = main(golden.argv_into(folder) + ["-q"])
+    tree = Path(folder) / "tree"
+    (tree / "fixtures" / "golden").mkdir(parents=True, exist_ok=True)
+    for f in sorted((REPO / "fixtures").iterdir()):
+        if f.is_file() and not (tree / "fixtures" / f.name).exists():
+            (tree / "fixtures" / f.name).symlink_to(f)
+    argv = list(golden.argv)
+    argv[argv.index("-o") + 1] = f"fixtures/golden/{golden.name}"
+    with contextlib.chdir(tree):
+        rc = main(argv + ["-q"])
     if rc != 0:
         raise RuntimeError(f"lopcook {shlex.join(golden.argv)} exited {rc}")
-    return folder / golden.name
+    return tree / "fixtures" / "golden" / golden.name
 
 
 def render_sums(text: str, goldens: list[Golden]) -> str:
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{name}: differs from its pinned sha256")
             return 1 if changed else 0
         for g in fresh:
-            (GOLDEN / g.name).write_bytes((Path(tmp) / g.name).read_bytes())
+            (GOLDEN / g.name).write_bytes((Path(tmp) / "tree" / "fixtures" / "golden" / g.name).read_bytes())
     SUMS.write_text(render_sums(text, fresh))
     listed = {g.name for g in fresh}
     for stale in sorted(p.name for p in GOLDEN.glob("*.lop") if p.name not in listed):

@@ -30,7 +30,10 @@ def batch(*args, cwd=None):
 
 
 def cook_reference(src: Path, out: Path, *options) -> bytes:
-    """What one `lopcook cook SRC -o OUT [options]` writes."""
+    """What one `lopcook cook SRC -o OUT [options]` writes. The manifest records the source's path
+    relative to OUT's folder, so OUT lies as the batch's output does: in a folder beside the
+    batch's OUTDIR, at the same relative path."""
+    out.parent.mkdir(parents=True, exist_ok=True)
     assert cli.main(["cook", str(src), "-o", str(out), "-q", *options]) == 0
     return out.read_bytes()
 
@@ -237,7 +240,7 @@ def test_batch_equals_cook_and_is_incremental(tree, tmp_path):
     ref.mkdir()
     for rel, opts in (("props/cube.obj", ()), ("glossy.glb", ()), ("hero/plates.gltf", ("--lods", "1/2",
                       "--pixel-error", "1")), ("hero/sphere.usda", ("--lods", "1/2", "--pixel-error", "1"))):
-        want = cook_reference(root / rel, ref / (Path(rel).stem + ".lop"), *opts)
+        want = cook_reference(root / rel, ref / Path(rel).with_suffix(".lop"), *opts)
         assert Path(s[rel]["output"]).read_bytes() == want, rel
     assert s["hero/plates.gltf"]["output"] == str(out / "hero/plates.lop")
     assert not (out / ".lopcook-batch-tmp").exists()
@@ -258,7 +261,7 @@ def test_batch_equals_cook_and_is_incremental(tree, tmp_path):
     assert {k: a["status"] for k, a in s.items()} == {"props/cube.obj": "cooked", "hero/plates.gltf": "up-to-date",
                                                     "hero/sphere.usda": "up-to-date", "glossy.glb": "up-to-date"}
     assert Path(s["props/cube.obj"]["output"]).read_bytes() == cook_reference(root / "props/cube.obj",
-                                                                              ref / "cube2.lop")
+                                                                              ref / "props/cube.lop")
     # output missing -> re-cook; output altered -> re-cook; the config's options changed -> re-cook
     (out / "glossy.lop").unlink()
     with open(out / "hero/sphere.lop", "r+b") as fh:
@@ -269,8 +272,8 @@ def test_batch_equals_cook_and_is_incremental(tree, tmp_path):
     s = statuses(batch(root, "-o", out, "--config", cfg, "--json", "--jobs", "2"))
     assert {k: a["status"] for k, a in s.items()} == {"props/cube.obj": "up-to-date", "hero/plates.gltf": "cooked",
                                                     "hero/sphere.usda": "cooked", "glossy.glb": "cooked"}
-    assert (out / "glossy.lop").read_bytes() == cook_reference(root / "glossy.glb", ref / "g.lop")
-    assert (out / "hero/plates.lop").read_bytes() == cook_reference(root / "hero/plates.gltf", ref / "p.lop",
+    assert (out / "glossy.lop").read_bytes() == cook_reference(root / "glossy.glb", ref / "glossy.lop")
+    assert (out / "hero/plates.lop").read_bytes() == cook_reference(root / "hero/plates.gltf", ref / "hero/plates.lop",
                                                                     "--lods", "1/2", "--pixel-error", "2")
     # --force cooks everything again, to the same bytes
     before = {p: p.read_bytes() for p in out.rglob("*.lop")}
@@ -344,7 +347,7 @@ def test_a_worker_crash_fails_only_its_asset(tmp_path):
     assert proc.returncode == 2, proc.stderr
     s = statuses(proc)
     assert s["cube.glb"]["status"] == "cooked"
-    assert (out / "cube.lop").read_bytes() == cook_reference(root / "cube.glb", tmp_path / "ref.lop")
+    assert (out / "cube.lop").read_bytes() == cook_reference(root / "cube.glb", tmp_path / "ref" / "cube.lop")
     crash = s["grid.usdc"]
     assert crash["status"] == "failed" and not (out / "grid.lop").exists()
     # usd-core dies under the cap: in lopcook's forked USD reader (a clean ingest error) or, where
@@ -357,7 +360,7 @@ def test_a_worker_crash_fails_only_its_asset(tmp_path):
     # with room to work the same asset cooks, to what lopcook cook writes
     proc = batch(root, "-o", out, "--worker-memory", "4GB", "--json")
     assert proc.returncode == 0 and statuses(proc)["grid.usdc"]["status"] == "cooked"
-    assert (out / "grid.lop").read_bytes() == cook_reference(root / "grid.usdc", tmp_path / "grid.lop")
+    assert (out / "grid.lop").read_bytes() == cook_reference(root / "grid.usdc", tmp_path / "ref" / "grid.lop")
     assert not (out / ".lopcook-batch-tmp").exists()
 
 

@@ -34,7 +34,8 @@ def test_a_warning_is_reported_and_strict_refuses_it(tmp_path):
     warned = []
     cook_file(src, DEFAULTS, CookOutputs(str(tmp_path / "out.x")), warn=warned.append)
     assert warned == [[f"{tmp_path / 'out.x'}: a .lop container is written to a file not named .lop"]]
-    with pytest.raises(LopcookError, match="--strict: .* not named .lop") as exc:
+    with pytest.raises(LopcookError, match="not named .lop .*--strict treats every warning as an error") as exc:
         cook_file(src, DEFAULTS, CookOutputs(str(tmp_path / "strict.x"), str(tmp_path / "strict.d"), strict=True))
     assert exc.value.exit_code == 2
+    assert exc.value.stage == "output" and not str(exc.value).startswith("usage")  # a warning, not a usage error
     assert not (tmp_path / "strict.x").exists() and not (tmp_path / "strict.d").exists()

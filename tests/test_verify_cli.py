@@ -131,13 +131,25 @@ def test_cook_target_psnr_records_the_calibration(tmp_path, capsys):
 
 def test_cook_unreachable_target_fails_without_output(tmp_path, capsys):
     out = tmp_path / "never.lop"
-    # --no-edges: with the edge constraint searched, 24-bit rims render the plates exactly (PSNR inf)
-    rc = main(["cook", PLATES, "-o", str(out), "--target-psnr", "200", "--calibration-views", "1",
+    # --no-edges: with the edge constraint searched, 24-bit rims render the plates exactly (PSNR inf);
+    # 89 dB is under the 90.0 dB one colour code off in one pixel of 96x54 shows, so it is searched
+    rc = main(["cook", PLATES, "-o", str(out), "--target-psnr", "89", "--calibration-views", "1",
                "--calibration-resolution", "96x54", "--calibration-levels", "6", "--no-edges",
                "--no-calibration-confirm"])
     assert rc == 1
     assert not out.exists()
-    assert "200" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "89 dB" in err and "turn on --edges" in err  # off here: the hint says so
+
+
+def test_a_missed_target_does_not_suggest_the_edges_when_they_were_searched(tmp_path, capsys):
+    out = tmp_path / "never.lop"
+    rc = main(["cook", str(FIXTURES / "unit_sphere.glb"), "-o", str(out), "--target-psnr", "89",
+               "--calibration-views", "1", "--calibration-resolution", "96x54", "--calibration-levels", "6",
+               "--no-calibration-confirm"])
+    assert rc == 1 and not out.exists()
+    err = capsys.readouterr().err
+    assert "no k_f and edge_eps reaches 89 dB" in err and "--edges" not in err
 
 
 def test_calibrate_command(capsys):

@@ -52,7 +52,7 @@ def _cook_in_child(task: dict) -> dict:
     try:
         with small_pages():
             info, _ = cook_file(task["source"], settings_from_args(args),
-                                CookOutputs(tmp_out, tmp_d, strict=bool(args.strict)))
+                                CookOutputs(tmp_out, tmp_d, strict=bool(args.strict), destination=task["output"]))
     except LopcookError as exc:
         return {"status": "failed", "exit_code": exc.exit_code, "error": str(exc)}
     except MemoryError:  # over the memory cap: child_main words it

@@ -41,7 +41,7 @@ import shlex
 import tomllib
 from dataclasses import dataclass, field
 
-from ..cli.parser import build_parser
+from ..cli.parser import UsageExit, build_parser
 from ..errors import LopcookError
 
 #: Namespace entries of ``lopcook cook`` that are not cook options (the batch sets or ignores them)
@@ -180,25 +180,26 @@ def load_config(path: str | os.PathLike | None) -> BatchConfig:
 
 def _parse_cook(options) -> dict:
     """``lopcook cook``'s parser over ``options`` -> the Namespace as a dict; ``ValueError`` with
-    argparse's message when they do not parse."""
-    err = io.StringIO()
+    argparse's message alone (``unrecognized arguments: --lodz 1/2``) when they do not parse."""
     try:
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):  # --help prints
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):  # --help prints
             ns = build_parser().parse_args(["cook", _SENTINEL_SOURCE, "-o", _SENTINEL_OUTPUT, *options])
-    except SystemExit:
-        lines = [ln for ln in err.getvalue().strip().splitlines() if ln.strip()]
-        msg = lines[-1] if lines else "invalid options"
-        msg = re.sub(r"^lopcook cook: error: ", "", msg)
-        raise ValueError(msg) from None
+    except UsageExit as exc:
+        raise ValueError(exc.message) from None
+    except SystemExit:  # --help or --version among the options
+        raise ValueError("--help and --version are not cook options") from None
     return vars(ns)
 
 
 def check_options(options, where: str) -> None:
-    """Raise ``LopcookError`` (usage) unless ``options`` are valid ``lopcook cook`` flags a batch may pass."""
+    """Raise ``LopcookError`` (usage) unless ``options`` are valid ``lopcook cook`` flags a batch may
+    pass; the message quotes the options once (argparse's own text may already show them)."""
     try:
         ns = _parse_cook(options)
     except ValueError as exc:
-        raise LopcookError("usage", None, f"{where}: {' '.join(options)}: {exc}") from None
+        shown = " ".join(options)
+        text = str(exc) if shown in str(exc) else f"{shown}: {exc}"
+        raise LopcookError("usage", None, f"{where}: {text}", hint="see lopcook cook --help") from None
     if ns["source"] != _SENTINEL_SOURCE or ns["output"] != _SENTINEL_OUTPUT or ns.get("depfile") is not None \
             or ns.get("json"):
         raise LopcookError("usage", None, f"{where}: {' '.join(options)}: the batch sets the source, -o, --depfile "

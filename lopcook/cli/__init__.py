@@ -3,25 +3,37 @@
 ``main(argv)`` parses the flags (``lopcook.cli.parser``), runs one command (``lopcook.cli.commands``;
 ``batch``: ``lopcook.batch.command``) and maps errors to exit codes: 0 ok, 1 verification failed,
 2 bad input or usage (one line on stderr, no traceback unless ``--debug``), 3 internal error (a
-bug: please report it with the ``--debug`` output), 130 interrupted.
+bug: please report it with the ``--debug`` output), 130 interrupted. With ``--json`` a failing run
+also prints ``{"error": {"exit_code": N, "message": "..."}}`` on stdout (docs/cli.md).
 """
 
 from __future__ import annotations
 
+import json
 import sys
 
-from ..errors import EXIT_INTERNAL, EXIT_OK, LopcookError, internal_error
+from ..errors import EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_OK, LopcookError, internal_error, one_line
 from ..memory import small_pages
-from .parser import build_parser
+from .parser import UsageExit, build_parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``lopcook`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    """Run ``lopcook`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code (a usage
+    error of the parser raises ``SystemExit(2)``, as argparse does). With ``--json``, a failing
+    run also prints one JSON object on stdout: ``{"error": {"exit_code": N, "message": "..."}}``,
+    the message being the stderr line without its ``lopcook: error:`` prefix."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
-    args, extra = parser.parse_known_args(argv)
-    if extra:  # an unknown flag after a command: that command's usage, not the top level's
-        sub = parser._subparsers._group_actions[0].choices[args.command]
-        sub.error(f"unrecognized arguments: {' '.join(extra)}")
+    try:
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # an unknown flag after a command: that command's usage, not the top level's
+            sub = parser._subparsers._group_actions[0].choices[args.command]
+            sub.error(f"unrecognized arguments: {' '.join(extra)}")
+    except UsageExit as exc:
+        if _json_asked(argv):
+            _print_error(EXIT_BAD_INPUT, f"usage: {exc.message} (see {exc.prog} --help)")
+        raise
+    as_json = bool(getattr(args, "json", False))
     try:
         with small_pages():
             return _command(args.command)(args)
@@ -29,17 +41,34 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(f"lopcook: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        return _print_error(exc.exit_code, str(exc)) if as_json else exc.exit_code
     except KeyboardInterrupt:
         print("lopcook: interrupted", file=sys.stderr)
-        return 130
+        return _print_error(EXIT_INTERRUPTED, "interrupted") if as_json else EXIT_INTERRUPTED
     except BrokenPipeError:
         return EXIT_OK
     except Exception as exc:  # a bug, not bad input
         if args.debug:
             raise
         print(f"lopcook: {internal_error(exc)}", file=sys.stderr)
-        return EXIT_INTERNAL
+        return _print_error(EXIT_INTERNAL, internal_error(exc)) if as_json else EXIT_INTERNAL
+
+
+#: exit status of a run stopped by Ctrl-C (128 + SIGINT)
+EXIT_INTERRUPTED = 130
+
+
+def _json_asked(argv: list[str]) -> bool:
+    """Whether ``--json`` is among ``argv`` (before a ``--``): how a run whose flags did not
+    parse knows that it was asked for JSON."""
+    return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)
+
+
+def _print_error(exit_code: int, message: str) -> int:
+    """``--json``'s error object on stdout (one line); returns ``exit_code``."""
+    print(json.dumps({"error": {"exit_code": int(exit_code), "message": one_line(message)}}, sort_keys=True),
+          flush=True)
+    return exit_code
 
 
 def _command(name: str):

@@ -24,7 +24,7 @@ from ..bench.run import run as run_bench
 from ..cookjob import CookOutputs, cook_file
 from ..lop.container import read
 from ..emit.gltf_writer import write_gltf
-from ..emit.preview import preview, source_candidate
+from ..emit.preview import preview, source_candidates
 from ..emit.web import write_web_gltf
 from ..atomic import write_atomic
 from ..lop.reader import decode_positions, lod_attributes, positions_f32, world_attributes
@@ -161,7 +161,7 @@ def cmd_decode(args) -> int:
     c = read(args.container, allow_prefix=True)  # a prefix decodes at the levels it holds (format.md 8)
     if args.output is None:
         return _decode_positions(args, c)
-    source_in = (source_candidate(args.container, c.manifest, args.source),)  # materials are read from it
+    source_in = tuple(source_candidates(args.container, c.manifest, args.source))  # materials are read from them
     check_not_input(args.output, "-o", source_in)
     if args.output.lower().endswith(".gltf"):
         check_not_input(str(Path(args.output).with_suffix(".bin")), "-o's .bin", source_in)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
+import sys
 from dataclasses import replace
 
 from ..errors import LopcookError
@@ -23,6 +25,7 @@ from ..settings import (CLUSTER_SIZE_RANGE, DEFAULTS, AnalyseSettings, Attribute
                         EmitSettings, IngestSettings, LodBackend, PsnrStat, RenderSettings, SearchKnobs, SeamMode,
                         Settings, SimplifySettings, TuneSettings, budget_target, parse_lods, parse_resolution)
 from ..verify.decoders import parse_levels
+from ..verify.metrics import max_finite_psnr
 from ..version import __version__
 from ..viewing import Viewing
 
@@ -68,13 +71,72 @@ class _FormatsAction(argparse.Action):
         parser.exit(0)
 
 
+class UsageExit(SystemExit):
+    """A usage error of the argument parser: exit status 2, after its one line went to stderr.
+    ``message`` is argparse's text alone (``unrecognized arguments: --lodz 1/2``) and ``prog`` the
+    parser that raised it (``lopcook cook``), so that ``lopcook.cli.main`` can print it as JSON
+    and ``lopcook.batch`` quote it once."""
+
+    def __init__(self, prog: str, message: str) -> None:
+        super().__init__(2)
+        self.prog = prog
+        self.message = message
+
+
+#: a value that starts like a negative number: ``-1.2,0.3,4``, ``-.5``, ``-0.5m``, ``-1e-3``
+_NEGATIVE_VALUE = re.compile(r"-\.?[0-9]")
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (exit 2), like lopcook's own errors:
     ``lopcook cook: error: the following arguments are required: -o (see lopcook cook --help)``.
-    Subcommand parsers are made of this class too."""
+    Subcommand parsers are made of this class too.
+
+    A flag that takes one value also takes one that starts with ``-`` and a digit (``refine
+    --camera -1.2,0.3,4``, ``--nearest -0.5m``, ``--eps -1e-3``): argparse alone reads such a
+    token as an unknown option and reports "expected one argument" (it knows only plain
+    negative numbers such as ``-1`` or ``-0.5``). ``parse_known_args`` joins the two tokens into
+    ``--flag=VALUE`` first, so the flag's own check judges the value."""
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        raise UsageExit(self.prog, message)
+
+    def parse_known_args(self, args=None, namespace=None):
+        args = sys.argv[1:] if args is None else list(args)
+        return super().parse_known_args(self._join_negative_values(args), namespace)
+
+    def _join_negative_values(self, args: list[str]) -> list[str]:
+        """``[..., "--camera", "-1,2,3", ...]`` -> ``[..., "--camera=-1,2,3", ...]`` for this
+        parser's flags that take exactly one value; tokens after ``--`` are left alone."""
+        out: list[str] = []
+        i = 0
+        while i < len(args):
+            token = args[i]
+            if token == "--":
+                return out + args[i:]
+            action = self._one_value_flag(token)
+            if action is not None and i + 1 < len(args) and _NEGATIVE_VALUE.match(args[i + 1]):
+                out.append(f"{token}={args[i + 1]}")
+                i += 2
+                continue
+            out.append(token)
+            i += 1
+        return out
+
+    def _one_value_flag(self, token: str):
+        """The action of ``token`` when it is a long flag of this parser (or an unambiguous
+        abbreviation of one) that takes exactly one value; else None."""
+        if not token.startswith("--") or "=" in token:
+            return None
+        actions = self._option_string_actions
+        action = actions.get(token)
+        if action is None and self.allow_abbrev:
+            found = {actions[s] for s in actions if s.startswith(token)}
+            action = found.pop() if len(found) == 1 else None
+        if action is None or action.nargs is not None:  # nargs None: exactly one value
+            return None
+        return action
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -206,8 +268,9 @@ def _add_decode_parser(sub) -> None:
                         "in manifest order, world metres: the layout runtime/c's lopdump writes, so that readers "
                         "compare byte for byte (docs/runtime-c.md)")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     _add_common(p)
 
 
@@ -219,8 +282,9 @@ def _add_web_parser(sub) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.gltf",
                    help=".gltf (+ .bin of its images) or .glb; it refers to the container by a relative URI")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     _add_common(p)
 
 
@@ -230,8 +294,9 @@ def _add_view_parser(sub) -> None:
                                     "materials (HUD, bandwidth throttle, level colours); Ctrl-C stops it")
     p.add_argument("container", metavar="CONTAINER.lop", help="a .lop container")
     p.add_argument("--source", metavar="SRC", default=None,
-                   help="source asset to take materials and textures from (default: the manifest's source file "
-                        "beside the container; used only when its sha256 matches)")
+                   help="source asset to take materials and textures from (default: where the cook recorded it, "
+                        "relative to the container, then the manifest's source file beside the container; used "
+                        "only when its sha256 matches)")
     p.add_argument("--port", type=int, default=0, metavar="N",
                    help="TCP port on 127.0.0.1, 1..65535 (default 0: any free port; the URL is printed)")
     _add_common(p)
@@ -649,6 +714,9 @@ def tune_settings(args):
     calibration = RenderSettings(views=check_views(views, f"{prefix}views"),
                                  resolution=parse_resolution(res, f"{prefix}resolution"), levels=tuple(parse_levels(lv)))
     direct = all(v is None for v in given)  # no reduced harness asked for: search on the gate's
+    if args.target_psnr is not None:
+        _check_reachable(args, [RenderSettings()] if direct else
+                         [calibration] + ([RenderSettings()] if args.calibration_confirm else []))
     kw = {}
     if getattr(args, "target_bytes", None) is not None:
         budget_target(args.target_bytes)
@@ -673,6 +741,20 @@ def tune_settings(args):
                             direct=direct, **kw)
     except ValueError as exc:
         raise LopcookError("usage", None, str(exc)) from None
+
+
+def _check_reachable(args, harnesses) -> None:
+    """``--target-psnr`` above what every harness it must pass can show short of identical renders
+    (``lopcook.verify.metrics.max_finite_psnr``; 8-bit images): usage error before any work."""
+    mean = PsnrStat(args.psnr_stat) == PsnrStat.MEAN
+    caps = [(max_finite_psnr(*h.resolution, h.views if mean else 1), h) for h in harnesses]
+    cap, h = min(caps, key=lambda c: c[0])
+    if args.target_psnr > cap:
+        where = f"one of {h.views} views of {h.resolution_text}" if mean else h.resolution_text
+        raise LopcookError("usage", None, f"--target-psnr {args.target_psnr:g}: no render can show it: one 8-bit colour "
+                           f"code off in one pixel of {where} is already {cap:.1f} dB "
+                           f"(--psnr-stat {args.psnr_stat}), and only a render identical to the float32 one scores more",
+                           hint=f"give a target of at most {math.floor(cap)} dB; 40 to 50 dB is usual")
 
 
 def settings_from_args(args):
@@ -721,5 +803,5 @@ def _cluster_settings(args):
     return EmitSettings(clusters=n, cluster_all=every)
 
 
-__all__ = ["build_parser", "settings_from_args", "ingest_settings", "source_ingest_settings", "analyse_settings", "check_views", "parse_xyz",
+__all__ = ["UsageExit", "build_parser", "settings_from_args", "ingest_settings", "source_ingest_settings", "analyse_settings", "check_views", "parse_xyz",
            "levels_text"]

@@ -259,12 +259,14 @@ def assemble(scene, grid, parts: list[list[EncodedBuffer]], *, max_level: int, o
         sections.append((name, planes[p] if planes and p in planes else plane_payload(flat, p)))
         plane_names[str(p)] = name
     total_vertices = int(hist.sum())
+    source = {"file": os.path.basename(scene.source), "format": scene.format, "sha256": _sha256_file(scene.source),
+              "unit_scale_m": float(scene.unit_scale), "up_axis": scene.up_axis}
+    if scene.recorded_path is not None:  # a cook that knows where the container goes (lopcook.cookjob)
+        source["path"] = scene.recorded_path
     manifest = {
         "format": FORMAT,
         "generator": f"lopcook {__version__}",
-        "source": {"file": os.path.basename(scene.source), "format": scene.format,
-                   "sha256": _sha256_file(scene.source), "unit_scale_m": float(scene.unit_scale),
-                   "up_axis": scene.up_axis},
+        "source": source,
         "options": options or {},
         "grid": {"origin": [float(v) for v in grid.origin], "extent": float(grid.extent), "bits": LEVELS},
         "viewing": viewing.as_dict(),

@@ -5,9 +5,11 @@ glTF viewer, ``decode`` reads the materials again from the *source* asset, witho
 container:
 
 * ``find_source(container_path, manifest, given)``: the source file to read. ``given`` (``decode
-  --source``) or, by default, the manifest's ``source.file`` looked up beside the container. It is
-  used only when its sha256 equals the manifest's ``source.sha256``; otherwise the preview is
-  geometry only and the reason is one line (``None, reason``).
+  --source``) or, by default, where the cook recorded it (the manifest's ``source.path``,
+  relative to the container's folder), then the manifest's ``source.file`` beside the container.
+  It is used only when its sha256 equals the manifest's ``source.sha256``; otherwise the preview
+  is geometry only and the reason is one line (``None, reason``). ``recorded_source_path`` is
+  the rule ``source.path`` is written by.
 * ``source_materials(path, fmt, parts, ...)``: one glTF 2.0 core material per manifest part (or
   None: the default material), with the textures, samplers and images it uses, as
   ``lopcook.emit.gltf_writer.write_gltf(materials=...)`` takes them. The source format's own
@@ -55,50 +57,98 @@ def _sha256(path: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def source_candidate(container_path: str, manifest: dict, given: str | None) -> str | None:
-    """The path ``find_source`` looks at (whether or not it exists): ``given``, else the
-    manifest's ``source.file`` beside the container; None when there is neither. ``decode``
-    refuses an output there (it never overwrites what it reads)."""
-    if given is not None:
-        return given
+def recorded_source_path(source: str, container: str) -> str:
+    """The manifest's ``source.path`` for a cook of ``source`` into ``container`` (both as given):
+    the source relative to the container's folder, ``/``-separated (``../assets/x.gltf`` for
+    ``assets/x.gltf`` cooked into ``build/x.lop``). Both are made absolute against the current
+    directory and compared as text (``os.path.relpath``: ``..`` is not resolved through
+    symlinks), so the same relative layout gives the same bytes wherever it lies. Only where no
+    relative path exists (Windows: another drive) is the absolute path recorded, ``/``-separated."""
+    src = os.path.abspath(source)
+    try:
+        rel = os.path.relpath(src, os.path.dirname(os.path.abspath(container)))
+    except ValueError:  # another drive: no relative path leads there
+        rel = src
+    return rel.replace(os.sep, "/")
+
+
+def _recorded(container_path: str, manifest: dict) -> str | None:
+    """Where the manifest's ``source.path`` points, joined to the container's folder (an absolute
+    record as it is); None when absent or not a usable path."""
+    src = manifest.get("source") if isinstance(manifest.get("source"), dict) else {}
+    rec = src.get("path")
+    if not isinstance(rec, str) or not rec or "\0" in rec:
+        return None
+    return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(container_path)), rec))
+
+
+def _beside(container_path: str, manifest: dict) -> str | None:
+    """The manifest's ``source.file`` beside the container; None when it names none."""
     src = manifest.get("source") if isinstance(manifest.get("source"), dict) else {}
     name = src.get("file")
-    if not isinstance(name, str) or not name:
+    if not isinstance(name, str) or not name or "\0" in name:
         return None
     return os.path.join(os.path.dirname(os.path.abspath(container_path)), os.path.basename(name))
+
+
+def source_candidates(container_path: str, manifest: dict, given: str | None) -> list[str]:
+    """The paths ``find_source`` looks at, in its order (whether or not they exist): ``given``
+    alone; else where the cook recorded the source (``source.path``), then ``source.file``
+    beside the container. ``decode`` refuses an output at any of them (it never overwrites what
+    it may read)."""
+    if given is not None:
+        return [given]
+    found = [p for p in (_recorded(container_path, manifest), _beside(container_path, manifest)) if p is not None]
+    return list(dict.fromkeys(found))
+
+
+def _check(path: str, want, flag: str) -> str | None:
+    """None when ``path`` is a regular file whose sha256 is ``want``; else why not (one line)."""
+    if not os.path.exists(path):
+        return f"{flag} {path}: not found"
+    if not os.path.isfile(path):
+        return f"{flag} {path}: not a regular file"
+    if not isinstance(want, str):
+        return f"the container records no source sha256, so {path} cannot be checked"
+    try:
+        have = _sha256(path)
+    except OSError as exc:
+        return f"{flag} {path}: unreadable ({exc.strerror})"
+    if have != want:
+        return f"{flag} {path} is not the source this container was cooked from (sha256 differs)"
+    return None
 
 
 def find_source(container_path: str, manifest: dict, given: str | None) -> tuple[str | None, str | None]:
     """``(path, None)`` when the source can give the preview its materials, else ``(None, reason)``.
 
-    ``given`` (``decode --source``) or ``<container dir>/<source.file>``; used only when it is a
-    regular file whose sha256 equals ``manifest["source"]["sha256"]``. ``reason`` is one line.
+    ``given`` (``decode --source``) alone when given: an explicit source is never replaced by
+    another. Otherwise the first of ``source_candidates`` that is a regular file whose sha256
+    equals ``manifest["source"]["sha256"]``: where the cook recorded it (``source.path``,
+    relative to the container's folder), then ``source.file`` beside the container. ``reason``
+    is one line naming what was looked at.
     """
     src = manifest.get("source") if isinstance(manifest.get("source"), dict) else {}
     want = src.get("sha256")
-    if given is None:
-        name = src.get("file")
-        if not isinstance(name, str) or not name:
-            return None, "the container names no source file (pass --source SRC)"
-        path = os.path.join(os.path.dirname(os.path.abspath(container_path)), os.path.basename(name))
-        if not os.path.exists(path):
-            return None, f"source {os.path.basename(name)!r} not found beside {container_path} (pass --source SRC)"
-        flag = "source"
-    else:
-        path, flag = given, "--source"
-        if not os.path.exists(path):
-            return None, f"--source {given}: not found"
-    if not os.path.isfile(path):
-        return None, f"{flag} {path}: not a regular file"
-    if not isinstance(want, str):
-        return None, f"the container records no source sha256, so {path} cannot be checked"
-    try:
-        have = _sha256(path)
-    except OSError as exc:
-        return None, f"{flag} {path}: unreadable ({exc.strerror})"
-    if have != want:
-        return None, f"{flag} {path} is not the source this container was cooked from (sha256 differs)"
-    return path, None
+    if given is not None:
+        reason = _check(given, want, "--source")
+        return (given, None) if reason is None else (None, reason)
+    recorded, beside = _recorded(container_path, manifest), _beside(container_path, manifest)
+    if recorded is None and beside is None:
+        return None, "the container names no source file (pass --source SRC)"
+    looked = []
+    for path, flag in ((recorded, "source (where the cook recorded it)"), (beside, "source")):
+        if path is None or path in (p for p, _ in looked):
+            continue
+        reason = _check(path, want, flag)
+        if reason is None:
+            return path, None
+        looked.append((path, reason))
+    if all(not os.path.exists(p) for p, _ in looked):
+        name = os.path.basename(beside or recorded)
+        also = "" if recorded in (None, beside) else f", nor at {src['path']!r} where the cook recorded it"
+        return None, f"source {name!r} not found beside {container_path}{also} (pass --source SRC)"
+    return None, "; ".join(r for p, r in looked if os.path.exists(p)) + " (pass --source SRC)"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -340,5 +390,5 @@ def preview(c, container_path: str, meshes: list[dict], lods: list[int], source:
             "source": path, **stats}
 
 
-__all__ = ["source_candidate", "find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview",
+__all__ = ["recorded_source_path", "source_candidates", "find_source", "source_materials", "instance_nodes", "fit_trs", "tangents", "preview",
            "INSTANCE_TOL_STEPS"]

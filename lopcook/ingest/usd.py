@@ -498,6 +498,7 @@ class _Loader:
             self.fail(f"PointInstancer {where}: cannot compute instance transforms: "
                       f"{_one_line(_tf_text(exc), self.path)}")
         xforms = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4)
+        self._refuse_nonfinite_instances(pi, where, xforms)
         if xforms.shape[0] != proto_indices.size:
             self.fail(f"PointInstancer {where}: {xforms.shape[0]} instance transforms for "
                       f"{proto_indices.size} protoIndices (positions/orientations/scales lengths differ?)",
@@ -536,6 +537,31 @@ class _Loader:
                 self.walk(proto, pred, purpose, sub)
             finally:
                 self.active_instancers.discard(where)
+
+    def _refuse_nonfinite_instances(self, pi, where: str, xforms: np.ndarray) -> None:
+        """Refuse (one ``LopcookError``) a PointInstancer whose instance transforms (``xforms``,
+        (n, 4, 4)) hold NaN or Inf, naming the first such instance and the per-instance array
+        that holds it: no placement can be made of it, and dropping the instance silently (it
+        would look like a zero scale) hides the defect."""
+        bad = ~np.isfinite(xforms).all(axis=(1, 2))
+        if not bad.any():
+            return
+        k = int(np.argmax(bad))
+        for name in ("positions", "orientations", "orientationsf", "scales", "velocities", "angularVelocities"):
+            getter = getattr(pi, f"Get{name[0].upper()}{name[1:]}Attr", None)
+            value = self.get(getter()) if getter is not None else None
+            if value is None or len(value) == 0:
+                continue
+            arr = np.asarray(value, dtype=np.float64).reshape(len(value), -1)
+            rows = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+            if rows.size:
+                k = int(rows[0])
+                what = "NaN" if np.isnan(arr[k]).any() else "Inf"
+                self.fail(f"PointInstancer {where}: {name}[{k}] is {what} {_one_line(str(value[k]), self.path)}; "
+                          f"{int(rows.size)} of {len(value)} instances are not finite",
+                          hint="fix or remove those instances in the authoring tool")
+        self.fail(f"PointInstancer {where}: the transform of instance {k} is NaN or Inf",
+                  hint="fix the instancer's positions, orientations and scales in the authoring tool")
 
     # ------------------------------------------------------------------ mesh data
     def read_mesh(self, prim, key: str) -> _LocalMesh | None:
@@ -792,6 +818,9 @@ class _Loader:
         names = unique_names([n for n, _, _, _ in self.parts])
         parts: list[MeshPart] = []
         for name, (_, source, local, m) in zip(names, self.parts):
+            if not np.isfinite(m).all():  # a NaN or Inf xformOp: no placement can be made of it
+                self.fail(f"{source}: its world transform holds NaN or Inf (an xformOp of it or of an ancestor)",
+                          hint="fix the transform in the authoring tool")
             det = float(np.linalg.det(m[:3, :3]))
             if det == 0.0 or not np.isfinite(det):  # as the glTF reader: nothing to draw, no grid to stretch
                 self.warnings.append(f"{source}: world transform is singular (zero scale); its mesh is skipped")

@@ -33,6 +33,8 @@ section (``lopcook.lop.encoding``) is decoded as soon as it is complete.
 from __future__ import annotations
 
 import json
+import os
+import stat
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -434,13 +436,49 @@ def _available_level(c: Container) -> int:
     return int(min(c.stage_levels))
 
 
+#: the largest file ``read`` takes, bytes (16 GiB): about twice the largest container of a scene
+#: at ingest's limits (``types.MAX_TRIANGLES`` = 50M triangles of unshared vertices, every position
+#: plane, a 129-bit attribute record and 4-byte indices: 4.4 GB, a full LOD chain at most doubling
+#: it); a larger file is refused before any of it is read, as sources over their limits are
+MAX_FILE_BYTES = 1 << 34
+
+
 def read(path: str, *, allow_prefix: bool = False) -> Container:
-    """Read and check a .lop file (see from_bytes)."""
+    """Read and check a .lop file (see from_bytes). Like a source (``ingest.sniff``), it must be a
+    regular file of at most ``MAX_FILE_BYTES``: a FIFO, a device (``/dev/zero``) or a socket, also
+    through a symlink, is refused without a byte read from it (opened non-blocking, so a FIFO
+    with no writer cannot hang the read). A file whose header shows it is no container (too short,
+    bad magic, header CRC) is refused on those 32 bytes, with the class the whole file would get;
+    any other is read once, up to the size it had when opened (a file that grows meanwhile
+    cannot grow the read)."""
     try:
-        with open(path, "rb") as fh:
-            data = fh.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
         raise LopcookError("container", path, "file not found", hint="check the path") from None
     except IsADirectoryError:
         raise LopcookError("container", path, "is a directory, not a .lop file") from None
+    except OSError as exc:
+        raise LopcookError("container", path, f"cannot be read ({exc.strerror or 'error'})",
+                           hint="check the path and permissions") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if stat.S_ISDIR(st.st_mode):
+            raise LopcookError("container", path, "is a directory, not a .lop file")
+        if not stat.S_ISREG(st.st_mode):
+            raise LopcookError("container", path, "is not a regular file (a device, FIFO or socket)",
+                               hint="give the path of a .lop file on disk")
+        if st.st_size > MAX_FILE_BYTES:
+            raise LopcookError("container", path, f"file is {st.st_size:,} bytes, more than the {MAX_FILE_BYTES:,} "
+                               "a container may have", hint="the file is not a lopcook container, or is corrupt")
+        try:
+            head = fh.read(HEADER_SIZE)
+            if len(head) < HEADER_SIZE or head[:4] != MAGIC or zlib.crc32(head[:28]) != struct.unpack_from(
+                    "<I", head, 28)[0]:
+                return from_bytes(head, path, allow_prefix=allow_prefix)  # refused on these bytes alone
+            data = head + fh.read(st.st_size + 1 - HEADER_SIZE)  # one byte more: a file that grew shows it
+        except MemoryError:
+            raise LopcookError("container", path, f"its {st.st_size:,} bytes do not fit in the memory this "
+                               "process may use", hint="free memory or raise the limit, then read it again") from None
+        except OSError as exc:
+            raise LopcookError("container", path, f"cannot be read ({exc.strerror or 'error'})") from None
     return from_bytes(data, path, allow_prefix=allow_prefix)

@@ -852,10 +852,17 @@ def require_reached(result: dict, path: str | None = None) -> None:
                                f"{conf['resolution'][1]} the best of {len(conf['probes'])} stricter probes was "
                                f"{best[key]:.1f} dB", hint="calibrate on the gate's views (--calibration-views 20 "
                                "--calibration-resolution 1280x720) or lower --target-psnr", exit_code=EXIT_VERIFY_FAILED)
-        what = "k_f and edge_eps" if result.get("search") == "kf+edge" and result.get("edges") else "k_f"
-        raise LopcookError("verify", path, f"no {what} reaches {result['target_psnr']:g} dB{got}",
-                           hint="lower --target-psnr; coverage error along edges does not depend on k_f (turn on "
-                                "--edges and let the calibration search edge_eps with --search kf+edge)",
+        both = result.get("search") == "kf+edge" and result.get("edges")
+        what = "k_f and edge_eps" if both else "k_f"
+        if both:  # every knob that moves the PSNR was searched over its whole range
+            hint = "lower --target-psnr: both knobs were searched over their whole range"
+        elif result.get("edges"):
+            hint = ("lower --target-psnr; coverage error along edges does not depend on k_f (let the calibration "
+                    "search edge_eps too with --search kf+edge)")
+        else:
+            hint = ("lower --target-psnr; coverage error along edges does not depend on k_f (turn on --edges and let "
+                    "the calibration search edge_eps with --search kf+edge)")
+        raise LopcookError("verify", path, f"no {what} reaches {result['target_psnr']:g} dB{got}", hint=hint,
                            exit_code=EXIT_VERIFY_FAILED)
 
 

@@ -5,8 +5,8 @@ A container holds no timings (the same input and options must give the same byte
 would break that), so ``lopcook report`` measures them again: it runs the cook's pipeline
 (``lopcook.pipeline.run``) on the already ingested source with the recorded analysis
 settings (``options.analyse``), LOD options (``options.lods``) and viewing conditions (``viewing``), read by
-``Settings.from_manifest``, and records the options verbatim, exactly as
-``lopcook cook`` did. The bytes it produces are then compared with the file's:
+``Settings.from_manifest``, and records the options and the source's recorded path verbatim,
+exactly as ``lopcook cook`` did. The bytes it produces are then compared with the file's:
 
 * ``"identical"``: same bytes (deterministic output, and the report describes what this lopcook
   version writes for that source);
@@ -29,6 +29,7 @@ container bytes).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from ..analyse import analyse
@@ -72,6 +73,9 @@ def recook(container, scene, *, ingest_s: float | None = None, file_bytes: bytes
         return {"status": "not re-cooked", "detail": "cooked with --target-bytes: the byte-budget fit renders "
                 "every candidate and is not re-run; only the analysis is timed", "timings_s": timings,
                 "bytes": None, "analysis": an, "lod_reports": []}
+    recorded = (m.get("source") or {}).get("path") if isinstance(m.get("source"), dict) else None
+    if isinstance(recorded, str):  # where the cook found the source: recorded again, as the cook did
+        scene = replace(scene, recorded_path=recorded)
     result = run(scene, settings, options=options, progress=progress)
     data, an = result.data, result.analysis
     timings.update({k: float(v) for k, v in result.timings_s.items()})

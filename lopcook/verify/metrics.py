@@ -176,6 +176,16 @@ def mean_mse_psnr(mses) -> float | None:
     return psnr_from_mse(sum(mses) / len(mses)) if mses else None
 
 
+def max_finite_psnr(width: int, height: int, views: int = 1) -> float:
+    """The highest finite PSNR (dB) the harness can report for renders of ``width`` x ``height``
+    pixels: one 8-bit colour code off in one channel of one pixel, every pixel an object pixel,
+    ``10 log10(3 W H 255^2)`` (112.8 dB at 1280 x 720). ``views`` > 1: the PSNR of the mean MSE
+    over that many views (``mean_mse_psnr``), whose floor is that error in one view alone, so
+    ``+ 10 log10(views)``. A target above it is met only by renders identical to the float32
+    reference at every level (infinite PSNR), which no quantized level gives in practice."""
+    return 10.0 * math.log10(3.0 * int(width) * int(height) * int(views) * 255.0 ** 2)
+
+
 # ---- heatmaps -------------------------------------------------------------------------------------
 
 # black -> blue -> magenta -> orange -> yellow -> white, at 0, .2, .4, .6, .8, 1
@@ -233,7 +243,7 @@ def _heatmap_tables(vmax: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 __all__ = ["OFF_THRESHOLD", "HEATMAP_VMAX", "psnr_from_mse", "object_mask", "image_metrics", "depth_order_errors",
-           "pooled_psnr", "mean_mse_psnr", "colormap", "difference_heatmap", "view_metrics"]
+           "pooled_psnr", "mean_mse_psnr", "max_finite_psnr", "colormap", "difference_heatmap", "view_metrics"]
 
 
 # ---- the harness's fused pass -------------------------------------------------------------------

@@ -407,3 +407,23 @@ def test_numbers_parse_to_the_nearest_double(tmp_path, rng):
     assert len(got) == len(values)
     bad = [v for v, g, w in zip(values, got, want) if g != w]
     assert not bad, bad[:5]
+
+
+def test_a_recorded_source_path_is_an_informative_field(c_build, tmp_path):
+    """``source.path`` (where ``lopcook cook`` found the source, relative to the container's
+    folder) is a field lop.h does not need: lopdump decodes the file to lopcook's bytes."""
+    from lopcook.cli import main
+    from lopcook.lop.container import read
+
+    for folder in ("assets", "build"):
+        (tmp_path / folder).mkdir()
+    src = tmp_path / "assets" / "two_plates.glb"
+    src.write_bytes((CONFORMANCE.parent / "two_plates.glb").read_bytes())
+    out = tmp_path / "build" / "plates.lop"
+    assert main(["-q", "cook", str(src), "-o", str(out)]) == 0
+    assert read(str(out)).manifest["source"]["path"] == "../assets/two_plates.glb"
+    for level in (6, 12, 24):
+        run = lopdump(c_build / "gcc" / "lopdump", out, "--level", level, "--positions", tmp_path / "c.f32")
+        assert run.returncode == 0, run.stderr
+        assert main(["-q", "decode", str(out), "--level", str(level), "--positions", str(tmp_path / "py.f32")]) == 0
+        assert (tmp_path / "c.f32").read_bytes() == (tmp_path / "py.f32").read_bytes(), level

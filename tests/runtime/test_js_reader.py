@@ -236,3 +236,18 @@ def test_range_reader_fetches_nothing_twice(node, cooked, tmp_path):
     r = run_js(node, [{"id": "s", "file": str(small), "range_levels": [1, 24]}], tmp_path)["s"]["ranges"]
     assert r["error"] is None and r["requests"] == [[0, small.stat().st_size]], r
     assert r["steps"][-1][1:] == [small.stat().st_size, 24]
+
+
+def test_a_recorded_source_path_is_an_informative_field(node, tmp_path):
+    """``source.path`` (where ``lopcook cook`` found the source, relative to the container's
+    folder) is a field lop.js does not need: the file reads and decodes as lopcook's reader does."""
+    for folder in ("assets", "build"):
+        (tmp_path / folder).mkdir()
+    src = tmp_path / "assets" / "two_plates.glb"
+    src.write_bytes((rs.REPO / "fixtures" / "two_plates.glb").read_bytes())
+    out = rs.cook(src, tmp_path / "build" / "plates.lop")
+    c = from_bytes(out.read_bytes(), str(out))
+    assert c.manifest["source"]["path"] == "../assets/two_plates.glb"
+    got = run_js(node, [{"id": "p", "file": str(out), "decode": True, "levels": list(rs.LEVELS)}], tmp_path)["p"]
+    assert got["ok"], got["error"]
+    compare(got["buffers"], rs.reference(c, rs.LEVELS), "source.path")
