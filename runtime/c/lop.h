@@ -102,8 +102,12 @@ typedef enum lop_result {
     lop_error_level,           /* request: level outside 1..24 or above the available level */
     lop_error_argument,        /* request: part/LOD out of range, a buffer too small, a NULL pointer */
     lop_error_limit,           /* request: the buffer is too large for the shaders' 32-bit tables */
-    lop_error_out_of_memory    /* the allocator returned NULL */
+    lop_error_out_of_memory,   /* the allocator returned NULL */
+    lop_error_encoding         /* an encoded manifest or section that does not decode (format.md 15; 4.x) */
 } lop_result;
+
+/* How a section is stored (format.md 15): as it is, or encoded on the wire (4.x files). */
+typedef enum lop_encoding { LOP_ENCODING_NONE = 0, LOP_ENCODING_DEFLATE = 1, LOP_ENCODING_MESHOPT = 2 } lop_encoding;
 
 typedef struct lop_allocator {
     void *(*alloc)(void *user, size_t size); /* NULL: malloc */
@@ -124,9 +128,12 @@ typedef struct lop_message {
 typedef struct lop_section {
     const char *name;    /* NUL-terminated copy of the manifest's name */
     uint64_t offset;     /* bytes from the end of the manifest */
-    uint64_t length;     /* bytes, padding included (multiple of 4) */
+    uint64_t length;     /* stored bytes, padding included (multiple of 4): what crc32 covers */
     uint32_t crc32;
-    const uint8_t *data; /* into the caller's bytes; NULL when a prefix ends before it */
+    lop_encoding encoding; /* LOP_ENCODING_NONE, or how the stored bytes are encoded */
+    uint64_t size;       /* decoded bytes (multiple of 4): what data holds; = length when not encoded */
+    const uint8_t *data; /* the decoded bytes: into the caller's bytes, or (encoded) a block lop_close frees;
+                            NULL when a prefix ends before the section */
 } lop_section;
 
 /* One buffer: a part's level of detail (docs/format.md section 4, "A LOD"). Vertices are in
@@ -150,8 +157,26 @@ typedef struct lop_lod {
     uint32_t cluster_id[LOP_LEVELS + 1];  /* ClusterId[k] = clusters in bins <= k */
     uint64_t cluster_p_words[LOP_LEVELS]; /* words of the clustered P at levels 1..24 */
     uint32_t cluster_plane_bits[LOP_LEVELS - 1]; /* bits of its slice of planes 2..24 */
-    uint64_t plane_start[LOP_LEVELS + 1]; /* [p] = bit offset of this buffer's slice of plane p */
+    uint32_t stage;                       /* the stage whose sections hold it (0 in the default layout) */
+    uint64_t plane_start[LOP_LEVELS + 1]; /* [p] = bit offset of this buffer's slice of its stage's plane p */
 } lop_lod;
+
+/* A stage (format.md 14): the buffers whose LOD entries name it and the position sections that
+   hold their bits. The default layout is one stage at level max_level holding every buffer. Words
+   (mandatory_words, cluster_words) and plane_start count from the start of the stage's sections. */
+typedef struct lop_stage {
+    int level;                 /* L_s: the planes up to it have sections of their own */
+    int available;             /* its level in the bytes given (format.md 14.4): 0 until its buffers'
+                                  sections, clusters and mandatory bits have arrived */
+    uint32_t buffers;          /* stored buffers (not placements of another part) it holds */
+    int32_t mandatory_section;
+    int32_t clusters_section;  /* -1 when no buffer of the stage is clustered */
+    int32_t deferred_section;  /* the planes L_s + 1 .. max_level; -1 when absent (or the default layout) */
+    int32_t plane_section[LOP_LEVELS + 1]; /* [p]: the section holding plane p (its own or the deferred
+                                              one), -1 when the plane holds no bits or p > max_level */
+    uint64_t plane_offset[LOP_LEVELS + 1]; /* [p]: byte offset of plane p in that section */
+    uint64_t plane_bits[LOP_LEVELS + 1];   /* [p]: bits of plane p over the stage's buffers */
+} lop_stage;
 
 typedef struct lop_part {
     const char *name;          /* NUL-terminated (a name holding \u0000 is cut there) */
@@ -172,7 +197,13 @@ typedef struct lop_file {
     uint64_t size;             /* bytes given to lop_open (< file_size for a prefix) */
     int complete;              /* size == file_size */
     int max_level;             /* positions.max_level: planes written up to it */
-    int available_level;       /* highest level every buffer decodes at (max_level when complete) */
+    int available_level;       /* highest level every buffer decodes at (max_level when complete; in a
+                                  prefix of a streaming file the lowest stage level, perhaps 0: see
+                                  lop_buffer_level for each buffer's own) */
+    int stream;                /* the streaming layout (format.md 14: positions.stages) */
+    uint32_t stage_count;      /* >= 1 (1 in the default layout) */
+    lop_stage *stages;
+    uint64_t manifest_size;    /* bytes of the manifest's JSON text (decoded when stored encoded) */
     double grid_origin[3], grid_extent;  /* the scene grid */
     uint32_t viewport[2];      /* viewing: the conditions the file was cooked for */
     double fov_y_deg, pixel_error, nearest_m; /* nearest_m -1 when null */
@@ -181,7 +212,8 @@ typedef struct lop_file {
     lop_part *parts;
     uint32_t section_count;
     lop_section *sections;
-    int32_t mandatory_section, clusters_section; /* -1 when not clustered */
+    /* the default layout's position sections (also stages[0]'s); -1 in the streaming layout */
+    int32_t mandatory_section, clusters_section; /* clusters: -1 when not clustered */
     int32_t plane_section[LOP_LEVELS + 1];       /* [p], p = 2..max_level; -1 elsewhere */
     /* private */
     lop_allocator memory_;
@@ -226,6 +258,16 @@ LOPDEF void lop_close(lop_file *file);
 /* The level part `part` decodes its buffers at when the scene asks for `level`: the level for a
    part on the scene grid, clamp(level + level_shift, 1, 24) for a placement. */
 LOPDEF int lop_part_level(const lop_file *f, uint32_t part, int level);
+
+/* The highest level buffer (part, lod) decodes at in the bytes given: its stage's level
+   (format.md 8, 14.4), available_level in the default layout; 0 when its sections have not
+   arrived (a prefix of a streaming file), -1 for a part or LOD out of range. */
+LOPDEF int lop_buffer_level(const lop_file *f, uint32_t part, uint32_t lod);
+
+/* What a renderer draws of part `part` when it wants LOD `lod` (format.md 14.4: the finest LOD that
+   has arrived): the finest LOD k >= lod whose buffer has arrived, and the level it decodes at. In a
+   file that opened, a part's coarsest LOD is always there. */
+LOPDEF lop_result lop_drawable(const lop_file *f, uint32_t part, uint32_t lod, uint32_t *drawn, int *level);
 
 /* Section 9: the level a buffer needs at camera distance d metres from its nearest point
    (half-pixel criterion with the file's viewing, clamped to max_level), and per part the LOD
@@ -501,6 +543,499 @@ static uint32_t lop__crc32(const lop__crc *c, const uint8_t *p, uint64_t n)
     while (n--)
         v = (v >> 8) ^ c->t[0][(v ^ *p++) & 0xFF];
     return v ^ 0xFFFFFFFFu;
+}
+
+/* ---- encoded sections: raw DEFLATE and the meshopt triangle stream (format.md 15) -------------
+   Both decoders read their input through bounds checks only, write at most the bytes they were
+   allowed, allocate through the caller (an output that grows up to its limit) and give zlib's and
+   meshoptimizer's verdict on every stream: a stream that either refuses is refused here, with the
+   class lop_error_encoding. */
+
+#define LOP__DEFLATE_MAX_RATIO 1032u /* DEFLATE expands at most 1032 times */
+#define LOP__FAST_BITS 10            /* Huffman codes up to this long decode with one table lookup */
+
+enum { LOP__Z_OK = 0, LOP__Z_DATA, LOP__Z_SHORT, LOP__Z_LONG, LOP__Z_MEMORY };
+
+/* A canonical Huffman code: counts and symbols by length (puff's form) and a table of the codes of
+   at most LOP__FAST_BITS bits, indexed by the next bits of the stream (first bit lowest): entry
+   length << 9 | symbol, 0 where no code that short starts with those bits. */
+typedef struct lop__huff {
+    uint16_t fast[1 << LOP__FAST_BITS];
+    uint16_t count[16];
+    uint16_t symbol[288];
+} lop__huff;
+
+typedef struct lop__inflater {
+    const uint8_t *in;
+    size_t in_len, pos;
+    uint64_t acc;     /* bits not yet used, the next one lowest */
+    unsigned nbits;
+    uint8_t *out;
+    size_t n, cap, limit; /* bytes written, allocated, allowed */
+    const lop_allocator *mem;
+    lop__huff lit, dist, fixed_lit, fixed_dist;
+    int have_fixed;
+} lop__inflater;
+
+/* zlib's inflate_table rules: no over-subscribed set; an incomplete one only where `incomplete_ok`
+   (literal/length and distance codes) and then only a single code of length 1, or no code at all. */
+static int lop__huff_build(lop__huff *h, const uint8_t *lengths, unsigned n, int incomplete_ok)
+{
+    uint16_t offs[16], first[16];
+    int left = 1, max = 0, len;
+    unsigned s, idx, code;
+    memset(h->count, 0, sizeof h->count);
+    for (s = 0; s < n; s++)
+        h->count[lengths[s]]++;
+    h->count[0] = 0;
+    for (len = 1; len < 16; len++) {
+        left = 2 * left - h->count[len];
+        if (left < 0)
+            return 0;
+        if (h->count[len])
+            max = len;
+    }
+    if (left > 0 && max > 0 && (!incomplete_ok || max != 1))
+        return 0;
+    if (max == 0 && !incomplete_ok)
+        return 0;
+    offs[1] = 0;
+    for (len = 1; len < 15; len++)
+        offs[len + 1] = (uint16_t)(offs[len] + h->count[len]);
+    for (s = 0; s < n; s++)
+        if (lengths[s])
+            h->symbol[offs[lengths[s]]++] = (uint16_t)s;
+    memset(h->fast, 0, sizeof h->fast);
+    code = 0; /* the first code of each length (RFC 1951 3.2.2) */
+    first[0] = 0;
+    for (len = 1; len < 16; len++) {
+        code = (code + h->count[len - 1]) << 1;
+        first[len] = (uint16_t)code;
+    }
+    for (len = 1, idx = 0; len <= LOP__FAST_BITS; len++) {
+        unsigned c;
+        for (c = 0; c < h->count[len]; c++, idx++) {
+            unsigned v = first[len] + c, rev = 0, b, i;
+            for (b = 0; b < (unsigned)len; b++)
+                rev |= ((v >> b) & 1u) << (len - 1 - b);
+            for (i = rev; i < (1u << LOP__FAST_BITS); i += 1u << len)
+                h->fast[i] = (uint16_t)((unsigned)len << 9 | h->symbol[idx]);
+        }
+    }
+    return 1;
+}
+
+static void lop__refill(lop__inflater *z)
+{
+    while (z->nbits <= 56 && z->pos < z->in_len) {
+        z->acc |= (uint64_t)z->in[z->pos++] << z->nbits;
+        z->nbits += 8;
+    }
+}
+
+/* k <= 32 bits (the caller refilled; LOP__Z_SHORT when the stream has fewer). */
+static int lop__take(lop__inflater *z, unsigned k, uint32_t *v)
+{
+    if (z->nbits < k)
+        return LOP__Z_SHORT;
+    *v = (uint32_t)(z->acc & ((UINT64_C(1) << k) - 1));
+    z->acc >>= k;
+    z->nbits -= k;
+    return LOP__Z_OK;
+}
+
+/* The next symbol of code h, or -LOP__Z_DATA (no such code) / -LOP__Z_SHORT (the stream ends). */
+static int lop__symbol(lop__inflater *z, const lop__huff *h)
+{
+    unsigned e = h->fast[z->acc & ((1u << LOP__FAST_BITS) - 1)];
+    int len, code = 0, first = 0, index = 0;
+    if (e) {
+        unsigned l = e >> 9;
+        if (l > z->nbits)
+            return -LOP__Z_SHORT;
+        z->acc >>= l;
+        z->nbits -= l;
+        return (int)(e & 511u);
+    }
+    for (len = 1; len < 16; len++) { /* canonical decoding, one bit at a time (puff) */
+        int count = h->count[len];
+        if ((unsigned)len > z->nbits)
+            return -LOP__Z_SHORT;
+        code |= (int)((z->acc >> (len - 1)) & 1u);
+        if (code - first < count) {
+            z->acc >>= len;
+            z->nbits -= (unsigned)len;
+            return h->symbol[index + code - first];
+        }
+        index += count;
+        first = (first + count) << 1;
+        code <<= 1;
+    }
+    return -LOP__Z_DATA;
+}
+
+/* Room for k more output bytes: LOP__Z_LONG beyond the limit, the block grown (doubling) as needed. */
+static int lop__room(lop__inflater *z, size_t k)
+{
+    if (k > z->limit - z->n)
+        return LOP__Z_LONG;
+    if (z->n + k > z->cap) {
+        size_t cap = z->cap * 2 > z->n + k ? z->cap * 2 : z->n + k;
+        uint8_t *grown;
+        cap = cap < z->limit ? cap : z->limit;
+        grown = (uint8_t *)lop__alloc(z->mem, cap);
+        if (!grown)
+            return LOP__Z_MEMORY;
+        if (z->n)
+            memcpy(grown, z->out, z->n);
+        lop__free(z->mem, z->out);
+        z->out = grown;
+        z->cap = cap;
+    }
+    return LOP__Z_OK;
+}
+
+static int lop__stored(lop__inflater *z)
+{
+    size_t len;
+    int r;
+    z->pos -= z->nbits >> 3; /* give back the whole bytes held; the partial one is dropped */
+    z->acc = 0;
+    z->nbits = 0;
+    if (z->in_len - z->pos < 4)
+        return LOP__Z_SHORT;
+    len = lop__rd16(z->in + z->pos);
+    if (len != (unsigned)(~lop__rd16(z->in + z->pos + 2) & 0xFFFFu))
+        return LOP__Z_DATA;
+    z->pos += 4;
+    if (z->in_len - z->pos < len)
+        return LOP__Z_SHORT;
+    if ((r = lop__room(z, len)) != LOP__Z_OK)
+        return r;
+    if (len)
+        memcpy(z->out + z->n, z->in + z->pos, len);
+    z->n += len;
+    z->pos += len;
+    return LOP__Z_OK;
+}
+
+static const uint8_t lop__clen_order[19] = {16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15};
+
+static int lop__dynamic(lop__inflater *z)
+{
+    uint8_t lens[320], clen[19];
+    uint32_t nlen, ndist, ncode, x, i, have = 0;
+    lop__huff *cl = &z->dist; /* the code-length code is built in the distance table, used before it */
+    int r;
+    lop__refill(z);
+    if ((r = lop__take(z, 5, &nlen)) || (r = lop__take(z, 5, &ndist)) || (r = lop__take(z, 4, &ncode)))
+        return r;
+    nlen += 257;
+    ndist += 1;
+    ncode += 4;
+    if (nlen > 286 || ndist > 30)
+        return LOP__Z_DATA;
+    memset(clen, 0, sizeof clen);
+    for (i = 0; i < ncode; i++) {
+        lop__refill(z);
+        if ((r = lop__take(z, 3, &x)) != LOP__Z_OK)
+            return r;
+        clen[lop__clen_order[i]] = (uint8_t)x;
+    }
+    if (!lop__huff_build(cl, clen, 19, 0))
+        return LOP__Z_DATA;
+    while (have < nlen + ndist) {
+        int sym;
+        uint32_t rep;
+        uint8_t len = 0;
+        lop__refill(z);
+        sym = lop__symbol(z, cl);
+        if (sym < 0)
+            return -sym;
+        if (sym < 16) {
+            lens[have++] = (uint8_t)sym;
+            continue;
+        }
+        if (sym == 16) {
+            if (have == 0)
+                return LOP__Z_DATA;
+            len = lens[have - 1];
+            if ((r = lop__take(z, 2, &rep)) != LOP__Z_OK)
+                return r;
+            rep += 3;
+        } else if (sym == 17) {
+            if ((r = lop__take(z, 3, &rep)) != LOP__Z_OK)
+                return r;
+            rep += 3;
+        } else {
+            if ((r = lop__take(z, 7, &rep)) != LOP__Z_OK)
+                return r;
+            rep += 11;
+        }
+        if (have + rep > nlen + ndist)
+            return LOP__Z_DATA;
+        memset(lens + have, len, rep);
+        have += rep;
+    }
+    if (lens[256] == 0) /* no end-of-block code */
+        return LOP__Z_DATA;
+    if (!lop__huff_build(&z->lit, lens, nlen, 1) || !lop__huff_build(&z->dist, lens + nlen, ndist, 1))
+        return LOP__Z_DATA;
+    return LOP__Z_OK;
+}
+
+static const uint16_t lop__len_base[29] = {3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 15, 17, 19, 23, 27, 31, 35, 43, 51, 59,
+                                           67, 83, 99, 115, 131, 163, 195, 227, 258};
+static const uint8_t lop__len_extra[29] = {0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5,
+                                           5, 0};
+static const uint16_t lop__dist_base[30] = {1, 2, 3, 4, 5, 7, 9, 13, 17, 25, 33, 49, 65, 97, 129, 193, 257, 385, 513, 769,
+                                            1025, 1537, 2049, 3073, 4097, 6145, 8193, 12289, 16385, 24577};
+static const uint8_t lop__dist_extra[30] = {0, 0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7, 8, 8, 9, 9, 10, 10, 11,
+                                            11, 12, 12, 13, 13};
+
+/* The symbols of one compressed block, up to its end-of-block code. */
+static int lop__codes(lop__inflater *z, const lop__huff *lit, const lop__huff *dist)
+{
+    for (;;) {
+        int sym, ds, r;
+        uint32_t len, d, extra;
+        lop__refill(z);
+        sym = lop__symbol(z, lit);
+        if (sym < 0)
+            return -sym;
+        if (sym < 256) {
+            if (z->n >= z->cap && (r = lop__room(z, 1)) != LOP__Z_OK)
+                return r;
+            z->out[z->n++] = (uint8_t)sym;
+            continue;
+        }
+        if (sym == 256)
+            return LOP__Z_OK;
+        if (sym > 285)
+            return LOP__Z_DATA;
+        if ((r = lop__take(z, lop__len_extra[sym - 257], &extra)) != LOP__Z_OK)
+            return r;
+        len = lop__len_base[sym - 257] + extra;
+        ds = lop__symbol(z, dist);
+        if (ds < 0)
+            return -ds;
+        if (ds > 29)
+            return LOP__Z_DATA;
+        if ((r = lop__take(z, lop__dist_extra[ds], &extra)) != LOP__Z_OK)
+            return r;
+        d = lop__dist_base[ds] + extra;
+        if (d > z->n)
+            return LOP__Z_DATA; /* a distance beyond the bytes decoded */
+        if ((r = lop__room(z, len)) != LOP__Z_OK)
+            return r;
+        {
+            uint8_t *o = z->out + z->n;
+            const uint8_t *from = o - d;
+            if (d >= len) {
+                memcpy(o, from, len);
+            } else {
+                uint32_t i;
+                for (i = 0; i < len; i++)
+                    o[i] = from[i];
+            }
+            z->n += len;
+        }
+    }
+}
+
+/* Inflate the raw DEFLATE stream at the start of in[0 .. in_len) into at most `limit` bytes
+   (z->out, z->n of them; the caller frees z->out). LOP__Z_OK, or why not. *end: the bytes the
+   stream occupies (the byte holding its last bit included). */
+static int lop__inflate(lop__inflater *z, const uint8_t *in, size_t in_len, size_t limit, size_t first_cap,
+                        const lop_allocator *mem, size_t *end)
+{
+    uint32_t last = 0, type;
+    int r;
+    z->in = in;
+    z->in_len = in_len;
+    z->pos = 0;
+    z->acc = 0;
+    z->nbits = 0;
+    z->n = 0;
+    z->limit = limit;
+    z->mem = mem;
+    z->have_fixed = 0;
+    z->cap = first_cap < limit ? first_cap : limit;
+    z->out = (uint8_t *)lop__alloc(mem, z->cap);
+    if (!z->out)
+        return LOP__Z_MEMORY;
+    while (!last) {
+        lop__refill(z);
+        if ((r = lop__take(z, 1, &last)) != LOP__Z_OK || (r = lop__take(z, 2, &type)) != LOP__Z_OK)
+            return r;
+        if (type == 0) {
+            r = lop__stored(z);
+        } else if (type == 1) {
+            if (!z->have_fixed) {
+                uint8_t l[288];
+                memset(l, 8, 144);
+                memset(l + 144, 9, 112);
+                memset(l + 256, 7, 24);
+                memset(l + 280, 8, 8);
+                lop__huff_build(&z->fixed_lit, l, 288, 0);
+                memset(l, 5, 32);
+                lop__huff_build(&z->fixed_dist, l, 32, 0);
+                z->have_fixed = 1;
+            }
+            r = lop__codes(z, &z->fixed_lit, &z->fixed_dist);
+        } else if (type == 2) {
+            r = lop__dynamic(z);
+            if (r == LOP__Z_OK)
+                r = lop__codes(z, &z->lit, &z->dist);
+        } else {
+            r = LOP__Z_DATA; /* block type 3 */
+        }
+        if (r != LOP__Z_OK)
+            return r;
+    }
+    *end = z->pos - (z->nbits >> 3);
+    return LOP__Z_OK;
+}
+
+static const char *lop__z_why(int r)
+{
+    switch (r) {
+    case LOP__Z_DATA: return "the deflate stream is corrupt";
+    case LOP__Z_SHORT: return "the deflate stream ends before its final block";
+    case LOP__Z_LONG: return "the deflate stream expands beyond its declared size";
+    default: return "out of memory";
+    }
+}
+
+/* The 3m indices of an EXT_meshopt_compression triangle stream E (version 1) as format.md 15.2
+   writes it out, each checked below n, written as w-byte little-endian integers to out (4 ceil(3 m
+   w / 4) bytes, the tail zeroed). NULL, or why the stream is refused. */
+static const char *lop__triangles(const uint8_t *E, size_t len, uint32_t m, uint32_t n, unsigned w, uint8_t *out)
+{
+    uint32_t edge_a[16], edge_b[16], vert[16], next = 0, last = 0;
+    unsigned ep = 0, vp = 0, t;
+    size_t code = 1, data, end;
+    const uint8_t *table;
+    int k;
+    if (len < 1 + (size_t)m + 16)
+        return "the triangle stream is too short for its triangles";
+    if (E[0] != 0xE1)
+        return "the triangle stream does not start with 0xe1 (bitstream version 1)";
+    end = len - 16;
+    table = E + end;
+    if (table[14] || table[15])
+        return "the triangle stream's table does not end with two zero bytes";
+    for (k = 0; k < 14; k++)
+        if ((table[k] >> 4) == 15 || (table[k] & 15) == 15)
+            return "the triangle stream's table has a nibble 0xF";
+    data = 1 + (size_t)m;
+    for (k = 0; k < 16; k++)
+        edge_a[k] = edge_b[k] = vert[k] = 0xFFFFFFFFu;
+#define LOP__PUSH_EDGE(x, y) (edge_a[ep] = (x), edge_b[ep] = (y), ep = (ep + 1) & 15u)
+#define LOP__PUSH_VERT(x) (vert[vp] = (x), vp = (vp + 1) & 15u)
+#define LOP__VERT_AT(i) vert[(vp - 1u - (unsigned)(i)) & 15u]
+#define LOP__INDEX(dst)                                                                                    \
+    do {                                                                                                   \
+        uint32_t v_ = 0;                                                                                   \
+        int j_;                                                                                            \
+        for (j_ = 0; j_ < 5; j_++) {                                                                       \
+            uint8_t b_;                                                                                    \
+            if (data >= end)                                                                               \
+                return "the triangle stream reads past its data";                                         \
+            b_ = E[data++];                                                                                \
+            v_ |= (uint32_t)(((uint64_t)(b_ & 127u) << (7 * j_)) & 0xFFFFFFFFu); /* bits above 31 dropped */ \
+            if (b_ < 128)                                                                                  \
+                break;                                                                                     \
+        }                                                                                                  \
+        last = last + ((v_ >> 1) ^ (0u - (v_ & 1u)));                                                      \
+        (dst) = last;                                                                                      \
+    } while (0)
+    for (t = 0; t < m; t++) {
+        uint32_t a = 0, b = 0, c = 0, x = E[code++], tri[3];
+        unsigned i;
+        if (x < 0xF0) {
+            unsigned e = (ep - 1u - (x >> 4)) & 15u, f = x & 15u;
+            a = edge_a[e];
+            b = edge_b[e];
+            if (f == 0) {
+                c = next++;
+                LOP__PUSH_VERT(c);
+            } else if (f <= 12) {
+                c = LOP__VERT_AT(f);
+            } else if (f == 13) {
+                c = last = last - 1u;
+                LOP__PUSH_VERT(c);
+            } else if (f == 14) {
+                c = last = last + 1u;
+                LOP__PUSH_VERT(c);
+            } else {
+                LOP__INDEX(c);
+                LOP__PUSH_VERT(c);
+            }
+            LOP__PUSH_EDGE(c, b);
+            LOP__PUSH_EDGE(a, c);
+        } else {
+            unsigned aux, fa, fb, fc;
+            if (x < 0xFE) {
+                aux = table[x & 15u];
+                fa = 0;
+            } else {
+                if (data >= end)
+                    return "the triangle stream reads past its data";
+                aux = E[data++];
+                fa = x == 0xFE ? 0u : 15u;
+                if (aux == 0)
+                    next = 0;
+            }
+            fb = aux >> 4;
+            fc = aux & 15u;
+            if (fa == 0)
+                a = next++;
+            if (fb == 0)
+                b = next++;
+            else if (fb < 15)
+                b = LOP__VERT_AT(fb - 1);
+            if (fc == 0)
+                c = next++;
+            else if (fc < 15)
+                c = LOP__VERT_AT(fc - 1);
+            if (fa == 15)
+                LOP__INDEX(a);
+            if (fb == 15)
+                LOP__INDEX(b);
+            if (fc == 15)
+                LOP__INDEX(c);
+            LOP__PUSH_VERT(a);
+            if (fb == 0 || fb == 15)
+                LOP__PUSH_VERT(b);
+            if (fc == 0 || fc == 15)
+                LOP__PUSH_VERT(c);
+            LOP__PUSH_EDGE(b, a);
+            LOP__PUSH_EDGE(c, b);
+            LOP__PUSH_EDGE(a, c);
+        }
+        tri[0] = a;
+        tri[1] = b;
+        tri[2] = c;
+        for (i = 0; i < 3; i++) {
+            size_t o = ((size_t)3 * t + i) * w;
+            if (tri[i] >= n)
+                return "a triangle index is out of range for its vertices";
+            out[o] = (uint8_t)tri[i];
+            out[o + 1] = (uint8_t)(tri[i] >> 8);
+            if (w == 4) {
+                out[o + 2] = (uint8_t)(tri[i] >> 16);
+                out[o + 3] = (uint8_t)(tri[i] >> 24);
+            }
+        }
+    }
+#undef LOP__PUSH_EDGE
+#undef LOP__PUSH_VERT
+#undef LOP__VERT_AT
+#undef LOP__INDEX
+    if (data != end)
+        return "the triangle stream holds data its triangles do not read";
+    return NULL;
 }
 
 /* ---- decimal to double, correctly rounded (locale-free) ------------------------------------ */
@@ -1566,12 +2101,22 @@ typedef struct lopv {
     size_t lods_left;         /* LOD slots left */
     uint32_t *part_node;      /* part i -> its JSON value (placements look up their owner in O(1)) */
     uint32_t parts_cap;       /* part slots */
-    int clustered, has_placements, has_tangents;
+    int clustered, has_placements, has_tangents, has_encoded;
     lop_result klass;         /* the class lopv_fail reports: manifest, or section_table */
-    uint64_t words_next, headers_next;
-    uint32_t n_clustered;
-    uint64_t plane_bits[LOP_LEVELS + 1];
+    struct lopv_tot *tot;     /* per stage: what its buffers add up to */
+    uint32_t *stage_start;    /* stage s's buffers are order[stage_start[s] .. stage_start[s + 1]) */
+    uint32_t *order;          /* (part, lod) of every stored buffer, grouped by stage, manifest order */
+    const lop_lod **sec_first, **sec_last; /* section -> the first and last LOD naming it as indices */
+    uint8_t *sec_other;       /* section -> named as attributes or a hierarchy */
 } lopv;
+
+/* What the stored buffers of one stage add up to (one stage in the default layout): mandatory
+   words, cluster header words, clustered buffers, bits of each plane. */
+typedef struct lopv_tot {
+    uint64_t words, headers;
+    uint32_t clustered, buffers;
+    uint64_t plane_bits[LOP_LEVELS + 1];
+} lopv_tot;
 
 static int lopv_fail(lopv *v, const char *fmt, ...)
 {
@@ -1775,6 +2320,40 @@ static int lopv_informative(lopv *v, uint32_t m)
     return 1;
 }
 
+/* An encoded section's `encoding` and `size` (format.md 15): both or neither, a known encoding,
+   size a multiple of 4 and, for deflate, at most 1032 times the stored length (class section_table). */
+static int lopv_encoded(lopv *v, uint32_t s, lop_section *sec)
+{
+    uint32_t enc, size;
+    char where[96];
+    if (lopj_get(v->j, s, "encoding") == LOPJ_NONE && lopj_get(v->j, s, "size") == LOPJ_NONE)
+        return 1;
+    snprintf(where, sizeof where, "section '%.60s'", sec->name);
+    if ((enc = lopv_need(v, s, "encoding", LOPV_STR, where)) == LOPJ_NONE ||
+        (size = lopv_need(v, s, "size", LOPV_INT, where)) == LOPJ_NONE)
+        return 0;
+    if (v->j->v[size].i < 0)
+        return lopv_fail(v, "%s.size is below the minimum, expected at least 0", where);
+    if (lopj_is_str(v->j, enc, "deflate"))
+        sec->encoding = LOP_ENCODING_DEFLATE;
+    else if (lopj_is_str(v->j, enc, "meshopt-deflate"))
+        sec->encoding = LOP_ENCODING_MESHOPT;
+    else
+        return lopv_fail(v, "%s has an unknown encoding (known: deflate, meshopt-deflate)", where);
+    if (v->j->v[size].big) /* a size past int64: no stream decodes to it */
+        return lopv_fail(v, "%s claims more decoded bytes than %u times its stored bytes", where,
+                         LOP__DEFLATE_MAX_RATIO);
+    sec->size = (uint64_t)v->j->v[size].i;
+    if (sec->size % 4)
+        return lopv_fail(v, "%s size is not a multiple of 4", where);
+    if (sec->encoding == LOP_ENCODING_DEFLATE && sec->length <= UINT64_MAX / LOP__DEFLATE_MAX_RATIO &&
+        sec->size > LOP__DEFLATE_MAX_RATIO * sec->length)
+        return lopv_fail(v, "%s claims %llu decoded bytes, more than %u times its %llu stored bytes", where,
+                         (unsigned long long)sec->size, LOP__DEFLATE_MAX_RATIO, (unsigned long long)sec->length);
+    v->has_encoded = 1;
+    return 1;
+}
+
 /* The section table: back to back, lengths multiples of 4, names unique (class section_table). */
 static int lopv_sections(lopv *v, uint32_t m)
 {
@@ -1807,7 +2386,10 @@ static int lopv_sections(lopv *v, uint32_t m)
             return lopv_fail(v, "section '%s' crc32 is not a 32-bit value", f->sections[i].name);
         f->sections[i].offset = offset;
         f->sections[i].length = (uint64_t)len;
+        f->sections[i].size = (uint64_t)len;
         f->sections[i].crc32 = (uint32_t)crc;
+        if (!lopv_encoded(v, s, &f->sections[i]))
+            return 0;
         offset = lop__sat_add(offset, (uint64_t)len);
         v->names[i] = i;
     }
@@ -1852,6 +2434,40 @@ static int lopv_grid(lopv *v, uint32_t m)
     return 1;
 }
 
+/* The streaming layout's positions (format.md 14.2): `stages` a non-empty list of {"level": L},
+   1 <= L <= max_level, and none of the default layout's section names. */
+static int lopv_stages(lopv *v, uint32_t pos)
+{
+    static const char *const keys[3] = {"mandatory", "planes", "clusters"};
+    lop_file *f = v->f;
+    uint32_t stages, st, s;
+    int k;
+    for (k = 0; k < 3; k++)
+        if (lopj_get(v->j, pos, keys[k]) != LOPJ_NONE)
+            return lopv_fail(v, "positions.%s must not be given with positions.stages (the streaming layout)",
+                             keys[k]);
+    if ((stages = lopv_need(v, pos, "stages", LOPV_ARR, "positions")) == LOPJ_NONE)
+        return 0;
+    if (v->j->v[stages].count == 0)
+        return lopv_fail(v, "positions.stages is empty");
+    for (s = 0, st = stages + 1; s < v->j->v[stages].count; s++, st = v->j->v[st].next) {
+        uint32_t x;
+        char where[48];
+        if (lopj_type(v->j, st) != LOPJ_OBJECT || v->j->v[st].count != 1 || lopj_get(v->j, st, "level") == LOPJ_NONE)
+            return lopv_fail(v, "positions.stages[%u] must hold exactly level", (unsigned)s);
+        snprintf(where, sizeof where, "positions.stages[%u]", (unsigned)s);
+        if ((x = lopv_need(v, st, "level", LOPV_INT, where)) == LOPJ_NONE)
+            return 0;
+        if (!lopj_int_in(v->j, x, 1, f->max_level))
+            return lopv_fail(v, "positions.stages[%u].level must be in [1, %d]", (unsigned)s, f->max_level);
+        memset(&f->stages[s], 0, sizeof f->stages[s]);
+        f->stages[s].level = (int)v->j->v[x].i;
+    }
+    f->stream = 1;
+    f->stage_count = v->j->v[stages].count;
+    return 1;
+}
+
 static int lopv_positions(lopv *v, uint32_t m, uint32_t *planes_out)
 {
     uint32_t pos, ml, mand, planes, clus;
@@ -1865,14 +2481,20 @@ static int lopv_positions(lopv *v, uint32_t m, uint32_t *planes_out)
     if (!lopj_int_in(v->j, ml, 1, LOP_LEVELS))
         return lopv_fail(v, "positions.max_level must be in [1, 24]");
     f->max_level = (int)v->j->v[ml].i;
+    for (p = 0; p <= LOP_LEVELS; p++)
+        f->plane_section[p] = -1;
+    f->mandatory_section = f->clusters_section = -1;
+    if (lopj_get(v->j, pos, "stages") != LOPJ_NONE) {
+        *planes_out = LOPJ_NONE;
+        return lopv_stages(v, pos);
+    }
+    f->stage_count = 1;
     if ((mand = lopv_need(v, pos, "mandatory", LOPV_STR, "positions")) == LOPJ_NONE)
         return 0;
     if ((f->mandatory_section = lopv_section(v, mand)) < 0)
         return lopv_fail(v, "positions.mandatory names no section");
     if ((planes = lopv_need(v, pos, "planes", LOPV_OBJ, "positions")) == LOPJ_NONE)
         return 0;
-    for (p = 0; p <= LOP_LEVELS; p++)
-        f->plane_section[p] = -1;
     for (p = 2; p <= f->max_level; p++) {
         uint32_t x;
         snprintf(key, sizeof key, "%d", p);
@@ -2052,10 +2674,11 @@ static int lopv_placement(lopv *v, uint32_t parts, uint32_t i, uint32_t part, lo
     return 1;
 }
 
-/* An owner's LOD entry (the buffer's own fields). */
+/* An owner's LOD entry (the buffer's own fields); e->stage is set, its totals grow. */
 static int lopv_lod(lopv *v, uint32_t lod, const char *where, lop_lod *e)
 {
     lop_file *f = v->f;
+    lopv_tot *t = &v->tot[e->stage];
     uint32_t x, vid, mw, ab, rec;
     int64_t n, tri;
     uint64_t bits = 0;
@@ -2129,7 +2752,7 @@ static int lopv_lod(lopv *v, uint32_t lod, const char *where, lop_lod *e)
     if (lopj_get(v->j, lod, "cluster_size") != LOPJ_NONE || lopj_get(v->j, lod, "cluster_words") != LOPJ_NONE) {
         uint32_t cw, pw, cpb;
         uint64_t n_c = 0, maxw;
-        if (!v->clustered)
+        if (!v->clustered && !f->stream)
             return lopv_fail(v, "%s is clustered but positions.clusters is missing", where);
         if ((x = lopv_need(v, lod, "cluster_size", LOPV_INT, where)) == LOPJ_NONE)
             return 0;
@@ -2144,14 +2767,14 @@ static int lopv_lod(lopv *v, uint32_t lod, const char *where, lop_lod *e)
         }
         if ((cw = lopv_need(v, lod, "cluster_words", LOPV_ARR, where)) == LOPJ_NONE)
             return 0;
-        if (v->j->v[cw].count != 2 || !lopj_int_in(v->j, cw + 1, (int64_t)v->headers_next, (int64_t)v->headers_next) ||
+        if (v->j->v[cw].count != 2 || !lopj_int_in(v->j, cw + 1, (int64_t)t->headers, (int64_t)t->headers) ||
             !lopj_int_in(v->j, v->j->v[cw + 1].next, (int64_t)(3 * n_c), (int64_t)(3 * n_c)))
             return lopv_fail(v, "%s.cluster_words must be [offset, 3 * clusters] = [%llu, %llu]", where,
-                             (unsigned long long)v->headers_next, (unsigned long long)(3 * n_c));
-        e->cluster_words_offset = v->headers_next;
+                             (unsigned long long)t->headers, (unsigned long long)(3 * n_c));
+        e->cluster_words_offset = t->headers;
         e->cluster_count = (uint32_t)n_c;
-        v->headers_next = lop__sat_add(v->headers_next, 3 * n_c);
-        v->n_clustered++;
+        t->headers = lop__sat_add(t->headers, 3 * n_c);
+        t->clustered++;
         if ((pw = lopv_need(v, lod, "cluster_p_words", LOPV_ARR, where)) == LOPJ_NONE)
             return 0;
         {
@@ -2182,25 +2805,26 @@ static int lopv_lod(lopv *v, uint32_t lod, const char *where, lop_lod *e)
                 return lopv_fail(v, "%s.cluster_plane_bits must be 23 bit counts, at most 3 VertexId[p-1] each", where);
         }
         for (p = 2; p <= LOP_LEVELS; p++)
-            v->plane_bits[p] = lop__sat_add(v->plane_bits[p], e->cluster_plane_bits[p - 2]);
+            t->plane_bits[p] = lop__sat_add(t->plane_bits[p], e->cluster_plane_bits[p - 2]);
         maxw = (bits + 31) / 32 > 1 ? (bits + 31) / 32 : 1;
-        if (e->mandatory_offset != v->words_next || e->mandatory_count < 1 || e->mandatory_count > maxw)
+        if (e->mandatory_offset != t->words || e->mandatory_count < 1 || e->mandatory_count > maxw)
             return lopv_fail(v, "%s.mandatory_words do not match its bins", where);
     } else {
         e->cluster_size = 0;
-        if (e->mandatory_offset != v->words_next || e->mandatory_count != (bits + 31) / 32)
+        if (e->mandatory_offset != t->words || e->mandatory_count != (bits + 31) / 32)
             return lopv_fail(v, "%s.mandatory_words do not match its bins", where);
         for (p = 2; p <= LOP_LEVELS; p++)
-            v->plane_bits[p] = lop__sat_add(v->plane_bits[p], 3u * (uint64_t)e->vertex_id[p - 1]);
+            t->plane_bits[p] = lop__sat_add(t->plane_bits[p], 3u * (uint64_t)e->vertex_id[p - 1]);
     }
-    v->words_next = lop__sat_add(v->words_next, e->mandatory_count);
+    t->words = lop__sat_add(t->words, e->mandatory_count);
+    t->buffers++;
     if ((n <= 65535) != (e->index_width == 2))
         return lopv_fail(v, "%s.index_width %u does not match %lld vertices", where, (unsigned)e->index_width,
                          (long long)n);
-    if (f->sections[e->indices_section].length < 3u * (uint64_t)e->triangles * e->index_width)
+    if (f->sections[e->indices_section].size < 3u * (uint64_t)e->triangles * e->index_width)
         return lopv_fail(v, "%s: index section is shorter than %u triangles", where, (unsigned)e->triangles);
     if (e->attributes_section >= 0 &&
-        f->sections[e->attributes_section].length < 4u * (((uint64_t)e->vertices * e->record_bits + 31) / 32))
+        f->sections[e->attributes_section].size < 4u * (((uint64_t)e->vertices * e->record_bits + 31) / 32))
         return lopv_fail(v, "%s: attributes section is shorter than %u records of %u bits", where,
                          (unsigned)e->vertices, (unsigned)e->record_bits);
     memset(e->uv_lo, 0, sizeof e->uv_lo);
@@ -2243,6 +2867,29 @@ static int lopv_lod(lopv *v, uint32_t lod, const char *where, lop_lod *e)
             e->uv_step[k] = want;
         }
     }
+    return 1;
+}
+
+/* A LOD entry's stage in the streaming layout (format.md 14.1): an integer naming a stage, 0 for a
+   part's coarsest LOD, never below the stage of the next coarser LOD. */
+static int lopv_stage(lopv *v, uint32_t lod, uint32_t k, uint32_t n, const char *where, uint32_t *out)
+{
+    uint32_t x = lopv_need(v, lod, "stage", LOPV_INT, where), nx;
+    const lopj_val *s, *c;
+    if (x == LOPJ_NONE)
+        return 0;
+    s = &v->j->v[x];
+    if (!lopj_int_in(v->j, x, 0, (int64_t)v->f->stage_count - 1))
+        return lopv_fail(v, "%s.stage names no stage (the file has %u)", where, (unsigned)v->f->stage_count);
+    if (k == n - 1 && s->i != 0)
+        return lopv_fail(v, "%s.stage must be 0: a part's coarsest LOD is in the first stage", where);
+    if (k < n - 1) {
+        nx = lopj_get(v->j, v->j->v[lod].next, "stage");
+        c = nx == LOPJ_NONE ? NULL : &v->j->v[nx];
+        if (c && c->type == LOPJ_INT && (c->big ? c->i > 0 : s->i < c->i))
+            return lopv_fail(v, "%s.stage comes before the stage of the coarser LOD %u", where, (unsigned)k + 1);
+    }
+    *out = (uint32_t)s->i;
     return 1;
 }
 
@@ -2310,6 +2957,10 @@ static int lopv_parts(lopv *v, uint32_t m)
             snprintf(lw, sizeof lw, "parts[%u].lods[%u]", (unsigned)i, (unsigned)k);
             if (lopj_type(v->j, lod) != LOPJ_OBJECT)
                 return lopv_fail(v, "%s is not an object", lw);
+            if (f->stream && !lopv_stage(v, lod, k, pt->lod_count, lw, &local.stage))
+                return 0;
+            if (!f->stream && lopj_get(v->j, lod, "stage") != LOPJ_NONE)
+                return lopv_fail(v, "%s.stage is only allowed in the streaming layout (positions.stages)", lw);
             if (shared_of >= 0) {
                 static const char *const own[3] = {"geometric_error_m", "min_distance_m", NULL};
                 const lop_part *op = &f->parts[shared_of];
@@ -2356,11 +3007,232 @@ static int lopv_parts(lopv *v, uint32_t m)
     return 1;
 }
 
-static int lopv_manifest(lopv *v, uint32_t root)
+/* The index of the section named `name`, or -1. */
+static int32_t lopv_section_named(const lopv *v, const char *name)
+{
+    size_t lo = 0, hi = v->f->section_count, kl = strlen(name);
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        const lopj_val *x = &v->j->v[v->name_val[v->names[mid]]];
+        size_t n = x->len < kl ? x->len : kl;
+        int c = memcmp(v->j->pool + x->str, name, n);
+        if (c == 0)
+            c = x->len < kl ? -1 : x->len > kl;
+        if (c == 0)
+            return (int32_t)v->names[mid];
+        if (c < 0)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return -1;
+}
+
+/* Bytes of a plane section holding `bits` bits: whole uint32 words (saturating). */
+static uint64_t lop__plane_bytes(uint64_t bits)
+{
+    return bits > UINT64_MAX - 31 ? UINT64_MAX : 4 * ((bits + 31) / 32);
+}
+
+/* The next entry of the streaming layout's section list (format.md 14.3) is section `idx`. */
+static int lopv_expect(lopv *v, int32_t idx, const char *want, uint32_t *at)
 {
     lop_file *f = v->f;
-    uint32_t planes;
+    if (*at >= f->section_count || idx != (int32_t)*at)
+        return lopv_fail(v, "the sections are not those of the streaming layout in its order: section %u is '%.60s', "
+                         "expected '%.60s'", (unsigned)*at, *at < f->section_count ? f->sections[*at].name : "missing",
+                         want);
+    (*at)++;
+    return 1;
+}
+
+/* A stage's position section `kind` (clusters, mandatory, deferred, planePP) in the list. */
+static int lopv_expect_named(lopv *v, uint32_t s, const char *kind, uint32_t *at, int32_t *out)
+{
+    char name[64];
+    snprintf(name, sizeof name, "positions/stage%u/%s", (unsigned)s, kind);
+    *out = lopv_section_named(v, name);
+    return lopv_expect(v, *out, name, at);
+}
+
+/* The stored buffers grouped by stage, manifest order within each (a counting sort). */
+static void lopv_group(lopv *v)
+{
+    lop_file *f = v->f;
+    uint32_t s, i, k, S = f->stage_count;
+    v->stage_start[0] = 0;
+    for (s = 0; s < S; s++)
+        v->stage_start[s + 1] = v->stage_start[s] + v->tot[s].buffers;
+    for (i = 0; i < f->part_count; i++)
+        if (f->parts[i].owner == (int32_t)i)
+            for (k = 0; k < f->parts[i].lod_count; k++) {
+                uint32_t b = v->stage_start[f->parts[i].lods[k].stage]++;
+                v->order[2 * b] = i;
+                v->order[2 * b + 1] = k;
+            }
+    for (s = S; s > 0; s--)
+        v->stage_start[s] = v->stage_start[s - 1];
+    v->stage_start[0] = 0;
+}
+
+/* The streaming layout (format.md 14.2-14.3): every stage holds a stored buffer; the section table
+   is exactly the layout's list; each stage's position sections are as long as its buffers need
+   (planes and the deferred section exactly). Fills f->stages. */
+static int lopv_stream_layout(lopv *v)
+{
+    lop_file *f = v->f;
+    uint32_t s, b, at = 0, S = f->stage_count;
     int p;
+    for (s = 0; s < S; s++)
+        if (!v->tot[s].buffers)
+            return lopv_fail(v, "positions.stages[%u] holds no buffer", (unsigned)s);
+    for (s = 0; s < S; s++) {
+        lop_stage *st = &f->stages[s];
+        const lopv_tot *t = &v->tot[s];
+        for (b = v->stage_start[s]; b < v->stage_start[s + 1]; b++) {
+            const lop_part *pt = &f->parts[v->order[2 * b]];
+            const lop_lod *e = &pt->lods[v->order[2 * b + 1]];
+            if (!lopv_expect(v, e->indices_section, f->sections[e->indices_section].name, &at) ||
+                (e->attributes_section >= 0 &&
+                 !lopv_expect(v, e->attributes_section, f->sections[e->attributes_section].name, &at)) ||
+                (v->order[2 * b + 1] == 0 && pt->hierarchy_section >= 0 &&
+                 !lopv_expect(v, pt->hierarchy_section, f->sections[pt->hierarchy_section].name, &at)))
+                return 0;
+        }
+        st->buffers = t->buffers;
+        st->clusters_section = st->deferred_section = -1;
+        if (t->clustered && !lopv_expect_named(v, s, "clusters", &at, &st->clusters_section))
+            return 0;
+        if (!lopv_expect_named(v, s, "mandatory", &at, &st->mandatory_section))
+            return 0;
+        for (p = 0; p <= LOP_LEVELS; p++) {
+            st->plane_section[p] = -1;
+            st->plane_offset[p] = 0;
+            st->plane_bits[p] = p >= 2 && p <= f->max_level ? t->plane_bits[p] : 0;
+        }
+        for (p = 2; p <= st->level; p++) {
+            char kind[16];
+            snprintf(kind, sizeof kind, "plane%02d", p);
+            if (st->plane_bits[p] && !lopv_expect_named(v, s, kind, &at, &st->plane_section[p]))
+                return 0;
+        }
+    }
+    for (s = 0; s < S; s++) {
+        lop_stage *st = &f->stages[s];
+        uint64_t offset = 0;
+        for (p = st->level + 1; p <= f->max_level; p++)
+            if (st->plane_bits[p] && st->deferred_section < 0 && !lopv_expect_named(v, s, "deferred", &at, &st->deferred_section))
+                return 0;
+        for (p = st->level + 1; p <= f->max_level && st->deferred_section >= 0; p++) {
+            st->plane_offset[p] = offset;
+            if (st->plane_bits[p])
+                st->plane_section[p] = st->deferred_section;
+            offset = lop__sat_add(offset, lop__plane_bytes(st->plane_bits[p]));
+        }
+    }
+    if (at != f->section_count)
+        return lopv_expect(v, -1, "none", &at);
+    for (s = 0; s < S; s++) {
+        const lop_stage *st = &f->stages[s];
+        const lopv_tot *t = &v->tot[s];
+        uint64_t deferred = 0;
+        if (st->clusters_section >= 0 &&
+            (t->headers > UINT64_MAX / 4 || f->sections[st->clusters_section].size < 4 * t->headers))
+            return lopv_fail(v, "%s is shorter than the cluster headers it holds", f->sections[st->clusters_section].name);
+        if (t->words > UINT64_MAX / 4 || f->sections[st->mandatory_section].size < 4 * t->words)
+            return lopv_fail(v, "%s is shorter than the buffers it holds", f->sections[st->mandatory_section].name);
+        for (p = 2; p <= st->level; p++)
+            if (st->plane_section[p] >= 0 && f->sections[st->plane_section[p]].size != lop__plane_bytes(st->plane_bits[p]))
+                return lopv_fail(v, "%s is not the %llu bits its buffers hold", f->sections[st->plane_section[p]].name,
+                                 (unsigned long long)st->plane_bits[p]);
+        for (p = st->level + 1; p <= f->max_level; p++)
+            deferred = lop__sat_add(deferred, lop__plane_bytes(st->plane_bits[p]));
+        if (st->deferred_section >= 0 && f->sections[st->deferred_section].size != deferred)
+            return lopv_fail(v, "%s is not the %llu bytes of planes %d..%d", f->sections[st->deferred_section].name,
+                             (unsigned long long)deferred, st->level + 1, f->max_level);
+    }
+    return 1;
+}
+
+/* The default layout's position sections as long as their buffers need; its one stage. */
+static int lopv_default_layout(lopv *v)
+{
+    lop_file *f = v->f;
+    lop_stage *st = &f->stages[0];
+    const lopv_tot *t = &v->tot[0];
+    int p;
+    if (v->clustered && !t->clustered)
+        return lopv_fail(v, "positions.clusters is present but no buffer is clustered");
+    if (v->clustered && (t->headers > UINT64_MAX / 4 || f->sections[f->clusters_section].size < 4 * t->headers))
+        return lopv_fail(v, "positions.clusters is shorter than the cluster headers it holds");
+    if (t->words > UINT64_MAX / 4 || f->sections[f->mandatory_section].size < 4 * t->words)
+        return lopv_fail(v, "positions.mandatory is shorter than the buffers it holds");
+    for (p = 2; p <= f->max_level; p++)
+        if (f->sections[f->plane_section[p]].size < (t->plane_bits[p] / 8 + (t->plane_bits[p] % 8 != 0)))
+            return lopv_fail(v, "refinement plane %d is shorter than its %llu bits", p,
+                             (unsigned long long)t->plane_bits[p]);
+    memset(st, 0, sizeof *st);
+    st->level = f->max_level;
+    st->buffers = t->buffers;
+    st->mandatory_section = f->mandatory_section;
+    st->clusters_section = f->clusters_section;
+    st->deferred_section = -1;
+    for (p = 0; p <= LOP_LEVELS; p++) {
+        st->plane_section[p] = f->plane_section[p];
+        st->plane_bits[p] = p >= 2 && p <= f->max_level ? t->plane_bits[p] : 0;
+    }
+    return 1;
+}
+
+/* A meshopt-deflate section is a LOD's indices and nothing else, its size the 3 m indices' bytes,
+   its stored bytes enough for a triangle stream of m triangles (format.md 15.2). Also notes, per
+   section, the last LOD naming it as indices (the one a meshopt-deflate section decodes with). */
+static int lopv_encoded_indices(lopv *v)
+{
+    lop_file *f = v->f;
+    uint32_t i, k, j;
+    if (!v->has_encoded)
+        return 1;
+    for (j = 0; j < f->section_count; j++) {
+        v->sec_first[j] = v->sec_last[j] = NULL;
+        v->sec_other[j] = 0;
+    }
+    for (i = 0; i < f->part_count; i++) {
+        const lop_part *pt = &f->parts[i];
+        for (k = 0; k < pt->lod_count; k++) {
+            const lop_lod *e = &pt->lods[k];
+            if (!v->sec_first[e->indices_section])
+                v->sec_first[e->indices_section] = e;
+            v->sec_last[e->indices_section] = e;
+            if (e->attributes_section >= 0)
+                v->sec_other[e->attributes_section] = 1;
+        }
+        if (pt->hierarchy_section >= 0)
+            v->sec_other[pt->hierarchy_section] = 1;
+    }
+    for (j = 0; j < f->section_count; j++) {
+        const lop_section *s = &f->sections[j];
+        const lop_lod *e = v->sec_first[j];
+        uint64_t want;
+        if (s->encoding != LOP_ENCODING_MESHOPT)
+            continue;
+        if (!e || v->sec_other[j])
+            return lopv_fail(v, "section '%s' is encoded meshopt-deflate but is no LOD's index section", s->name);
+        want = 4 * ((3u * (uint64_t)e->triangles * e->index_width + 3) / 4);
+        if (s->size != want)
+            return lopv_fail(v, "section '%s' size %llu is not the %llu bytes of its %u triangles", s->name,
+                             (unsigned long long)s->size, (unsigned long long)want, (unsigned)e->triangles);
+        if (s->length <= UINT64_MAX / LOP__DEFLATE_MAX_RATIO &&
+            (uint64_t)e->triangles + 17 > LOP__DEFLATE_MAX_RATIO * s->length)
+            return lopv_fail(v, "section '%s': %llu stored bytes cannot hold %u triangles", s->name,
+                             (unsigned long long)s->length, (unsigned)e->triangles);
+    }
+    return 1;
+}
+
+static int lopv_manifest(lopv *v, uint32_t root)
+{
+    uint32_t planes;
     v->klass = lop_error_manifest;
     if (lopj_type(v->j, root) != LOPJ_OBJECT || !lopj_is_str(v->j, lopj_get(v->j, root, "format"), "lopcook.lop"))
         return lopv_fail(v, "format is not 'lopcook.lop'");
@@ -2372,18 +3244,11 @@ static int lopv_manifest(lopv *v, uint32_t root)
     v->klass = lop_error_manifest;
     if (!lopv_grid(v, root) || !lopv_positions(v, root, &planes) || !lopv_parts(v, root))
         return 0;
-    if (v->clustered && !v->n_clustered)
-        return lopv_fail(v, "positions.clusters is present but no buffer is clustered");
-    if (v->clustered && (v->headers_next > UINT64_MAX / 4 || f->sections[f->clusters_section].length < 4 * v->headers_next))
-        return lopv_fail(v, "positions.clusters is shorter than the cluster headers it holds");
-    if (v->words_next > UINT64_MAX / 4 || f->sections[f->mandatory_section].length < 4 * v->words_next)
-        return lopv_fail(v, "positions.mandatory is shorter than the buffers it holds");
-    for (p = 2; p <= f->max_level; p++)
-        if (f->sections[f->plane_section[p]].length < (v->plane_bits[p] / 8 + (v->plane_bits[p] % 8 != 0)))
-            return lopv_fail(v, "refinement plane %d is shorter than its %llu bits", p,
-                             (unsigned long long)v->plane_bits[p]);
+    lopv_group(v);
+    if (!(v->f->stream ? lopv_stream_layout(v) : lopv_default_layout(v)))
+        return 0;
     (void)planes;
-    return 1;
+    return lopv_encoded_indices(v);
 }
 
 /* ---- lop_open -------------------------------------------------------------------------------- */
@@ -2409,6 +3274,7 @@ LOPDEF const char *lop_result_name(lop_result r)
     case lop_error_argument: return "argument";
     case lop_error_limit: return "limit";
     case lop_error_out_of_memory: return "out_of_memory";
+    case lop_error_encoding: return "encoding";
     }
     return "unknown";
 }
@@ -2447,32 +3313,27 @@ static int lop__check_indices(const lop_file *f, lop__err *err)
 }
 
 /* Cluster headers sound (k <= 24, anchors within k bits), cluster_p_words and cluster_plane_bits
-   what the headers give, every plane present exactly as long as its buffers' bits. */
+   what the headers give, for the buffers of every stage whose cluster headers have arrived; in the
+   default layout every plane present exactly as long as its buffers' bits (the streaming layout's
+   plane lengths follow from the manifest, which the validator checked). */
 static int lop__check_clusters(lop_file *f, lop__err *err)
 {
-    const lop_section *hs;
-    uint64_t head_words, bits[LOP_LEVELS + 1];
     uint32_t i, k;
     int p;
-    if (f->clusters_section < 0 || !f->sections[f->clusters_section].data)
-        return 1;
-    hs = &f->sections[f->clusters_section];
-    head_words = hs->length / 4;
-    memset(bits, 0, sizeof bits);
     for (i = 0; i < f->part_count; i++) {
         const lop_part *pt = &f->parts[i];
         if (pt->owner != (int32_t)i)
             continue;
         for (k = 0; k < pt->lod_count; k++) {
             const lop_lod *e = &pt->lods[k];
-            uint64_t words[LOP_LEVELS + 1], plane[LOP_LEVELS + 1];
+            const lop_stage *st = &f->stages[e->stage];
+            const lop_section *hs = st->clusters_section >= 0 ? &f->sections[st->clusters_section] : NULL;
+            uint64_t words[LOP_LEVELS + 1], plane[LOP_LEVELS + 1], head_words;
             uint32_t c = 0;
             int bin, b;
-            if (!e->cluster_size) {
-                for (p = 2; p <= LOP_LEVELS; p++)
-                    bits[p] = lop__sat_add(bits[p], 3u * (uint64_t)e->vertex_id[p - 1]);
+            if (!e->cluster_size || !hs || !hs->data)
                 continue;
-            }
+            head_words = hs->size / 4;
             if (e->cluster_words_offset + 3u * (uint64_t)e->cluster_count > head_words)
                 return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster headers: %llu words past the "
                                  "section", (unsigned)i, (unsigned)k,
@@ -2514,36 +3375,34 @@ static int lop__check_clusters(lop_file *f, lop__err *err)
                                      (unsigned)k, (unsigned long long)e->mandatory_count,
                                      (unsigned long long)((words[1] + 31) / 32 ? (words[1] + 31) / 32 : 1));
             }
-            for (p = 2; p <= LOP_LEVELS; p++) {
+            for (p = 2; p <= LOP_LEVELS; p++)
                 if (plane[p] != e->cluster_plane_bits[p - 2])
                     return lop__fail0(err, lop_error_clusters, "part %u LOD %u: cluster_plane_bits do not match its "
                                      "clusters", (unsigned)i, (unsigned)k);
-                bits[p] = lop__sat_add(bits[p], plane[p]);
-            }
         }
     }
-    for (p = 2; p <= f->max_level; p++) {
+    if (f->stream || f->clusters_section < 0 || !f->sections[f->clusters_section].data)
+        return 1;
+    for (p = 2; p <= f->max_level; p++) { /* the stage's plane bits are the manifest's, now the headers' */
         const lop_section *s = &f->sections[f->plane_section[p]];
-        if (s->data && s->length != 4 * ((bits[p] + 31) / 32))
+        if (s->data && s->size != lop__plane_bytes(f->stages[0].plane_bits[p]))
             return lop__fail0(err, lop_error_clusters, "refinement plane %d is not the %llu bits its buffers hold", p,
-                             (unsigned long long)bits[p]);
+                             (unsigned long long)f->stages[0].plane_bits[p]);
     }
     return 1;
 }
 
-/* Each buffer's bit offset in every plane (buffers of the owning parts in manifest order). */
-static void lop__plane_starts(lop_file *f)
+/* Each buffer's bit offset in every plane of its stage (the stage's earlier buffers' slices); a
+   placement's are its owner's. */
+static void lop__plane_starts(lop_file *f, const uint32_t *stage_start, const uint32_t *order)
 {
-    uint64_t start[LOP_LEVELS + 1];
-    uint32_t i, k;
+    uint32_t s, b, i, k;
     int p;
-    memset(start, 0, sizeof start);
-    for (i = 0; i < f->part_count; i++) {
-        lop_part *pt = &f->parts[i];
-        if (pt->owner != (int32_t)i)
-            continue;
-        for (k = 0; k < pt->lod_count; k++) {
-            lop_lod *e = &pt->lods[k];
+    for (s = 0; s < f->stage_count; s++) {
+        uint64_t start[LOP_LEVELS + 1];
+        memset(start, 0, sizeof start);
+        for (b = stage_start[s]; b < stage_start[s + 1]; b++) {
+            lop_lod *e = &f->parts[order[2 * b]].lods[order[2 * b + 1]];
             e->plane_start[0] = e->plane_start[1] = 0;
             for (p = 2; p <= LOP_LEVELS; p++) {
                 e->plane_start[p] = start[p];
@@ -2560,28 +3419,146 @@ static void lop__plane_starts(lop_file *f)
     }
 }
 
-static int lop__available(const lop_file *f)
+/* Every stage's level in the bytes given (format.md 8, 14.4), and the available level (the lowest). */
+static void lop__stage_levels(lop_file *f, const uint32_t *stage_start, const uint32_t *order)
 {
-    uint32_t i;
-    int level = 1, p;
-    if (!f->sections[f->mandatory_section].data || (f->clusters_section >= 0 && !f->sections[f->clusters_section].data))
-        return 0;
-    for (i = 0; i < f->section_count; i++)
-        if (!f->sections[i].data && strncmp(f->sections[i].name, "positions/", 10) != 0)
-            return 0;
-    for (p = 2; p <= f->max_level; p++) {
-        if (!f->sections[f->plane_section[p]].data)
-            break;
-        level = p;
+    uint32_t s, b, i;
+    int p;
+    f->available_level = LOP_LEVELS;
+    for (s = 0; s < f->stage_count; s++) {
+        lop_stage *st = &f->stages[s];
+        int ok = f->sections[st->mandatory_section].data && (st->clusters_section < 0 || f->sections[st->clusters_section].data);
+        if (f->stream) {
+            for (b = stage_start[s]; ok && b < stage_start[s + 1]; b++) {
+                const lop_part *pt = &f->parts[order[2 * b]];
+                const lop_lod *e = &pt->lods[order[2 * b + 1]];
+                ok = f->sections[e->indices_section].data &&
+                     (e->attributes_section < 0 || f->sections[e->attributes_section].data) &&
+                     (order[2 * b + 1] != 0 || pt->hierarchy_section < 0 || f->sections[pt->hierarchy_section].data);
+            }
+        } else {
+            for (i = 0; ok && i < f->section_count; i++)
+                ok = f->sections[i].data || strncmp(f->sections[i].name, "positions/", 10) == 0;
+        }
+        st->available = 0;
+        if (ok) {
+            st->available = 1;
+            for (p = 2; p <= st->level; p++) {
+                int32_t x = st->plane_section[p];
+                if (x >= 0 && (f->stream ? x != st->deferred_section : 1) && !f->sections[x].data)
+                    break;
+                st->available = p;
+            }
+            if (st->available == st->level && st->level < f->max_level &&
+                (st->deferred_section < 0 || f->sections[st->deferred_section].data))
+                st->available = f->max_level;
+        }
+        if (st->available < f->available_level)
+            f->available_level = st->available;
     }
-    return level;
+}
+
+/* Decode encoded section i (its stored bytes at `stored`) into a block of its own, or set the error.
+   A meshopt-deflate section decodes with the LOD `lod` names it as indices. */
+static int lop__decode_section(lop_file *f, uint32_t i, const uint8_t *stored, const lop_lod *lod,
+                               lop__inflater **z, const lop_allocator *mem, lop__err *err)
+{
+    lop_section *s = &f->sections[i];
+    size_t end = 0, k, limit, first;
+    uint8_t *out;
+    const char *why = NULL;
+    int r;
+    if (!*z && !(*z = (lop__inflater *)lop__alloc(mem, sizeof **z)))
+        return lop__fail0(err, lop_error_out_of_memory, "out of memory");
+    if (s->size > (uint64_t)(size_t)-1 || s->length > (uint64_t)(size_t)-1)
+        return lop__fail0(err, lop_error_out_of_memory, "section '%s' is too large for this machine", s->name);
+    if (s->encoding == LOP_ENCODING_DEFLATE) {
+        limit = first = (size_t)s->size;
+    } else { /* a triangle stream reads at most 16 data bytes per triangle: |E| <= 17 m + 17 */
+        uint64_t most = 17u * (uint64_t)lod->triangles + 17;
+        if (s->length <= UINT64_MAX / LOP__DEFLATE_MAX_RATIO && LOP__DEFLATE_MAX_RATIO * s->length < most)
+            most = LOP__DEFLATE_MAX_RATIO * s->length;
+        limit = most > (uint64_t)(size_t)-1 ? (size_t)-1 : (size_t)most;
+        first = 4 * (size_t)s->length + 1024;
+    }
+    r = lop__inflate(*z, stored, (size_t)s->length, limit, first, mem, &end);
+    out = (*z)->out;
+    (*z)->out = NULL;
+    if (r == LOP__Z_MEMORY) {
+        lop__free(mem, out);
+        return lop__fail0(err, lop_error_out_of_memory, "out of memory decoding section '%s'", s->name);
+    }
+    if (r != LOP__Z_OK)
+        why = lop__z_why(r);
+    else if (s->encoding == LOP_ENCODING_DEFLATE && (*z)->n != s->size)
+        why = "the deflate stream gives fewer bytes than its size says";
+    else if ((uint64_t)s->length != 4 * (((uint64_t)end + 3) / 4))
+        why = "the deflate stream does not end in the last word of its stored bytes";
+    for (k = end; !why && k < (size_t)s->length; k++)
+        if (stored[k])
+            why = "the bytes after the deflate stream are not zero padding";
+    if (!why && s->encoding == LOP_ENCODING_MESHOPT) {
+        uint8_t *idx = (uint8_t *)lop__alloc(mem, (size_t)s->size);
+        if (!idx) {
+            lop__free(mem, out);
+            return lop__fail0(err, lop_error_out_of_memory, "out of memory decoding section '%s'", s->name);
+        }
+        memset(idx, 0, (size_t)s->size);
+        why = lop__triangles(out, (*z)->n, lod->triangles, lod->vertices, lod->index_width, idx);
+        lop__free(mem, out);
+        out = idx;
+    }
+    if (why) {
+        lop__free(mem, out);
+        return lop__fail0(err, lop_error_encoding, "section '%s' (%s): %s", s->name,
+                          s->encoding == LOP_ENCODING_DEFLATE ? "deflate" : "meshopt-deflate", why);
+    }
+    s->data = out;
+    return 1;
+}
+
+/* The JSON text of an encoded manifest (format.md 4: 0x00, its size D, a DEFLATE stream giving
+   exactly D bytes and ending at the manifest's last byte) into *text (the caller frees it). */
+static int lop__decode_manifest(const uint8_t *m, uint32_t msize, lop__inflater **z, const lop_allocator *mem,
+                                uint8_t **text, size_t *tsize, lop__err *err)
+{
+    uint32_t d;
+    size_t end = 0;
+    int r;
+    if (msize < 5)
+        return lop__fail0(err, lop_error_encoding, "manifest (encoded): an encoded manifest starts with 0x00 and its "
+                         "4-byte size");
+    d = lop__rd32(m + 1);
+    if ((uint64_t)d > (uint64_t)LOP__DEFLATE_MAX_RATIO * (msize - 5))
+        return lop__fail0(err, lop_error_encoding, "manifest (encoded): it claims %u bytes, more than %u times its %u "
+                         "stored bytes", (unsigned)d, LOP__DEFLATE_MAX_RATIO, (unsigned)(msize - 5));
+    if (!*z && !(*z = (lop__inflater *)lop__alloc(mem, sizeof **z)))
+        return lop__fail0(err, lop_error_out_of_memory, "out of memory");
+    r = lop__inflate(*z, m + 5, msize - 5, d, d, mem, &end);
+    *text = (*z)->out;
+    (*z)->out = NULL;
+    *tsize = (*z)->n;
+    if (r == LOP__Z_MEMORY)
+        return lop__fail0(err, lop_error_out_of_memory, "out of memory for the manifest");
+    if (r != LOP__Z_OK)
+        return lop__fail0(err, lop_error_encoding, "manifest (encoded): %s", lop__z_why(r));
+    if (*tsize != d)
+        return lop__fail0(err, lop_error_encoding, "manifest (encoded): the deflate stream gives %lu bytes, not the %u "
+                         "its size says", (unsigned long)*tsize, (unsigned)d);
+    if (end != msize - 5)
+        return lop__fail0(err, lop_error_encoding, "manifest (encoded): the deflate stream ends at byte %lu of its %u",
+                         (unsigned long)end, (unsigned)(msize - 5));
+    return 1;
 }
 
 /* Upper bounds of what the manifest can hold, from its JSON shape (before validation). */
-static void lop__capacities(const lopj *j, uint32_t root, size_t *parts, size_t *lods, size_t *sections)
+static void lop__capacities(const lopj *j, uint32_t root, size_t *parts, size_t *lods, size_t *sections,
+                            size_t *stages)
 {
     uint32_t ps = lopj_get(j, root, "parts"), ss = lopj_get(j, root, "sections"), p, i;
+    uint32_t st = lopj_get(j, lopj_get(j, root, "positions"), "stages");
     *parts = *lods = *sections = 0;
+    *stages = lopj_type(j, st) == LOPJ_ARRAY && j->v[st].count ? j->v[st].count : 1;
     if (lopj_type(j, ss) == LOPJ_ARRAY)
         *sections = j->v[ss].count;
     if (lopj_type(j, ps) != LOPJ_ARRAY)
@@ -2599,6 +3576,118 @@ static void lop__capacities(const lopj *j, uint32_t root, size_t *parts, size_t 
     }
 }
 
+/* Frees a file (or one lop_open gave up on): the decoded sections, then its block. */
+static void lop__free_file(const lop_allocator *mem, lop_file *f)
+{
+    uint32_t i;
+    if (!f)
+        return;
+    for (i = 0; i < f->section_count; i++)
+        if (f->sections[i].encoding != LOP_ENCODING_NONE && f->sections[i].data)
+            lop__free(mem, (void *)(uintptr_t)f->sections[i].data);
+    lop__free(mem, f->block_);
+}
+
+/* The file's block (lop_file, parts, LODs, sections, stages, strings) and lop_open's scratch (the
+   validator's tables), sized from the parsed manifest; 0 when out of memory. */
+static int lop__allocate(const lopj *j, const lop_allocator *mem, lop_file **fo, void **scratch, lopv *v)
+{
+    size_t np, nl, ns, nst, parts_all, need, u32s, sz;
+    uint32_t ps = lopj_get(j, 0, "parts");
+    lop_file *f;
+    char *at;
+    lop__capacities(j, 0, &np, &nl, &ns, &nst);
+    parts_all = lopj_type(j, ps) == LOPJ_ARRAY ? j->v[ps].count : 0;
+    need = sizeof(lop_file);
+    need = lop__sat_add(need, lop__mul(np, sizeof(lop_part)));
+    need = lop__sat_add(need, lop__mul(nl, sizeof(lop_lod)));
+    need = lop__sat_add(need, lop__mul(ns, sizeof(lop_section)));
+    need = lop__sat_add(need, lop__mul(nst, sizeof(lop_stage)));
+    need = lop__sat_add(need, (uint64_t)j->np + j->nv + 8);
+    u32s = 2 * ns + parts_all + (nst + 1) + 2 * nl;
+    sz = lop__mul(nst, sizeof(lopv_tot));
+    sz = lop__sat_add(sz, lop__mul(2 * ns, sizeof(const lop_lod *)));
+    sz = lop__sat_add(sz, lop__mul(u32s, sizeof(uint32_t)));
+    sz = lop__sat_add(sz, ns + 8);
+    if (need > (uint64_t)(size_t)-1 / 2 || sz > (uint64_t)(size_t)-1 / 2 || !lop__mul(nl, sizeof(lop_lod)) != !nl ||
+        !lop__mul(ns, sizeof(lop_section)) != !ns)
+        return 0;
+    *fo = f = (lop_file *)lop__alloc(mem, need);
+    *scratch = lop__alloc(mem, sz);
+    if (!f || !*scratch)
+        return 0;
+    memset(f, 0, sizeof *f);
+    f->parts = (lop_part *)(f + 1);
+    f->sections = (lop_section *)(f->parts + np);
+    f->stages = (lop_stage *)(f->sections + ns);
+    memset(f->stages, 0, nst * sizeof(lop_stage));
+    f->stage_count = 1;
+    f->block_ = f;
+    v->lods = (lop_lod *)(f->stages + nst);
+    v->strings = (char *)(v->lods + nl);
+    v->lods_left = nl;
+    v->parts_cap = (uint32_t)np;
+    at = (char *)*scratch;
+    v->tot = (lopv_tot *)at;
+    memset(v->tot, 0, nst * sizeof(lopv_tot));
+    at += nst * sizeof(lopv_tot);
+    v->sec_first = (const lop_lod **)at;
+    v->sec_last = v->sec_first + ns;
+    at += 2 * ns * sizeof(const lop_lod *);
+    v->names = (uint32_t *)at;
+    v->name_val = v->names + ns;
+    v->part_node = v->name_val + ns;
+    v->stage_start = v->part_node + parts_all;
+    v->order = v->stage_start + nst + 1;
+    v->sec_other = (uint8_t *)(v->order + 2 * nl);
+    return 1;
+}
+
+/* The version rules of format.md 11 on a validated manifest (class version). */
+static int lop__version_rules(const lop_file *f, const lopv *v, lop__err *err)
+{
+    unsigned major = f->version_major, minor = f->version_minor;
+    if (major == 2 && v->clustered)
+        return lop__fail0(err, lop_error_version, "container version %u.%u must not hold clustered position buffers "
+                         "(they need 3.x)", major, minor);
+    if (major == 2 && v->has_placements && minor < 1)
+        return lop__fail0(err, lop_error_version, "container version %u.%u must not hold placements (they need 3.x)",
+                         major, minor);
+    if (major < 4 && v->has_tangents)
+        return lop__fail0(err, lop_error_version, "container version %u.%u must not hold tangents (they need 4.x)",
+                         major, minor);
+    if (major < 4 && (f->stream || v->has_encoded))
+        return lop__fail0(err, lop_error_version, "container version %u.%u must not hold the streaming layout or "
+                         "encoded sections (they need 4.x)", major, minor);
+    return 1;
+}
+
+/* Every section complete in the bytes given: its CRC, then (encoded) its decoding; 0 with the error
+   set. *end: where the table says the sections end. */
+static int lop__read_sections(lop_file *f, const uint8_t *b, size_t size, uint64_t base, const lop__crc *crc,
+                              const lopv *v, lop__inflater **z, const lop_allocator *mem, lop__err *err, uint64_t *end)
+{
+    uint32_t i;
+    *end = base;
+    for (i = 0; i < f->section_count; i++) {
+        lop_section *s = &f->sections[i];
+        uint64_t start = base + s->offset;
+        *end = lop__sat_add(start, s->length);
+        if (*end > (uint64_t)size) {
+            if (!f->complete)
+                break;
+            return lop__fail0(err, lop_error_section_table, "section '%s' runs past the end of the file", s->name);
+        }
+        if (LOP__CHECK_CRC && lop__crc32(crc, b + start, s->length) != s->crc32)
+            return lop__fail0(err, lop_error_section_crc, "section '%s' checksum mismatch", s->name);
+        if (s->encoding == LOP_ENCODING_NONE)
+            s->data = b + start;
+        else if (!lop__decode_section(f, i, b + start, v->sec_last[i], z, mem, err))
+            return 0;
+    }
+    return 1;
+}
+
 LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *options, lop_file **out,
                            lop_message *msg)
 {
@@ -2606,19 +3695,24 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
     lop__err err;
     lop_allocator mem;
     lop__crc *crc = NULL;
+    lop__inflater *z = NULL;
     lopj j;
     lopv v;
     lop_file *f = NULL;
-    uint32_t *scratch = NULL;
+    void *scratch = NULL;
+    uint8_t *mtext = NULL;
+    const char *text;
+    size_t tsize;
     uint16_t major, minor;
-    uint32_t msize, i;
-    uint64_t total, base, end;
+    uint32_t msize;
+    uint64_t total, end;
     int truncated, allow_prefix = options ? options->allow_prefix : 0;
     err.code = lop_success;
     err.msg = msg;
     if (msg)
         msg->text[0] = 0;
     memset(&j, 0, sizeof j);
+    memset(&v, 0, sizeof v);
     mem.alloc = options && options->memory.alloc ? options->memory.alloc : lop__default_alloc;
     mem.free = options && options->memory.free ? options->memory.free : lop__default_free;
     mem.user = options ? options->memory.user : NULL;
@@ -2673,81 +3767,39 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
         lop__fail(&err, lop_error_manifest_crc, "manifest checksum mismatch");
         goto fail;
     }
-    if (!lopj_parse((const char *)b + 32, msize, &mem, &err, &j))
-        goto fail;
-    {
-        size_t np, nl, ns, need;
-        lop__capacities(&j, 0, &np, &nl, &ns);
-        need = sizeof(lop_file);
-        need += lop__mul(np, sizeof(lop_part)) + lop__mul(nl, sizeof(lop_lod)) + lop__mul(ns, sizeof(lop_section));
-        need += j.np + j.nv + 8;
-        if (need < j.np || lop__mul(nl, sizeof(lop_lod)) < nl || lop__mul(ns, sizeof(lop_section)) < ns)
-            need = 0;
-        f = need ? (lop_file *)lop__alloc(&mem, need) : NULL;
-        uint32_t parts_all = lopj_type(&j, lopj_get(&j, 0, "parts")) == LOPJ_ARRAY ? j.v[lopj_get(&j, 0, "parts")].count : 0;
-        scratch = (uint32_t *)lop__alloc(&mem, lop__mul(2 * ns + parts_all + 1, sizeof(uint32_t)));
-        if (!f || !scratch) {
-            lop__fail(&err, lop_error_out_of_memory, "out of memory for the manifest's %lu parts", (unsigned long)np);
+    text = (const char *)b + 32;
+    tsize = msize;
+    if (msize > 0 && b[32] == 0) { /* an encoded manifest (format.md 4) */
+        if (major < 4) {
+            lop__fail(&err, lop_error_version, "container version %u.%u must not hold an encoded manifest (it needs "
+                      "4.x)", (unsigned)major, (unsigned)minor);
             goto fail;
         }
-        memset(f, 0, sizeof *f);
-        f->parts = (lop_part *)(f + 1);
-        f->sections = (lop_section *)(f->parts + np);
-        memset(&v, 0, sizeof v);
-        v.lods = (lop_lod *)(f->sections + ns);
-        v.strings = (char *)(v.lods + nl);
-        v.lods_left = nl;
-        v.parts_cap = (uint32_t)np;
-        v.names = scratch;
-        v.name_val = scratch + ns;
-        v.part_node = scratch + 2 * ns;
-        v.j = &j;
-        v.text = (const char *)b + 32;
-        v.err = &err;
-        v.f = f;
-        f->memory_ = mem;
-        f->block_ = f;
+        if (!lop__decode_manifest(b + 32, msize, &z, &mem, &mtext, &tsize, &err))
+            goto fail;
+        text = (const char *)mtext;
     }
+    if (!lopj_parse(text, tsize, &mem, &err, &j))
+        goto fail;
+    if (!lop__allocate(&j, &mem, &f, &scratch, &v)) {
+        lop__fail(&err, lop_error_out_of_memory, "out of memory for the manifest's %lu values", (unsigned long)j.nv);
+        goto fail;
+    }
+    v.j = &j;
+    v.text = text;
+    v.err = &err;
+    v.f = f;
+    f->memory_ = mem;
     f->version_major = major;
     f->version_minor = minor;
     f->file_size = total;
     f->size = size;
     f->complete = !truncated;
-    if (!lopv_manifest(&v, 0))
+    f->manifest_size = tsize;
+    if (!lopv_manifest(&v, 0) || !lop__version_rules(f, &v, &err))
         goto fail;
-    if (major == 2 && v.clustered) {
-        lop__fail(&err, lop_error_version, "container version %u.%u must not hold clustered position buffers (they "
-                  "need 3.x)", (unsigned)major, (unsigned)minor);
+    if (!lop__read_sections(f, b, size, 32 + (uint64_t)msize, crc, &v, &z, &mem, &err, &end))
         goto fail;
-    }
-    if (major == 2 && v.has_placements && minor < 1) {
-        lop__fail(&err, lop_error_version, "container version %u.%u must not hold placements (they need 3.x)",
-                  (unsigned)major, (unsigned)minor);
-        goto fail;
-    }
-    if (major < 4 && v.has_tangents) {
-        lop__fail(&err, lop_error_version, "container version %u.%u must not hold tangents (they need 4.x)",
-                  (unsigned)major, (unsigned)minor);
-        goto fail;
-    }
-    base = 32 + (uint64_t)msize;
-    end = base;
-    for (i = 0; i < f->section_count; i++) {
-        lop_section *s = &f->sections[i];
-        uint64_t start = base + s->offset;
-        end = lop__sat_add(start, s->length);
-        if (end > (uint64_t)size) {
-            if (truncated)
-                break;
-            lop__fail(&err, lop_error_section_table, "section '%s' runs past the end of the file", s->name);
-            goto fail;
-        }
-        if (LOP__CHECK_CRC && lop__crc32(crc, b + start, s->length) != s->crc32) {
-            lop__fail(&err, lop_error_section_crc, "section '%s' checksum mismatch", s->name);
-            goto fail;
-        }
-        s->data = b + start;
-    }
     if (!truncated && end != total) {
         lop__fail(&err, lop_error_section_table, "sections end at byte %llu, file size says %llu",
                   (unsigned long long)end, (unsigned long long)total);
@@ -2755,22 +3807,29 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
     }
     if (!lop__check_indices(f, &err) || !lop__check_clusters(f, &err))
         goto fail;
-    lop__plane_starts(f);
-    f->available_level = lop__available(f);
-    if (f->available_level < 1) {
-        lop__fail(&err, lop_error_truncated, "the file ends before the mandatory position bits");
+    lop__plane_starts(f, v.stage_start, v.order);
+    lop__stage_levels(f, v.stage_start, v.order);
+    if (f->stages[0].available < 1) {
+        lop__fail(&err, lop_error_truncated, f->stream ? "the file ends before the first stage's mandatory position bits"
+                                                       : "the file ends before the mandatory position bits");
         goto fail;
     }
     lopj_release(&j, &mem);
     lop__free(&mem, scratch);
     lop__free(&mem, crc);
+    lop__free(&mem, mtext);
+    lop__free(&mem, z);
     *out = f;
     return lop_success;
 fail:
     lopj_release(&j, &mem);
     lop__free(&mem, scratch);
     lop__free(&mem, crc);
-    lop__free(&mem, f);
+    lop__free(&mem, mtext);
+    if (z)
+        lop__free(&mem, z->out);
+    lop__free(&mem, z);
+    lop__free_file(&mem, f);
     return err.code;
 }
 
@@ -2778,8 +3837,9 @@ LOPDEF void lop_close(lop_file *f)
 {
     if (f) {
         lop_allocator mem = f->memory_;
-        lop__free(&mem, f->block_);
+        lop__free_file(&mem, f);
     }
+
 }
 
 /* ---- queries --------------------------------------------------------------------------------- */
@@ -2793,9 +3853,33 @@ static lop_result lop__lookup(const lop_file *f, uint32_t part, uint32_t lod, co
     return lop_success;
 }
 
-static lop_result lop__level_ok(const lop_file *f, int level)
+/* Level B of buffer e: in 1..24 and at most its stage's level in the bytes given. */
+static lop_result lop__level_ok(const lop_file *f, const lop_lod *e, int level)
 {
-    return level >= 1 && level <= LOP_LEVELS && level <= f->available_level ? lop_success : lop_error_level;
+    return level >= 1 && level <= LOP_LEVELS && level <= f->stages[e->stage].available ? lop_success : lop_error_level;
+}
+
+LOPDEF int lop_buffer_level(const lop_file *f, uint32_t part, uint32_t lod)
+{
+    if (!f || part >= f->part_count || lod >= f->parts[part].lod_count)
+        return -1;
+    return f->stages[f->parts[part].lods[lod].stage].available;
+}
+
+LOPDEF lop_result lop_drawable(const lop_file *f, uint32_t part, uint32_t lod, uint32_t *drawn, int *level)
+{
+    const lop_part *pt;
+    uint32_t k;
+    if (!f || part >= f->part_count || !drawn || !level)
+        return lop_error_argument;
+    pt = &f->parts[part];
+    for (k = lod < pt->lod_count ? lod : pt->lod_count - 1; k < pt->lod_count; k++)
+        if (f->stages[pt->lods[k].stage].available >= 1) {
+            *drawn = k;
+            *level = f->stages[pt->lods[k].stage].available;
+            return lop_success;
+        }
+    return lop_error_level; /* cannot happen in a file that opened: the coarsest LOD is in stage 0 */
 }
 
 LOPDEF int lop_part_level(const lop_file *f, uint32_t part, int level)
@@ -2886,26 +3970,32 @@ static const uint64_t lop__spread[8] = {
     0, 1, UINT64_C(1) << 21, 1 | UINT64_C(1) << 21, UINT64_C(1) << 42, 1 | UINT64_C(1) << 42,
     UINT64_C(1) << 21 | UINT64_C(1) << 42, 1 | UINT64_C(1) << 21 | UINT64_C(1) << 42};
 
+/* The bytes buffer e reads at level B: its stage's mandatory words from its own, each plane 2..B
+   (a plane's bytes: its section, or its part of the stage's deferred section), its cluster headers. */
 static void lop__sources(const lop_file *f, const lop_lod *e, int level, lop__srcs *s)
 {
-    const lop_section *m = &f->sections[f->mandatory_section];
+    const lop_stage *st = &f->stages[e->stage];
+    const lop_section *m = &f->sections[st->mandatory_section];
     int p;
     uint64_t off = 4 * e->mandatory_offset;
     s->mand = m->data + off;
-    s->mand_len = (size_t)(m->length - off);
+    s->mand_len = (size_t)(m->size - off);
     for (p = 0; p <= LOP_LEVELS; p++) {
         s->plane[p] = NULL;
         s->plane_len[p] = 0;
     }
     for (p = 2; p <= level; p++) {
-        const lop_section *ps = &f->sections[f->plane_section[p]];
-        s->plane[p] = ps->data;
-        s->plane_len[p] = (size_t)ps->length;
+        const lop_section *ps;
+        if (st->plane_section[p] < 0)
+            continue; /* a plane without bits: no buffer reads it */
+        ps = &f->sections[st->plane_section[p]];
+        s->plane[p] = ps->data + st->plane_offset[p];
+        s->plane_len[p] = (size_t)(f->stream ? lop__plane_bytes(st->plane_bits[p]) : ps->size);
     }
     s->head = NULL;
     s->head_len = 0;
     if (e->cluster_size) {
-        const lop_section *h = &f->sections[f->clusters_section];
+        const lop_section *h = &f->sections[st->clusters_section];
         s->head = h->data + 4 * e->cluster_words_offset;
         s->head_len = (size_t)(12u * (uint64_t)e->cluster_count);
     }
@@ -3323,7 +4413,7 @@ static uint64_t lop__p_bits(const lop_file *f, const lop_lod *e, int B, lop_layo
     if (layout == LOP_LAYOUT_UNIFORM)
         return 3u * (uint64_t)B * e->vertices;
     if (layout == LOP_LAYOUT_NATIVE && e->cluster_size) {
-        const lop_section *h = &f->sections[f->clusters_section];
+        const lop_section *h = &f->sections[f->stages[e->stage].clusters_section];
         uint32_t c = 0;
         for (k = 1; k <= LOP_LEVELS; k++) {
             uint32_t left = e->vertex_id[k] - e->vertex_id[k - 1];
@@ -3358,7 +4448,7 @@ LOPDEF lop_result lop_buffer(const lop_file *f, uint32_t part, uint32_t lod, int
     int clustered;
     if (r != lop_success || !info || (unsigned)layout > LOP_LAYOUT_UNIFORM)
         return lop_error_argument;
-    if ((r = lop__level_ok(f, level)) != lop_success)
+    if ((r = lop__level_ok(f, e, level)) != lop_success)
         return r;
     clustered = layout == LOP_LAYOUT_NATIVE && e->cluster_size;
     bits = lop__p_bits(f, e, level, layout);
@@ -3460,7 +4550,7 @@ LOPDEF lop_result lop_decode_positions(const lop_file *f, uint32_t part, uint32_
     lop_result r = lop__lookup(f, part, lod, &pt, &e);
     if (r != lop_success || !xyz)
         return lop_error_argument;
-    if ((r = lop__level_ok(f, level)) != lop_success)
+    if ((r = lop__level_ok(f, e, level)) != lop_success)
         return r;
     if (vertex_count < e->vertices)
         return lop_error_argument;
@@ -3497,7 +4587,7 @@ LOPDEF lop_result lop_decode_grid(const lop_file *f, uint32_t part, uint32_t lod
     lop_result r = lop__lookup(f, part, lod, &pt, &e);
     if (r != lop_success || !values)
         return lop_error_argument;
-    if ((r = lop__level_ok(f, level)) != lop_success)
+    if ((r = lop__level_ok(f, e, level)) != lop_success)
         return r;
     if (vertex_count < e->vertices)
         return lop_error_argument;
@@ -3577,9 +4667,11 @@ LOPDEF lop_result lop_attribute_words(const lop_file *f, uint32_t part, uint32_t
         return lop_error_argument;
     *bytes = NULL;
     *size = 0;
+    if (e->attributes_section >= 0 && !f->sections[e->attributes_section].data)
+        return lop_error_level; /* its stage has not arrived */
     if (e->attributes_section >= 0) {
         *bytes = f->sections[e->attributes_section].data;
-        *size = (size_t)f->sections[e->attributes_section].length;
+        *size = (size_t)f->sections[e->attributes_section].size;
     }
     return lop_success;
 }
@@ -3592,7 +4684,7 @@ LOPDEF lop_result lop_attribute_block(const lop_file *f, uint32_t part, uint32_t
     uint64_t words;
     if (lop__lookup(f, part, lod, &pt, &e) != lop_success || !block || block_size < LOP_ATTRIBUTE_BLOCK_SIZE)
         return lop_error_argument;
-    words = e->attributes_section >= 0 ? f->sections[e->attributes_section].length / 4 : 0;
+    words = e->attributes_section >= 0 ? f->sections[e->attributes_section].size / 4 : 0;
     if (words > 0xFFFFFFFFu || (uint64_t)e->vertices * e->record_bits >= (UINT64_C(1) << 32))
         return lop_error_limit;
     lop__wr32(out, (uint32_t)e->normal_bits);
@@ -3601,14 +4693,14 @@ LOPDEF lop_result lop_attribute_block(const lop_file *f, uint32_t part, uint32_t
     lop__wr32(out + 12, e->record_bits);
     lop__wrf(out + 16, e->normal_bits ? (float)(1.0 / (double)((1 << (e->normal_bits - 1)) - 1)) : 0.0f);
     lop__wrf(out + 20, e->color_bits ? (float)(1.0 / (double)((1 << e->color_bits) - 1)) : 0.0f);
-    lop__wrf(out + 24, 0.0f);
+    lop__wrf(out + 24, e->tangent_bits ? (float)(1.0 / (double)((1 << (e->tangent_bits - 1)) - 1)) : 0.0f);
     lop__wrf(out + 28, 0.0f);
     lop__wrf(out + 32, e->uv_lo[0]);
     lop__wrf(out + 36, e->uv_lo[1]);
     lop__wrf(out + 40, e->uv_step[0]);
     lop__wrf(out + 44, e->uv_step[1]);
     lop__wr32(out + 48, (uint32_t)(words ? words : 1));
-    lop__wr32(out + 52, 0);
+    lop__wr32(out + 52, (uint32_t)e->tangent_bits);
     lop__wr32(out + 56, 0);
     lop__wr32(out + 60, 0);
     return lop_success;
@@ -3693,10 +4785,12 @@ LOPDEF lop_result lop_decode_attributes(const lop_file *f, uint32_t part, uint32
     float cscale;
     if (lop__lookup(f, part, lod, &pt, &e) != lop_success || !out || vertex_count < e->vertices)
         return lop_error_argument;
+    if (!f->sections[e->indices_section].data || (e->attributes_section >= 0 && !f->sections[e->attributes_section].data))
+        return lop_error_level; /* its stage has not arrived */
     if (e->attributes_section < 0)
         return lop_success;
     d = f->sections[e->attributes_section].data;
-    words = f->sections[e->attributes_section].length / 4;
+    words = f->sections[e->attributes_section].size / 4;
     cscale = e->color_bits ? (float)(1.0 / (double)((1 << e->color_bits) - 1)) : 0.0f;
     for (j = 0, o = 0; j < e->vertices; j++, o += e->record_bits) {
         uint64_t at = o;
@@ -3744,6 +4838,8 @@ LOPDEF lop_result lop_decode_indices(const lop_file *f, uint32_t part, uint32_t 
     if (index_count < n)
         return lop_error_argument;
     d = f->sections[e->indices_section].data;
+    if (!d)
+        return lop_error_level; /* its stage has not arrived */
     if (e->index_width == 2)
         for (t = 0; t < n; t++)
             indices[t] = lop__rd16(d + 2 * t);

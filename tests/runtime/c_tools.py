@@ -60,6 +60,14 @@ def expected_of(index: dict, entry: dict) -> list | None:
     return entry.get("expected")
 
 
+def want_verdict(v: dict) -> str:
+    """The verdict (``verdict``'s words) that an index entry's ``{"error": class}`` or
+    ``{"available_level": L[, "stage_levels": [...]]}`` stands for."""
+    if "error" in v:
+        return v["error"]
+    return f"ok:{v['available_level']}" + ("/" + ",".join(map(str, v["stage_levels"])) if "stage_levels" in v else "")
+
+
 def sha(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
@@ -69,13 +77,14 @@ def lopdump(exe: Path, path, *args, timeout: int = 600) -> subprocess.CompletedP
 
 
 def verdict(data: bytes, allow_prefix: bool) -> str:
-    """lopcook's reader on these bytes: its error class, or ``ok:L`` with L the available level."""
+    """lopcook's reader on these bytes: its error class, or ``ok:L`` with L the available level
+    (``ok:L/S0,S1,...`` in the streaming layout, S the level of each stage): what lopcheck prints."""
     try:
         c = from_bytes(data, "x.lop", allow_prefix=allow_prefix)
     except LopcookError as exc:
         assert exc.reason, f"a container error without its class: {exc}"
         return exc.reason
-    return f"ok:{c.available_level}"
+    return f"ok:{c.available_level}" + ("/" + ",".join(map(str, c.stage_levels)) if c.stream else "")
 
 
 def lopcheck(exe: Path, *args, timeout: int = 1200) -> list[list[str]]:

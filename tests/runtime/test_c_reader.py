@@ -3,8 +3,9 @@
 the conformance set (every verdict, error class, available level and decoded byte), stays
 bit-exact when the compiler may fuse multiply-adds, and under AddressSanitizer and
 UndefinedBehaviorSanitizer survives every single-byte flip and every truncation of the conformance
-files, every allocation failure and every .lop of the hostile-input corpus, with lopcook's verdict
-on each; libFuzzer runs 60 s clean. Tangents (format 4.0) decode as tangents.md defines them."""
+files (the streaming layout, encoded sections and tangents of container 4.0 among them), every
+allocation failure and every .lop of the hostile-input corpus, with lopcook's verdict on each;
+libFuzzer runs 60 s clean. Tangents (format 4.0) decode as tangents.md defines them."""
 
 from __future__ import annotations
 
@@ -18,11 +19,13 @@ import numpy as np
 import pytest
 
 from c_tools import c_build  # noqa: F401  (the session's build, a pytest fixture)
-from c_tools import CONFORMANCE, RUNTIME, conformance, expected_of, lopcheck, lopdump, make, sha, tool, verdict
+from c_tools import (CONFORMANCE, RUNTIME, conformance, expected_of, lopcheck, lopdump, make, sha, tool, verdict,
+                     want_verdict)
 
 from lopcook.lop.codecs.normals_oct import decode_normals
 from tests.support import fuzzcases
-from lopcook.lop.container import manifest_bytes
+from lopcook.lop.container import manifest_bytes, manifest_of
+from lopcook.lop.layout import is_stream, layout_of
 
 COMPILERS = ("gcc", "clang")
 #: the C library functions lop.h may call (and nothing else: no libm, no I/O)
@@ -77,8 +80,9 @@ def test_the_reader_needs_only_the_c_library(tmp_path):
 # ---- the conformance set ---------------------------------------------------------------------
 
 def check_conformance(exe, tmp_path, files=None) -> None:
-    """Every file of the set through lopdump: whole-file and prefix verdicts, and the sha256 of the
-    positions, gpu and attributes dumps at every level and LOD the index lists."""
+    """Every file of the set through lopdump: whole-file and prefix verdicts (the error class, or the
+    available level and each stage's level), and the sha256 of the positions, gpu and attributes
+    dumps at every level and LOD the index lists."""
     index = conformance()
     out = {k: tmp_path / f"dump.{k}" for k in ("positions", "gpu", "attributes")}
     for e in index["files"]:
@@ -86,12 +90,16 @@ def check_conformance(exe, tmp_path, files=None) -> None:
             continue
         path = CONFORMANCE / e["file"]
         assert sha(path) == e["sha256"], e["file"]
-        for prefix, want in ((False, e.get("error")), (True, (e.get("prefix") or {}).get("error"))):
-            run = lopdump(exe, path, "--level", "1", *(["--prefix"] if prefix else []))
-            if want is None:
+        for prefix, want in ((False, e), (True, e.get("prefix", e))):
+            run = lopdump(exe, path, "--level", "1", "--json", *(["--prefix"] if prefix else []))
+            if "error" not in want:
                 assert run.returncode == 0, (e["file"], prefix, run.stderr)
+                got = json.loads(run.stdout)
+                stages = [s["available"] for s in got["stages"]]
+                assert want_verdict(want) == f"ok:{got['available_level']}" + (
+                    "/" + ",".join(map(str, stages)) if got["stream"] else ""), (e["file"], prefix)
             else:
-                assert run.returncode == 2 and f": {want}: " in run.stderr and run.stderr.count("\n") == 1, \
+                assert run.returncode == 2 and f": {want['error']}: " in run.stderr and run.stderr.count("\n") == 1, \
                     (e["file"], prefix, want, run.stderr)
         for lod in expected_of(index, e) or ():
             for level, hashes in lod["levels"].items():
@@ -116,7 +124,8 @@ def test_bit_exact_when_the_compiler_may_fuse_multiply_adds(tmp_path, cc):
                           str(RUNTIME / "examples" / "lopdump.c"), "-o", str(exe)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     check_conformance(exe, tmp_path, {"placements.lop", "placements_clustered.lop", "attributes_narrow.lop",
-                                      "attributes_wide.lop", "plates_v2.lop"})
+                                      "attributes_wide.lop", "plates_v2.lop", "stream_wedges.lop",
+                                      "stream_tangents.lop", "tangents_wide.lop"})
 
 
 def test_lopdump_refuses_bad_requests_with_one_line_and_no_output(c_build, tmp_path):
@@ -147,25 +156,20 @@ def _flip_class(data: bytes, at: int) -> str:
 
 
 def _prefix_verdict(data: bytes, cut: int) -> str:
-    """lopcook's prefix verdict on data[:cut] of a valid file, from its section table (section 8)."""
+    """lopcook's prefix verdict on data[:cut] of a valid file, from its section table (sections 8 and
+    14.4: the complete sections, each stage's level from them)."""
     if cut < 32 or cut < _regions(data)[1]:
         return "truncated"
-    m = json.loads(data[32:_regions(data)[1]])
+    m = manifest_of(data)
     base, present = _regions(data)[1], set()
     for s in m["sections"]:
         if base + s["offset"] + s["length"] > cut:
             break
         present.add(s["name"])
-    pos = m["positions"]
-    if pos["mandatory"] not in present or ("clusters" in pos and pos["clusters"] not in present) or \
-            any(s["name"] not in present and not s["name"].startswith("positions/") for s in m["sections"]):
+    levels = layout_of(m).levels(present)
+    if levels[0] < 1:
         return "truncated"
-    level = 1
-    for p in range(2, pos["max_level"] + 1):
-        if pos["planes"][str(p)] not in present:
-            break
-        level = p
-    return f"ok:{level}"
+    return f"ok:{min(levels)}" + ("/" + ",".join(map(str, levels)) if is_stream(m) else "")
 
 
 def _sample(n: int) -> list[int]:
@@ -222,20 +226,16 @@ def hostile_lops(tmp_path_factory) -> list:
 
 @pytest.mark.parametrize("cc", COMPILERS)
 def test_the_hostile_corpus_gets_lopcooks_verdicts(c_build, hostile_lops, cc):
-    """Every .lop of tests/support/fuzzcases.py, opened whole and as a prefix and decoded at every level when
-    it opens: no sanitizer report, no leak, and lopcook's verdict -- except where lopcook refuses
-    the 4.0 header that this reader already reads (tangents.md): then both must open the same
-    bytes relabelled 3.0 alike."""
+    """Every .lop of tests/support/fuzzcases.py (the streaming layout's hostile files included),
+    opened whole and as a prefix and decoded at every level when it opens: no sanitizer report, no
+    leak, and lopcook's verdict (error class, or the available and stage levels)."""
     lines = lopcheck(c_build / f"{cc}-san" / "lopcheck", *hostile_lops)
     prefixed = lopcheck(c_build / f"{cc}-san" / "lopcheck", "--prefix", *hostile_lops)
     assert len(lines) == len(prefixed) == len(hostile_lops)
     for path, (_, whole), (_, prefix) in zip(hostile_lops, lines, prefixed):
         with open(path, "rb") as fh:
             data = fh.read()
-        want = (verdict(data, False), verdict(data, True))
-        if len(data) >= 32 and struct.unpack_from("<H", data, 4)[0] == 4 and want[0] == "version":
-            continue  # lopcook reads majors 2 and 3 until the tangents land; lop.h reads 4.x already
-        assert (whole, prefix) == want, path
+        assert (whole, prefix) == (verdict(data, False), verdict(data, True)), path
 
 
 def test_libfuzzer_runs_60_seconds_clean(tmp_path):

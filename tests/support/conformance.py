@@ -29,7 +29,7 @@ import json
 import struct
 import sys
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -38,11 +38,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests"))
 
-from support import dumps  # noqa: E402  (tests/ on the path: run as a script or imported by a test)
+from support import dumps, streamcases  # noqa: E402  (tests/ on the path: run as a script or imported by a test)
 
 from lopcook import api  # noqa: E402
 from lopcook.cli.parser import build_parser, settings_from_args  # noqa: E402
-from lopcook.lop.container import READABLE_MAJORS, from_bytes, manifest_bytes  # noqa: E402
+from lopcook.lop.container import from_bytes, manifest_bytes, manifest_of  # noqa: E402
 from lopcook.errors import LopcookError  # noqa: E402
 from lopcook.types import MeshPart, Scene  # noqa: E402
 
@@ -117,6 +117,28 @@ def tetra() -> Scene:
     return Scene(parts=(_tetra("tetra"),), source="tetra.synthetic", format="glb").validate()
 
 
+def _with_tangents(part: MeshPart) -> MeshPart:
+    """``part`` with unit tangents orthogonal to its normals (the x axis, or y where the normal is
+    near x, projected) and the handedness w alternating +1, -1 by vertex."""
+    n = part.normals.astype(np.float64)
+    a = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t = a - (a * n).sum(axis=1, keepdims=True) * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    w = np.where(np.arange(len(n)) % 2 == 0, 1.0, -1.0)[:, None]
+    return replace(part, tangents=np.concatenate([t, w], axis=1).astype(np.float32))
+
+
+def tetra_tangents() -> Scene:
+    """The tetrahedron with tangents (container 4.0)."""
+    return Scene(parts=(_with_tangents(_tetra("tetra")),), source="tetra_tangents.synthetic", format="glb").validate()
+
+
+def surface_tangents() -> Scene:
+    """The 12 x 12 sheet with tangents: several LODs that carry them."""
+    return Scene(parts=(_with_tangents(_grid_surface("surface", 12)),), source="surface_tangents.synthetic",
+                 format="glb").validate()
+
+
 def wedge_pair() -> Scene:
     """Two copies of the wedge, the second turned a quarter about y and moved: placements."""
     p, t = _wedge()
@@ -164,6 +186,14 @@ VALID = (
     Valid("tetra_clustered.lop", tetra, ("--clusters", "16", "--cluster-all", "--nearest", "50"),
           ("a small clustered file",)),
     Valid("wedges_placed.lop", wedge_pair, ("--clusters", "0", "--nearest", "50"), ("two placements of one buffer",)),
+    Valid("tangents_narrow.lop", tetra_tangents, ("--clusters", "0", "--nearest", "50", "--tangent-bits", "4",
+                                                  "--normal-bits", "4"),
+          ("version 4.0: tangents at 4 bits (sign bits of both values)", "the LopAttributeDecode block's b_t and scale")),
+    Valid("tangents_wide.lop", tetra_tangents, ("--clusters", "0", "--nearest", "50", "--tangent-bits", "16"),
+          ("tangents at 16 bits",)),
+    Valid("stream_tangents.lop", surface_tangents, ("--stream", "--lods", "1/2,1/8", "--lod-backend", "fast",
+                                                    "--clusters", "16", "--cluster-all", "--tangent-bits", "8"),
+          ("streaming layout: clustered LODs with tangents, encoded sections",)),
 )
 
 #: valid files made by editing another: the informative encodings record left out (a reader must
@@ -285,6 +315,9 @@ class Invalid:
     covers: str
 
 
+#: streaming files cut at every stage boundary (stream_entries)
+STAGE_CUTS = ("stream_wedges.lop", "stream_plates.lop")
+
 #: the (valid, small) files the invalid ones are made from
 BASE, CLUSTERED, PLACED = "tetra_minimal.lop", "tetra_clustered_minimal.lop", "wedges_placed_minimal.lop"
 
@@ -398,24 +431,33 @@ def sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def expected(c, levels) -> list[dict]:
-    """Per LOD (0 .. the deepest chain - 1): the sha256 of the attributes dump and, per level, of the
-    positions and gpu dumps (tests/support/dumps.py)."""
+def lod_levels(c, k: int) -> int:
+    """The highest level at which every part's LOD ``k`` (or its coarsest) decodes in ``c``: the
+    available level, or in a prefix of a streaming file the lowest level of their stages (0 when
+    one has not arrived)."""
+    return min(c.level_of(i, min(k, len(p["lods"]) - 1)) for i, p in enumerate(c.manifest["parts"]))
+
+
+def expected(c) -> list[dict]:
+    """Per LOD (0 .. the deepest chain - 1) that decodes in ``c`` (``lod_levels``): the sha256 of the
+    attributes dump and, per level 1 .. ``lod_levels``, of the positions and gpu dumps
+    (tests/support/dumps.py)."""
     deepest = max(len(p["lods"]) for p in c.manifest["parts"])
     return [{"lod": k, "attributes": sha(dumps.attributes(c, k)),
              "levels": {str(b): {"positions": sha(dumps.positions(c, b, k)), "gpu": sha(dumps.gpu(c, b, k))}
-                        for b in levels}} for k in range(deepest)]
+                        for b in range(1, lod_levels(c, k) + 1)}} for k in range(deepest) if lod_levels(c, k)]
 
 
 def verdict(data: bytes, allow_prefix: bool) -> dict:
-    """What lopcook's reader says: ``{"error": class}`` or ``{"available_level": L}``."""
+    """What lopcook's reader says: ``{"error": class}`` or ``{"available_level": L}`` (and in the
+    streaming layout ``"stage_levels"``, each stage's level)."""
     try:
         c = from_bytes(data, "x.lop", allow_prefix=allow_prefix)
     except LopcookError as exc:
         if exc.reason is None:
             raise
         return {"error": exc.reason}
-    return {"available_level": c.available_level}
+    return {"available_level": c.available_level, **({"stage_levels": c.stage_levels} if c.stream else {})}
 
 
 def _cut(data: bytes, spec: str) -> bytes:
@@ -428,47 +470,90 @@ def _cut(data: bytes, spec: str) -> bytes:
     return data[:start + s["length"]] if kind == "after" else data[:start + s["length"] // 2]
 
 
+def _valid(name: str, data: bytes, covers: list) -> dict:
+    c = from_bytes(data, name)
+    return {"file": name, "kind": "valid", "covers": covers, "sha256": sha(data),
+            "version": "%d.%d" % struct.unpack_from("<HH", data, 4), "max_level": c.manifest["positions"]["max_level"],
+            **verdict(data, False), "expected": expected(c)}
+
+
+def _prefix(name: str, of: str, cut: str, data: bytes, covers: str) -> dict:
+    entry = {"file": name, "kind": "prefix", "of": of, "cut": cut, "bytes": len(data), "covers": covers,
+             "sha256": sha(data), **verdict(data, False), "prefix": verdict(data, True)}
+    if "available_level" in entry["prefix"]:
+        entry["expected"] = expected(from_bytes(data, name, allow_prefix=True))
+    return entry
+
+
+def _invalid(name: str, of: str, data: bytes, covers: str, error: str) -> dict:
+    got = verdict(data, False)
+    if got != {"error": error}:
+        raise AssertionError(f"{name}: lopcook's reader says {got}, the case expects {error}")
+    return {"file": name, "kind": "invalid", "of": of, "covers": covers, "sha256": sha(data), "error": error,
+            "prefix": verdict(data, True)}
+
+
+def _stage_cuts(data: bytes) -> list[tuple[str, int]]:
+    """Where a streaming file's stages end: after each stage's last section before the deferred
+    planes, and after each deferred section but the last (the end of the file)."""
+    m = manifest_of(data)
+    base = 32 + struct.unpack_from("<I", data, 12)[0]
+    ends: dict = {}
+    for t in m["sections"]:
+        stage = t["name"].split("/")[1] if t["name"].startswith("positions/stage") else None
+        if stage is not None:
+            key = t["name"] if t["name"].endswith("/deferred") else stage
+            ends[key] = base + t["offset"] + t["length"]
+    return [(k.replace("positions/", "").replace("/", "_"), v) for k, v in ends.items() if v < len(data)]
+
+
+def stream_entries(files: dict) -> list[dict]:
+    """The streaming layout's share (docs/format.md 14-15; tests/support/streamcases.py): its valid
+    files, prefixes (streamcases' and a cut at every stage boundary of STAGE_CUTS), hostile files."""
+    entries = []
+    for name, data, covers in streamcases.stream_cases():
+        files[name] = data
+        entries.append(_valid(name, data, [covers]))
+    for name, data, covers, levels in streamcases.stream_prefix_cases():
+        if data in files.values():
+            continue  # the whole file
+        files[name] = data
+        entries.append(_prefix(name, "stream_sphere.lop", f"byte:{len(data)}", data, covers))
+        if entries[-1]["prefix"].get("stage_levels") != levels:
+            raise AssertionError(f"{name}: lopcook's reader gives {entries[-1]['prefix']}, the case expects {levels}")
+    for of in STAGE_CUTS:
+        for label, cut in _stage_cuts(files[of]):
+            name = f"prefix_{of[:-4]}_{label}.lop"
+            files[name] = files[of][:cut]
+            entries.append(_prefix(name, of, f"byte:{cut}", files[name], f"cut after {label.replace('_', ' ')}"))
+    for name, data, covers, error in streamcases.stream_invalid_cases():
+        files[name] = data
+        entries.append(_invalid(name, "stream_plates.lop", data, covers, error))
+    return entries
+
+
 def generate(out: Path = OUT) -> dict:
     """Write every file and ``conformance.json`` into ``out``; return the index."""
     out.mkdir(parents=True, exist_ok=True)
     files, made, entries = {}, [], []
     for case in VALID:
         data = cook(case)
-        if struct.unpack_from("<H", data, 4)[0] not in READABLE_MAJORS:
-            continue  # a feature lopcook cannot read back yet
         files[case.file] = data
-        c = from_bytes(data, case.file)
-        entries.append({"file": case.file, "kind": "valid", "covers": list(case.covers), "sha256": sha(data),
-                        "version": "%d.%d" % struct.unpack_from("<HH", data, 4), "max_level": c.manifest["positions"]
-                        ["max_level"], "available_level": c.available_level,
-                        "expected": expected(c, range(1, c.available_level + 1))})
+        entries.append(_valid(case.file, data, list(case.covers)))
     for name, of, drop, covers in TRIMMED:
         data = edit_manifest(lambda m: [m.pop(k) for k in drop])(files[of])
         files[name] = data
-        c = from_bytes(data, name)
-        entries.append({"file": name, "kind": "valid", "covers": [covers], "sha256": sha(data),
-                        "version": "%d.%d" % struct.unpack_from("<HH", data, 4),
-                        "max_level": c.manifest["positions"]["max_level"], "available_level": c.available_level,
-                        "expected_as": of})
-        if expected(c, range(1, c.available_level + 1)) != next(e for e in entries if e["file"] == of)["expected"]:
+        entry = _valid(name, data, [covers])
+        if entry.pop("expected") != next(e for e in entries if e["file"] == of)["expected"]:
             raise AssertionError(f"{name} does not decode as {of}")
+        entries.append(dict(entry, expected_as=of))
     for case in PREFIXES:
-        data = _cut(files[case.of], case.cut)
-        files[case.file] = data
-        entry = {"file": case.file, "kind": "prefix", "of": case.of, "cut": case.cut, "bytes": len(data),
-                 "covers": case.covers, "sha256": sha(data), **verdict(data, False), "prefix": verdict(data, True)}
-        if "available_level" in entry["prefix"]:
-            c = from_bytes(data, case.file, allow_prefix=True)
-            entry["expected"] = expected(c, range(1, c.available_level + 1))
-        entries.append(entry)
+        files[case.file] = _cut(files[case.of], case.cut)
+        entries.append(_prefix(case.file, case.of, case.cut, files[case.file], case.covers))
     for case in INVALID:
-        data = case.mutate(files[case.of])
-        got = verdict(data, False)
-        if got != {"error": case.error}:
-            raise AssertionError(f"{case.file}: lopcook's reader says {got}, the case expects {case.error}")
-        files[case.file] = data
-        entries.append({"file": case.file, "kind": "invalid", "of": case.of, "covers": case.covers, "sha256": sha(data),
-                        "error": case.error, "prefix": verdict(data, True)})
+        files[case.file] = case.mutate(files[case.of])
+        entries.append(_invalid(case.file, case.of, files[case.file], case.covers, case.error))
+    entries += stream_entries(files)
     for name, data in files.items():
         (out / name).write_bytes(data)
         made.append(name)

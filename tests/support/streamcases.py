@@ -6,8 +6,9 @@ surgery the tests and the fuzz corpus use to make hostile ones.
 ``(name, bytes, what it covers, expected stage levels or None)`` of prefixes of them (None: a reader
 refuses it). ``stream_invalid_cases()``: ``(name, bytes, what it covers, error class)``, one defect
 each with every checksum recomputed, so only the format's checks catch it; the classes are those
-of the conformance set (``manifest``, ``section_table``, ``version``, ``indices``) plus
-``encoding`` (a stored stream that does not decode as section 15 says).
+of the conformance set (``manifest``, ``section_table``, ``version``) plus ``encoding`` (a stored
+stream that does not decode as section 15 says, an encoded manifest's included). A malformed
+``encoding`` or ``size`` field is ``section_table`` (docs/format.md 12.1).
 
 Surgery: ``stored_sections(data)`` splits a container into its manifest (without the table) and
 its stored sections ``(name, stored bytes, {"encoding", "size"} or {})``; ``rebuild`` writes them
@@ -227,7 +228,9 @@ def stream_invalid_cases() -> list[tuple[str, bytes, str, str]]:
          "version"),
         ("stream_json_as_3_0.lop", relabel(_plain_manifest(data), 3),
          "a streaming file with a JSON manifest labelled 3.0", "version"),
-        ("manifest_encoded_size.lop", _manifest_size_lie(data), "an encoded manifest whose size lies", "manifest"),
+        ("manifest_encoded_size.lop", _manifest_size_lie(data), "an encoded manifest whose size lies", "encoding"),
+        ("manifest_encoded_corrupt.lop", _manifest_block_type_3(data), "an encoded manifest whose deflate stream "
+         "holds block type 3", "encoding"),
         ("stream_sections_swapped.lop", rebuild(m, [secs[1], secs[0], *secs[2:]]),
          "two sections in another order than the layout's (table and checksums consistent)", "manifest"),
         ("stream_stage_level_25.lop", edit_manifest(data, lambda mm: mm["positions"]["stages"][0].update(level=25)),
@@ -241,15 +244,20 @@ def stream_invalid_cases() -> list[tuple[str, bytes, str, str]]:
         ("stream_stage_missing.lop", edit_manifest(data, lambda mm: mm["parts"][1]["lods"][0].pop("stage")),
          "a LOD entry without its stage", "manifest"),
         ("encoding_unknown.lop", with_section(data, dfl, stored, {"encoding": "lzma", "size": len(raw)}),
-         "an unknown encoding", "manifest"),
+         "an unknown encoding", "section_table"),
         ("encoding_no_size.lop", edit_manifest(data, lambda mm: next(
-            t for t in mm["sections"] if t["name"] == dfl).pop("size")), "encoding without size", "manifest"),
+            t for t in mm["sections"] if t["name"] == dfl).pop("size")), "encoding without size", "section_table"),
         ("encoding_expands.lop", with_section(data, dfl, deflate(raw + bytes(4)), {"encoding": "deflate",
                                                                                   "size": len(raw)}),
          "a deflate stream expanding beyond its size", "encoding"),
         ("encoding_size_large.lop", _lie_size(data, dfl, 4), "a deflate stream shorter than its size", "encoding"),
         ("encoding_size_bomb.lop", _lie_size(data, dfl, 2000 * len(stored)), "a size beyond 1032 times the stored bytes",
-         "manifest"),
+         "section_table"),
+        ("encoding_distance_far.lop", with_section(data, dfl, _far_match(), {"encoding": "deflate", "size": len(raw)}),
+         "a deflate match reaching before the first byte decoded", "encoding"),
+        ("encoding_stored_length.lop", with_section(data, dfl, b"\x01\x04\x00\x00\x00" + raw[:4],
+                                                    {"encoding": "deflate", "size": len(raw)}),
+         "a stored block whose NLEN is not the complement of LEN", "encoding"),
         ("encoding_corrupt.lop", with_section(data, dfl, bytes([0xFF]) * len(stored), {"encoding": "deflate",
                                                                                        "size": len(raw)}),
          "a corrupt deflate stream (block type 3)", "encoding"),
@@ -267,6 +275,8 @@ def stream_invalid_cases() -> list[tuple[str, bytes, str, str]]:
          "a triangle stream that reads past its data", "encoding"),
         ("meshopt_extra.lop", _meshopt_variant(data, mo, lambda s: s.__setitem__(slice(-16, -16), b"\0")),
          "a triangle stream with data its triangles do not read", "encoding"),
+        ("meshopt_fifo_unwritten.lop", _meshopt_variant(data, mo, lambda s: s.__setitem__(1, 0x01)),
+         "a first triangle reading FIFO entries never written (index 0xFFFFFFFF)", "encoding"),
         ("meshopt_range.lop", with_section(data, mo, deflate(encode_triangles(big)[0]),
                                            {"encoding": "meshopt-deflate", "size": _index_size(lod)}),
          "triangle indices equal to the vertex count", "encoding"),
@@ -295,6 +305,30 @@ def _manifest_size_lie(data: bytes) -> bytes:
     head = bytearray(data[:28])
     head[16:20] = struct.pack("<I", zlib.crc32(bytes(mb)))
     return bytes(head) + struct.pack("<I", zlib.crc32(bytes(head))) + bytes(mb) + data[32 + msize:]
+
+
+def _manifest_block_type_3(data: bytes) -> bytes:
+    """``data`` with its encoded manifest's first DEFLATE block header set to block type 3 (the
+    manifest's CRC and the header recomputed)."""
+    msize = struct.unpack_from("<I", data, 12)[0]
+    mb = bytearray(data[32:32 + msize])
+    mb[5] |= 0x06
+    head = bytearray(data[:28])
+    head[16:20] = struct.pack("<I", zlib.crc32(bytes(mb)))
+    return bytes(head) + struct.pack("<I", zlib.crc32(bytes(head))) + bytes(mb) + data[32 + msize:]
+
+
+def _far_match() -> bytes:
+    """A raw DEFLATE stream (one fixed-Huffman block) whose first symbol is a match of length 3 at
+    distance 1: nothing has been decoded for it to copy."""
+    bits = [1, 1, 0]  # BFINAL, BTYPE = 01 (least significant bit first)
+    bits += [0, 0, 0, 0, 0, 0, 1]  # literal/length 257 (7-bit code 0000001, most significant bit first)
+    bits += [0, 0, 0, 0, 0]  # distance code 0: distance 1
+    bits += [0] * 7  # end of block (256)
+    out = bytearray((len(bits) + 7) // 8)
+    for i, b in enumerate(bits):
+        out[i // 8] |= b << (i % 8)
+    return bytes(out)
 
 
 def _index_size(lod: dict) -> int:

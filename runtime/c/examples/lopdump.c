@@ -14,10 +14,15 @@
                 the 64-byte LopAttributeDecode block. Little-endian uint32 words.
    --attributes per buffer (same order): the indices as uint32, then the float32 decodes of the
                 normals (3, unnormalised), UVs (2), colours (4) and tangents (4) it has.
-   --json       one JSON object: version, sizes, levels, and per part its LODs (vertices,
-                triangles, errors, attribute bits) and the bytes of P at level B; with --distance D
-                also `selection`: per part the LOD and level lop_select gives at D metres.
-   --prefix     accept a prefix of a file (docs/format.md section 8).
+   --json       one JSON object: version, sizes, levels, the stages (each one's level L_s, its level
+                in the bytes given and its buffers; one stage in the default layout), and per part
+                its LODs (vertices, triangles, errors, attribute bits, stage, the level the buffer
+                decodes at, and the bytes of P at level B or the buffer's level when lower) and
+                `drawable`: the LOD a renderer draws for --lod K (the finest arrived at or coarser
+                than K) and its level; with --distance D also `selection`: per part the LOD and
+                level lop_select gives at D metres.
+   --prefix     accept a prefix of a file (docs/format.md sections 8 and 14.4). Every buffer an
+                output decodes (each part's LOD K, or its coarsest) must hold level B.
 
    Exit 0, or 2 with one line on stderr (a bad file: its error class and what is wrong). Outputs
    are written to a temporary name and renamed, so a failed run leaves none. */
@@ -273,7 +278,11 @@ static void print_json(const lop_file *f, int level, uint32_t lod, double distan
            (unsigned long long)f->size, f->complete ? "true" : "false", f->max_level, f->available_level, level,
            (unsigned)lod);
     json_string(f->generator);
-    printf(",\"parts\":[");
+    printf(",\"stream\":%s,\"stages\":[", f->stream ? "true" : "false");
+    for (i = 0; i < f->stage_count; i++)
+        printf("%s{\"level\":%d,\"available\":%d,\"buffers\":%u}", i ? "," : "", f->stages[i].level,
+               f->stages[i].available, (unsigned)f->stages[i].buffers);
+    printf("],\"parts\":[");
     for (i = 0; i < f->part_count; i++) {
         const lop_part *p = &f->parts[i];
         printf("%s{\"name\":", i ? "," : "");
@@ -284,18 +293,23 @@ static void print_json(const lop_file *f, int level, uint32_t lod, double distan
             const lop_lod *e = &p->lods[k];
             lop_buffer_info info;
             memset(&info, 0, sizeof info);
-            lop_buffer(f, i, k, lop_part_level(f, i, level) < f->available_level ? lop_part_level(f, i, level)
-                                                                                   : f->available_level,
-                       LOP_LAYOUT_NATIVE, &info);
+            int have = lop_buffer_level(f, i, k), want = lop_part_level(f, i, level);
+            memset(&info, 0, sizeof info);
+            lop_buffer(f, i, k, want < have ? want : have, LOP_LAYOUT_NATIVE, &info);
             printf("%s{\"vertices\":%u,\"triangles\":%u,\"geometric_error_m\":%.17g,\"cluster_size\":%u,"
                    "\"attribute_bits\":{\"normals\":%d,\"uvs\":%d,\"colors\":%d,\"tangents\":%d},\"record_bits\":%u,"
-                   "\"p_level\":%d,\"p_bytes\":%llu,\"cluster_record_bytes\":%llu}",
+                   "\"stage\":%u,\"level\":%d,\"p_level\":%d,\"p_bytes\":%llu,\"cluster_record_bytes\":%llu}",
                    k ? "," : "", (unsigned)e->vertices, (unsigned)e->triangles, e->geometric_error_m,
                    (unsigned)e->cluster_size, e->normal_bits, e->uv_bits, e->color_bits, e->tangent_bits,
-                   (unsigned)e->record_bits, info.level, (unsigned long long)(4 * info.words),
-                   (unsigned long long)(16 * (uint64_t)info.clusters));
+                   (unsigned)e->record_bits, (unsigned)e->stage, have, info.level,
+                   (unsigned long long)(4 * info.words), (unsigned long long)(16 * (uint64_t)info.clusters));
         }
-        printf("]}");
+        {
+            uint32_t drawn = 0;
+            int at = 0;
+            lop_drawable(f, i, lod_of(p, lod), &drawn, &at);
+            printf("],\"drawable\":[%u,%d]}", (unsigned)drawn, at);
+        }
         positions += 12u * (uint64_t)p->lods[lod_of(p, lod)].vertices;
     }
     printf("],\"positions_bytes\":%llu", (unsigned long long)positions);
@@ -386,12 +400,23 @@ int main(int argc, char **argv)
         free(data);
         return 2;
     }
-    if (level > f->available_level) {
-        fprintf(stderr, "lopdump: %s: level %d is not in this file (it holds levels up to %d)\n", path, level,
-                f->available_level);
-        lop_close(f);
-        free(data);
-        return 2;
+    if (pos_path || gpu_path || attr_path) { /* every buffer these outputs decode holds the level */
+        for (i = 0; i < f->part_count; i++) {
+            uint32_t k = lod_of(&f->parts[i], (uint32_t)lod);
+            int have = lop_buffer_level(f, i, k);
+            if (level > have) {
+                if (f->stream)
+                    fprintf(stderr, "lopdump: %s: level %d of part %u LOD %u is not in this file (%s %d)\n", path,
+                            level, (unsigned)i, (unsigned)k, have ? "its stage holds levels up to" : "its stage has not "
+                            "arrived: level", have);
+                else
+                    fprintf(stderr, "lopdump: %s: level %d is not in this file (it holds levels up to %d)\n", path,
+                            level, have);
+                lop_close(f);
+                free(data);
+                return 2;
+            }
+        }
     }
     if (!out_open(&o_pos, pos_path) || !out_open(&o_gpu, gpu_path) || !out_open(&o_attr, attr_path)) {
         fprintf(stderr, "lopdump: cannot write the outputs\n");

@@ -6,8 +6,8 @@
 
 static volatile uint32_t g_sink;
 
-/* Every query and decode of every buffer at every level the file holds (few_levels: at level 0,
-   1, the available level and one above it), results discarded. */
+/* Every query and decode of every buffer at every level it holds (few_levels: at level 0, 1, the
+   buffer's level and one above it), results discarded. */
 static void lop_exercise(const lop_file *f, int few_levels)
 {
     uint32_t i, k;
@@ -17,12 +17,15 @@ static void lop_exercise(const lop_file *f, int few_levels)
     lop_view_block(f, cam, view, sizeof view);
     lop_required_level(f, 10.0);
     for (i = 0; i < f->part_count; i++) {
-        uint32_t lod;
-        int sel;
+        uint32_t lod, drawn;
+        int sel, top;
         lop_select(f, i, 3.0, &lod, &sel);
+        if (lop_drawable(f, i, lod, &drawn, &sel) == lop_success)
+            g_sink += drawn;
         for (k = 0; k < f->parts[i].lod_count; k++) {
             const lop_lod *e = &f->parts[i].lods[k];
             size_t n = e->vertices;
+            top = lop_buffer_level(f, i, k);
             float *xyz = (float *)malloc(12 * n), *nrm = (float *)malloc(12 * n), *uv = (float *)malloc(8 * n);
             float *col = (float *)malloc(16 * n), *tan = (float *)malloc(16 * n);
             uint32_t *grid = (uint32_t *)malloc(12 * n), *idx = (uint32_t *)malloc(12 * (size_t)e->triangles);
@@ -39,8 +42,8 @@ static void lop_exercise(const lop_file *f, int few_levels)
                 lop_decode_indices(f, i, k, idx, 3 * (size_t)e->triangles);
                 lop_attribute_block(f, i, k, block, sizeof block);
                 lop_attribute_words(f, i, k, &words, &bytes);
-                for (level = 0; level <= f->available_level + 1; level++) {
-                    if (few_levels && level > 1 && level < f->available_level)
+                for (level = 0; level <= top + 1; level++) {
+                    if (few_levels && level > 1 && level < top)
                         continue;
                     lop_decode_positions(f, i, k, level, xyz, n, 0);
                     if (lop_decode_positions(f, i, k, level, xyz, n, LOP_LOCAL) == lop_success &&

@@ -8,7 +8,8 @@
    lopcheck --oom FILE             fail the allocator's k-th call, for every k lop_open makes
 
    One line per input or mutation: `NAME VERDICT PREFIX_VERDICT`, a verdict being the error class
-   (lop_result_name) or `ok:L` (opened; L the available level). Every allocation goes through a
+   (lop_result_name) or `ok:L` (opened; L the available level), in the streaming layout
+   `ok:L/S0,S1,...` (S the level of each stage). Every allocation goes through a
    counting allocator: a block still held after lop_close, or a freed pointer the allocator did not
    give, is reported and makes the exit status 1. Exit 0 otherwise, whatever the verdicts. */
 #define LOP_IMPLEMENTATION
@@ -94,7 +95,10 @@ static void verdict(const unsigned char *data, size_t size, int prefix, char *ou
     opt.allow_prefix = prefix;
     r = lop_open(data, size, &opt, &f, &msg);
     if (r == lop_success) {
-        snprintf(out, cap, "ok:%d", f->available_level);
+        size_t at = (size_t)snprintf(out, cap, "ok:%d", f->available_level);
+        uint32_t s;
+        for (s = 0; f->stream && s < f->stage_count && at + 16 < cap; s++) /* the stage levels */
+            at += (size_t)snprintf(out + at, cap - at, "%c%d", s ? ',' : '/', f->stages[s].available);
         if (use)
             lop_exercise(f, 0);
         lop_close(f);
@@ -113,7 +117,7 @@ static void verdict(const unsigned char *data, size_t size, int prefix, char *ou
 
 static void line(const char *name, const unsigned char *data, size_t size, int use)
 {
-    char a[64], b[64];
+    char a[4096], b[4096];
     verdict(data, size, 0, a, sizeof a, use);
     verdict(data, size, 1, b, sizeof b, use);
     printf("%s %s %s\n", name, a, b);
@@ -139,7 +143,7 @@ int main(int argc, char **argv)
             return 2;
         }
         if (!mode || prefix) {
-            char v[64];
+            char v[4096];
             verdict(data, size, prefix, v, sizeof v, 1);
             printf("%s %s\n", argv[a], v);
         } else if (!strcmp(mode, "--flips")) {
