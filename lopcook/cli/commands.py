@@ -83,6 +83,20 @@ def _print_warnings(args, lines: list[str], kind: str = "warning") -> None:
         sys.stderr.flush()
 
 
+#: ``cook`` prints up to this many LOD notes one by one, more as one line (``_fallback_summary``)
+NOTE_LINES = 3
+
+
+def _fallback_summary(lines: list[str]) -> list[str]:
+    """``cook``'s notes on backend fallbacks that still reached their targets
+    (``lopcook.simplify.chain_notes``): each line when there are at most ``NOTE_LINES``, else one
+    line with the count and the first (``cook --json`` lists all of them in ``lod_notes``)."""
+    if len(lines) <= NOTE_LINES:
+        return lines
+    return [f"{len(lines):,} LOD backend fallbacks reached their targets anyway (first: {lines[0]}; all: "
+            f"cook --json, lod_notes)"]
+
+
 def _is_container(path: str) -> bool:
     """Whether ``path`` names a container: a ``.lop`` name, or a regular file that starts with the
     container's magic (a FIFO or device is not opened here: reading it could block; the loaders
@@ -103,7 +117,7 @@ def cmd_cook(args) -> int:
     outputs = CookOutputs(args.output, args.depfile, strict=bool(args.strict))
     desc, result = cook_file(args.source, settings, outputs, progress=_progress(args),
                              warn=lambda lines: _print_warnings(args, lines),
-                             note=lambda lines: _print_warnings(args, lines, "note"))
+                             note=lambda lines: _print_warnings(args, _fallback_summary(lines), "note"))
     _print_cook(args, desc, result)
     return EXIT_OK
 

@@ -287,17 +287,17 @@ def _lod_rows(lods: list) -> list[str]:
 
 
 def _lod_scene_rows(parts: list) -> list[str]:
-    """One row per LOD index over every part that has it: parts, their triangles, the largest
-    error and the range of the parts' selection distances."""
+    """One row per LOD index over every part that has it: parts, their triangles (every part's,
+    copies included), the largest error and the range of the parts' selection distances."""
     lines = [f"  {'LOD':>5} {'parts':>6} {'triangles':>11} {'largest error':>14}  "
              "selected from (nearest - farthest part)"]
     for k in range(max(len(p["lods"]) for p in parts)):
         es = [p["lods"][k] for p in parts if len(p["lods"]) > k]
         dist = [e.get("min_distance_m") for e in es if e.get("min_distance_m") is not None]
-        where = "-" if not dist else (length(min(dist)) if min(dist) == max(dist) else
-                                      f"{length(min(dist))} - {length(max(dist))}")
+        near, far = (length(min(dist)), length(max(dist))) if dist else ("-", "-")
+        where = "0 m" if far == "0" else near if near == far else f"{near} - {far}"
         lines.append(f"  {k:>5} {len(es):>6,} {sum(e['triangles'] for e in es):>11,} "
-                     f"{length(max(e['geometric_error_m'] for e in es)):>14}  {'0 m' if where == '0' else where}")
+                     f"{length(max(e['geometric_error_m'] for e in es)):>14}  {where}")
     return lines
 
 
@@ -309,8 +309,8 @@ def _lod_lines(d: dict) -> list[str]:
     if not (any(len(p["lods"]) > 1 for p in d["parts"]) or any(stops)):
         return []
     rule = ((d.get("options") or {}).get("lods") or {}).get("stop_rule")
-    head = [""] + ([f"  --lods auto keeps a LOD while the part spans at least {rule['min_pixels']:g} px where it is "
-                    f"selected and its error is at most {100 * rule['max_relative_error']:g}% of the part's extent"]
+    head = [""] + ([f"  --lods auto keeps a LOD while its part spans {rule['min_pixels']:g} px or more where it is "
+                    f"selected, its error at most {100 * rule['max_relative_error']:g}% of the part's extent"]
                    if rule else [])
     if len(d["parts"]) <= LOD_TABLE_PARTS:
         lines = []
