@@ -11,14 +11,17 @@ with the same flags.
    error before anything is written), and reports the scene's warnings;
 3. cooks (``lopcook.api.cook``, given the container's final path: the manifest records where the
    source lies relative to its folder, ``source.path``, read by ``decode``) and reports the LOD
-   chains' warnings;
+   chains' warnings (and their notes: ``lopcook.simplify.chain_notes``, a backend's fallback that
+   reached its target);
 4. writes the container and the depfile atomically (``lopcook.atomic``).
 
 Warnings are lines ``warn(lines)`` receives; with ``CookOutputs.strict`` the first warning is an
-error of the stage it arose in (``LopcookError``, exit 2) and nothing is written. Returns ``(summary, result)``:
+error of the stage it arose in (``LopcookError``, exit 2) and nothing is written. Notes are lines
+``note(lines)`` receives, information that never fails a cook, ``--strict`` or not. Returns ``(summary, result)``:
 ``summary`` is the ``lopcook cook --json`` dict (``describe_container`` plus stage timings in
-seconds, warnings, touching and intersecting part pairs, the LOD reports, and the calibration,
-budget and attribute-search records when those ran); ``result`` is the container's ``CookResult``.
+seconds, warnings, touching and intersecting part pairs, the LOD reports, warnings and notes, and
+the calibration, budget and attribute-search records when those ran); ``result`` is the
+container's ``CookResult``.
 Any failure is one ``LopcookError``, and leaves no output and an older output untouched.
 """
 
@@ -37,7 +40,7 @@ from .errors import LopcookError
 from .outputs import OTHER_OUTPUTS, SOURCE_EXTENSIONS, check_distinct, check_output
 from .progress import NONE, Progress
 from .settings import Settings
-from .simplify import chain_warnings
+from .simplify import chain_notes, chain_warnings
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,8 @@ class CookOutputs:
 
 
 def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress: Progress = NONE,
-              warn: Callable[[list[str]], None] | None = None) -> tuple[dict, object]:
+              warn: Callable[[list[str]], None] | None = None,
+              note: Callable[[list[str]], None] | None = None) -> tuple[dict, object]:
     """Cook ``source`` with ``settings`` into ``outputs`` (module doc); ``(summary, result)``."""
     report = _reporter(outputs, warn)
     _check_outputs(outputs, (source,), report)
@@ -66,6 +70,9 @@ def cook_file(source: str, settings: Settings, outputs: CookOutputs, *, progress
     report([f"{source}: {w}" for w in scene.warnings], "ingest")
     container = api.cook(scene, settings, progress=progress, output=outputs.destination or outputs.output)
     report(chain_warnings(container.result.lod_reports), "simplify")
+    notes = chain_notes(container.result.lod_reports)
+    if notes and note is not None:
+        note(notes)
     t0 = time.perf_counter()
     container.write(outputs.output)
     if depfile is not None:
@@ -133,7 +140,7 @@ def cook_summary(container, scene, ingest_s: float, write_s: float) -> dict:
     desc = describe_container(container, file_bytes=len(container.data))
     desc.update(timings_s=timings, warnings=list(scene.warnings), touching=[list(p) for p in an.touching],
                 intersecting=[list(p) for p in an.intersecting], lod_warnings=chain_warnings(result.lod_reports),
-                lod_reports=result.lod_reports)
+                lod_notes=chain_notes(result.lod_reports), lod_reports=result.lod_reports)
     if result.calibration is not None:
         desc["calibration"] = result.calibration
     if result.budget is not None:

@@ -4,7 +4,9 @@
 
 1. LOD chains per part (``lopcook.simplify.lod_chain``) when ``settings.simplify.lods`` is set;
    a chain's ``max_error_m`` is the error the farthest useful view can show (``far_error_m``:
-   the distance at which the whole scene spans one pixel; no cap without ``viewing.nearest_m``).
+   the distance at which the whole scene spans one pixel; no cap without ``viewing.nearest_m``),
+   and ``--lods auto`` chains also stop by ``stop_rule`` (``lopcook.simplify.stop``), recorded
+   per part in ``options.lods`` (``recorded``).
 2. ONE grid fitted over every position of every part and every LOD.
 3. Every LOD index k analysed on that grid (``analyse(scene_k, settings, grid=grid)``, scene_k =
    the parts that have a LOD k); then co-located vertices (same quantized position, any part,
@@ -55,6 +57,7 @@ from .selection import selection_ranges
 from .settings import DEFAULTS, Settings
 from .simplify import lod_chain
 from .simplify.instances import copies, placed_chain
+from .simplify.stop import StopRule, manifest_record
 from .simplify.parallel import run_chains
 from .simplify.workers import workers as lod_workers
 from .types import Scene
@@ -169,19 +172,37 @@ def chains(scene: Scene, settings: Settings, max_error_m: float | None, progress
     ``on_lod(k, part)``: called as a one-part scene's chain accepts its LOD k (``lod_chain``)."""
     ratios, backend = settings.simplify.lods.resolved(), settings.simplify.backend.value
     seams = settings.simplify.seams.value
+    rule = stop_rule(settings)
     out, reports = [None] * len(scene.parts), [None] * len(scene.parts)
     groups = copies(scene.parts)
     with progress.stage("LOD chains", total=len(groups)) as st:
         # distinct meshes in parallel worker processes (lopcook.simplify.parallel: the serial result)
         done = run_chains([scene.parts[lead] for lead, _ in groups], progress=st.advance, chain=lod_chain,
                           ratios=list(ratios),
-                          backend=backend, seams=seams, max_error_m=max_error_m,
+                          backend=backend, seams=seams, max_error_m=max_error_m, stop_rule=rule,
                           **({"on_lod": on_lod} if on_lod is not None and len(scene.parts) == 1 else {}))
         for (lead, members), (lods, report) in zip(groups, done):
             out[lead], reports[lead] = lods, report
             for i, a, t in members:
-                out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m)
+                out[i], reports[i] = placed_chain(lods, report, scene.parts[i], a, t, max_error_m, rule)
     return out, reports
+
+
+def stop_rule(settings: Settings) -> StopRule | None:
+    """The stop rule of ``settings``' chain (``lopcook.simplify.stop``): ``--lods auto``'s, under the
+    cook's viewing conditions; None for explicit ratios (every LOD asked for is made) or no LODs."""
+    lods = settings.simplify.lods
+    return StopRule(settings.viewing) if lods is not None and lods.auto else None
+
+
+def recorded(options: dict, reports: list[dict], settings: Settings) -> dict:
+    """``options`` with ``options.lods`` holding the stop rule and, per part, where and why its
+    chain stopped (``lopcook.simplify.stop.manifest_record``) for a ``--lods auto`` cook whose
+    options record its LODs; else ``options`` as given."""
+    rule = stop_rule(settings)
+    if rule is None or not isinstance(options.get("lods"), dict):
+        return options
+    return dict(options, lods=dict(options["lods"], **manifest_record(reports, rule)))
 
 
 def parallel(scene: Scene) -> bool:
@@ -509,6 +530,7 @@ def run(scene: Scene, settings: Settings = DEFAULTS, *, options: dict | None = N
         return _plain(scene, settings, options, keep_buffers, progress, analysis)
     timings: dict = {}
     parts_chain, errors, reports, cap, first = _lod_stage(scene, settings, timings, progress)
+    options = recorded(options, reports, settings)
     t0 = time.perf_counter()
     grid, analyses, levels, raised = analyse_lods(scene, parts_chain, settings.analyse, progress=progress,
                                                   first=first)
@@ -583,6 +605,7 @@ def _instanced(scene: Scene, settings: Settings, options: dict, max_level: int |
     timings: dict = {}
     parts_chain, errors, reports, cap, grid, analyses, levels, raised = _instanced_levels(
         scene, settings, timings, progress, analysis)
+    options = recorded(options, reports, settings)
     all_buffers, rows = _select(parts_chain, errors, analyses, levels, settings)
     t0 = time.perf_counter()
     groups = placement_groups(scene, parts_chain, [[b.quantized for b in bufs] for bufs in all_buffers], rows)

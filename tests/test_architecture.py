@@ -1,6 +1,6 @@
 """The layout is the pipeline (docs/architecture.md): no import circle between modules, no stage
 imports a later stage or anything above it, the container format (lop/) imports only the core
-(errors, grid, atomic, version), the foundation only those two and itself, and the top
+(errors, grid, atomic, version, wording), the foundation only those two and itself, and the top
 ranks entry > batch > cli > report, bench. Every import is read from the source text: module
 level, inside functions and under ``TYPE_CHECKING``.
 
@@ -44,7 +44,7 @@ RANKS = {
     "entry": 13,
 }
 #: below everything: what the container format (lop/) may import
-CORE = {"errors", "grid", "atomic", "version"}
+CORE = {"errors", "grid", "atomic", "version", "wording"}
 FOUNDATION = {"types", "mesh", "settings", "viewing", "memory", "depfile", "isolate", "progress", "selection"}
 #: the command line's entry: ``lopcook.cli.main`` (it runs every command, batch's too) and ``python -m lopcook``
 ENTRY = {"lopcook.cli", "lopcook.__main__"}

@@ -118,29 +118,34 @@ def test_global_flags_after_the_command():
 
 
 def test_cook_lods_auto_is_the_default_chain(tmp_path):
-    """``--lods auto`` writes lod_chain's default chain (1/2, 1/4, ... down to 4 triangles), less the
-    LODs no distance selects; ``--lods R1,R2`` keeps working and bad values are one-line usage errors."""
+    """``--lods auto`` writes lod_chain's default chain (1/2, 1/4, ...) cut by the stop rule
+    (``lopcook.simplify.stop``: the part spans at least 8 px where its coarsest LOD is selected),
+    less the LODs no distance selects, and records where and why it stopped; ``--lods R1,R2``
+    keeps working and bad values are one-line usage errors."""
     from lopcook.simplify import lod_chain
     from lopcook.cli import main
     from lopcook.lop.container import read
     from lopcook.ingest import load
     from lopcook.selection import selection_ranges
+    from lopcook.simplify.stop import StopRule, manifest_record
     from lopcook.viewing import Viewing
 
     src = FIXTURES / "unit_sphere.glb"
     out = tmp_path / "auto.lop"
     assert main(["-q", "cook", str(src), "-o", str(out), "--lods", "auto", "--lod-backend", "fast"]) == 0
     m = read(str(out)).manifest
-    assert m["options"]["lods"] == {"ratios": "auto", "backend": "fast", "seams": "auto"}
     part = load(str(src)).parts[0]
-    lods, report = lod_chain(part, ratios=None, backend="fast", seams="auto")
+    rule = StopRule(Viewing())
+    lods, report = lod_chain(part, ratios=None, backend="fast", seams="auto", stop_rule=rule)
+    assert m["options"]["lods"] == {"ratios": "auto", "backend": "fast", "seams": "auto",
+                                    **manifest_record([report.as_dict()], rule)}
     ranges = selection_ranges([lod.error_m for lod in lods], [lod.triangles for lod in lods], Viewing())
     expected = [(lod.triangles, lod.error_m) for k, lod in enumerate(lods) if k == 0 or ranges[k] is not None]
     got = [(e["triangles"], e["geometric_error_m"]) for e in m["parts"][0]["lods"]]
     assert got == expected
-    # halving down to the last target of at least 4 triangles (1280 -> 640 -> ... -> 5)
+    # halvings until the first LOD the rule drops (1280 -> 640 -> ...)
     assert [lod.target_ratio for lod in lods] == [0.5 ** k for k in range(len(lods))]
-    assert lods[-1].target_triangles >= 4 > round(lods[-1].target_ratio / 2 * part.n_triangles)
+    assert report.stop == "pixels" and report.dropped["error_m"] > rule.max_error_m(report.extent_m) >= lods[-1].error_m
     assert len(got) >= 5
     assert all(b[0] < a[0] and b[1] >= a[1] for a, b in zip(got, got[1:]))
     explicit = tmp_path / "explicit.lop"

@@ -50,6 +50,7 @@ from ..verify.decoders import format_report, parse_levels, verify_decoders
 from ..verify.evaluate import evaluate, levels_in_file
 from ..verify.tables import format_table
 from ..version import __version__
+from ..wording import plural
 from ..view import ViewerServer, viewer_site
 from .parser import (analyse_settings, check_views, ingest_settings, parse_xyz, settings_from_args,
                      source_ingest_settings)
@@ -74,13 +75,27 @@ def _progress(args):
     return args._progress
 
 
-def _print_warnings(args, lines: list[str]) -> None:
+def _print_warnings(args, lines: list[str], kind: str = "warning") -> None:
     """Warnings on stderr (``lopcook: warning: ...``) unless --quiet (``--strict`` made them errors
-    before they reach here: ``lopcook.cookjob``)."""
+    before they reach here: ``lopcook.cookjob``); ``kind="note"`` for information."""
     if not args.quiet:
         for line in lines:
-            print(f"lopcook: warning: {line}", file=sys.stderr)
+            print(f"lopcook: {kind}: {line}", file=sys.stderr)
         sys.stderr.flush()
+
+
+#: ``cook`` prints up to this many LOD notes one by one, more as one line (``_fallback_summary``)
+NOTE_LINES = 3
+
+
+def _fallback_summary(lines: list[str]) -> list[str]:
+    """``cook``'s notes on backend fallbacks that still reached their targets
+    (``lopcook.simplify.chain_notes``): each line when there are at most ``NOTE_LINES``, else one
+    line with the count and the first (``cook --json`` lists all of them in ``lod_notes``)."""
+    if len(lines) <= NOTE_LINES:
+        return lines
+    return [f"{len(lines):,} LOD backend fallbacks reached their targets anyway (first: {lines[0]}; all: "
+            f"cook --json, lod_notes)"]
 
 
 def _is_container(path: str) -> bool:
@@ -102,7 +117,8 @@ def cmd_cook(args) -> int:
     settings = settings_from_args(args)
     outputs = CookOutputs(args.output, args.depfile, strict=bool(args.strict))
     desc, result = cook_file(args.source, settings, outputs, progress=_progress(args),
-                             warn=lambda lines: _print_warnings(args, lines))
+                             warn=lambda lines: _print_warnings(args, lines),
+                             note=lambda lines: _print_warnings(args, _fallback_summary(lines), "note"))
     _print_cook(args, desc, result)
     return EXIT_OK
 
@@ -122,8 +138,8 @@ def _print_cook(args, desc: dict, result) -> None:
     print(format_container(dict(desc, lod_warnings=[]), timings=desc["timings_s"]))  # warnings went to stderr
     an = result.analysis
     if an.touching or an.intersecting:
-        print(f"  note: {len(an.touching)} touching and {len(an.intersecting)} intersecting part "
-              f"pairs (depth levels capped at {an.settings.depth_ceiling}; see lopcook analyse)")
+        print(f"  note: {len(an.touching):,} touching and {plural(len(an.intersecting), 'intersecting part pair')} "
+              f"(depth levels capped at {an.settings.depth_ceiling}; see lopcook analyse)")
 
 
 def cmd_calibrate(args) -> int:
@@ -184,8 +200,10 @@ def cmd_decode(args) -> int:
         meshes.append({"name": part["name"], "positions": pos, "indices": a["indices"],
                        **world_attributes(c, i, {x.name: a[x.name] for x in CODECS})})
     if coarsest and not args.quiet and not args.json:
-        print(f"lopcook: note: {len(coarsest)} of {len(parts)} parts have no LOD {args.lod}; their coarsest LOD is "
-              f"used ({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
+        one = len(coarsest) == 1
+        print(f"lopcook: note: {len(coarsest):,} of {plural(len(parts), 'part')} {'has' if one else 'have'} "
+              f"no LOD {args.lod}; {'its' if one else 'their'} coarsest LOD is used "
+              f"({', '.join(coarsest[:3])}{', ...' if len(coarsest) > 3 else ''})", file=sys.stderr)
     pv = preview(c, args.container, meshes, lods, args.source)
     if not args.quiet:
         for w in pv["warnings"]:
@@ -200,7 +218,7 @@ def cmd_decode(args) -> int:
                           "instances": pv["instances"], "max_instancing_offset_m": pv["max_instancing_offset_m"],
                           "warnings": pv["warnings"]}, sort_keys=True))
     elif not args.quiet:
-        print(f"{args.output}: {len(meshes)} meshes decoded at level {args.level}, LOD {args.lod}")
+        print(f"{args.output}: {plural(len(meshes), 'mesh', 'meshes')} decoded at level {args.level}, LOD {args.lod}")
     if args.positions is not None:
         _decode_positions(args, c, quiet=True)
     return EXIT_OK
@@ -219,7 +237,8 @@ def _decode_positions(args, c, quiet: bool = False) -> int:
         print(json.dumps({"positions": args.positions, "level": args.level, "lod": args.lod, "bytes": len(data),
                           "vertices": len(data) // 12, "parts": len(c.manifest["parts"])}, sort_keys=True))
     elif not args.quiet and not quiet:
-        print(f"{args.positions}: {len(data) // 12} vertices decoded at level {args.level}, LOD {args.lod}")
+        print(f"{args.positions}: {plural(len(data) // 12, 'vertex', 'vertices')} decoded at level {args.level}, "
+              f"LOD {args.lod}")
     return EXIT_OK
 
 
@@ -245,7 +264,8 @@ def cmd_web(args) -> int:
     if args.json:
         print(json.dumps(out, sort_keys=True))
     elif not args.quiet:
-        print(f"{args.output}: {out['parts']} parts of {args.container}, {out['materials']} materials")
+        print(f"{args.output}: {plural(out['parts'], 'part')} of {args.container}, "
+              f"{plural(out['materials'], 'material')}")
     return EXIT_OK
 
 
@@ -259,8 +279,8 @@ def cmd_view(args) -> int:
         print(json.dumps({"url": server.url, "container": args.container, "bytes": info["bytes"],
                           "materials": info["materials"]}, sort_keys=True), flush=True)
     elif not args.quiet:
-        print(f"lopcook view: {args.container} ({info['bytes']:,} bytes, {info['materials']} materials) at {server.url}"
-              f"  (Ctrl-C stops)", flush=True)
+        print(f"lopcook view: {args.container} ({plural(info['bytes'], 'byte')}, "
+              f"{plural(info['materials'], 'material')}) at {server.url}  (Ctrl-C stops)", flush=True)
     try:
         server.serve_forever()
     except KeyboardInterrupt:  # the way to stop it: not an interruption of work
@@ -291,7 +311,7 @@ def cmd_refine(args) -> int:
         print(json.dumps({"written": [str(w) for w in written], "triangles": tri, "lod0_triangles": full,
                           "parts": stats}, sort_keys=True))
     elif not args.quiet:
-        print(f"{args.output}: {len(meshes)} meshes, {tri:,} of {full:,} LOD 0 triangles "
+        print(f"{args.output}: {plural(len(meshes), 'mesh', 'meshes')}, {tri:,} of {plural(full, 'LOD 0 triangle')} "
               f"(levels {min(s['level'] for s in stats)}-{max(s['level'] for s in stats)})")
     return EXIT_OK
 

@@ -14,6 +14,7 @@ from .codecs import CODECS, AttributeBits
 from .container import Container
 from .reader import buffer_clusters
 from .record import aligned_waste, record_waste
+from ..wording import length, plural
 
 SUMMARY_LEVELS = range(6, 13)
 
@@ -64,13 +65,21 @@ def cluster_stats(c: Container) -> dict | None:
             "k_histogram": [int(v) for v in hist], "header_bytes": 12 * total, "record_bytes": 16 * total}
 
 
+#: stop codes (``options.lods.reports[i].stop``) by which a chain ends where its rule says: a part
+#: left with LOD 0 alone by one of them is no shortfall
+STOPS_BY_RULE = ("pixels", "relative_error", "view")
+
+
 def lod_shortfalls(c: Container) -> list[str]:
     """What a container shows of its LOD chains' shortfalls: parts that got no LOD although LODs
-    were asked for (``options.lods``), grouped. Backend fallbacks are not stored in a container;
-    ``cook`` prints them when they happen."""
-    if not (c.manifest.get("options") or {}).get("lods"):
+    were asked for (``options.lods``) and no rule ended their chain there (``STOPS_BY_RULE``),
+    grouped. Backend fallbacks are not stored in a container; ``cook`` prints them when they happen."""
+    lods = (c.manifest.get("options") or {}).get("lods")
+    if not lods:
         return []
-    bare = [p["name"] for p in c.manifest["parts"] if len(p["lods"]) == 1]
+    stops = lods.get("reports") or [] if isinstance(lods, dict) else []
+    bare = [p["name"] for i, p in enumerate(c.manifest["parts"]) if len(p["lods"]) == 1
+            and not (i < len(stops) and isinstance(stops[i], dict) and stops[i].get("stop") in STOPS_BY_RULE)]
     if not bare:
         return []
     more = f" and {len(bare) - 1} more" if len(bare) > 1 else ""
@@ -178,7 +187,12 @@ def stage_rows(c: Container) -> list[dict] | None:
 
 
 def describe_container(c: Container, file_bytes: int | None = None) -> dict:
-    """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``)."""
+    """Plain-data summary of a container (JSON form of ``lopcook inspect OUT.lop --json``). Per
+    part: ``lods`` (each with ``triangles``, ``vertices``, ``geometric_error_m``, ``min_distance_m``:
+    the camera distance in metres from which ``lopcook.selection.select`` picks it, None when the
+    file records none) and ``lod_stop``: where and why its chain stopped (``options.lods.reports[i]``
+    of a ``--lods auto`` cook: ``stop``, ``stop_reason``, ``extent_m``, ``max_error_m``,
+    ``dropped``), None when not recorded."""
     m = c.manifest
     sections = [{"name": s["name"], "bytes": s["length"], **({"encoding": s["encoding"], "decoded_bytes": s["size"]}
                                                              if "encoding" in s else {})} for s in m["sections"]]
@@ -189,14 +203,16 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
         by_kind[kind] = by_kind.get(kind, 0) + s["length"]
     parts = []
     vb = vertex_bits(c)
+    stops = _stops({"options": m["options"], "parts": m["parts"]})
     for i, p in enumerate(m["parts"]):
         lods = [{"vertices": e["vertices"], "triangles": e["triangles"], "geometric_error_m": e["geometric_error_m"],
+                 "min_distance_m": e.get("min_distance_m"),
                  "histogram": np.diff(e["vertex_id"], prepend=0).tolist(),
                  "attributes": [x.name for x in CODECS if (e.get("attribute_bits") or {}).get(x.name)],
                  "attribute_bits": e.get("attribute_bits"), "record_bits": e.get("record_bits", 0),
                  "available_level": c.level_of(i, k), "stage": c.layout.stage_of[(i, k)]}
                 for k, e in enumerate(p["lods"])]
-        parts.append({"name": p["name"], "source": p["source"], "lods": lods,
+        parts.append({"name": p["name"], "source": p["source"], "lods": lods, "lod_stop": stops[i],
                       "attribute_bits": p.get("attribute_bits"), "vertex_bits": vb["parts"][len(parts)],
                       "attribute_waste": attribute_waste(p)})
         if p.get("hierarchy") is not None:
@@ -242,19 +258,78 @@ def describe_container(c: Container, file_bytes: int | None = None) -> dict:
     }
 
 
-def _n(count: int, noun: str) -> str:
-    """``1 part``, ``2 parts``."""
-    return f"{count:,} {noun}" if count == 1 else f"{count:,} {noun}s"
+#: inspect and cook print one LOD table per part up to this many parts with LODs, else one table
+#: of the whole scene by LOD index
+LOD_TABLE_PARTS = 4
 
 
-def _hist(h) -> str:
-    nz = [b for b in range(1, LEVELS + 1) if h[b]]
-    return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
+def _hist(h, first: int = 1) -> str:
+    """The non-empty entries of a histogram ``h`` (index = level or bits) from ``first`` on, as
+    ``k:count``; ``(empty)`` when there is none."""
+    nz = [f"{b}:{int(h[b]):,}" for b in range(first, len(h)) if h[b]]
+    return " ".join(nz) if nz else "(empty)"
 
 
-def _hist0(h) -> str:
-    nz = [b for b in range(0, LEVELS + 1) if h[b]]
-    return " ".join(f"{b}:{h[b]}" for b in range(nz[0], nz[-1] + 1)) if nz else "(empty)"
+def _stops(d: dict) -> list:
+    """Per part, its chain's stop record (``options.lods.reports[i]``: ``stop``, ``stop_reason``,
+    ``extent_m``, ``max_error_m``, ``dropped``), or None where the container records none."""
+    recs = ((d.get("options") or {}).get("lods") or {}).get("reports") or []
+    return [recs[i] if i < len(recs) and isinstance(recs[i], dict) else None for i in range(len(d["parts"]))]
+
+
+def _lod_rows(lods: list) -> list[str]:
+    lines = [f"  {'LOD':>5} {'triangles':>10} {'vertices':>10} {'error':>10}  selected from"]
+    for k, e in enumerate(lods):
+        d = e.get("min_distance_m")
+        lines.append(f"  {k:>5} {e['triangles']:>10,} {e['vertices']:>10,} {length(e['geometric_error_m']):>10}  "
+                     + ("(no distance recorded)" if d is None else length(d) if d else "0 m"))
+    return lines
+
+
+def _lod_scene_rows(parts: list) -> list[str]:
+    """One row per LOD index over every part that has it: parts, their triangles (every part's,
+    copies included), the largest error and the range of the parts' selection distances."""
+    lines = [f"  {'LOD':>5} {'parts':>6} {'triangles':>11} {'largest error':>14}  "
+             "selected from (nearest - farthest part)"]
+    for k in range(max(len(p["lods"]) for p in parts)):
+        es = [p["lods"][k] for p in parts if len(p["lods"]) > k]
+        dist = [e.get("min_distance_m") for e in es if e.get("min_distance_m") is not None]
+        near, far = (length(min(dist)), length(max(dist))) if dist else ("-", "-")
+        where = "0 m" if far == "0" else near if near == far else f"{near} - {far}"
+        lines.append(f"  {k:>5} {len(es):>6,} {sum(e['triangles'] for e in es):>11,} "
+                     f"{length(max(e['geometric_error_m'] for e in es)):>14}  {where}")
+    return lines
+
+
+def _lod_lines(d: dict) -> list[str]:
+    """The LOD chains: a table per part (LOD, triangles, vertices, error, the distance it is selected
+    from) and where and why each chain stopped; with more than ``LOD_TABLE_PARTS`` parts one table
+    by LOD index and the stops grouped. Nothing for a container without LODs."""
+    stops = _stops(d)
+    if not (any(len(p["lods"]) > 1 for p in d["parts"]) or any(stops)):
+        return []
+    rule = ((d.get("options") or {}).get("lods") or {}).get("stop_rule")
+    head = [""] + ([f"  --lods auto keeps a LOD while its part spans {rule['min_pixels']:g} px or more where it is "
+                    f"selected, its error at most {100 * rule['max_relative_error']:g}% of the part's extent"]
+                   if rule else [])
+    if len(d["parts"]) <= LOD_TABLE_PARTS:
+        lines = []
+        for p, st in zip(d["parts"], stops):
+            lines += ([f"  LODs of part {p['name']!r}:"] if len(d["parts"]) > 1 else []) + _lod_rows(p["lods"])
+            if st and st.get("stop_reason"):
+                lines.append(f"  chain stopped: {st['stop_reason']}")
+        return head + lines
+    lines = head + _lod_scene_rows(d["parts"])
+    groups: dict = {}
+    for p, st in zip(d["parts"], stops):
+        if st:
+            groups.setdefault(st.get("stop") or "?", []).append((p["name"], st.get("stop_reason", "")))
+    for code, members in sorted(groups.items(), key=lambda kv: -len(kv[1])):
+        lines.append(f"  chains stopped ({code}): {plural(len(members), 'part')}, e.g. {members[0][0]!r}: "
+                     f"{members[0][1]}")
+    if groups:
+        lines.append("  (every part's chain and stop: inspect --json, parts[].lods and parts[].lod_stop)")
+    return lines
 
 
 def _layout_lines(d: dict, max_parts: int) -> list[str]:
@@ -263,7 +338,7 @@ def _layout_lines(d: dict, max_parts: int) -> list[str]:
     lines = []
     if d.get("stages"):
         size = max(d.get("file_size") or 1, 1)
-        lines.append(f"  streaming layout, {_n(len(d['stages']), 'stage')} (stage 0: every part's coarsest LOD); "
+        lines.append(f"  streaming layout, {plural(len(d['stages']), 'stage')} (stage 0: every part's coarsest LOD); "
                      f"first renderable at {d['stages'][0]['bytes_renderable']:,} B "
                      f"({100.0 * d['stages'][0]['bytes_renderable'] / size:.1f}%)")
         lines.append(f"  {'stage':>7} {'buffers':>8} {'level':>6} {'held':>5} {'renderable at':>14} {'at its level':>13}")
@@ -275,58 +350,71 @@ def _layout_lines(d: dict, max_parts: int) -> list[str]:
         for p in d["parts"][:max_parts]:
             lines.append(f"    {p['name'][-48:]:<48} " + " ".join(str(e["available_level"]) for e in p["lods"]))
         if len(d["parts"]) > max_parts:
-            lines.append(f"    … {len(d['parts']) - max_parts} more parts (use --json for all)")
+            lines.append(f"    … {plural(len(d['parts']) - max_parts, 'more part')} (use --json for all)")
     return lines
 
 
-def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 20) -> str:
-    t = d["totals"]
-    size = (f"{d['file_bytes'] or 0:,} of {d['file_size']:,} bytes (a prefix)" if d.get("prefix")
-            else f"{d['file_bytes'] or 0:,} bytes")
-    lines = [
-        f"{d['file']}: {d['format']} by {d['generator']}, {size}, levels 1..{d['available_level']}",
-        f"  source {d['source']['file']} ({d['source']['format']}); {_n(t['parts'], 'part')}, "
-        f"{_n(t['buffers'], 'buffer')}, "
-        f"{t['vertices']:,} vertices, {t['triangles']:,} triangles; grid extent {d['grid']['extent']:.6g} m",
-        "  minimum levels (level:vertices): " + _hist(t["histogram"]),
-        "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
-        *_layout_lines(d, max_parts),
-        "",
-        f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions of "
-        f"{'LOD 0' if any(len(p['lods']) > 1 for p in d['parts']) else 'every part'} vs their float32 "
-        f"{d['memory'][0]['float32_bytes'] if d['memory'] else 0:,} B)",
-    ]
-    for r in d["memory"]:
-        if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]:  # not levels the file lacks
-            lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
-                         f"{r['ap_percent']:>5.1f}%" + (f"   unclustered {r['unclustered_cap_bytes']:,} B "
-                                                        f"{r['unclustered_cap_percent']:.1f}%"
-                                                        if "unclustered_cap_bytes" in r else ""))
-    pl = t.get("placements")
-    if pl:
-        shown = [r for r in d["memory"] if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]
-                 and "cap_bytes_all_copies" in r]
-        lines.append(f"  copies stored once: {_n(pl['parts'], 'placement')} of {pl['groups']:,} "
-                     f"{'mesh' if pl['groups'] == 1 else 'meshes'} "
-                     f"({pl['vertices_all_copies']:,} vertices placed)")
-        if shown:
-            lo, hi = shown[0], shown[-1]
-            lines.append(f"  CAP bytes at levels {lo['level']}-{hi['level']}: {lo['cap_bytes']:,}-{hi['cap_bytes']:,} "
-                         f"with each mesh once, {lo['cap_bytes_all_copies']:,}-{hi['cap_bytes_all_copies']:,} with "
-                         f"every copy: saves {100.0 * lo['cap_saved_by_sharing_bytes'] / max(lo['cap_bytes_all_copies'], 1):.1f}%"
-                         f"-{100.0 * hi['cap_saved_by_sharing_bytes'] / max(hi['cap_bytes_all_copies'], 1):.1f}%")
+def _memory_lines(d: dict) -> list[str]:
+    """The CAP/AP table at the summary levels the file holds. Where the CAP bytes are the same on
+    every row, a note says why (every vertex is at or above its minimum level already); the
+    unclustered comparison is one column when it varies, else one line."""
+    rows = [r for r in d["memory"] if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]]
+    un = [r["unclustered_cap_bytes"] for r in rows if "unclustered_cap_bytes" in r]
+    un_column = len(set(un)) > 1
+    lines = [f"  {'level':>5} {'CAP bytes':>12} {'CAP %':>6} {'AP bytes':>12} {'AP %':>6}   (GPU-resident positions of "
+             f"{'LOD 0' if any(len(p['lods']) > 1 for p in d['parts']) else 'every part'} vs their float32 "
+             f"{d['memory'][0]['float32_bytes'] if d['memory'] else 0:,} B)"]
+    for r in rows:
+        lines.append(f"  {r['level']:>5} {r['cap_bytes']:>12,} {r['cap_percent']:>5.1f}% {r['ap_bytes']:>12,} "
+                     f"{r['ap_percent']:>5.1f}%" + (f"   unclustered {r['unclustered_cap_bytes']:,} B "
+                                                    f"{r['unclustered_cap_percent']:.1f}%" if un_column else ""))
+    if len(rows) > 1 and len({r["cap_bytes"] for r in rows}) == 1:
+        lowest = min((b for p in d["parts"] for b, n in enumerate(p["lods"][0]["histogram"]) if n), default=0)
+        lines.append(f"  CAP bytes are the same at levels {rows[0]['level']}-{rows[-1]['level']}"
+                     + (f": every vertex's minimum level is {lowest} or more, so at each of these levels every\n"
+                        f"  vertex is already at or above its minimum, and CAP stores it at its minimum"
+                        if lowest >= rows[-1]["level"] else ""))
+    if un and not un_column:
+        r = next(r for r in rows if "unclustered_cap_bytes" in r)
+        at = "every level shown" if len(rows) > 1 else "this level"
+        lines.append(f"  unclustered, the same vertices take {r['unclustered_cap_bytes']:,} B "
+                     f"({r['unclustered_cap_percent']:.1f}%) at {at}")
+    return lines
+
+
+def _placement_lines(d: dict) -> list[str]:
+    pl = d["totals"].get("placements")
+    if not pl:
+        return []
+    shown = [r for r in d["memory"] if r["level"] in SUMMARY_LEVELS and r["level"] <= d["available_level"]
+             and "cap_bytes_all_copies" in r]
+    lines = [f"  copies stored once: {plural(pl['parts'], 'placement')} of {plural(pl['groups'], 'mesh', 'meshes')} "
+             f"({pl['vertices_all_copies']:,} vertices placed)"]
+    if shown:
+        lo, hi = shown[0], shown[-1]
+        lines.append(f"  CAP bytes at levels {lo['level']}-{hi['level']}: {lo['cap_bytes']:,}-{hi['cap_bytes']:,} "
+                     f"with each mesh once, {lo['cap_bytes_all_copies']:,}-{hi['cap_bytes_all_copies']:,} with "
+                     f"every copy: saves {100.0 * lo['cap_saved_by_sharing_bytes'] / max(lo['cap_bytes_all_copies'], 1):.1f}%"
+                     f"-{100.0 * hi['cap_saved_by_sharing_bytes'] / max(hi['cap_bytes_all_copies'], 1):.1f}%")
+    return lines
+
+
+def _storage_lines(d: dict, max_parts: int) -> list[str]:
+    """Clusters, what the viewing conditions saved, hierarchies and the bits per vertex (terms of
+    zero bits left out)."""
+    lines = []
     cs = d.get("clusters")
     if cs:
         lines.append(f"  clusters: {cs['clusters']:,} of N = {'/'.join(str(v) for v in cs['cluster_size'])} in "
-                     f"{_n(cs['buffers'], 'buffer')} (CAP counts their {cs['record_bytes']:,} B of records and "
-                     f"128 B ClusterId per buffer); anchor bits k (k:components): " + _hist0(cs["k_histogram"]))
+                     f"{plural(cs['buffers'], 'buffer')} (CAP counts their {cs['record_bytes']:,} B of records and "
+                     f"128 B ClusterId per buffer); anchor bits k (k:components): " + _hist(cs["k_histogram"], 0))
     if d.get("savings"):
         sv = d["savings"]
         planes = sv["planes_dropped"]
         what = [f"planes {planes[0]}-{planes[-1]} not written" if len(planes) > 1 else
                 f"plane {planes[0]} not written"] if planes else []
         if sv["lods_dropped"]:
-            what.append(f"{_n(sv['lods_dropped'], 'LOD')} no distance selects dropped")
+            what.append(f"{plural(sv['lods_dropped'], 'LOD')} no distance selects dropped")
         lines.append(f"  saved {sv['bytes_saved']:,} B by what no view needs: {', '.join(what)}")
     for p in d["parts"][:max_parts]:
         hs = p.get("hierarchy")
@@ -337,9 +425,33 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
     vb = d.get("vertex_bits")
     if vb and vb["positions"]:
         top = max(vb["positions"], key=int)
-        terms = "".join(f" + {x.label} {vb[x.name]:.1f}" for x in CODECS if x.name in vb)
+        terms = "".join(f" + {x.label} {vb[x.name]:.1f}" for x in CODECS if vb.get(x.name))
         lines.append(f"  bits per vertex at level {top}: positions {vb['positions'][top]:.1f}{terms} = "
                      f"{vb['total'][top]:.1f}")
+    return lines
+
+
+def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 20) -> str:
+    """``describe_container``'s record as the text ``inspect`` and ``cook`` print: the file, its
+    minimum levels and sections, the LOD chains (``_lod_lines``), the memory table, storage
+    figures, LOD warnings, stage timings (``timings``, seconds) and up to ``max_parts`` parts."""
+    t = d["totals"]
+    size = (f"{d['file_bytes'] or 0:,} of {d['file_size']:,} bytes (a prefix)" if d.get("prefix")
+            else f"{d['file_bytes'] or 0:,} bytes")
+    lines = [
+        f"{d['file']}: {d['format']} by {d['generator']}, {size}, levels 1..{d['available_level']}",
+        f"  source {d['source']['file']} ({d['source']['format']}); {plural(t['parts'], 'part')}, "
+        f"{plural(t['buffers'], 'buffer')}, {plural(t['vertices'], 'vertex', 'vertices')}, "
+        f"{plural(t['triangles'], 'triangle')}; grid extent {d['grid']['extent']:.6g} m",
+        "  minimum levels (level:vertices): " + _hist(t["histogram"]),
+        "  sections: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(d["section_bytes"].items())),
+        *_layout_lines(d, max_parts),
+        *_lod_lines(d),
+        "",
+        *_memory_lines(d),
+        *_placement_lines(d),
+        *_storage_lines(d, max_parts),
+    ]
     for w in d.get("lod_warnings") or []:
         lines.append(f"  LOD warning: {w}")
     if timings:
@@ -352,5 +464,5 @@ def format_container(d: dict, *, timings: dict | None = None, max_parts: int = 2
             lines.append(f"  {p['name'][-48:]:<48} {e['vertices']:>9,} v {e['triangles']:>9,} t  "
                          f"{' '.join(e['attributes'])}")
         if len(d["parts"]) > max_parts:
-            lines.append(f"  … {len(d['parts']) - max_parts} more parts (use --json for all)")
+            lines.append(f"  … {plural(len(d['parts']) - max_parts, 'more part')} (use --json for all)")
     return "\n".join(lines)

@@ -8,10 +8,10 @@ from LOD 0), ``error`` (measured Hausdorff error), ``topology`` (defects, UV sea
 """
 
 from .backends import BACKENDS
-from .chain import MIN_SIMPLIFY_TRIANGLES, SEAM_MODES, Lod, LodReport, chain_warnings, lod_chain, parametrise, simplify
+from .chain import (MIN_SIMPLIFY_TRIANGLES, SEAM_MODES, Lod, LodReport, chain_notes, chain_warnings, lod_chain,
+                    parametrise, simplify)
 from .error import hausdorff
 from .topology import SeamStats, mesh_defects, seam_stats
 
-__all__ = ["BACKENDS", "SEAM_MODES", "MIN_SIMPLIFY_TRIANGLES", "Lod", "LodReport", "chain_warnings", "lod_chain",
-           "parametrise",
-           "simplify", "hausdorff", "SeamStats", "mesh_defects", "seam_stats"]
+__all__ = ["BACKENDS", "SEAM_MODES", "MIN_SIMPLIFY_TRIANGLES", "Lod", "LodReport", "chain_notes", "chain_warnings",
+           "lod_chain", "parametrise", "simplify", "hausdorff", "SeamStats", "mesh_defects", "seam_stats"]

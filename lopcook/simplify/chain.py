@@ -7,8 +7,9 @@ the reasons for each rule: docs/lod.md, "The chain driver in full".
 ``lod_chain(part, ratios, backend, ...) -> (lods, report)``: ``lods[0]`` is the part itself
 (error 0), then simplifications to ``round(ratio * n0)`` triangles for ratios 1/2, 1/4, 1/8, ...
 (or those given). The chain stops at the first LOD whose error exceeds ``max_error_m`` (metres: no
-distance would select it; it is not kept), when a target falls below ``min_triangles``, or when
-no backend can make a LOD.
+distance would select it; it is not kept) or the limit of ``stop_rule`` (``--lods auto``:
+``lopcook.simplify.stop``), when a target falls below ``min_triangles``, or when no backend can
+make a LOD; ``LodReport.stop`` records why.
 
 - Backends (``SELECTABLE``): ``"pymeshlab"`` (MeshLab's quadric collapse, texture-aware with
   UVs), ``"fast"`` (fast-simplification), ``"meshopt"`` (meshoptimizer: output vertices are input
@@ -49,6 +50,7 @@ from ..types import MeshPart
 from .backends import BACKENDS, SELECTABLE, TOPOLOGY_BLIND, check_result, parametrise_xatlas, prepare, run_backend
 from .error import hausdorff, sampled_ref_to_lod
 from .reference import Reference
+from .stop import StopRule, breach_text, limit, part_extent
 from .topology import SeamStats, mesh_defects, seam_stats
 from .transfer import transfer_attributes
 from .types import BackendFailure
@@ -141,7 +143,11 @@ class Lod:
 
 @dataclass
 class LodReport:
-    """What ``lod_chain`` did for one part."""
+    """What ``lod_chain`` did for one part. ``max_error_m``: the largest error a kept LOD could have
+    (the tighter of the view cap and the stop rule; None: no limit); ``stop`` (a
+    ``lopcook.simplify.stop.STOP_CODES`` code) and ``stop_reason`` (words): why the chain ended;
+    ``dropped``: ``{"triangles", "error_m", "target_ratio"}`` of the LOD made and then dropped, or
+    None; ``extent_m``: the part's largest extent (metres, ``stop.part_extent``)."""
 
     part: str
     backend: str
@@ -155,13 +161,21 @@ class LodReport:
     defects: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     lods: list = field(default_factory=list)
+    stop: str = ""
+    dropped: dict | None = None
+    extent_m: float = 0.0
 
     def as_dict(self) -> dict:
         return {"part": self.part, "backend": self.backend, "seams": self.seams, "chain": self.chain,
                 "triangles": self.triangles, "max_error_m": self.max_error_m,
-                "stop_reason": self.stop_reason, "fallbacks": self.fallbacks,
+                "stop_reason": self.stop_reason, "stop": self.stop, "dropped": self.dropped,
+                "extent_m": self.extent_m, "fallbacks": self.fallbacks,
                 "seconds": round(self.seconds, 6), "defects": dict(self.defects),
                 "notes": list(self.notes), "lods": list(self.lods)}
+
+    def ended(self, code: str, reason: str, dropped: dict | None = None) -> None:
+        """Record why the chain ended: a ``STOP_CODES`` code, its words, the LOD made and dropped."""
+        self.stop, self.stop_reason, self.dropped = code, reason, dropped
 
 
 def _xatlas_part(part: MeshPart) -> MeshPart:
@@ -485,13 +499,15 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
               min_triangles: int = MIN_SIMPLIFY_TRIANGLES, seams: str = "lock", chain: str = "previous",
               parametrise: bool = False, preserve_boundary: bool = True, fallback: bool = True,
               max_flipped_fraction: float = MAX_FLIPPED_FRACTION, max_levels: int = DEFAULT_LOD_LEVELS,
-              on_lod=None):
+              on_lod=None, stop_rule: StopRule | None = None):
     """A LOD chain for one part: ``(lods, report)`` with ``lods[0]`` = LOD 0 (the part, error 0).
 
     ratios : fractions of LOD 0's triangles in decreasing order (default 1/2, 1/4, 1/8, ... while
         the target is at least ``min_triangles``; at most ``max_levels`` LODs)
     max_error_m : the largest error any kept LOD may have (metres): the error the farthest view
         can still show. The first LOD above it is dropped and ends the chain. None: no limit.
+    stop_rule : ``lopcook.simplify.stop.StopRule`` or None: the ``--lods auto`` rule, a limit of
+        its own from the part's extent (the tighter limit applies; ``report.stop`` says which)
     chain : ``"previous"`` simplifies each LOD from the one before, ``"source"`` from LOD 0
     parametrise : give a part without UVs an xatlas atlas first (LOD 0 then has UVs)
     on_lod : ``on_lod(k, part)`` is called as LOD k (k >= 1) joins the chain, before the next is
@@ -507,8 +523,10 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
     if chain not in ("previous", "source"):
         raise ValueError(f"chain must be 'previous' or 'source', got {chain!r}")
     t0 = time.perf_counter()
+    extent = part_extent(part.positions)
+    max_error_m, breach = limit(extent, max_error_m, stop_rule)
     report = LodReport(part=part.name, backend=backend, seams=seams, chain=chain, triangles=part.n_triangles,
-                       max_error_m=max_error_m)
+                       max_error_m=max_error_m, extent_m=extent)
     if parametrise and part.uvs is None:
         try:
             part = _xatlas_part(part)
@@ -523,13 +541,13 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
     n0 = part.n_triangles
     args = (backend, seams, ref, preserve_boundary, fallback, max_flipped_fraction)
     if n0 < MIN_SIMPLIFY_TRIANGLES:
-        report.stop_reason = f"{n0} triangles (< {MIN_SIMPLIFY_TRIANGLES}): LOD 0 only"
+        report.ended("small", f"{n0} triangles (< {MIN_SIMPLIFY_TRIANGLES}): LOD 0 only")
         report.notes.append(report.stop_reason)
     else:
         for ratio in _ratios(ratios, n0, min_triangles, max_levels, report):
             target = int(round(ratio * n0))
             if target < min_triangles:
-                report.stop_reason = f"target {target} below min_triangles {min_triangles}"
+                report.ended("min_triangles", f"target {target} below min_triangles {min_triangles}")
                 break
             start = lods[-1].part if chain == "previous" else part
             # the cook's analysis of this LOD starts as soon as its mesh exists (``on_lod`` again
@@ -539,7 +557,7 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             report.fallbacks += used
             if start is not part:
                 lod = _again_from_lod0(lod, part, ratio, target, args, early, report)
-            if not _accept(lod, lods[-1], ratio, max_error_m, min_triangles, report):
+            if not _accept(lod, lods, ratio, (max_error_m, breach, stop_rule), min_triangles, report):
                 break
             lods.append(lod)
             if on_lod is not None:
@@ -547,7 +565,7 @@ def lod_chain(part: MeshPart, ratios=None, backend: str = "pymeshlab", *, max_er
             report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
         else:
             if not report.stop_reason:
-                report.stop_reason = "all ratios done"
+                report.ended("ratios", "all ratios done")
     report.defects = dict(ref.defects)  # counted during the first LOD's backend run where it forks
     report.lods = [lod.summary() for lod in lods]
     report.seconds = time.perf_counter() - t0
@@ -561,7 +579,7 @@ def _ratios(ratios, n0: int, min_triangles: int, max_levels: int, report: LodRep
     if ratios is None:
         ratios = halvings(max_levels, n0, min_triangles)
         if not ratios:
-            report.stop_reason = f"no target of at least {min_triangles} triangles"
+            report.ended("min_triangles", f"no target of at least {min_triangles} triangles")
     return sorted({float(r) for r in ratios if 0 < float(r) < 1}, reverse=True)
 
 
@@ -602,19 +620,23 @@ def _again_from_lod0(lod: Lod, part: MeshPart, ratio: float, target: int, args: 
     return again if nearer or lower else lod
 
 
-def _accept(lod: Lod, previous: Lod, ratio: float, max_error_m: float | None, min_triangles: int,
-            report: LodReport) -> bool:
-    """Whether ``lod`` joins the chain after ``previous``; setting its ``error_m`` to the monotone
-    envelope max(hausdorff_m, previous.error_m). False (the chain ends, the report says why) when
-    it failed, has no fewer triangles than ``previous``, an error above ``max_error_m`` or fewer
-    than ``min_triangles`` triangles."""
+def _accept(lod: Lod, lods: list, ratio: float, limit_of: tuple, min_triangles: int, report: LodReport) -> bool:
+    """Whether ``lod`` joins the chain after ``lods[-1]``; setting its ``error_m`` to the monotone
+    envelope max(hausdorff_m, previous error_m). ``limit_of`` = (the largest error a kept LOD may
+    have or None, the stop code of a breach, the StopRule or None: ``stop.limit``). False (the
+    chain ends, ``report.ended`` says why) when it failed, has no fewer triangles than the
+    previous LOD, an error above the limit or fewer than ``min_triangles`` triangles."""
+    previous, k = lods[-1], len(lods)
+    max_error_m, breach, rule = limit_of
+    made = {"triangles": int(lod.triangles), "error_m": float(max(lod.hausdorff_m, previous.error_m)),
+            "target_ratio": float(ratio)}
     if lod.failed:
-        report.stop_reason = f"LOD {ratio:g} could not be produced; previous LODs kept"
+        report.ended("failed", f"LOD {k} (ratio {ratio:g}) could not be produced; previous LODs kept")
         report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
         return False
     if lod.triangles >= previous.triangles:
-        report.stop_reason = (f"LOD {ratio:g} has {lod.triangles} triangles, no fewer than the previous "
-                              f"LOD's {previous.triangles}; dropped")
+        report.ended("no_fewer", f"LOD {k} has {lod.triangles} triangles, no fewer than the previous "
+                                 f"LOD's {previous.triangles}; dropped", made)
         report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
         return False
     if lod.hausdorff_m < previous.error_m:
@@ -622,32 +644,24 @@ def _accept(lod: Lod, previous: Lod, ratio: float, max_error_m: float | None, mi
                          f"{previous.error_m:.3g} m: error_m raised to keep the chain monotone")
     lod.error_m = max(lod.hausdorff_m, previous.error_m)
     if max_error_m is not None and lod.error_m > max_error_m:
-        report.stop_reason = (f"LOD {ratio:g} error {lod.error_m:.3g} m exceeds max_error_m "
-                              f"{max_error_m:.3g} m; dropped")
+        report.ended(breach, breach_text(breach, f"LOD {k}", lod.triangles, lod.error_m, max_error_m,
+                                         report.extent_m, rule), made)
         report.notes.extend(f"LOD {ratio:g}: {n}" for n in lod.notes)
         return False
     if lod.triangles < min_triangles:
-        report.stop_reason = f"LOD {ratio:g} has {lod.triangles} triangles (< {min_triangles}); dropped"
+        report.ended("min_triangles", f"LOD {k} has {lod.triangles} triangles (< {min_triangles}); dropped", made)
         return False
     return True
 
 
-def chain_warnings(reports: list[dict]) -> list[str]:
-    """The LOD shortfalls a user must see, one line each, from ``LodReport.as_dict()`` records:
-    backends that failed (and what they fell back to), LODs that missed their triangle target by
-    more than ``TARGET_TOLERANCE``, and parts that got no LODs although they could be simplified.
-    Copies of one mesh share one line (``part A and 3 copies``)."""
-    found: dict[str, list[str]] = {}
-    for rep in reports:
-        lines = []
-        for k, lod in enumerate(rep.get("lods") or []):
-            for note in lod.get("notes") or []:
-                if " failed: " in note or " triangles for a target of " in note:
-                    lines.append(f"LOD {k}: {note}")
-        if len(rep.get("lods") or []) <= 1 and rep.get("triangles", 0) >= MIN_SIMPLIFY_TRIANGLES:
-            lines.append(f"no LODs ({rep.get('stop_reason') or 'none produced'})")
-        for line in lines:
-            found.setdefault(line, []).append(rep["part"])
+#: stop codes by which a chain ends where it should: a part with no LOD then is no shortfall
+_BY_RULE = ("pixels", "relative_error", "view")
+
+_MISSED = " triangles for a target of "
+
+
+def _grouped(found: dict[str, list[str]]) -> list[str]:
+    """``{line: [part, ...]}`` -> ``part 'A': line`` or ``part 'A' and 3 more: line``."""
     out = []
     for line, parts in found.items():
         who = f"part {parts[0]!r}" + (f" and {len(parts) - 1} more" if len(parts) > 1 else "")
@@ -655,5 +669,41 @@ def chain_warnings(reports: list[dict]) -> list[str]:
     return out
 
 
-__all__ = ["Lod", "LodReport", "simplify", "lod_chain", "chain_warnings", "parametrise", "SEAM_MODES", "TARGET_TOLERANCE",
+def chain_warnings(reports: list[dict]) -> list[str]:
+    """The LOD shortfalls a user must see, one line each, from ``LodReport.as_dict()`` records:
+    LODs that missed their triangle target by more than ``TARGET_TOLERANCE`` (with the backend
+    failures behind them), and parts that got no LODs although they could be simplified and no
+    rule ended their chain at LOD 0 (``_BY_RULE``). A backend that failed where its fallback
+    reached the target is information (``chain_notes``). Copies of one mesh share one line
+    (``part A and 3 more``)."""
+    found: dict[str, list[str]] = {}
+    for rep in reports:
+        lines = []
+        for k, lod in enumerate(rep.get("lods") or []):
+            notes = lod.get("notes") or []
+            if any(_MISSED in n for n in notes):
+                lines += [f"LOD {k}: {n}" for n in notes if " failed: " in n or _MISSED in n]
+        if (len(rep.get("lods") or []) <= 1 and rep.get("triangles", 0) >= MIN_SIMPLIFY_TRIANGLES
+                and rep.get("stop") not in _BY_RULE):
+            lines.append(f"no LODs ({rep.get('stop_reason') or 'none produced'})")
+        for line in lines:
+            found.setdefault(line, []).append(rep["part"])
+    return _grouped(found)
+
+
+def chain_notes(reports: list[dict]) -> list[str]:
+    """Information on the chains, one line each (``chain_warnings``' grouping): backends that failed
+    on a LOD whose fallback reached its target."""
+    found: dict[str, list[str]] = {}
+    for rep in reports:
+        for k, lod in enumerate(rep.get("lods") or []):
+            notes = lod.get("notes") or []
+            if not any(_MISSED in n for n in notes):
+                for n in notes:
+                    if " failed: " in n:
+                        found.setdefault(f"LOD {k}: {n}", []).append(rep["part"])
+    return _grouped(found)
+
+
+__all__ = ["Lod", "LodReport", "simplify", "lod_chain", "chain_warnings", "chain_notes", "parametrise", "SEAM_MODES", "TARGET_TOLERANCE",
            "MIN_SIMPLIFY_TRIANGLES"]

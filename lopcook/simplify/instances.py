@@ -31,6 +31,7 @@ from ..lop.codecs import CODECS
 from ..lop.codecs.normals_oct import NORMALS
 from ..types import MeshPart
 from .error import hausdorff
+from .stop import StopRule, breach_text, limit, part_extent
 
 #: largest position residual of the affine fit, relative to the part's bounding-box diagonal
 RTOL = 1e-9
@@ -153,19 +154,26 @@ def groups(parts) -> list[list[int]]:
 
 
 def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarray,
-                 max_error_m: float | None = None) -> tuple[list, object]:
+                 max_error_m: float | None = None, stop_rule: StopRule | None = None) -> tuple[list, object]:
     """The representative's chain ``(lods, report)`` (``lod.lod_chain``) placed on ``copy``:
     LOD 0 is ``copy`` itself, every other LOD ``place``d, errors scaled by the similarity scale or
-    measured (module doc), the chain cut where an error exceeds ``max_error_m``. Returns
-    ``(lods, report)`` for the copy."""
+    measured (module doc), the chain cut where an error exceeds the tighter of ``max_error_m`` and
+    ``stop_rule``'s limit for the copy's extent (``lopcook.simplify.stop.limit``). Returns
+    ``(lods, report)`` for the copy; where the copy keeps every LOD, the report's stop is the
+    representative's (its dropped LOD's error scaled, or None when the map is not a similarity)."""
     t0 = time.perf_counter()
     s = similarity_scale(a)
     out = [replace(lods[0], part=copy, notes=list(lods[0].notes))]
     note = (f"copy of part {report.part!r}: its LODs placed by the affine map (scale {s:.6g}: errors scaled)"
             if s is not None else f"copy of part {report.part!r}: its LODs placed by the affine map (not a "
                                   "similarity: errors measured)")
-    stop = ""
-    for lod in lods[1:]:
+    extent = part_extent(copy.positions)
+    cap, breach = limit(extent, max_error_m, stop_rule)
+    dropped = None if report.dropped is None else dict(
+        report.dropped, error_m=None if s is None or report.dropped.get("error_m") is None
+        else report.dropped["error_m"] * s)
+    stop = (report.stop, report.stop_reason, dropped)
+    for k, lod in enumerate(lods[1:], start=1):
         part = place(lod.part, a, t, copy)
         if s is not None:
             h, one = lod.hausdorff_m * s, (lod.one_sided_m[0] * s, lod.one_sided_m[1] * s)
@@ -174,14 +182,15 @@ def placed_chain(lods: list, report, copy: MeshPart, a: np.ndarray, t: np.ndarra
             h, ab, ba = hausdorff(part, copy)
             one, bound = (ab, ba), h
         err = max(h, out[-1].error_m)
-        if max_error_m is not None and err > max_error_m:
-            stop = f"LOD {lod.target_ratio:g} error {err:.3g} m exceeds max_error_m {max_error_m:.3g} m; dropped"
+        if cap is not None and err > cap:
+            stop = (breach, breach_text(breach, f"LOD {k}", lod.triangles, err, cap, extent, stop_rule),
+                    {"triangles": int(lod.triangles), "error_m": float(err), "target_ratio": float(lod.target_ratio)})
             break
-        out.append(replace(lod, part=part, hausdorff_m=h, error_m=err, one_sided_m=one, error_bound_m=bound, seconds=0.0,
-                           notes=list(lod.notes)))
-    rep = replace(report, part=copy.name, max_error_m=max_error_m, notes=[note] + list(report.notes),
-                  stop_reason=stop or report.stop_reason, lods=[lod.summary() for lod in out],
-                  seconds=time.perf_counter() - t0)
+        out.append(replace(lod, part=part, hausdorff_m=h, error_m=err, one_sided_m=one, error_bound_m=bound,
+                           seconds=0.0, notes=list(lod.notes)))
+    rep = replace(report, part=copy.name, max_error_m=cap, notes=[note] + list(report.notes),
+                  stop=stop[0], stop_reason=stop[1], dropped=stop[2], extent_m=extent,
+                  lods=[lod.summary() for lod in out], seconds=time.perf_counter() - t0)
     return out, rep
 
 
