@@ -138,12 +138,46 @@ def run(corpus: Path, meshes: list[str]) -> list[dict]:
     return rows
 
 
+def _near(cell: dict, v: str) -> bool:
+    return abs(cell[v]["triangles"] - cell["target"]) <= 0.05 * cell["target"]
+
+
+def summarise(rows: list[dict], variant: str = "permissive") -> list[str]:
+    """Per part: targets both reached within 5 % and the largest and median error ratio
+    ``variant`` / pinned there; targets only ``variant`` (or only pinned) reached; the fewest
+    triangles each reached; and whether every UV island of LOD 0 survives (``uv_islands`` equal)."""
+    out = [f"{'asset':<15} {'part':<26} {'both':>4} {'worst':>6} {'median':>6} {'only this':>9} {'only pinned':>11} "
+           f"{'fewest pinned':>13} {'fewest this':>11} {'islands kept pinned/this':>25}"]
+    for r in rows:
+        both = [c for c in r["lods"] if _near(c, "pinned") and _near(c, variant)]
+        ratios = [c[variant]["full_m"] / c["pinned"]["full_m"] for c in both if c["pinned"]["full_m"] > 1e-12]
+        isl = "-"
+        if r["seams"] is not None:
+            keep = [sum(c[v]["seams"]["uv_islands"] == r["seams"]["uv_islands"] for c in r["lods"])
+                    for v in ("pinned", variant)]
+            isl = f"{keep[0]}/{keep[1]} of {len(r['lods'])}"
+        out.append(f"{r['asset']:<15} {r['part'][-26:]:<26} {len(both):>4} "
+                   f"{max(ratios) if ratios else float('nan'):>6.2f} {float(np.median(ratios)) if ratios else float('nan'):>6.2f} "
+                   f"{sum(_near(c, variant) and not _near(c, 'pinned') for c in r['lods']):>9} "
+                   f"{sum(_near(c, 'pinned') and not _near(c, variant) for c in r['lods']):>11} "
+                   f"{min(c['pinned']['triangles'] for c in r['lods']):>13,} "
+                   f"{min(c[variant]['triangles'] for c in r['lods']):>11,} {isl:>25}")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--corpus", default=str(REPO.parent / "shared" / "corpus"))
     ap.add_argument("--meshes", default=",".join(ASSETS))
     ap.add_argument("--out", default=None, help="write the rows as JSON here")
+    ap.add_argument("--summary", default=None, metavar="JSON", help="print the summary of an --out file and stop")
     args = ap.parse_args(argv)
+    if args.summary:
+        rows = json.loads(Path(args.summary).read_text())
+        for v in ("new", "permissive"):
+            print(f"{v} against pinned:")
+            print("\n".join(summarise(rows, v)))
+        return 0
     rows = run(Path(args.corpus), [m for m in args.meshes.split(",") if m])
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)

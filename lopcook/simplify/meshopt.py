@@ -74,9 +74,7 @@ def _simplify_fn():
     object: the wrapper's own attribute is left as it is)."""
     global _FN
     if _FN is None:
-        from meshoptimizer._loader import lib  # the bundled C library loads on the first call
-
-        fn = lib["meshopt_simplifyWithAttributes"]
+        fn = _library()["meshopt_simplifyWithAttributes"]
         P = ctypes.POINTER
         fn.argtypes = [P(ctypes.c_uint), P(ctypes.c_uint), ctypes.c_size_t, P(ctypes.c_float), ctypes.c_size_t,
                        ctypes.c_size_t, P(ctypes.c_float), ctypes.c_size_t, P(ctypes.c_float), ctypes.c_size_t,
@@ -84,6 +82,20 @@ def _simplify_fn():
         fn.restype = ctypes.c_size_t
         _FN = fn
     return _FN
+
+
+def library_path() -> str:
+    """Path of the native meshoptimizer library this backend calls (the pinned binding's bundled
+    one). It must run on any x86-64 CPU: a binding built for AVX2 alone dies of SIGILL on import
+    on CPUs without it (measured: docs/lod.md, "The simplifier binding")."""
+    return str(_library()._name)
+
+
+def _library():
+    """The pinned binding's bundled C library (``ctypes.CDLL``), loaded on the first call."""
+    from meshoptimizer._loader import lib  # the bundled C library loads on the first call
+
+    return lib
 
 
 def seam_vertices(positions: np.ndarray) -> np.ndarray:
