@@ -1,6 +1,7 @@
 """Tangents from the source (glTF ``TANGENT``): read under the node transforms (mapped by the
 node's matrix, w flipped where it mirrors), carried into the container (version 4.0) and written
-back by ``lopcook decode``; a TANGENT without NORMAL is dropped with a warning."""
+back by ``lopcook decode``; a TANGENT without NORMAL is dropped with a warning;
+a USD ``primvars:tangents`` likewise."""
 
 from __future__ import annotations
 
@@ -102,4 +103,60 @@ def test_tangent_without_normal_is_dropped_with_a_warning(tmp_path, capsys):
     path.write_text(json.dumps(doc))
     scene = load(str(path))
     assert "tangents" not in scene.parts[0].attributes
-    assert any("TANGENT without NORMAL" in w for w in scene.warnings)
+    assert any("tangents without normals" in w for w in scene.warnings)
+
+
+def _usda(path, tangents_type: str, tangents: str, normals: bool = True) -> None:
+    """A quad (two triangles) in the xz plane, normals +Y, tangents as given, under two prims:
+    one as it is and one mirrored in x (scale -1, 1, 1)."""
+    n = 'normal3f[] normals = [(0, 1, 0), (0, 1, 0), (0, 1, 0), (0, 1, 0)] (interpolation = "vertex")' \
+        if normals else ""
+    mesh = f'''
+        def Mesh "quad" {{
+            int[] faceVertexCounts = [4]
+            int[] faceVertexIndices = [0, 1, 2, 3]
+            point3f[] points = [(0, 0, 0), (0, 0, 1), (1, 0, 1), (1, 0, 0)]
+            {n}
+            {tangents_type} primvars:tangents = [{tangents}] (interpolation = "vertex")
+        }}'''
+    path.write_text(f'''#usda 1.0
+(
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def Xform "plain" {{{mesh}
+}}
+def Xform "mirrored" {{
+    double3 xformOp:scale = (-1, 1, 1)
+    double3 xformOp:translate = (3, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]{mesh}
+}}
+''')
+
+
+def test_a_usd_tangents_primvar_is_read_as_glTF_tangents(tmp_path):
+    """float4 (xyz, w) as glTF's TANGENT, float3 with handedness +1 (both made unit); under a mirroring transform
+    xyz is mapped and w flipped, as for glTF nodes."""
+    path = tmp_path / "t.usda"
+    _usda(path, "float4[]", "(1, 0, 0, 1), (1, 0, 0, -1), (1, 0, 0, 1), (1, 0, 0, -1)")
+    plain, mirrored = load(str(path)).parts
+    ws = sorted(plain.attributes["tangents"][:, 3])
+    assert ws == [-1.0, -1.0, 1.0, 1.0]
+    np.testing.assert_allclose(plain.attributes["tangents"][:, :3], np.tile([1.0, 0.0, 0.0], (4, 1)))
+    np.testing.assert_allclose(mirrored.attributes["tangents"][:, :3], np.tile([-1.0, 0.0, 0.0], (4, 1)))
+    # each vertex's w flips: pair them by position (the mirror maps x to 3 - x)
+    key = lambda p: [tuple(np.round(r, 6)) for r in p]  # noqa: E731
+    w_plain = dict(zip(key(plain.positions * [-1, 1, 1] + [3, 0, 0]), plain.attributes["tangents"][:, 3]))
+    assert all(w_plain[k] == -w for k, w in zip(key(mirrored.positions), mirrored.attributes["tangents"][:, 3]))
+
+    _usda(path, "float3[]", "(0, 0, 2), (0, 0, 2), (0, 0, 2), (0, 0, 2)")
+    plain, _ = load(str(path)).parts
+    np.testing.assert_allclose(plain.attributes["tangents"], np.tile([0.0, 0.0, 1.0, 1.0], (4, 1)))  # made unit
+
+
+def test_a_usd_tangents_primvar_without_normals_is_dropped_with_a_warning(tmp_path):
+    path = tmp_path / "t.usda"
+    _usda(path, "float4[]", "(1, 0, 0, 1), (1, 0, 0, 1), (1, 0, 0, 1), (1, 0, 0, 1)", normals=False)
+    scene = load(str(path))
+    assert all("tangents" not in p.attributes or p.attributes["tangents"] is None for p in scene.parts)
+    assert sum("tangents without normals" in w for w in scene.warnings) == 2

@@ -70,6 +70,44 @@ def make_part(name: str, positions: np.ndarray, indices: np.ndarray, *, settings
     )
 
 
+
+def usable_tangents(tangents: np.ndarray | None, normals: np.ndarray | None, warn, what: str) -> np.ndarray | None:
+    """Source tangents (n, 4) (xyz, handedness w) made usable, the one rule of every loader:
+    dropped with a warning without normals (a tangent frame needs both); xyz of zero length or not
+    finite replaced by a unit vector perpendicular to the normal, and w not +-1 snapped to its sign
+    (0 to +1), each with one warning through ``warn``."""
+    if tangents is None:
+        return None
+    if normals is None:
+        warn(f"{what}: tangents without normals (a tangent frame needs both); tangents dropped")
+        return None
+    xyz, w = tangents[:, :3].astype(np.float64), tangents[:, 3].astype(np.float64)
+    length = np.linalg.norm(xyz, axis=1)
+    bad = ~(length > 1e-20) | ~np.isfinite(length)
+    if bad.any():
+        warn(f"{what}: {int(bad.sum())} tangents are zero or not finite (replaced by a direction "
+             "perpendicular to the normal)")
+        n = np.asarray(normals, np.float64)[bad]
+        axis = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        xyz[bad] = np.cross(n, axis)
+    odd = ~np.isin(w, (-1.0, 1.0))
+    if odd.any():
+        warn(f"{what}: {int(odd.sum())} tangents have a handedness w other than +1 or -1 (read as its "
+             "sign, 0 as +1)")
+        w = np.where(w < 0.0, -1.0, 1.0)
+    return np.concatenate([xyz, w[:, None]], axis=1)
+
+
+def placed_tangents(tangents: np.ndarray, lin: np.ndarray, det: float) -> np.ndarray:
+    """(n, 4) tangents under a placement whose linear part maps a row vector as ``v @ lin``
+    ((3, 3); a glTF node's column-vector matrix passes its transpose): xyz mapped by ``lin``
+    (tangents lie in the surface: not the inverse transpose) and made unit, w flipped where the
+    placement mirrors (``det < 0``, where the winding is flipped too)."""
+    xyz = tangents[:, :3] @ lin
+    length = np.linalg.norm(xyz, axis=1, keepdims=True)
+    xyz = xyz / np.where(length > 0, length, 1.0)
+    return np.concatenate([xyz, tangents[:, 3:] * (-1.0 if det < 0 else 1.0)], axis=1)
+
 def unique_names(names: list[str]) -> list[str]:
     """Make names unique, deterministically: repeats get ``#2``, ``#3``, ... suffixes."""
     seen: dict[str, int] = {}

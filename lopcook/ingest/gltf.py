@@ -55,8 +55,8 @@ from ..depfile import DependencyList
 from ..errors import LopcookError
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
-from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
-                    regular_file_problem, unique_names)
+from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part, placed_tangents,
+                    regular_file_problem, unique_names, usable_tangents)
 from .format import Format
 from .materials import MaterialSet
 
@@ -776,7 +776,7 @@ class _GltfReader:
             if det < 0:
                 tri = tri[:, ::-1]
             normals = None if geom["normals"] is None else geom["normals"] @ normal_matrix
-            tangents = None if geom["tangents"] is None else _world_tangents(geom["tangents"], lin, det)
+            tangents = None if geom["tangents"] is None else placed_tangents(geom["tangents"], lin.T, det)
             name = f"{node_name}/{mesh_name}" + (f"/prim{k}" if len(prims) > 1 else "")
             label = f"node {ni}" + (f" {node['name']!r}" if node.get("name") else "")
             mlabel = f"mesh {mi}" + (f" {mesh['name']!r}" if mesh.get("name") else "")
@@ -786,31 +786,6 @@ class _GltfReader:
                                  texture=geom["texture"], mesh_key=f"mesh{mi}/prim{k}",
                                  double_sided=geom["double_sided"]))
         return out
-
-    def _tangents(self, tangents: np.ndarray | None, normals: np.ndarray | None, what: str) -> np.ndarray | None:
-        """A primitive's TANGENT (n, 4) made usable: dropped with a warning without NORMAL (glTF
-        requires both); xyz of zero length or not finite replaced by a unit vector perpendicular
-        to the normal, and w not +-1 snapped to its sign (0 to +1), each with a warning."""
-        if tangents is None:
-            return None
-        if normals is None:
-            self.warn(f"{what}: TANGENT without NORMAL (glTF requires both); tangents dropped")
-            return None
-        xyz, w = tangents[:, :3].astype(np.float64), tangents[:, 3].astype(np.float64)
-        length = np.linalg.norm(xyz, axis=1)
-        bad = ~(length > 1e-20) | ~np.isfinite(length)
-        if bad.any():
-            self.warn(f"{what}: {int(bad.sum())} tangents are zero or not finite (replaced by a direction "
-                      "perpendicular to the normal)")
-            n = np.asarray(normals, np.float64)[bad]
-            axis = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-            xyz[bad] = np.cross(n, axis)
-        odd = ~np.isin(w, (-1.0, 1.0))
-        if odd.any():
-            self.warn(f"{what}: {int(odd.sum())} tangents have a handedness w other than +1 or -1 (read as its "
-                      "sign, 0 as +1)")
-            w = np.where(w < 0.0, -1.0, 1.0)
-        return np.concatenate([xyz, w[:, None]], axis=1)
 
     def _geometry_of(self, mi: int, k: int, prim: dict, mesh: dict) -> dict | None:
         """Local-space arrays of one primitive, decoded once and shared by every placement.
@@ -869,7 +844,7 @@ class _GltfReader:
             bad = int((~(length > 1e-20)).sum() + (~np.isfinite(length)).sum())
             if bad:
                 self.warn(f"{what}: {bad} normals are zero or not finite (replaced by +Y)")
-        tangents = self._tangents(attribute("TANGENT", (4,)), normals, what)
+        tangents = usable_tangents(attribute("TANGENT", (4,)), normals, self.warn, what)
         texture, tex_coord = self.base_color(prim.get("material"))
         self.where = what
         uv_name = f"TEXCOORD_{tex_coord}"
@@ -910,16 +885,6 @@ class _GltfReader:
 
 
 # ---------------------------------------------------------------------- pure functions
-
-def _world_tangents(tangents: np.ndarray, lin: np.ndarray, det: float) -> np.ndarray:
-    """(n, 4) tangents under a node's linear part ``lin`` (3, 3): xyz mapped by ``lin`` (tangents
-    lie in the surface: not the inverse transpose) and made unit, w flipped where the node
-    mirrors (``det < 0``, where the winding is flipped too)."""
-    xyz = tangents[:, :3] @ lin.T
-    length = np.linalg.norm(xyz, axis=1, keepdims=True)
-    xyz = xyz / np.where(length > 0, length, 1.0)
-    return np.concatenate([xyz, tangents[:, 3:] * (-1.0 if det < 0 else 1.0)], axis=1)
-
 
 def _triangulate(flat: np.ndarray, mode: int, what: str, src: str) -> np.ndarray:
     """(k,) vertex indices of a TRIANGLES/STRIP/FAN primitive -> (m, 3) int64 CCW triangles.

@@ -15,9 +15,9 @@
 * geometry: ``faceVertexCounts``/``faceVertexIndices`` polygons (``holeIndices`` dropped, faces
   of < 3 corners skipped and counted) triangulated by ``polygons.triangulate``; ``leftHanded``
   and mirroring placements flip the winding. Primvars: normals, one UV set (``UV_NAMES``, else
-  the first ``texCoord2*``; ``v`` -> ``1 - v``), ``displayColor``/``displayOpacity`` as RGBA, in
-  every interpolation, indexed or not. A vertex is one distinct (point, normal, uv, colour) over
-  the kept corners. A subdivision scheme other than ``none`` is a warning (the control mesh is
+  the first ``texCoord2*``; ``v`` -> ``1 - v``), ``displayColor``/``displayOpacity`` as RGBA,
+  ``tangents`` (float4 or float3, as glTF's TANGENT), in every interpolation, indexed or not. A
+  vertex is one distinct (point, normal, uv, colour, tangent) over the kept corners. A subdivision scheme other than ``none`` is a warning (the control mesh is
   cooked).
 * transforms and units: ``UsdGeom.XformCache`` (row vectors, ``p_world = p @ M``); ``upAxis Z``
   becomes +Y by ``(x, y, z) -> (x, z, -y)``; ``metersPerUnit`` scales to metres (USD's fallback
@@ -55,8 +55,8 @@ from ..errors import LopcookError
 from ..mesh import unique_rows
 from ..settings import IngestSettings
 from ..types import MeshPart, Scene, Texture
-from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part,
-                    regular_file_problem, unique_names)
+from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part, placed_tangents,
+                    regular_file_problem, unique_names, usable_tangents)
 from .format import Format
 from .materials import BASE_FROM_VERTEX_COLOURS, MaterialSet, image_readable
 from .polygons import triangulate
@@ -79,6 +79,7 @@ class _LocalMesh:
     normals : (n, 3) float32 object-space normals, or None
     uvs : (n, 2) float32, origin top-left (USD ``v`` flipped), or None
     colors : (n, 4) float32 linear RGBA, or None
+    tangents : (n, 4) float64 object-space tangents (xyz, handedness w = +-1), or None
     double_sided : the Mesh's ``doubleSided`` (USD's default: false)
     """
 
@@ -90,6 +91,7 @@ class _LocalMesh:
     colors: np.ndarray | None
     texture: Texture | None
     double_sided: bool = False
+    tangents: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -597,9 +599,10 @@ class _Loader:
         geom = dict(where=where, n_faces=n_faces, n_points=points.shape[0], n_corners=fvi.size,
                     face=face_of_corner[kept], point=k_point, kept=kept)
         (normals, nvary), (uvs, uvvary), (colors, cvary) = self.primvars(prim, mesh, geom)
+        tangents, tvary = self.tangents(prim, normals, geom)
         # split: one vertex per distinct (point, per-corner attributes) over the kept corners
         cols = [k_point[:, None]]
-        for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary)):
+        for values, vary in ((normals, nvary), (uvs, uvvary), (colors, cvary), (tangents, tvary)):
             if values is not None and vary:
                 cols.append(_bits64(values))
         first, inverse = unique_rows(np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0])
@@ -615,6 +618,7 @@ class _Loader:
             colors=None if colors is None else colors[first],
             texture=self.texture(prim),
             double_sided=self.get(mesh.GetDoubleSidedAttr()) is True,
+            tangents=None if tangents is None else tangents[first],
         )
 
     def topology(self, mesh, where: str):
@@ -700,6 +704,24 @@ class _Loader:
                         alpha, cvary = a, cvary or avary
                 colors = np.clip(np.concatenate([rgb, alpha], axis=1), 0.0, 1.0).astype(np.float32)
         return (normals, nvary), (uvs, uvvary), (colors, cvary)
+
+    def tangents(self, prim, normals, geom: dict):
+        """``primvars:tangents`` per kept corner, ``((C, 4) float64, varies-per-corner)`` or
+        ``(None, False)``. USD has no schema for tangents; lopcook reads this primvar as glTF's
+        TANGENT: 4 components (xyz, handedness w), or 3 (handedness +1). Made usable by the rule
+        every loader shares (``build.usable_tangents``: dropped without normals)."""
+        from pxr import UsdGeom  # usd-core: heavy and optional, imported where a stage is read
+
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("tangents")
+        if not (pv and pv.HasAuthoredValue()):
+            return None, False
+        width = 4 if "4" in pv.GetTypeName().scalarType.type.pythonClass.__name__ else 3  # Vec4f, Vec4d, Vec4h
+        values, vary = self.corner_values(pv, "primvars:tangents", width, **geom)
+        if values is None:
+            return None, False
+        if width == 3:
+            values = np.concatenate([values, np.ones((values.shape[0], 1))], axis=1)
+        return usable_tangents(values, normals, self.warnings.append, geom["where"]), vary
 
     def uv_primvar(self, api):
         """The UV-set primvar (see UV_NAMES), or None."""
@@ -859,12 +881,14 @@ def _place(name: str, source: str, local: _LocalMesh, m: np.ndarray, settings: I
     positions = local.points @ lin + m[3, :3]
     det = float(np.linalg.det(lin))
     tris = local.tris if det >= 0 else local.tris[:, [0, 2, 1]]
-    normals = None
+    normals = tangents = None
     if local.normals is not None and det != 0 and np.isfinite(det):
         normals = local.normals.astype(np.float64) @ np.linalg.inv(lin).T
+        if local.tangents is not None:
+            tangents = placed_tangents(local.tangents, lin, det)
     return make_part(name, positions, tris, settings=settings, normals=normals, uvs=local.uvs,
-                     colors=local.colors, source=source, texture=local.texture, mesh_key=local.key,
-                     double_sided=local.double_sided)
+                     colors=local.colors, extra={"tangents": tangents}, source=source, texture=local.texture,
+                     mesh_key=local.key, double_sided=local.double_sided)
 
 
 def load(path: str, *, fmt: str, settings: IngestSettings) -> Scene:
