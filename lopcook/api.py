@@ -14,10 +14,12 @@ resolves ``lopcook.cook``, ``load`` and ``read`` when first used (PEP 562).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from .errors import EXIT_VERIFY_FAILED, LopcookError
 from .lop.container import Container, from_bytes
 from .lop.container import read as _read
+from .lop.manifest import recorded_source_path
 from .lop.memo import code_memo
 from .memory import release_free_memory, small_pages
 from .progress import NONE, Progress
@@ -149,10 +151,6 @@ def cook(scene: Scene, settings: Settings = DEFAULTS, *, progress: Progress = NO
     settings and relative layout give the same bytes. numpy allocates without huge pages
     meanwhile (``lopcook.memory.small_pages``)."""
     if output is not None:
-        from dataclasses import replace
-
-        from .emit.preview import recorded_source_path  # lazy: the decode helpers load the material readers
-
         scene = replace(scene, recorded_path=recorded_source_path(scene.source, output))
     t = settings.tune
     with small_pages():

@@ -225,7 +225,7 @@ class Scene:
         absolute. Empty for a Scene not made by an importer.
     recorded_path : str or None
         The manifest's ``source.path``: where the source is, relative to the folder of the
-        container being written (``lopcook.emit.preview.recorded_source_path``), so that
+        container being written (``lopcook.lop.manifest.recorded_source_path``), so that
         ``decode`` finds it there. Set by ``lopcook.cook(..., output=PATH)`` (``lopcook cook``
         and batch give it); None (``cook`` without ``output``): no ``source.path``.
     """

@@ -46,6 +46,7 @@ from ..lop.container import HEADER_SIZE, read
 from ..verify.metrics import image_metrics
 from ..view import Site, ViewerServer, add_container, runtime_site
 from . import peers as P
+from .charts import streaming_chart
 from .browser import chromium_version, find_chromium, run_page
 from .common import asset_name, corpus_dir, log, machine, run_cook, write_csv
 from .draco_run import write_parts
@@ -192,7 +193,7 @@ class Collector:
         curve.covered.append(covered)
 
     def _save(self, img: np.ndarray, name: str) -> None:
-        from PIL import Image
+        from PIL import Image  # optional: only the saved frames need it
 
         self.images.mkdir(parents=True, exist_ok=True)
         Image.fromarray(np.ascontiguousarray(img)).save(self.images / f"{name}.png")
@@ -276,8 +277,6 @@ def default_assets() -> list[str]:
 
 def run_streaming(opts) -> dict:
     """``lopcook bench --streaming``: every output into ``opts.output`` (module doc); returns the summary."""
-    from .charts import streaming_chart
-
     t0 = time.perf_counter()
     assets = [str(a) for a in opts.assets] or default_assets()
     for a in assets:

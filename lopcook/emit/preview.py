@@ -37,6 +37,7 @@ import numpy as np
 
 from ..ingest import format_of
 from ..ingest.materials import MaterialSet, resolve_vertex_colour_base, untextured
+from ..lop.manifest import recorded_source_path
 from ..lop.reader import decode_positions
 
 #: A copy becomes an instance only if the fitted transform reproduces its level-24 positions within
@@ -55,21 +56,6 @@ def _sha256(path: str) -> str:
 # ---------------------------------------------------------------------------------------------
 # Which source
 # ---------------------------------------------------------------------------------------------
-
-
-def recorded_source_path(source: str, container: str) -> str:
-    """The manifest's ``source.path`` for a cook of ``source`` into ``container`` (both as given):
-    the source relative to the container's folder, ``/``-separated (``../assets/x.gltf`` for
-    ``assets/x.gltf`` cooked into ``build/x.lop``). Both are made absolute against the current
-    directory and compared as text (``os.path.relpath``: ``..`` is not resolved through
-    symlinks), so the same relative layout gives the same bytes wherever it lies. Only where no
-    relative path exists (Windows: another drive) is the absolute path recorded, ``/``-separated."""
-    src = os.path.abspath(source)
-    try:
-        rel = os.path.relpath(src, os.path.dirname(os.path.abspath(container)))
-    except ValueError:  # another drive: no relative path leads there
-        rel = src
-    return rel.replace(os.sep, "/")
 
 
 def _recorded(container_path: str, manifest: dict) -> str | None:

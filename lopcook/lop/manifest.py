@@ -8,6 +8,7 @@ classes here index it without further checks. Byte counts: ``LodEntry`` (one buf
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -231,3 +232,18 @@ class Manifest:
     def float32_bytes_all_lods(self) -> int:
         """float32 position bytes of every buffer the container holds (all parts, all LODs)."""
         return sum(e.float32_bytes for p in self.parts for e in p.lods)
+
+
+def recorded_source_path(source: str, container: str) -> str:
+    """The manifest's ``source.path`` for a cook of ``source`` into ``container`` (both as given):
+    the source relative to the container's folder, ``/``-separated (``../assets/x.gltf`` for
+    ``assets/x.gltf`` cooked into ``build/x.lop``). Both are made absolute against the current
+    directory and compared as text (``os.path.relpath``: ``..`` is not resolved through
+    symlinks), so the same relative layout gives the same bytes wherever it lies. Only where no
+    relative path exists (Windows: another drive) is the absolute path recorded, ``/``-separated."""
+    src = os.path.abspath(source)
+    try:
+        rel = os.path.relpath(src, os.path.dirname(os.path.abspath(container)))
+    except ValueError:  # another drive: no relative path leads there
+        rel = src
+    return rel.replace(os.sep, "/")

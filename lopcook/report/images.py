@@ -131,7 +131,7 @@ def depth_overlay(rgba: np.ndarray, mask: np.ndarray, colour=(255, 0, 255)) -> n
 def png_data_uri(a: np.ndarray) -> str:
     """``a`` ((h, w) grey, (h, w, 3) RGB or (h, w, 4) RGBA uint8, top row first) as a
     ``data:image/png;base64,`` URI; the same array gives the same string."""
-    from PIL import Image
+    from PIL import Image  # Pillow loads only when a page embeds an image
 
     a = np.ascontiguousarray(np.asarray(a, dtype=np.uint8))
     mode = "L"

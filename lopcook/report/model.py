@@ -40,8 +40,12 @@ import re
 import numpy as np
 
 from ..version import __version__
+from ..analyse.summary import describe_analysis
+from ..lop.codecs import CODECS
+from ..lop.manifest import Manifest
+from ..tune.attributes import COST_LEVEL, attribute_errors, vertex_bits
 from ..verify.baselines import UNIFORM16_BYTES_PER_VERTEX
-from ..verify.metrics import depth_error_mask
+from ..verify.metrics import HEATMAP_VMAX, depth_error_mask
 from .images import crop_box, squared_error, worst_window
 from .verdict import DEFAULT_MIN_PSNR, verdict
 
@@ -82,8 +86,6 @@ def analysis_warnings(scene, analysis) -> dict:
     ``lopcook.tune.recook.recook``): ``available`` True, the scene's import warnings, touching and
     intersecting part pairs, and the counts of degenerate triangles, depth-capped vertices and
     vertices whose attribute bound 24 bits cannot meet."""
-    from ..analyse.summary import describe_analysis
-
     d = describe_analysis(analysis, str(scene.source))
     t = d["totals"]
     ceiling = (d.get("settings") or {}).get("depth_ceiling")
@@ -202,8 +204,6 @@ def lod_table(manifest: dict, reports: list | None = None, source_triangles: lis
     the re-cooked chain, ``lopcook.tune.recook.recook``), else those the container records
     (``options.lods.reports[i].notes``), else empty; LODs in them named as in the table
     (``rename_notes``)."""
-    from ..lop.manifest import Manifest
-
     typed = Manifest.of(manifest)
     if not reports:
         reports = ((manifest.get("options") or {}).get("lods") or {}).get("reports") or []
@@ -273,8 +273,6 @@ def images_section(imgs: dict | None, level_range, names: list[str] | None = Non
     """The ``images`` record of ``report.json`` from ``render_for_report``'s images (None: None)."""
     if not imgs:
         return None
-    from ..verify.metrics import HEATMAP_VMAX
-
     per_level = imgs.get("per_level") or [imgs]
     skip = ("levels", "per_level", "depth", "worst", "lods")
     images = {"level": imgs["level"], "view": imgs["view"], "kinds": [k for k in IMAGE_KEYS if k in imgs],
@@ -388,16 +386,13 @@ def build_report(container, scene, evaluation: dict, container_desc: dict, *, wa
 
 
 def attributes_section(container, scene) -> dict:
-    """The "Vertex attributes" section (issue 15): per part the bits per component of its normals,
+    """The "Vertex attributes" section: per part the bits per component of its normals,
     UVs and colours (LOD 0's ``attribute_bits``; None where absent or not recorded) and its record
     bits, the container's bits per vertex at ``lopcook.tune.attributes.COST_LEVEL`` (positions' CAP
     plus records), the attribute-space errors against the source (normal degrees max / mean, UV
     error in texels: ``lopcook.tune.attributes.attribute_errors``; None when the scene does not match
     the container), and the attribute search's record (manifest ``options.attribute_search``:
     allocation, probes = the error-against-bits curve of Purnomo et al. 2005, Fig. 11) or None."""
-    from ..lop.codecs import CODECS
-    from ..tune.attributes import COST_LEVEL, attribute_errors, vertex_bits
-
     m = container.manifest
     parts = []
     for i, part in enumerate(m["parts"]):

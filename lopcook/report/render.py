@@ -33,6 +33,11 @@ import zlib
 import numpy as np
 
 from ..progress import NONE
+from ..tune.budget import frame_distance
+from ..verify.baselines import level_scene, uniform_quantized_scene
+from ..verify.cameras import icosahedron_directions, make_camera, render_viewing, select_views
+from ..verify.renderer import Harness, Shading, trim_heap
+from ..viewing import required_level
 from ..verify.evaluate import harness_evaluate, harness_evaluate_scene
 from .verdict import worst_part, worst_view
 
@@ -91,8 +96,6 @@ def view_angles(view_ids) -> list[tuple[float, float]]:
     """Per icosahedron view (``lopcook.verify.cameras.icosahedron_directions``): (elevation, azimuth)
     in degrees of the eye seen from the scene centre; elevation above the XZ plane (+Y up), azimuth
     from +Z (the front of a glTF asset) towards +X."""
-    from ..verify.cameras import icosahedron_directions
-
     d = icosahedron_directions()
     return [(math.degrees(math.asin(max(-1.0, min(1.0, float(d[v][1]))))),
              math.degrees(math.atan2(float(d[v][0]), float(d[v][2])))) for v in view_ids]
@@ -176,9 +179,6 @@ def lod_plan(manifest: dict, resolution, frame_m: float, available: int | None =
     is never seen farther). ``level``: the per-buffer level the half-pixel criterion selects at
     that distance under the render's viewing, clamped to the file's levels (``available``, default
     the manifest's ``positions.max_level``: a file cut short holds fewer)."""
-    from ..verify.cameras import render_viewing
-    from ..viewing import required_level
-
     viewing = render_viewing(manifest, resolution)
     height = int((manifest.get("viewing") or {}).get("viewport", [0, resolution[1]])[1]) or int(resolution[1])
     extent = float(manifest["grid"]["extent"])
@@ -205,9 +205,6 @@ def _first_level(h, c, scene, level, views, view_ids, resolution):
     """The coarsest level's evaluation with the images of the view ``choose_view`` picks (rendered
     again when it is not the evaluation's own image view), and the view record: ``visible`` (parts
     seen per view, None when not counted: one part or one view), ``pixels`` and ``angles`` per view."""
-    from ..verify.cameras import make_camera, render_viewing
-    from ..verify.renderer import Shading
-
     first = harness_evaluate(h, c, levels=[level], views=views, keep_images=True)
     imgs = first.get("images")
     row = first["levels"][0]
@@ -241,8 +238,6 @@ def _lod_renders(h, c, scene, view: int, resolution) -> list[dict]:
     """Every LOD of ``lod_plan`` rendered (CAP against the float source, the shown ``view``): per
     LOD the plan's record plus ``psnr`` (dB, None: identical), ``object_pixels`` (the float render's)
     and ``images`` (packed), or ``images`` None for a LOD no distance selects."""
-    from ..tune.budget import frame_distance
-
     lo, hi = scene.bounds()
     fov = float((c.manifest.get("viewing") or {}).get("fov_y_deg", 60.0))
     out = []
@@ -261,10 +256,6 @@ def _lod_renders(h, c, scene, view: int, resolution) -> list[dict]:
 
 def _level_image(h, c, scene, imgs, viewing, extent, resolution):
     """The minimum-level image (Fig. 7) from the shown view at the frame distance, and its ramp (lo, hi)."""
-    from ..tune.budget import frame_distance
-    from ..verify.baselines import level_scene
-    from ..verify.renderer import Shading
-
     hist = [b for b, n in enumerate(c.manifest["stats"]["histogram"]) if n and b > 0]
     coloured, lo, hi = level_scene(c, scene, hist[0], hist[-1])
     box = scene.bounds()
@@ -278,8 +269,6 @@ def _extras(h, c, scene, imgs: dict, rows: list, view_ids: list, per_level: dict
     """The renders after the levels', into ``imgs``: the worst view (``worst``), every LOD
     (``lods``), the depth-order view (``depth``) and the level image (``levels``), one progress step
     each. Returns the level image's ramp (lo, hi)."""
-    from ..verify.cameras import render_viewing
-
     worst = worst_view(rows, view_ids)
     imgs["worst"] = None if worst is None else dict(
         worst, images=_extra_view(h, c, worst["level"], worst["view"], per_level))
@@ -316,10 +305,6 @@ def render_for_report(container, scene, *, levels, views, resolution,
     coarsest level, or None when not counted: one part or one view), ``view_pixels`` and
     ``view_angles`` (per rendered view: object pixels at the coarsest level, (elevation, azimuth)
     degrees). ``progress``: a ``lopcook.progress.Progress``."""
-    from ..verify.baselines import uniform_quantized_scene
-    from ..verify.cameras import render_viewing, select_views
-    from ..verify.renderer import Harness, Shading, trim_heap
-
     m = container.manifest
     order = sorted(int(b) for b in levels)
     view_ids = select_views(views)

@@ -14,6 +14,9 @@ import math
 
 import numpy as np
 
+from ..verify.baselines import level_colours
+from ..verify.metrics import colormap
+from .model import fraction_text
 from .text import escape, fmt_psnr
 
 
@@ -228,8 +231,6 @@ def memory_psnr_svg(rep: dict) -> str:
 
 def level_fill(level: int, lo: int, hi: int) -> str:
     """CSS colour of ``level`` on the ramp of the level image (``baselines.level_colours``)."""
-    from ..verify.baselines import level_colours
-
     r, g, b, _ = (np.asarray(level_colours(np.array([level]), lo, hi))[0] * 255.0 + 0.5).astype(int)
     return f"#{r:02x}{g:02x}{b:02x}"
 
@@ -278,8 +279,6 @@ def heatmap_scale_svg(vmax: float, steps: int = 64) -> str:
     """The heat maps' colour scale (``lopcook.verify.metrics.colormap``): a strip of ``steps`` colours
     from 0 to ``vmax`` (the largest channel difference per pixel, colour units 0..1; ``vmax`` and above
     is white), ticks with the difference as a fraction and in 8-bit codes, and the background swatch."""
-    from ..verify.metrics import colormap
-
     w, h, l, r, top, sh = 480, 58, 16, 110, 4, 16
     sw = (w - l - r) / steps
     cols = colormap((np.arange(steps) + 0.5) / steps)
@@ -385,8 +384,6 @@ def attribute_search_svg(search: dict) -> str | None:
 def _budget_lod(b: dict, k: int) -> str:
     """A budget candidate's LOD in the chart's legend: ``LOD 2 (1/4)``, the share of the fit chain's
     LOD 0 triangles (``lopcook.report.model.fraction_text``), or ``LOD 2`` when not recorded."""
-    from .model import fraction_text
-
     lods = {int(x["lod"]): x for x in b.get("lods") or []}
     if k in lods and 0 in lods:
         return f"LOD {k} ({fraction_text(int(lods[k]['triangles']), int(lods[0]['triangles']))})"
