@@ -18,7 +18,7 @@ ratio = decode time / passthrough time (> 1: decoding is slower).
 
 Clustered (``--clustered N``, issue 16): every buffer is also re-ordered and cut into clusters of N
 vertices by the cluster layout's CPU reference (lopcook.lop.clusters once merged; until then the
-reference in tests/test_gpu_clusters.py), packed at each level and decoded by the ``LOP_CLUSTERED``
+reference in tests/verify/test_gpu_clusters.py), packed at each level and decoded by the ``LOP_CLUSTERED``
 vertex shader, frames of both layouts alternating (both see the same machine load);
 ``{lang}_clustered_ratio`` = best clustered frame / best unclustered frame (the issue's target:
 <= 1.3), ``{lang}_clustered_ratio_median`` the median of the per-pair ratios, ``clustered_bytes`` = P + 16 B per cluster.
@@ -99,11 +99,11 @@ def decode_program(ctx, language: str, clustered: bool = False):
 
 def cluster_reference():
     """The cluster layout's CPU reference: lopcook.lop.clusters once merged, else the copy in
-    tests/test_gpu_clusters.py."""
+    tests/verify/test_gpu_clusters.py."""
     try:
         from lopcook.lop import clusters as ref  # noqa: F401
     except ImportError:
-        sys.path.insert(0, str(REPO / "tests"))
+        sys.path.insert(0, str(REPO / "tests" / "verify"))
         import test_gpu_clusters as ref
     return ref
 

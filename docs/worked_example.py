@@ -11,7 +11,7 @@ number that docs/format.md ("Worked example") shows. Float32 arithmetic uses num
 scalars so that each operation is rounded to float32 exactly once, as a shader does.
 
 At the end the hand-decoded values are cross-checked against lopcook's own reader
-(``lopcook.lop.reader``); the script fails loudly if they disagree. ``tests/test_container_schema.py``
+(``lopcook.lop.reader``); the script fails loudly if they disagree. ``tests/lop/test_container_schema.py``
 runs this script and checks that its output and the block in docs/format.md agree.
 
 Output: ``key: value`` lines; lines whose value depends on the whole manifest (its size and

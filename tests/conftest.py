@@ -140,22 +140,16 @@ def plates():
 
 
 @pytest.fixture(scope="session")
-def cooked(tmp_path_factory):
+def cooks(tmp_path_factory):
+    """The suite's one cache of cooked containers (``tests/support/cooks.py``): each source and
+    option set is cooked once per session, by whichever test asks first."""
+    from tests.support.cooks import CookCache
+
+    return CookCache(tmp_path_factory.mktemp("cooked"))
+
+
+@pytest.fixture(scope="session")
+def cooked(cooks):
     """``cooked(source, *flags)``: the path of ``source`` cooked by ``lopcook cook source -o X.lop
-    *flags``, once per session: the same source and flags give the same bytes, so one cook serves
-    every test that reports, inspects or decodes it (a calibrated cook takes tens of seconds)."""
-    from lopcook.cli import main
-
-    folder = tmp_path_factory.mktemp("cooked")
-    cache: dict = {}
-
-    def cook(source, *flags) -> Path:
-        key = (str(source), tuple(str(f) for f in flags))
-        if key not in cache:
-            out = folder / f"{Path(source).stem}-{len(cache)}.lop"
-            rc = main(["-q", "cook", str(source), "-o", str(out), *key[1]])
-            assert rc == 0, f"cook {source} {' '.join(key[1])}: exit {rc}"
-            cache[key] = out
-        return cache[key]
-
-    return cook
+    *flags``, once per session (``cooks.cli``)."""
+    return cooks.cli

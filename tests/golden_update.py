@@ -3,7 +3,7 @@
 ``fixtures/golden/SHA256SUMS`` is both the record and the recipe: a line
 ``# NAME.lop: lopcook cook ARGS... -o NAME.lop`` names each golden file and the exact command
 that cooks it (run from the repository root; ``-o`` names the file inside ``fixtures/golden/``),
-and a line ``SHA256  NAME.lop`` (``sha256sum`` format) pins its bytes. ``tests/test_golden.py``
+and a line ``SHA256  NAME.lop`` (``sha256sum`` format) pins its bytes. ``tests/lop/test_golden.py``
 checks both. To change a golden file -- a deliberate format or algorithm change -- run::
 
     python tests/golden_update.py            # re-cook every golden file, rewrite the sha256 lines

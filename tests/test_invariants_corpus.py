@@ -15,9 +15,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lopcook.analyse import analyse
-from lopcook.ingest import load
-from lopcook.settings import AnalyseSettings
 
 ASSETS = ["stanford-bunny.obj", "fandisk.obj", "spot.obj", "DamagedHelmet/DamagedHelmet.gltf",
           "CesiumMilkTruck.glb", "Duck.glb", "UtahTeapot.usd", "chess_set_flat.usdc"]
@@ -51,16 +48,9 @@ def paper_vertex_error(positions, indices, attribute):
 
 
 @pytest.fixture(scope="module")
-def analysed(corpus):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            scene = load(corpus / name)
-            cache[name] = (scene, analyse(scene, AnalyseSettings()))
-        return cache[name]
-
-    return get
+def analysed(corpus, cooks):
+    """``analysed(name)``: (scene, default analysis) of a corpus asset (``cooks.analysed``)."""
+    return lambda name: cooks.analysed(corpus / name)[:2]
 
 
 @pytest.mark.parametrize("name", ASSETS)

@@ -1,4 +1,4 @@
-"""Headless-Chromium screenshots of glTF files in three.js (for tests/test_preview.py).
+"""Headless-Chromium screenshots of glTF files in three.js (for tests/emit/test_preview.py).
 
 ``shoot(files, out_dir)`` serves the files and ``.ci/node/node_modules`` (three, installed by
 ``.ci/run``) from a local ``http.server`` on 127.0.0.1, opens one page per file in

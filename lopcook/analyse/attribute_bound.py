@@ -6,7 +6,7 @@ error and to a change of the base colour, and how steep a part's texture is wher
 samples it. Derivation and measurements: docs/attributes.md, "The average-case bound".
 
 Lighting model (the verify harness's, ``lopcook.verify.glsl.FS``; the constants are repeated here
-because analyse precedes verify, and ``tests/test_attribute_bound.py`` checks they agree): Phong
+because analyse precedes verify, and ``tests/analyse/test_attribute_bound.py`` checks they agree): Phong
 with a headlight (light direction = view direction), base colour ``c`` in [0, 1]::
 
     s(theta) = c (a + d cos theta) + ks cos^n(2 theta)   (the specular term only where 2 theta < 90)

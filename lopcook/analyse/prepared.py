@@ -25,7 +25,7 @@ edge_eps; of ``lopcook.analyse.analyse``'s steps
   step by step then looks up once every few steps. ``FIXED`` and ``off`` depth do not depend on
   the floors at all.
 
-Guarantee (``tests/test_analyse_prepared.py``): ``PreparedAnalysis(scene, s).analyse(eps, edge_eps)``
+Guarantee (``tests/analyse/test_analyse_prepared.py``): ``PreparedAnalysis(scene, s).analyse(eps, edge_eps)``
 gives the same ``min_level``, ``reason``, ``attribute_level``, ``e_v``, ``kf`` and ``quantized``
 per part as ``analyse(scene, replace(s, eps=eps, edge_eps=edge_eps))``, hence the same built
 container buffers, whatever the order of the probes. ``depth_level`` and ``depth_distance`` may hold

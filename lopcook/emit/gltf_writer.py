@@ -3,7 +3,7 @@
 ``write_gltf(path, meshes)`` writes decoded meshes (world space, metres, +Y up, counter-clockwise
 triangles, glTF UVs, linear RGBA colours; see ``lopcook.types``) as one glTF 2.0 asset that the
 Khronos glTF-Validator accepts with 0 errors and 0 warnings (checked by
-``tests/test_gltf_writer.py`` with ``tools/gltf_validate.mjs``):
+``tests/emit/test_gltf_writer.py`` with ``tools/gltf_validate.mjs``):
 ``write_gltf("preview.glb", [{"name": "body", "positions": p, "indices": t, "normals": n}])``.
 
 Layout (glTF 2.0 specification, https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html)

@@ -17,7 +17,7 @@ that is checked for all such vertices at once, one step per fan position. Only t
 other vertices (creases, boundaries, bowties) go through the general grouping: pointer doubling on
 the "next corner around the vertex" map, or scipy's connected components when some neighbours are
 inconsistently oriented. The output is bit-identical to the direct formulation
-(tests/test_normals_fast.py keeps it as the reference): same groups, same numbering of the new
+(tests/ingest/test_normals_fast.py keeps it as the reference): same groups, same numbering of the new
 vertices, and every sum in the same order.
 """
 

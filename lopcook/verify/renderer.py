@@ -28,7 +28,7 @@ in an engine, and the metrics count it.
 Coverage cull (``Coverage``, ``covering_triangles``): an item's triangles whose screen box, widened
 by ``COVER_MARGIN`` pixels, holds no sample position of the viewport (and, where back faces are
 culled, those facing away by more than that margin could change) are left out of the draw: the
-images are the same bit for bit (``tests/test_render_cull.py``; how and when: docs/verify.md).
+images are the same bit for bit (``tests/verify/test_render_cull.py``; how and when: docs/verify.md).
 
 Framebuffer: ``SAMPLES`` x MSAA (4, or the context's maximum when lower), colour RGBA8 (alpha = 1
 where a sample saw the object; the background is cleared to 0, 0, 0, 0), a part-ID target R32UI
@@ -1185,8 +1185,8 @@ def _decoded_positions(buf, level: int, origin, half_cell, place):
     mapped by the placement rows ``place`` when given: the reference decoder's (``decode`` /
     ``decode_clustered``, ``reconstruct_float32``, ``placement.to_world``). The decoded integers
     are the buffer's ``decoded`` where it carries them (the values its words were packed from:
-    the pack and the reference decode round-trip exactly, ``tests/test_clusters.py`` and
-    ``tests/test_bitplane.py``), else the reference decode of its words."""
+    the pack and the reference decode round-trip exactly, ``tests/emit/test_clusters.py`` and
+    ``tests/lop/test_bitplane.py``), else the reference decode of its words."""
     def positions():
         if buf.decoded is not None:
             values, widths = buf.decoded

@@ -105,22 +105,16 @@ COOKS = {"default": (), "lods": ("--lods", "auto"), "clusters0": ("--clusters", 
 
 class Cooks:
     """Corpus assets cooked once per session (``cooked(asset, name)`` with ``name`` a key of
-    ``COOKS``), by the CLI as a user runs it."""
+    ``COOKS``), by the CLI as a user runs it, through the suite's cook cache
+    (``tests/support/cooks.py``): a cook another test made already is not made again."""
 
-    def __init__(self, corpus: Path, folder: Path):
-        self.corpus, self.folder, self.done = corpus, folder, {}
+    def __init__(self, corpus: Path, cache):
+        self.corpus, self.cache = corpus, cache
 
     def cooked(self, asset: str, name: str) -> Path:
-        key = (asset, name)
-        if key not in self.done:
-            out = self.folder / f"{Path(asset).stem}-{name}.lop"
-            run = subprocess.run(["nice", os.sys.executable, "-m", "lopcook", "cook", str(self.corpus / asset), "-o",
-                                  str(out), "-q", *COOKS[name]], capture_output=True, text=True, timeout=3600)
-            assert run.returncode == 0, run.stderr
-            self.done[key] = out
-        return self.done[key]
+        return self.cache.cli_many([(self.corpus / asset, COOKS[name])])[0]
 
 
 @pytest.fixture(scope="session")
-def corpus_cooks(corpus, tmp_path_factory) -> Cooks:
-    return Cooks(corpus, tmp_path_factory.mktemp("cooks"))
+def corpus_cooks(corpus, cooks) -> Cooks:
+    return Cooks(corpus, cooks)

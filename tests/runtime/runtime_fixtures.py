@@ -21,20 +21,21 @@ def node() -> str:
 
 
 @pytest.fixture(scope="session")
-def cooked(corpus, tmp_path_factory) -> dict:
-    """``{name: path}`` of every cooked container (``runtime_support.cook_corpus``)."""
-    return rs.cook_corpus(corpus, tmp_path_factory.mktemp("cooked"))
+def corpus_containers(corpus, cooks, tmp_path_factory) -> dict:
+    """``{name: path}`` of every cooked container (``runtime_support.cook_corpus``, through the
+    suite's cook cache)."""
+    return rs.cook_corpus(corpus, cooks, tmp_path_factory.mktemp("colored"))
 
 
 @pytest.fixture(scope="session")
-def tangent_files(cooked, tmp_path_factory):
+def tangent_files(corpus_containers, tmp_path_factory):
     """(name, path, original container, expected tangents): DamagedHelmet with tangents on its part,
     the chess set with tangents on four parts and their placements (clustered, placed, mixed)."""
     out = tmp_path_factory.mktemp("tangents")
     files = []
     for name, src, bits, parts in (("helmet-tangents", "DamagedHelmet", 10, None),
                                    ("chess-tangents", "chess_set_flat", 7, [0, 1, 2, 3])):
-        data = cooked[src].read_bytes()
+        data = corpus_containers[src].read_bytes()
         blob, expected = rs.with_tangents(data, bits=bits, parts=parts)
         (out / f"{name}.lop").write_bytes(blob)
         files.append((name, out / f"{name}.lop", from_bytes(data), expected))

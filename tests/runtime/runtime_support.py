@@ -21,7 +21,6 @@ import struct
 import subprocess
 import sys
 import zlib
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -70,15 +69,14 @@ def cook(source: Path, out: Path, flags=()) -> Path:
     return out
 
 
-def cook_corpus(corpus: Path, out_dir: Path) -> dict[str, Path]:
-    """``{name: container path}``: every corpus asset with the default cook, each variant, and the
-    coloured scene (``colored_container``). Two cooks at a time."""
+def cook_corpus(corpus: Path, cooks, out_dir: Path) -> dict[str, Path]:
+    """``{name: container path}``: every corpus asset with the default cook, each variant (both
+    from ``cooks``, the suite's cache: ``tests/support/cooks.py``), and the coloured scene
+    (``colored_container``, written into ``out_dir``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     jobs = {stem(a): (corpus / a, []) for a in CORPUS_ASSETS}
     jobs.update({name: (corpus / a, flags) for name, (a, flags) in VARIANTS.items()})
-    with ThreadPoolExecutor(2) as pool:
-        done = {name: pool.submit(cook, src, out_dir / f"{name}.lop", flags) for name, (src, flags) in jobs.items()}
-        out = {name: f.result() for name, f in done.items()}
+    out = dict(zip(jobs, cooks.cli_many(list(jobs.values()))))
     out["colored"] = colored_container(out_dir / "colored.lop")
     return out
 

@@ -75,8 +75,8 @@ NAMES = [rs.stem(a) for a in rs.CORPUS_ASSETS] + list(rs.VARIANTS) + ["colored"]
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_decodes_equal_the_python_reader(node, cooked, tmp_path, name):
-    path = cooked[name]
+def test_decodes_equal_the_python_reader(node, corpus_containers, tmp_path, name):
+    path = corpus_containers[name]
     c = from_bytes(path.read_bytes(), str(path))
     got = run_js(node, [{"id": name, "file": str(path), "decode": True, "levels": list(rs.LEVELS)}], tmp_path)[name]
     assert got["ok"], got["error"]
@@ -84,12 +84,12 @@ def test_decodes_equal_the_python_reader(node, cooked, tmp_path, name):
     compare(got["buffers"], rs.reference(c, rs.LEVELS), name)
 
 
-def test_layouts_are_covered(cooked):
+def test_layouts_are_covered(corpus_containers):
     """The cooked set reaches 2.0 and 3.0 files, clustered and unclustered buffers, placements,
     LOD chains, a hierarchy section and every attribute (normals, UVs, colours)."""
-    ms = {n: from_bytes(p.read_bytes()).manifest for n, p in cooked.items()}
+    ms = {n: from_bytes(p.read_bytes()).manifest for n, p in corpus_containers.items()}
     lods = [e for m in ms.values() for p in m["parts"] for e in p["lods"]]
-    assert {from_bytes(p.read_bytes()).data[4] for p in cooked.values()} == {2, 3}
+    assert {from_bytes(p.read_bytes()).data[4] for p in corpus_containers.values()} == {2, 3}
     assert any("cluster_size" in e for e in lods) and any("cluster_size" not in e for e in lods)
     assert any("placement" in p and p["placement"]["of"] != i for m in ms.values() for i, p in enumerate(m["parts"]))
     assert any(len(p["lods"]) > 1 for m in ms.values() for p in m["parts"])
@@ -180,8 +180,8 @@ def _cuts(c) -> list[int]:
 
 
 @pytest.mark.parametrize("name", ["DamagedHelmet", "bunny-unclustered", "CesiumMilkTruck", "spot-hierarchy"])
-def test_prefixes_get_the_python_verdict(node, cooked, tmp_path, name):
-    data = cooked[name].read_bytes()
+def test_prefixes_get_the_python_verdict(node, corpus_containers, tmp_path, name):
+    data = corpus_containers[name].read_bytes()
     c = from_bytes(data)
     cases = []
     for cut in _cuts(c):
@@ -197,15 +197,15 @@ def _prefix_level(data: bytes, end: int) -> int:
 
 
 @pytest.mark.parametrize("name", ["chess_set_flat", "bunny-unclustered"])
-def test_stream_levels_equal_prefix_levels(node, cooked, tmp_path, name):
+def test_stream_levels_equal_prefix_levels(node, corpus_containers, tmp_path, name):
     """Streaming in chunks of 1 byte to 64 KiB: after each chunk, the level lop.js's LopStream
     offers is the level lopcook reads from the same prefix; the events are 'manifest', then
     'renderable', then one 'plane' per rise of the level, then 'complete'."""
-    data = cooked[name].read_bytes()
+    data = corpus_containers[name].read_bytes()
     rng = np.random.default_rng(5)
     sizes = np.minimum(rng.geometric(1 / 8000, 4000), 65536)
     ends = sorted({int(x) for x in np.cumsum(sizes) if x < len(data)} | {len(data)})
-    got = run_js(node, [{"id": "s", "file": str(cooked[name]), "chunks": ends}], tmp_path)["s"]["stream"]
+    got = run_js(node, [{"id": "s", "file": str(corpus_containers[name]), "chunks": ends}], tmp_path)["s"]["stream"]
     assert got["error"] is None, got["error"]
     levels = got["levels"]
     want = [_prefix_level(data, e) for e in ends]
@@ -216,11 +216,11 @@ def test_stream_levels_equal_prefix_levels(node, cooked, tmp_path, name):
     assert [e[1] for e in got["events"] if e[0] in ("renderable", "plane")] == sorted({x for x in want if x})
 
 
-def test_range_reader_fetches_nothing_twice(node, cooked, tmp_path):
+def test_range_reader_fetches_nothing_twice(node, corpus_containers, tmp_path):
     """LopRangeReader over a fake server: open() then fetchLevel(1), (8), (24): the requests are
     disjoint and contiguous, each level is the level lopcook reads from the prefix fetched, and the
     complete container decodes as lopcook's."""
-    path = cooked["DamagedHelmet"]
+    path = corpus_containers["DamagedHelmet"]
     data = path.read_bytes()
     got = run_js(node, [{"id": "r", "file": str(path), "range_levels": [1, 8, 24], "first_bytes": 4096}], tmp_path)
     r = got["r"]["ranges"]
@@ -232,7 +232,7 @@ def test_range_reader_fetches_nothing_twice(node, cooked, tmp_path):
         assert got_level == _prefix_level(data, have) >= level
     assert r["positions24"] == rs.sha(reader.decode_positions(from_bytes(data), 0, 0, 24)[2])
     # a file shorter than the first request: one request, cut at the end of the file
-    small = cooked["colored"]
+    small = corpus_containers["colored"]
     r = run_js(node, [{"id": "s", "file": str(small), "range_levels": [1, 24]}], tmp_path)["s"]["ranges"]
     assert r["error"] is None and r["requests"] == [[0, small.stat().st_size]], r
     assert r["steps"][-1][1:] == [small.stat().st_size, 24]

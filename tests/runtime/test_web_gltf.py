@@ -17,8 +17,8 @@ from lopcook.emit.web import EXTENSION, write_web_gltf
 
 
 @pytest.fixture
-def helmet(cooked, corpus, tmp_path):
-    shutil.copy(cooked["DamagedHelmet"], tmp_path / "helmet.lop")
+def helmet(corpus_containers, corpus, tmp_path):
+    shutil.copy(corpus_containers["DamagedHelmet"], tmp_path / "helmet.lop")
     return tmp_path / "helmet.lop", corpus / "DamagedHelmet" / "DamagedHelmet.gltf"
 
 
@@ -46,8 +46,8 @@ def test_web_gltf_names_every_part_with_the_sources_materials(helmet, tmp_path):
     assert (tmp_path / "web" / "h.gltf").read_bytes() == first  # deterministic
 
 
-def test_web_glb_and_placements(cooked, corpus, tmp_path):
-    shutil.copy(cooked["chess_set_flat"], tmp_path / "chess.lop")
+def test_web_glb_and_placements(corpus_containers, corpus, tmp_path):
+    shutil.copy(corpus_containers["chess_set_flat"], tmp_path / "chess.lop")
     write_web_gltf(str(tmp_path / "chess.lop"), str(tmp_path / "chess.glb"), str(corpus / "chess_set_flat.usdc"))
     data = (tmp_path / "chess.glb").read_bytes()
     n = struct.unpack_from("<I", data, 12)[0]

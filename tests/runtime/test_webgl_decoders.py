@@ -127,7 +127,7 @@ def _reference_views(c, views) -> dict:
     return out
 
 
-def test_webgl_decodes_are_bit_exact(cooked, tangent_files, tmp_path):
+def test_webgl_decodes_are_bit_exact(corpus_containers, tangent_files, tmp_path):
     """Every corpus container and variant at levels 6, 11, 16, 24, and the tangent containers at 11;
     crack-free decodes from four cameras of four containers."""
     try:
@@ -136,7 +136,7 @@ def test_webgl_decodes_are_bit_exact(cooked, tangent_files, tmp_path):
         rs.require(str(exc))
     jobs, refs, files, view_refs = [], {}, {}, {}
     rng = np.random.default_rng(11)
-    for name, path in cooked.items():
+    for name, path in corpus_containers.items():
         c = from_bytes(path.read_bytes(), str(path))
         levels = [b for b in rs.LEVELS if b <= c.available_level]
         jobs.append({"name": name, "url": f"/lop/{name}.lop", "levels": levels})

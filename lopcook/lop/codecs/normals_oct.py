@@ -44,7 +44,7 @@ CIGOLLE_MAX_ERROR_DEG = {6: 2.6, 8: 0.64, 10: 0.16, 12: 0.039, 16: 0.0025}
 
 #: root-mean-square angle (degrees) of the precise octahedral encoding at b bits per component,
 #: measured over 20000 directions of a Fibonacci sphere (about 86 * 2^-b for b >= 8: 0.53 x the
-#: maximum); tests/test_attribute_bound.py re-measures it on other directions
+#: maximum); tests/analyse/test_attribute_bound.py re-measures it on other directions
 NORMAL_RMS_ERROR_DEG = {4: 6.081, 5: 2.855, 6: 1.384, 7: 0.6806, 8: 0.3378, 9: 0.1687, 10: 0.08388,
                         11: 0.04197, 12: 0.02096, 13: 0.01048, 14: 0.005258, 15: 0.002626, 16: 0.001311}
 

@@ -37,17 +37,13 @@ def slow_read(words, vid, level, j):
 
 
 @pytest.fixture(scope="module")
-def cooked(corpus):
-    cache = {}
+def cooked(corpus, cooks):
+    """``cooked(name)``: (scene, analysis, bytes, container) of a corpus asset, or of
+    ``fixtures/NAME``, from the suite's cook cache (``cooks.analysed``)."""
 
     def get(name):
-        if name not in cache:
-            path = corpus / name if not name.startswith("fixtures/") else FIXTURES / name.split("/", 1)[1]
-            scene = load(path)
-            an = analyse(scene)
-            data = build(scene, an)
-            cache[name] = (scene, an, data, from_bytes(data))
-        return cache[name]
+        path = corpus / name if not name.startswith("fixtures/") else FIXTURES / name.split("/", 1)[1]
+        return cooks.analysed(path)
 
     return get
 

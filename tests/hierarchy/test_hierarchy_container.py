@@ -66,16 +66,9 @@ def cut_node_of_vertex(h, cut) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def cooked(corpus):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            scene = api.load(corpus / name)
-            cache[name] = (scene, api.cook(scene, HIER))
-        return cache[name]
-
-    return get
+def cooked(corpus, cooks):
+    """``cooked(name)``: (scene, container) of a corpus asset cooked with a hierarchy (``cooks.api``)."""
+    return lambda name: cooks.api(corpus / name, HIER)
 
 
 def _lod0(c, i):

@@ -122,6 +122,6 @@ def test_a_cook_with_a_prepared_analysis_writes_the_same_bytes(rng):
                        attributes=AttributeSettings(parts=bits), emit=EmitSettings(clusters=clusters))
         fresh = run(scene, s).container.data
         assert run(scene, s, analysis=prep.analyse(s.analyse.eps, s.analyse.edge_eps)).container.data == fresh
-    # copies stored once take it too (tests/test_instances_stored_once.py); LODs are analysed per LOD
+    # copies stored once take it too (tests/emit/test_instances_stored_once.py); LODs are analysed per LOD
     with pytest.raises(ValueError):
         run(scene, base.with_(simplify=SimplifySettings(lods=parse_lods("1/2"))), analysis=prep.analyse(base.analyse.eps))

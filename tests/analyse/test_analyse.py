@@ -159,7 +159,7 @@ def test_edge_reason_in_counts_and_schema():
     assert an.reason_counts()["edge"] == 24 and REASON_CLASS["edge"] == "attribute"
     assert np.all(an.parts[0].min_level == 14) and np.all(an.parts[0].attribute_level == 14)
     d = describe_analysis(an, "cube")
-    schema = json.loads((Path(__file__).resolve().parents[1] / "schema" / "analysis.schema.json").read_text())
+    schema = json.loads((Path(__file__).resolve().parents[2] / "schema" / "analysis.schema.json").read_text())
     jsonschema.validate(json.loads(json.dumps(d)), schema)
     assert d["settings"]["edges"] is True and d["settings"]["edge_level"] == 12
 

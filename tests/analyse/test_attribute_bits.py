@@ -1,5 +1,5 @@
 """Attribute bits end to end: the worst-case bound (lopcook.analyse.attribute_bits.worst_case_bits) on
-analytic cases (the average-case default is tests/test_attribute_bound.py), ``cook --normal-bits/--uv-bits/--color-bits`` (range errors exit 2), the manifest
+analytic cases (the average-case default is tests/analyse/test_attribute_bound.py), ``cook --normal-bits/--uv-bits/--color-bits`` (range errors exit 2), the manifest
 and ``inspect --json`` fields ``attribute_bits`` / ``vertex_bits``, and determinism."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from lopcook.lop.codecs.uvs_range import uv_error_bound
 from lopcook.lop.container import from_bytes
 from lopcook.errors import LopcookError
 
-FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
 
 
 def worst_case_bits(*, normals=False, uvs=None, colors=False, eps, normal_kf=0.0, uv_kf=0.0, color_kf=0.0):

@@ -235,7 +235,7 @@ def _dense_scenes(tmp):
     plate without normals: face normals from screen-space derivatives), and the textured fixture."""
     from lopcook.pipeline import run
     from lopcook.settings import EmitSettings, Settings, SimplifySettings
-    from test_instances_stored_once import procedural_scene
+    from tests.emit.test_instances_stored_once import procedural_scene  # the instance tests' scene
 
     row = row_of_spheres()
     yield row, cook_container(row)

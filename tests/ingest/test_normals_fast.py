@@ -24,7 +24,7 @@ from lopcook.mesh import face_normals
 from lopcook import mesh as mesh_module
 from lopcook.mesh import weld_exact
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 ANGLES = (0.0, 30.0, 60.0, 89.5, 179.0, 180.0)
 
 

@@ -19,7 +19,6 @@ from lopcook.analyse import analyse
 from lopcook.emit import build
 from lopcook.lop.binning import LEVELS, make_bins, table_bit_id, vertex_widths
 from lopcook.lop.bitplane import decode, pack, plane_bits, reconstruct_float32, to_grid, top_bits
-from lopcook.lop.container import from_bytes
 from lopcook.lop.reader import gpu_buffer
 from lopcook.errors import LopcookError
 from lopcook.ingest import load
@@ -48,33 +47,22 @@ def both_languages(gl):
     return gpu.LANGUAGES
 
 
-@pytest.fixture(scope="module")
-def cooked(corpus):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            path = corpus / name
-            scene = load(path)
-            an = analyse(scene)
-            cache[name] = (scene, an, from_bytes(build(scene, an), str(path)))
-        return cache[name]
-
-    return get
+def _analysed(cooks, path):
+    """(scene, analysis, container) from the suite's cook cache (``cooks.analysed``)."""
+    scene, an, _, c = cooks.analysed(path)
+    return scene, an, c
 
 
 @pytest.fixture(scope="module")
-def cooked_fixture():
-    cache = {}
+def cooked(corpus, cooks):
+    """``cooked(name)``: (scene, analysis, container) of a corpus asset."""
+    return lambda name: _analysed(cooks, corpus / name)
 
-    def get(name):
-        if name not in cache:
-            scene = load(FIXTURES / name)
-            an = analyse(scene)
-            cache[name] = (scene, an, from_bytes(build(scene, an), name))
-        return cache[name]
 
-    return get
+@pytest.fixture(scope="module")
+def cooked_fixture(cooks):
+    """``cooked_fixture(name)``: (scene, analysis, container) of ``fixtures/NAME``."""
+    return lambda name: _analysed(cooks, FIXTURES / name)
 
 
 def synthetic_buffer(rng, n=3000):

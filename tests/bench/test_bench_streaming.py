@@ -23,7 +23,7 @@ from lopcook.ingest import load
 from lopcook.lop.container import from_bytes, read
 from lopcook.verify.metrics import image_metrics
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 GOLDEN = REPO / "fixtures" / "golden"
 
 

@@ -2,7 +2,7 @@
 (Meyer et al. 2011, section 5.3, Figures 9/10), every level decodes to the top bits of the grid
 integers, attributes round trip within their encodings' bounds, and bad requests are errors.
 
-The Fig. 9/10 example (as in tests/test_binning.py): 5 vertices with minimum levels
+The Fig. 9/10 example (as in tests/lop/test_binning.py): 5 vertices with minimum levels
 [2, 1, 4, 2, 3] in input order, binned (stable sort by level) to input vertices [1, 0, 3, 4, 2].
 """
 
@@ -78,7 +78,7 @@ def test_fig9_tables_and_buffer_match_the_paper(rng):
     q_binned = buf.quantized[ORDER]
     levels_binned = np.array(LEVELS)[ORDER]
     assert levels_binned.tolist() == [1, 2, 2, 3, 4]
-    expect_bit_id = {1: 36, 2: 39, 3: 48, 4: 60}  # BitId[24] per B (tests/test_binning.py)
+    expect_bit_id = {1: 36, 2: 39, 3: 48, 4: 60}  # BitId[24] per B (tests/lop/test_binning.py)
     for level in range(1, 25):
         g = gpu_buffer(c, 0, 0, level)
         words, vertex_id, bit_id = _paper_words(q_binned, levels_binned, level)
