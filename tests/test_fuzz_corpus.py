@@ -45,7 +45,7 @@ def test_corpus_is_large_and_covers_every_format(corpus):
     inputs = {c.directory for c in corpus}
     assert len(inputs) >= 300
     families = {c.name.split("/")[0] for c in corpus}
-    assert families == {"gltf", "glb", "obj", "usd", "lop"}
+    assert families == {"gltf", "glb", "obj", "usd", "lop", "stream"}
     sources = {os.path.splitext(c.source)[1] for c in corpus}
     assert {".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".lop"} <= sources
     assert {c.command for c in corpus} == {"cook", "inspect", "decode"}

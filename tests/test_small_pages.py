@@ -46,18 +46,18 @@ def test_user_choice_kept(monkeypatch):
 
 def test_cli_cooks_inside(monkeypatch, tmp_path):
     """The command runs with the advice off (observed from inside the cook's ingest)."""
-    import lopcook.ingest as ingest
+    import lopcook.api as api
     from lopcook.cli import main
 
     monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
     seen = []
-    real = ingest.load
+    real = api._load  # the ingest entry the cook calls (lopcook.ingest.load)
 
     def spy(*a, **k):
         seen.append(current())
         return real(*a, **k)
 
-    monkeypatch.setattr(ingest, "load", spy)
+    monkeypatch.setattr(api, "_load", spy)
     src = tmp_path / "t.obj"
     src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
     old = setter(True)

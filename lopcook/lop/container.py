@@ -298,7 +298,7 @@ def from_bytes(data: bytes, path: str | None = None, *, allow_prefix: bool = Fal
         fail("version", f"container version {major}.{minor} must not hold the streaming layout or encoded sections (they "
              f"need {STREAM_VERSION[0]}.x)")
     sections, expected_end = _read_sections(data, HEADER_SIZE + msize, manifest, truncated, fail)
-    if not truncated and expected_end != total:
+    if expected_end != total:  # a prefix's manifest lists every section, so its end is known too
         fail("section_table", f"sections end at byte {expected_end}, file size says {total}")
     _check_index_values(manifest, sections, fail)
     container = Container(manifest=manifest, sections=sections, path=path, data=data)
@@ -355,20 +355,24 @@ def _index_lods(manifest: dict) -> dict:
 
 def _read_sections(data: bytes, base: int, manifest: dict, truncated: bool, fail) -> tuple[dict, int]:
     """{name: decoded payload} of every complete section (CRC checked, encoded ones decoded), up
-    to the first incomplete one in a truncated file; and where the table says the sections end."""
+    to the first incomplete one in a truncated file; and where the whole table says the sections
+    end (a prefix's too)."""
     sections: dict = {}
     expected_end = base
     lods = None
+    arrived = True
     for entry in manifest["sections"]:
         start = base + entry["offset"]
         if start != expected_end:
             fail("section_table", f"section {entry['name']!r} does not follow the previous one")
         end = start + entry["length"]
         expected_end = end
-        if end > len(data):
-            if truncated:
-                break
-            fail("section_table", f"section {entry['name']!r} runs past the end of the file")
+        if arrived and end > len(data):
+            if not truncated:
+                fail("section_table", f"section {entry['name']!r} runs past the end of the file")
+            arrived = False  # a prefix: the rest of the table is checked, not read
+        if not arrived:
+            continue
         payload = data[start:end]
         if zlib.crc32(payload) != entry["crc32"]:
             fail("section_crc", f"section {entry['name']!r} checksum mismatch")

@@ -2065,7 +2065,7 @@ static double lop__ldexp(double x, int e)
     return x * lop__from_bits((uint64_t)(e + 1023) << 52);
 }
 
-/* lopcook.emit.placement.level_shift: the smallest integer s with 2^s w >= sig * mesh_extent.
+/* lopcook.lop.placement.level_shift: the smallest integer s with 2^s w >= sig * mesh_extent.
    0 with *ok = 0 when the inputs are not positive and finite. */
 static int lop__level_shift(double sig, double mesh_extent, double world_extent, int *ok)
 {
@@ -2085,7 +2085,7 @@ static int lop__level_shift(double sig, double mesh_extent, double world_extent,
     return s;
 }
 
-/* ---- the manifest validator (lopcook.emit.manifest.validate_manifest, in its order) ---------- */
+/* ---- the manifest validator (lopcook.lop.manifest.validate_manifest, in its order) ---------- */
 
 enum { LOPV_INT, LOPV_NUM, LOPV_STR, LOPV_OBJ, LOPV_ARR };
 
@@ -3613,16 +3613,19 @@ static int lop__allocate(const lopj *j, const lop_allocator *mem, lop_file **fo,
         !lop__mul(ns, sizeof(lop_section)) != !ns)
         return 0;
     *fo = f = (lop_file *)lop__alloc(mem, need);
+    if (f) { /* lop__free_file reads section_count and block_ if the scratch allocation fails */
+        memset(f, 0, sizeof *f);
+        f->block_ = f;
+    }
     *scratch = lop__alloc(mem, sz);
     if (!f || !*scratch)
         return 0;
-    memset(f, 0, sizeof *f);
     f->parts = (lop_part *)(f + 1);
     f->sections = (lop_section *)(f->parts + np);
     f->stages = (lop_stage *)(f->sections + ns);
+    memset(f->sections, 0, ns * sizeof(lop_section)); /* data stays NULL until a section is read */
     memset(f->stages, 0, nst * sizeof(lop_stage));
     f->stage_count = 1;
-    f->block_ = f;
     v->lods = (lop_lod *)(f->stages + nst);
     v->strings = (char *)(v->lods + nl);
     v->lods_left = nl;
@@ -3685,6 +3688,9 @@ static int lop__read_sections(lop_file *f, const uint8_t *b, size_t size, uint64
         else if (!lop__decode_section(f, i, b + start, v->sec_last[i], z, mem, err))
             return 0;
     }
+    if (f->section_count) /* a prefix's table lists every section: where they end is known */
+        *end = lop__sat_add(base + f->sections[f->section_count - 1].offset,
+                            f->sections[f->section_count - 1].length);
     return 1;
 }
 
@@ -3800,7 +3806,7 @@ LOPDEF lop_result lop_open(const void *data, size_t size, const lop_options *opt
         goto fail;
     if (!lop__read_sections(f, b, size, 32 + (uint64_t)msize, crc, &v, &z, &mem, &err, &end))
         goto fail;
-    if (!truncated && end != total) {
+    if (end != total) {
         lop__fail(&err, lop_error_section_table, "sections end at byte %llu, file size says %llu",
                   (unsigned long long)end, (unsigned long long)total);
         goto fail;

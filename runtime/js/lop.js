@@ -273,7 +273,7 @@ function bitsDict(ab) {
 
 /**
  * Throw LopError unless the manifest `m` is sound (format.md section 12, item 6, in the order of
- * lopcook.emit.manifest.validate_manifest): the fields a reader uses and the informative fields
+ * lopcook.lop.manifest.validate_manifest): the fields a reader uses and the informative fields
  * inspect shows, with their JSON types (integers are integer literals, never booleans or floats),
  * the grid finite and within float32, sections back to back with the position sections last and
  * in level order, every LOD's tables, counts and section sizes consistent, placements and
@@ -641,7 +641,7 @@ function det3(a) {
 
 /** Largest singular value of the float32 A of a transform (float64: the square root of the largest
  * eigenvalue of A^T A by cyclic Jacobi rotations), widened by a relative 1e-9 as
- * lopcook.emit.placement.sigma does. */
+ * lopcook.lop.placement.sigma does. */
 export function sigma(tf) {
   const [a] = splitTransform(tf);
   const s = [[0, 0, 0], [0, 0, 0], [0, 0, 0]];
@@ -674,7 +674,7 @@ function ldexp(x, e) {
   return x * 2 ** e;
 }
 
-/** The smallest integer s with 2^s >= sig * meshExtent / worldExtent (lopcook.emit.placement.level_shift). */
+/** The smallest integer s with 2^s >= sig * meshExtent / worldExtent (lopcook.lop.placement.level_shift). */
 export function levelShift(sig, meshExtent, worldExtent) {
   const r = sig * meshExtent;
   const w = worldExtent;
@@ -819,7 +819,7 @@ export function bitId(vid, level) {
 
 /**
  * The clusters of a clustered buffer from its stored header words (format.md 6.9;
- * lopcook.emit.clusters.from_header): `{size, vertexId, clusterId (25), m, start, count (per
+ * lopcook.lop.clusters.from_header): `{size, vertexId, clusterId (25), m, start, count (per
  * cluster), k, anchor (3 per cluster)}`. Throws Error when the words do not fit the table.
  */
 export function clustersFromHeader(header, vid, size) {
@@ -1215,7 +1215,7 @@ class Reader {
     if (truncated && !allowPrefix) this.fail(`file is truncated: ${this.received} of ${this.header.fileSize} bytes`, INCOMPLETE);
     if (!this.manifest) this.fail('manifest is truncated');
     if (!truncated && this.next < this.table.length) this.fail(`section '${this.table[this.next].name}' runs past the end of the file`);
-    if (!truncated && this.sectionsEnd !== this.header.fileSize) this.fail(`sections end at byte ${this.sectionsEnd}, file size says ${this.header.fileSize}`);
+    if (this.sectionsEnd !== this.header.fileSize) this.fail(`sections end at byte ${this.sectionsEnd}, file size says ${this.header.fileSize}`);
     if (this.stageLevels()[0] < 1) {
       this.fail(this.layout.stream ? "the file ends before the first stage's mandatory position bits" : 'the file ends before the mandatory position bits', INCOMPLETE);
     }
@@ -1223,7 +1223,7 @@ class Reader {
 }
 
 /**
- * Parse and check a container (lopcook.emit.container.from_bytes): `bytes` a Uint8Array,
+ * Parse and check a container (lopcook.lop.container.from_bytes): `bytes` a Uint8Array,
  * ArrayBuffer or Node Buffer. With `allowPrefix` a file cut inside the position planes is
  * accepted and `availableLevel` says which levels it holds (format.md section 8). Throws LopError.
  */
@@ -1442,7 +1442,7 @@ export class LopContainer {
 
   /**
    * Top bits of every vertex of buffer (part, lod) at per-buffer level B (binned order;
-   * lopcook.emit.reader.top_values): `{values: Uint32Array(3 n) x, y, z per vertex, widths:
+   * lopcook.lop.reader.top_values): `{values: Uint32Array(3 n) x, y, z per vertex, widths:
    * Uint8Array(n) max(bin, B)}`: the mandatory bits, then one bit per plane 2..B for the vertices
    * below that plane. Results are cached per buffer and extended plane by plane, so asking for
    * B + 1 after B reads one plane.
@@ -1527,7 +1527,7 @@ export class LopContainer {
 
   /**
    * The packed buffer P of buffer (part, lod) at per-buffer level B, as a renderer uploads it
-   * (format.md 6.3; lopcook.emit.reader.gpu_buffer): `{words: Uint32Array, vertexId, bitId:
+   * (format.md 6.3; lopcook.lop.reader.gpu_buffer): `{words: Uint32Array, vertexId, bitId:
    * Float64Array(25), level}`. For a clustered buffer this is the unclustered P of the same vertices.
    */
   gpuBuffer(part, lod, level) {
@@ -1547,7 +1547,7 @@ export class LopContainer {
 
   /**
    * The clustered P of a clustered buffer at level B with its GPU cluster records (format.md 6.9;
-   * lopcook.emit.reader.clustered_gpu_buffer): `{words: Uint32Array, records: Uint32Array(4 n_c)
+   * lopcook.lop.reader.clustered_gpu_buffer): `{words: Uint32Array, records: Uint32Array(4 n_c)
    * (a_t | k_t << 24 for x, y, z, then ClusterBit[c]), clusters, level}`. LopError ("usage") when
    * the buffer is not clustered.
    */
@@ -1576,7 +1576,7 @@ export class LopContainer {
   }
 
   /**
-   * Decode buffer (part, lod) at level B (lopcook.emit.reader.decode_positions): `{grid:
+   * Decode buffer (part, lod) at level B (lopcook.lop.reader.decode_positions): `{grid:
    * Uint32Array(3 n) 24-bit integers with the dropped bits zero, widths: Uint8Array(n), positions:
    * Float32Array(3 n) metres}`, the float32 decode of format.md 6.7 on the part's grid, mapped by
    * the placement's transform in the float32 order of format.md 6.8.
@@ -1679,7 +1679,7 @@ export class LopContainer {
   }
 
   /** Part `part`'s tangents (Float32Array(4 n)) in world space: xyz mapped by A (not its inverse
-   * transpose) and normalised, w times sign(det A); unchanged on the scene grid (tangents.md). */
+   * transpose) and normalised, w times sign(det A); unchanged on the scene grid. (format.md 7.6) */
   worldTangents(part, tangents) {
     const tf = this.placementTransform(part);
     if (tf === null || tangents === null) return tangents;
@@ -1707,7 +1707,7 @@ function inverse3(a) {
 }
 
 /** Map local float32 positions (Float32Array(3 n), in place) to world: w_i = ((a_i0 p_0 + a_i1 p_1)
- * + a_i2 p_2) + t_i, every product and sum rounded to float32 (lopcook.emit.placement.to_world). */
+ * + a_i2 p_2) + t_i, every product and sum rounded to float32 (lopcook.lop.placement.to_world). */
 export function toWorld(positions, tf) {
   const [a, t] = splitTransform(tf);
   for (let j = 0; j < positions.length; j += 3) {

@@ -24,11 +24,11 @@ from tests.support import streamcases as sc
 
 
 @pytest.fixture(scope="module")
-def stream_files(cooked, tmp_path_factory) -> dict:
+def stream_files(corpus_containers, tmp_path_factory) -> dict:
     """{name: path} of every cooked container in the streaming layout."""
     out = tmp_path_factory.mktemp("streamed")
     files = {}
-    for name, path in cooked.items():
+    for name, path in corpus_containers.items():
         files[name] = out / f"{name}.lop"
         files[name].write_bytes(streamed(from_bytes(path.read_bytes())).data)
     return files
