@@ -1,10 +1,10 @@
 """Containers and references for the runtime tests (tests/runtime/): the corpus cooked as the CLI
 cooks it (and a few variants that reach every layout), a scene with vertex colours, tangent
-containers (version 4.0, docs: /work/notes/tangents.md, format.md section 7.2) built from a cooked
+containers (version 4.0, docs/format.md section 7.6) built from a cooked
 container, and the Python reference digests the JavaScript reader must reproduce.
 
-Tangent containers: lopcook's writer does not write tangents yet, so ``with_tangents`` adds them
-to a container's attribute records by hand, exactly as the format says (fields tangent.u,
+Tangent containers: ``with_tangents`` adds tangents to a cooked container's attribute records by
+hand, independently of lopcook's writer, exactly as the format says (fields tangent.u,
 tangent.v of b_t bits and tangent.sign of 1 bit after the colours; record_bits + 2 b_t + 1;
 ``attribute_bits.tangents`` in the part and each LOD; version 4.0), and returns the decoded
 tangents the reader must give: the octahedral decode of the written codes

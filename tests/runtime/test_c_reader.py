@@ -5,7 +5,7 @@ bit-exact when the compiler may fuse multiply-adds, and under AddressSanitizer a
 UndefinedBehaviorSanitizer survives every single-byte flip and every truncation of the conformance
 files (the streaming layout, encoded sections and tangents of container 4.0 among them), every
 allocation failure and every .lop of the hostile-input corpus, with lopcook's verdict on each;
-libFuzzer runs 60 s clean. Tangents (format 4.0) decode as tangents.md defines them."""
+libFuzzer runs 60 s clean. Tangents (format 4.0) decode as docs/format.md 7.6 defines them."""
 
 from __future__ import annotations
 
@@ -252,7 +252,7 @@ def test_libfuzzer_runs_60_seconds_clean(tmp_path):
     assert not list(tmp_path.glob("crash-*")) and not list(tmp_path.glob("leak-*"))
 
 
-# ---- tangents (format 4.0, tangents.md) --------------------------------------------------------
+# ---- tangents (format 4.0, format.md 7.6) -------------------------------------------------------
 
 def _with_tangents(data: bytes, bt: int, codes: np.ndarray, signs: np.ndarray) -> bytes:
     """tetra.lop relabelled 4.0 with a tangent field per record: (u, v) codes of bt bits and a
@@ -317,7 +317,7 @@ def test_tangents_decode_as_tangents_md_defines(c_build, tmp_path, bt):
 
 
 def test_the_tangent_record_stays_out_of_reach_of_malformed_bits(tmp_path):
-    """tangents.md: b_t in [4, 16]; a manifest outside it is refused."""
+    """format.md 7.6: b_t in [4, 16]; a manifest outside it is refused."""
     base = (CONFORMANCE / "tetra.lop").read_bytes()
     data = bytearray(_with_tangents(base, 4, np.zeros((4, 2), np.int64), np.zeros(4, np.int64)))
     msize = struct.unpack_from("<I", data, 12)[0]
