@@ -17,7 +17,7 @@
   (``build.make_part``, split at ``settings.crease_angle_deg``). UVs become ``(u, 1 - v)``
   (origin top-left). Positions are metres as written (OBJ has no units), +Y up, CCW.
 * polygons: triangulated by ``polygons.triangulate`` (concave quads and n-gons right, winding
-  kept).
+  kept; a concave polygon over ``polygons.MAX_CONCAVE_CORNERS`` corners is refused).
 * materials: ``usemtl`` (a part's first material is kept in ``MeshPart.source``; several: a
   warning) and ``mtllib``; the material's ``map_Kd`` is the part's ``texture``. A missing .mtl
   or image is a warning. ``Scene.dependencies``: the .obj, each .mtl looked for (found or not),
@@ -53,7 +53,7 @@ from ..types import Scene, Texture
 from .build import MAX_PARTS, checked_texture, make_part, unique_names
 from .format import Format
 from .materials import MaterialSet
-from .polygons import triangulate
+from .polygons import PolygonTooComplex, triangulate
 
 # byte classes -------------------------------------------------------------------------------
 _WS = np.zeros(256, dtype=bool)           # token separators (newline included)
@@ -167,7 +167,11 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         tri = np.arange(cv.size, dtype=np.int64).reshape(-1, 3)
         tri_face = np.arange(counts.size, dtype=np.int64)
     else:
-        tri, tri_face = triangulate(counts, V[cv])
+        try:
+            tri, tri_face = triangulate(counts, V[cv])
+        except PolygonTooComplex as exc:
+            ctx.fail(str(exc), hint="split the polygon into smaller ones, or triangulate it, in the exporter",
+                     line=f_lines[exc.face])
     # (5) parts: one per (object, group), each split per corner into its vertices
     face_part, keys = _part_of_faces(ctx, names, f_lines)
     stem = os.path.splitext(os.path.basename(path))[0] or "obj"

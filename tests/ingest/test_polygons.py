@@ -5,7 +5,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from lopcook.ingest.polygons import ear_clip, triangulate
+from lopcook.ingest.polygons import triangulate, triangulate_polygon
 
 
 def signed_areas(pts2, tris):
@@ -71,7 +71,7 @@ def test_star_polygons_tile_exactly(k, seed):
     r = rng.uniform(0.2, 1.0, k)
     pts2 = np.stack([r * np.cos(ang), r * np.sin(ang)], 1)
     pts = np.c_[pts2, np.zeros(k)]
-    tris = ear_clip(pts)
+    tris = triangulate_polygon(pts)
     assert tris.shape == (k - 2, 3)
     shoelace = 0.5 * np.sum(pts2[:, 0] * np.roll(pts2[:, 1], -1) - np.roll(pts2[:, 0], -1) * pts2[:, 1])
     areas = signed_areas(pts2, tris)
