@@ -6,8 +6,10 @@ triangulated in the plane of their Newell normal: convex and zero-area ones fann
 concave ones of at most ``EAR_CLIP_MAX_CORNERS`` corners ear-clipped (kept for those so their
 triangles, and the containers cooked from them, stay as they were), larger concave ones by
 earcut (Mapbox's ear clipper with z-order hashing, PyPI ``mapbox-earcut``) up to
-``MAX_CONCAVE_CORNERS``. Only n-gons take a Python loop, one iteration per n-gon; triangle and
-quad meshes (the common case) never do. Costs measured: docs/ingest.md, "Polygons".
+``MAX_CONCAVE_CORNERS``. A polygon of more than ``REPEAT_CHECK_CORNERS`` corners must list at
+least half as many distinct positions as corners (``check_distinct_corners`` checks vertex ids
+before positions are gathered). Only n-gons take a Python loop, one iteration per n-gon;
+triangle and quad meshes (the common case) never do. Costs measured: docs/ingest.md, "Polygons".
 
 Winding is preserved: each output triangle turns the same way as the polygon it came from.
 
@@ -33,18 +35,29 @@ EAR_CLIP_MAX_CORNERS = 16
 #: convex and zero-area polygons of any size are fanned in O(k)
 MAX_CONCAVE_CORNERS = 10_000
 
+#: a polygon of more corners than this must list at least half as many distinct positions as
+#: corners: a simple polygon lists each corner once (twice where a bridge joins a hole), so one
+#: that goes round a few positions again and again (a 10 MB face line over 4 vertices) describes
+#: no surface, only millions of overlapping triangles, and is refused before they are made
+REPEAT_CHECK_CORNERS = 64
+
+_REPEAT_HINT = "list each corner of the polygon once, or triangulate it in the exporter"
+
 #: relative tolerance of the check that earcut's triangles tile the polygon
 _AREA_RTOL = 1e-9
 
 
 class PolygonTooComplex(ValueError):
-    """A concave polygon with more than ``MAX_CONCAVE_CORNERS`` corners (the loaders turn it into
-    one LopcookError naming the file). ``face`` is the polygon's index in ``triangulate``'s
-    ``counts`` (None from ``triangulate_polygon``)."""
+    """A polygon lopcook does not triangulate: a concave one with more than
+    ``MAX_CONCAVE_CORNERS`` corners, or one of more than ``REPEAT_CHECK_CORNERS`` corners that lists
+    fewer distinct positions than half its corners (the loaders turn it into one LopcookError
+    naming the file). ``face`` is the polygon's index in ``triangulate``'s ``counts`` (None from
+    ``triangulate_polygon``); ``hint`` says what to do."""
 
-    def __init__(self, message: str, face: int | None = None):
+    def __init__(self, message: str, face: int | None = None, hint: str | None = None):
         super().__init__(message)
         self.face = face
+        self.hint = hint or "split the polygon into smaller ones, or triangulate it, in the exporter"
 
 
 def _newell(pts: np.ndarray) -> np.ndarray:
@@ -129,6 +142,23 @@ def _earcut(pts: np.ndarray, fan: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(tris)
 
 
+def _check_distinct(pts3: np.ndarray) -> None:
+    """Raise ``PolygonTooComplex`` when the (k, 3) corners hold fewer than k / 2 distinct
+    positions. O(k log k): distinct values of one projection are distinct positions, so the exact
+    row count is only taken when the projection has too few."""
+    k = pts3.shape[0]
+    need = (k + 1) // 2
+    if np.unique(pts3 @ np.array([1.0, 0.7548776662466927, 0.5698402909980532])).size >= need:
+        return
+    rows = pts3[np.lexsort(pts3.T[::-1])]
+    distinct = 1 + int(np.count_nonzero(np.any(rows[1:] != rows[:-1], axis=1)))
+    if distinct < need:
+        raise PolygonTooComplex(f"a polygon has {k:,} corners but only {distinct:,} distinct positions; lopcook "
+                                f"triangulates polygons of more than {REPEAT_CHECK_CORNERS} corners only when "
+                                "at least half their corners are distinct",
+                                hint=_REPEAT_HINT)
+
+
 def triangulate_polygon(pts3: np.ndarray) -> np.ndarray:
     """Triangulate one polygon (possibly concave).
 
@@ -142,9 +172,12 @@ def triangulate_polygon(pts3: np.ndarray) -> np.ndarray:
     a concave polygon of more than ``EAR_CLIP_MAX_CORNERS`` corners with duplicate or collinear
     corners (fewer; module docstring). A polygon without area (coincident or collinear corners)
     and a convex one are fanned from corner 0 in O(k); a concave one with more than
-    ``MAX_CONCAVE_CORNERS`` corners raises ``PolygonTooComplex``.
+    ``MAX_CONCAVE_CORNERS`` corners, and one of more than ``REPEAT_CHECK_CORNERS`` corners with
+    fewer distinct positions than half its corners, raise ``PolygonTooComplex``.
     """
     k = pts3.shape[0]
+    if k > REPEAT_CHECK_CORNERS:
+        _check_distinct(pts3)
     normal = _newell(pts3)
     axis = int(np.argmax(np.abs(normal)))
     keep = [(axis + 1) % 3, (axis + 2) % 3]  # cyclic, so (a, b) x-ed gives +axis (right-handed)
@@ -167,6 +200,24 @@ def triangulate_polygon(pts3: np.ndarray) -> np.ndarray:
     return _earcut(pts, fan)
 
 
+def check_distinct_corners(counts: np.ndarray, corner_ids: np.ndarray) -> None:
+    """Raise ``PolygonTooComplex`` (with ``face``) for the first polygon of more than
+    ``REPEAT_CHECK_CORNERS`` corners whose (C,) int ``corner_ids`` (the vertex record of each
+    corner, polygon after polygon) name fewer distinct records than half its corners. A loader
+    that has the ids calls this before gathering corner positions, so such a polygon is refused
+    before any per-corner position is made; ``triangulate`` checks the positions again."""
+    counts = np.asarray(counts, dtype=np.int64)
+    start = np.cumsum(counts) - counts
+    for f in np.flatnonzero(counts > REPEAT_CHECK_CORNERS):  # large polygons are rare: one step each
+        s, k = int(start[f]), int(counts[f])
+        distinct = np.unique(corner_ids[s:s + k]).size
+        if distinct < (k + 1) // 2:
+            raise PolygonTooComplex(f"a polygon has {k:,} corners but only {distinct:,} distinct vertices; "
+                                    f"lopcook triangulates polygons of more than {REPEAT_CHECK_CORNERS} corners "
+                                    "only when at least half their corners are distinct", face=int(f),
+                                    hint=_REPEAT_HINT)
+
+
 def triangulate(counts: np.ndarray, corner_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Triangulate polygons given per-corner positions.
 
@@ -186,7 +237,7 @@ def triangulate(counts: np.ndarray, corner_positions: np.ndarray) -> tuple[np.nd
     tri_face : (T,) int64
         Polygon each triangle came from. Output is ordered by polygon.
 
-    Raises ``PolygonTooComplex`` (with ``face``) for a concave polygon over ``MAX_CONCAVE_CORNERS``.
+    Raises ``PolygonTooComplex`` (with ``face``) for a polygon ``triangulate_polygon`` refuses.
     """
     counts = np.asarray(counts, dtype=np.int64)
     start = np.zeros(counts.size, dtype=np.int64)
@@ -218,7 +269,7 @@ def triangulate(counts: np.ndarray, corner_positions: np.ndarray) -> tuple[np.nd
         try:
             local = triangulate_polygon(corner_positions[s:s + k])
         except PolygonTooComplex as exc:
-            raise PolygonTooComplex(str(exc), face=int(f)) from None
+            raise PolygonTooComplex(str(exc), face=int(f), hint=exc.hint) from None
         pieces.append((local + s, np.full(local.shape[0], f, dtype=np.int64)))
 
     if not pieces:

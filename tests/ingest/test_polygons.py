@@ -5,7 +5,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from lopcook.ingest.polygons import triangulate, triangulate_polygon
+from lopcook.ingest.polygons import PolygonTooComplex, check_distinct_corners, triangulate, triangulate_polygon
 
 
 def signed_areas(pts2, tris):
@@ -77,3 +77,27 @@ def test_star_polygons_tile_exactly(k, seed):
     areas = signed_areas(pts2, tris)
     assert shoelace > 0 and np.all(areas > -1e-12)
     assert areas.sum() == pytest.approx(shoelace, rel=1e-9)
+
+
+@pytest.mark.parametrize("distinct, refused", [(50, False), (49, True)])
+def test_large_polygon_must_list_half_its_corners_distinct(distinct, refused):
+    """A 100-corner polygon going round a convex `distinct`-gon: accepted (fanned) with 50 distinct
+    positions, refused with 49, whether the positions or the vertex ids show the repeats."""
+    k = 100
+    ang = 2 * np.pi * (np.arange(k) % distinct) / distinct
+    pts = np.stack([np.cos(ang), np.sin(ang), np.zeros(k)], axis=1)
+    ids = np.arange(k) % distinct
+    if refused:
+        with pytest.raises(PolygonTooComplex, match=f"100 corners but only {distinct} distinct positions") as info:
+            triangulate(np.array([3, k]), np.vstack([pts[:3], pts]))
+        assert info.value.face == 1 and "once" in info.value.hint
+        with pytest.raises(PolygonTooComplex, match=f"only {distinct} distinct vertices"):
+            check_distinct_corners(np.array([3, k]), np.r_[0, 1, 2, ids])
+    else:
+        assert triangulate_polygon(pts).shape == (k - 2, 3)
+        check_distinct_corners(np.array([k]), ids)
+
+
+def test_small_polygon_with_repeated_corners_is_still_fanned():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0]] * 20, float)  # 60 corners, 3 positions
+    assert triangulate_polygon(pts).shape == (58, 3)
