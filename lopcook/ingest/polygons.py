@@ -13,8 +13,8 @@ triangle and quad meshes (the common case) never do. Costs measured: docs/ingest
 
 Winding is preserved: each output triangle turns the same way as the polygon it came from.
 
-earcut drops duplicate and collinear corners, so a concave polygon that has some gets fewer
-than k - 2 triangles, covering its area exactly. When earcut's triangles do not tile the
+earcut drops a corner that repeats its neighbour's position (and may drop collinear ones), so
+such a concave polygon gets fewer than k - 2 triangles, covering its area exactly. When earcut's triangles do not tile the
 polygon (sum of their unsigned areas differs from the shoelace area: a self-intersecting
 polygon), the polygon is fanned from corner 0 instead: k - 2 triangles whose signed areas still
 sum to the polygon's.
@@ -127,7 +127,7 @@ def _ear_clip(pts: np.ndarray) -> np.ndarray:
 
 def _earcut(pts: np.ndarray, fan: np.ndarray) -> np.ndarray:
     """(k, 2) counter-clockwise polygon -> (T, 3) int64 counter-clockwise triangles by earcut,
-    T <= k - 2 (duplicate and collinear corners dropped); ``fan`` when earcut's triangles do not
+    T <= k - 2 (repeated corners dropped); ``fan`` when earcut's triangles do not
     tile the polygon (module docstring)."""
     k = pts.shape[0]
     tris = mapbox_earcut.triangulate_float64(np.ascontiguousarray(pts, dtype=np.float64),
@@ -169,8 +169,8 @@ def triangulate_polygon(pts3: np.ndarray) -> np.ndarray:
     Returns
     -------
     (T, 3) int64 local corner indices, same turning direction as the input. T = k - 2 except for
-    a concave polygon of more than ``EAR_CLIP_MAX_CORNERS`` corners with duplicate or collinear
-    corners (fewer; module docstring). A polygon without area (coincident or collinear corners)
+    a concave polygon of more than ``EAR_CLIP_MAX_CORNERS`` corners with a corner repeating its
+    neighbour (fewer; module docstring). A polygon without area (coincident or collinear corners)
     and a convex one are fanned from corner 0 in O(k); a concave one with more than
     ``MAX_CONCAVE_CORNERS`` corners, and one of more than ``REPEAT_CHECK_CORNERS`` corners with
     fewer distinct positions than half its corners, raise ``PolygonTooComplex``.
@@ -233,7 +233,7 @@ def triangulate(counts: np.ndarray, corner_positions: np.ndarray) -> tuple[np.nd
     -------
     tri_corners : (T, 3) int64
         Indices into the corner array (so per-corner attributes map directly); T = sum(max(k-2, 0))
-        but for large concave polygons with duplicate or collinear corners (``triangulate_polygon``).
+        but for large concave polygons with repeated corners (``triangulate_polygon``).
     tri_face : (T,) int64
         Polygon each triangle came from. Output is ordered by polygon.
 

@@ -101,3 +101,38 @@ def test_large_polygon_must_list_half_its_corners_distinct(distinct, refused):
 def test_small_polygon_with_repeated_corners_is_still_fanned():
     pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0]] * 20, float)  # 60 corners, 3 positions
     assert triangulate_polygon(pts).shape == (58, 3)
+
+
+def comb2(k):
+    """(k, 2) counter-clockwise comb: base edge (0, 0)-(k-3, 0), then k - 2 teeth corners."""
+    x = np.arange(k - 3, -1, -1)
+    return np.vstack([[[0, 0], [k - 3, 0]], np.stack([x, np.where(np.arange(k - 2) % 2 == 0, 4, 2)], 1)]).astype(float)
+
+
+def shoelace(p):
+    return 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
+
+
+@pytest.mark.parametrize("at, extra, n_tris", [(1, (18.0, 0.0), 39), (2, (37.0, 0.0), 38)])
+def test_earcut_with_a_collinear_or_repeated_corner_covers_the_area(at, extra, n_tris):
+    """41 corners: one in the middle of the comb's base edge is used (k - 2 triangles); one
+    repeating its neighbour (37, 0) is dropped by earcut (k - 3). Either way: counter-clockwise,
+    exact area."""
+    ring = comb2(40)
+    ring = np.vstack([ring[:at], [extra], ring[at:]])
+    tris = triangulate_polygon(np.c_[ring, np.zeros(len(ring))])
+    areas = signed_areas(ring, tris)
+    assert tris.shape[0] == n_tris
+    assert np.all(areas > 0) and areas.sum() == pytest.approx(shoelace(ring), rel=1e-12)
+
+
+def test_self_intersecting_large_polygon_is_fanned():
+    """earcut covers only part of a self-intersecting polygon: the fan is used (k - 2 triangles
+    whose signed areas sum to the polygon's)."""
+    ring = np.random.default_rng(7).uniform(0, 1, (40, 2))
+    if shoelace(ring) < 0:
+        ring = ring[::-1].copy()
+    tris = triangulate_polygon(np.c_[ring, np.zeros(40)])
+    fan = np.stack([np.zeros(38, int), np.arange(1, 39), np.arange(2, 40)], 1)
+    assert np.array_equal(tris, fan)
+    assert signed_areas(ring, tris).sum() == pytest.approx(shoelace(ring), rel=1e-12)
