@@ -25,9 +25,11 @@
 
 Refused, each as one ``LopcookError("ingest", path, "line N: ...")``: a malformed number or a
 wrong count of values, NaN/Inf, a corner that is not an index, index 0 or out of range (with the
-record count), a face of fewer than three corners, a line continuation inside a number, NUL bytes
-(binary or UTF-16 content), more than ``build.MAX_PARTS`` parts. A file without faces gives
-``parts=()`` (``Scene.validate`` reports it).
+record count), a face of fewer than three corners, a polygon ``polygons`` refuses (concave over
+``MAX_CONCAVE_CORNERS``, or over ``REPEAT_CHECK_CORNERS`` corners naming fewer distinct ``v``
+records than half its corners: checked before any corner position exists), a line continuation
+inside a number, NUL bytes (binary or UTF-16 content), more than ``build.MAX_PARTS`` parts. A
+file without faces gives ``parts=()`` (``Scene.validate`` reports it).
 
 Cost: vectorised over the file's bytes (implementation notes and why not trimesh:
 docs/ingest.md, "OBJ"); only name statements and n-gons of 5+ corners take a Python loop; the
@@ -53,7 +55,7 @@ from ..types import Scene, Texture
 from .build import MAX_PARTS, checked_texture, make_part, unique_names
 from .format import Format
 from .materials import MaterialSet
-from .polygons import triangulate
+from .polygons import PolygonTooComplex, check_distinct_corners, triangulate
 
 # byte classes -------------------------------------------------------------------------------
 _WS = np.zeros(256, dtype=bool)           # token separators (newline included)
@@ -160,6 +162,10 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
     del fblob
     corner_line = np.repeat(f_lines, counts)
     cv = _resolve(ctx, "v", cv, None, rows[_V], corner_line, nv)
+    try:
+        check_distinct_corners(counts, cv)  # before any per-corner position or triangle is made
+    except PolygonTooComplex as exc:
+        ctx.fail(str(exc), hint=exc.hint, line=f_lines[exc.face])
     cvt = _resolve(ctx, "vt", cvt, has_vt, rows[_VT], corner_line, nvt)
     cvn = _resolve(ctx, "vn", cvn, has_vn, rows[_VN], corner_line, nvn)
     del corner_line
@@ -167,7 +173,10 @@ def _load_bytes(ctx: _Ctx, data: bytes, fmt: str, settings: IngestSettings) -> S
         tri = np.arange(cv.size, dtype=np.int64).reshape(-1, 3)
         tri_face = np.arange(counts.size, dtype=np.int64)
     else:
-        tri, tri_face = triangulate(counts, V[cv])
+        try:
+            tri, tri_face = triangulate(counts, V[cv])
+        except PolygonTooComplex as exc:
+            ctx.fail(str(exc), hint=exc.hint, line=f_lines[exc.face])
     # (5) parts: one per (object, group), each split per corner into its vertices
     face_part, keys = _part_of_faces(ctx, names, f_lines)
     stem = os.path.splitext(os.path.basename(path))[0] or "obj"
@@ -553,7 +562,8 @@ def _read_faces(ctx: _Ctx, blob: np.ndarray, f_lines: np.ndarray):
     """Parse every f line.
 
     Returns counts (F,) corners per face, per corner (C = counts.sum()) int64 arrays of the raw
-    OBJ indices v, vt, vn as written (0 where the field is absent), and (C,) bool has_vt, has_vn.
+    OBJ indices v, vt, vn as written (0 where the field is absent; read-only broadcasts when no
+    corner has a ``/``), and (C,) bool has_vt, has_vn.
     """
     bad = ~_FACE_OK[blob]
     if bad.any():
@@ -573,7 +583,7 @@ def _read_faces(ctx: _Ctx, blob: np.ndarray, f_lines: np.ndarray):
     slash = np.flatnonzero(blob == 47)
     if slash.size == 0:
         has_vt = has_vn = np.zeros(ntok, dtype=bool)
-        nfield = np.ones(ntok, dtype=np.int64)
+        n_values = ntok
     else:
         k0 = np.searchsorted(slash, tok_start)
         ns = np.searchsorted(slash, tok_end) - k0
@@ -589,7 +599,8 @@ def _read_faces(ctx: _Ctx, blob: np.ndarray, f_lines: np.ndarray):
         has_vn = (ns == 2) & (blob[tok_end - 1] != 47)
         nfield = 1 + has_vt.astype(np.int64) + has_vn
         blob[slash] = 32  # blob is the caller's own copy (boolean-mask gather)
-    vals = _fromstring(blob, int(nfield.sum()), np.int64)
+        n_values = int(nfield.sum())
+    vals = _fromstring(blob, n_values, np.int64)
     if vals is None:
         # a sign in the middle of a number ("1-2") or a lone sign: find the corner
         for i in range(ntok):
@@ -599,8 +610,8 @@ def _read_faces(ctx: _Ctx, blob: np.ndarray, f_lines: np.ndarray):
                 ctx.fail(f"malformed face corner {txt.decode('latin-1')[:40]!r}", line=f_lines[face_of_tok[i]])
         ctx.fail("malformed face indices")
     if slash.size == 0:
-        z = np.zeros(ntok, dtype=np.int64)
-        return counts, vals, z, z.copy(), has_vt, has_vn
+        absent = np.broadcast_to(np.int64(0), (ntok,))  # no vt or vn field: one read-only value
+        return counts, vals, absent, absent, has_vt, has_vn
     off = np.cumsum(nfield) - nfield
     last = vals.size - 1
     cv = vals[off]
@@ -611,13 +622,14 @@ def _read_faces(ctx: _Ctx, blob: np.ndarray, f_lines: np.ndarray):
 
 def _resolve(ctx: _Ctx, kind: str, idx: np.ndarray, present: np.ndarray | None, rec_lines: np.ndarray,
              corner_line: np.ndarray, total: int) -> np.ndarray:
-    """OBJ 1-based / negative-relative indices -> 0-based int64 (-1 where ``present`` is False).
+    """OBJ 1-based / negative-relative indices -> 0-based int64 (-1 where ``present`` is False; a
+    read-only broadcast of -1 when no corner has the field).
 
     A positive index must be <= the number of ``kind`` records in the file; a negative one counts
     back from the records defined before its line.
     """
     if present is not None and not present.any():
-        return np.full(idx.size, -1, dtype=np.int64)
+        return np.broadcast_to(np.int64(-1), (idx.size,))  # read-only, no memory per corner
     zero = idx == 0 if present is None else (idx == 0) & present
     if zero.any():
         i = int(np.argmax(zero))

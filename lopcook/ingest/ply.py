@@ -416,7 +416,7 @@ def load(path: str, *, fmt: str = "ply", settings: IngestSettings) -> Scene:
     except _Malformed as exc:
         raise LopcookError("ingest", path, str(exc), hint=_HINT) from None
     except PolygonTooComplex as exc:
-        raise LopcookError("ingest", path, str(exc), hint="split the polygon in the authoring tool") from None
+        raise LopcookError("ingest", path, str(exc), hint=exc.hint) from None
 
 
 def _scene(path: str, data: bytes, settings: IngestSettings) -> Scene:

@@ -59,7 +59,7 @@ from .build import (MAX_PARTS, bad_path_characters, checked_texture, make_part, 
                     regular_file_problem, unique_names, usable_tangents)
 from .format import Format
 from .materials import BASE_FROM_VERTEX_COLOURS, MaterialSet, image_readable
-from .polygons import triangulate
+from .polygons import PolygonTooComplex, triangulate
 
 #: UV primvar names, in order of preference, before falling back to any texCoord2* primvar
 UV_NAMES = ("st", "st0", "UVMap", "map1", "uv")
@@ -595,7 +595,10 @@ class _Loader:
             self.warnings.append(f"{where}: mesh has no faces with 3 or more corners, skipped")
             return None
         k_point = fvi[kept]
-        tri_local, _ = triangulate(counts[keep_face], points[k_point])  # (T, 3) into ``kept``
+        try:
+            tri_local, _ = triangulate(counts[keep_face], points[k_point])  # (T, 3) into ``kept``
+        except PolygonTooComplex as exc:
+            self.fail(f"{where}: {exc}", hint=exc.hint)
         geom = dict(where=where, n_faces=n_faces, n_points=points.shape[0], n_corners=fvi.size,
                     face=face_of_corner[kept], point=k_point, kept=kept)
         (normals, nvary), (uvs, uvvary), (colors, cvary) = self.primvars(prim, mesh, geom)

@@ -288,13 +288,35 @@ def test_obj_map_kd_that_is_no_image_is_a_warning(tmp_path, target):
     assert scene.warnings
 
 
-def test_obj_huge_face_line_is_bounded(tmp_path):
-    p = tmp_path / "a.obj"
-    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf " + " ".join(str(i % 3 + 1) for i in range(300_000)) + "\n")
-    try:
-        load(str(p))
-    except LopcookError as exc:
-        assert "\n" not in str(exc)
+_PEAK_CHILD = """
+import resource, sys
+from lopcook.cli import main
+main(["cook", sys.argv[1], "-o", sys.argv[2]])  # a small file first: imports and caches warm
+warm = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+rc = main(["cook", sys.argv[3], "-o", sys.argv[4]])
+print("peak_kib", warm, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, "rc", rc)
+"""
+
+
+def test_obj_huge_face_line_is_refused_in_bounded_memory(tmp_path):
+    """One face line of 1,000,000 corners over 4 vertices (2 MB) would be a million overlapping
+    triangles: refused with its line, in seconds, the cook's peak growing by under 30x the file."""
+    import subprocess
+    import sys
+
+    small = tmp_path / "small.obj"
+    small.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    big = tmp_path / "line.obj"
+    big.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf " + " 1 2 3 4" * 250_000 + "\n")
+    r = subprocess.run([sys.executable, "-c", _PEAK_CHILD, str(small), str(tmp_path / "small.lop"), str(big),
+                        str(tmp_path / "a.lop")],
+                       capture_output=True, text=True, timeout=60)
+    errors = [line for line in r.stderr.splitlines() if line.strip()]
+    assert len(errors) == 1 and "line.obj" in errors[0] and "line 5" in errors[0], r.stderr
+    assert "1,000,000 corners" in errors[0] and "4 distinct vertices" in errors[0], errors[0]
+    _, warm, peak, _, rc = r.stdout.splitlines()[-1].split()
+    assert rc == "2" and not (tmp_path / "a.lop").exists()  # exit 2, no partial output
+    assert (int(peak) - int(warm)) * 1024 < 30 * big.stat().st_size, (warm, peak, big.stat().st_size)
 
 
 # ----------------------------------------------------------------------------- messages

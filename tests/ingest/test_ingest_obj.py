@@ -250,6 +250,53 @@ def test_concave_l_hexagon(tmp_path, facing):
     assert np.all(np.isclose(cross @ normal, 2 * area))  # and lies in the polygon's plane
 
 
+def comb(k: int) -> np.ndarray:
+    """(k, 2) integer corners of a counter-clockwise comb: a base edge, then k - 2 teeth corners
+    alternating between heights 4 and 2 (every low one reflex)."""
+    x = np.arange(k - 3, -1, -1)
+    top = np.stack([x, np.where(np.arange(k - 2) % 2 == 0, 4, 2)], axis=1)
+    return np.vstack([[[0, 0], [k - 3, 0]], top]).astype(float)
+
+
+def comb_obj(k: int, line_before: str = "") -> str:
+    pts = comb(k)
+    return ("".join(f"v {x:g} {y:g} 0\n" for x, y in pts) + line_before
+            + "f " + " ".join(str(i) for i in range(1, k + 1)) + "\n")
+
+
+def inside_polygon(points: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(n, 2) points, (k, 2) polygon -> (n,) bool by crossing number (points on no edge)."""
+    a, b = ring[None, :, :], np.roll(ring, -1, axis=0)[None, :, :]
+    p = points[:, None, :]
+    straddles = (a[..., 1] > p[..., 1]) != (b[..., 1] > p[..., 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[..., 0] + (p[..., 1] - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
+    return (np.count_nonzero(straddles & (p[..., 0] < x_cross), axis=1) % 2) == 1
+
+
+def test_large_concave_polygon_tiles_its_area(tmp_path):
+    """A 2,000-corner comb (999 reflex corners): k - 2 counter-clockwise triangles covering the
+    shoelace area, each inside the polygon."""
+    k = 2000
+    ring = comb(k)
+    part = load(write(tmp_path, comb_obj(k))).parts[0]
+    assert part.n_triangles == k - 2 and part.positions.shape[0] == k
+    area, cross = tri_area_and_normal(part)
+    shoelace = 0.5 * np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
+    assert np.all(cross[:, 2] > 0)  # every triangle turns like the polygon (CCW about +Z)
+    assert area.sum() == pytest.approx(shoelace, rel=1e-12)
+    centroids = part.positions[part.indices.astype(np.int64)].mean(axis=1)[:, :2]
+    assert np.all(inside_polygon(centroids, ring))
+
+
+def test_concave_polygon_over_the_limit_is_refused_with_its_line(tmp_path):
+    from lopcook.ingest.polygons import MAX_CONCAVE_CORNERS
+
+    k = MAX_CONCAVE_CORNERS + 1
+    path = write(tmp_path, comb_obj(k, line_before="# the face\n"), "huge.obj")
+    expect_error(path, f"line {k + 2}", f"{k:,} corners", f"at most {MAX_CONCAVE_CORNERS:,}")
+
+
 def test_fixture_concave_ngon_and_seamed_cube():
     from conftest import FIXTURES
 

@@ -96,6 +96,16 @@ def test_concave_hexagon_triangulated_ccw_with_exact_area(tmp_path):
     assert np.allclose(part.normals, [0, 0, 1], atol=1e-6) and part.normals_computed
 
 
+def test_polygon_going_round_few_points_is_refused_naming_the_prim(tmp_path):
+    f = tmp_path / "round.usda"
+    st = new_stage(f)
+    pts = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    add_mesh(st, "/R", pts, [400], [i % 4 for i in range(400)])  # 400 corners, 4 points
+    with pytest.raises(LopcookError, match="/R.*400 corners but only 4 distinct positions") as info:
+        save_and_load(st, f)
+    assert "round.usda" in str(info.value) and "once" in str(info.value)
+
+
 def test_hole_faces_are_dropped_with_their_unused_points(tmp_path):
     f = tmp_path / "holes.usda"
     st = new_stage(f)
