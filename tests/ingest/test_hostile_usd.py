@@ -90,3 +90,24 @@ def test_fifo_texture_is_never_opened(tmp_path):
     os.mkfifo(tmp_path / "t.png")
     scene = load(_write(tmp_path, fz.usda_textured("t.png")))
     assert any("not a regular file" in w for w in scene.warnings), scene.warnings
+
+
+@pytest.mark.parametrize("attr, value, what", [("quatf[] orientationsf", "(nan, 0, 0, 0)", "NaN"),
+                                               ("point3f[] positions", "(inf, 0, 0)", "Inf")])
+def test_a_non_finite_instance_is_refused_naming_it(tmp_path, attr, value, what):
+    """A NaN orientation was reported as a zero scale and the instance skipped: now the file is
+    refused, naming the instancer, the array, the instance and NaN or Inf."""
+    from conftest import FIXTURES
+
+    text = (FIXTURES / "point_instancer.usda").read_text()
+    line = next(ln for ln in text.splitlines() if ln.strip().startswith(attr + " ="))
+    head, values = line.split("= [", 1)
+    items = re.findall(r"\([^)]*\)", values)
+    items[2] = value
+    path = tmp_path / "bad.usda"
+    path.write_text(text.replace(line, f"{head}= [{', '.join(items)}]"))
+    with pytest.raises(LopcookError) as exc:
+        load(str(path))
+    msg = str(exc.value)
+    assert "\n" not in msg and "PointInstancer" in msg and f"[2] is {what}" in msg, msg
+    assert "zero scale" not in msg

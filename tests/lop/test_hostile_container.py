@@ -174,3 +174,50 @@ def test_manifest_json_is_parsed_without_constants(lop):
     _, manifest, payload = lop
     text = json.dumps(manifest).replace('"bits": 24', '"bits": Infinity')
     refused(fz._lop_pack(text.encode(), payload), "manifest")
+
+
+# ---- the read path: what is not a regular file, or too large, is refused before it is read ----
+
+def _inspect(path, capsys):
+    from lopcook.cli import main
+
+    rc = main(["inspect", str(path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    return rc, err
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="needs FIFOs")
+def test_inspect_of_a_fifo_is_refused_without_blocking(tmp_path, capsys):
+    """A named pipe with no writer: the read used to block for ever."""
+    import os
+    import time
+
+    os.mkfifo(tmp_path / "a.lop")
+    t0 = time.monotonic()
+    rc, err = _inspect(tmp_path / "a.lop", capsys)
+    assert rc == 2 and len(err) == 1 and "not a regular file" in err[0] and "a.lop" in err[0], err
+    assert time.monotonic() - t0 < 5
+
+
+def test_inspect_of_a_link_to_dev_zero_is_refused_before_reading(tmp_path, capsys):
+    """It used to read 3.3 GB of zeros and end in an internal error."""
+    import os
+
+    os.symlink("/dev/zero", tmp_path / "a.lop")
+    rc, err = _inspect(tmp_path / "a.lop", capsys)
+    assert rc == 2 and len(err) == 1 and "not a regular file" in err[0], err
+
+
+def test_a_file_larger_than_any_container_is_refused_unread(tmp_path, capsys, monkeypatch):
+    """A (sparse) file past ``MAX_FILE_BYTES`` is refused on its size, before a byte is read."""
+    from lopcook.lop import container
+
+    monkeypatch.setattr(container, "MAX_FILE_BYTES", 1 << 20)
+    path = tmp_path / "a.lop"
+    with open(path, "wb") as fh:
+        fh.truncate((1 << 20) + 1)
+    read = []
+    monkeypatch.setattr(container, "from_bytes", lambda *a, **k: read.append(a) or None)
+    rc, err = _inspect(path, capsys)
+    assert rc == 2 and len(err) == 1 and "more than the 1,048,576" in err[0], err
+    assert not read
