@@ -8,8 +8,9 @@ returns the same values bit for bit (``tests/test_kernels_*.py`` compare them). 
 modules import numba at their top, so only ``use`` decides whether numba is loaded at all.
 
 ``$LOPCOOK_KERNELS``: ``auto`` (default) kernels for inputs of at least ``MIN_ELEMENTS`` elements
-(below it numpy is as fast and the cook does not pay numba's start-up); ``on`` for every size;
-``off`` never. Without numba (not installed, or it fails to load) everything runs on numpy.
+(below it numpy is as fast and the cook does not pay numba's start-up; a stage whose kernel saves
+less than that start-up asks for more unless numba is loaded already: ``use``'s ``pays_from``);
+``on`` for every size; ``off`` never. Without numba (not installed, or it fails to load) everything runs on numpy.
 
 Compiled code is cached on disk (numba's cache: ``__pycache__`` beside the module, else the
 user's cache directory, else ``$NUMBA_CACHE_DIR``): the first cook on a fresh install compiles
@@ -56,10 +57,17 @@ def available() -> bool:
     return _STATE["numba"] is not None
 
 
-def use(n: int) -> bool:
-    """Whether a stage with an input of ``n`` elements calls its kernel (module doc)."""
+def loaded() -> bool:
+    """Whether numba is already loaded in this process (a kernel then costs no start-up)."""
+    return _STATE.get("numba") is not None
+
+
+def use(n: int, pays_from: int = MIN_ELEMENTS) -> bool:
+    """Whether a stage with an input of ``n`` elements calls its kernel (module doc). ``auto``
+    also asks for ``n >= pays_from`` unless numba is loaded already: a stage whose kernel saves
+    less than numba's start-up below that size (docs/performance.md) passes it."""
     m = mode()
-    if m == "off" or (m == "auto" and n < MIN_ELEMENTS):
+    if m == "off" or (m == "auto" and (n < MIN_ELEMENTS or (n < pays_from and not loaded()))):
         return False
     return available()
 
@@ -126,4 +134,4 @@ def parallel_ranges(fn, n: int, *args) -> None:
         f.result()
 
 
-__all__ = ["MIN_ELEMENTS", "PARALLEL_ROWS", "mode", "available", "use", "njit", "threads", "parallel_ranges"]
+__all__ = ["MIN_ELEMENTS", "PARALLEL_ROWS", "mode", "available", "loaded", "use", "njit", "threads", "parallel_ranges"]

@@ -47,3 +47,19 @@ def test_a_kernel_is_cached_in_numba_cache_dir(tmp_path):
 def test_a_kernel_compiles_in_memory_without_a_writable_cache(tmp_path):
     assert _run(READ_ONLY + CALL, NUMBA_CACHE_DIR=str(tmp_path)) == "[2.0, 5.0, 5.0, 5.0, 0.0]"
     assert not any(tmp_path.rglob("*.nbc"))
+
+
+def test_auto_waits_for_pays_from_until_numba_is_loaded():
+    code = """
+import sys
+from lopcook import jit
+n = jit.MIN_ELEMENTS
+print(jit.use(n, pays_from=4 * n), jit.use(4 * n, pays_from=4 * n), "numba" in sys.modules)
+"""
+    assert _run(code, LOPCOOK_KERNELS="auto") == "False True True"
+    code = """
+from lopcook import jit
+n = jit.MIN_ELEMENTS
+print(jit.use(n), jit.use(n, pays_from=4 * n), jit.use(n - 1))
+"""
+    assert _run(code, LOPCOOK_KERNELS="auto") == "True True False"

@@ -22,7 +22,7 @@ part's attributes share it (``triangle_frames``) and are gathered together
 Degenerate triangles (zero area: repeated or collinear corners) have no plane; they are excluded
 (E_t = 0, they add nothing to E_v) and counted.
 
-Large meshes (``lopcook.jit.use``: float64 positions, attributes of at most
+Large meshes (``lopcook.jit.use`` with ``KERNEL_PAYS_FROM``: float64 positions, attributes of at most
 ``kernels.MAX_COMPONENTS`` components) go through the compiled kernels of ``analyse/kernels.py``,
 which give the same values bit for bit; the numpy code here is their test oracle.
 """
@@ -34,6 +34,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import jit
+
+#: triangles from which the kernels pay for numba's start-up in a process that has not loaded it
+#: (``lopcook.jit.use``; docs/performance.md, "Compiled kernels")
+KERNEL_PAYS_FROM = 1 << 21
 
 #: A triangle is degenerate when det(G) = (2 * area)^2 <= DEGENERATE_TOL * |e1|^2 |e2|^2, i.e. the
 #: sine of its angle at v0 is below 1e-6 (or an edge has zero length). Dimensionless.
@@ -57,7 +61,7 @@ def triangle_frames(positions: np.ndarray, indices: np.ndarray) -> TriangleFrame
     """M for every triangle (see module doc); positions (n, 3) metres, indices (m, 3) integer."""
     tri = np.asarray(indices, dtype=np.int64)
     pos = np.asarray(positions)
-    if pos.dtype == np.float64 and jit.use(tri.shape[0]):
+    if pos.dtype == np.float64 and jit.use(tri.shape[0], KERNEL_PAYS_FROM):
         from . import kernels  # compiled kernels (numba): loaded only for large meshes
         return TriangleFrames(tri, *kernels.triangle_frames(pos, tri.reshape(-1, 3), DEGENERATE_TOL))
     p0 = pos[tri[:, 0]]
@@ -91,7 +95,7 @@ def triangle_gradient_norms(positions: np.ndarray, indices: np.ndarray, attribut
     cols = [c.reshape(c.shape[0], -1) for c in cols]
     a = cols[0] if len(cols) == 1 else np.concatenate(cols, axis=1)   # (n, sum k_a)
     widths = [c.shape[1] for c in cols]
-    if jit.use(f.tri.shape[0]):
+    if jit.use(f.tri.shape[0], KERNEL_PAYS_FROM):
         from . import kernels  # compiled kernels (numba): loaded only for large meshes
         if max(widths) <= kernels.MAX_COMPONENTS:
             return kernels.gradient_norms(a, widths, f), f.degenerate
@@ -139,7 +143,7 @@ def triangle_gradient_norm(positions: np.ndarray, indices: np.ndarray, attribute
 def vertex_max(indices: np.ndarray, per_triangle: np.ndarray, n_vertices: int) -> np.ndarray:
     """(n,) float64: max of ``per_triangle`` (m,) over the triangles incident to each vertex (0 if none)."""
     tri = np.asarray(indices, dtype=np.int64)
-    if jit.use(tri.shape[0]):
+    if jit.use(tri.shape[0], KERNEL_PAYS_FROM):
         from . import kernels  # compiled kernels (numba): loaded only for large meshes
         return kernels.vertex_max(tri.reshape(-1, 3), per_triangle, n_vertices)
     out = np.zeros(n_vertices, dtype=np.float64)
