@@ -16,7 +16,8 @@ Compiled code is cached on disk (numba's cache: ``__pycache__`` beside the modul
 user's cache directory, else ``$NUMBA_CACHE_DIR``): the first cook on a fresh install compiles
 (docs/performance.md, "The cost of compiling"), later ones load. Where no cache location is
 writable (a read-only install and home) kernels compile in memory each run (``njit``).
-Kernels release the GIL (``nogil``): ``parallel_ranges`` runs one over row ranges in threads.
+Kernels release the GIL (``nogil``): ``parallel_ranges`` runs one over row ranges in threads; a
+forked child starts its own threads.
 """
 
 from __future__ import annotations
@@ -33,6 +34,19 @@ PARALLEL_ROWS = 1 << 14
 
 _STATE: dict = {}
 _LOCK = threading.Lock()
+
+
+def _after_fork_in_child() -> None:
+    """A forked child (``lopcook.isolate``) has none of the parent's threads: it starts its own pool
+    (submitting to the inherited one would wait forever) and a fresh lock (another thread may have
+    held it at the fork)."""
+    global _LOCK
+    _LOCK = threading.Lock()
+    _STATE.pop("pool", None)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 def mode() -> str:

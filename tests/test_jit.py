@@ -32,7 +32,7 @@ caching._CacheLocator.ensure_cache_path = refuse
 
 
 def _run(code: str, **env) -> str:
-    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=300,
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120,
                          env={**os.environ, "LOPCOOK_KERNELS": "on", **env})
     assert out.returncode == 0, out.stderr
     return out.stdout.strip()
@@ -63,3 +63,20 @@ n = jit.MIN_ELEMENTS
 print(jit.use(n), jit.use(n, pays_from=4 * n), jit.use(n - 1))
 """
     assert _run(code, LOPCOOK_KERNELS="auto") == "True True False"
+
+
+def test_a_forked_child_runs_threaded_kernels():
+    # the parent's thread pool does not survive a fork: the child must start its own, not wait on it
+    code = """
+import numpy as np
+from lopcook import isolate, jit
+from lopcook.simplify import kernels
+rng = np.random.default_rng(0)
+p = rng.normal(size=(3000, 3))
+tree = kernels.Tree(p, rng.integers(0, 3000, size=(5000, 3)))
+q = rng.normal(size=(2 * jit.PARALLEL_ROWS, 3))
+here = tree.closest(q)[0]
+child = isolate.start(lambda: tree.closest(q)[0]).result()
+print(child.shape == here.shape and bool((child == here).all()), isolate.start(lambda: 1).forked)
+"""
+    assert _run(code, LOPCOOK_THREADS="2") == "True True"
