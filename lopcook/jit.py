@@ -3,7 +3,8 @@ and the numpy code it replaces.
 
 Every kernel lives in a ``kernels`` module beside the numpy code it replaces (``simplify/kernels.py``
 beside ``reference.py`` and ``topology.py``); the numpy function stays and is the test oracle: a kernel
-returns the same values bit for bit (``tests/test_kernels_*.py`` compare them). A stage asks
+returns the same values bit for bit (``tests/test_kernels_*.py`` compare them), or its module
+states the difference (the closest-point hierarchy: among equally close faces, the lowest id). A stage asks
 ``use(n)`` with the size of its input and calls the kernel when it says so. The ``kernels``
 modules import numba at their top, so only ``use`` decides whether numba is loaded at all.
 
@@ -12,8 +13,8 @@ modules import numba at their top, so only ``use`` decides whether numba is load
 less than that start-up asks for more unless numba is loaded already: ``use``'s ``pays_from``);
 ``on`` for every size; ``off`` never. Without numba (not installed, or it fails to load) everything runs on numpy.
 
-Compiled code is cached on disk (numba's cache: ``__pycache__`` beside the module, else the
-user's cache directory, else ``$NUMBA_CACHE_DIR``): the first cook on a fresh install compiles
+Compiled code is cached on disk (numba's cache: ``$NUMBA_CACHE_DIR`` when set, else ``__pycache__``
+beside the module, else the user's cache directory): the first cook on a fresh install compiles
 (docs/performance.md, "The cost of compiling"), later ones load. Where no cache location is
 writable (a read-only install and home) kernels compile in memory each run (``njit``).
 Kernels release the GIL (``nogil``): ``parallel_ranges`` runs one over row ranges in threads; a
