@@ -1,5 +1,6 @@
 """Compiled kernels of the LOD stage: closest points on a triangle mesh (the LOD error's and the
-transfer's queries), beside ``reference.py`` and ``error.py`` whose libigl queries they replace.
+transfer's queries) and the mesh defect counts (``weld_first``, ``defect_counts``), beside
+``reference.py``, ``error.py`` and ``topology.py`` whose libigl queries and numpy counts they replace.
 
 This work is based on: Ericson, "Real-Time Collision Detection" (2005), section 5.1.5 (closest
 point on a triangle), as libigl's ``point_simplex_squared_distance`` computes it, and section 6
@@ -278,9 +279,6 @@ class Tree:
         return d2, face, (pt if point else None)
 
 
-__all__ = ["LEAF", "SLACK", "Tree", "point_triangle_squared"]
-
-
 # ---- mesh defects (``topology.mesh_defects``) -------------------------------------------------------
 
 @njit(inline="always")
@@ -435,3 +433,6 @@ def defect_counts(w, nw, faces, degenerate):
         if fans[v] > 1:
             bowties += 1
     return one, many, bowties, two, one + many + two
+
+
+__all__ = ["LEAF", "SLACK", "Tree", "point_triangle_squared", "weld_first", "defect_counts"]
