@@ -45,7 +45,8 @@ RANKS = {
 }
 #: below everything: what the container format (lop/) may import
 CORE = {"errors", "grid", "atomic", "version", "wording"}
-FOUNDATION = {"types", "mesh", "settings", "viewing", "memory", "depfile", "isolate", "progress", "selection"}
+FOUNDATION = {"types", "mesh", "settings", "viewing", "memory", "depfile", "isolate", "progress", "selection",
+              "jit"}
 #: the command line's entry: ``lopcook.cli.main`` (it runs every command, batch's too) and ``python -m lopcook``
 ENTRY = {"lopcook.cli", "lopcook.__main__"}
 

@@ -19,8 +19,11 @@ MAX_DOCSTRING_LINES = 40
 #: libraries heavy or optional enough to import where they are used (each such import commented)
 LAZY_OK = {"pxr", "moderngl", "pymeshlab", "scipy", "distributed", "dask", "meshoptimizer", "fast_simplification",
            "igl", "xatlas", "trimesh", "PIL", "matplotlib", "DracoPy", "jsonschema", "numba", "tqdm", "resource"}
-#: lopcook modules imported inside a function on purpose, each with a comment saying why
-LAZY_INTERNAL_OK = {"lopcook.cli.commands", "lopcook.batch.command"}
+#: lopcook modules imported inside a function on purpose, each with a comment saying why: the CLI's
+#: commands and batch's (a command loads only its own stages), and the compiled kernels (they
+#: import numba at their top; loaded only for large meshes, lopcook/jit.py)
+LAZY_INTERNAL_OK = {"lopcook.cli.commands", "lopcook.batch.command", "lopcook.analyse.kernels",
+                    "lopcook.simplify.kernels"}
 #: functions allowed past the length limit: argparse builders and literal data tables
 LONG_OK = {"build_parser"}
 HISTORY = re.compile(r"\bissues? #?\d+\b|\b20\d\d-\d\d-\d\d\b", re.I)

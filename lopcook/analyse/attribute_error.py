@@ -21,6 +21,10 @@ part's attributes share it (``triangle_frames``) and are gathered together
 
 Degenerate triangles (zero area: repeated or collinear corners) have no plane; they are excluded
 (E_t = 0, they add nothing to E_v) and counted.
+
+Large meshes (``lopcook.jit.use`` with ``KERNEL_PAYS_FROM``: float64 positions, attributes of at most
+``kernels.MAX_COMPONENTS`` components) go through the compiled kernels of ``analyse/kernels.py``,
+which give the same values bit for bit; the numpy code here is their test oracle.
 """
 
 from __future__ import annotations
@@ -28,6 +32,12 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+from .. import jit
+
+#: triangles from which the kernels pay for numba's start-up in a process that has not loaded it
+#: (``lopcook.jit.use``; docs/performance.md, "Compiled kernels")
+KERNEL_PAYS_FROM = 1 << 21
 
 #: A triangle is degenerate when det(G) = (2 * area)^2 <= DEGENERATE_TOL * |e1|^2 |e2|^2, i.e. the
 #: sine of its angle at v0 is below 1e-6 (or an edge has zero length). Dimensionless.
@@ -51,6 +61,9 @@ def triangle_frames(positions: np.ndarray, indices: np.ndarray) -> TriangleFrame
     """M for every triangle (see module doc); positions (n, 3) metres, indices (m, 3) integer."""
     tri = np.asarray(indices, dtype=np.int64)
     pos = np.asarray(positions)
+    if pos.dtype == np.float64 and jit.use(tri.shape[0], KERNEL_PAYS_FROM):
+        from . import kernels  # compiled kernels (numba): loaded only for large meshes
+        return TriangleFrames(tri, *kernels.triangle_frames(pos, tri.reshape(-1, 3), DEGENERATE_TOL))
     p0 = pos[tri[:, 0]]
     e1 = pos[tri[:, 1]] - p0
     e2 = pos[tri[:, 2]] - p0
@@ -81,6 +94,11 @@ def triangle_gradient_norms(positions: np.ndarray, indices: np.ndarray, attribut
     cols = [np.asarray(a, dtype=np.float64) for a in attributes]
     cols = [c.reshape(c.shape[0], -1) for c in cols]
     a = cols[0] if len(cols) == 1 else np.concatenate(cols, axis=1)   # (n, sum k_a)
+    widths = [c.shape[1] for c in cols]
+    if jit.use(f.tri.shape[0], KERNEL_PAYS_FROM):
+        from . import kernels  # compiled kernels (numba): loaded only for large meshes
+        if max(widths) <= kernels.MAX_COMPONENTS:
+            return kernels.gradient_norms(a, widths, f), f.degenerate
     a0 = a[f.tri[:, 0]]
     a1 = a[f.tri[:, 1]] - a0
     a2 = a[f.tri[:, 2]] - a0
@@ -124,8 +142,11 @@ def triangle_gradient_norm(positions: np.ndarray, indices: np.ndarray, attribute
 
 def vertex_max(indices: np.ndarray, per_triangle: np.ndarray, n_vertices: int) -> np.ndarray:
     """(n,) float64: max of ``per_triangle`` (m,) over the triangles incident to each vertex (0 if none)."""
-    out = np.zeros(n_vertices, dtype=np.float64)
     tri = np.asarray(indices, dtype=np.int64)
+    if jit.use(tri.shape[0], KERNEL_PAYS_FROM):
+        from . import kernels  # compiled kernels (numba): loaded only for large meshes
+        return kernels.vertex_max(tri.reshape(-1, 3), per_triangle, n_vertices)
+    out = np.zeros(n_vertices, dtype=np.float64)
     for k in range(3):  # three vectorised passes, one per corner
         np.maximum.at(out, tri[:, k], per_triangle)
     return out

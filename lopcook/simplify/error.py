@@ -10,8 +10,33 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import jit
 from ..types import MeshPart
 from .reference import Reference, point_mesh, samples
+
+
+class _LodTree:
+    """Squared distances of points to a LOD's surface: libigl's AABB tree, or for large LODs
+    (``lopcook.jit.use``) the compiled hierarchy (``lopcook.simplify.kernels.Tree``), which gives
+    the same values bit for bit."""
+
+    def __init__(self, lod: MeshPart):
+        self.pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
+        self.fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
+        if jit.use(int(self.fac.shape[0])):
+            from . import kernels  # compiled kernels (numba): loaded only for large meshes
+            self.kernel, self.igl = kernels.Tree(self.pos, self.fac), None
+        else:
+            import igl  # libigl (native) loads when a LOD is first measured
+            self.kernel, self.igl = None, igl.AABB()
+            self.igl.init(self.pos, self.fac)
+
+    def squared(self, points: np.ndarray) -> np.ndarray:
+        """(q,) squared distances of ``points`` (q, 3) to the LOD."""
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if self.kernel is not None:
+            return self.kernel.closest(pts, point=False)[0]
+        return np.asarray(self.igl.squared_distance(self.pos, self.fac, pts)[0])
 
 
 def hausdorff(a: MeshPart, b: MeshPart) -> tuple[float, float, float]:
@@ -31,16 +56,11 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
     ``min_i d(v_i) + |c - v_i|`` from the LOD. The vertices are queried first; a centroid is
     queried only when that bound (plus a 1e-9 relative slack for rounding) reaches the largest
     vertex distance, so the maximum is unchanged. Queries go to one libigl AABB tree over the LOD
-    (how few centroids that queries: docs/lod.md)."""
-    import igl  # libigl (native) loads when a LOD is first measured
-
-    pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
-    fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
-    tree = igl.AABB()
-    tree.init(pos, fac)
+    (how few centroids that queries: docs/lod.md; ``_LodTree``)."""
+    tree = _LodTree(lod)
     samples, used = ref.samples, ref.sample_vertices
     nv = used.size
-    d2v = np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(samples[:nv]))[0])
+    d2v = tree.squared(samples[:nv])
     best = float(d2v.max()) if nv else 0.0
     centroids = samples[nv:]
     if centroids.shape[0] == 0:
@@ -54,7 +74,7 @@ def measure_ref_to_lod(ref: Reference, lod: MeshPart) -> float:
         np.minimum(bound, dv[v] + np.sqrt(np.einsum("ij,ij->i", gap, gap)), out=bound)
     need = np.flatnonzero(bound * (1.0 + 1e-9) >= np.sqrt(best) * (1.0 - 1e-9))
     if need.size:
-        d2c = np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(centroids[need]))[0])
+        d2c = tree.squared(centroids[need])
         best = max(best, float(d2c.max()))
     return float(np.sqrt(best))
 
@@ -92,19 +112,14 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
 
     ``on_ref``: (LOD 0 vertices,) bool or None; where True the vertex is known to be a vertex of
     the LOD (``transfer_attributes``' ``info["on_ref"]``): its distance is 0 and is not queried.
-    The values are those of querying it."""
-    import igl  # libigl (native) loads when a LOD is first measured
-
+    The values are those of querying it. Queries: ``_LodTree``."""
     order = ref.sample_order
     pts = order.points
     if count is None:
         count = max(MIN_SAMPLES, int(SAMPLES_PER_LOD_VERTEX * lod.n_vertices))
     pick = order.take(int(count))
     sel = order.order[pick]
-    pos = np.ascontiguousarray(lod.positions, dtype=np.float64)
-    fac = np.ascontiguousarray(lod.indices, dtype=np.int64)
-    tree = igl.AABB()
-    tree.init(pos, fac)
+    tree = _LodTree(lod)
 
     def distances(rows: np.ndarray) -> np.ndarray:
         """Distances of the sample points ``rows`` (indices into ``pts``): 0 without a query for
@@ -115,7 +130,7 @@ def sampled_ref_to_lod(ref: Reference, lod: MeshPart, count: int | None = None,
         ask = np.arange(rows.size) if on_ref is None else np.flatnonzero(~on_ref[ref.sample_vertices[rows]])
         for s in range(0, ask.size, _BOUND_BLOCK):
             at = ask[s:s + _BOUND_BLOCK]
-            out[at] = np.sqrt(np.asarray(tree.squared_distance(pos, fac, np.ascontiguousarray(pts[rows[at]]))[0]))
+            out[at] = np.sqrt(tree.squared(pts[rows[at]]))
         return out
 
     d = distances(sel)

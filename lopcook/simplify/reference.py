@@ -5,7 +5,10 @@ normals, connected regions, defects, seams and volume, each computed once. Its c
 queries return ``(squared distance (q,), face id (q,) int64, closest point (q, 3))`` for points
 (q, 3) float64, exact for any mesh size: one libigl AABB tree up to ``CHUNK_FACES`` faces, above
 that trees over chunks of the faces (``query_bounded``) or over the faces near the points
-(``query_near``), so no tree over all of a large LOD 0 is held.
+(``query_near``), so no tree over all of a large LOD 0 is held. Where ``lopcook.jit.use`` says so
+(large meshes), every query goes to one compiled hierarchy over LOD 0 instead (``tree``,
+``lopcook.simplify.kernels.Tree``: about 38 bytes per face): the same squared distances bit for
+bit, and among faces equally close the lowest face id.
 
 ``samples(positions, faces)``: the referenced vertices, then the face centroids.
 ``SampleOrder``: vertices in a coarse-to-fine Morton order, so that a prefix of it covers the
@@ -18,7 +21,7 @@ import itertools
 
 import numpy as np
 
-from .. import isolate
+from .. import isolate, jit
 from ..mesh import components, degenerate_mask, face_normals, used_ids
 from ..types import MeshPart
 from .topology import SeamStats, mesh_defects, seam_stats, signed_volume
@@ -45,7 +48,11 @@ _MORTON_BITS = 21
 
 
 def point_mesh(points: np.ndarray, positions: np.ndarray, faces: np.ndarray):
-    """libigl closest points: (squared distance, face id, closest point)."""
+    """libigl closest points: (squared distance, face id, closest point); for large meshes the
+    compiled hierarchy's (``lopcook.simplify.kernels``: the same distances)."""
+    if jit.use(int(np.shape(faces)[0])):
+        from . import kernels  # compiled kernels (numba): loaded only for large meshes
+        return kernels.Tree(positions, faces).closest(points)
     import igl  # libigl (native) and scipy (below) load when LOD 0 is first queried
 
     d, i, c = igl.point_mesh_squared_distance(np.ascontiguousarray(points, dtype=np.float64),
@@ -154,6 +161,7 @@ class Reference:
         self._sample_vertices = None
         self._sample_order = None
         self._tree = None
+        self._kernel_tree = None
         self._chunks = None
         self._near = None
         self._defects = None
@@ -168,8 +176,30 @@ class Reference:
             self._region = components(self.faces.shape[0], self.faces, self.part.n_vertices)
         return self._region
 
+    @property
+    def kernel(self) -> bool:
+        """Whether the queries go to the compiled hierarchy (``tree``; ``lopcook.jit.use``)."""
+        return jit.use(int(self.faces.shape[0]))
+
+    @property
+    def tree(self):
+        """The compiled hierarchy over LOD 0's faces (``lopcook.simplify.kernels.Tree``), built once."""
+        if self._kernel_tree is None:
+            from . import kernels  # compiled kernels (numba): loaded only for large meshes
+            self._kernel_tree = kernels.Tree(self.positions, self.faces)
+        return self._kernel_tree
+
+    def _bounded(self, points: np.ndarray, bound2: np.ndarray, closest: bool = True):
+        """The hierarchy's answer within ``bound2``; ValueError where a bound is below the distance."""
+        d, f, c = self.tree.closest(points, bound2, point=closest)
+        if (f < 0).any():
+            raise ValueError("query_bounded: a bound below the distance to LOD 0")
+        return d, f, c
+
     def query(self, points: np.ndarray):
         """Closest points on LOD 0 (libigl AABB tree built once): (squared distance, face, point)."""
+        if self.kernel:
+            return self.tree.closest(points)
         import igl  # libigl (native) loads when LOD 0 is first queried
 
         if self._tree is None:
@@ -188,7 +218,7 @@ class Reference:
         (``query_near`` for at most one point per ``NEAR_POINTS_PER_FACE`` faces) gives the exact
         closest distance and point (the face may differ where several are equally close). At most
         ``CHUNK_FACES`` faces: ``query``."""
-        if self.faces.shape[0] <= CHUNK_FACES:
+        if self.faces.shape[0] <= CHUNK_FACES or self.kernel:
             return self.query(points)
         pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0:
@@ -216,7 +246,10 @@ class Reference:
         ``PARALLEL_POINTS`` points, a forked child sweeps the first half of the chunks while this
         process sweeps the second (starting from ``bound2``, a superset of what the serial sweep
         searches); the sweep is then replayed in chunk order with the serial rule on those
-        results, so the answer is the serial one, bit for bit."""
+        results, so the answer is the serial one, bit for bit. With the compiled hierarchy
+        (``kernel``): its answer within the bounds."""
+        if self.kernel:
+            return self._bounded(points, bound2, closest)
         if self.faces.shape[0] <= CHUNK_FACES:
             return self.query(points)
         pts = np.ascontiguousarray(points, dtype=np.float64)
@@ -299,10 +332,13 @@ class Reference:
         is the exact closest one. Where the points' faces are more than ``CHUNK_FACES``, the points
         are split in two at the median of their longest axis, again until each group's faces are
         at most ``CHUNK_FACES`` (one tree per group); a single point with more faces than that is
-        queried with ``query_bounded``."""
+        queried with ``query_bounded``. With the compiled hierarchy (``kernel``): its answer within
+        the bounds."""
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if self.kernel and pts.shape[0]:
+            return self._bounded(pts, bound2)
         import igl  # libigl (native) loads when LOD 0 is first queried
 
-        pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.shape[0] == 0 or self.faces.shape[0] <= CHUNK_FACES:
             return self.query_bounded(pts, bound2)
         bound2 = np.asarray(bound2, dtype=np.float64)
@@ -368,8 +404,11 @@ class Reference:
         """Build now the search structures a LOD's transfer will use (the chunks and
         ``near_index``, above ``CHUNK_FACES`` faces): the chain calls this while a backend runs in
         its child process, when this process would only wait. (``sample_order`` is left to the
-        measurement after the transfer: built here it would add its arrays to the transfer's peak.)"""
-        if self.faces.shape[0] > CHUNK_FACES:
+        measurement after the transfer: built here it would add its arrays to the transfer's peak.)
+        With the compiled hierarchy: that hierarchy."""
+        if self.kernel:
+            _ = self.tree
+        elif self.faces.shape[0] > CHUNK_FACES:
             _ = self.chunks, self.near_index
 
     @property

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import jit
 from ..mesh import (components, degenerate_mask, edge_groups, fan_successors, graph_components, next_corner,
                     single_fans, sorted_unique, unique_rows, weld_exact, weld_labels)
 from ..types import MeshPart
@@ -38,11 +39,14 @@ class SeamStats:
 def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndarray | None = None) -> dict:
     """Counts on the position-welded mesh: ``degenerate_faces``, ``boundary_edges``,
     ``nonmanifold_edges`` (more than two faces), ``nonmanifold_vertices`` (bow-ties: faces around
-    the vertex form more than one edge-connected fan) and ``closed`` (every edge has two faces)."""
+    the vertex form more than one edge-connected fan) and ``closed`` (every edge has two faces).
+    Large meshes (``lopcook.jit.use``): the same counts from ``kernels.defect_counts``."""
     faces = np.asarray(indices)
-    w, n = weld_labels(positions, np.int64)  # the counts below do not depend on the numbering
     if degenerate is None:
         degenerate = degenerate_mask(positions, faces.astype(np.int64))
+    if jit.use(int(faces.shape[0])):
+        return _defects_kernel(positions, faces, degenerate)
+    w, n = weld_labels(positions, np.int64)  # the counts below do not depend on the numbering
     # int32 ids where they fit: this runs on every LOD input (memory: ~60 bytes per triangle)
     cid = np.int32 if max(3 * faces.shape[0], n) < (1 << 31) - 1 else np.int64
     good = w.astype(cid)[faces[~degenerate]]
@@ -103,6 +107,19 @@ def mesh_defects(positions: np.ndarray, indices: np.ndarray, degenerate: np.ndar
         "nonmanifold_vertices": bowties,
         "closed": bool((sizes == 2).all()),
     }
+
+
+def _defects_kernel(positions: np.ndarray, faces: np.ndarray, degenerate: np.ndarray) -> dict:
+    """``mesh_defects`` through the compiled kernels (``lopcook.simplify.kernels``)."""
+    from . import kernels  # compiled kernels (numba): loaded only for large meshes
+
+    bits = (np.ascontiguousarray(positions, dtype=np.float64) + 0.0).view(np.int64)  # -0.0 -> 0.0
+    w, nw = kernels.weld_first(bits)
+    del bits
+    one, many, bowties, two, edges = kernels.defect_counts(w, nw, np.ascontiguousarray(faces), np.asarray(degenerate))
+    return {"degenerate_faces": int(np.count_nonzero(degenerate)), "boundary_edges": int(one),
+            "nonmanifold_edges": int(many), "nonmanifold_vertices": int(bowties),
+            "closed": bool(edges > 0 and two == edges)}
 
 
 def seam_stats(part: MeshPart) -> SeamStats | None:
