@@ -718,7 +718,12 @@ class _Loader:
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("tangents")
         if not (pv and pv.HasAuthoredValue()):
             return None, False
-        width = 4 if "4" in pv.GetTypeName().scalarType.type.pythonClass.__name__ else 3  # Vec4f, Vec4d, Vec4h
+        kind = str(pv.GetTypeName())
+        width = _TANGENT_TYPES.get(kind)
+        if width is None:
+            self.warnings.append(f"{geom['where']}: primvars:tangents has type {_one_line(kind, self.path)}, not "
+                                 "float3[] or float4[]; ignored")
+            return None, False
         values, vary = self.corner_values(pv, "primvars:tangents", width, **geom)
         if values is None:
             return None, False
@@ -868,6 +873,11 @@ def _package_outer(path: str) -> str:
 def _layer_file(layer) -> str:
     """The file a (non-anonymous) layer was read from; the .usdz file for a layer in a package."""
     return _package_outer(layer.realPath) if layer.realPath else ""
+
+
+#: the value types a ``primvars:tangents`` is read from, and their components
+_TANGENT_TYPES = {f"{t}{k}[]": k for t in ("float", "double", "half") for k in (3, 4)} | {
+    f"{t}3{p}[]": 3 for t in ("vector", "normal") for p in ("f", "d", "h")}
 
 
 def _bits64(values: np.ndarray) -> np.ndarray:

@@ -160,3 +160,11 @@ def test_a_usd_tangents_primvar_without_normals_is_dropped_with_a_warning(tmp_pa
     scene = load(str(path))
     assert all("tangents" not in p.attributes or p.attributes["tangents"] is None for p in scene.parts)
     assert sum("tangents without normals" in w for w in scene.warnings) == 2
+
+
+def test_a_usd_tangents_primvar_of_another_type_is_ignored_with_a_warning(tmp_path):
+    path = tmp_path / "t.usda"
+    _usda(path, "token[]", '"a", "b", "c", "d"')
+    scene = load(str(path))
+    assert all(p.attributes.get("tangents") is None for p in scene.parts)
+    assert sum("primvars:tangents has type token[]" in w for w in scene.warnings) == 2
