@@ -87,15 +87,19 @@ def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=STRE
                        variants=("cap",), image_view=view)
         assert res["levels"][0]["camera_distance_m"] == pytest.approx(cam.box_distance, rel=1e-9)
         cap[key] = res["images"]["cap"]
+    served = root / "lop"  # the streamed containers under their names (the cook cache names its files its own way)
+    served.mkdir(exist_ok=True)
     for name, src in streams:
-        lop = cooked["stanford-bunny"].parent / f"{name}.lop"
+        lop = served / f"{name}.lop"
         if name.endswith("-stream"):
             lop.write_bytes(streamed(read(str(cooked[name[:-len("-stream")]]))).data)
+        else:
+            shutil.copy(cooked[name], lop)
         job, _ = _camera_job(read(str(lop)), api.load(corpus / src), 9, 3)
         jobs["streams"].append({"name": name, "lop": f"/lop/{name}.lop", "chunks": 20, **job})
     (root / "jobs.json").write_text(json.dumps(jobs))
     got = run_page(PAGE, {"/runtime/js/": REPO / "runtime/js", "/tests/": HERE, "/web/": root,
-                          "/lop/": cooked["stanford-bunny"].parent, "/jobs.json": root / "jobs.json",
+                          "/lop/": served, "/jobs.json": root / "jobs.json",
                           "/node_modules/": NODE_MODULES}, timeout=900, size=(SIZE, SIZE))
     _save(root / "images", got["_posts"], cap)
     assert not [m for m in got["console"] if m.startswith("error")], got["console"]
@@ -104,7 +108,7 @@ def render(cooked: dict, corpus: Path, root: Path, renders=RENDERS, streams=STRE
 
 
 @pytest.fixture(scope="module")
-def renders(cooked, corpus, tmp_path_factory):
+def renders(corpus_containers, corpus, tmp_path_factory):
     """The page's results and images, the harness's CAP image and the metrics of each render job."""
     try:
         locate(three=True)
@@ -113,7 +117,7 @@ def renders(cooked, corpus, tmp_path_factory):
     from lopcook.verify import gpu
 
     rs.require(gpu.gl_available())
-    return render(cooked, corpus, tmp_path_factory.mktemp("web"))
+    return render(corpus_containers, corpus, tmp_path_factory.mktemp("web"))
 
 
 def _save(folder: Path, posts: dict, cap: dict) -> None:

@@ -71,7 +71,10 @@ def test_cli_web(helmet, tmp_path, capsys):
 
 
 def test_web_without_source_warns_and_has_no_materials(helmet, tmp_path, capsys):
-    lop, _ = helmet
+    """Moved where neither its recorded source path nor its folder leads to the source."""
+    lop = tmp_path / "moved" / "deeper" / "helmet.lop"
+    lop.parent.mkdir(parents=True)
+    shutil.move(helmet[0], lop)
     assert main(["web", str(lop), "-o", str(tmp_path / "g.gltf")]) == 0
     assert "no materials" in capsys.readouterr().err
     doc = json.loads((tmp_path / "g.gltf").read_text())

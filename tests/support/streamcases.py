@@ -21,9 +21,6 @@ from __future__ import annotations
 import functools
 import json
 import struct
-import subprocess
-import sys
-import tempfile
 import zlib
 from pathlib import Path
 
@@ -75,14 +72,12 @@ def wedges() -> Scene:
 
 
 def _cook(fixture: str, flags: tuple) -> bytes:
-    if fixture == "wedges":
-        settings = settings_from_args(build_parser().parse_args(["cook", "wedges.glb", "-o", "out.lop", *flags]))
-        return api.cook(wedges(), settings).data
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out.lop"
-        subprocess.run([sys.executable, "-m", "lopcook", "cook", str(FIXTURES / fixture), "-o", str(out), "-q",
-                        *flags], check=True, timeout=600)
-        return out.read_bytes()
+    """The bytes ``lopcook cook FIXTURE FLAGS`` writes, less ``source.path``: cooked through the API
+    with the CLI's settings and no output path, so the bytes do not depend on where the
+    repository lies (``source.path`` is relative to the output's folder)."""
+    settings = settings_from_args(build_parser().parse_args(["cook", f"{fixture}.glb", "-o", "out.lop", *flags]))
+    scene = wedges() if fixture == "wedges" else api.load(str(FIXTURES / fixture), settings)
+    return api.cook(scene, settings).data
 
 
 @functools.lru_cache(maxsize=None)
